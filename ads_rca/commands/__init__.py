@@ -1,0 +1,10 @@
+"""Subcommands of ``ads-rca``: each module has ``register(subparsers)`` setting ``run``."""
+
+from __future__ import annotations
+
+from types import ModuleType
+
+from ads_rca.commands import inspect_cmd
+
+#: In the order ``ads-rca --help`` lists them.
+COMMANDS: tuple[ModuleType, ...] = (inspect_cmd,)

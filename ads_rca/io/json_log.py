@@ -1,0 +1,266 @@
+"""Reader for ADS running-log folders (the seed format), with the reference tool's rules.
+
+Reading rules (rca-semantics.md, "Reading a log folder"): every ``*.json`` file of a folder
+is read whatever its prefix (dot-files and other extensions ignored); its timestamp is the
+decimal integer between the last ``-`` of its name and the next ``.``; when two files of a
+folder map to one timestamp, the one listed last by ``os.listdir`` wins; the analysed frames
+are one per ``actors/`` file, ascending, duplicates kept.
+
+Nothing here raises on bad data: a missing folder, an unreadable or invalid JSON file, a
+file name without a timestamp, a wrong value... each becomes a Problem and the rest of the
+log still loads. Only a path that is not a log folder at all raises InputError.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+import os
+from collections.abc import Callable, Iterable
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import orjson
+
+from ads_rca.errors import InputError
+from ads_rca.io.records import parse_actors, parse_boxes, parse_plan, parse_pose, parse_predictions
+from ads_rca.io.validate import validate_run_log
+from ads_rca.model import FOLDERS, RunLog, RunMetadata
+from ads_rca.problems import IGNORED, SKIPPED_FILE, USED_DEFAULT, ProblemLog
+
+DEFAULT_TPF_MS = 50
+
+Parser = Callable[[Any, str, ProblemLog, int], Any]
+PARSERS: dict[str, Parser] = {
+    "pose": parse_pose,
+    "actors": parse_actors,
+    "bboxes": parse_boxes,
+    "bboxes_gt": parse_boxes,
+    "predictions": parse_predictions,
+    "predictions_with_perception": parse_predictions,
+    "waypoint": parse_plan,
+}
+
+
+def timestamp_of(file_name: str) -> int | None:
+    """Milliseconds encoded in a log file name, or None when it has none.
+
+    The text between the last ``-`` and the next ``.``: ``actors-050.json`` is 50,
+    ``actors-3800.bak.json`` is 3800, ``actors.json`` has none.
+    """
+    _head, dash, tail = file_name.rpartition("-")
+    if not dash:
+        return None
+    text = tail.split(".", 1)[0]
+    if not text.isascii() or not text.isdigit():
+        return None
+    return int(text)
+
+
+def is_log_file(file_name: str) -> bool:
+    return file_name.endswith(".json") and not file_name.startswith(".")
+
+
+def decode_json(data: bytes) -> Any:
+    """Strict JSON first (fast); Python's json for the NaN/Infinity literals it also accepts."""
+    try:
+        return orjson.loads(data)
+    except orjson.JSONDecodeError:
+        return json.loads(data)
+
+
+def read_run_log(path: str | os.PathLike[str], *, threads: int = 4) -> RunLog:
+    """Load a running-log folder. Raises InputError only when ``path`` is no log folder."""
+    root = Path(path)
+    if not root.exists():
+        raise InputError(f"{root}: no such log folder")
+    if not root.is_dir():
+        raise InputError(f"{root}: not a folder (a running log is a folder of JSON files)")
+    problems = ProblemLog()
+    listings = {folder: _list_folder(root, folder, problems) for folder in FOLDERS}
+    if not (root / "metadata.json").exists() and not listings["actors"]:
+        raise InputError(f"{root}: not an ADS running log (no metadata.json, no actors/ files)")
+
+    records: dict[str, dict[int, Any]] = {}
+    files: dict[str, dict[int, str]] = {}
+    with ThreadPoolExecutor(max_workers=max(1, threads)) as pool:
+        for folder in FOLDERS:
+            records[folder], files[folder] = _read_folder(
+                root, folder, listings[folder], problems, pool
+            )
+    actors_listing = [ts for ts, _ in listings["actors"]]
+    metadata = read_metadata(root / "metadata.json", actors_listing, problems)
+    log = RunLog(
+        metadata=metadata,
+        frames=tuple(sorted(actors_listing)),
+        pose=records["pose"],
+        actors=records["actors"],
+        bboxes=records["bboxes"],
+        bboxes_gt=records["bboxes_gt"],
+        predictions=records["predictions"],
+        predictions_with_perception=records["predictions_with_perception"],
+        waypoints=records["waypoint"],
+        problems=problems,
+        source=str(root),
+        files=files,
+    )
+    validate_run_log(log, listings, missing_folders=[f for f in FOLDERS if not (root / f).is_dir()])
+    return log
+
+
+def _list_folder(root: Path, folder: str, problems: ProblemLog) -> list[tuple[int, str]]:
+    """(timestamp, file name) of each log file, in directory-listing order."""
+    directory = root / folder
+    if not directory.is_dir():
+        problems.add(f"{folder}/", "", "folder missing", "checks that need it are skipped")
+        return []
+    try:
+        names = os.listdir(directory)
+    except OSError as error:
+        problems.add(f"{folder}/", "", f"cannot list: {error.strerror}", SKIPPED_FILE)
+        return []
+    listing: list[tuple[int, str]] = []
+    for name in names:
+        if not is_log_file(name):
+            continue
+        ts = timestamp_of(name)
+        if ts is None:
+            problems.add(
+                f"{folder}/{name}", "file name", "no timestamp after the last '-'", IGNORED
+            )
+            continue
+        listing.append((ts, name))
+    return listing
+
+
+def _read_folder(
+    root: Path,
+    folder: str,
+    listing: list[tuple[int, str]],
+    problems: ProblemLog,
+    pool: ThreadPoolExecutor,
+) -> tuple[dict[int, Any], dict[int, str]]:
+    """Parse every file; for a repeated timestamp the last file in listing order wins."""
+    parse = PARSERS[folder]
+    directory = root / folder
+    # Only the winning file of each timestamp is read (the others are reported by validate).
+    winners = {ts: name for ts, name in listing}
+    raw = pool.map(_read_bytes, (directory / name for name in winners.values()))
+    records: dict[int, Any] = {}
+    for (ts, name), data in zip(winners.items(), raw, strict=True):
+        file = f"{folder}/{name}"
+        document = _decode(data, file, problems, ts)
+        if document is _UNUSABLE:
+            continue
+        record = parse(document, file, problems, ts)
+        if record is not None:
+            records[ts] = record
+    return dict(sorted(records.items())), winners
+
+
+_UNUSABLE = object()
+
+
+def _read_bytes(path: Path) -> bytes | OSError:
+    try:
+        return path.read_bytes()
+    except OSError as error:
+        return error
+
+
+def _decode(data: bytes | OSError, file: str, problems: ProblemLog, ts: int | None) -> Any:
+    if isinstance(data, OSError):
+        problems.add(file, "", f"cannot read: {data.strerror}", SKIPPED_FILE, timestamp_ms=ts)
+        return _UNUSABLE
+    if not data.strip():
+        problems.add(file, "", "empty file", SKIPPED_FILE, timestamp_ms=ts)
+        return _UNUSABLE
+    try:
+        return decode_json(data)
+    except (ValueError, UnicodeDecodeError) as error:
+        detail = str(error).splitlines()[0]
+        issue = f"invalid JSON ({detail})"
+        problems.add(file, "", issue, SKIPPED_FILE, timestamp_ms=ts)
+        return _UNUSABLE
+
+
+def read_metadata(
+    path: Path, actors_timestamps: Iterable[int], problems: ProblemLog
+) -> RunMetadata:
+    """``metadata.json``; every missing or bad field gets a reported default.
+
+    Defaults: the frame period is inferred from the actors timestamps (their most common
+    step, else 50 ms), camera at the origin, no collision, and as many frames as the last
+    actors timestamp covers.
+    """
+    file = "metadata.json"
+    timestamps = sorted(set(actors_timestamps))
+    document: Any = {}
+    data = _read_bytes(path) if path.exists() else None
+    if data is None:
+        problems.add(file, "", "missing", USED_DEFAULT)
+    else:
+        decoded = _decode(data, file, problems, None)
+        if decoded is not _UNUSABLE:
+            document = decoded
+    if not isinstance(document, dict):
+        problems.add(file, "", "expected an object", USED_DEFAULT)
+        document = {}
+
+    def field(name: str, value: Any, default: float, integral: bool) -> float:
+        if value is None:
+            if data is not None:
+                problems.add(file, name, "missing", f"{USED_DEFAULT}: {default:g}")
+            return default
+        try:
+            number = float(value)
+        except (TypeError, ValueError):
+            problems.add(file, name, f"{value!r} is not a number", f"{USED_DEFAULT}: {default:g}")
+            return default
+        if not math.isfinite(number) or (integral and not number.is_integer()):
+            problems.add(file, name, f"{value!r} is not an integer", f"{USED_DEFAULT}: {default:g}")
+            return default
+        return number
+
+    tpf = int(
+        field(
+            "timesteps_per_frame", document.get("timesteps_per_frame"), _infer_tpf(timestamps), True
+        )
+    )
+    if tpf <= 0:
+        problems.add(file, "timesteps_per_frame", f"{tpf} is not positive", USED_DEFAULT)
+        tpf = _infer_tpf(timestamps)
+    camera_loc = _camera_loc(document, file, problems)
+    collision = int(field("collision_frame", document.get("collision_frame"), -1, True))
+    last_frame = (timestamps[-1] // tpf) if timestamps else 0
+    total = int(field("total_frames", document.get("total_frames"), last_frame, True))
+    return RunMetadata(tpf, camera_loc, collision, total, raw=document)
+
+
+def _camera_loc(
+    document: dict[str, Any], file: str, problems: ProblemLog
+) -> tuple[float, float, float]:
+    name = "ego_config.camera.camera_loc"
+    value: Any = document
+    for key in ("ego_config", "camera", "camera_loc"):
+        value = value.get(key) if isinstance(value, dict) else None
+    try:
+        x, y, z = (float(v) for v in value)
+        if all(math.isfinite(v) for v in (x, y, z)):
+            return (x, y, z)
+    except (TypeError, ValueError):
+        pass
+    if document:
+        problems.add(
+            file, name, f"{value!r} is not [x, y, z] in metres", f"{USED_DEFAULT}: [0, 0, 0]"
+        )
+    return (0.0, 0.0, 0.0)
+
+
+def _infer_tpf(timestamps: list[int]) -> int:
+    steps = [b - a for a, b in itertools.pairwise(timestamps) if b > a]
+    if not steps:
+        return DEFAULT_TPF_MS
+    return max(set(steps), key=steps.count)

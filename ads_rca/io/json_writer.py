@@ -1,0 +1,122 @@
+"""Writes a :class:`~ads_rca.model.RunLog` as an ADS running-log folder (the seed format).
+
+Used by the scenario synthesiser and by ``ads-rca convert``. Output re-reads to the same
+model: pose values are written as strings with the shortest round-tripping float repr,
+numbers as JSON numbers, non-finite values as ``NaN``/``Infinity`` literals (as Python's
+json module writes them, and as the reference reads them).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import orjson
+
+from ads_rca.model import FILE_PREFIX, FOLDERS, Actors, Boxes, EgoPose, Plan, Predictions, RunLog
+
+
+def write_run_log(log: RunLog, out_dir: str | os.PathLike[str]) -> Path:
+    """Write every folder of ``log`` under ``out_dir`` (created); return the folder path."""
+    root = Path(out_dir)
+    root.mkdir(parents=True, exist_ok=True)
+    _dump(root / "metadata.json", log.metadata.to_dict())
+    encoders: dict[str, Callable[[Any, int], Any]] = {
+        "pose": pose_document,
+        "actors": lambda record, _ts: actors_document(record),
+        "bboxes": lambda record, _ts: boxes_document(record),
+        "bboxes_gt": lambda record, _ts: boxes_document(record),
+        "predictions": lambda record, _ts: predictions_document(record),
+        "predictions_with_perception": lambda record, _ts: predictions_document(record),
+        "waypoint": lambda record, _ts: plan_document(record),
+    }
+    for folder in FOLDERS:
+        directory = root / folder
+        directory.mkdir(exist_ok=True)
+        prefix = FILE_PREFIX[folder]
+        for ts, record in log.folder(folder).items():
+            _dump(directory / f"{prefix}-{ts}.json", encoders[folder](record, ts))
+    return root
+
+
+def pose_document(pose: EgoPose, timestamp_ms: int) -> dict[str, str]:
+    """The seed's pose file: every value a string."""
+    return {
+        "x": repr(pose.x),
+        "y": repr(pose.y),
+        "z": repr(pose.z),
+        "pitch": repr(pose.pitch),
+        "yaw": repr(pose.yaw),
+        "roll": repr(pose.roll),
+        "timestamp": str(timestamp_ms),
+        "speed": repr(pose.speed),
+    }
+
+
+def actors_document(actors: Actors) -> dict[str, Any]:
+    loc, rot, ext = actors.location.tolist(), actors.rotation.tolist(), actors.extent.tolist()
+    return {
+        actor_id: {
+            "extent": {"x": e[0], "y": e[1], "z": e[2]},
+            "location": {"x": p[0], "y": p[1], "z": p[2]},
+            "rotation": {"pitch": r[1], "roll": r[0], "yaw": r[2]},
+        }
+        for actor_id, p, r, e in zip(actors.ids, loc, rot, ext, strict=True)
+    }
+
+
+def boxes_document(boxes: Boxes) -> list[dict[str, Any]]:
+    return [
+        {
+            "id": json_id(box_id),
+            "bounding_box": [[c[0], c[1]], [c[2], c[3]]],
+            **extras,
+        }
+        for box_id, c, extras in zip(boxes.ids, boxes.corners.tolist(), boxes.extras, strict=True)
+    ]
+
+
+def predictions_document(predictions: Predictions) -> dict[str, Any]:
+    return {
+        obstacle_id: {
+            key: {"x": o[0], "y": o[1], "z": o[2]}
+            for key, o in zip(track.keys, track.offsets.tolist(), strict=True)
+        }
+        for obstacle_id, track in predictions.items()
+    }
+
+
+def plan_document(plan: Plan) -> dict[str, Any]:
+    return {
+        key: {"x": p[0], "y": p[1], "speed": s}
+        for key, p, s in zip(plan.keys, plan.xy.tolist(), plan.speed.tolist(), strict=True)
+    }
+
+
+def json_id(box_id: str) -> int | str:
+    """Box ids are written as JSON integers when they are canonical integers (as the seed)."""
+    if box_id.isdigit() and str(int(box_id)) == box_id:
+        return int(box_id)
+    return box_id
+
+
+def _dump(path: Path, document: Any) -> None:
+    if _all_finite(document):
+        path.write_bytes(orjson.dumps(document, option=orjson.OPT_INDENT_2))
+    else:  # orjson writes NaN as null; json writes the NaN literal the reader expects
+        path.write_text(json.dumps(document, indent=2))
+
+
+def _all_finite(document: Any) -> bool:
+    """True when no float in the document is NaN or infinite."""
+    if isinstance(document, float):
+        return bool(np.isfinite(document))
+    if isinstance(document, Mapping):
+        return all(_all_finite(v) for v in document.values())
+    if isinstance(document, list):
+        return all(_all_finite(v) for v in document)
+    return True

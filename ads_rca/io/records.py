@@ -1,0 +1,290 @@
+"""Parsing one decoded JSON document of each folder into a model record.
+
+Every function takes the decoded document, the file's name (for problem reports) and the
+:class:`~ads_rca.problems.ProblemLog`, and returns the record or None (file unusable).
+Each tries a fast path that converts a whole file with numpy in one go; only when that
+fails (a missing key, a string that is not a number, NaN) does it walk the document value
+by value to say exactly which field was wrong.
+
+Rules (the same for every folder): a number may be given as a string (pose values always
+are); a value that is not a number, or is missing, is read as NaN and reported, so the
+checks that use it pass; a record without the structure it needs (a box without an id or
+without exactly two points, an actor without a location) is dropped and reported.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from ads_rca.model import Actors, Boxes, EgoPose, Plan, Predictions, Track
+from ads_rca.problems import DROPPED_RECORD, KEPT_VALUE, SKIPPED_FILE, USED_DEFAULT, ProblemLog
+
+POSE_FIELDS = ("x", "y", "z", "roll", "pitch", "yaw", "speed")
+_NUMERIC_KINDS = "fiub"
+
+
+class _Reader:
+    """Reads numbers out of one file, reporting each bad value once with its field path."""
+
+    def __init__(self, file: str, problems: ProblemLog, timestamp_ms: int) -> None:
+        self.file = file
+        self.problems = problems
+        self.timestamp_ms = timestamp_ms
+
+    def report(self, field: str, issue: str, action: str, severity: str = "error") -> None:
+        self.problems.add(
+            self.file,
+            field,
+            issue,
+            action,
+            "warning" if severity == "warning" else "error",
+            self.timestamp_ms,
+        )
+
+    def number(self, container: Any, key: str, field: str, default: float = math.nan) -> float:
+        """``container[key]`` as a float; NaN (or ``default``) and a report when unusable."""
+        if not isinstance(container, Mapping) or key not in container:
+            action = USED_DEFAULT if not math.isnan(default) else "read as NaN"
+            self.report(field, "missing", action, "warning")
+            return default
+        value = container[key]
+        try:
+            number = float(value)
+        except (TypeError, ValueError):
+            self.report(field, f"{_show(value)} is not a number", "read as NaN")
+            return math.nan
+        if not math.isfinite(number):
+            self.report(field, f"{_show(value)} is not finite", KEPT_VALUE, "warning")
+        return number
+
+
+def parse_pose(document: Any, file: str, problems: ProblemLog, ts: int) -> EgoPose | None:
+    reader = _Reader(file, problems, ts)
+    if not isinstance(document, Mapping):
+        reader.report("", f"expected an object, found {_type(document)}", SKIPPED_FILE)
+        return None
+    values = [reader.number(document, name, name) for name in POSE_FIELDS]
+    return EgoPose(*values)
+
+
+def parse_actors(document: Any, file: str, problems: ProblemLog, ts: int) -> Actors | None:
+    reader = _Reader(file, problems, ts)
+    if not isinstance(document, Mapping):
+        reader.report("", f"expected an object, found {_type(document)}", SKIPPED_FILE)
+        return None
+    fast = _actors_fast(document)
+    if fast is not None:
+        return fast
+    ids: list[str] = []
+    rows: list[list[float]] = []
+    for actor_id, actor in document.items():
+        where = f"{actor_id}"
+        if not isinstance(actor, Mapping):
+            reader.report(where, f"expected an object, found {_type(actor)}", DROPPED_RECORD)
+            continue
+        location = actor.get("location")
+        if not isinstance(location, Mapping) or "x" not in location or "y" not in location:
+            reader.report(f"{where}.location", "missing", DROPPED_RECORD)
+            continue
+        loc = [
+            reader.number(location, "x", f"{where}.location.x"),
+            reader.number(location, "y", f"{where}.location.y"),
+            reader.number(location, "z", f"{where}.location.z", 0.0),
+        ]
+        rotation = actor.get("rotation")
+        if rotation is None:
+            reader.report(f"{where}.rotation", "missing", "read as 0", "warning")
+            rot = [0.0, 0.0, 0.0]
+        else:
+            rot = [
+                reader.number(rotation, axis, f"{where}.rotation.{axis}", 0.0)
+                for axis in ("roll", "pitch", "yaw")
+            ]
+        extent = actor.get("extent")
+        # A missing extent is only a problem where the actor first appears (checked later).
+        ext = (
+            [reader.number(extent, a, f"{where}.extent.{a}") for a in ("x", "y", "z")]
+            if extent is not None
+            else [math.nan] * 3
+        )
+        ids.append(str(actor_id))
+        rows.append(loc + rot + ext)
+    table = np.array(rows, dtype=np.float64).reshape(-1, 9)
+    return Actors(tuple(ids), table[:, 0:3].copy(), table[:, 3:6].copy(), table[:, 6:9].copy())
+
+
+def _actors_fast(document: Mapping[str, Any]) -> Actors | None:
+    """Whole-file conversion when every actor is complete and numeric, else None."""
+    try:
+        actors = list(document.values())
+        table = np.array(
+            [
+                (
+                    a["location"]["x"],
+                    a["location"]["y"],
+                    a["location"]["z"],
+                    a["rotation"]["roll"],
+                    a["rotation"]["pitch"],
+                    a["rotation"]["yaw"],
+                    a["extent"]["x"],
+                    a["extent"]["y"],
+                    a["extent"]["z"],
+                )
+                for a in actors
+            ]
+        )
+    except (KeyError, TypeError, ValueError, AttributeError):
+        return None
+    if not _clean(table, 9):
+        return None
+    table = table.astype(np.float64).reshape(-1, 9)
+    ids = tuple(str(k) for k in document)
+    return Actors(ids, table[:, 0:3].copy(), table[:, 3:6].copy(), table[:, 6:9].copy())
+
+
+def parse_boxes(document: Any, file: str, problems: ProblemLog, ts: int) -> Boxes | None:
+    reader = _Reader(file, problems, ts)
+    if not isinstance(document, list):
+        reader.report("", f"expected a list of boxes, found {_type(document)}", SKIPPED_FILE)
+        return None
+    fast = _boxes_fast(document)
+    if fast is not None:
+        return fast
+    ids: list[str] = []
+    corners: list[list[float]] = []
+    extras: list[Mapping[str, Any]] = []
+    for position, box in enumerate(document):
+        where = f"[{position}]"
+        if not isinstance(box, Mapping):
+            reader.report(where, f"expected an object, found {_type(box)}", DROPPED_RECORD)
+            continue
+        if "id" not in box or box["id"] is None:
+            reader.report(f"{where}.id", "missing", DROPPED_RECORD)
+            continue
+        points = box.get("bounding_box")
+        if not isinstance(points, list) or len(points) != 2:
+            reader.report(f"{where}.bounding_box", "needs exactly two points", DROPPED_RECORD)
+            continue
+        if not all(isinstance(p, list) and len(p) == 2 for p in points):
+            reader.report(f"{where}.bounding_box", "a point is not [x, y]", DROPPED_RECORD)
+            continue
+        coords = [
+            reader.number(points[i], j, f"{where}.bounding_box[{i}][{j}]")  # type: ignore[arg-type]
+            for i in (0, 1)
+            for j in (0, 1)
+        ]
+        ids.append(_box_id(box["id"]))
+        corners.append(coords)
+        extras.append({k: v for k, v in box.items() if k not in ("id", "bounding_box")})
+    array = np.array(corners, dtype=np.float64).reshape(-1, 4)
+    return Boxes(tuple(ids), array, tuple(extras))
+
+
+def _boxes_fast(document: list[Any]) -> Boxes | None:
+    try:
+        array = np.array([box["bounding_box"] for box in document])
+        raw_ids = [box["id"] for box in document]
+        extras = tuple(
+            {k: v for k, v in box.items() if k not in ("id", "bounding_box")} for box in document
+        )
+    except (KeyError, TypeError, ValueError, AttributeError):
+        return None
+    if document and array.shape != (len(document), 2, 2):
+        return None
+    if not _clean(array, 4) or None in raw_ids:
+        return None
+    return Boxes(
+        tuple(_box_id(i) for i in raw_ids), array.astype(np.float64).reshape(-1, 4), extras
+    )
+
+
+def parse_predictions(
+    document: Any, file: str, problems: ProblemLog, ts: int
+) -> Predictions | None:
+    reader = _Reader(file, problems, ts)
+    if not isinstance(document, Mapping):
+        reader.report("", f"expected an object, found {_type(document)}", SKIPPED_FILE)
+        return None
+    out: Predictions = {}
+    for obstacle_id, steps in document.items():
+        if not isinstance(steps, Mapping):
+            reader.report(
+                f"{obstacle_id}", f"expected an object, found {_type(steps)}", DROPPED_RECORD
+            )
+            continue
+        out[str(obstacle_id)] = _track(steps, f"{obstacle_id}", reader)
+    return out
+
+
+def _track(steps: Mapping[str, Any], where: str, reader: _Reader) -> Track:
+    keys = tuple(str(k) for k in steps)
+    try:
+        offsets = np.array([(s["x"], s["y"], s["z"]) for s in steps.values()])
+        if _clean(offsets, 3):
+            return Track(keys, offsets.astype(np.float64).reshape(-1, 3))
+    except (KeyError, TypeError, ValueError, AttributeError):
+        pass
+    rows = [
+        [
+            reader.number(step, "x", f"{where}.{key}.x"),
+            reader.number(step, "y", f"{where}.{key}.y"),
+            reader.number(step, "z", f"{where}.{key}.z", 0.0),
+        ]
+        for key, step in steps.items()
+    ]
+    return Track(keys, np.array(rows, dtype=np.float64).reshape(-1, 3))
+
+
+def parse_plan(document: Any, file: str, problems: ProblemLog, ts: int) -> Plan | None:
+    reader = _Reader(file, problems, ts)
+    if not isinstance(document, Mapping):
+        reader.report("", f"expected an object, found {_type(document)}", SKIPPED_FILE)
+        return None
+    keys = tuple(str(k) for k in document)
+    try:
+        table = np.array([(p["x"], p["y"], p["speed"]) for p in document.values()])
+        if _clean(table, 3):
+            table = table.astype(np.float64).reshape(-1, 3)
+            return Plan(keys, table[:, :2].copy(), table[:, 2].copy())
+    except (KeyError, TypeError, ValueError, AttributeError):
+        pass
+    rows = [
+        [
+            reader.number(point, "x", f"{key}.x"),
+            reader.number(point, "y", f"{key}.y"),
+            reader.number(point, "speed", f"{key}.speed"),
+        ]
+        for key, point in document.items()
+    ]
+    table = np.array(rows, dtype=np.float64).reshape(-1, 3)
+    return Plan(keys, table[:, :2].copy(), table[:, 2].copy())
+
+
+def _clean(array: np.ndarray, width: int) -> bool:
+    """True when a fast-path array is numeric, finite and of the expected width."""
+    if array.size == 0:
+        return True
+    if array.dtype.kind not in _NUMERIC_KINDS or array.size % width:
+        return False
+    return bool(np.isfinite(array).all())
+
+
+def _box_id(value: Any) -> str:
+    """Box ids compare with actor ids (strings): integers and integral floats as digits."""
+    if isinstance(value, float) and value.is_integer():
+        return str(int(value))
+    return str(value)
+
+
+def _show(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def _type(value: Any) -> str:
+    names: dict[type, str] = {dict: "an object", list: "a list", str: "a string"}
+    return names.get(type(value), type(value).__name__)

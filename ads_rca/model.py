@@ -1,0 +1,266 @@
+"""The in-memory form of one ADS run: metadata plus, per timestamp, what each module logged.
+
+Pure data, no I/O. Per-frame records keep the file order of their entries (the reference
+semantics iterate in file order) and hold numbers in numpy arrays so metric code can work on
+whole frames at once. Geometry stays in the log's own frame: the CARLA world (left-handed,
+metres, angles in degrees); conversions to ROS conventions live in ``ads_rca.ros``.
+
+Timestamps are integer milliseconds. Frame ``f`` is ``f * timesteps_per_frame`` ms.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ads_rca.problems import ProblemLog
+
+FloatArray = npt.NDArray[np.float64]
+
+#: The per-frame folders of a running log, in the order the pipeline produces them.
+FOLDERS = (
+    "pose",
+    "actors",
+    "bboxes",
+    "bboxes_gt",
+    "predictions",
+    "predictions_with_perception",
+    "waypoint",
+)
+
+#: The seed format's file-name prefix per folder (any prefix is accepted when reading).
+FILE_PREFIX = {
+    "pose": "pose",
+    "actors": "actors",
+    "bboxes": "bboxes",
+    "bboxes_gt": "bboxes_gt",
+    "predictions": "predictions",
+    "predictions_with_perception": "predictions",
+    "waypoint": "waypoints",
+}
+
+
+@dataclass(frozen=True, slots=True)
+class RunMetadata:
+    """``metadata.json``: frame period, camera mounting, collision frame, length."""
+
+    timesteps_per_frame: int
+    camera_loc: tuple[float, float, float]
+    collision_frame: int
+    total_frames: int
+    #: The file's content as read, so that writers reproduce keys we do not interpret.
+    raw: Mapping[str, Any] = field(default_factory=dict, compare=False)
+
+    @property
+    def has_collision(self) -> bool:
+        return self.collision_frame >= 0
+
+    @property
+    def end_ms(self) -> int:
+        """``total_frames * tpf``: the last timestamp the reference looks ahead to."""
+        return self.total_frames * self.timesteps_per_frame
+
+    def to_dict(self) -> dict[str, Any]:
+        """The metadata as a ``metadata.json`` document (unknown keys preserved)."""
+        out = dict(self.raw)
+        out["timesteps_per_frame"] = self.timesteps_per_frame
+        ego_config = dict(out.get("ego_config") or {})
+        camera = dict(ego_config.get("camera") or {})
+        camera["camera_loc"] = list(self.camera_loc)
+        ego_config["camera"] = camera
+        out["ego_config"] = ego_config
+        out["collision_frame"] = self.collision_frame
+        out["total_frames"] = self.total_frames
+        return out
+
+
+@dataclass(frozen=True, slots=True)
+class EgoPose:
+    """One ``pose/`` file: the ego state (world metres, degrees, m/s)."""
+
+    x: float
+    y: float
+    z: float
+    roll: float
+    pitch: float
+    yaw: float
+    speed: float
+
+    @property
+    def xy(self) -> FloatArray:
+        return np.array([self.x, self.y])
+
+
+@dataclass(frozen=True, eq=False)
+class Actors:
+    """One ``actors/`` file: every vehicle and pedestrian, ego included, in file order.
+
+    ``extent`` holds HALF sizes as written in this file (NaN where missing);
+    ``rotation`` columns are roll, pitch, yaw in degrees.
+    """
+
+    ids: tuple[str, ...]
+    location: FloatArray  # (N, 3)
+    rotation: FloatArray  # (N, 3) roll, pitch, yaw
+    extent: FloatArray  # (N, 3) half sizes
+
+    @cached_property
+    def index(self) -> dict[str, int]:
+        """Row of each id (the first row, should an id repeat)."""
+        out: dict[str, int] = {}
+        for row, actor_id in enumerate(self.ids):
+            out.setdefault(actor_id, row)
+        return out
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+
+@dataclass(frozen=True, eq=False)
+class Boxes:
+    """One ``bboxes/`` or ``bboxes_gt/`` file: 2-D image boxes in file order.
+
+    ``corners`` rows are (x1, y1, x2, y2) exactly as written (not normalised);
+    ``extras`` keeps every other key of each record (label, score ...).
+    """
+
+    ids: tuple[str, ...]
+    corners: FloatArray  # (N, 4)
+    extras: tuple[Mapping[str, Any], ...]
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+
+@dataclass(frozen=True, eq=False)
+class Track:
+    """One obstacle's predicted offsets: step keys (file order, as written) and (K, 3) offsets.
+
+    Offsets are in the ego's body frame (x forward, y as CARLA). Keys stay strings because
+    the reference matches them textually; :attr:`steps` gives their integer values.
+    """
+
+    keys: tuple[str, ...]
+    offsets: FloatArray  # (K, 3)
+
+    @cached_property
+    def steps(self) -> npt.NDArray[np.int64]:
+        """Integer value of each key; -1 where a key is not an integer."""
+        return np.array([_int_or(k, -1) for k in self.keys], dtype=np.int64)
+
+    def offset(self, key: str) -> FloatArray | None:
+        """Offset for a key string (first occurrence), or None."""
+        try:
+            return self.offsets[self.keys.index(key)]
+        except ValueError:
+            return None
+
+
+#: ``predictions/`` or ``predictions_with_perception/`` file: obstacle id -> track, file order.
+Predictions = dict[str, Track]
+
+
+@dataclass(frozen=True, eq=False)
+class Plan:
+    """One ``waypoint/`` file: plan points in file order (key i = i frames ahead)."""
+
+    keys: tuple[str, ...]
+    xy: FloatArray  # (N, 2) world metres
+    speed: FloatArray  # (N,) m/s
+
+    @cached_property
+    def index(self) -> dict[str, int]:
+        out: dict[str, int] = {}
+        for row, key in enumerate(self.keys):
+            out.setdefault(key, row)
+        return out
+
+    @cached_property
+    def steps(self) -> npt.NDArray[np.int64]:
+        """Integer value of each key; -1 where a key is not an integer."""
+        return np.array([_int_or(k, -1) for k in self.keys], dtype=np.int64)
+
+    def point(self, key: str) -> FloatArray | None:
+        row = self.index.get(key)
+        return None if row is None else self.xy[row]
+
+    def __len__(self) -> int:
+        return len(self.keys)
+
+
+@dataclass(eq=False)
+class RunLog:
+    """A whole run, as loaded from any source.
+
+    ``frames`` are the analysed timestamps: one per ``actors/`` file, ascending, duplicates
+    kept (the reference analyses a duplicated timestamp twice). Per-folder dicts map a
+    timestamp to its record; a timestamp absent from a dict had no (usable) file.
+    """
+
+    metadata: RunMetadata
+    frames: tuple[int, ...]
+    pose: dict[int, EgoPose] = field(default_factory=dict)
+    actors: dict[int, Actors] = field(default_factory=dict)
+    bboxes: dict[int, Boxes] = field(default_factory=dict)
+    bboxes_gt: dict[int, Boxes] = field(default_factory=dict)
+    predictions: dict[int, Predictions] = field(default_factory=dict)
+    predictions_with_perception: dict[int, Predictions] = field(default_factory=dict)
+    waypoints: dict[int, Plan] = field(default_factory=dict)
+    problems: ProblemLog = field(default_factory=ProblemLog)
+    source: str = ""
+    #: folder -> timestamp -> file name it was read from (for problem reports); may be empty.
+    files: dict[str, dict[int, str]] = field(default_factory=dict)
+
+    @property
+    def tpf(self) -> int:
+        """Milliseconds per frame."""
+        return self.metadata.timesteps_per_frame
+
+    @property
+    def unique_frames(self) -> tuple[int, ...]:
+        """Analysed timestamps with duplicates removed (what ``corrected`` analyses)."""
+        return tuple(dict.fromkeys(self.frames))
+
+    def frame_index(self, timestamp_ms: int) -> float:
+        return timestamp_ms / self.tpf
+
+    @cached_property
+    def actor_extents(self) -> dict[str, FloatArray]:
+        """Each actor's half extent where it first appears with one (ascending time)."""
+        extents: dict[str, FloatArray] = {}
+        for ts in sorted(self.actors):
+            frame = self.actors[ts]
+            for row, actor_id in enumerate(frame.ids):
+                if actor_id not in extents and not np.isnan(frame.extent[row]).any():
+                    extents[actor_id] = frame.extent[row]
+        return extents
+
+    def file_of(self, folder: str, timestamp_ms: int) -> str:
+        """The file a record came from (or would have), relative to the log folder."""
+        name = self.files.get(folder, {}).get(timestamp_ms)
+        return f"{folder}/{name or f'{FILE_PREFIX[folder]}-{timestamp_ms}.json'}"
+
+    def folder(self, name: str) -> dict[int, Any]:
+        """The per-timestamp dict of a folder by its name in :data:`FOLDERS`."""
+        folders: dict[str, dict[int, Any]] = {
+            "pose": self.pose,
+            "actors": self.actors,
+            "bboxes": self.bboxes,
+            "bboxes_gt": self.bboxes_gt,
+            "predictions": self.predictions,
+            "predictions_with_perception": self.predictions_with_perception,
+            "waypoint": self.waypoints,
+        }
+        return folders[name]
+
+
+def _int_or(text: str, default: int) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        return default

@@ -1,0 +1,38 @@
+"""ament_python package definition: works with `pip install` and with `colcon build`."""
+
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE = "ads_rca"
+
+# Every ROS executable, as `ros2 run ads_rca <name>` finds it under lib/ads_rca.
+NODES = {
+    "player": "ads_rca.ros.player:main",
+}
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    packages=find_packages(include=[PACKAGE, f"{PACKAGE}.*"]),
+    package_data={PACKAGE: ["py.typed"]},
+    data_files=[
+        ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
+        (f"share/{PACKAGE}", ["package.xml"]),
+        (f"share/{PACKAGE}/config", glob("config/*.yaml")),
+        (f"share/{PACKAGE}/launch_scripts", glob("launch_scripts/*.py")),
+    ],
+    # ROS client libraries and messages come from the ROS install (colcon) or from the pinned
+    # wheels in requirements.txt (plain pip), so they are deliberately not install_requires.
+    install_requires=["numpy", "scipy", "shapely", "orjson", "pyyaml", "tqdm"],
+    zip_safe=True,
+    maintainer="ads_rca maintainers",
+    maintainer_email="maintainers@ads-rca.dev",
+    description="Root-cause analysis of autonomous-driving crashes on ROS 2.",
+    license="Apache-2.0",
+    python_requires=">=3.10",
+    entry_points={
+        "console_scripts": [f"{name} = {target}" for name, target in NODES.items()]
+        + ["ads-rca = ads_rca.cli:main"],
+    },
+)

@@ -45,13 +45,14 @@ class _Reader:
             self.timestamp_ms,
         )
 
-    def number(self, container: Any, key: str, field: str, default: float = math.nan) -> float:
+    def number(self, container: Any, key: Any, field: str, default: float = math.nan) -> float:
         """``container[key]`` as a float; NaN (or ``default``) and a report when unusable."""
-        if not isinstance(container, Mapping) or key not in container:
+        try:
+            value = container[key]
+        except (KeyError, IndexError, TypeError):
             action = USED_DEFAULT if not math.isnan(default) else "read as NaN"
             self.report(field, "missing", action, "warning")
             return default
-        value = container[key]
         try:
             number = float(value)
         except (TypeError, ValueError):
@@ -173,7 +174,7 @@ def parse_boxes(document: Any, file: str, problems: ProblemLog, ts: int) -> Boxe
             reader.report(f"{where}.bounding_box", "a point is not [x, y]", DROPPED_RECORD)
             continue
         coords = [
-            reader.number(points[i], j, f"{where}.bounding_box[{i}][{j}]")  # type: ignore[arg-type]
+            reader.number(points[i], j, f"{where}.bounding_box[{i}][{j}]")
             for i in (0, 1)
             for j in (0, 1)
         ]

@@ -18,7 +18,6 @@ import json
 import math
 import os
 from collections.abc import Callable, Iterable
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -28,9 +27,10 @@ from ads_rca.errors import InputError
 from ads_rca.io.records import parse_actors, parse_boxes, parse_plan, parse_pose, parse_predictions
 from ads_rca.io.validate import validate_run_log
 from ads_rca.model import FOLDERS, RunLog, RunMetadata
-from ads_rca.problems import IGNORED, SKIPPED_FILE, USED_DEFAULT, ProblemLog
+from ads_rca.problems import IGNORED, SKIPPED_FILE, USED_DEFAULT, Problem, ProblemLog
 
 DEFAULT_TPF_MS = 50
+Job = tuple[str, int, str]  # folder, timestamp, file name
 
 Parser = Callable[[Any, str, ProblemLog, int], Any]
 PARSERS: dict[str, Parser] = {
@@ -71,8 +71,13 @@ def decode_json(data: bytes) -> Any:
         return json.loads(data)
 
 
-def read_run_log(path: str | os.PathLike[str], *, threads: int = 4) -> RunLog:
-    """Load a running-log folder. Raises InputError only when ``path`` is no log folder."""
+def read_run_log(path: str | os.PathLike[str]) -> RunLog:
+    """Load a running-log folder. Raises InputError only when ``path`` is no log folder.
+
+    Parsing is single-process on purpose: it is CPU-bound (threads do not help), and
+    shipping parsed records back from worker processes costs as much as parsing them
+    (measured in bench/bench_load.py's notes).
+    """
     root = Path(path)
     if not root.exists():
         raise InputError(f"{root}: no such log folder")
@@ -83,13 +88,15 @@ def read_run_log(path: str | os.PathLike[str], *, threads: int = 4) -> RunLog:
     if not (root / "metadata.json").exists() and not listings["actors"]:
         raise InputError(f"{root}: not an ADS running log (no metadata.json, no actors/ files)")
 
-    records: dict[str, dict[int, Any]] = {}
-    files: dict[str, dict[int, str]] = {}
-    with ThreadPoolExecutor(max_workers=max(1, threads)) as pool:
-        for folder in FOLDERS:
-            records[folder], files[folder] = _read_folder(
-                root, folder, listings[folder], problems, pool
-            )
+    # Only the winning file of each timestamp is read (the others are reported by validate).
+    files = {folder: {ts: name for ts, name in listings[folder]} for folder in FOLDERS}
+    jobs = [(folder, ts, name) for folder in FOLDERS for ts, name in files[folder].items()]
+    records: dict[str, dict[int, Any]] = {folder: {} for folder in FOLDERS}
+    parsed, found = _parse_files(str(root), jobs)
+    problems.extend(found)
+    for folder, ts, record in parsed:
+        records[folder][ts] = record
+    records = {folder: dict(sorted(r.items())) for folder, r in records.items()}
     actors_listing = [ts for ts, _ in listings["actors"]]
     metadata = read_metadata(root / "metadata.json", actors_listing, problems)
     log = RunLog(
@@ -135,29 +142,20 @@ def _list_folder(root: Path, folder: str, problems: ProblemLog) -> list[tuple[in
     return listing
 
 
-def _read_folder(
-    root: Path,
-    folder: str,
-    listing: list[tuple[int, str]],
-    problems: ProblemLog,
-    pool: ThreadPoolExecutor,
-) -> tuple[dict[int, Any], dict[int, str]]:
-    """Parse every file; for a repeated timestamp the last file in listing order wins."""
-    parse = PARSERS[folder]
-    directory = root / folder
-    # Only the winning file of each timestamp is read (the others are reported by validate).
-    winners = {ts: name for ts, name in listing}
-    raw = pool.map(_read_bytes, (directory / name for name in winners.values()))
-    records: dict[int, Any] = {}
-    for (ts, name), data in zip(winners.items(), raw, strict=True):
+def _parse_files(root: str, jobs: list[Job]) -> tuple[list[tuple[str, int, Any]], list[Problem]]:
+    """Read, decode and parse files in ``jobs`` order; the problems found on the way."""
+    problems = ProblemLog()
+    parsed: list[tuple[str, int, Any]] = []
+    base = Path(root)
+    for folder, ts, name in jobs:
         file = f"{folder}/{name}"
-        document = _decode(data, file, problems, ts)
+        document = _decode(_read_bytes(base / folder / name), file, problems, ts)
         if document is _UNUSABLE:
             continue
-        record = parse(document, file, problems, ts)
+        record = PARSERS[folder](document, file, problems, ts)
         if record is not None:
-            records[ts] = record
-    return dict(sorted(records.items())), winners
+            parsed.append((folder, ts, record))
+    return parsed, list(problems)
 
 
 _UNUSABLE = object()

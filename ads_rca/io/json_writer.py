@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -24,7 +24,7 @@ def write_run_log(log: RunLog, out_dir: str | os.PathLike[str]) -> Path:
     """Write every folder of ``log`` under ``out_dir`` (created); return the folder path."""
     root = Path(out_dir)
     root.mkdir(parents=True, exist_ok=True)
-    _dump(root / "metadata.json", log.metadata.to_dict())
+    _dump(root / "metadata.json", log.metadata.to_dict(), finite=False)
     encoders: dict[str, Callable[[Any, int], Any]] = {
         "pose": pose_document,
         "actors": lambda record, _ts: actors_document(record),
@@ -39,7 +39,8 @@ def write_run_log(log: RunLog, out_dir: str | os.PathLike[str]) -> Path:
         directory.mkdir(exist_ok=True)
         prefix = FILE_PREFIX[folder]
         for ts, record in log.folder(folder).items():
-            _dump(directory / f"{prefix}-{ts}.json", encoders[folder](record, ts))
+            document = encoders[folder](record, ts)
+            _dump(directory / f"{prefix}-{ts}.json", document, record_is_finite(record))
     return root
 
 
@@ -104,19 +105,24 @@ def json_id(box_id: str) -> int | str:
     return box_id
 
 
-def _dump(path: Path, document: Any) -> None:
-    if _all_finite(document):
-        path.write_bytes(orjson.dumps(document, option=orjson.OPT_INDENT_2))
+def _dump(path: Path, document: Any, finite: bool = True) -> None:
+    """Compact JSON; ``finite`` False when the record holds NaN or infinity."""
+    if finite:
+        path.write_bytes(orjson.dumps(document))
     else:  # orjson writes NaN as null; json writes the NaN literal the reader expects
-        path.write_text(json.dumps(document, indent=2))
+        path.write_text(json.dumps(document))
 
 
-def _all_finite(document: Any) -> bool:
-    """True when no float in the document is NaN or infinite."""
-    if isinstance(document, float):
-        return bool(np.isfinite(document))
-    if isinstance(document, Mapping):
-        return all(_all_finite(v) for v in document.values())
-    if isinstance(document, list):
-        return all(_all_finite(v) for v in document)
-    return True
+def record_is_finite(record: Any) -> bool:
+    """True when no number of a model record is NaN or infinite (checked on its arrays)."""
+    if isinstance(record, EgoPose):
+        arrays = [np.array([getattr(record, f) for f in EgoPose.__dataclass_fields__])]
+    elif isinstance(record, Actors):
+        arrays = [record.location, record.rotation, record.extent]
+    elif isinstance(record, Boxes):
+        arrays = [record.corners]
+    elif isinstance(record, Plan):
+        arrays = [record.xy, record.speed]
+    else:  # Predictions
+        arrays = [track.offsets for track in record.values()]
+    return all(bool(np.isfinite(a).all()) for a in arrays)

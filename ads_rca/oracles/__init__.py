@@ -1,0 +1,1 @@
+"""The four module oracles (perception, prediction, planning, control) in both semantics."""

@@ -1,0 +1,171 @@
+"""Thresholds and settings of the root-cause engine, with each semantics mode's defaults.
+
+The same names are ROS parameters of the nodes, ``-p name=value`` options of the CLI and
+keys of the YAML files in ``config/``. Every output records the mode and the values used.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, fields, replace
+from pathlib import Path
+from typing import Any, Literal
+
+import yaml
+
+from ads_rca.errors import InputError
+
+Semantics = Literal["reference", "corrected"]
+SEMANTICS: tuple[Semantics, ...] = ("reference", "corrected")
+DEFAULT_SEMANTICS: Semantics = "corrected"
+
+
+@dataclass(frozen=True)
+class Params:
+    """Every threshold of both modes (each mode reads only its own; see ``used()``)."""
+
+    semantics: Semantics = DEFAULT_SEMANTICS
+    # Shared names.
+    effect_time_window: int = 20  # frames
+    pred_score_threshold: float = 0.1
+    prediction_window: int = 10  # frames
+    # reference only.
+    perc_score_threshold: float = 0.5
+    planning_toleration_future_step: int = 3
+    planning_toleration: float = 2.0  # m
+    # corrected only.
+    window_s: float = 1.0
+    perc_match_iou: float = 0.5
+    safety_margin: float = 0.5  # m
+    understate_min: float = 0.3  # m
+    pred_abs_threshold: float = 0.5  # m
+    max_decel: float = 8.0  # m/s²
+    decel_tolerance: float = 0.5  # m/s²
+    standstill_speed: float = 0.1  # m/s
+    control_horizon: int = 10  # frames
+    control_speed_threshold: float = 1.0  # m/s
+    actuator_delay: float = 0.2  # s
+    control_lateral_threshold: float = 0.3  # m
+    min_persistence: int = 2  # frames (perception, prediction)
+    control_min_persistence: int = 3
+    planning_min_persistence: int = 1
+    heading_min_step: float = 0.1  # m
+
+    def used(self) -> dict[str, float | int]:
+        """The thresholds this mode reads, for outputs."""
+        values = asdict(self)
+        return {name: values[name] for name in USED_BY[self.semantics]}
+
+    def window_frames(self, tpf_ms: int) -> int:
+        """W: frames before the collision that belong to the effect window."""
+        if self.semantics == "reference":
+            return self.effect_time_window
+        return max(self.effect_time_window, round(self.window_s * 1000.0 / tpf_ms))
+
+
+#: Defaults that differ from the field defaults in reference mode.
+REFERENCE_DEFAULTS: dict[str, Any] = {"effect_time_window": 10}
+
+USED_BY: dict[Semantics, tuple[str, ...]] = {
+    "reference": (
+        "effect_time_window",
+        "perc_score_threshold",
+        "pred_score_threshold",
+        "planning_toleration_future_step",
+        "planning_toleration",
+    ),
+    "corrected": (
+        "effect_time_window",
+        "window_s",
+        "perc_match_iou",
+        "prediction_window",
+        "safety_margin",
+        "understate_min",
+        "pred_abs_threshold",
+        "pred_score_threshold",
+        "max_decel",
+        "decel_tolerance",
+        "standstill_speed",
+        "control_horizon",
+        "control_speed_threshold",
+        "actuator_delay",
+        "control_lateral_threshold",
+        "min_persistence",
+        "control_min_persistence",
+        "planning_min_persistence",
+        "heading_min_step",
+    ),
+}
+
+_FIELD_TYPES = {f.name: f.type for f in fields(Params)}
+
+
+def make_params(
+    semantics: str = DEFAULT_SEMANTICS, overrides: Mapping[str, Any] | None = None
+) -> Params:
+    """The mode's defaults with ``overrides`` applied (names checked, values converted)."""
+    if semantics not in SEMANTICS:
+        raise InputError(f"semantics must be one of {', '.join(SEMANTICS)}, not {semantics!r}")
+    mode: Semantics = "reference" if semantics == "reference" else "corrected"
+    base = Params(semantics=mode)
+    if mode == "reference":
+        base = replace(base, **REFERENCE_DEFAULTS)
+    changes = {name: _convert(name, value) for name, value in dict(overrides or {}).items()}
+    changes.pop("semantics", None)
+    return replace(base, **changes)
+
+
+def parse_assignments(items: list[str]) -> dict[str, str]:
+    """``name=value`` strings (CLI ``-p``) into a dict; also accepts ROS's ``name:=value``."""
+    out: dict[str, str] = {}
+    for item in items:
+        name, sep, value = item.replace(":=", "=", 1).partition("=")
+        if not sep or not name.strip():
+            raise InputError(f"-p expects name=value, got {item!r}")
+        out[name.strip()] = value.strip()
+    return out
+
+
+def load_config(path: str | Path) -> dict[str, Any]:
+    """Parameters from a YAML file: a flat mapping, or a ROS 2 params file (any node)."""
+    file = Path(path)
+    try:
+        document = yaml.safe_load(file.read_text())
+    except OSError as error:
+        raise InputError(f"{file}: cannot read config ({error.strerror})") from None
+    except yaml.YAMLError as error:
+        raise InputError(f"{file}: invalid YAML ({str(error).splitlines()[0]})") from None
+    if document is None:
+        return {}
+    if not isinstance(document, dict):
+        raise InputError(f"{file}: expected a mapping of parameter names to values")
+    merged: dict[str, Any] = {}
+    ros_sections = [v for v in document.values() if isinstance(v, dict) and "ros__parameters" in v]
+    if ros_sections:
+        for section in ros_sections:
+            merged.update(section["ros__parameters"] or {})
+        return merged
+    return dict(document)
+
+
+def engine_overrides(values: Mapping[str, Any]) -> dict[str, Any]:
+    """The entries of ``values`` that are engine parameters (nodes have others too)."""
+    return {k: v for k, v in values.items() if k in _FIELD_TYPES}
+
+
+def _convert(name: str, value: Any) -> Any:
+    if name not in _FIELD_TYPES:
+        known = ", ".join(sorted(_FIELD_TYPES))
+        raise InputError(f"unknown parameter {name!r} (known: {known})")
+    if name == "semantics":
+        return value
+    kind = _FIELD_TYPES[name]
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"parameter {name}: {value!r} is not a number") from None
+    if kind == "int":
+        if not number.is_integer():
+            raise InputError(f"parameter {name}: {value!r} is not an integer")
+        return int(number)
+    return number

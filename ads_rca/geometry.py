@@ -54,8 +54,8 @@ def axis_aligned_iou(a: FloatArray, b: FloatArray) -> FloatArray:
         iou = np.where(union > 0, inter / np.where(union > 0, union, 1.0), 0.0)
     zero_area = (area_a[:, None] <= 0) | (area_b[None, :] <= 0)
     iou = np.where(zero_area, 0.0, iou)
-    nan_a: npt.NDArray[np.bool_] = np.isnan(a).any(axis=1)
-    nan_b: npt.NDArray[np.bool_] = np.isnan(b).any(axis=1)
+    nan_a = np.asarray(np.isnan(a).any(axis=1))
+    nan_b = np.asarray(np.isnan(b).any(axis=1))
     nan = nan_a[:, None] | nan_b[None, :]
     return np.where(nan, np.nan, iou)
 

@@ -1,0 +1,149 @@
+"""``ads-rca diagnose PATH``: load a run, judge every module, print and write the verdict."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+from ads_rca.engine import Diagnosis, analysed_timestamps, diagnose
+from ads_rca.errors import InputError
+from ads_rca.io import open_run
+from ads_rca.oracles.base import MODULES
+from ads_rca.params import (
+    DEFAULT_SEMANTICS,
+    SEMANTICS,
+    Params,
+    engine_overrides,
+    load_config,
+    make_params,
+)
+from ads_rca.params import parse_assignments as parse_p
+
+#: Logs longer than this get a progress bar on stderr (when it is a terminal).
+PROGRESS_MIN_FRAMES = 300
+
+
+def add_engine_arguments(parser: argparse.ArgumentParser) -> None:
+    """--semantics, --config and -p: shared by every command that runs the engine."""
+    parser.add_argument(
+        "--semantics",
+        choices=SEMANTICS,
+        default=None,
+        help=f"oracle semantics (default {DEFAULT_SEMANTICS}, or the config file's)",
+    )
+    parser.add_argument("--config", help="YAML parameters (flat, or a ROS 2 params file)")
+    parser.add_argument(
+        "-p",
+        dest="params",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="set one parameter (repeatable), e.g. -p effect_time_window=15",
+    )
+
+
+def params_from_args(args: argparse.Namespace) -> Params:
+    """Config file, then -p overrides; --semantics wins over both."""
+    config: dict[str, Any] = load_config(args.config) if args.config else {}
+    overrides = parse_p(args.params)
+    semantics = (
+        args.semantics
+        or overrides.pop("semantics", None)
+        or config.get("semantics", DEFAULT_SEMANTICS)
+    )
+    # A node's params file also holds node parameters (log_path, rate...): keep the engine's.
+    values = {**engine_overrides(config), **overrides}
+    values.pop("semantics", None)
+    return make_params(str(semantics), values)
+
+
+def register(subparsers: Any) -> None:
+    parser = subparsers.add_parser("diagnose", help="find the root cause of a crash in a run log")
+    parser.add_argument("path", help="running-log folder")
+    add_engine_arguments(parser)
+    parser.add_argument("--json", dest="json_out", help="write the verdict JSON here")
+    parser.add_argument("--report", help="write a self-contained HTML report here")
+    parser.add_argument(
+        "--max-problems", type=int, default=10, help="input problems to print (default 10)"
+    )
+    parser.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    params = params_from_args(args)
+    log = open_run(args.path)
+    if not analysed_timestamps(log, params):
+        raise InputError(f"{args.path}: no frame to analyse (no readable actors/ file)")
+    result = diagnose(log, params, progress=_progress_bar(len(log.frames)))
+    print(summary_text(result, args.max_problems))
+    if args.json_out:
+        write_json(result, Path(args.json_out))
+        print(f"verdict JSON: {args.json_out}")
+    if args.report:
+        from ads_rca.report.html import write_report
+
+        write_report(result, Path(args.report))
+        print(f"HTML report: {args.report}")
+    return 0
+
+
+def write_json(result: Diagnosis, path: Path) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(result.to_json(), indent=1, allow_nan=False) + "\n")
+
+
+def summary_text(result: Diagnosis, max_problems: int = 10) -> str:
+    """The short human summary: counts, verdict, evidence, input problems."""
+    a = result.attribution
+    meta = result.log.metadata
+    lines = [
+        f"{result.log.source}: {len(result.frames)} frames judged, "
+        f"semantics {result.params.semantics}",
+    ]
+    if meta.has_collision:
+        window = result.params.window_frames(meta.timesteps_per_frame)
+        partner = f" with actor {a.partner_id}" if a.partner_id else ""
+        lines.append(
+            f"collision at frame {meta.collision_frame}{partner}; "
+            f"effect window: {window} frames before it"
+        )
+    else:
+        lines.append("no collision in this run")
+    lines.append(f"{'module':<12}{'collision':>10}{'safe':>7}  first failure")
+    for module in MODULES:
+        m = a.modules[module]
+        first = "-" if m.first_failure_frame is None else f"frame {m.first_failure_frame}"
+        lines.append(f"{module:<12}{m.collision:>10}{m.safe:>7}  {first}")
+    lines.append(f"verdict: {result.verdict_text}  [{a.attribution_basis}]")
+    for module in a.root_causes:
+        evidence = a.modules[module].evidence
+        if evidence:
+            shown = ", ".join(f"{k}={_short(v)}" for k, v in list(evidence.items())[:8])
+            lines.append(f"  {module}: {shown}")
+    problems = result.problems
+    lines.append(f"input problems: {len(problems)}")
+    lines.extend(f"  {line}" for line in problems.summary_lines(max_problems))
+    return "\n".join(lines)
+
+
+def _short(value: Any) -> str:
+    if isinstance(value, float):
+        return f"{value:.3g}"
+    text = str(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _progress_bar(frames: int) -> Any:
+    if frames < PROGRESS_MIN_FRAMES:
+        return None
+    from tqdm import tqdm
+
+    def wrap(timestamps: Iterable[int]) -> Iterable[int]:
+        # disable=None: shown on a terminal only, so logs and pipes stay clean.
+        return tqdm(timestamps, total=frames, unit="frame", file=sys.stderr, disable=None)
+
+    return wrap

@@ -259,6 +259,16 @@ def test_id_that_appears_nowhere_else_is_reported(log_dir: Path) -> None:
     assert log.bboxes_gt[100].ids == ("404",)
 
 
+def test_empty_records_load_as_empty(log_dir: Path) -> None:
+    _write(log_dir / "predictions/predictions-100.json", {})
+    _write(log_dir / "predictions_with_perception/predictions-100.json", {"20": {}})
+    _write(log_dir / "bboxes/bboxes-100.json", [])
+    log = read_run_log(log_dir)
+    assert list(log.problems) == []
+    assert log.predictions[100] == {} and len(log.bboxes[100]) == 0
+    assert log.predictions_with_perception[100]["20"].offsets.shape == (0, 3)
+
+
 def test_empty_plan_is_reported(log_dir: Path) -> None:
     _write(log_dir / "waypoint/waypoints-200.json", {})
     log = read_run_log(log_dir)

@@ -236,7 +236,7 @@ def _predictions_fast(document: Mapping[str, Any]) -> Predictions | None:
         return None
     flat = flat.astype(np.float64).reshape(-1, 3)
     ends = np.cumsum(lengths).tolist()
-    starts = [0, *ends[:-1]]
+    starts = [0, *ends[:-1]] if ends else []
     return {
         str(obstacle_id): Track(tuple(track), flat[start:end])
         for (obstacle_id, track), start, end in zip(document.items(), starts, ends, strict=True)

@@ -1,0 +1,184 @@
+"""The closed loop: world → camera → detector → tracker → predictor → planner → controller.
+
+One call runs a scene for one fault and returns the run log (the seed format's content) plus
+what happened. Random numbers come from a generator seeded by the scene seed only and are
+drawn identically whatever the fault, so a faulty run equals its twin up to the onset.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ads_rca.model import Actors, Boxes, EgoPose, Plan, Predictions, RunLog, RunMetadata, Track
+from ads_rca.synth.camera import project_boxes
+from ads_rca.synth.control import Controller
+from ads_rca.synth.faults import BRAKE_GAIN, FaultSpec
+from ads_rca.synth.geometry import FloatArray, sat_gap, to_body, to_world
+from ads_rca.synth.perception import Detector, Tracker
+from ads_rca.synth.planning import Planner
+from ads_rca.synth.prediction import predict_positions, state_from_history, wrong_model
+from ads_rca.synth.world import PAD, Scene
+
+TPF_MS = 50
+CAMERA_LOC = (1.3, 0.0, 1.8)
+PWP_RANGE = 80.0
+
+
+@dataclass
+class SimResult:
+    """A finished run: the log, the collision (frame, actor row; -1 if none), the reaction."""
+
+    log: RunLog
+    collision_frame: int
+    collided_row: int
+    reaction_frame: int
+
+
+def _f32(a: FloatArray) -> FloatArray:
+    """Values as the simulator's float32 state, like CARLA's actor records."""
+    return a.astype(np.float32).astype(np.float64)
+
+
+def simulate(scene: Scene, fault: FaultSpec, seed: int, horizon: int = 30) -> SimResult:
+    """Run ``scene`` in closed loop with ``fault`` until a collision or the last frame."""
+    n = len(scene.actor_ids)
+    rng = np.random.default_rng([seed, 7])
+    detector = Detector(rng, n, never_miss=scene.partner)
+    tracker = Tracker(n, first_id=1000 + int(rng.integers(0, 9000)))
+    planner = Planner(scene.path, scene.ego_extent[:2], scene.desired_speed, horizon)
+    controller = Controller()
+    pred_keys = tuple(str(k) for k in range(horizon))
+    plan_keys = tuple(str(i) for i in range(horizon + 1))
+    labels: list[Mapping[str, Any]] = [{"label": k} for k in scene.kinds]
+    all_ids = (scene.ego_id, *scene.actor_ids)
+    extent_all = np.vstack([scene.ego_extent[None, :], scene.extent])
+    half = scene.extent[:, :2]
+    stale = (np.zeros(2), np.zeros(2))
+    if scene.partner >= 0:
+        t = scene.trigger_frame + PAD
+        p_t, p_b = scene.xy[t, scene.partner], scene.xy[t - 1, scene.partner]
+        stale = (p_t, (p_t - p_b) / 0.05)
+
+    log = RunLog(metadata=RunMetadata(TPF_MS, CAMERA_LOC, -1, 0), frames=())
+    s, v = 0.0, scene.ego_speed
+    collision, collided, reaction = -1, -1, -1
+    frames: list[int] = []
+    last = scene.frames
+    for f in range(1, scene.frames + 1):
+        ts = f * TPF_MS
+        i = f + PAD
+        xy, yaw = scene.xy[i], scene.yaw[i]
+        pose_xy, pose_yaw_arr = scene.path.at(np.asarray(s))
+        pose_yaw = float(pose_yaw_arr)
+        gaps = sat_gap(pose_xy, np.asarray(pose_yaw), scene.ego_extent[:2], xy, yaw, half)
+        if gaps.min() < 0.0:
+            collision, collided = f, int(np.argmin(gaps))
+
+        # Camera and perception.
+        gt, in_view = project_boxes(pose_xy, pose_yaw, CAMERA_LOC, xy, yaw, scene.extent)
+        suppressed = np.zeros(n, dtype=bool)
+        if fault.active("perception", f) and scene.partner >= 0:
+            suppressed[scene.partner] = True
+        det = detector.detect(gt, in_view, xy, yaw, pose_xy, suppressed)
+        tracker.update(det)
+
+        # Prediction from tracks (raw) and from ground-truth history (pwp).
+        rows = tracker.published()
+        pos, vel, acc = tracker.pos[rows], tracker.vel[rows], tracker.acc[rows]
+        faulty_prediction = fault.active("prediction", f)
+        if faulty_prediction:
+            pos, vel, acc = _inject(scene, rows, pos, vel, acc, stale)
+        raw_world = predict_positions(pos, vel, acc, horizon)
+        raw_off = to_body(raw_world, pose_xy, pose_yaw)
+
+        near = np.flatnonzero(np.hypot(*(xy - pose_xy).T) < PWP_RANGE)
+        g_pos, g_vel, g_acc = state_from_history(scene.xy[i - 2 : i + 1, near])
+        if faulty_prediction:
+            g_pos, g_vel, g_acc = _inject(scene, near, g_pos, g_vel, g_acc, stale)
+        pwp_off = to_body(predict_positions(g_pos, g_vel, g_acc, horizon), pose_xy, pose_yaw)
+
+        # Planning from the published raw predictions only.
+        keep = np.ones(rows.size, dtype=bool)
+        if fault.active("planning", f):
+            keep = rows != scene.partner
+        seen = to_world(raw_off[keep], pose_xy, pose_yaw)
+        result = planner.plan(
+            s, v, pose_xy, pose_yaw, seen, pos[keep], tracker.yaw[rows][keep], half[rows[keep]]
+        )
+        if (
+            reaction < 0
+            and f >= scene.trigger_frame
+            and result.binding >= 0
+            and rows[keep][result.binding] == scene.partner
+        ):
+            reaction = f
+
+        # Record this frame.
+        frames.append(ts)
+        log.pose[ts] = EgoPose(
+            float(pose_xy[0]),
+            float(pose_xy[1]),
+            0.0,
+            0.0,
+            0.0,
+            float(np.degrees(pose_yaw)),
+            float(v),
+        )
+        loc = np.zeros((n + 1, 3))
+        loc[0, :2] = pose_xy
+        loc[1:, :2] = xy
+        rot = np.zeros((n + 1, 3))
+        rot[0, 2] = np.degrees(pose_yaw)
+        rot[1:, 2] = np.degrees(yaw)
+        log.actors[ts] = Actors(all_ids, _f32(loc), _f32(rot), extent_all)
+        log.bboxes[ts] = Boxes(det.ids, det.corners, tuple(labels[r] for r in det.rows))
+        view = np.flatnonzero(in_view)
+        log.bboxes_gt[ts] = Boxes(
+            tuple(scene.actor_ids[r] for r in view), gt[view], tuple(labels[r] for r in view)
+        )
+        log.predictions[ts] = _tracks([str(t) for t in tracker.track_id[rows]], raw_off, pred_keys)
+        log.predictions_with_perception[ts] = _tracks(
+            [scene.actor_ids[r] for r in near], pwp_off, pred_keys
+        )
+        log.waypoints[ts] = Plan(plan_keys, result.xy, result.speed.copy())
+        if collision >= 0:
+            last = f
+            break
+
+        # Control.
+        controller.brake_gain = BRAKE_GAIN if fault.active("control", f) else 1.0
+        s, v = controller.step(s, v, float(result.speed[1]))
+
+    log.frames = tuple(frames)
+    log.metadata = RunMetadata(TPF_MS, CAMERA_LOC, collision, last)
+    return SimResult(log, collision, collided, reaction)
+
+
+def _inject(
+    scene: Scene,
+    rows: np.ndarray,
+    pos: FloatArray,
+    vel: FloatArray,
+    acc: FloatArray,
+    stale: tuple[FloatArray, FloatArray],
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Replace the partner's motion state by the scene's optimistic wrong model."""
+    hit = np.flatnonzero(rows == scene.partner)
+    if hit.size == 0:
+        return pos, vel, acc
+    pos, vel, acc = pos.copy(), vel.copy(), acc.copy()
+    p, v, a = wrong_model(
+        scene.prediction_fault_model, pos[hit], vel[hit], acc[hit], *stale, scene.road_direction
+    )
+    pos[hit], vel[hit], acc[hit] = p, v, a
+    return pos, vel, acc
+
+
+def _tracks(ids: list[str], offsets: FloatArray, keys: tuple[str, ...]) -> Predictions:
+    full = np.zeros((*offsets.shape[:2], 3))
+    full[..., :2] = offsets
+    return {obstacle: Track(keys, full[m]) for m, obstacle in enumerate(ids)}

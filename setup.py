@@ -9,6 +9,7 @@ PACKAGE = "ads_rca"
 # Every ROS executable, as `ros2 run ads_rca <name>` finds it under lib/ads_rca.
 NODES = {
     "player": "ads_rca.ros.player:main",
+    "topic_summary": "ads_rca.ros.topic_summary:main",
 }
 
 setup(

@@ -1,0 +1,132 @@
+"""Rebuilds a :class:`~ads_rca.model.RunLog` from the contract's messages, in any arrival order.
+
+DDS gives no ordering between topics, so the assembler only collects: data messages keyed
+by header stamp (first one wins, a duplicate frame re-sends the same data), frame markers by
+their index, metadata and player status. :meth:`RunLogAssembler.build` converts at the end.
+:meth:`RunLogAssembler.complete` says when everything the player announced has arrived, which
+is how a subscriber knows it may stop. No rclpy: the same code serves tests and nodes.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from typing import Any
+
+from std_msgs.msg import String
+
+from ads_rca.model import RunLog, RunMetadata
+from ads_rca.ros import topics
+from ads_rca.ros.convert import message_stamp_ms, message_to_record
+from ads_rca.ros.playback import FINISHED, METADATA_DOCUMENT_KEY, read_document
+
+_ADDED_METADATA_KEYS = ("source", "frames", "problems")
+
+
+def metadata_from_document(document: dict[str, Any]) -> RunMetadata:
+    """A metadata.json document → RunMetadata (the document kept as ``raw``)."""
+    camera = (document.get("ego_config") or {}).get("camera") or {}
+    loc = [float(v) for v in camera.get("camera_loc", (0.0, 0.0, 0.0))]
+    return RunMetadata(
+        timesteps_per_frame=int(document["timesteps_per_frame"]),
+        camera_loc=(loc[0], loc[1], loc[2]),
+        collision_frame=int(document.get("collision_frame", -1)),
+        total_frames=int(document.get("total_frames", 0)),
+        raw=document,
+    )
+
+
+class RunLogAssembler:
+    """Collects contract messages; builds the RunLog they describe."""
+
+    def __init__(self) -> None:
+        self.metadata_document: dict[str, Any] | None = None
+        self.source = ""
+        self.status: dict[str, Any] = {}
+        #: index → frame-marker document (first one wins; a looping player repeats indices).
+        self.markers: dict[int, dict[str, Any]] = {}
+        self.markers_received = 0
+        #: topic key → how many messages the frame markers announced / have been received.
+        self.expected: Counter[str] = Counter()
+        self.received: Counter[str] = Counter()
+        self._data: dict[str, dict[int, Any]] = {key: {} for key in topics.DATA_TOPICS}
+
+    # --- collecting ---------------------------------------------------------------------
+
+    def add(self, topic: str, msg: Any) -> None:
+        """Any contract message by topic key (``/clock`` is counted and otherwise ignored)."""
+        self.received[topic] += 1
+        if topic == topics.METADATA:
+            self._add_metadata(msg)
+        elif topic == topics.FRAME:
+            self._add_marker(msg)
+        elif topic == topics.STATUS:
+            self.status = read_document(msg)
+        elif topic in self._data:
+            try:
+                stamp = message_stamp_ms(msg)
+            except ValueError:  # a MarkerArray without markers carries no stamp
+                return
+            self._data[topic].setdefault(stamp, msg)
+
+    def _add_metadata(self, msg: String) -> None:
+        document = read_document(msg)
+        exact = document.get(METADATA_DOCUMENT_KEY)
+        if isinstance(exact, dict):
+            self.metadata_document = exact
+        else:
+            self.metadata_document = {
+                k: v for k, v in document.items() if k not in _ADDED_METADATA_KEYS
+            }
+        self.source = str(document.get("source", ""))
+
+    def _add_marker(self, msg: String) -> None:
+        document = read_document(msg)
+        self.markers_received += 1
+        for key in document.get("published", ()):
+            self.expected[str(key)] += 1
+        index = document.get("index")
+        key = int(index) if isinstance(index, int) else -self.markers_received
+        self.markers.setdefault(key, document)
+
+    # --- progress -----------------------------------------------------------------------
+
+    @property
+    def finished(self) -> bool:
+        """The player said it reached the end of the log."""
+        return self.status.get("state") == FINISHED
+
+    def missing(self) -> dict[str, int]:
+        """Per topic, how many announced messages have not arrived (only shortfalls)."""
+        out = {
+            key: self.expected[key] - self.received[key]
+            for key in self.expected
+            if self.received[key] < self.expected[key]
+        }
+        announced = int(self.status.get("frames_published", 0))
+        if self.markers_received < announced:
+            out[topics.FRAME] = announced - self.markers_received
+        if self.metadata_document is None:
+            out[topics.METADATA] = 1
+        return out
+
+    def complete(self) -> bool:
+        """Finished, and every announced marker and data message has arrived."""
+        return self.finished and not self.missing()
+
+    # --- building -----------------------------------------------------------------------
+
+    def build(self) -> RunLog:
+        """The RunLog carried so far (raises ValueError without metadata)."""
+        if self.metadata_document is None:
+            raise ValueError("no run/metadata message received")
+        metadata = metadata_from_document(self.metadata_document)
+        frames = tuple(
+            int(self.markers[i]["stamp_ms"]) for i in sorted(i for i in self.markers if i >= 0)
+        )
+        log = RunLog(metadata=metadata, frames=frames, source=self.source)
+        tpf = metadata.timesteps_per_frame
+        for topic, by_stamp in self._data.items():
+            folder = log.folder(topics.TOPIC_FOLDERS[topic])
+            for stamp in sorted(by_stamp):
+                folder[stamp] = message_to_record(topic, by_stamp[stamp], tpf)
+        return log

@@ -1,0 +1,416 @@
+"""Model records ↔ ROS messages, both ways, for every per-frame topic of the contract.
+
+Pure functions (message packages, no rclpy) so the conversion can be tested without DDS and
+reused by the player, the assembler and future monitor nodes. Geometry goes from the log's
+CARLA world frame (left-handed, degrees) to ROS REP-103 (right-handed, radians, quaternions)
+exactly as the CARLA ROS bridge does: (x, y, z) → (x, −y, z), roll → roll, pitch → −pitch,
+yaw → −yaw. Positions round-trip exactly (negation is exact); angles come back through the
+quaternion to ~1e-12 degrees, wrapped to (−180, 180]. Quaternion math runs in numpy over a
+whole frame. See docs/topics.md for the contract and its limits.
+"""
+
+from __future__ import annotations
+
+import math
+import zlib
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from builtin_interfaces.msg import Duration, Time
+from geometry_msgs.msg import Point, Pose, Quaternion, Transform, Twist, Vector3
+from nav_msgs.msg import Odometry
+from std_msgs.msg import ColorRGBA, Header
+from trajectory_msgs.msg import MultiDOFJointTrajectory, MultiDOFJointTrajectoryPoint
+from visualization_msgs.msg import Marker, MarkerArray
+
+from ads_rca.model import Actors, Boxes, EgoPose, FloatArray, Plan, Predictions, RunLog, Track
+from ads_rca.ros import topics
+from ads_rca.ros.jsontext import dumps_json, loads_json
+
+INT32_MAX = 2**31 - 1
+_NS_PER_MS = 1_000_000
+
+#: Marker namespaces of the MarkerArray topics.
+MARKER_NS = {
+    topics.ACTORS: "actors",
+    topics.DETECTIONS: "detections",
+    topics.GROUND_TRUTH: "ground_truth",
+    topics.PREDICTION_RAW: "predictions",
+    topics.PREDICTION_WITH_PERCEPTION: "predictions_with_perception",
+}
+_COLORS = {
+    topics.ACTORS: (0.2, 0.6, 1.0),
+    topics.DETECTIONS: (1.0, 0.5, 0.0),
+    topics.GROUND_TRUTH: (0.0, 1.0, 0.0),
+    topics.PREDICTION_RAW: (1.0, 0.0, 1.0),
+    topics.PREDICTION_WITH_PERCEPTION: (0.0, 1.0, 1.0),
+}
+
+
+# --- time ---------------------------------------------------------------------------------
+
+
+def to_time(timestamp_ms: int) -> Time:
+    """Log milliseconds → builtin_interfaces/Time (floor division keeps negatives exact)."""
+    sec, ms = divmod(int(timestamp_ms), 1000)
+    return Time(sec=sec, nanosec=ms * _NS_PER_MS)
+
+
+def from_time(stamp: Time) -> int:
+    """builtin_interfaces/Time → log milliseconds."""
+    return int(stamp.sec) * 1000 + int(stamp.nanosec) // _NS_PER_MS
+
+
+def to_duration(ms: int) -> Duration:
+    sec, rest = divmod(int(ms), 1000)
+    return Duration(sec=sec, nanosec=rest * _NS_PER_MS)
+
+
+def from_duration(duration: Duration) -> int:
+    return int(duration.sec) * 1000 + int(duration.nanosec) // _NS_PER_MS
+
+
+def header(timestamp_ms: int, frame_id: str) -> Header:
+    return Header(stamp=to_time(timestamp_ms), frame_id=frame_id)
+
+
+# --- rotations (vectorised) ---------------------------------------------------------------
+
+
+def carla_rpy_to_quaternions(rpy_deg: FloatArray) -> FloatArray:
+    """(N, 3) CARLA roll, pitch, yaw in degrees → (N, 4) ROS quaternions (x, y, z, w).
+
+    ROS angles are roll, −pitch, −yaw (radians); the quaternion is that of the static-axes
+    x-y-z Euler rotation (``tf_transformations.quaternion_from_euler``), as the CARLA bridge.
+    """
+    rpy = np.radians(np.asarray(rpy_deg, dtype=np.float64).reshape(-1, 3))
+    half = 0.5 * rpy * np.array([1.0, -1.0, -1.0])
+    c, s = np.cos(half), np.sin(half)
+    cr, cp, cy = c[:, 0], c[:, 1], c[:, 2]
+    sr, sp, sy = s[:, 0], s[:, 1], s[:, 2]
+    return np.stack(
+        (
+            sr * cp * cy - cr * sp * sy,
+            cr * sp * cy + sr * cp * sy,
+            cr * cp * sy - sr * sp * cy,
+            cr * cp * cy + sr * sp * sy,
+        ),
+        axis=1,
+    )
+
+
+def quaternions_to_carla_rpy(quaternions: FloatArray) -> FloatArray:
+    """(N, 4) ROS quaternions (x, y, z, w) → (N, 3) CARLA roll, pitch, yaw in degrees.
+
+    The inverse of :func:`carla_rpy_to_quaternions` for pitch within ±90°; angles come back
+    wrapped to (−180, 180]. Pitch uses atan2 with |cos pitch| so it stays accurate near ±90°.
+    """
+    q = np.asarray(quaternions, dtype=np.float64).reshape(-1, 4)
+    x, y, z, w = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    sin_r_cos_p = 2.0 * (w * x + y * z)
+    cos_r_cos_p = 1.0 - 2.0 * (x * x + y * y)
+    roll = np.arctan2(sin_r_cos_p, cos_r_cos_p)
+    pitch = np.arctan2(2.0 * (w * y - z * x), np.hypot(sin_r_cos_p, cos_r_cos_p))
+    yaw = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    return np.degrees(np.stack((roll, -pitch, -yaw), axis=1))
+
+
+def _quaternion(q: Sequence[float]) -> Quaternion:
+    return Quaternion(x=q[0], y=q[1], z=q[2], w=q[3])
+
+
+def _point(x: float, y: float, z: float) -> Point:
+    return Point(x=x, y=y, z=z)
+
+
+# --- pose ---------------------------------------------------------------------------------
+
+
+def pose_to_odometry(pose: EgoPose, timestamp_ms: int) -> Odometry:
+    """Ego pose → nav_msgs/Odometry in ``map``, speed as body-frame linear x."""
+    q = carla_rpy_to_quaternions(np.array([pose.roll, pose.pitch, pose.yaw]))[0].tolist()
+    msg = Odometry(header=header(timestamp_ms, topics.WORLD_FRAME), child_frame_id=topics.EGO_FRAME)
+    msg.pose.pose = Pose(position=_point(pose.x, -pose.y, pose.z), orientation=_quaternion(q))
+    msg.twist.twist.linear.x = float(pose.speed)
+    return msg
+
+
+def odometry_to_pose(msg: Odometry) -> EgoPose:
+    p, o = msg.pose.pose.position, msg.pose.pose.orientation
+    roll, pitch, yaw = quaternions_to_carla_rpy(np.array([o.x, o.y, o.z, o.w]))[0].tolist()
+    return EgoPose(
+        x=p.x, y=-p.y, z=p.z, roll=roll, pitch=pitch, yaw=yaw, speed=msg.twist.twist.linear.x
+    )
+
+
+# --- actors -------------------------------------------------------------------------------
+
+
+def marker_id(actor_id: str) -> int:
+    """int32 marker id of an actor: the id itself when it is a canonical int ≥ 0 in int32,
+    else a stable negative number from crc32 (so it cannot collide with numeric ids)."""
+    if actor_id.isascii() and actor_id.isdigit() and str(int(actor_id)) == actor_id:
+        value = int(actor_id)
+        if value <= INT32_MAX:
+            return value
+    return -(zlib.crc32(actor_id.encode("utf-8")) & INT32_MAX) - 1
+
+
+def _delete_all(timestamp_ms: int, frame_id: str, ns: str) -> Marker:
+    return Marker(header=header(timestamp_ms, frame_id), ns=ns, action=Marker.DELETEALL)
+
+
+def _color(topic: str) -> ColorRGBA:
+    r, g, b = _COLORS[topic]
+    return ColorRGBA(r=r, g=g, b=b, a=1.0)
+
+
+def actors_to_markers(actors: Actors, timestamp_ms: int) -> MarkerArray:
+    """Actors → DELETEALL + one CUBE per actor (file order), full size, pose in ``map``."""
+    ns = MARKER_NS[topics.ACTORS]
+    head = header(timestamp_ms, topics.WORLD_FRAME)
+    color = _color(topics.ACTORS)
+    quats = carla_rpy_to_quaternions(actors.rotation).tolist()
+    locs = (actors.location * np.array([1.0, -1.0, 1.0])).tolist()
+    sizes = (2.0 * actors.extent).tolist()
+    markers = [_delete_all(timestamp_ms, topics.WORLD_FRAME, ns)]
+    for actor_id, loc, q, size in zip(actors.ids, locs, quats, sizes, strict=True):
+        markers.append(
+            Marker(
+                header=head,
+                ns=ns,
+                id=marker_id(actor_id),
+                type=Marker.CUBE,
+                action=Marker.ADD,
+                pose=Pose(position=_point(*loc), orientation=_quaternion(q)),
+                scale=Vector3(x=size[0], y=size[1], z=size[2]),
+                color=color,
+                text=actor_id,
+            )
+        )
+    return MarkerArray(markers=markers)
+
+
+def _added(msg: MarkerArray) -> list[Marker]:
+    return [m for m in msg.markers if m.action != Marker.DELETEALL]
+
+
+def markers_to_actors(msg: MarkerArray) -> Actors:
+    markers = _added(msg)
+    n = len(markers)
+    location = np.empty((n, 3))
+    quats = np.empty((n, 4))
+    extent = np.empty((n, 3))
+    for row, m in enumerate(markers):
+        p, o, s = m.pose.position, m.pose.orientation, m.scale
+        location[row] = (p.x, -p.y, p.z)
+        quats[row] = (o.x, o.y, o.z, o.w)
+        extent[row] = (s.x, s.y, s.z)
+    return Actors(
+        ids=tuple(m.text for m in markers),
+        location=location,
+        rotation=quaternions_to_carla_rpy(quats),
+        extent=extent / 2.0,
+    )
+
+
+# --- boxes --------------------------------------------------------------------------------
+
+
+def boxes_to_markers(boxes: Boxes, timestamp_ms: int, topic: str) -> MarkerArray:
+    """Boxes → DELETEALL + one closed LINE_STRIP per box in pixels (``camera_image``).
+
+    points[0] and points[2] are the two corners as written; ``text`` is JSON of the id and
+    every extra key (label, score ...), in file order.
+    """
+    ns = MARKER_NS[topic]
+    head = header(timestamp_ms, topics.IMAGE_FRAME)
+    color = _color(topic)
+    markers = [_delete_all(timestamp_ms, topics.IMAGE_FRAME, ns)]
+    for index, (box_id, (x1, y1, x2, y2), extras) in enumerate(
+        zip(boxes.ids, boxes.corners.tolist(), boxes.extras, strict=True)
+    ):
+        p1 = _point(x1, y1, 0.0)
+        markers.append(
+            Marker(
+                header=head,
+                ns=ns,
+                id=index,
+                type=Marker.LINE_STRIP,
+                action=Marker.ADD,
+                pose=Pose(orientation=Quaternion(w=1.0)),
+                scale=Vector3(x=2.0),
+                color=color,
+                points=[p1, _point(x2, y1, 0.0), _point(x2, y2, 0.0), _point(x1, y2, 0.0), p1],
+                text=dumps_json({"id": box_id, **extras}),
+            )
+        )
+    return MarkerArray(markers=markers)
+
+
+def markers_to_boxes(msg: MarkerArray) -> Boxes:
+    markers = _added(msg)
+    corners = np.empty((len(markers), 4))
+    ids: list[str] = []
+    extras: list[dict[str, Any]] = []
+    for row, m in enumerate(markers):
+        p1, p2 = m.points[0], m.points[2]
+        corners[row] = (p1.x, p1.y, p2.x, p2.y)
+        document = loads_json(m.text) if m.text else {}
+        ids.append(str(document.pop("id", m.id)))
+        extras.append(document)
+    return Boxes(ids=tuple(ids), corners=corners, extras=tuple(extras))
+
+
+# --- predictions --------------------------------------------------------------------------
+
+
+def predictions_to_markers(predictions: Predictions, timestamp_ms: int, topic: str) -> MarkerArray:
+    """Predictions → DELETEALL + one LINE_STRIP per obstacle of ego-frame offsets (``base_link``).
+
+    ``text`` is JSON {"id", "keys"}: the obstacle id and its step keys as written.
+    """
+    ns = MARKER_NS[topic]
+    head = header(timestamp_ms, topics.EGO_FRAME)
+    color = _color(topic)
+    markers = [_delete_all(timestamp_ms, topics.EGO_FRAME, ns)]
+    for index, (obstacle_id, track) in enumerate(predictions.items()):
+        offsets = (track.offsets * np.array([1.0, -1.0, 1.0])).tolist()
+        markers.append(
+            Marker(
+                header=head,
+                ns=ns,
+                id=index,
+                type=Marker.LINE_STRIP,
+                action=Marker.ADD,
+                pose=Pose(orientation=Quaternion(w=1.0)),
+                scale=Vector3(x=0.2),
+                color=color,
+                points=[_point(*o) for o in offsets],
+                text=dumps_json({"id": obstacle_id, "keys": list(track.keys)}),
+            )
+        )
+    return MarkerArray(markers=markers)
+
+
+def markers_to_predictions(msg: MarkerArray) -> Predictions:
+    out: Predictions = {}
+    for m in _added(msg):
+        document = loads_json(m.text) if m.text else {}
+        keys = tuple(str(k) for k in document.get("keys", range(len(m.points))))
+        offsets = np.array([(p.x, -p.y, p.z) for p in m.points], dtype=np.float64).reshape(-1, 3)
+        out.setdefault(str(document.get("id", m.id)), Track(keys=keys, offsets=offsets))
+    return out
+
+
+# --- plan ---------------------------------------------------------------------------------
+
+
+def step_ms(timesteps_per_frame: int) -> int:
+    """Milliseconds per plan step (1 if the metadata's frame period is not positive)."""
+    return timesteps_per_frame if timesteps_per_frame > 0 else 1
+
+
+def carried_plan_rows(plan: Plan) -> list[int]:
+    """Rows whose key is a canonical integer (``str(int(k)) == k``): the ones a trajectory
+    point can carry through ``time_from_start``. Others are dropped by the converter."""
+    return [row for row, key in enumerate(plan.keys) if _canonical_int(key)]
+
+
+def _canonical_int(text: str) -> bool:
+    try:
+        return str(int(text)) == text
+    except ValueError:
+        return False
+
+
+def plan_to_trajectory(
+    plan: Plan, timestamp_ms: int, timesteps_per_frame: int
+) -> MultiDOFJointTrajectory:
+    """Plan → MultiDOFJointTrajectory in ``map``: one point per integer key, file order.
+
+    translation (x, −y, 0), identity rotation, linear.x = speed, time_from_start = key × tpf.
+    """
+    step = step_ms(timesteps_per_frame)
+    xy, speed = plan.xy.tolist(), plan.speed.tolist()
+    points = []
+    for row in carried_plan_rows(plan):
+        x, y = xy[row]
+        points.append(
+            MultiDOFJointTrajectoryPoint(
+                transforms=[Transform(translation=Vector3(x=x, y=-y), rotation=Quaternion(w=1.0))],
+                velocities=[Twist(linear=Vector3(x=speed[row]))],
+                time_from_start=to_duration(int(plan.keys[row]) * step),
+            )
+        )
+    return MultiDOFJointTrajectory(
+        header=header(timestamp_ms, topics.WORLD_FRAME), joint_names=["ego"], points=points
+    )
+
+
+def trajectory_to_plan(msg: MultiDOFJointTrajectory, timesteps_per_frame: int) -> Plan:
+    step = step_ms(timesteps_per_frame)
+    n = len(msg.points)
+    xy = np.empty((n, 2))
+    speed = np.empty(n)
+    keys: list[str] = []
+    for row, point in enumerate(msg.points):
+        t = point.transforms[0].translation
+        xy[row] = (t.x, -t.y)
+        speed[row] = point.velocities[0].linear.x if point.velocities else math.nan
+        keys.append(str(from_duration(point.time_from_start) // step))
+    return Plan(keys=tuple(keys), xy=xy, speed=speed)
+
+
+# --- whole frames ---------------------------------------------------------------------------
+
+
+def frame_messages(log: RunLog, timestamp_ms: int) -> dict[str, Any]:
+    """Every data message of one timestamp, keyed by topic key, in FOLDERS order.
+
+    A folder with no record at ``timestamp_ms`` contributes no message.
+    """
+    out: dict[str, Any] = {}
+    ts = timestamp_ms
+    if (pose := log.pose.get(ts)) is not None:
+        out[topics.ODOMETRY] = pose_to_odometry(pose, ts)
+    if (actors := log.actors.get(ts)) is not None:
+        out[topics.ACTORS] = actors_to_markers(actors, ts)
+    if (boxes := log.bboxes.get(ts)) is not None:
+        out[topics.DETECTIONS] = boxes_to_markers(boxes, ts, topics.DETECTIONS)
+    if (boxes := log.bboxes_gt.get(ts)) is not None:
+        out[topics.GROUND_TRUTH] = boxes_to_markers(boxes, ts, topics.GROUND_TRUTH)
+    if (preds := log.predictions.get(ts)) is not None:
+        out[topics.PREDICTION_RAW] = predictions_to_markers(preds, ts, topics.PREDICTION_RAW)
+    if (preds := log.predictions_with_perception.get(ts)) is not None:
+        out[topics.PREDICTION_WITH_PERCEPTION] = predictions_to_markers(
+            preds, ts, topics.PREDICTION_WITH_PERCEPTION
+        )
+    if (plan := log.waypoints.get(ts)) is not None:
+        out[topics.TRAJECTORY] = plan_to_trajectory(plan, ts, log.tpf)
+    return out
+
+
+def message_to_record(topic: str, msg: Any, timesteps_per_frame: int) -> Any:
+    """The model record a data message carries (inverse of :func:`frame_messages`)."""
+    if topic == topics.ODOMETRY:
+        return odometry_to_pose(msg)
+    if topic == topics.ACTORS:
+        return markers_to_actors(msg)
+    if topic in (topics.DETECTIONS, topics.GROUND_TRUTH):
+        return markers_to_boxes(msg)
+    if topic in (topics.PREDICTION_RAW, topics.PREDICTION_WITH_PERCEPTION):
+        return markers_to_predictions(msg)
+    if topic == topics.TRAJECTORY:
+        return trajectory_to_plan(msg, timesteps_per_frame)
+    raise ValueError(f"not a data topic: {topic!r}")
+
+
+def message_stamp_ms(msg: Any) -> int:
+    """Log time of a data message: its header stamp (a MarkerArray's first marker's)."""
+    if isinstance(msg, MarkerArray):
+        if not msg.markers:
+            raise ValueError("empty MarkerArray carries no stamp")
+        return from_time(msg.markers[0].header.stamp)
+    return from_time(msg.header.stamp)

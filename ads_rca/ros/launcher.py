@@ -1,0 +1,170 @@
+"""Starts ROS nodes as separate processes and stops them cleanly; a tiny ``ros2 launch``.
+
+``launch``/``ros2`` are not available here, and the CLI (``ads-rca demo``/``replay``) and the
+tests need to run a graph of nodes anyway. Each child gets the safe environment of
+:mod:`ads_rca.ros.env`, its output is read line by line (kept, and optionally echoed with a
+``[name]`` prefix), and stopping escalates SIGINT → SIGTERM → SIGKILL with timeouts.
+Pure Python: no rclpy import.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterable, Mapping
+from types import TracebackType
+from typing import TextIO
+
+from ads_rca.ros.env import ros_environment
+
+ParamValue = bool | int | float | str
+
+
+def format_param(value: ParamValue) -> str:
+    """A value as ``-p name:=value`` wants it (YAML): floats keep a '.', strings are quoted."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        return repr(value)
+    escaped = value.replace("\\", "\\\\").replace('"', '\\"')
+    return f'"{escaped}"'
+
+
+def ros_args(
+    params: Mapping[str, ParamValue] | None = None,
+    params_file: str | os.PathLike[str] | None = None,
+) -> list[str]:
+    """``--ros-args [--params-file f] -p k:=v ...`` (empty when there is nothing to pass).
+
+    rcl lets a later argument override an earlier one, so the file comes first and each
+    explicit ``-p`` wins over it.
+    """
+    args: list[str] = []
+    if params_file is not None:
+        args += ["--params-file", os.fspath(params_file)]
+    for name, value in (params or {}).items():
+        args += ["-p", f"{name}:={format_param(value)}"]
+    return ["--ros-args", *args] if args else []
+
+
+def node_command(
+    module: str,
+    params: Mapping[str, ParamValue] | None = None,
+    params_file: str | os.PathLike[str] | None = None,
+) -> list[str]:
+    """argv running ``python -m module`` with ROS arguments (same interpreter as ours)."""
+    return [sys.executable, "-m", module, *ros_args(params, params_file)]
+
+
+class ManagedProcess:
+    """One child process: output collected by a reader thread, clean stop."""
+
+    def __init__(
+        self,
+        name: str,
+        argv: list[str],
+        env: Mapping[str, str] | None = None,
+        echo: TextIO | None = None,
+        cwd: str | os.PathLike[str] | None = None,
+    ) -> None:
+        self.name = name
+        self.argv = argv
+        self.lines: list[str] = []
+        self._echo = echo
+        self._lock = threading.Lock()
+        self.process = subprocess.Popen(
+            argv,
+            env=dict(env) if env is not None else ros_environment(),
+            cwd=cwd,
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+            bufsize=1,
+        )
+        self._reader = threading.Thread(target=self._read, name=f"out-{name}", daemon=True)
+        self._reader.start()
+
+    def _read(self) -> None:
+        assert self.process.stdout is not None
+        for line in self.process.stdout:
+            text = line.rstrip("\n")
+            with self._lock:
+                self.lines.append(text)
+                if self._echo is not None:
+                    self._echo.write(f"[{self.name}] {text}\n")
+                    self._echo.flush()
+
+    @property
+    def output(self) -> str:
+        with self._lock:
+            return "\n".join(self.lines)
+
+    @property
+    def returncode(self) -> int | None:
+        return self.process.poll()
+
+    def wait(self, timeout: float | None = None) -> int | None:
+        """Exit status, or None if still running after ``timeout`` seconds."""
+        try:
+            code = self.process.wait(timeout)
+        except subprocess.TimeoutExpired:
+            return None
+        self._reader.join(timeout=2.0)
+        return code
+
+    def stop(self, timeout: float = 5.0) -> int:
+        """SIGINT, then SIGTERM, then SIGKILL, each given ``timeout`` seconds; exit status."""
+        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
+            if self.process.poll() is not None:
+                break
+            self.process.send_signal(sig)
+            if self.wait(timeout) is not None:
+                break
+        code = self.process.wait()
+        self._reader.join(timeout=2.0)
+        return code
+
+
+class Launcher:
+    """Starts named processes in one environment; stops whatever still runs on exit."""
+
+    def __init__(self, env: Mapping[str, str] | None = None, echo: TextIO | None = None) -> None:
+        self.env = dict(env) if env is not None else ros_environment()
+        self.echo = echo
+        self.processes: dict[str, ManagedProcess] = {}
+
+    def start(self, name: str, argv: list[str]) -> ManagedProcess:
+        process = ManagedProcess(name, argv, self.env, self.echo)
+        self.processes[name] = process
+        return process
+
+    def wait_all(self, timeout: float, names: Iterable[str] | None = None) -> dict[str, int | None]:
+        """Wait up to ``timeout`` seconds in total; exit status per process (None: running)."""
+        deadline = time.monotonic() + timeout
+        out: dict[str, int | None] = {}
+        for name in list(names) if names is not None else list(self.processes):
+            remaining = max(0.0, deadline - time.monotonic())
+            out[name] = self.processes[name].wait(remaining)
+        return out
+
+    def stop_all(self, timeout: float = 5.0) -> dict[str, int]:
+        """Stop every process, last started first."""
+        return {name: process.stop(timeout) for name, process in reversed(self.processes.items())}
+
+    def __enter__(self) -> Launcher:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.stop_all()

@@ -1,0 +1,136 @@
+"""What the player sends and in which order: the timeline, frame markers, metadata and status.
+
+Pure data (no rclpy) so the player node stays a thin loop and the assembler can read back
+exactly what the player wrote. The timeline holds every analysed frame (``RunLog.frames``,
+duplicates kept) plus every timestamp that has a record in some folder without being an
+analysed frame ("records-only" stamps, e.g. a pose file with no actors file): publishing
+those too is what makes the topic stream carry the whole log, losslessly.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import String
+
+from ads_rca.model import FOLDERS, RunLog
+from ads_rca.ros import topics
+from ads_rca.ros.convert import carried_plan_rows, to_time
+from ads_rca.ros.jsontext import dumps_json, loads_json
+
+#: Key in the metadata message holding the exact ``metadata.json`` document.
+METADATA_DOCUMENT_KEY = "metadata_json"
+
+PLAYING = "playing"
+FINISHED = "finished"
+
+
+@dataclass(frozen=True, slots=True)
+class Tick:
+    """One step of playback: a log timestamp and its place in the analysed-frame list."""
+
+    stamp_ms: int
+    index: int | None  # position in RunLog.frames; None for a records-only stamp
+    duplicate: bool = False  # the same stamp already appeared earlier in RunLog.frames
+
+
+def timeline(log: RunLog) -> list[Tick]:
+    """Analysed frames in order, with records-only stamps merged in by time (ascending)."""
+    analysed = set(log.frames)
+    stamps: set[int] = set()
+    for folder in FOLDERS:
+        stamps.update(log.folder(folder))
+    extras = sorted(stamps - analysed)
+    ticks: list[Tick] = []
+    seen: set[int] = set()
+    position = 0
+    for index, ts in enumerate(log.frames):
+        while position < len(extras) and extras[position] < ts:
+            ticks.append(Tick(extras[position], None))
+            position += 1
+        ticks.append(Tick(ts, index, ts in seen))
+        seen.add(ts)
+    ticks.extend(Tick(ts, None) for ts in extras[position:])
+    return ticks
+
+
+def select(ticks: list[Tick], start_frame: int = 0, stop_frame: int = -1) -> list[Tick]:
+    """Ticks of analysed frames ``start_frame..stop_frame`` (inclusive; -1 = to the end).
+
+    A records-only stamp travels with the analysed frame before it (those before the first
+    frame travel with frame 0), so consecutive ranges partition the timeline.
+    """
+    analysed_at = [pos for pos, tick in enumerate(ticks) if tick.index is not None]
+    count = len(analysed_at)
+    stop = count - 1 if stop_frame < 0 else min(stop_frame, count - 1)
+    if start_frame >= count or stop < start_frame:
+        return []
+    lo = 0 if start_frame <= 0 else analysed_at[start_frame]
+    hi = len(ticks) if stop + 1 >= count else analysed_at[stop + 1]
+    return ticks[lo:hi]
+
+
+def frame_marker(
+    tick: Tick, published: list[str], timesteps_per_frame: int, **extra: Any
+) -> String:
+    """The ``run/frame`` message sent after a tick's data: what was published for it."""
+    tpf = timesteps_per_frame
+    frame: float | int | None = None
+    if tpf > 0:
+        frame = tick.stamp_ms // tpf if tick.stamp_ms % tpf == 0 else tick.stamp_ms / tpf
+    document = {
+        "index": tick.index,
+        "stamp_ms": tick.stamp_ms,
+        "frame": frame,
+        "published": published,
+        "duplicate": tick.duplicate,
+        **extra,
+    }
+    return String(data=dumps_json(document))
+
+
+def dropped_plan_keys(log: RunLog, timestamp_ms: int) -> int:
+    """How many plan keys at this stamp the trajectory cannot carry (non-integer keys)."""
+    plan = log.waypoints.get(timestamp_ms)
+    return 0 if plan is None else len(plan) - len(carried_plan_rows(plan))
+
+
+def metadata_message(log: RunLog, **extra: Any) -> String:
+    """``run/metadata``: the metadata.json document's keys, plus what the run adds.
+
+    Added keys: ``source``, ``frames`` (number of analysed frames), ``problems`` (reader
+    problems) and ``metadata_json`` (the exact document, so a key of the document called
+    ``source`` or ``frames`` is not lost).
+    """
+    document = log.metadata.to_dict()
+    out: dict[str, Any] = dict(document)
+    out.update(
+        source=log.source,
+        frames=len(log.frames),
+        problems=len(log.problems),
+        **extra,
+    )
+    out[METADATA_DOCUMENT_KEY] = document
+    return String(data=dumps_json(out))
+
+
+def status_message(state: str, frames_published: int, **extra: Any) -> String:
+    """``player/status``: ``frames_published`` counts the ``run/frame`` markers sent."""
+    return String(data=dumps_json({"state": state, "frames_published": frames_published, **extra}))
+
+
+def clock_message(timestamp_ms: int) -> Clock:
+    return Clock(clock=to_time(timestamp_ms))
+
+
+def read_document(msg: String) -> dict[str, Any]:
+    """The JSON object in a contract String message ({} if it is not an object)."""
+    document = loads_json(msg.data)
+    return document if isinstance(document, dict) else {}
+
+
+def published_names(messages: dict[str, Any]) -> list[str]:
+    """Topic keys (relative names) of the data messages sent for a tick, in send order."""
+    return [key for key in topics.DATA_TOPICS if key in messages]

@@ -1,0 +1,261 @@
+"""``player`` node: plays a running-log folder onto the topic contract, frame by frame.
+
+A thin shell: the data logic (conversion, timeline, markers) lives in convert.py and
+playback.py. Timing follows log time: a wall timer ticks every tpf/rate and sends every
+stamp that is due; at rate 0 each frame is sent as soon as every subscriber acknowledged the
+previous one (``wait_for_all_acked``), so nothing is dropped. Bad input is one logged line
+and exit status 2; reader problems are logged one per line and counted in the status.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import rclpy
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.duration import Duration
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.logging import get_logger
+from rclpy.node import Node
+
+from ads_rca.errors import InputError
+from ads_rca.model import RunLog
+from ads_rca.ros import topics
+from ads_rca.ros.convert import frame_messages
+from ads_rca.ros.env import use_fast_ack_profile
+from ads_rca.ros.playback import (
+    FINISHED,
+    PLAYING,
+    Tick,
+    clock_message,
+    dropped_plan_keys,
+    frame_marker,
+    metadata_message,
+    published_names,
+    select,
+    status_message,
+    timeline,
+)
+
+#: Every parameter: (default, description). Doubles accept integers too (dynamic typing).
+PARAMETERS: dict[str, tuple[Any, str]] = {
+    "log_path": ("", "Running-log folder to play (required)."),
+    "rate": (1.0, "Playback speed vs log time; 0 = as fast as subscribers acknowledge."),
+    "start_frame": (0, "Index of the first analysed frame to play."),
+    "stop_frame": (-1, "Index of the last analysed frame to play (inclusive); -1 = the end."),
+    "loop": (False, "Start again from start_frame after the last frame."),
+    "publish_clock": (True, "Publish /clock with each frame's log time before its data."),
+    "topic_namespace": (topics.DEFAULT_NAMESPACE, "Namespace of every contract topic."),
+    "wait_for_subscribers": (0, "Wait for this many subscribers on run/frame before playing."),
+    "wait_timeout_s": (10.0, "Longest wait for subscribers / acknowledgements, in seconds."),
+    "exit_on_end": (True, "After 'finished', wait for all acks, then exit with status 0."),
+}
+_DOUBLES = {"rate", "wait_timeout_s"}
+
+
+class ConfigError(Exception):
+    """A parameter value the player cannot use (reported as one line, exit status 2)."""
+
+
+class Player(Node):
+    """Publishes one RunLog on the contract topics."""
+
+    def __init__(self) -> None:
+        super().__init__("player")
+        for name, (default, description) in PARAMETERS.items():
+            descriptor = ParameterDescriptor(description=description)
+            if name in _DOUBLES:
+                descriptor.dynamic_typing = True
+            self.declare_parameter(name, default, descriptor)
+        self.rate = float(self._param("rate"))
+        self.start_frame = int(self._param("start_frame"))
+        self.stop_frame = int(self._param("stop_frame"))
+        self.loop = bool(self._param("loop"))
+        self.publish_clock = bool(self._param("publish_clock"))
+        self.wait_count = int(self._param("wait_for_subscribers"))
+        self.wait_timeout = float(self._param("wait_timeout_s"))
+        self.exit_on_end = bool(self._param("exit_on_end"))
+        namespace = str(self._param("topic_namespace"))
+        if self.rate < 0:
+            raise ConfigError(f"rate must be >= 0, got {self.rate}")
+        if self.start_frame < 0 or self.stop_frame < -1:
+            raise ConfigError("start_frame must be >= 0 and stop_frame >= -1")
+        self.log = self._load(str(self._param("log_path")))
+        self.ticks = select(timeline(self.log), self.start_frame, self.stop_frame)
+        if not self.ticks:
+            self.get_logger().warning(
+                f"frames {self.start_frame}..{self.stop_frame} select nothing "
+                f"(the log has {len(self.log.frames)} analysed frames)"
+            )
+        self.pubs = {
+            key: self.create_publisher(
+                topics.MESSAGE_TYPES[key],
+                topics.topic_name(key, namespace),
+                topics.qos_profile(key),
+            )
+            for key in topics.ALL_TOPICS
+            if key != topics.CLOCK or self.publish_clock
+        }
+        self.frames_published = 0
+        self.loops = 0
+        self.done = False
+        self._position = 0
+        self._wall0 = 0.0
+        self.pubs[topics.METADATA].publish(
+            metadata_message(
+                self.log,
+                playback={
+                    "start_frame": self.start_frame,
+                    "stop_frame": self.stop_frame,
+                    "ticks": len(self.ticks),
+                },
+            )
+        )
+
+    def _param(self, name: str) -> Any:
+        return self.get_parameter(name).value
+
+    def _load(self, log_path: str) -> RunLog:
+        from ads_rca.io.json_log import read_run_log
+
+        if not log_path:
+            raise ConfigError("parameter log_path is required (a running-log folder)")
+        if not Path(log_path).is_dir():
+            raise ConfigError(f"{log_path}: no such log folder")
+        log = read_run_log(log_path)
+        for problem in log.problems:
+            self.get_logger().warning(str(problem))
+        self.get_logger().info(
+            f"{log_path}: {len(log.frames)} analysed frames, tpf {log.tpf} ms, "
+            f"{len(log.problems)} problems"
+        )
+        return log
+
+    # --- waiting ------------------------------------------------------------------------
+
+    def wait_for_subscribers(self) -> bool:
+        """Until ``wait_count`` subscribers match run/frame (then, briefly, every data topic)."""
+        if self.wait_count <= 0:
+            return True
+        deadline = time.monotonic() + self.wait_timeout
+        frame_pub = self.pubs[topics.FRAME]
+        while frame_pub.get_subscription_count() < self.wait_count:
+            if time.monotonic() > deadline:
+                self.get_logger().warning(
+                    f"only {frame_pub.get_subscription_count()} of {self.wait_count} "
+                    f"subscribers after {self.wait_timeout} s; playing anyway"
+                )
+                return False
+            time.sleep(0.01)
+        # Endpoints of one participant are discovered together; allow stragglers a moment.
+        grace = min(deadline, time.monotonic() + 2.0)
+        data = [p for key, p in self.pubs.items() if not topics.QOS[key].latched]
+        while time.monotonic() < grace and any(
+            p.get_subscription_count() < self.wait_count for p in data
+        ):
+            time.sleep(0.01)
+        return True
+
+    def wait_for_acks(self) -> bool:
+        timeout = Duration(seconds=self.wait_timeout)
+        return all([p.wait_for_all_acked(timeout) for p in self.pubs.values()])
+
+    # --- playing ------------------------------------------------------------------------
+
+    def start(self) -> None:
+        self._wall0 = time.monotonic()
+        self.pubs[topics.STATUS].publish(self._status(PLAYING))
+        period = 0.0 if self.rate == 0 else self.log.tpf / 1000.0 / self.rate
+        self.create_timer(max(period, 0.0), self._on_timer)
+
+    def _status(self, state: str) -> Any:
+        return status_message(
+            state,
+            self.frames_published,
+            problems=len(self.log.problems),
+            loops=self.loops,
+            source=self.log.source,
+            elapsed_s=round(time.monotonic() - self._wall0, 6),
+        )
+
+    def _on_timer(self) -> None:
+        if self.done:
+            return
+        if self.rate == 0:
+            self._publish_tick(self.ticks[self._position] if self.ticks else None)
+            if not self.wait_for_acks():
+                self.get_logger().warning("subscribers did not acknowledge within the timeout")
+        else:
+            while not self.done and self.ticks and self._due(self.ticks[self._position]):
+                self._publish_tick(self.ticks[self._position])
+        if not self.ticks:
+            self._finish()
+
+    def _due(self, tick: Tick) -> bool:
+        """Log time has reached ``tick`` (log time runs at ``rate`` from the first tick)."""
+        elapsed_ms = (time.monotonic() - self._wall0) * 1000.0 * self.rate
+        return tick.stamp_ms <= self.ticks[0].stamp_ms + elapsed_ms
+
+    def _publish_tick(self, tick: Tick | None) -> None:
+        if tick is None:
+            return
+        if self.publish_clock:
+            self.pubs[topics.CLOCK].publish(clock_message(tick.stamp_ms))
+        messages = frame_messages(self.log, tick.stamp_ms)
+        for key, msg in messages.items():
+            self.pubs[key].publish(msg)
+        extra = {}
+        if dropped := dropped_plan_keys(self.log, tick.stamp_ms):
+            extra["dropped_plan_keys"] = dropped
+        names = published_names(messages)
+        if self.publish_clock:
+            names.insert(0, topics.CLOCK)
+        self.pubs[topics.FRAME].publish(frame_marker(tick, names, self.log.tpf, **extra))
+        self.frames_published += 1
+        self._position += 1
+        if self._position >= len(self.ticks):
+            if self.loop:
+                self._position = 0
+                self.loops += 1
+                self._wall0 = time.monotonic()
+            else:
+                self._finish()
+
+    def _finish(self) -> None:
+        self.done = True
+        self.pubs[topics.STATUS].publish(self._status(FINISHED))
+        self.get_logger().info(f"finished: {self.frames_published} frames published")
+
+
+def main(args: list[str] | None = None) -> int:
+    use_fast_ack_profile()
+    rclpy.init(args=args)
+    node: Player | None = None
+    try:
+        try:
+            node = Player()
+        except (ConfigError, InputError) as error:
+            get_logger("player").error(str(error))
+            return 2
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        node.wait_for_subscribers()
+        node.start()
+        while rclpy.ok() and not (node.done and node.exit_on_end):
+            executor.spin_once(timeout_sec=0.1)
+        if not node.wait_for_acks():
+            node.get_logger().warning("not every message was acknowledged before exit")
+        return 0
+    except (KeyboardInterrupt, ExternalShutdownException):
+        return 0
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,155 @@
+"""``topic_summary`` node: listens to every contract topic, counts, optionally rebuilds the log.
+
+The separate-process subscriber of the demo and the tests. It counts messages per topic,
+feeds them to the :class:`~ads_rca.ros.assembler.RunLogAssembler`, and stops when the player
+said "finished" and everything the frame markers announced has arrived (or at ``timeout_s``).
+With ``output_json`` it writes the rebuilt log as a running-log folder to ``output_dir``;
+``summary_file`` receives the per-topic counts as JSON. Exit status: 0 complete, 1 timed out.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import orjson
+import rclpy
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+
+from ads_rca.ros import topics
+from ads_rca.ros.assembler import RunLogAssembler
+
+PARAMETERS: dict[str, tuple[Any, str]] = {
+    "topic_namespace": (topics.DEFAULT_NAMESPACE, "Namespace of the contract topics."),
+    "output_json": (False, "Rebuild the log from the messages and write it to output_dir."),
+    "output_dir": ("rebuilt_log", "Folder for the rebuilt running log (with output_json)."),
+    "summary_file": ("", "Write the per-topic counts as JSON to this file ('' = no file)."),
+    "timeout_s": (60.0, "Give up after this many seconds without completing (0 = never)."),
+}
+_DOUBLES = {"timeout_s"}
+
+
+class TopicSummary(Node):
+    """Subscribes to every contract topic and records what arrives."""
+
+    def __init__(self) -> None:
+        super().__init__("topic_summary")
+        for name, (default, description) in PARAMETERS.items():
+            descriptor = ParameterDescriptor(
+                description=description, dynamic_typing=name in _DOUBLES
+            )
+            self.declare_parameter(name, default, descriptor)
+        namespace = str(self.get_parameter("topic_namespace").value)
+        self.timeout = float(self.get_parameter("timeout_s").value)
+        self.assembler = RunLogAssembler()
+        self.first_arrival: float | None = None
+        self.last_arrival: float | None = None
+        self.names = topics.topic_names(namespace)
+        self.subs = [
+            self.create_subscription(
+                topics.MESSAGE_TYPES[key],
+                self.names[key],
+                self._callback(key),
+                topics.qos_profile(key, keep_all=True),
+            )
+            for key in topics.ALL_TOPICS
+        ]
+
+    def _callback(self, key: str) -> Any:
+        def on_message(msg: Any) -> None:
+            now = time.monotonic()
+            if self.first_arrival is None:
+                self.first_arrival = now
+            self.last_arrival = now
+            self.assembler.add(key, msg)
+
+        return on_message
+
+    def counts(self) -> dict[str, Any]:
+        """Per topic: full name, type, received and announced counts."""
+        a = self.assembler
+        rows = {}
+        for key in topics.ALL_TOPICS:
+            msg_type = topics.MESSAGE_TYPES[key]
+            rows[self.names[key]] = {
+                "type": f"{msg_type.__module__.split('.')[0]}/{msg_type.__name__}",
+                "received": a.received[key],
+                "expected": a.expected[key] if key in (*topics.DATA_TOPICS, topics.CLOCK) else None,
+            }
+        elapsed = (
+            self.last_arrival - self.first_arrival
+            if self.first_arrival is not None and self.last_arrival is not None
+            else 0.0
+        )
+        return {
+            "topics": rows,
+            "complete": a.complete(),
+            "missing": a.missing(),
+            "status": a.status,
+            "frames": len([i for i in a.markers if i >= 0]),
+            "elapsed_s": elapsed,
+        }
+
+    def table(self) -> str:
+        summary = self.counts()
+        lines = [f"{'topic':<48} {'type':<40} {'received':>9} {'announced':>9}"]
+        for name, row in summary["topics"].items():
+            expected = "" if row["expected"] is None else str(row["expected"])
+            lines.append(f"{name:<48} {row['type']:<40} {row['received']:>9} {expected:>9}")
+        state = "complete" if summary["complete"] else f"INCOMPLETE, missing {summary['missing']}"
+        lines.append(f"{summary['frames']} analysed frames, {state}")
+        return "\n".join(lines)
+
+    def write_outputs(self) -> None:
+        summary_file = str(self.get_parameter("summary_file").value)
+        if summary_file:
+            path = Path(summary_file)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_bytes(orjson.dumps(self.counts(), option=orjson.OPT_INDENT_2))
+        if self.get_parameter("output_json").value:
+            from ads_rca.io.json_writer import write_run_log
+
+            out = Path(str(self.get_parameter("output_dir").value))
+            try:
+                log = self.assembler.build()
+            except ValueError as error:
+                self.get_logger().error(f"cannot rebuild the log: {error}")
+                return
+            write_run_log(log, out)
+            self.get_logger().info(f"rebuilt log written to {out}")
+
+
+def main(args: list[str] | None = None) -> int:
+    rclpy.init(args=args)
+    node: TopicSummary | None = None
+    code = 0
+    try:
+        node = TopicSummary()
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        deadline = time.monotonic() + node.timeout if node.timeout > 0 else float("inf")
+        while rclpy.ok() and not node.assembler.complete():
+            if time.monotonic() > deadline:
+                node.get_logger().error(
+                    f"timed out after {node.timeout} s; missing {node.assembler.missing()}"
+                )
+                code = 1
+                break
+            executor.spin_once(timeout_sec=0.05)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        code = 130
+    finally:
+        if node is not None:
+            print(node.table(), flush=True)
+            node.write_outputs()
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())

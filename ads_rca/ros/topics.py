@@ -1,0 +1,136 @@
+"""The topic contract in one place: names, message types and QoS of everything the player sends.
+
+Nodes, the assembler, the tests and the docs all take topic names from here so that the
+contract (docs/topics.md) cannot drift between publisher and subscribers. Topic keys are the
+names relative to the ``topic_namespace`` parameter; ``/clock`` is absolute, as ROS wants it.
+QoS is described with plain data so this module imports no rclpy; :func:`qos_profile` builds
+the rclpy profile where a node needs it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+from nav_msgs.msg import Odometry
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import String
+from trajectory_msgs.msg import MultiDOFJointTrajectory
+from visualization_msgs.msg import MarkerArray
+
+if TYPE_CHECKING:
+    from rclpy.qos import QoSProfile
+
+DEFAULT_NAMESPACE = "/ads_rca"
+
+# Topic keys (relative names).
+METADATA = "run/metadata"
+ODOMETRY = "ego/odometry"
+ACTORS = "actors"
+DETECTIONS = "perception/detections"
+GROUND_TRUTH = "perception/ground_truth"
+PREDICTION_RAW = "prediction/raw"
+PREDICTION_WITH_PERCEPTION = "prediction/with_perception"
+TRAJECTORY = "planning/trajectory"
+FRAME = "run/frame"
+STATUS = "player/status"
+CLOCK = "/clock"
+
+#: Per-frame data topics, keyed by the log folder they carry (in :data:`ads_rca.model.FOLDERS`
+#: order). Their messages are stamped with the frame's log time.
+FOLDER_TOPICS: dict[str, str] = {
+    "pose": ODOMETRY,
+    "actors": ACTORS,
+    "bboxes": DETECTIONS,
+    "bboxes_gt": GROUND_TRUTH,
+    "predictions": PREDICTION_RAW,
+    "predictions_with_perception": PREDICTION_WITH_PERCEPTION,
+    "waypoint": TRAJECTORY,
+}
+TOPIC_FOLDERS: dict[str, str] = {topic: folder for folder, topic in FOLDER_TOPICS.items()}
+DATA_TOPICS: tuple[str, ...] = tuple(FOLDER_TOPICS.values())
+
+#: Message type of every topic key.
+MESSAGE_TYPES: dict[str, type[Any]] = {
+    METADATA: String,
+    ODOMETRY: Odometry,
+    ACTORS: MarkerArray,
+    DETECTIONS: MarkerArray,
+    GROUND_TRUTH: MarkerArray,
+    PREDICTION_RAW: MarkerArray,
+    PREDICTION_WITH_PERCEPTION: MarkerArray,
+    TRAJECTORY: MultiDOFJointTrajectory,
+    FRAME: String,
+    STATUS: String,
+    CLOCK: Clock,
+}
+ALL_TOPICS: tuple[str, ...] = tuple(MESSAGE_TYPES)
+
+# Frame ids.
+WORLD_FRAME = "map"
+EGO_FRAME = "base_link"
+IMAGE_FRAME = "camera_image"
+
+
+@dataclass(frozen=True, slots=True)
+class QoSSpec:
+    """A QoS profile as plain data (so the contract can be read without rclpy)."""
+
+    depth: int
+    reliable: bool = True
+    latched: bool = False  # TRANSIENT_LOCAL durability
+
+    def describe(self) -> str:
+        reliability = "RELIABLE" if self.reliable else "BEST_EFFORT"
+        durability = "TRANSIENT_LOCAL" if self.latched else "VOLATILE"
+        return f"{reliability}, {durability}, KEEP_LAST {self.depth}"
+
+
+DATA_QOS = QoSSpec(depth=100)
+LATCHED_QOS = QoSSpec(depth=1, latched=True)
+
+QOS: dict[str, QoSSpec] = {
+    topic: (LATCHED_QOS if topic in (METADATA, STATUS) else DATA_QOS) for topic in ALL_TOPICS
+}
+
+
+def normalise_namespace(namespace: str) -> str:
+    """``ads_rca/``, ``/ads_rca`` → ``/ads_rca``; empty or ``/`` → ``""`` (root)."""
+    stripped = namespace.strip().strip("/")
+    return f"/{stripped}" if stripped else ""
+
+
+def topic_name(key: str, namespace: str = DEFAULT_NAMESPACE) -> str:
+    """Full name of a topic key under ``namespace`` (absolute keys are returned unchanged)."""
+    if key.startswith("/"):
+        return key
+    return f"{normalise_namespace(namespace)}/{key}"
+
+
+def topic_names(namespace: str = DEFAULT_NAMESPACE) -> dict[str, str]:
+    """Every topic key → its full name."""
+    return {key: topic_name(key, namespace) for key in ALL_TOPICS}
+
+
+def qos_profile(key: str, depth: int | None = None, keep_all: bool = False) -> QoSProfile:
+    """The rclpy QoS profile of a topic key (``depth`` overrides the contract's history depth).
+
+    ``keep_all``: for subscribers that must lose nothing (recorder, monitors, summary). A
+    reliable KEEP_ALL reader withholds its acknowledgements while its queue is full, so a
+    player pacing itself on acknowledgements (rate 0) waits instead of overwriting samples
+    the reader has not taken yet. Latched topics keep their depth-1 history.
+    """
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+    spec = QOS[key]
+    keep_all = keep_all and not spec.latched
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_ALL if keep_all else HistoryPolicy.KEEP_LAST,
+        depth=spec.depth if depth is None else depth,
+        reliability=(
+            ReliabilityPolicy.RELIABLE if spec.reliable else ReliabilityPolicy.BEST_EFFORT
+        ),
+        durability=(
+            DurabilityPolicy.TRANSIENT_LOCAL if spec.latched else DurabilityPolicy.VOLATILE
+        ),
+    )

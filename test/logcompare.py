@@ -1,0 +1,89 @@
+"""Field-by-field comparison of two RunLogs, with a tolerance for angles only.
+
+Positions, sizes, speeds, ids, keys, extras and file order must be equal exactly (NaN equal
+to NaN); angles may differ by ``angle_tol`` degrees modulo 360 (they go through quaternions).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ads_rca.model import Actors, Boxes, EgoPose, Plan, Predictions, RunLog
+
+
+def _exact(a: np.ndarray, b: np.ndarray, where: str) -> None:
+    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    assert a.shape == b.shape, f"{where}: shape {a.shape} != {b.shape}"
+    assert np.array_equal(a, b, equal_nan=True), f"{where}: {a} != {b}"
+
+
+def _angles(a: np.ndarray, b: np.ndarray, tol: float, where: str) -> None:
+    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    assert a.shape == b.shape, f"{where}: shape {a.shape} != {b.shape}"
+    assert np.array_equal(np.isnan(a), np.isnan(b)), f"{where}: NaN pattern {a} != {b}"
+    diff = np.abs((a - b + 180.0) % 360.0 - 180.0)
+    worst = float(np.nanmax(diff)) if diff.size and not np.isnan(diff).all() else 0.0
+    assert worst <= tol, f"{where}: angles differ by {worst} deg > {tol}: {a} != {b}"
+
+
+def _pose(a: EgoPose, b: EgoPose, tol: float, where: str) -> None:
+    _exact([a.x, a.y, a.z, a.speed], [b.x, b.y, b.z, b.speed], where)
+    _angles([a.roll, a.pitch, a.yaw], [b.roll, b.pitch, b.yaw], tol, where)
+
+
+def _actors(a: Actors, b: Actors, tol: float, where: str) -> None:
+    assert a.ids == b.ids, f"{where}: ids {a.ids} != {b.ids}"
+    _exact(a.location, b.location, f"{where} location")
+    _exact(a.extent, b.extent, f"{where} extent")
+    _angles(a.rotation, b.rotation, tol, f"{where} rotation")
+
+
+def _boxes(a: Boxes, b: Boxes, where: str) -> None:
+    assert a.ids == b.ids, f"{where}: ids {a.ids} != {b.ids}"
+    _exact(a.corners, b.corners, f"{where} corners")
+    assert [list(e.items()) for e in a.extras] == [list(e.items()) for e in b.extras], where
+
+
+def _predictions(a: Predictions, b: Predictions, where: str) -> None:
+    assert list(a) == list(b), f"{where}: obstacle ids {list(a)} != {list(b)}"
+    for key in a:
+        assert a[key].keys == b[key].keys, f"{where}[{key}]: {a[key].keys} != {b[key].keys}"
+        _exact(a[key].offsets, b[key].offsets, f"{where}[{key}]")
+
+
+def _plan(a: Plan, b: Plan, where: str) -> None:
+    assert a.keys == b.keys, f"{where}: keys {a.keys} != {b.keys}"
+    _exact(a.xy, b.xy, f"{where} xy")
+    _exact(a.speed, b.speed, f"{where} speed")
+
+
+def assert_logs_equal(
+    a: RunLog, b: RunLog, angle_tol: float = 1e-9, *, check_frames: bool = True
+) -> None:
+    """Raise AssertionError naming the first difference between ``a`` and ``b``."""
+    assert a.metadata.to_dict() == b.metadata.to_dict(), "metadata differs"
+    if check_frames:
+        assert a.frames == b.frames, f"frames {a.frames} != {b.frames}"
+    for name in (
+        "pose",
+        "actors",
+        "bboxes",
+        "bboxes_gt",
+        "predictions",
+        "predictions_with_perception",
+        "waypoint",
+    ):
+        fa, fb = a.folder(name), b.folder(name)
+        assert sorted(fa) == sorted(fb), f"{name}: stamps {sorted(fa)} != {sorted(fb)}"
+        for ts in fa:
+            where = f"{name}@{ts}"
+            if name == "pose":
+                _pose(fa[ts], fb[ts], angle_tol, where)
+            elif name == "actors":
+                _actors(fa[ts], fb[ts], angle_tol, where)
+            elif name in ("bboxes", "bboxes_gt"):
+                _boxes(fa[ts], fb[ts], where)
+            elif name == "waypoint":
+                _plan(fa[ts], fb[ts], where)
+            else:
+                _predictions(fa[ts], fb[ts], where)

@@ -1,0 +1,127 @@
+"""Deterministic synthetic RunLogs that exercise every corner of the ROS topic contract.
+
+Built in code (no reader needed): all seven folders, numeric and non-numeric ids, extras on
+boxes, step keys out of order, an empty predictions record, missing files, and optionally
+a duplicated analysed frame and records-only stamps (a pose with no actors file).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ads_rca.model import Actors, Boxes, EgoPose, Plan, RunLog, RunMetadata, Track
+
+TPF = 50
+
+
+def _actor_ids(rng: np.random.Generator, n: int) -> tuple[str, ...]:
+    special = ["walker_3", "4294967296", "0042", "vehicle.tesla"]
+    ids: list[str] = []
+    for i in range(n):
+        if i % 7 == 3 and special:
+            ids.append(special.pop(0))
+        else:
+            ids.append(str(int(rng.integers(100, 100_000)) * 10 + i))
+    return tuple(ids)
+
+
+def make_log(
+    n_frames: int,
+    n_actors: int,
+    seed: int = 0,
+    *,
+    duplicate_frame: bool = False,
+    orphan_stamps: bool = False,
+    empty_predictions: bool = True,
+) -> RunLog:
+    """A valid RunLog of ``n_frames`` frames (tpf 50 ms) with ``n_actors`` actors."""
+    rng = np.random.default_rng(seed)
+    ids = _actor_ids(rng, n_actors)
+    frames = [TPF * (f + 1) for f in range(n_frames)]
+    if duplicate_frame and n_frames > 2:
+        frames.insert(2, frames[1])
+    metadata = RunMetadata(
+        timesteps_per_frame=TPF,
+        camera_loc=(1.3, 0.0, 1.8),
+        collision_frame=n_frames,
+        total_frames=n_frames,
+        raw={"timesteps_per_frame": TPF, "scenario": "factory", "ego_config": {"x": 1}},
+    )
+    log = RunLog(metadata=metadata, frames=tuple(frames), source=f"factory-{seed}")
+    for f, ts in enumerate(dict.fromkeys(frames)):
+        if f % 5 != 4:  # pose missing every fifth frame
+            roll, pitch, yaw = rng.uniform(-179.9, 179.9, 3) * np.array([0.1, 0.2, 1.0])
+            log.pose[ts] = EgoPose(
+                x=float(rng.normal(-100, 30)),
+                y=float(rng.normal(3, 5)),
+                z=float(rng.uniform(0, 0.1)),
+                roll=float(roll),
+                pitch=float(pitch),
+                yaw=float(yaw),
+                speed=float(rng.uniform(0, 20)),
+            )
+        rotation = np.column_stack(
+            (
+                rng.uniform(-5, 5, n_actors),
+                rng.uniform(-30, 30, n_actors),
+                rng.uniform(-179.999, 179.999, n_actors),
+            )
+        )
+        extent = rng.uniform(0.2, 3.0, (n_actors, 3))
+        if n_actors > 1 and f % 3 == 0:
+            extent[1] = np.nan
+        log.actors[ts] = Actors(
+            ids=ids,
+            location=rng.normal(0, 50, (n_actors, 3)),
+            rotation=rotation,
+            extent=extent,
+        )
+        if f % 4 != 3:  # bboxes missing every fourth frame
+            log.bboxes[ts] = _boxes(rng, ids[: max(0, n_actors - 1)], detected=True)
+        log.bboxes_gt[ts] = _boxes(rng, ids, detected=False)
+        log.predictions[ts] = {} if empty_predictions and f % 6 == 2 else _predictions(rng, ids)
+        if f % 7 != 5:
+            log.predictions_with_perception[ts] = _predictions(rng, ids[::-1])
+        if f % 8 != 7:
+            log.waypoints[ts] = _plan(rng, shuffled=f % 2 == 1)
+    if orphan_stamps:
+        last = frames[-1]
+        log.pose[last + TPF] = EgoPose(1.0, -2.0, 0.0, 0.0, 1.5, -90.0, 3.0)
+        log.waypoints[TPF // 2] = _plan(rng, shuffled=False)
+    return log
+
+
+def _boxes(rng: np.random.Generator, ids: tuple[str, ...], *, detected: bool) -> Boxes:
+    n = len(ids)
+    p1 = rng.uniform(0, 1200, (n, 2)).round(1)
+    p2 = p1 + rng.uniform(-200, 300, (n, 2)).round(3)  # not normalised: x2 may be < x1
+    corners = np.hstack((p1, p2))
+    extras: list[dict[str, object]] = []
+    for i in range(n):
+        if not detected:
+            extras.append({})
+        elif i % 3 == 0:
+            extras.append({"score": float(rng.uniform()), "label": "car"})
+        elif i % 3 == 1:
+            extras.append({"label": "walker", "score": 0.9, "attrs": {"occluded": True}})
+        else:
+            extras.append({"label": "car"})
+    box_ids = tuple(f"det_{i}" if detected and i % 4 == 1 else str(i) for i in range(n))
+    return Boxes(ids=box_ids if detected else ids, corners=corners, extras=tuple(extras))
+
+
+def _predictions(rng: np.random.Generator, ids: tuple[str, ...]) -> dict[str, Track]:
+    out: dict[str, Track] = {}
+    for obstacle in ids[: min(len(ids), 6)]:
+        keys = [str(k) for k in range(int(rng.integers(1, 8)))]
+        if len(keys) > 2:
+            keys[0], keys[-1] = keys[-1], keys[0]  # out of order, as some logs have it
+        out[obstacle] = Track(keys=tuple(keys), offsets=rng.normal(0, 10, (len(keys), 3)))
+    return out
+
+
+def _plan(rng: np.random.Generator, *, shuffled: bool) -> Plan:
+    keys = [str(k) for k in range(10)]
+    if shuffled:
+        keys = keys[5:] + keys[:5]
+    return Plan(keys=tuple(keys), xy=rng.normal(0, 100, (10, 2)), speed=rng.uniform(0, 20, 10))

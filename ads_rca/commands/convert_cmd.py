@@ -1,0 +1,69 @@
+"""``ads-rca convert IN OUT``: running-log folder ↔ rosbag2 bag, losslessly, without ROS.
+
+The direction follows the input: a log folder becomes a bag directory (MCAP or sqlite3)
+holding what the player would publish; a bag (directory, ``.mcap`` or ``.db3``, e.g. from the
+``recorder`` node) becomes a log folder. A thin shell over :mod:`ads_rca.io.bag_writer`,
+:mod:`ads_rca.io.bag_reader` and :mod:`ads_rca.io.json_writer`.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from ads_rca.errors import InputError
+from ads_rca.io.bag_reader import is_bag, read_bag
+from ads_rca.io.bag_writer import STORAGES, write_bag
+from ads_rca.io.json_log import read_run_log
+from ads_rca.io.json_writer import write_run_log
+from ads_rca.io.mcap_writer import COMPRESSIONS, DEFAULT_CHUNK_SIZE
+from ads_rca.ros import topics
+
+
+def register(subparsers: Any) -> None:
+    parser = subparsers.add_parser(
+        "convert",
+        help="convert a running-log folder to a rosbag2 bag, or a bag to a log folder",
+        description="LOG_DIR OUT_BAG writes a bag; BAG OUT_DIR writes a log folder.",
+    )
+    parser.add_argument("source", metavar="IN", help="running-log folder, or a bag")
+    parser.add_argument("out", metavar="OUT", help="bag directory or log folder to create")
+    parser.add_argument("--storage", choices=STORAGES, default="mcap", help="bag storage")
+    parser.add_argument(
+        "--compression", choices=sorted(COMPRESSIONS), default="zstd", help="MCAP chunks"
+    )
+    parser.add_argument("--chunk-size", type=int, default=DEFAULT_CHUNK_SIZE)
+    parser.add_argument(
+        "--namespace",
+        default=None,
+        help="topic namespace (bag: written / read; default: "
+        f"{topics.DEFAULT_NAMESPACE} when writing, detected when reading)",
+    )
+    parser.add_argument("--remap", help="topic remapping YAML for a stack's bag (reading)")
+    parser.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    source, out = Path(args.source), Path(args.out)
+    if not source.exists():
+        raise InputError(f"{source}: no such log folder or bag")
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise InputError(f"{out}: exists and is not an empty directory")
+    if is_bag(source) or args.remap:
+        log = read_bag(source, remap=args.remap, namespace=args.namespace)
+        write_run_log(log, out)
+        print(f"{source} → {out}: log folder, {len(log.frames)} analysed frames")
+        return 0
+    log = read_run_log(source)
+    options: dict[str, Any] = {}
+    if args.storage == "mcap":
+        options = {"compression": args.compression, "chunk_size": args.chunk_size}
+    counts = write_bag(
+        log, out, args.storage, namespace=args.namespace or topics.DEFAULT_NAMESPACE, **options
+    )
+    print(
+        f"{source} → {out}: {args.storage} bag, {sum(counts.values())} messages on "
+        f"{len(counts)} topics, {len(log.frames)} analysed frames"
+    )
+    return 0

@@ -1,0 +1,283 @@
+"""``recorder`` node: records the contract topics (and more) into a rosbag2 MCAP bag.
+
+``ros2 bag record`` is not available here, and the replay/demo graphs need a recording that
+survives a crash of the stack. A thin shell over :class:`ads_rca.io.mcap_writer.McapBagWriter`:
+raw subscriptions hand the serialised bytes straight to the writer (no deserialisation,
+log time = reception time, publish time = the sender's timestamp), with lossless QoS
+(RELIABLE + KEEP_ALL, latched topics TRANSIENT_LOCAL) so a player at rate 0 waits for us.
+
+Which topics: ``topics`` (names; relative ones are under ``topic_namespace``), or by default
+every contract topic plus ``/diagnostics`` and anything else published under the namespace
+(monitor metrics, verdicts), found by polling the graph. SIGINT/SIGTERM stop the node,
+drain what DDS already delivered and finalise the bag (summary + metadata.yaml); a SIGKILL
+loses at most the chunk being filled (``chunk_size`` bytes or ``flush_period_s`` seconds).
+With ``stop_on_finished`` the node also stops by itself once the player said ``finished``
+and every message its frame markers announced is in the bag.
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+import time
+from pathlib import Path
+from types import FrameType
+from typing import Any
+
+import rclpy
+from rcl_interfaces.msg import ParameterDescriptor, ParameterType
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.logging import get_logger
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
+from rclpy.signals import SignalHandlerOptions
+from std_msgs.msg import String
+
+from ads_rca.io import rosmsg
+from ads_rca.io.bag_writer import contract_qos_yaml
+from ads_rca.io.mcap_writer import COMPRESSIONS, DEFAULT_CHUNK_SIZE, McapBagWriter, qos_yaml
+from ads_rca.ros import topics
+from ads_rca.ros.assembler import RunLogAssembler
+
+PARAMETERS: dict[str, tuple[Any, str]] = {
+    "output": ("", "Bag directory to create (required; must be new or empty)."),
+    "topics": ([], "Topics to record ([] = contract + /diagnostics + namespace topics)."),
+    "topic_namespace": (topics.DEFAULT_NAMESPACE, "Namespace of the contract topics."),
+    "discover": (True, "Poll the graph for more topics to record (default topic set)."),
+    "compression": ("zstd", "Chunk compression: zstd, lz4 or none."),
+    "chunk_size": (DEFAULT_CHUNK_SIZE, "Bytes per chunk; each full chunk goes to disk."),
+    "flush_period_s": (1.0, "Also end the current chunk this often (0 = only when full)."),
+    "stop_on_finished": (False, "Stop once the player finished and all it announced is in."),
+    "max_duration_s": (0.0, "Stop after this many seconds (0 = never)."),
+}
+_DOUBLES = {"flush_period_s", "max_duration_s"}
+_IGNORED = {"/rosout", "/parameter_events"}
+_STRING_TOPICS = {topics.METADATA, topics.FRAME, topics.STATUS}
+
+
+class ConfigError(Exception):
+    """A parameter value the recorder cannot use (one error line, exit status 2)."""
+
+
+def _duration(nanoseconds: int) -> dict[str, int]:
+    sec, nsec = divmod(int(nanoseconds), 10**9)
+    return {"sec": sec, "nsec": nsec}
+
+
+def _offered_qos(info: list[Any]) -> str:
+    """rosbag2 YAML of the publishers' QoS profiles."""
+    profiles = [
+        {
+            "history": "keep_all" if p.history == HistoryPolicy.KEEP_ALL else "keep_last",
+            "depth": int(p.depth),
+            "reliability": "reliable"
+            if p.reliability == ReliabilityPolicy.RELIABLE
+            else "best_effort",
+            "durability": "transient_local"
+            if p.durability == DurabilityPolicy.TRANSIENT_LOCAL
+            else "volatile",
+            **{
+                name: _duration(getattr(p, name).nanoseconds)
+                for name in ("deadline", "lifespan", "liveliness_lease_duration")
+            },
+            "liveliness": "automatic",
+            "avoid_ros_namespace_conventions": False,
+        }
+        for p in (endpoint.qos_profile for endpoint in info)
+    ]
+    return qos_yaml(profiles)
+
+
+class Recorder(Node):
+    """Subscribes (raw) to the topics to record and writes every message to the bag."""
+
+    def __init__(self) -> None:
+        super().__init__("recorder")
+        for name, (default, description) in PARAMETERS.items():
+            descriptor = ParameterDescriptor(description=description)
+            if name in _DOUBLES:
+                descriptor.dynamic_typing = True
+            if name == "topics":
+                descriptor.type = ParameterType.PARAMETER_STRING_ARRAY
+            self.declare_parameter(name, default, descriptor)
+        output = str(self._param("output"))
+        if not output:
+            raise ConfigError("parameter output is required (a bag directory to create)")
+        out = Path(output)
+        if out.exists() and (not out.is_dir() or any(out.iterdir())):
+            raise ConfigError(f"{output}: exists and is not an empty directory")
+        compression = str(self._param("compression"))
+        if compression not in COMPRESSIONS:
+            raise ConfigError(f"compression must be one of {sorted(COMPRESSIONS)}")
+        self.namespace = str(self._param("topic_namespace"))
+        self.names = topics.topic_names(self.namespace)
+        self.keys = {name: key for key, name in self.names.items()}
+        requested = [str(t) for t in self._param("topics") or [] if str(t)]
+        self.explicit = {topics.topic_name(t, self.namespace) for t in requested}
+        self.discover = bool(self._param("discover"))
+        self.stop_on_finished = bool(self._param("stop_on_finished"))
+        self.max_duration = float(self._param("max_duration_s"))
+        self.writer = McapBagWriter(
+            out, chunk_size=int(self._param("chunk_size")), compression=compression
+        )
+        self.writer.set_custom_data("recorded_by", "ads_rca recorder")
+        self.progress = RunLogAssembler()  # only counts and the String topics
+        self.subs: dict[str, Any] = {}
+        self.started = time.monotonic()
+        for key, name in self.names.items():
+            if not self.explicit or name in self.explicit:
+                self._subscribe(name, rosmsg.type_name(topics.MESSAGE_TYPES[key]))
+        if self.discover or self.explicit - set(self.subs):
+            self._discover()
+            self.create_timer(0.5, self._discover)
+        period = float(self._param("flush_period_s"))
+        if period > 0:
+            self.create_timer(period, self.writer.flush)
+        self.get_logger().info(f"recording {len(self.subs)} topics to {out}")
+
+    def _param(self, name: str) -> Any:
+        return self.get_parameter(name).value
+
+    # --- topics -------------------------------------------------------------------------
+
+    def _wanted(self, name: str) -> bool:
+        if name in self.subs or name in _IGNORED:
+            return False
+        if self.explicit:
+            return name in self.explicit
+        prefix = topics.normalise_namespace(self.namespace) + "/"
+        return self.discover and (name == "/diagnostics" or name.startswith(prefix))
+
+    def _discover(self) -> None:
+        for name, types in self.get_topic_names_and_types():
+            if self._wanted(name) and len(types) == 1:
+                self._subscribe(name, types[0])
+
+    def _qos(self, name: str) -> QoSProfile:
+        key = self.keys.get(name)
+        if key is not None:
+            return topics.qos_profile(key, keep_all=True)
+        # Like rosbag2: reliable/latched only if every publisher offers it (else no match).
+        info = self.get_publishers_info_by_topic(name)
+        latched = bool(info) and all(
+            p.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for p in info
+        )
+        reliable = all(p.qos_profile.reliability == ReliabilityPolicy.RELIABLE for p in info)
+        return QoSProfile(
+            history=HistoryPolicy.KEEP_ALL,
+            depth=1000,
+            reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,
+        )
+
+    def _subscribe(self, name: str, msg_type: str) -> None:
+        msg_type = rosmsg.normalise_type(msg_type)
+        try:
+            cls = rosmsg.message_class(msg_type)
+        except (ImportError, AttributeError):
+            self.get_logger().warning(f"{name}: type {msg_type} is not installed; not recorded")
+            self.subs[name] = None
+            return
+        self.subs[name] = self.create_subscription(
+            cls, name, self._callback(name, msg_type), self._qos(name), raw=True
+        )
+
+    def _register(self, name: str, msg_type: str) -> None:
+        key = self.keys.get(name)
+        info = self.get_publishers_info_by_topic(name)
+        offered = _offered_qos(info) if info else (contract_qos_yaml(key) if key else "")
+        try:
+            self.writer.add_topic(name, msg_type, offered)
+        except KeyError:  # no definition installed: still record, schema-less text
+            self.writer.add_topic(name, msg_type, offered, topic_type_hash="", definition="")
+
+    def _callback(self, name: str, msg_type: str) -> Any:
+        key = self.keys.get(name)
+
+        def on_message(data: bytes, info: Any) -> None:
+            if not self.writer.has_topic(name):
+                self._register(name, msg_type)
+            received = int(info["received_timestamp"]) or time.time_ns()
+            source = int(info["source_timestamp"]) or received
+            self.writer.write(name, received, data, publish_time_ns=source)
+            if key is None:
+                return
+            if key in _STRING_TOPICS:
+                self.progress.add(key, deserialize_message(data, String))
+            else:
+                self.progress.received[key] += 1
+
+        return on_message
+
+    # --- stopping -----------------------------------------------------------------------
+
+    def done(self) -> bool:
+        if self.max_duration > 0 and time.monotonic() - self.started > self.max_duration:
+            return True
+        return self.stop_on_finished and self.progress.complete()
+
+    def summary(self) -> str:
+        counts = self.writer.counts()
+        rows = ", ".join(f"{name}: {n}" for name, n in sorted(counts.items()))
+        return f"{self.writer.message_count} messages in {self.writer.path} ({rows})"
+
+
+class _Stop:
+    """SIGINT/SIGTERM set a flag; the main loop then drains and finalises the bag."""
+
+    def __init__(self) -> None:
+        self.requested = 0
+        signal.signal(signal.SIGINT, self._handle)
+        signal.signal(signal.SIGTERM, self._handle)
+
+    def _handle(self, signum: int, frame: FrameType | None) -> None:
+        self.requested += 1
+        if self.requested > 2:  # impatient: stop draining, still close the file
+            raise KeyboardInterrupt
+
+
+def _drain(executor: SingleThreadedExecutor, node: Recorder, stop: _Stop) -> None:
+    """Take what DDS already delivered (until 0.3 s pass with nothing new, at most 3 s)."""
+    deadline = time.monotonic() + 3.0
+    quiet_since = time.monotonic()
+    count = node.writer.message_count
+    while time.monotonic() < deadline and time.monotonic() - quiet_since < 0.3:
+        if stop.requested > 1:
+            return
+        executor.spin_once(timeout_sec=0.05)
+        if node.writer.message_count != count:
+            count = node.writer.message_count
+            quiet_since = time.monotonic()
+
+
+def main(args: list[str] | None = None) -> int:
+    # Our own signal handlers: rclpy's would shut the context down at once, losing samples
+    # DDS already holds for us; ours let the loop drain them before closing the bag.
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    stop = _Stop()
+    node: Recorder | None = None
+    try:
+        try:
+            node = Recorder()
+        except (ConfigError, FileExistsError, ValueError) as error:
+            get_logger("recorder").error(str(error))
+            return 2
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        while rclpy.ok() and not stop.requested and not node.done():
+            executor.spin_once(timeout_sec=0.1)
+        _drain(executor, node, stop)
+        return 0
+    except (KeyboardInterrupt, ExternalShutdownException):
+        return 0
+    finally:
+        if node is not None:
+            node.writer.close()
+            print(node.summary(), flush=True)
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -10,6 +10,7 @@ PACKAGE = "ads_rca"
 NODES = {
     "player": "ads_rca.ros.player:main",
     "topic_summary": "ads_rca.ros.topic_summary:main",
+    "recorder": "ads_rca.ros.recorder:main",
 }
 
 setup(

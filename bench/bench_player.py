@@ -1,10 +1,18 @@
 """Publish throughput of the player at rate 0 to one subscriber process, and conversion speed.
 
-Usage: ``python bench/bench_player.py [--frames N] [--actors M]`` (default 10 000 × 50).
-The log comes from the scenario synthesiser (``cruise``). It is written to a temp folder,
-played by the ``player`` node at rate 0 (each frame sent once the subscriber acknowledged the
-previous one) to ``topic_summary`` in another process, on a private DDS domain with
-local-only discovery. Prints one table.
+Usage: ``python bench/bench_player.py [--frames N] [--actors M] [--object-dds-frames K]``
+(default 10 000 × 50). The log comes from the scenario synthesiser (``cruise``).
+
+Conversion only (no DDS), per frame: the object path (``convert.frame_messages`` building
+rclpy message objects, plus ``serialize_message``, which ``publish`` does internally) and the
+fast path (``cdr.frame_payloads``: the bytes ``publish`` sends as they are).
+
+DDS: the log is written to a temp folder and played by the ``player`` node at rate 0 (each
+frame sent once the subscriber acknowledged the previous one) to ``topic_summary`` in another
+process, on a private DDS domain with local-only discovery: the fast path (``fast_publish`` +
+``fast_decode``) over the whole log, and, with ``--object-dds-frames K``, the object path over
+the first K frames for comparison. The machine's load average is printed: other processes on
+the same cores slow every number down. Prints one table.
 """
 
 from __future__ import annotations
@@ -19,6 +27,7 @@ from typing import Any
 
 from ads_rca.io.json_writer import write_run_log
 from ads_rca.model import RunLog
+from ads_rca.ros.cdr import frame_payloads
 from ads_rca.ros.convert import frame_messages
 from ads_rca.ros.env import pick_domain_id, ros_environment
 from ads_rca.ros.launcher import Launcher, node_command
@@ -31,18 +40,40 @@ def make_log(frames: int, actors: int, seed: int) -> tuple[RunLog, str]:
     return synthesise("cruise", "none", seed, frames=frames, actors=actors), "synth cruise"
 
 
-def conversion_rate(log: RunLog, limit: int) -> tuple[float, float, int]:
-    """frames/s and messages/s of convert.frame_messages alone (first ``limit`` ticks)."""
+def conversion_rate(log: RunLog, limit: int, path: str) -> tuple[float, float, int]:
+    """frames/s and messages/s of one path's per-frame conversion (first ``limit`` ticks).
+
+    ``object``: convert.frame_messages; ``object+cdr``: the same plus serialize_message (what
+    publishing an object costs on top); ``fast``: cdr.frame_payloads (bytes ready to send).
+    """
     ticks = timeline(log)[:limit]
+    serialise: Any = None
+    if path == "object+cdr":
+        from rclpy.serialization import serialize_message as serialise
     messages = 0
     start = time.perf_counter()
     for tick in ticks:
-        messages += len(frame_messages(log, tick.stamp_ms))
+        if path == "fast":
+            messages += len(frame_payloads(log, tick.stamp_ms))
+            continue
+        built = frame_messages(log, tick.stamp_ms)
+        if serialise is not None:
+            for msg in built.values():
+                serialise(msg)
+        messages += len(built)
     elapsed = time.perf_counter() - start
     return len(ticks) / elapsed, messages / elapsed, len(ticks)
 
 
-def dds_rate(log_dir: Path, work: Path, timeout: float) -> dict[str, Any]:
+def dds_rate(
+    log_dir: Path,
+    work: Path,
+    timeout: float,
+    *,
+    fast: bool = True,
+    stop_frame: int = -1,
+) -> dict[str, Any]:
+    work.mkdir(parents=True, exist_ok=True)
     summary_file = work / "summary.json"
     env = ros_environment(domain_id=pick_domain_id(), log_dir=work / "ros_log")
     with Launcher(env) as launcher:
@@ -50,14 +81,20 @@ def dds_rate(log_dir: Path, work: Path, timeout: float) -> dict[str, Any]:
             "topic_summary",
             node_command(
                 "ads_rca.ros.topic_summary",
-                {"summary_file": str(summary_file), "timeout_s": timeout},
+                {"summary_file": str(summary_file), "timeout_s": timeout, "fast_decode": fast},
             ),
         )
         player = launcher.start(
             "player",
             node_command(
                 "ads_rca.ros.player",
-                {"log_path": str(log_dir), "rate": 0.0, "wait_for_subscribers": 1},
+                {
+                    "log_path": str(log_dir),
+                    "rate": 0.0,
+                    "wait_for_subscribers": 1,
+                    "fast_publish": fast,
+                    "stop_frame": stop_frame,
+                },
             ),
         )
         player_code = player.wait(timeout)
@@ -78,39 +115,71 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--actors", type=int, default=50)
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--conversion-frames", type=int, default=1000)
+    parser.add_argument(
+        "--object-dds-frames",
+        type=int,
+        default=0,
+        help="also play this many frames through DDS on the object path (0 = skip)",
+    )
     parser.add_argument("--timeout", type=float, default=1800.0)
     args = parser.parse_args(argv)
 
+    load_before = _load_average()
     t0 = time.perf_counter()
     log, origin = make_log(args.frames, args.actors, args.seed)
     build_s = time.perf_counter() - t0
-    conv_fps, conv_mps, conv_n = conversion_rate(log, args.conversion_frames)
+    conversions = {
+        path: conversion_rate(log, args.conversion_frames, path)
+        for path in ("object", "object+cdr", "fast")
+    }
+    runs: dict[str, dict[str, Any]] = {}
     with tempfile.TemporaryDirectory(prefix="ads_rca_bench_player_") as tmp:
         work = Path(tmp)
         t0 = time.perf_counter()
         log_dir = write_run_log(log, work / "log")
         write_s = time.perf_counter() - t0
-        summary = dds_rate(log_dir, work, args.timeout)
-    status = summary["status"]
-    frames = int(status["frames_published"])
-    elapsed = float(status["elapsed_s"])
-    received = sum(int(row["received"]) for row in summary["topics"].values())
+        runs["fast"] = dds_rate(log_dir, work / "fast", args.timeout)
+        if args.object_dds_frames > 0:
+            runs["object"] = dds_rate(
+                log_dir,
+                work / "object",
+                args.timeout,
+                fast=False,
+                stop_frame=args.object_dds_frames - 1,
+            )
     rows = [
         ("log", f"{origin}: {len(log.frames)} frames × {args.actors} actors"),
         ("build / write log", f"{build_s:.1f} s / {write_s:.1f} s"),
-        ("conversion only", f"{conv_fps:,.0f} frames/s, {conv_mps:,.0f} msgs/s ({conv_n} frames)"),
-        (
-            "DDS, rate 0, 1 sub",
-            f"{frames / elapsed:,.0f} frames/s, {received / elapsed:,.0f} msgs/s",
-        ),
-        ("DDS playback time", f"{elapsed:.1f} s for {frames} frames, {received} messages"),
-        ("all delivered", "yes" if summary["complete"] else f"NO, missing {summary['missing']}"),
     ]
+    for path, (fps, mps, n) in conversions.items():
+        rows.append((f"conversion only, {path}", f"{fps:,.0f} frames/s, {mps:,.0f} msgs/s ({n})"))
+    for path, summary in runs.items():
+        status = summary["status"]
+        frames = int(status["frames_published"])
+        elapsed = float(status["elapsed_s"])
+        received = sum(int(row["received"]) for row in summary["topics"].values())
+        delivered = "all delivered" if summary["complete"] else f"MISSING {summary['missing']}"
+        rows.append(
+            (
+                f"DDS rate 0, 1 sub, {path}",
+                f"{frames / elapsed:,.0f} frames/s, {received / elapsed:,.0f} msgs/s "
+                f"({frames} frames, {received} msgs in {elapsed:.1f} s; {delivered})",
+            )
+        )
+    rows.append(("load average", f"{load_before} before, {_load_average()} after (2 cores)"))
     width = max(len(name) for name, _ in rows)
     print(f"{'bench_player':<{width}}  result")
     for name, value in rows:
         print(f"{name:<{width}}  {value}")
     return 0
+
+
+def _load_average() -> str:
+    """1-minute load average (other processes on these cores slow every number down)."""
+    try:
+        return Path("/proc/loadavg").read_text().split()[0]
+    except OSError:
+        return "?"
 
 
 if __name__ == "__main__":

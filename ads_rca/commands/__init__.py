@@ -4,7 +4,19 @@ from __future__ import annotations
 
 from types import ModuleType
 
-from ads_rca.commands import demo_cmd, diagnose_cmd, inspect_cmd, synth_cmd
+from ads_rca.commands import (
+    convert_cmd,
+    demo_cmd,
+    diagnose_cmd,
+    inspect_cmd,
+    synth_cmd,
+)
 
 #: In the order ``ads-rca --help`` lists them.
-COMMANDS: tuple[ModuleType, ...] = (diagnose_cmd, inspect_cmd, demo_cmd, synth_cmd)
+COMMANDS: tuple[ModuleType, ...] = (
+    diagnose_cmd,
+    inspect_cmd,
+    demo_cmd,
+    synth_cmd,
+    convert_cmd,
+)

@@ -7,8 +7,15 @@ import os
 from ads_rca.model import RunLog
 
 
-def open_run(path: str | os.PathLike[str]) -> RunLog:
-    """Load a run from any supported source (today: an ADS running-log folder)."""
+def open_run(path: str | os.PathLike[str], remap: str | os.PathLike[str] | None = None) -> RunLog:
+    """Load a run from any supported source: an ADS running-log folder, or a rosbag2 bag
+    (directory, ``.mcap`` or ``.db3``; ``remap`` = topic remapping YAML for a stack's bag)."""
+    from ads_rca.io.bag_reader import is_bag
+
+    if remap is not None or is_bag(path):
+        from ads_rca.io.bag_reader import read_bag
+
+        return read_bag(path, remap=remap)
     from ads_rca.io.json_log import read_run_log
 
     return read_run_log(path)

@@ -16,6 +16,7 @@ from std_msgs.msg import String
 
 from ads_rca.model import RunLog, RunMetadata
 from ads_rca.ros import topics
+from ads_rca.ros.cdr_decode import decode_record, decode_string, stamp_ms
 from ads_rca.ros.convert import message_stamp_ms, message_to_record
 from ads_rca.ros.playback import FINISHED, METADATA_DOCUMENT_KEY, read_document
 
@@ -67,6 +68,25 @@ class RunLogAssembler:
             except ValueError:  # a MarkerArray without markers carries no stamp
                 return
             self._data[topic].setdefault(stamp, msg)
+
+    def add_raw(self, topic: str, data: bytes) -> None:
+        """:meth:`add` for a message's serialised CDR bytes (a raw subscription's callback).
+
+        Why: deserialising into rclpy objects costs as much as building them. Data messages
+        are kept as bytes (only the stamp is read) and decoded straight into model records
+        by :mod:`ads_rca.ros.cdr_decode` in :meth:`build`; String topics are decoded now.
+        Objects and bytes can be mixed; for a stamp the first arrival wins either way.
+        """
+        if topic in (topics.METADATA, topics.FRAME, topics.STATUS):
+            self.add(topic, String(data=decode_string(data)))
+            return
+        self.received[topic] += 1
+        if topic in self._data:
+            try:
+                stamp = stamp_ms(topic, data)
+            except ValueError:  # a MarkerArray without markers carries no stamp
+                return
+            self._data[topic].setdefault(stamp, bytes(data))
 
     def _add_metadata(self, msg: String) -> None:
         document = read_document(msg)
@@ -128,5 +148,10 @@ class RunLogAssembler:
         for topic, by_stamp in self._data.items():
             folder = log.folder(topics.TOPIC_FOLDERS[topic])
             for stamp in sorted(by_stamp):
-                folder[stamp] = message_to_record(topic, by_stamp[stamp], tpf)
+                item = by_stamp[stamp]
+                folder[stamp] = (
+                    decode_record(topic, item, tpf)
+                    if isinstance(item, bytes)
+                    else message_to_record(topic, item, tpf)
+                )
         return log

@@ -24,6 +24,7 @@ from rclpy.node import Node
 from ads_rca.errors import InputError
 from ads_rca.model import RunLog
 from ads_rca.ros import topics
+from ads_rca.ros.cdr import encode_clock, encode_string, frame_payloads
 from ads_rca.ros.convert import frame_messages
 from ads_rca.ros.env import use_fast_ack_profile
 from ads_rca.ros.playback import (
@@ -42,7 +43,8 @@ from ads_rca.ros.playback import (
 
 #: Every parameter: (default, description). Doubles accept integers too (dynamic typing).
 PARAMETERS: dict[str, tuple[Any, str]] = {
-    "log_path": ("", "Running-log folder to play (required)."),
+    "log_path": ("", "Running-log folder or rosbag2 bag (dir, .mcap, .db3) to play (required)."),
+    "bag_remap": ("", "Topic remapping YAML for a bag whose topic names differ ('' = none)."),
     "rate": (1.0, "Playback speed vs log time; 0 = as fast as subscribers acknowledge."),
     "start_frame": (0, "Index of the first analysed frame to play."),
     "stop_frame": (-1, "Index of the last analysed frame to play (inclusive); -1 = the end."),
@@ -52,6 +54,11 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "wait_for_subscribers": (0, "Wait for this many subscribers on run/frame before playing."),
     "wait_timeout_s": (10.0, "Longest wait for subscribers / acknowledgements, in seconds."),
     "exit_on_end": (True, "After 'finished', wait for all acks, then exit with status 0."),
+    "fast_publish": (
+        True,
+        "Publish per-frame messages as CDR bytes built by ads_rca.ros.cdr (byte-identical, "
+        "~20x faster) instead of rclpy message objects.",
+    ),
 }
 _DOUBLES = {"rate", "wait_timeout_s"}
 
@@ -78,12 +85,13 @@ class Player(Node):
         self.wait_count = int(self._param("wait_for_subscribers"))
         self.wait_timeout = float(self._param("wait_timeout_s"))
         self.exit_on_end = bool(self._param("exit_on_end"))
+        self.fast_publish = bool(self._param("fast_publish"))
         namespace = str(self._param("topic_namespace"))
         if self.rate < 0:
             raise ConfigError(f"rate must be >= 0, got {self.rate}")
         if self.start_frame < 0 or self.stop_frame < -1:
             raise ConfigError("start_frame must be >= 0 and stop_frame >= -1")
-        self.log = self._load(str(self._param("log_path")))
+        self.log = self._load(str(self._param("log_path")), str(self._param("bag_remap")))
         self.ticks = select(timeline(self.log), self.start_frame, self.stop_frame)
         if not self.ticks:
             self.get_logger().warning(
@@ -118,14 +126,16 @@ class Player(Node):
     def _param(self, name: str) -> Any:
         return self.get_parameter(name).value
 
-    def _load(self, log_path: str) -> RunLog:
-        from ads_rca.io.json_log import read_run_log
+    def _load(self, log_path: str, remap: str = "") -> RunLog:
+        from ads_rca.io import open_run
 
         if not log_path:
             raise ConfigError("parameter log_path is required (a running-log folder)")
-        if not Path(log_path).is_dir():
+        if not Path(log_path).exists():
             raise ConfigError(f"{log_path}: no such log folder")
-        log = read_run_log(log_path)
+        if remap and not Path(remap).is_file():
+            raise ConfigError(f"{remap}: no such remapping file")
+        log = open_run(log_path, remap=remap or None)
         for problem in log.problems:
             self.get_logger().warning(str(problem))
         self.get_logger().info(
@@ -202,9 +212,16 @@ class Player(Node):
     def _publish_tick(self, tick: Tick | None) -> None:
         if tick is None:
             return
+        fast = self.fast_publish
         if self.publish_clock:
-            self.pubs[topics.CLOCK].publish(clock_message(tick.stamp_ms))
-        messages = frame_messages(self.log, tick.stamp_ms)
+            stamp = tick.stamp_ms
+            self.pubs[topics.CLOCK].publish(encode_clock(stamp) if fast else clock_message(stamp))
+        # Same topics, order and bytes either way; the fast path skips rclpy message objects.
+        messages: dict[str, Any] = (
+            frame_payloads(self.log, tick.stamp_ms)
+            if fast
+            else frame_messages(self.log, tick.stamp_ms)
+        )
         for key, msg in messages.items():
             self.pubs[key].publish(msg)
         extra = {}
@@ -213,7 +230,8 @@ class Player(Node):
         names = published_names(messages)
         if self.publish_clock:
             names.insert(0, topics.CLOCK)
-        self.pubs[topics.FRAME].publish(frame_marker(tick, names, self.log.tpf, **extra))
+        marker = frame_marker(tick, names, self.log.tpf, **extra)
+        self.pubs[topics.FRAME].publish(encode_string(marker.data) if fast else marker)
         self.frames_published += 1
         self._position += 1
         if self._position >= len(self.ticks):

@@ -29,6 +29,11 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "output_dir": ("rebuilt_log", "Folder for the rebuilt running log (with output_json)."),
     "summary_file": ("", "Write the per-topic counts as JSON to this file ('' = no file)."),
     "timeout_s": (60.0, "Give up after this many seconds without completing (0 = never)."),
+    "fast_decode": (
+        True,
+        "Subscribe raw (CDR bytes) and decode with ads_rca.ros.cdr_decode instead of "
+        "deserialising into rclpy message objects.",
+    ),
 }
 _DOUBLES = {"timeout_s"}
 
@@ -49,23 +54,29 @@ class TopicSummary(Node):
         self.first_arrival: float | None = None
         self.last_arrival: float | None = None
         self.names = topics.topic_names(namespace)
+        self.fast_decode = bool(self.get_parameter("fast_decode").value)
         self.subs = [
             self.create_subscription(
                 topics.MESSAGE_TYPES[key],
                 self.names[key],
                 self._callback(key),
                 topics.qos_profile(key, keep_all=True),
+                raw=self.fast_decode,
             )
             for key in topics.ALL_TOPICS
         ]
 
     def _callback(self, key: str) -> Any:
+        # Raw subscriptions hand over the CDR bytes: the assembler keeps them and decodes
+        # them straight into model records, with no rclpy message objects on the way.
+        add = self.assembler.add_raw if self.fast_decode else self.assembler.add
+
         def on_message(msg: Any) -> None:
             now = time.monotonic()
             if self.first_arrival is None:
                 self.first_arrival = now
             self.last_arrival = now
-            self.assembler.add(key, msg)
+            add(key, msg)
 
         return on_message
 

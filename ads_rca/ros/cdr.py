@@ -1,0 +1,405 @@
+"""Model records → CDR bytes of the contract's messages, without rclpy message objects.
+
+Why: building rclpy message objects costs ~19 µs per Marker and ~1 µs per Point, so
+:func:`ads_rca.ros.convert.frame_messages` plus serialisation takes 10-17 ms for a 50-actor
+frame. Here the same messages are written straight as XCDR1 little-endian bytes (the 4-byte
+encapsulation header ``00 01 00 00`` then the payload, alignment relative to the payload
+start, strings as uint32 length incl. NUL + bytes + NUL, no trailing padding), which
+``Publisher.publish(bytes)`` sends unchanged. Numbers go through exactly the numpy
+operations convert.py applies (same quaternion function on the same arrays, the same
+multiplications and negations), so every value bit, NaN sign included, is the same.
+Padding bytes are zero, as Fast DDS sends them for message objects; ``serialize_message``
+leaves them uninitialised, so only non-padding bytes are comparable with it (see the tests).
+
+Pure: numpy, struct and the message-free helpers of convert.py; no rclpy import.
+Decoders live in :mod:`ads_rca.ros.cdr_decode`.
+"""
+
+from __future__ import annotations
+
+import struct
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+
+from ads_rca.model import Actors, Boxes, EgoPose, Plan, Predictions, RunLog
+from ads_rca.ros import topics
+from ads_rca.ros.convert import (
+    _COLORS,
+    MARKER_NS,
+    carla_rpy_to_quaternions,
+    carried_plan_rows,
+    marker_id,
+    step_ms,
+)
+from ads_rca.ros.jsontext import dumps_json
+
+#: Encapsulation header: representation CDR_LE (0x0001), options 0.
+ENCAPSULATION = b"\x00\x01\x00\x00"
+HEADER_SIZE = len(ENCAPSULATION)
+
+_NS_PER_MS = 1_000_000
+_U32 = struct.Struct("<I")
+_STAMP = struct.Struct("<iI")
+_ZEROS = bytes(8)
+
+#: Marker constants (visualization_msgs/Marker).
+CUBE = 1
+LINE_STRIP = 4
+ADD = 0
+DELETEALL = 3
+
+#: One Marker's id, type, action, pose, scale, color, lifetime, frame_locked, the 3 bytes
+#: that realign to 4, and the points count, packed. The 4 bytes of alignment before ``pose``
+#: depend on where the marker starts and are inserted when the rows are laid out.
+MARKER_FIXED = np.dtype(
+    [
+        ("ita", "<i4", (3,)),
+        ("pose", "<f8", (7,)),
+        ("scale", "<f8", (3,)),
+        ("color", "<f4", (4,)),
+        ("lifetime", "<i4", (2,)),
+        ("frame_locked", "u1"),
+        ("pad", "V3"),
+        ("points", "<u4"),
+    ]
+)
+_FIXED = MARKER_FIXED.itemsize  # 124
+_POSE_AT = 12  # offset of the first float64 in a MARKER_FIXED row
+
+#: Fields between ``points`` and ``text`` when all are empty (starts 8-aligned): colors [],
+#: texture_resource "", texture (stamp 0, frame_id "", format "", data []), uv_coordinates [].
+_EMPTY_STRING = b"\x01\x00\x00\x00\x00\x00\x00\x00"  # "" + 3 bytes to realign to 4
+_MIDDLE = (
+    _U32.pack(0) + _EMPTY_STRING + bytes(8) + _EMPTY_STRING + _EMPTY_STRING + bytes(4) + bytes(4)
+)
+#: After ``text`` (4-aligned): mesh_resource "", mesh_file (filename "", data []),
+#: mesh_use_embedded_materials false, then 3 bytes to realign the next marker to 4.
+#: ``_TAILS[(text length incl. NUL) % 4]`` also holds the text's NUL and its padding.
+_AFTER_TEXT = _EMPTY_STRING + _EMPTY_STRING + _U32.pack(0) + b"\x00\x00\x00\x00"
+_TAILS = tuple(b"\x00" + bytes(-r % 4) + _AFTER_TEXT for r in range(4))
+_MARKER_GAP = 3  # a marker ends 1 past a 4-boundary; the next one starts aligned
+
+
+def stamp_fields(timestamp_ms: int) -> tuple[int, int]:
+    """Log milliseconds → (sec, nanosec), floor division as :func:`convert.to_time`."""
+    sec, ms = divmod(int(timestamp_ms), 1000)
+    return sec, ms * _NS_PER_MS
+
+
+def cdr_string(text: str) -> bytes:
+    """A CDR string (caller aligns to 4): uint32 length incl. NUL, UTF-8 bytes, NUL."""
+    data = text.encode()
+    return _U32.pack(len(data) + 1) + data + b"\x00"
+
+
+def _pad(position: int, alignment: int) -> bytes:
+    return _ZEROS[: -position % alignment]
+
+
+class CdrWriter:
+    """Appends CDR fields to a buffer, aligning each to its size relative to the payload.
+
+    For the small, once-per-message parts (headers, odometry); the bulk of a MarkerArray
+    is written from precomputed pieces in :func:`encode_marker_array`.
+    """
+
+    def __init__(self) -> None:
+        self.buffer = bytearray(ENCAPSULATION)
+
+    @property
+    def position(self) -> int:
+        """Offset from the payload start (what CDR alignment refers to)."""
+        return len(self.buffer) - HEADER_SIZE
+
+    def align(self, alignment: int) -> None:
+        self.buffer += _pad(self.position, alignment)
+
+    def pack(self, layout: struct.Struct, *values: Any, alignment: int) -> None:
+        self.align(alignment)
+        self.buffer += layout.pack(*values)
+
+    def string(self, text: str) -> None:
+        self.align(4)
+        self.buffer += cdr_string(text)
+
+    def header(self, timestamp_ms: int, frame_id: str) -> None:
+        """std_msgs/Header: stamp (sec int32, nanosec uint32) and frame_id."""
+        self.pack(_STAMP, *stamp_fields(timestamp_ms), alignment=4)
+        self.string(frame_id)
+
+    def getvalue(self) -> bytes:
+        return bytes(self.buffer)
+
+
+# --- small messages -----------------------------------------------------------------------
+
+
+def encode_string(text: str) -> bytes:
+    """std_msgs/String."""
+    return ENCAPSULATION + cdr_string(text)
+
+
+def encode_clock(timestamp_ms: int) -> bytes:
+    """rosgraph_msgs/Clock of a log time (as :func:`playback.clock_message`)."""
+    return ENCAPSULATION + _STAMP.pack(*stamp_fields(timestamp_ms))
+
+
+#: Odometry after child_frame_id: pose (position, orientation), covariance (zero), twist
+#: (linear, angular), covariance (zero); struct's ``x`` pad bytes are zero.
+_ODOMETRY_BODY = struct.Struct("<3d4d288x6d288x")
+
+
+def encode_odometry(pose: EgoPose, timestamp_ms: int) -> bytes:
+    """nav_msgs/Odometry as :func:`convert.pose_to_odometry` builds it."""
+    q = carla_rpy_to_quaternions(np.array([pose.roll, pose.pitch, pose.yaw]))[0].tolist()
+    w = CdrWriter()
+    w.header(timestamp_ms, topics.WORLD_FRAME)
+    w.string(topics.EGO_FRAME)
+    twist = (float(pose.speed), 0.0, 0.0, 0.0, 0.0, 0.0)
+    w.pack(_ODOMETRY_BODY, float(pose.x), -pose.y, float(pose.z), *q, *twist, alignment=8)
+    return w.getvalue()
+
+
+# --- MarkerArray --------------------------------------------------------------------------
+
+
+def _color(topic: str) -> tuple[float, float, float, float]:
+    r, g, b = _COLORS[topic]
+    return (r, g, b, 1.0)
+
+
+def encode_marker_array(
+    timestamp_ms: int,
+    frame_id: str,
+    ns: str,
+    fixed: np.ndarray,
+    points: np.ndarray,
+    texts: list[str],
+) -> bytes:
+    """DELETEALL + one marker per row of ``fixed`` (a MARKER_FIXED array, row 0 the DELETEALL
+    marker, ``points`` field = point count), in the layout rclpy gives a MarkerArray.
+
+    ``points`` is the (P, 3) float64 concatenation of every marker's points and ``texts`` each
+    marker's ``text``. Every other Marker field (colors, texture, uv_coordinates, mesh ...) is
+    empty, as convert.py sends. All markers share header and ns, so that prefix is built
+    once. Why this is fast: a marker's layout only varies in the 4 bytes of alignment before
+    ``pose``, and those depend only on the previous marker's text length (everything else
+    between two texts is a multiple of 8 long), so numpy lays out every fixed part at once
+    and the Python loop only joins three slices per marker.
+    """
+    head = _STAMP.pack(*stamp_fields(timestamp_ms)) + cdr_string(frame_id)
+    head += _pad(len(head), 4) + cdr_string(ns)
+    head += _pad(len(head), 4)
+    n = len(texts)
+    encoded = [t.encode() for t in texts]
+    sizes = np.fromiter(map(len, encoded), dtype=np.int64, count=n) + 1
+    # Marker i starts (mod 8) where marker i-1's padded text ends; marker 0 after the count.
+    start = np.empty(n, dtype=np.int64)
+    start[0] = 4
+    start[1:] = (sizes[:-1] + 3) & 4
+    pose_pad = (-(start + len(head) + _POSE_AT)) % 8
+    width = len(head) + _FIXED + 4
+    rows = np.zeros((n, width), dtype=np.uint8)
+    rows[:, : len(head)] = np.frombuffer(head, dtype=np.uint8)
+    fixed_u8 = fixed.view(np.uint8).reshape(n, _FIXED)
+    rows[:, len(head) : len(head) + _POSE_AT] = fixed_u8[:, :_POSE_AT]
+    body = len(head) + _POSE_AT
+    padded = pose_pad != 0
+    rows[~padded, body : body + _FIXED - _POSE_AT] = fixed_u8[~padded, _POSE_AT:]
+    rows[padded, body + 4 :] = fixed_u8[padded, _POSE_AT:]
+    row_blob = rows.tobytes()
+    row_ends = (np.arange(n) * width + width - 4 + pose_pad).tolist()
+    point_blob = np.ascontiguousarray(points, dtype="<f8").tobytes()
+    point_ends = (np.cumsum(fixed["points"], dtype=np.int64) * 24).tolist()
+    tails = [
+        _MIDDLE + _U32.pack(size) + data + _TAILS[size & 3]
+        for data, size in zip(encoded, sizes.tolist(), strict=True)
+    ]
+    tails[-1] = tails[-1][:-_MARKER_GAP]  # no padding after the last marker
+    parts: list[bytes] = [ENCAPSULATION, _U32.pack(n)]
+    row_at = point_at = 0
+    for row_end, point_end, tail in zip(row_ends, point_ends, tails, strict=True):
+        parts += (row_blob[row_at:row_end], point_blob[point_at:point_end], tail)
+        row_at += width
+        point_at = point_end
+    return b"".join(parts)
+
+
+def marker_rows(n: int, topic: str, marker_type: int) -> np.ndarray:
+    """MARKER_FIXED rows: 0 = DELETEALL (default pose, w 1), 1..n = ADD of ``marker_type`` in
+    the topic's colour with identity orientation (callers overwrite what differs)."""
+    fixed = np.zeros(n + 1, MARKER_FIXED)
+    fixed["ita"][0] = (0, 0, DELETEALL)
+    fixed["pose"][:, 6] = 1.0
+    fixed["ita"][1:, 1] = marker_type
+    fixed["ita"][1:, 2] = ADD
+    fixed["color"][1:] = _color(topic)
+    return fixed
+
+
+@lru_cache(maxsize=65536)
+def cached_marker_id(actor_id: str) -> int:
+    """:func:`convert.marker_id`, memoised: actor ids repeat on every frame."""
+    return marker_id(actor_id)
+
+
+def encode_actors(actors: Actors, timestamp_ms: int) -> bytes:
+    """``actors``: as :func:`convert.actors_to_markers` (CUBEs in ``map``, full size)."""
+    n = len(actors.ids)
+    fixed = marker_rows(n, topics.ACTORS, CUBE)
+    fixed["ita"][1:, 0] = [cached_marker_id(a) for a in actors.ids]
+    body = fixed["pose"][1:]
+    body[:, 0:3] = np.reshape(actors.location * np.array([1.0, -1.0, 1.0]), (-1, 3))
+    body[:, 3:7] = carla_rpy_to_quaternions(actors.rotation)
+    fixed["scale"][1:] = np.reshape(2.0 * actors.extent, (-1, 3))
+    return encode_marker_array(
+        timestamp_ms,
+        topics.WORLD_FRAME,
+        MARKER_NS[topics.ACTORS],
+        fixed,
+        np.empty((0, 3)),
+        ["", *actors.ids],
+    )
+
+
+#: Corner columns (x1, y1, x2, y2) of the five points of a box's closed LINE_STRIP.
+_BOX_X = np.array([0, 2, 2, 0, 0])
+_BOX_Y = np.array([1, 1, 3, 3, 1])
+
+
+def encode_boxes(boxes: Boxes, timestamp_ms: int, topic: str) -> bytes:
+    """``perception/*``: as :func:`convert.boxes_to_markers` (pixels in ``camera_image``)."""
+    n = len(boxes.ids)
+    fixed = marker_rows(n, topic, LINE_STRIP)
+    fixed["ita"][1:, 0] = np.arange(n)
+    fixed["scale"][1:, 0] = 2.0
+    fixed["points"][1:] = 5
+    corners = np.asarray(boxes.corners, dtype=np.float64).reshape(-1, 4)
+    points = np.zeros((n, 5, 3))
+    points[:, :, 0] = corners[:, _BOX_X]
+    points[:, :, 1] = corners[:, _BOX_Y]
+    texts = [
+        dumps_json({"id": box_id, **extras})
+        for box_id, extras in zip(boxes.ids, boxes.extras, strict=True)
+    ]
+    return encode_marker_array(
+        timestamp_ms,
+        topics.IMAGE_FRAME,
+        MARKER_NS[topic],
+        fixed,
+        points.reshape(-1, 3),
+        ["", *texts],
+    )
+
+
+def encode_predictions(predictions: Predictions, timestamp_ms: int, topic: str) -> bytes:
+    """``prediction/*``: as :func:`convert.predictions_to_markers` (offsets in ``base_link``)."""
+    n = len(predictions)
+    fixed = marker_rows(n, topic, LINE_STRIP)
+    fixed["ita"][1:, 0] = np.arange(n)
+    fixed["scale"][1:, 0] = 0.2
+    offsets = [
+        t.offsets if t.offsets.ndim == 2 else np.reshape(t.offsets, (-1, 3))
+        for t in predictions.values()
+    ]
+    fixed["points"][1:] = [len(o) for o in offsets]
+    points = np.concatenate(offsets) if offsets else np.empty((0, 3))
+    texts = [
+        dumps_json({"id": obstacle_id, "keys": list(track.keys)})
+        for obstacle_id, track in predictions.items()
+    ]
+    return encode_marker_array(
+        timestamp_ms,
+        topics.EGO_FRAME,
+        MARKER_NS[topic],
+        fixed,
+        points * np.array([1.0, -1.0, 1.0]),
+        ["", *texts],
+    )
+
+
+# --- trajectory ---------------------------------------------------------------------------
+
+#: One MultiDOFJointTrajectoryPoint starting 4 past an 8-boundary: transforms [1 Transform],
+#: velocities [1 Twist] (4 bytes of alignment before it), accelerations [], time_from_start.
+#: Starting on an 8-boundary, 4 more bytes of alignment follow the transforms count.
+TRAJECTORY_POINT = np.dtype(
+    [
+        ("transforms", "<u4"),
+        ("transform", "<f8", (7,)),
+        ("velocities", "<u4"),
+        ("pad", "V4"),
+        ("twist", "<f8", (6,)),
+        ("accelerations", "<u4"),
+        ("sec", "<i4"),
+        ("nanosec", "<u4"),
+    ]
+)
+
+
+@lru_cache(maxsize=4096)
+def _carried_rows(keys: tuple[str, ...]) -> tuple[tuple[int, ...], tuple[int, ...]]:
+    """Rows a trajectory can carry and their key values (memoised: plans repeat keys)."""
+    rows = carried_plan_rows(Plan(keys=keys, xy=np.empty((0, 2)), speed=np.empty(0)))
+    return tuple(rows), tuple(int(keys[r]) for r in rows)
+
+
+def encode_trajectory(plan: Plan, timestamp_ms: int, timesteps_per_frame: int) -> bytes:
+    """``planning/trajectory``: as :func:`convert.plan_to_trajectory`."""
+    rows, steps = _carried_rows(tuple(plan.keys))
+    step = step_ms(timesteps_per_frame)
+    w = CdrWriter()
+    w.header(timestamp_ms, topics.WORLD_FRAME)
+    w.pack(_U32, 1, alignment=4)
+    w.string("ego")
+    w.pack(_U32, len(rows), alignment=4)
+    if not rows:
+        return w.getvalue()
+    index = list(rows)
+    xy = np.asarray(plan.xy, dtype=np.float64).reshape(-1, 2)[index]
+    points = np.zeros(len(rows), TRAJECTORY_POINT)
+    points["transforms"] = 1
+    points["transform"][:, 0] = xy[:, 0]
+    points["transform"][:, 1] = -xy[:, 1]
+    points["transform"][:, 6] = 1.0
+    points["velocities"] = 1
+    points["twist"][:, 0] = np.asarray(plan.speed, dtype=np.float64)[index]
+    durations = [divmod(s * step, 1000) for s in steps]
+    points["sec"] = [d[0] for d in durations]
+    points["nanosec"] = [d[1] * _NS_PER_MS for d in durations]
+    blob = points.tobytes()
+    w.align(4)
+    if w.position & 7 == 0:  # the first point's Transform needs 4 bytes of alignment
+        w.buffer += blob[:4] + _ZEROS[:4]
+        blob = blob[4:]
+    w.buffer += blob
+    return w.getvalue()
+
+
+# --- whole frames ---------------------------------------------------------------------------
+
+
+def frame_payloads(log: RunLog, timestamp_ms: int) -> dict[str, bytes]:
+    """CDR bytes of every data message of one timestamp, keyed by topic key, FOLDERS order:
+    byte for byte what :func:`convert.frame_messages` gives once serialised."""
+    out: dict[str, bytes] = {}
+    ts = timestamp_ms
+    if (pose := log.pose.get(ts)) is not None:
+        out[topics.ODOMETRY] = encode_odometry(pose, ts)
+    if (actors := log.actors.get(ts)) is not None:
+        out[topics.ACTORS] = encode_actors(actors, ts)
+    if (boxes := log.bboxes.get(ts)) is not None:
+        out[topics.DETECTIONS] = encode_boxes(boxes, ts, topics.DETECTIONS)
+    if (boxes := log.bboxes_gt.get(ts)) is not None:
+        out[topics.GROUND_TRUTH] = encode_boxes(boxes, ts, topics.GROUND_TRUTH)
+    if (preds := log.predictions.get(ts)) is not None:
+        out[topics.PREDICTION_RAW] = encode_predictions(preds, ts, topics.PREDICTION_RAW)
+    if (preds := log.predictions_with_perception.get(ts)) is not None:
+        out[topics.PREDICTION_WITH_PERCEPTION] = encode_predictions(
+            preds, ts, topics.PREDICTION_WITH_PERCEPTION
+        )
+    if (plan := log.waypoints.get(ts)) is not None:
+        out[topics.TRAJECTORY] = encode_trajectory(plan, ts, log.tpf)
+    return out

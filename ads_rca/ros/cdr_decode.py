@@ -1,0 +1,284 @@
+"""CDR bytes of the contract's messages → model records, without rclpy message objects.
+
+Why: deserialising into rclpy objects and walking them (:func:`convert.message_to_record`)
+costs as much as building them; a subscriber that only wants the model reads the few fields
+it needs straight from the bytes (struct for headers, numpy for point runs) and skips the
+rest. The semantics mirror convert.py exactly: the same CARLA ← ROS conversions through the
+same numpy functions, DELETEALL markers ignored, ids and keys from the JSON ``text``.
+
+Any publisher's bytes are accepted, not only the fast encoder's: every Marker field is
+walked (colors, texture, uv_coordinates, mesh_file ...), whatever it holds. Only the
+little-endian representation (encapsulation ``00 01``) is read; that is what ROS 2 sends on
+every supported platform. Pure: no rclpy import.
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ads_rca.model import Actors, Boxes, EgoPose, Plan, Predictions, Track
+from ads_rca.ros import topics
+from ads_rca.ros.cdr import HEADER_SIZE
+from ads_rca.ros.convert import quaternions_to_carla_rpy, step_ms
+from ads_rca.ros.jsontext import loads_json
+
+_NS_PER_MS = 1_000_000
+_U32 = struct.Struct("<I")
+_STAMP = struct.Struct("<iI")
+_F64_3 = struct.Struct("<3d")
+_F64_7 = struct.Struct("<7d")
+_DELETEALL = 3
+#: Marker pose (7 float64), scale (3 float64), color (4 float32), lifetime, frame_locked.
+_FIXED_AFTER_POSE = 56 + 24 + 16 + 8 + 1
+
+
+class CdrReader:
+    """Reads CDR fields from a payload, aligning each relative to the payload start."""
+
+    __slots__ = ("data", "position")
+
+    def __init__(self, data: bytes) -> None:
+        if len(data) < HEADER_SIZE or data[1] != 1:
+            raise ValueError("not a little-endian CDR message (encapsulation 00 01)")
+        self.data = memoryview(data)[HEADER_SIZE:]
+        self.position = 0
+
+    def align(self, alignment: int) -> None:
+        self.position += -self.position % alignment
+
+    def unpack(self, layout: struct.Struct, alignment: int) -> tuple[Any, ...]:
+        self.align(alignment)
+        values = layout.unpack_from(self.data, self.position)
+        self.position += layout.size
+        return values
+
+    def u32(self) -> int:
+        self.align(4)
+        (value,) = _U32.unpack_from(self.data, self.position)
+        self.position += 4
+        return int(value)
+
+    def string(self) -> str:
+        size = self.u32()
+        start = self.position
+        self.position += size
+        return bytes(self.data[start : start + max(size - 1, 0)]).decode()
+
+    def skip_string(self) -> None:
+        size = self.u32()  # not ``position += u32()``: that would read position first
+        self.position += size
+
+    def skip_sequence(self, element_size: int, alignment: int) -> None:
+        count = self.u32()
+        if count:
+            self.align(alignment)
+            self.position += count * element_size
+
+    def stamp_ms(self) -> int:
+        """A builtin_interfaces/Time as log milliseconds (:func:`convert.from_time`)."""
+        sec, nanosec = self.unpack(_STAMP, 4)
+        return int(sec) * 1000 + int(nanosec) // _NS_PER_MS
+
+    def skip_header(self) -> None:
+        """std_msgs/Header: stamp (4-aligned) and frame_id."""
+        self.align(4)
+        self.position += 8
+        self.skip_string()
+
+
+# --- small messages -----------------------------------------------------------------------
+
+
+def decode_string(data: bytes) -> str:
+    """std_msgs/String → its text."""
+    return CdrReader(data).string()
+
+
+def decode_clock(data: bytes) -> int:
+    """rosgraph_msgs/Clock → log milliseconds."""
+    return CdrReader(data).stamp_ms()
+
+
+def stamp_ms(topic: str, data: bytes) -> int:
+    """Log time of a data message (:func:`convert.message_stamp_ms`): its header stamp, or a
+    MarkerArray's first marker's. Raises ValueError for a MarkerArray without markers."""
+    reader = CdrReader(data)
+    if topic in (topics.ODOMETRY, topics.TRAJECTORY):
+        return reader.stamp_ms()
+    if reader.u32() == 0:
+        raise ValueError("empty MarkerArray carries no stamp")
+    return reader.stamp_ms()
+
+
+def decode_odometry(data: bytes) -> EgoPose:
+    """nav_msgs/Odometry → EgoPose (:func:`convert.odometry_to_pose`)."""
+    r = CdrReader(data)
+    r.skip_header()
+    r.skip_string()  # child_frame_id
+    x, y, z, qx, qy, qz, qw = r.unpack(_F64_7, 8)
+    r.position += 36 * 8  # covariance
+    (speed,) = r.unpack(struct.Struct("<d"), 8)
+    roll, pitch, yaw = quaternions_to_carla_rpy(np.array([qx, qy, qz, qw]))[0].tolist()
+    return EgoPose(x=x, y=-y, z=z, roll=roll, pitch=pitch, yaw=yaw, speed=speed)
+
+
+# --- MarkerArray --------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class MarkerFields:
+    """What the decoders use of the ADD markers of a MarkerArray (DELETEALL dropped)."""
+
+    ids: list[int]
+    poses: np.ndarray  # (N, 7) position x, y, z, orientation x, y, z, w
+    scales: np.ndarray  # (N, 3)
+    points: list[np.ndarray]  # (K, 3) each
+    texts: list[str]
+
+
+def read_markers(data: bytes) -> MarkerFields:
+    """Walk every field of every Marker; keep id, pose, scale, points and text of the markers
+    whose action is not DELETEALL (as convert.py's ``_added``)."""
+    r = CdrReader(data)
+    view = r.data
+    ids: list[int] = []
+    poses: list[tuple[float, ...]] = []
+    scales: list[tuple[float, ...]] = []
+    points: list[np.ndarray] = []
+    texts: list[str] = []
+    for _ in range(r.u32()):
+        r.skip_header()
+        r.skip_string()  # ns
+        marker_id, _type, action = r.unpack(_ITA, 4)
+        r.align(8)
+        at = r.position
+        r.position += _FIXED_AFTER_POSE  # pose, scale, color, lifetime, frame_locked
+        count = r.u32()
+        if count:
+            r.align(8)
+        start = r.position
+        r.position += 24 * count
+        r.skip_sequence(16, 4)  # colors
+        r.skip_string()  # texture_resource
+        r.skip_header()  # texture.header
+        r.skip_string()  # texture.format
+        r.skip_sequence(1, 1)  # texture.data
+        r.skip_sequence(8, 4)  # uv_coordinates
+        text = r.string()
+        r.skip_string()  # mesh_resource
+        r.skip_string()  # mesh_file.filename
+        r.skip_sequence(1, 1)  # mesh_file.data
+        r.position += 1  # mesh_use_embedded_materials
+        if action == _DELETEALL:
+            continue
+        ids.append(int(marker_id))
+        poses.append(_F64_7.unpack_from(view, at))
+        scales.append(_F64_3.unpack_from(view, at + 56))
+        points.append(
+            np.frombuffer(view, "<f8", 3 * count, start).reshape(count, 3)
+            if count
+            else np.empty((0, 3))
+        )
+        texts.append(text)
+    return MarkerFields(
+        ids=ids,
+        poses=np.array(poses, dtype=np.float64).reshape(-1, 7),
+        scales=np.array(scales, dtype=np.float64).reshape(-1, 3),
+        points=points,
+        texts=texts,
+    )
+
+
+_ITA = struct.Struct("<3i")
+
+
+def decode_actors(data: bytes) -> Actors:
+    """``actors`` MarkerArray → Actors (:func:`convert.markers_to_actors`)."""
+    m = read_markers(data)
+    location = m.poses[:, 0:3].copy()
+    location[:, 1] = -location[:, 1]
+    return Actors(
+        ids=tuple(m.texts),
+        location=location,
+        rotation=quaternions_to_carla_rpy(m.poses[:, 3:7].copy()),
+        extent=m.scales / 2.0,
+    )
+
+
+def decode_boxes(data: bytes) -> Boxes:
+    """``perception/*`` MarkerArray → Boxes (:func:`convert.markers_to_boxes`)."""
+    m = read_markers(data)
+    corners = np.empty((len(m.texts), 4))
+    ids: list[str] = []
+    extras: list[dict[str, Any]] = []
+    for row, (marker_id, pts, text) in enumerate(zip(m.ids, m.points, m.texts, strict=True)):
+        corners[row] = (pts[0, 0], pts[0, 1], pts[2, 0], pts[2, 1])
+        document = loads_json(text) if text else {}
+        ids.append(str(document.pop("id", marker_id)))
+        extras.append(document)
+    return Boxes(ids=tuple(ids), corners=corners, extras=tuple(extras))
+
+
+def decode_predictions(data: bytes) -> Predictions:
+    """``prediction/*`` MarkerArray → Predictions (:func:`convert.markers_to_predictions`)."""
+    m = read_markers(data)
+    out: Predictions = {}
+    for marker_id, pts, text in zip(m.ids, m.points, m.texts, strict=True):
+        document = loads_json(text) if text else {}
+        keys = tuple(str(k) for k in document.get("keys", range(len(pts))))
+        offsets = pts.copy()
+        offsets[:, 1] = -offsets[:, 1]
+        out.setdefault(str(document.get("id", marker_id)), Track(keys=keys, offsets=offsets))
+    return out
+
+
+# --- trajectory ---------------------------------------------------------------------------
+
+
+def decode_trajectory(data: bytes, timesteps_per_frame: int) -> Plan:
+    """MultiDOFJointTrajectory → Plan (:func:`convert.trajectory_to_plan`)."""
+    step = step_ms(timesteps_per_frame)
+    r = CdrReader(data)
+    r.skip_header()
+    for _ in range(r.u32()):  # joint_names
+        r.skip_string()
+    n = r.u32()
+    xy = np.empty((n, 2))
+    speed = np.empty(n)
+    keys: list[str] = []
+    for row in range(n):
+        transforms = r.u32()
+        if not transforms:
+            raise ValueError(f"trajectory point {row} has no transform")
+        x, y, _z = r.unpack(_F64_3, 8)
+        r.position += (transforms * 7 - 3) * 8
+        xy[row] = (x, -y)
+        velocities = r.u32()
+        if velocities:
+            (speed[row],) = r.unpack(struct.Struct("<d"), 8)
+            r.position += (velocities * 6 - 1) * 8
+        else:
+            speed[row] = math.nan
+        r.skip_sequence(48, 8)  # accelerations
+        keys.append(str(r.stamp_ms() // step))
+    return Plan(keys=tuple(keys), xy=xy, speed=speed)
+
+
+def decode_record(topic: str, data: bytes, timesteps_per_frame: int) -> Any:
+    """The model record a data message's bytes carry (:func:`convert.message_to_record`)."""
+    if topic == topics.ODOMETRY:
+        return decode_odometry(data)
+    if topic == topics.ACTORS:
+        return decode_actors(data)
+    if topic in (topics.DETECTIONS, topics.GROUND_TRUTH):
+        return decode_boxes(data)
+    if topic in (topics.PREDICTION_RAW, topics.PREDICTION_WITH_PERCEPTION):
+        return decode_predictions(data)
+    if topic == topics.TRAJECTORY:
+        return decode_trajectory(data, timesteps_per_frame)
+    raise ValueError(f"not a data topic: {topic!r}")

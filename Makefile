@@ -26,8 +26,13 @@ $(STAMP): requirements.txt requirements-dev.txt constraints.txt setup.py
 	$(BIN)/python -m pip install -q --no-deps --no-build-isolation -e .
 	@touch $(STAMP)
 
+# The offline verdict, then the same run through the live node graph (separate processes,
+# local-only DDS), ending with the live verdict and the MCAP recording's path.
 demo: $(STAMP)
-	$(BIN)/ads-rca demo $(EXAMPLE) --out $(OUT)
+	$(BIN)/ads-rca diagnose $(EXAMPLE) --json $(OUT)/diagnose.json
+	rm -rf $(OUT)/replay_recording
+	$(BIN)/ads-rca replay $(EXAMPLE) --domain-id $(ROS_DOMAIN_ID) \
+		--json $(OUT)/replay_verdict.json --record $(OUT)/replay_recording
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q test

@@ -11,6 +11,11 @@ NODES = {
     "player": "ads_rca.ros.player:main",
     "topic_summary": "ads_rca.ros.topic_summary:main",
     "recorder": "ads_rca.ros.recorder:main",
+    "perception_monitor": "ads_rca.ros.monitor:perception_main",
+    "prediction_monitor": "ads_rca.ros.monitor:prediction_main",
+    "planning_monitor": "ads_rca.ros.monitor:planning_main",
+    "control_monitor": "ads_rca.ros.monitor:control_main",
+    "aggregator": "ads_rca.ros.aggregator:main",
 }
 
 setup(

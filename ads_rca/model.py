@@ -215,6 +215,9 @@ class RunLog:
     source: str = ""
     #: folder -> timestamp -> file name it was read from (for problem reports); may be empty.
     files: dict[str, dict[int, str]] = field(default_factory=dict)
+    #: Half extents at first appearance seen BEFORE the frames held here (a live monitor's
+    #: bounded window of a longer run); they win over the extents in ``actors``.
+    first_extents: dict[str, FloatArray] = field(default_factory=dict)
 
     @property
     def tpf(self) -> int:
@@ -231,12 +234,21 @@ class RunLog:
 
     @cached_property
     def actor_extents(self) -> dict[str, FloatArray]:
-        """Each actor's half extent where it first appears with one (ascending time)."""
+        """Each actor's half extent where it first appears with one (ascending time).
+
+        Only actors present in ``actors`` are listed; ``first_extents`` (earlier frames of a
+        live window) takes precedence for them.
+        """
         extents: dict[str, FloatArray] = {}
+        known = self.first_extents
         for ts in sorted(self.actors):
             frame = self.actors[ts]
             for row, actor_id in enumerate(frame.ids):
-                if actor_id not in extents and not np.isnan(frame.extent[row]).any():
+                if actor_id in extents:
+                    continue
+                if actor_id in known:
+                    extents[actor_id] = known[actor_id]
+                elif not np.isnan(frame.extent[row]).any():
                     extents[actor_id] = frame.extent[row]
         return extents
 

@@ -9,6 +9,7 @@ from ads_rca.commands import (
     demo_cmd,
     diagnose_cmd,
     inspect_cmd,
+    replay_cmd,
     synth_cmd,
 )
 
@@ -17,6 +18,7 @@ COMMANDS: tuple[ModuleType, ...] = (
     diagnose_cmd,
     inspect_cmd,
     demo_cmd,
+    replay_cmd,
     synth_cmd,
     convert_cmd,
 )

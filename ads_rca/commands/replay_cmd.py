@@ -1,0 +1,140 @@
+"""``ads-rca replay PATH``: the run through the live node graph, verdict as ``diagnose`` gives it.
+
+Starts the player, the four monitors, the aggregator (and the recorder with ``--record``) as
+separate processes on a DDS domain of their own with local-only discovery, waits for the
+aggregator's verdict, prints it like ``diagnose`` does, writes the JSON (the ``diagnose
+--json`` contract plus ``verdict_latency_s`` and ``live``) and stops everything cleanly. The
+monitors run the engine's oracles and the aggregator its attribution, so for a log that ends
+at its collision (as recorded crashes do) the verdict equals ``ads-rca diagnose``'s.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+from pathlib import Path
+from typing import Any
+
+from ads_rca.commands.diagnose_cmd import add_engine_arguments, params_from_args
+from ads_rca.errors import InputError
+from ads_rca.oracles.base import MODULES
+from ads_rca.ros.env import pick_domain_id, ros_environment
+
+
+def register(subparsers: Any) -> None:
+    parser = subparsers.add_parser(
+        "replay", help="replay a run through the live node graph (monitors + aggregator)"
+    )
+    parser.add_argument("path", help="running-log folder (or a bag the player reads)")
+    add_engine_arguments(parser)
+    parser.add_argument(
+        "--rate", type=float, default=0.0, help="playback rate (0 = as fast as acknowledged)"
+    )
+    parser.add_argument("--record", metavar="OUT", help="record every topic to this MCAP bag")
+    parser.add_argument("--json", dest="json_out", help="write the verdict JSON here")
+    parser.add_argument("--timeout", type=float, default=300.0, help="seconds before giving up")
+    parser.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID (default: from the pid)")
+    parser.add_argument("--verbose", action="store_true", help="show every node's output")
+    parser.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from ads_rca.ros.graph import Graph, GraphSpec, recorder_available
+
+    path = Path(args.path)
+    if not path.exists():
+        raise InputError(f"{path}: no such log folder or bag")
+    if args.rate < 0:
+        raise InputError(f"--rate must be >= 0, got {args.rate}")
+    params = params_from_args(args)
+    record = Path(args.record) if args.record else None
+    if record is not None and not recorder_available():
+        print("ads-rca replay: no recorder node in this installation; not recording")
+        record = None
+    if record is not None and record.exists() and any(record.iterdir()):
+        raise InputError(f"{record}: exists and is not empty (the recorder needs a new folder)")
+    domain_id = args.domain_id if args.domain_id is not None else pick_domain_id()
+    work = Path(tempfile.mkdtemp(prefix="ads_rca_replay_"))
+    env = ros_environment(domain_id=domain_id, log_dir=work / "ros_log")
+    spec = GraphSpec(
+        log_path=path.resolve(),
+        params=params,
+        verdict_json=work / "verdict.json",
+        rate=args.rate,
+        record=record.resolve() if record is not None else None,
+    )
+    print(
+        f"ads-rca replay: {path} through the node graph (semantics {params.semantics}, "
+        f"rate {args.rate:g}, ROS_DOMAIN_ID={domain_id}, discovery LOCALHOST)",
+        flush=True,
+    )
+    echo = sys.stdout if args.verbose else None
+    with Graph(spec, env, echo=echo) as graph:
+        graph.start()
+        document = graph.wait_verdict(args.timeout)
+        codes = graph.stop()
+        outputs = {name: p.output for name, p in graph.processes.items()}
+    if document is None:
+        print(f"ads-rca replay: no verdict within {args.timeout:g} s", file=sys.stderr)
+        for name, text in outputs.items():
+            tail = "\n".join(text.splitlines()[-8:])
+            print(f"--- {name} (exit {codes.get(name)}):\n{tail}", file=sys.stderr)
+        return 2 if codes.get("player") == 2 else 1
+    print(summary_from_document(document))
+    if args.json_out:
+        write_document(document, Path(args.json_out))
+        print(f"verdict JSON: {args.json_out}")
+    if record is not None:
+        write_document(document, record / "verdict.json")
+        print(f"MCAP recording: {record} (verdict JSON beside it: {record / 'verdict.json'})")
+    return 0
+
+
+def write_document(document: dict[str, Any], path: Path) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(document, indent=1, allow_nan=False) + "\n")
+
+
+def summary_from_document(document: dict[str, Any], max_problems: int = 10) -> str:
+    """``diagnose``'s summary, from the verdict JSON (plus the live graph's figures)."""
+    live = document.get("live") or {}
+    lines = [
+        f"{document.get('source')}: {len(document.get('frames') or [])} frames judged live, "
+        f"semantics {document.get('semantics')}"
+    ]
+    cf = document.get("collision_frame", -1)
+    if isinstance(cf, int) and cf >= 0:
+        partner = f" with actor {document['partner_id']}" if document.get("partner_id") else ""
+        lines.append(f"collision at frame {cf}{partner}")
+    else:
+        lines.append("no collision in this run")
+    lines.append(f"{'module':<12}{'collision':>10}{'safe':>7}  first failure")
+    for module in MODULES:
+        m = document["modules"][module]
+        first = m.get("first_failure_frame")
+        shown = "-" if first is None else f"frame {first}"
+        lines.append(f"{module:<12}{m['collision']:>10}{m['safe']:>7}  {shown}")
+    lines.append(f"verdict: {document.get('verdict')}  [{document.get('attribution_basis')}]")
+    for module in document.get("root_causes") or []:
+        evidence = (document.get("evidence") or {}).get(module) or {}
+        shown_items = ", ".join(f"{k}={_short(v)}" for k, v in list(evidence.items())[:6])
+        if shown_items:
+            lines.append(f"  {module}: {shown_items}")
+    lines.append(f"verdict latency: {document.get('verdict_latency_s', 0.0):.3f} s")
+    if not live.get("complete", True):
+        lines.append("INCOMPLETE: " + "; ".join(live.get("why_incomplete") or []))
+    problems = document.get("input_problems") or []
+    lines.append(f"input problems: {len(problems)}")
+    for p in problems[:max_problems]:
+        where = f"{p.get('file')}: {p.get('field')}" if p.get("field") else p.get("file")
+        lines.append(f"  {p.get('severity')}: {where}: {p.get('issue')} ({p.get('action')})")
+    return "\n".join(lines)
+
+
+def _short(value: Any) -> str:
+    if isinstance(value, float):
+        return f"{value:.3g}"
+    text = str(value)
+    return text if len(text) <= 60 else text[:57] + "..."

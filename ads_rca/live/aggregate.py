@@ -1,0 +1,247 @@
+"""The aggregator's core: collect the monitors' results and decide the verdict, once.
+
+Why this shape: the verdict must be ``ads-rca diagnose``'s, so the aggregator never judges
+anything itself. It gathers the four modules' per-frame results, keyed by analysed-frame
+index (reference judges a duplicated timestamp twice; corrected once, the first index), and
+when the verdict's horizon is covered it calls the engine's :func:`~ads_rca.engine.attribute`
+on them and renders :meth:`~ads_rca.engine.Diagnosis.to_json` (the ``diagnose --json``
+contract) plus a ``live`` section.
+
+The horizon is the collision frame (from the run metadata, or a later collision event): the
+frames at or before it decide the attribution. Without a collision it is the end of the run.
+A module's result for a frame is *lost* when that module has already published results for
+later frames (a monitor that was restarted lost its window): the verdict does not wait for
+it, it is published marked incomplete with the lost frames listed. It also does not wait
+forever: once the horizon is reached, after ``verdict_timeout_s`` without any new result;
+before, after ``stall_timeout_s`` without any input once the run started; what is there is
+then attributed and the verdict says why it is incomplete.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+from ads_rca.engine import Diagnosis, attribute
+from ads_rca.live.results import FrameMarker, LiveResult, new_problems
+from ads_rca.model import RunLog, RunMetadata
+from ads_rca.oracles.base import MODULES, Module, RunContext
+from ads_rca.params import Params
+from ads_rca.problems import Problem, ProblemLog
+from ads_rca.verdict import FrameResults, frame_number
+
+
+@dataclass
+class VerdictOutcome:
+    """The verdict, ready to publish."""
+
+    diagnosis: Diagnosis
+    document: dict[str, Any]
+    complete: bool
+    why_incomplete: list[str] = field(default_factory=list)
+
+
+@dataclass
+class _Expected:
+    index: int
+    stamp_ms: int
+    arrived: float
+
+
+class AggregatorCore:
+    """Feed markers, metadata and results; :meth:`poll` returns the verdict once."""
+
+    def __init__(
+        self, params: Params, verdict_timeout_s: float = 10.0, stall_timeout_s: float = 20.0
+    ) -> None:
+        self.params = params
+        self.verdict_timeout_s = verdict_timeout_s
+        self.stall_timeout_s = stall_timeout_s
+        self.metadata: RunMetadata | None = None
+        self.source = ""
+        self.collision_frame = -1
+        self.collision_source = "none"
+        self.expected: dict[int, _Expected] = {}
+        self.last_stamp: int | None = None
+        self.finished = False
+        self._finished_after: int | None = None
+        self.markers_received = 0
+        self.results: dict[Module, dict[int, LiveResult]] = {m: {} for m in MODULES}
+        self.progress: dict[Module, int] = {m: -1 for m in MODULES}
+        self.problems: list[Problem] = []
+        self._seen_problems: set[tuple[str, str, str]] = set()
+        self.ego_id: str | None = None
+        self.partner_id: str | None = None
+        self.last_input: float | None = None
+        self.horizon_reached_at: float | None = None
+        self.outcome: VerdictOutcome | None = None
+        self.received: dict[Module, int] = {m: 0 for m in MODULES}
+
+    # --- feeding ---------------------------------------------------------------------
+
+    def set_metadata(self, metadata: RunMetadata, source: str, now: float) -> None:
+        self.metadata, self.source = metadata, source
+        if metadata.collision_frame >= 0 and self.collision_source != "event":
+            self.collision_frame, self.collision_source = metadata.collision_frame, "metadata"
+        self.last_input = now
+
+    def set_collision(self, frame: int, now: float) -> None:
+        """A live collision event (wins over the metadata)."""
+        self.collision_frame, self.collision_source = frame, "event"
+        self.last_input = now
+
+    def add_marker(self, marker: FrameMarker, now: float) -> None:
+        self.last_input = now
+        self.last_stamp = marker.stamp_ms
+        self.markers_received += 1
+        self._update_finished()
+        if marker.index is None:
+            return
+        if self.params.semantics == "reference" or not marker.duplicate:
+            self.expected.setdefault(marker.index, _Expected(marker.index, marker.stamp_ms, now))
+
+    def set_finished(self, now: float, frames_published: int | None = None) -> None:
+        """The player's end; effective once ``frames_published`` markers arrived (DDS does
+        not order the status after the last markers)."""
+        self.last_input = now
+        self._finished_after = 0 if frames_published is None else frames_published
+        self._update_finished()
+
+    def _update_finished(self) -> None:
+        if self._finished_after is not None and self.markers_received >= self._finished_after:
+            self.finished = True
+
+    def add_result(self, result: LiveResult, now: float) -> None:
+        self.last_input = now
+        module = result.module
+        self.received[module] += 1
+        held = self.results[module].get(result.index)
+        if held is None or result.revision >= held.revision:
+            self.results[module][result.index] = result
+        self.progress[module] = max(self.progress[module], result.index)
+        self.problems.extend(new_problems(result.problems, self._seen_problems))
+        if result.ego_id is not None and (self.ego_id is None or module == "prediction"):
+            self.ego_id = result.ego_id
+        if result.partner_id is not None and result.collision_frame == self.collision_frame:
+            self.partner_id = result.partner_id
+
+    # --- deciding --------------------------------------------------------------------
+
+    def horizon_ms(self) -> int | None:
+        """Frames at or before this stamp decide the verdict (None: the whole run)."""
+        if self.collision_frame < 0 or self.metadata is None:
+            return None
+        return self.collision_frame * self.metadata.timesteps_per_frame
+
+    def horizon_reached(self) -> bool:
+        horizon = self.horizon_ms()
+        if self.finished:
+            return True
+        return horizon is not None and self.last_stamp is not None and self.last_stamp >= horizon
+
+    def required(self) -> list[_Expected]:
+        horizon = self.horizon_ms()
+        frames = sorted(self.expected.values(), key=lambda e: e.index)
+        return [e for e in frames if horizon is None or e.stamp_ms <= horizon]
+
+    def _window_start_ms(self) -> int | None:
+        horizon = self.horizon_ms()
+        if horizon is None or self.metadata is None:
+            return None
+        w = self.params.window_frames(self.metadata.timesteps_per_frame)
+        return horizon - w * self.metadata.timesteps_per_frame
+
+    def waiting_for(self) -> tuple[dict[Module, list[int]], dict[Module, list[int]]]:
+        """Per module: required frames still awaited, and those lost (the module moved on)."""
+        awaited: dict[Module, list[int]] = {m: [] for m in MODULES}
+        lost: dict[Module, list[int]] = {m: [] for m in MODULES}
+        fresh_from = self._window_start_ms() if self.params.semantics == "corrected" else None
+        for e in self.required():
+            for m in MODULES:
+                got = self.results[m].get(e.index)
+                stale = (
+                    got is not None
+                    and fresh_from is not None
+                    and e.stamp_ms >= fresh_from
+                    and got.collision_frame != self.collision_frame
+                )
+                if got is not None and not stale:
+                    continue
+                (lost if self.progress[m] > e.index and not stale else awaited)[m].append(e.index)
+        return awaited, lost
+
+    def poll(self, now: float) -> VerdictOutcome | None:
+        """The verdict when it is due (returned once; None before and after)."""
+        if self.outcome is not None or self.metadata is None:
+            return None
+        why: list[str] = []
+        if self.horizon_reached():
+            if self.horizon_reached_at is None:
+                self.horizon_reached_at = now
+            awaited, lost = self.waiting_for()
+            if any(awaited.values()):
+                progress = max(self.horizon_reached_at, self.last_input or 0.0)
+                if now - progress < self.verdict_timeout_s:
+                    return None
+                why.append(f"timed out waiting for results: {_frames_text(awaited)}")
+            if any(lost.values()):
+                why.append(f"results lost (a monitor restarted): {_frames_text(lost)}")
+        else:
+            if not self.markers_received:  # the run has not started: nothing stalls yet
+                return None
+            if self.last_input is None or now - self.last_input < self.stall_timeout_s:
+                return None
+            why.append(f"inputs stalled for {self.stall_timeout_s:g} s before the horizon")
+        self.outcome = self._verdict(now, why)
+        return self.outcome
+
+    def _verdict(self, now: float, why: list[str]) -> VerdictOutcome:
+        assert self.metadata is not None
+        metadata = replace(self.metadata, collision_frame=self.collision_frame)
+        tpf = metadata.timesteps_per_frame
+        required = self.required()
+        frames: list[FrameResults] = []
+        for e in required:
+            got = {m: self.results[m][e.index] for m in MODULES if e.index in self.results[m]}
+            results = {m: r.result for m, r in got.items()}
+            frames.append(FrameResults(e.stamp_ms, frame_number(e.stamp_ms, tpf), results))
+        log = RunLog(
+            metadata=metadata,
+            frames=tuple(e.stamp_ms for e in required),
+            source=self.source,
+            problems=ProblemLog(self.problems),
+        )
+        # The engine's attribution; its context reports nothing we keep (no records here).
+        attribution = attribute(frames, RunContext(log, self.params, ego_id=self.ego_id))
+        if self.params.semantics == "corrected":
+            attribution.partner_id = self.partner_id if self.collision_frame >= 0 else None
+        diagnosis = Diagnosis(
+            log, RunContext(log, self.params, ego_id=self.ego_id), frames, attribution
+        )
+        document = diagnosis.to_json()
+        last = max((e.arrived for e in required), default=now)
+        incomplete = sorted(
+            {(m, r.index) for m in MODULES for r in self.results[m].values() if r.incomplete}
+        )
+        document["verdict_latency_s"] = round(max(0.0, now - last), 6)
+        document["live"] = {
+            "complete": not why and not incomplete,
+            "why_incomplete": why
+            + ([f"{len(incomplete)} results judged with incomplete inputs"] if incomplete else []),
+            "collision_source": self.collision_source,
+            "frames_expected": len(required),
+            "results_received": dict(self.received),
+            "incomplete_results": [[m, i] for m, i in incomplete[:50]],
+        }
+        return VerdictOutcome(diagnosis, document, not why and not incomplete, why)
+
+
+def _frames_text(by_module: Mapping[Module, list[int]]) -> str:
+    parts = []
+    for module, indices in by_module.items():
+        if indices:
+            shown = ", ".join(str(i) for i in indices[:8])
+            more = f" (+{len(indices) - 8})" if len(indices) > 8 else ""
+            parts.append(f"{module} frames {shown}{more}")
+    return "; ".join(parts)

@@ -1,0 +1,126 @@
+"""The live graph without DDS: a log played through four monitor cores and the aggregator.
+
+Why: it runs the exact scheduling the nodes run (same classes, same order of events as the
+player sends them) in one process, so tests and benchmarks can check the window logic
+against ``diagnose`` quickly and deterministically, and try what DDS makes hard to stage
+(a topic that stops, a collision announced late). Records go in as model objects: the
+message conversion is tested separately (docs/topics.md).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+
+from ads_rca.live.aggregate import AggregatorCore, VerdictOutcome
+from ads_rca.live.results import FrameMarker, LiveResult
+from ads_rca.live.window import MonitorCore, WindowSettings
+from ads_rca.model import FOLDERS, RunLog
+from ads_rca.oracles.base import MODULES, Module
+from ads_rca.params import Params
+
+#: (folder, stamp_ms) -> deliver this record? (to simulate a topic that stops)
+Filter = Callable[[str, int], bool]
+
+
+@dataclass
+class LiveRun:
+    """What the simulated graph produced."""
+
+    results: dict[Module, list[LiveResult]] = field(default_factory=dict)
+    outcome: VerdictOutcome | None = None
+    monitors: dict[Module, MonitorCore] = field(default_factory=dict)
+    max_held_records: dict[Module, int] = field(default_factory=dict)
+
+
+def run_live(
+    log: RunLog,
+    params: Params,
+    settings: WindowSettings | None = None,
+    deliver: Filter | None = None,
+    metadata_collision: bool = True,
+    collision_event_after: int | None = None,
+    clock_step_s: float = 0.001,
+    drain_s: float = 60.0,
+) -> LiveRun:
+    """Play ``log`` (its timeline, as the player does) through the live cores.
+
+    ``metadata_collision`` False hides the collision frame from the metadata (a live stack)
+    and announces it as an event after the frame with index ``collision_event_after`` (or at
+    the end). After the last frame the clock advances until the verdict (at most ``drain_s``
+    seconds of simulated time), so timeouts fire as they would.
+    """
+    from ads_rca.ros.playback import timeline
+
+    clock = [0.0]
+
+    def now() -> float:
+        clock[0] += clock_step_s
+        return clock[0]
+
+    metadata = log.metadata
+    if not metadata_collision:
+        metadata = replace(metadata, collision_frame=-1)
+    monitors = {m: MonitorCore(m, params, settings) for m in MODULES}
+    aggregator = AggregatorCore(params)
+    run = LiveRun(results={m: [] for m in MODULES}, monitors=monitors)
+
+    def pump() -> None:
+        for module, core in monitors.items():
+            for result in core.poll(now()):
+                run.results[module].append(result)
+                aggregator.add_result(result, now())
+            run.max_held_records[module] = max(
+                run.max_held_records.get(module, 0), core.held_records()
+            )
+        if run.outcome is None:
+            run.outcome = aggregator.poll(now())
+
+    for core in monitors.values():
+        core.set_metadata(metadata, now())
+    aggregator.set_metadata(metadata, log.source, now())
+    announced = False
+    for tick in timeline(log):
+        folders = set()
+        for folder in FOLDERS:
+            record = log.folder(folder).get(tick.stamp_ms)
+            if record is None:
+                continue
+            folders.add(folder)
+            if deliver is not None and not deliver(folder, tick.stamp_ms):
+                continue
+            for core in monitors.values():
+                core.add_record(folder, tick.stamp_ms, record, now())
+        marker = FrameMarker(tick.index, tick.stamp_ms, frozenset(folders), tick.duplicate)
+        for core in monitors.values():
+            core.add_marker(marker, now())
+        aggregator.add_marker(marker, now())
+        pump()
+        if (
+            not announced
+            and collision_event_after is not None
+            and tick.index is not None
+            and tick.index >= collision_event_after
+            and log.metadata.collision_frame >= 0
+        ):
+            announce(monitors, aggregator, log.metadata.collision_frame, now())
+            announced = True
+            pump()
+    if not metadata_collision and not announced and log.metadata.collision_frame >= 0:
+        announce(monitors, aggregator, log.metadata.collision_frame, now())
+    for core in monitors.values():
+        core.set_finished(now())
+    aggregator.set_finished(now())
+    deadline = clock[0] + drain_s
+    while run.outcome is None and clock[0] < deadline:
+        pump()
+        clock[0] += 0.05
+    return run
+
+
+def announce(
+    monitors: dict[Module, MonitorCore], aggregator: AggregatorCore, frame: int, at: float
+) -> None:
+    for core in monitors.values():
+        core.set_collision(frame, at)
+    aggregator.set_collision(frame, at)

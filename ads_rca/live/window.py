@@ -1,0 +1,397 @@
+"""A monitor's bounded frame window: when a frame can be judged, and with which data.
+
+Why this exists: the offline engine judges frame ts with the whole log at hand, but the
+oracles only read ts and a few frames AFTER it (reference prediction as far as its step keys
+go, control ts + 1 frame; corrected ``prediction_window`` / ``control_horizon`` frames), the
+first-appearance extents of the actors, the ego's identity, and in `corrected` the collision
+partner (actors at the collision frame). :class:`MonitorCore` keeps exactly that: per-folder
+records for the frames not yet judged plus their look-ahead, the extents of every actor
+ever seen, the ego id once found, and the records at the collision frame. A frame is judged,
+in analysed-frame order, as soon as
+
+- its own inputs are in (every topic its ``run/frame`` marker announced), and
+- the look-ahead it reads has arrived (markers are in timeline order, so "every marker up to
+  stamp S is complete" says the data up to S is final, gaps included), and
+- the ego is known (reference reads it at 50 ms) and, in `corrected` with a collision, the
+  data at the collision frame has arrived (the partner), or the run ended;
+
+or, when inputs stall (nothing for ``input_timeout_s``) or the pending queue is full, with
+what arrived, the result marked ``incomplete``. Each judgement runs the engine's own oracle
+on a :class:`~ads_rca.model.RunLog` *view* of the window, so live and offline results are
+the same function of the same data. Records older than what pending frames and the
+re-evaluation history need are dropped: memory does not grow with run length.
+
+A collision announced later (a live stack's collision topic) moves the frames still held
+back to the queue (`corrected` only: reference results do not depend on the partner); they
+are judged again and published with a higher ``revision``.
+"""
+
+from __future__ import annotations
+
+import time
+import uuid
+from collections import deque
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from ads_rca.engine import evaluate_frame, oracles_for
+from ads_rca.live.results import FrameMarker, LiveResult, new_problems
+from ads_rca.model import FOLDERS, FloatArray, RunLog, RunMetadata
+from ads_rca.oracles.base import EGO_ID_TIMESTAMP_MS, Module, RunContext
+from ads_rca.params import Params
+from ads_rca.verdict import frame_number
+
+#: The folders each reference oracle reads (corrected oracles read every folder).
+REFERENCE_FOLDERS: dict[Module, tuple[str, ...]] = {
+    "perception": ("bboxes", "bboxes_gt"),
+    "prediction": ("pose", "actors", "predictions_with_perception"),
+    "planning": ("pose", "actors", "predictions", "predictions_with_perception", "waypoint"),
+    "controller": ("pose", "waypoint"),
+}
+#: Reference oracles that read the ego's identity.
+REFERENCE_EGO_MODULES: tuple[Module, ...] = ("prediction", "planning")
+
+
+def module_folders(semantics: str, module: Module) -> tuple[str, ...]:
+    """The log folders (hence topics) one module's monitor subscribes to."""
+    return REFERENCE_FOLDERS[module] if semantics == "reference" else FOLDERS
+
+
+@dataclass
+class _Entry:
+    """A frame marker as the window tracks it."""
+
+    marker: FrameMarker
+    arrived: float
+    settled: bool = False  # own inputs in, or given up on
+    missing: tuple[str, ...] = ()
+    revision: int = 0
+
+
+@dataclass
+class WindowSettings:
+    """The node parameters the scheduling reads (besides the engine's)."""
+
+    max_lookahead_frames: int = 100
+    input_timeout_s: float = 5.0
+    max_pending_frames: int = 1200
+    #: Judged frames kept for a re-evaluation on a late collision (0 = automatic).
+    history_frames: int = 0
+
+
+@dataclass
+class _Stats:
+    evaluated: int = 0
+    incomplete: int = 0
+    max_records: int = 0
+    compute_s: list[float] = field(default_factory=list)
+
+
+class MonitorCore:
+    """One module's window and scheduler; feed it, then :meth:`poll` for new results."""
+
+    def __init__(
+        self, module: Module, params: Params, settings: WindowSettings | None = None
+    ) -> None:
+        self.module = module
+        self.params = params
+        self.settings = settings or WindowSettings()
+        self.oracles = {module: oracles_for(params)[module]}
+        self.folders = module_folders(params.semantics, module)
+        self.reference = params.semantics == "reference"
+        self.needs_ego = not self.reference or module in REFERENCE_EGO_MODULES
+        self.metadata: RunMetadata | None = None
+        self.collision_frame = -1
+        self.records: dict[str, dict[int, Any]] = {f: {} for f in self.folders}
+        self.first_extents: dict[str, FloatArray] = {}
+        self.analysed: dict[int, int] = {}  # index -> stamp, for the frames held
+        self._markers: deque[_Entry] = deque()  # not yet settled, timeline order
+        self.pending: deque[_Entry] = deque()  # analysed frames to judge, in order
+        self._judged: deque[_Entry] = deque()  # judged, kept for a re-evaluation
+        self.complete_through: int | None = None  # every marker up to here settled
+        self.finished = False
+        self._finished_after: int | None = None
+        self.markers_received = 0
+        self.last_input: float | None = None
+        self.ego_id: str | None = None
+        self.ego_resolved = not self.needs_ego
+        self._reported: set[tuple[str, str, str]] = set()
+        self.session = uuid.uuid4().hex[:8]
+        self.stats = _Stats()
+
+    # --- feeding ---------------------------------------------------------------------
+
+    def set_metadata(self, metadata: RunMetadata, now: float) -> None:
+        changed = self.metadata is None or metadata.collision_frame != self.metadata.collision_frame
+        if changed and metadata.collision_frame >= 0:
+            self.set_collision(metadata.collision_frame, now)
+        self.metadata = metadata
+        self._touch(now)
+
+    def set_collision(self, frame: int, now: float) -> bool:
+        """A collision at ``frame`` (from the metadata or a live collision topic).
+
+        Returns True when held frames went back to the queue for a re-evaluation.
+        """
+        self._touch(now)
+        if frame == self.collision_frame:
+            return False
+        self.collision_frame = frame
+        if self.reference or not self._judged:
+            return False
+        again = list(self._judged)
+        self._judged.clear()
+        for entry in reversed(again):
+            entry.revision += 1
+            self.pending.appendleft(entry)
+        return True
+
+    def add_record(self, folder: str, stamp_ms: int, record: Any, now: float) -> None:
+        self._touch(now)
+        if folder not in self.records:
+            return
+        self.records[folder].setdefault(stamp_ms, record)
+        if folder == "actors":
+            extent = record.extent
+            for row, actor_id in enumerate(record.ids):
+                if actor_id not in self.first_extents and not np.isnan(extent[row]).any():
+                    self.first_extents[actor_id] = extent[row]
+        self._settle(now)
+
+    def add_marker(self, marker: FrameMarker, now: float) -> None:
+        self._touch(now)
+        entry = _Entry(marker, now)
+        self._markers.append(entry)
+        self.markers_received += 1
+        self._update_finished()
+        if marker.index is not None:
+            self.analysed[marker.index] = marker.stamp_ms
+            if self.reference or not marker.duplicate:
+                self.pending.append(entry)
+        self._settle(now)
+
+    def set_finished(self, now: float, frames_published: int | None = None) -> None:
+        """The player reached the end, after ``frames_published`` markers.
+
+        DDS does not order topics: the status may overtake the last markers, so the end only
+        counts once that many markers arrived (a monitor that joined late never gets them
+        all; it judges its last frames when inputs stall, marked incomplete).
+        """
+        self._touch(now)
+        self._finished_after = 0 if frames_published is None else frames_published
+        self._update_finished()
+
+    def _update_finished(self) -> None:
+        if self._finished_after is not None and self.markers_received >= self._finished_after:
+            self.finished = True
+
+    def _touch(self, now: float) -> None:
+        self.last_input = now
+
+    # --- scheduling ------------------------------------------------------------------
+
+    def _settle(self, now: float) -> None:
+        """Settle markers whose inputs are in (or timed out), in order; advance the front."""
+        timeout = self.settings.input_timeout_s
+        stalled = self.stalled(now)
+        while self._markers:
+            entry = self._markers[0]
+            stamp = entry.marker.stamp_ms
+            wanted = [f for f in self.folders if f in entry.marker.folders]
+            missing = tuple(f for f in wanted if stamp not in self.records[f])
+            if missing and not stalled and now - entry.arrived < timeout:
+                break
+            entry.settled, entry.missing = True, missing
+            self.complete_through = stamp
+            self._markers.popleft()
+
+    def stalled(self, now: float) -> bool:
+        """No input at all for ``input_timeout_s``."""
+        return self.last_input is not None and now - self.last_input >= (
+            self.settings.input_timeout_s
+        )
+
+    def _lookahead_frames(self, entry: _Entry) -> int:
+        p = self.params
+        if not self.reference:
+            return max(p.prediction_window, p.control_horizon, 1)
+        if self.module == "controller":
+            return 1
+        if self.module != "prediction":
+            return 0
+        pwp = self.records["predictions_with_perception"].get(entry.marker.stamp_ms)
+        longest = 0
+        for track in (pwp or {}).values():
+            steps = track.steps
+            if steps.size:
+                longest = max(longest, int(steps.max()))
+        return min(longest, self.settings.max_lookahead_frames)
+
+    def _through(self, stamp_ms: int) -> bool:
+        """Every marker up to ``stamp_ms`` has settled (or the run is over and all did)."""
+        if self.finished and not self._markers:
+            return True
+        return self.complete_through is not None and self.complete_through >= stamp_ms
+
+    def _blockers(self, entry: _Entry) -> list[str]:
+        """What the frame still waits for (empty: it can be judged)."""
+        assert self.metadata is not None
+        tpf = self.metadata.timesteps_per_frame
+        stamp = entry.marker.stamp_ms
+        out = []
+        if not entry.settled:
+            out.append("inputs not complete")
+        ahead = stamp + self._lookahead_frames(entry) * tpf
+        if not self._through(ahead):
+            out.append(f"look-ahead to {ahead} ms not received")
+        if not self.ego_resolved and not self._through(EGO_ID_TIMESTAMP_MS):
+            out.append("ego not identified yet")
+        if (
+            not self.reference
+            and self.collision_frame >= 0
+            and not self._through(self.collision_frame * tpf)
+        ):
+            out.append("collision partner unknown (collision frame not received)")
+        return out
+
+    def poll(self, now: float | None = None) -> list[LiveResult]:
+        """Judge every frame that became ready (in order); their results."""
+        now = time.monotonic() if now is None else now
+        if self.metadata is None:
+            return []
+        self._settle(now)
+        stalled = self.stalled(now)
+        ready: list[tuple[_Entry, tuple[str, ...]]] = []
+        for entry in self.pending:
+            blockers = self._blockers(entry)
+            if blockers and not stalled:
+                if len(self.pending) - len(ready) <= self.settings.max_pending_frames:
+                    break
+                blockers.append("pending queue full")
+            incomplete = tuple(blockers) + tuple(f"no {f} record" for f in entry.missing)
+            ready.append((entry, incomplete))
+        if not ready:
+            return []
+        results = self._judge(ready, now)
+        for _ in ready:
+            self._judged.append(self.pending.popleft())
+        self._trim()
+        return results
+
+    # --- judging ---------------------------------------------------------------------
+
+    def view(self) -> RunLog:
+        """The window as a RunLog (records shared, dicts copied: tables are per view)."""
+        assert self.metadata is not None
+        metadata = replace(self.metadata, collision_frame=self.collision_frame)
+        frames = tuple(self.analysed[i] for i in sorted(self.analysed))
+        folders = {f: dict(self.records.get(f, {})) for f in FOLDERS}
+        return RunLog(
+            metadata=metadata,
+            frames=frames,
+            pose=folders["pose"],
+            actors=folders["actors"],
+            bboxes=folders["bboxes"],
+            bboxes_gt=folders["bboxes_gt"],
+            predictions=folders["predictions"],
+            predictions_with_perception=folders["predictions_with_perception"],
+            waypoints=folders["waypoint"],
+            source="live",
+            first_extents=dict(self.first_extents),
+        )
+
+    def _context(self, log: RunLog) -> RunContext:
+        if self.ego_resolved:
+            return RunContext(log, self.params, ego_id=self.ego_id)
+        ctx = RunContext.create(log, self.params)
+        self.ego_id, self.ego_resolved = ctx.ego_id, True
+        return ctx
+
+    def _judge(self, ready: list[tuple[_Entry, tuple[str, ...]]], now: float) -> list[LiveResult]:
+        log = self.view()
+        ctx = self._context(log)
+        partner = self._partner(ctx)
+        out = []
+        for entry, incomplete in ready:
+            stamp = entry.marker.stamp_ms
+            started = time.perf_counter()
+            result = evaluate_frame(ctx, self.oracles, stamp).results[self.module]
+            spent = time.perf_counter() - started
+            self.stats.evaluated += 1
+            self.stats.incomplete += bool(incomplete)
+            self.stats.compute_s.append(spent)
+            del self.stats.compute_s[:-10000]
+            out.append(
+                LiveResult(
+                    index=int(entry.marker.index or 0),
+                    result=result,
+                    frame=frame_number(stamp, log.tpf),
+                    collision_frame=self.collision_frame,
+                    incomplete=incomplete,
+                    revision=entry.revision,
+                    ego_id=ctx.ego_id,
+                    partner_id=partner,
+                    problems=tuple(new_problems(ctx.problems, self._reported)),
+                    compute_s=spent,
+                    wait_s=max(0.0, now - entry.arrived),
+                    session=self.session,
+                )
+            )
+        return out
+
+    def _partner(self, ctx: RunContext) -> str | None:
+        if self.reference or self.collision_frame < 0:
+            return None
+        from ads_rca.oracles.corrected.context import corrected_context
+
+        return corrected_context(ctx).partner_id
+
+    # --- forgetting ------------------------------------------------------------------
+
+    def history_frames(self) -> int:
+        """Judged frames kept for a re-evaluation (corrected: the effect window + slack)."""
+        if self.reference or self.metadata is None:
+            return 0
+        if self.settings.history_frames > 0:
+            return self.settings.history_frames
+        p = self.params
+        return p.window_frames(self.metadata.timesteps_per_frame) + p.control_horizon + 5
+
+    def _trim(self) -> None:
+        """Forget what no pending frame, re-evaluation or the collision partner will read."""
+        assert self.metadata is not None
+        keep = self.history_frames()
+        while len(self._judged) > keep:
+            self._judged.popleft()
+        oldest = [q[0].marker.stamp_ms for q in (self._judged, self.pending) if q]
+        if self._markers:
+            oldest.append(self._markers[0].marker.stamp_ms)
+        if oldest:
+            floor = min(oldest)
+        elif self.complete_through is not None:  # everything settled so far was judged
+            floor = self.complete_through + 1
+        else:
+            return
+        pinned = self._pinned_stamp()
+        for by_stamp in self.records.values():
+            for stamp in [s for s in by_stamp if s < floor]:
+                if stamp != pinned:
+                    del by_stamp[stamp]
+        for index in [i for i, s in self.analysed.items() if s < floor]:
+            if self.analysed[index] != pinned:
+                del self.analysed[index]
+        size = sum(len(r) for r in self.records.values())
+        self.stats.max_records = max(self.stats.max_records, size)
+
+    def _pinned_stamp(self) -> int | None:
+        """The analysed frame the partner is read at: the latest one <= the collision frame."""
+        if self.reference or self.collision_frame < 0 or self.metadata is None:
+            return None
+        cf_ms = self.collision_frame * self.metadata.timesteps_per_frame
+        candidates = [s for s in self.analysed.values() if s <= cf_ms]
+        return max(candidates) if candidates else None
+
+    def held_records(self) -> int:
+        return sum(len(r) for r in self.records.values())

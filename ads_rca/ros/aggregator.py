@@ -1,0 +1,254 @@
+"""``aggregator`` node: the four monitors' results in, the verdict out (once, latched).
+
+A thin shell over :class:`~ads_rca.live.aggregate.AggregatorCore`, which attributes with the
+engine's own ``attribute`` and renders the ``diagnose --json`` contract. Publishes the
+verdict on ``verdict`` (DiagnosticArray, ERROR naming the primary root cause, evidence as
+key/values) and ``verdict/json`` (String), both latched, writes it to ``verdict_json``, and
+logs the one-line verdict. It also watches the monitors' heartbeats: a monitor silent for
+``stale_timeout_s`` while the run goes on is reported STALE on ``/diagnostics`` under its
+module's status name (a dead process cannot report itself).
+
+``metrics_log`` (optional) receives every result as it arrives, one JSON line each, for the
+determinism test and the benchmark.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any, TextIO
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.logging import get_logger
+from rclpy.node import Node
+from std_msgs.msg import String
+
+from ads_rca.errors import InputError
+from ads_rca.live.aggregate import AggregatorCore, VerdictOutcome
+from ads_rca.live.results import FrameMarker, LiveResult
+from ads_rca.oracles.base import MODULES, Module
+from ads_rca.ros import diagnostics as diag
+from ads_rca.ros import live_topics, topics
+from ads_rca.ros.assembler import metadata_from_document
+from ads_rca.ros.jsontext import loads_json
+from ads_rca.ros.nodeparams import declare_engine_parameters, declare_node_parameters
+from ads_rca.ros.playback import FINISHED, METADATA_DOCUMENT_KEY, read_document
+
+PARAMETERS: dict[str, tuple[Any, str]] = {
+    "topic_namespace": (topics.DEFAULT_NAMESPACE, "Namespace of the contract topics."),
+    "hardware_id": ("ads_rca", "hardware_id of the diagnostic statuses."),
+    "verdict_json": ("", "Write the verdict JSON here ('' = no file)."),
+    "metrics_log": ("", "Append every received result as a JSON line here ('' = none)."),
+    "verdict_timeout_s": (
+        10.0,
+        "After the horizon, publish anyway after this long without results.",
+    ),
+    "stall_timeout_s": (20.0, "Before the horizon, publish anyway after this long without input."),
+    "stale_timeout_s": (2.0, "A monitor silent this long is reported STALE."),
+}
+_REPORTER = "aggregator"
+
+
+class Aggregator(Node):
+    """Collects results, publishes the verdict once."""
+
+    def __init__(self) -> None:
+        super().__init__("aggregator")
+        self.params = declare_engine_parameters(self)
+        p = declare_node_parameters(self, PARAMETERS)
+        self.hardware_id = str(p["hardware_id"])
+        self.verdict_json = str(p["verdict_json"])
+        self.stale_timeout = float(p["stale_timeout_s"])
+        self.core = AggregatorCore(
+            self.params, float(p["verdict_timeout_s"]), float(p["stall_timeout_s"])
+        )
+        self._metrics_log: TextIO | None = None
+        if p["metrics_log"]:
+            path = Path(str(p["metrics_log"]))
+            path.parent.mkdir(parents=True, exist_ok=True)
+            self._metrics_log = path.open("w", encoding="utf-8")
+        ns = str(p["topic_namespace"])
+        self.heard: dict[Module, float] = {}
+        self.run_started: float | None = None
+        for module in MODULES:
+            self.create_subscription(
+                String,
+                topics.topic_name(live_topics.metrics_key(module), ns),
+                self._on_result,
+                live_topics.metrics_qos(subscriber=True),
+            )
+        for key in (topics.FRAME, topics.METADATA, topics.STATUS):
+            self.create_subscription(
+                String,
+                topics.topic_name(key, ns),
+                self._callback(key),
+                topics.qos_profile(key, keep_all=True),
+            )
+        self.create_subscription(
+            String,
+            topics.topic_name(live_topics.COLLISION, ns),
+            self._on_collision,
+            live_topics.latched_qos(),
+        )
+        self.create_subscription(
+            DiagnosticArray,
+            live_topics.DIAGNOSTICS,
+            self._on_diagnostics,
+            live_topics.diagnostics_qos(),
+        )
+        latched = live_topics.latched_qos()
+        self.verdict_pub = self.create_publisher(
+            DiagnosticArray, topics.topic_name(live_topics.VERDICT, ns), latched
+        )
+        self.json_pub = self.create_publisher(
+            String, topics.topic_name(live_topics.VERDICT_JSON, ns), latched
+        )
+        self.diag_pub = self.create_publisher(
+            DiagnosticArray, live_topics.DIAGNOSTICS, live_topics.diagnostics_qos()
+        )
+        self.create_timer(0.02, self._poll)
+        self.create_timer(0.5, self._watch_monitors)
+
+    # --- inputs ----------------------------------------------------------------------
+
+    def _callback(self, key: str) -> Any:
+        def on_message(msg: String) -> None:
+            now = time.monotonic()
+            document = read_document(msg)
+            if key == topics.FRAME:
+                self.core.add_marker(FrameMarker.from_document(document), now)
+            elif key == topics.STATUS:
+                if document.get("state") == FINISHED:
+                    published = document.get("frames_published")
+                    self.core.set_finished(now, published if isinstance(published, int) else None)
+            else:
+                exact = document.get(METADATA_DOCUMENT_KEY)
+                try:
+                    metadata = metadata_from_document(
+                        exact if isinstance(exact, dict) else document
+                    )
+                except (KeyError, TypeError, ValueError) as error:
+                    self.get_logger().error(f"unusable run/metadata: {error!r}")
+                    return
+                self.core.set_metadata(metadata, str(document.get("source", "")), now)
+
+        return on_message
+
+    def _on_result(self, msg: String) -> None:
+        now = time.monotonic()
+        try:
+            result = LiveResult.from_document(loads_json(msg.data))
+        except (KeyError, TypeError, ValueError) as error:
+            self.get_logger().error(f"unreadable monitor result: {error!r}")
+            return
+        self.heard[result.module] = now
+        self.core.add_result(result, now)
+        if self._metrics_log is not None:
+            self._metrics_log.write(msg.data + "\n")
+        self._poll()
+
+    def _on_collision(self, msg: String) -> None:
+        frame = read_document(msg).get("frame")
+        if isinstance(frame, int):
+            self.core.set_collision(frame, time.monotonic())
+
+    def _on_diagnostics(self, msg: DiagnosticArray) -> None:
+        now = time.monotonic()
+        for status in msg.status:
+            for module in MODULES:
+                if status.name == f"{diag.status_name(module)}/monitor":
+                    self.heard[module] = now
+
+    # --- outputs ---------------------------------------------------------------------
+
+    def _watch_monitors(self) -> None:
+        """STALE for each monitor not heard from while the run goes on."""
+        core = self.core
+        if core.outcome is not None or core.metadata is None or not core.markers_received:
+            return  # judged only while the run is under way
+        now = time.monotonic()
+        if self.run_started is None:
+            self.run_started = now
+        statuses = []
+        for module in MODULES:
+            silent = now - max(self.heard.get(module, self.run_started), self.run_started)
+            if silent >= self.stale_timeout:
+                statuses.append(
+                    diag.simple_status(
+                        diag.status_name(module),
+                        diag.STALE,
+                        f"{module} monitor silent for {silent:.1f} s",
+                        self.hardware_id,
+                        {"reported_by": _REPORTER, "silent_s": round(silent, 3)},
+                    )
+                )
+        if statuses:
+            self.diag_pub.publish(diag.array(self.get_clock().now().to_msg(), statuses))
+
+    def _poll(self) -> None:
+        outcome = self.core.poll(time.monotonic())
+        if outcome is not None:
+            self._publish(outcome)
+
+    def _publish(self, outcome: VerdictOutcome) -> None:
+        document = outcome.document
+        text = json.dumps(document, indent=1, allow_nan=False)
+        stamp = self.get_clock().now().to_msg()
+        self.verdict_pub.publish(
+            diag.array(stamp, [diag.verdict_status(document, self.hardware_id)])
+        )
+        self.json_pub.publish(String(data=text))
+        self.diag_pub.publish(diag.array(stamp, [diag.verdict_status(document, self.hardware_id)]))
+        if self.verdict_json:
+            path = Path(self.verdict_json)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            partial = path.with_name(path.name + ".partial")
+            partial.write_text(text + "\n")
+            partial.replace(path)
+        state = (
+            "complete"
+            if outcome.complete
+            else "INCOMPLETE: " + "; ".join(document["live"]["why_incomplete"])
+        )
+        self.get_logger().info(
+            f"verdict: {document['verdict']} [{document['attribution_basis']}] "
+            f"latency {document['verdict_latency_s']:.3f} s, {state}"
+        )
+        if self._metrics_log is not None:
+            self._metrics_log.flush()
+
+    def close(self) -> None:
+        if self._metrics_log is not None:
+            self._metrics_log.close()
+            self._metrics_log = None
+
+
+def main(args: list[str] | None = None) -> int:
+    rclpy.init(args=args)
+    node: Aggregator | None = None
+    try:
+        try:
+            node = Aggregator()
+        except (InputError, OSError) as error:
+            get_logger("aggregator").error(str(error))
+            return 2
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        while rclpy.ok():
+            executor.spin_once(timeout_sec=0.1)
+        return 0
+    except (KeyboardInterrupt, ExternalShutdownException):
+        return 0
+    finally:
+        if node is not None:
+            node.close()
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

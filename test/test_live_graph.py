@@ -1,0 +1,244 @@
+"""The live node graph over real DDS: every node its own process, on the test's own domain.
+
+- ``ads-rca replay`` gives ``ads-rca diagnose``'s verdict and per-frame flags, for every
+  scenario and every fault kind, in both semantics modes;
+- a monitor killed (SIGKILL) mid-run is reported STALE, recovers when restarted, and the
+  aggregator still publishes a verdict (marked incomplete, lost frames listed);
+- a stalled input (the player killed mid-run) is reported STALE and the verdict comes after
+  the stall timeout instead of never;
+- three replays of one log give identical metric streams and verdicts.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import pytest
+from test_live_window import CASES, assert_close, failed_flags, synth, verdict_keys
+
+from ads_rca.engine import diagnose
+from ads_rca.io.json_log import read_run_log
+from ads_rca.io.json_writer import write_run_log
+from ads_rca.oracles.base import MODULES
+from ads_rca.params import make_params
+from ads_rca.ros.graph import Graph, GraphSpec
+from ads_rca.ros.launcher import ManagedProcess, ros_args
+
+pytestmark = pytest.mark.timeout(180)
+
+PROBE = Path(__file__).parent / "diag_probe.py"
+STALE = 3
+_DIRS: dict[tuple[str, str], Path] = {}
+
+
+@pytest.fixture(scope="module")
+def log_dirs(tmp_path_factory: pytest.TempPathFactory) -> Callable[[str, str], Path]:
+    def get(scenario: str, fault: str) -> Path:
+        key = (scenario, fault)
+        if key not in _DIRS:
+            folder = tmp_path_factory.mktemp(f"{scenario}_{fault}")
+            _DIRS[key] = write_run_log(synth(scenario, fault), folder / "log")
+        return _DIRS[key]
+
+    return get
+
+
+def wait_for(condition: Callable[[], Any], timeout: float, what: str) -> Any:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        found = condition()
+        if found:
+            return found
+        time.sleep(0.05)
+    raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+
+
+def jsonl(path: Path) -> list[dict[str, Any]]:
+    if not path.exists():
+        return []
+    rows = []
+    for line in path.read_text().splitlines():
+        with contextlib.suppress(ValueError):  # a line being written
+            rows.append(json.loads(line))
+    return rows
+
+
+@pytest.mark.parametrize("semantics", ["reference", "corrected"])
+@pytest.mark.parametrize("case", CASES, ids=["-".join(c) for c in CASES])
+def test_replay_gives_the_diagnose_verdict(ros_env, tmp_path, log_dirs, case, semantics):
+    log_dir = log_dirs(*case)
+    out = tmp_path / "verdict.json"
+    argv = [sys.executable, "-m", "ads_rca.cli", "replay", str(log_dir), "--semantics", semantics]
+    argv += ["--json", str(out), "--domain-id", str(ros_env.domain_id), "--timeout", "90"]
+    replay = ManagedProcess("replay", argv, ros_env.env)
+    assert replay.wait(120) == 0, replay.output
+    live = json.loads(out.read_text())
+    offline = diagnose(read_run_log(log_dir), make_params(semantics)).to_json()
+    assert live["live"]["complete"], live["live"]
+    assert failed_flags(live) == failed_flags(offline)
+    assert_close(verdict_keys(live), verdict_keys(offline))  # evidence metrics: floats
+    assert_close(live["frames"], offline["frames"])
+    assert live["verdict_latency_s"] >= 0
+    assert f"verdict: {offline['verdict']}" in replay.output
+
+
+def start_probe(ros_env, path: Path) -> ManagedProcess:
+    probe = ManagedProcess("probe", [sys.executable, str(PROBE), str(path)], ros_env.env)
+    wait_for(lambda: "probe ready" in probe.output, 20, "the probe")
+    return probe
+
+
+def test_monitor_killed_and_restarted_goes_stale_recovers_and_a_verdict_comes(
+    ros_env, tmp_path, log_dirs
+):
+    log_dir = log_dirs("pedestrian_crossing", "planning")
+    params = make_params("reference")
+    metrics = tmp_path / "metrics.jsonl"
+    spec = GraphSpec(
+        log_dir,
+        params,
+        tmp_path / "verdict.json",
+        namespace=ros_env.namespace,
+        rate=0.6,
+        metrics_log=metrics,
+        aggregator_params={"stale_timeout_s": 1.0},
+    )
+    diagnostics = tmp_path / "diagnostics.jsonl"
+    probe = start_probe(ros_env, diagnostics)
+    try:
+        with Graph(spec, ros_env.env) as graph:
+            graph.start()
+            wait_for(
+                lambda: sum(r["module"] == "controller" for r in jsonl(metrics)) >= 5,
+                60,
+                "controller results",
+            )
+            victim = graph.processes["control_monitor"]
+            victim.process.kill()
+            victim.wait(10)
+            killed_at = time.monotonic()
+            stale = wait_for(
+                lambda: [
+                    r
+                    for r in jsonl(diagnostics)
+                    if r["name"] == "ads_rca/controller"
+                    and r["level"] == STALE
+                    and r["t"] > killed_at
+                ],
+                20,
+                "a STALE controller status",
+            )
+            assert stale[0]["values"]["reported_by"] == "aggregator"
+            graph.restart("control_monitor")
+            document = graph.wait_verdict(90)
+            assert document is not None, graph.processes["aggregator"].output
+            graph.stop()
+    finally:
+        probe.stop()
+    rows = jsonl(diagnostics)
+    first_stale = stale[0]["t"]
+    recovered = [
+        r
+        for r in rows
+        if r["name"] == "ads_rca/controller" and r["level"] != STALE and r["t"] > first_stale
+    ]
+    assert recovered, "no controller status after the restart"
+    offline = diagnose(read_run_log(log_dir), params).to_json()
+    assert document["primary_root_cause"] == offline["primary_root_cause"]
+    assert document["live"]["complete"] is False
+    assert any("lost" in why and "controller" in why for why in document["live"]["why_incomplete"])
+    sessions = {r["session"] for r in jsonl(metrics) if r["module"] == "controller"}
+    assert len(sessions) == 2  # results from before and after the restart
+
+
+def test_stalled_input_is_reported_and_not_waited_on_forever(ros_env, tmp_path, log_dirs):
+    log_dir = log_dirs("lead_braking", "prediction")
+    spec = GraphSpec(
+        log_dir,
+        make_params("corrected"),
+        tmp_path / "verdict.json",
+        namespace=ros_env.namespace,
+        rate=1.0,
+        monitor_params={"stale_timeout_s": 1.0, "input_timeout_s": 1.5},
+        aggregator_params={"stall_timeout_s": 3.0},
+    )
+    diagnostics = tmp_path / "diagnostics.jsonl"
+    probe = start_probe(ros_env, diagnostics)
+    try:
+        with Graph(spec, ros_env.env) as graph:
+            graph.start()
+
+            def pending() -> int:
+                beats = [r for r in jsonl(diagnostics) if r["name"] == "ads_rca/controller/monitor"]
+                return int(beats[-1]["values"]["pending"]) if beats else 0
+
+            wait_for(lambda: pending() >= 15, 60, "frames held by the monitors")
+            graph.processes["player"].process.kill()  # inputs stop mid-run
+            stopped = time.monotonic()
+            document = graph.wait_verdict(60)
+            assert document is not None, graph.processes["aggregator"].output
+            took = time.monotonic() - stopped
+            graph.stop()
+    finally:
+        probe.stop()
+    assert took < 30
+    live = document["live"]
+    assert live["complete"] is False
+    assert any("stalled" in why for why in live["why_incomplete"]), live
+    assert document["frames"], (document["live"], document["modules"])
+    stale = [
+        r
+        for r in jsonl(diagnostics)
+        if r["level"] == STALE and r["name"] in {f"ads_rca/{m}" for m in MODULES}
+    ]
+    assert any("no input" in r["message"] for r in stale), "monitors did not report STALE"
+
+
+def _stream(path: Path) -> dict[str, list[dict[str, Any]]]:
+    volatile = {"compute_s", "wait_s", "session"}
+    out: dict[str, list[dict[str, Any]]] = {m: [] for m in MODULES}
+    for row in jsonl(path):
+        out[row["module"]].append({k: v for k, v in row.items() if k not in volatile})
+    return out
+
+
+def test_three_replays_give_identical_metric_streams_and_verdicts(ros_env, tmp_path, log_dirs):
+    log_dir = log_dirs("lead_braking", "prediction")
+    streams, verdicts = [], []
+    for run in range(3):
+        spec = GraphSpec(
+            log_dir,
+            make_params("corrected"),
+            tmp_path / f"verdict{run}.json",
+            namespace=f"{ros_env.namespace}_{run}",
+            metrics_log=tmp_path / f"metrics{run}.jsonl",
+        )
+        with Graph(spec, ros_env.env) as graph:
+            graph.start()
+            document = graph.wait_verdict(90)
+            assert document is not None, graph.processes["aggregator"].output
+            graph.stop()
+        document.pop("verdict_latency_s")
+        verdicts.append(document)
+        streams.append(_stream(tmp_path / f"metrics{run}.jsonl"))
+    assert all(len(streams[0][m]) == len(read_run_log(log_dir).frames) for m in MODULES)
+    assert streams[0] == streams[1] == streams[2]
+    assert verdicts[0] == verdicts[1] == verdicts[2]
+
+
+def test_monitor_accepts_a_params_file(ros_env, tmp_path):
+    """``--params-file config/rca_reference.yaml`` sets the mode, like ``diagnose --config``."""
+    config = Path(__file__).parents[1] / "config" / "rca_reference.yaml"
+    argv = [sys.executable, "-m", "ads_rca.ros.monitor", "planning_monitor"]
+    argv += ros_args({"effect_time_window": 7}, config)
+    node = ManagedProcess("planning_monitor", argv, ros_env.env)
+    try:
+        wait_for(lambda: "semantics reference" in node.output, 20, "the monitor to start")
+    finally:
+        assert node.stop() == 0

@@ -34,7 +34,7 @@ from ads_rca.oracles.base import Module
 from ads_rca.ros import diagnostics as diag
 from ads_rca.ros import live_topics, topics
 from ads_rca.ros.assembler import metadata_from_document
-from ads_rca.ros.convert import message_stamp_ms, message_to_record
+from ads_rca.ros.cdr_decode import decode_record, stamp_ms
 from ads_rca.ros.jsontext import dumps_json
 from ads_rca.ros.nodeparams import declare_engine_parameters, declare_node_parameters
 from ads_rca.ros.playback import FINISHED, METADATA_DOCUMENT_KEY, read_document
@@ -84,12 +84,15 @@ class Monitor(Node):
         self.started = time.monotonic()
         folders = module_folders(self.params.semantics, module)
         lossless = [k for k, f in topics.TOPIC_FOLDERS.items() if f in folders]
+        # Data topics arrive as CDR bytes and are decoded straight into model records
+        # (ads_rca.ros.cdr_decode): building rclpy message objects costs ~10 ms a frame.
         for key in (*lossless, topics.FRAME, topics.METADATA, topics.STATUS):
             self.create_subscription(
                 topics.MESSAGE_TYPES[key],
                 topics.topic_name(key, namespace),
                 self._callback(key),
                 topics.qos_profile(key, keep_all=True),
+                raw=key in lossless,
             )
         self.create_subscription(
             String,
@@ -145,13 +148,13 @@ class Monitor(Node):
         for key, data, arrived in queued:
             self._add_data(key, data, arrived)
 
-    def _add_data(self, key: str, msg: Any, now: float) -> None:
+    def _add_data(self, key: str, data: bytes, now: float) -> None:
         assert self.core.metadata is not None
         try:
-            stamp = message_stamp_ms(msg)
-        except ValueError:
+            stamp = stamp_ms(key, data)
+        except ValueError:  # a MarkerArray without markers carries no stamp
             return
-        record = message_to_record(key, msg, self.core.metadata.timesteps_per_frame)
+        record = decode_record(key, data, self.core.metadata.timesteps_per_frame)
         self.core.add_record(topics.TOPIC_FOLDERS[key], stamp, record, now)
 
     def _on_collision(self, msg: String) -> None:

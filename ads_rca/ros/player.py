@@ -2,9 +2,10 @@
 
 A thin shell: the data logic (conversion, timeline, markers) lives in convert.py and
 playback.py. Timing follows log time: a wall timer ticks every tpf/rate and sends every
-stamp that is due; at rate 0 each frame is sent as soon as every subscriber acknowledged the
-previous one (``wait_for_all_acked``), so nothing is dropped. Bad input is one logged line
-and exit status 2; reader problems are logged one per line and counted in the status.
+stamp that is due; at rate 0 frames go in batches of ``ack_every``, each batch once every
+subscriber acknowledged the previous one (``wait_for_all_acked``), so nothing is dropped.
+Bad input is one logged line and exit status 2; reader problems are logged one per line
+and counted in the status.
 """
 
 from __future__ import annotations
@@ -54,6 +55,11 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "wait_for_subscribers": (0, "Wait for this many subscribers on run/frame before playing."),
     "wait_timeout_s": (10.0, "Longest wait for subscribers / acknowledgements, in seconds."),
     "exit_on_end": (True, "After 'finished', wait for all acks, then exit with status 0."),
+    "ack_every": (
+        20,
+        "At rate 0: frames sent between waits for acknowledgements (1 to 40; the publishers "
+        "keep 100 messages, so a batch never overwrites an unacknowledged one).",
+    ),
     "fast_publish": (
         True,
         "Publish per-frame messages as CDR bytes built by ads_rca.ros.cdr (byte-identical, "
@@ -61,6 +67,8 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     ),
 }
 _DOUBLES = {"rate", "wait_timeout_s"}
+#: A tick may carry a few extra stamps; 40 frames stay far below the 100-message history.
+MAX_ACK_EVERY = 40
 
 
 class ConfigError(Exception):
@@ -86,9 +94,12 @@ class Player(Node):
         self.wait_timeout = float(self._param("wait_timeout_s"))
         self.exit_on_end = bool(self._param("exit_on_end"))
         self.fast_publish = bool(self._param("fast_publish"))
+        self.ack_every = int(self._param("ack_every"))
         namespace = str(self._param("topic_namespace"))
         if self.rate < 0:
             raise ConfigError(f"rate must be >= 0, got {self.rate}")
+        if not 1 <= self.ack_every <= MAX_ACK_EVERY:
+            raise ConfigError(f"ack_every must be 1 to {MAX_ACK_EVERY}, got {self.ack_every}")
         if self.start_frame < 0 or self.stop_frame < -1:
             raise ConfigError("start_frame must be >= 0 and stop_frame >= -1")
         self.log = self._load(str(self._param("log_path")), str(self._param("bag_remap")))
@@ -195,7 +206,12 @@ class Player(Node):
         if self.done:
             return
         if self.rate == 0:
-            self._publish_tick(self.ticks[self._position] if self.ticks else None)
+            # A batch of frames, then wait for every acknowledgement: the batch stays well
+            # inside the publishers' history (DATA_QOS depth), so nothing is overwritten.
+            for _ in range(self.ack_every):
+                self._publish_tick(self.ticks[self._position] if self.ticks else None)
+                if self.done or not self.ticks:
+                    break
             if not self.wait_for_acks():
                 self.get_logger().warning("subscribers did not acknowledge within the timeout")
         else:

@@ -73,3 +73,164 @@ def box_corners(
     x = local[..., 0] * c[:, None] - local[..., 1] * s[:, None]
     y = local[..., 0] * s[:, None] + local[..., 1] * c[:, None]
     return center[:, None, :] + np.stack((x, y), -1)
+
+
+_SX = np.array([[1.0], [-1.0], [-1.0], [1.0]])
+_SY = np.array([[1.0], [1.0], [-1.0], [-1.0]])
+
+
+def _vertices_to_box(
+    lx: FloatArray,
+    ly: FloatArray,
+    cos_d: FloatArray,
+    sin_d: FloatArray,
+    h_vert: FloatArray,
+    h_box: FloatArray,
+) -> FloatArray:
+    """Squared min distance (N,) from the 4 vertices of one box to another box that is
+    axis-aligned at the origin (zero for vertices inside).
+
+    (lx, ly): the first box's centre in the second's frame; (cos_d, sin_d): its rotation
+    there; ``h_vert``, ``h_box``: half extents (N, 2).
+    """
+    # Vertex offsets ±hx·u ± hy·v with u = (cos, sin), v = (-sin, cos), as (4, N).
+    hx, hy = h_vert[:, 0], h_vert[:, 1]
+    ax, ay, bx, by = cos_d * hx, sin_d * hx, -sin_d * hy, cos_d * hy
+    vx = lx + _SX * ax + _SY * bx
+    vy = ly + _SX * ay + _SY * by
+    ex = np.maximum(np.abs(vx) - h_box[:, 0], 0.0)
+    ey = np.maximum(np.abs(vy) - h_box[:, 1], 0.0)
+    out: FloatArray = (ex * ex + ey * ey).min(axis=0)
+    return out
+
+
+def box_signed_distance(
+    center_a: npt.ArrayLike,
+    half_a: npt.ArrayLike,
+    yaw_a: npt.ArrayLike,
+    center_b: npt.ArrayLike,
+    half_b: npt.ArrayLike,
+    yaw_b: npt.ArrayLike,
+) -> FloatArray:
+    """Signed edge-to-edge distance (N,) between pairs of oriented rectangles.
+
+    Positive: the Euclidean distance between the two rectangles. Zero: touching. Negative:
+    minus the penetration depth, the smallest translation along a separating-axis candidate
+    (the four edge normals) that separates them. Arguments broadcast: centres (N, 2) or
+    (2,), half extents (N, 2) or (2,), yaws in degrees (N,) or scalar. NaN inputs give NaN.
+
+    Separating axes give the overlap; when separated, the distance of two disjoint convex
+    polygons is reached at a vertex of one, so it is the smallest vertex-to-rectangle
+    distance, each computed in the other rectangle's frame.
+    """
+    ca = np.asarray(center_a, dtype=np.float64).reshape(-1, 2)
+    cb = np.asarray(center_b, dtype=np.float64).reshape(-1, 2)
+    ha = np.asarray(half_a, dtype=np.float64).reshape(-1, 2)
+    hb = np.asarray(half_b, dtype=np.float64).reshape(-1, 2)
+    ta = np.deg2rad(np.asarray(yaw_a, dtype=np.float64).reshape(-1))
+    tb = np.deg2rad(np.asarray(yaw_b, dtype=np.float64).reshape(-1))
+    n = max(len(ca), len(cb), len(ha), len(hb), len(ta), len(tb))
+    if len(ha) != n:
+        ha = np.repeat(ha, n, axis=0)
+    if len(hb) != n:
+        hb = np.repeat(hb, n, axis=0)
+    dx, dy = cb[:, 0] - ca[:, 0], cb[:, 1] - ca[:, 1]
+    c_a, s_a = np.cos(ta), np.sin(ta)
+    c_b, s_b = np.cos(tb), np.sin(tb)
+    cos_d = c_a * c_b + s_a * s_b  # cos(yaw_b - yaw_a)
+    sin_d = s_b * c_a - c_b * s_a  # sin(yaw_b - yaw_a)
+    if len(cos_d) != n:
+        cos_d, sin_d = np.repeat(cos_d, n), np.repeat(sin_d, n)
+    # The centre offset in A's frame and in B's frame.
+    ax, ay = dx * c_a + dy * s_a, -dx * s_a + dy * c_a
+    bx, by = dx * c_b + dy * s_b, -dx * s_b + dy * c_b
+    ac, as_ = np.abs(cos_d), np.abs(sin_d)
+    hax, hay, hbx, hby = ha[:, 0], ha[:, 1], hb[:, 0], hb[:, 1]
+    gap = np.maximum(
+        np.maximum(
+            np.abs(ax) - hax - hbx * ac - hby * as_, np.abs(ay) - hay - hbx * as_ - hby * ac
+        ),
+        np.maximum(
+            np.abs(bx) - hbx - hax * ac - hay * as_, np.abs(by) - hby - hax * as_ - hay * ac
+        ),
+    )  # > 0 iff separated; else minus the penetration depth
+    # B's vertices in A's frame; A's vertices in B's frame (centre -d, rotation -δ).
+    d2 = np.minimum(
+        _vertices_to_box(ax, ay, cos_d, sin_d, hb, ha),
+        _vertices_to_box(-bx, -by, cos_d, -sin_d, ha, hb),
+    )
+    out: FloatArray = np.where(gap > 0, np.sqrt(d2), gap)
+    return out
+
+
+def polyline_nearest(points: FloatArray, polylines: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Nearest point on each polyline (H, M, 2; NaN-padded rows) to each point (H, 2).
+
+    Returns the nearest points (H, 2) and the distances (H,); NaN where a polyline has no
+    finite point. A polyline of one point is that point.
+    """
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    lines = np.asarray(polylines, dtype=np.float64)
+    h = len(pts)
+    if lines.shape[1] == 1:
+        a = b = lines
+    else:
+        a, b = lines[:, :-1, :], lines[:, 1:, :]
+        # A segment whose end is padding degenerates to its start point.
+        b = np.where(np.isnan(b), a, b)
+    ab = b - a
+    ap = pts[:, None, :] - a
+    denom = np.einsum("hmi,hmi->hm", ab, ab)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = np.where(denom > 0, np.einsum("hmi,hmi->hm", ap, ab) / denom, 0.0)
+    t = np.clip(np.nan_to_num(t), 0.0, 1.0)
+    q = a + t[..., None] * ab
+    diff = pts[:, None, :] - q
+    dist = np.sqrt(np.einsum("hmi,hmi->hm", diff, diff))
+    finite = np.isfinite(dist)
+    any_finite = finite.any(axis=1)
+    best = np.argmin(np.where(finite, dist, np.inf), axis=1)
+    rows = np.arange(h)
+    nearest = np.where(any_finite[:, None], q[rows, best], np.nan)
+    distance = np.where(any_finite, dist[rows, best], np.nan)
+    return nearest, distance
+
+
+def signed_lateral_offset(
+    points: FloatArray, polylines: FloatArray, yaw_deg: FloatArray
+) -> FloatArray:
+    """Offset (H,) of each point from its polyline, signed along the ego-frame y axis.
+
+    ``|p - q|`` for the nearest polyline point q, with the sign of ``(-sin ψ, cos ψ)·(p - q)``
+    (ψ = ``yaw_deg``); 0 on the polyline, NaN where the polyline is empty.
+    """
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    nearest, distance = polyline_nearest(pts, polylines)
+    theta = np.deg2rad(np.asarray(yaw_deg, dtype=np.float64).reshape(-1))
+    side = -np.sin(theta) * (pts[:, 0] - nearest[:, 0]) + np.cos(theta) * (
+        pts[:, 1] - nearest[:, 1]
+    )
+    return np.where(side < 0, -distance, distance)
+
+
+def along_polyline(polyline: FloatArray, arc: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Points (K, 2) at arc lengths ``arc`` (K,) along a polyline (M, 2) from its start,
+    and the heading (K,) in degrees of the segment each lies on.
+
+    Beyond the end the last segment is extended; zero-length segments are skipped for the
+    heading (NaN when every segment has zero length).
+    """
+    line = np.asarray(polyline, dtype=np.float64).reshape(-1, 2)
+    s = np.asarray(arc, dtype=np.float64).reshape(-1)
+    seg = np.diff(line, axis=0)
+    length = np.hypot(seg[:, 0], seg[:, 1])
+    keep = length > 0
+    if not keep.any():
+        return np.broadcast_to(line[0], (len(s), 2)).copy(), np.full(len(s), np.nan)
+    starts, seg, length = line[:-1][keep], seg[keep], length[keep]
+    cum = np.concatenate(([0.0], np.cumsum(length)))
+    idx = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(length) - 1)
+    local = s - cum[idx]
+    unit = seg[idx] / length[idx, None]
+    points = starts[idx] + local[:, None] * unit
+    return points, np.rad2deg(np.arctan2(unit[:, 1], unit[:, 0]))

@@ -1,0 +1,156 @@
+"""Rules 6–7: which module caused the crash, from the per-frame `corrected` results.
+
+Window: frames [collision_frame − W, collision_frame] with W = ``params.window_frames``.
+A module's failing frames in the window count only in runs of at least its persistence
+(perception and prediction ``min_persistence``, planning ``planning_min_persistence``,
+control ``control_min_persistence``); runs are maximal runs of consecutive analysed frames
+inside the window. The primary root cause is the most upstream module with counted failures,
+except that a planning failure whose first counted frame is strictly after the
+controller's is contributing, not primary (the planner plans from the state the controller
+delivered). With a collision but no counted failure, the unconditioned tests of perception
+and prediction (``metrics["unconditioned"]``) are used the same way, and the basis says so.
+Otherwise "no fault found" with its reason. Each blamed module carries its evidence.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+from ads_rca.oracles.base import MODULES, Metric, Module, OracleResult, RunContext
+from ads_rca.oracles.corrected.context import corrected_context
+from ads_rca.params import Params
+from ads_rca.verdict import (
+    BASIS_FALLBACK,
+    BASIS_JUDGED,
+    NO_COLLISION,
+    NO_MODULE_FAILED,
+    Attribution,
+    FrameResults,
+    ModuleVerdict,
+)
+
+#: Modules with an unconditioned test, for the fallback (pipeline order).
+FALLBACK_MODULES: tuple[Module, ...] = ("perception", "prediction")
+
+
+def persistence(params: Params, module: Module) -> int:
+    """The minimum run length of counted failures for a module."""
+    if module == "planning":
+        return params.planning_min_persistence
+    if module == "controller":
+        return params.control_min_persistence
+    return params.min_persistence
+
+
+def counted_runs(flags: Sequence[bool], min_length: int) -> list[tuple[int, int]]:
+    """Maximal runs [start, end] (inclusive positions) of True of at least ``min_length``."""
+    runs: list[tuple[int, int]] = []
+    start = -1
+    for n, flag in enumerate([*flags, False]):
+        if flag and start < 0:
+            start = n
+        elif not flag and start >= 0:
+            if n - start >= max(min_length, 1):
+                runs.append((start, n - 1))
+            start = -1
+    return runs
+
+
+def _failed(frame: FrameResults, module: Module) -> bool:
+    result = frame.results.get(module)
+    return bool(result is not None and result.failed)
+
+
+def _unconditioned(frame: FrameResults, module: Module) -> bool:
+    result = frame.results.get(module)
+    return bool(result is not None and result.metrics.get("unconditioned") is True)
+
+
+def _evidence(
+    window: Sequence[FrameResults],
+    runs: list[tuple[int, int]],
+    module: Module,
+    basis: str,
+) -> dict[str, Metric]:
+    first = window[runs[0][0]]
+    result: OracleResult | None = first.results.get(module)
+    return {
+        "basis": basis,
+        "first_failing_frame": first.frame,
+        "first_failing_ms": first.timestamp_ms,
+        "counted_frames": sum(end - start + 1 for start, end in runs),
+        "runs": [[window[s].frame, window[e].frame] for s, e in runs],
+        "metrics": dict(result.metrics) if result else {},
+        "thresholds": dict(result.thresholds) if result else {},
+        "ids": list(result.ids) if result else [],
+    }
+
+
+def attribute_corrected(frames: Sequence[FrameResults], ctx: RunContext) -> Attribution:
+    """The `corrected` verdict over the analysed frames' oracle results."""
+    params, tpf = ctx.params, ctx.tpf
+    collision_frame = ctx.log.metadata.collision_frame
+    ordered = sorted({f.timestamp_ms: f for f in reversed(frames)}.values(), key=_ts)
+    partner = corrected_context(ctx).partner_id if collision_frame >= 0 else None
+    if collision_frame >= 0:
+        start, end = (collision_frame - params.window_frames(tpf)) * tpf, collision_frame * tpf
+        window = [f for f in ordered if start <= f.timestamp_ms <= end]
+    else:
+        window = []
+    modules = {m: ModuleVerdict() for m in MODULES}
+    judged: dict[Module, list[tuple[int, int]]] = {}
+    for module in MODULES:
+        runs = counted_runs([_failed(f, module) for f in window], persistence(params, module))
+        verdict = modules[module]
+        total = sum(_failed(f, module) for f in ordered)
+        verdict.collision = sum(e - s + 1 for s, e in runs)
+        verdict.safe = total - verdict.collision
+        if runs:
+            judged[module] = runs
+            verdict.first_failure_frame = window[runs[0][0]].frame
+        elif total:
+            verdict.first_failure_frame = next(f.frame for f in ordered if _failed(f, module))
+    basis, runs_by_module = BASIS_JUDGED, judged
+    if not judged and collision_frame >= 0:
+        fallback = {
+            m: runs
+            for m in FALLBACK_MODULES
+            if (
+                runs := counted_runs([_unconditioned(f, m) for f in window], persistence(params, m))
+            )
+        }
+        if fallback:
+            basis, runs_by_module = BASIS_FALLBACK, fallback
+    root_causes = [m for m in MODULES if m in runs_by_module]
+    primary = _primary(root_causes, lambda m: runs_by_module[m][0][0])
+    for module in root_causes:
+        modules[module].evidence = _evidence(window, runs_by_module[module], module, basis)
+    reason = None
+    if primary is None:
+        reason = NO_COLLISION if collision_frame < 0 else NO_MODULE_FAILED
+    return Attribution(
+        modules=modules,
+        root_causes=root_causes,
+        primary_root_cause=primary,
+        contributing=[m for m in root_causes if m != primary],
+        attribution_basis=basis,
+        reason=reason,
+        partner_id=partner,
+    )
+
+
+def _ts(frame: FrameResults) -> int:
+    return frame.timestamp_ms
+
+
+def _primary(root_causes: list[Module], first: Callable[[Module], int]) -> Module | None:
+    """Most upstream, skipping planning when it began strictly after the controller."""
+    for module in root_causes:
+        if (
+            module == "planning"
+            and "controller" in root_causes
+            and first("planning") > first("controller")
+        ):
+            continue
+        return module
+    return None

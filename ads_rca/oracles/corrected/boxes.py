@@ -1,0 +1,223 @@
+"""Oriented boxes over the horizon: the ego's plan boxes and an actor's predicted boxes.
+
+The `corrected` rules compare boxes index by index (index i = i frames after ts). This module
+turns a plan or a predicted track into such a series (rules' "Geometry" section): keys are
+read as integers, sorted, first occurrence kept; headings follow the path, keeping the
+previous heading where the motion is too short to give one. Key parsing and ordering are
+memoised per key tuple, since nearly every track and plan of a log has the same keys.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+import numpy.typing as npt
+
+from ads_rca.geometry import FloatArray, along_polyline, ego_to_world
+from ads_rca.model import EgoPose, Plan, Track
+
+#: Plan headings from neighbouring points shorter than this keep the previous heading.
+PLAN_HEADING_MIN_STEP = 1e-3
+
+_KEY_STEPS: dict[tuple[str, ...], npt.NDArray[np.int64]] = {}
+_KEY_STEPS_MAX = 256
+
+
+def key_steps(keys: tuple[str, ...]) -> npt.NDArray[np.int64]:
+    """Integer value of each step key (-1 where not an integer), memoised per key tuple:
+    nearly every track and plan of a log has the same keys."""
+    found = _KEY_STEPS.get(keys)
+    if found is None:
+        found = np.array([_int_or_minus_one(k) for k in keys], dtype=np.int64)
+        found.flags.writeable = False
+        if len(_KEY_STEPS) >= _KEY_STEPS_MAX:
+            _KEY_STEPS.clear()
+        _KEY_STEPS[keys] = found
+    return found
+
+
+def _int_or_minus_one(text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        return -1
+
+
+@dataclass(frozen=True)
+class Series:
+    """One object's oriented boxes at horizon indices 0..W (NaN rows where it has none)."""
+
+    center: FloatArray  # (W + 1, 2) world metres
+    yaw: FloatArray  # (W + 1,) degrees
+    half: FloatArray  # (2,) half extents
+
+    @cached_property
+    def present(self) -> npt.NDArray[np.bool_]:
+        """Indices with a box (read-only: shared by every user of the series)."""
+        out = np.isfinite(self.center[:, 0]) & np.isfinite(self.center[:, 1])
+        out &= np.isfinite(self.yaw)
+        out.flags.writeable = False
+        return out
+
+
+@dataclass(frozen=True)
+class PlanData:
+    """One plan: its integer-step points in step order, speeds, and the ego's plan boxes."""
+
+    steps: np.ndarray  # (M,) ascending, unique, >= 0
+    xy: FloatArray  # (M, 2)
+    speed: FloatArray  # (M,)
+    boxes: Series  # ego plan boxes at indices 0..W
+    speed_at: FloatArray  # (W + 1,) plan speed at index i (NaN where the plan has no step i)
+    rows: dict[int, int] = field(default_factory=dict)  # step -> row
+
+    def point(self, step: int) -> FloatArray | None:
+        row = self.rows.get(step)
+        return None if row is None else self.xy[row]
+
+    def speed_of(self, step: int) -> float:
+        row = self.rows.get(step)
+        return float("nan") if row is None else float(self.speed[row])
+
+    @cached_property
+    def _segments(self) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Segment starts (S, 2), vectors (S, 2) and squared lengths (inf if zero)."""
+        if len(self.xy) == 1:
+            return self.xy, np.zeros((1, 2)), np.ones(1)
+        start, vec = self.xy[:-1], np.diff(self.xy, axis=0)
+        length2 = vec[:, 0] * vec[:, 0] + vec[:, 1] * vec[:, 1]
+        return start, vec, np.where(length2 > 0, length2, np.inf)  # t = 0 on empty segments
+
+    def lateral_offset(self, x: float, y: float, yaw_deg: float) -> float:
+        """Distance from (x, y) to the nearest point q of the plan polyline, signed by
+        (−sin ψ, cos ψ)·(p − q) with ψ = ``yaw_deg`` (the ego-frame y axis)."""
+        start, vec, length2 = self._segments
+        px, py = x - start[:, 0], y - start[:, 1]
+        t = np.minimum(np.maximum((px * vec[:, 0] + py * vec[:, 1]) / length2, 0.0), 1.0)
+        dx, dy = px - t * vec[:, 0], py - t * vec[:, 1]
+        j = int(np.argmin(dx * dx + dy * dy))
+        ex, ey = float(dx[j]), float(dy[j])
+        theta = math.radians(yaw_deg)
+        side = -math.sin(theta) * ex + math.cos(theta) * ey
+        distance = math.hypot(ex, ey)
+        return -distance if side < 0 else distance
+
+
+def forward_fill(values: FloatArray, valid: np.ndarray) -> FloatArray:
+    """``values`` with invalid entries replaced by the last valid one (entry 0 must be valid)."""
+    idx = np.where(valid, np.arange(len(values)), 0)
+    np.maximum.accumulate(idx, out=idx)
+    return values[idx]
+
+
+def step_order(keys: tuple[str, ...], limit: int) -> tuple[np.ndarray, np.ndarray]:
+    """Rows of the integer keys 0 <= k < limit in ascending step order (a repeated step keeps
+    its first row), and those steps; memoised per key tuple."""
+    memo_key = (keys, limit)
+    found = _ORDER.get(memo_key)
+    if found is None:
+        steps = key_steps(keys)
+        keep = np.flatnonzero((steps >= 0) & (steps < limit))
+        order = keep[np.argsort(steps[keep], kind="stable")]
+        k = steps[order]
+        first = np.concatenate(([True], k[1:] != k[:-1])) if k.size else np.zeros(0, bool)
+        found = (order[first], k[first])
+        if len(_ORDER) >= _KEY_STEPS_MAX:
+            _ORDER.clear()
+        _ORDER[memo_key] = found
+    return found
+
+
+_ORDER: dict[tuple[tuple[str, ...], int], tuple[np.ndarray, np.ndarray]] = {}
+_NO_LIMIT = 1 << 62
+
+
+def build_plan(plan: Plan, pose: EgoPose, ego_half: FloatArray, window: int) -> PlanData | None:
+    """Plan points in step order and the ego's plan boxes (heading along the path)."""
+    order, s_sorted = step_order(plan.keys, _NO_LIMIT)
+    if order.size == 0:
+        return None
+    xy = plan.xy[order]
+    speed = plan.speed[order]
+    # Boxes need indices 0..W, hence headings of the first W + 1 sorted points at most
+    # (their neighbours reach W + 2 points).
+    m = min(len(order), window + 2)
+    # Heading along P[j+1] - P[j-1] (P[j] - P[j-1] at the last point; pose yaw at j = 0).
+    nxt = np.minimum(np.arange(1, m + 1), len(order) - 1)
+    prv = np.maximum(np.arange(-1, m - 1), 0)
+    vec = xy[nxt] - xy[prv]
+    heading = np.rad2deg(np.arctan2(vec[:, 1], vec[:, 0]))
+    valid = vec[:, 0] * vec[:, 0] + vec[:, 1] * vec[:, 1] >= PLAN_HEADING_MIN_STEP**2
+    if s_sorted[0] == 0 or not valid[0]:
+        heading[0], valid[0] = pose.yaw, True
+    if not valid.all():
+        heading = forward_fill(heading, valid)
+    center = np.full((window + 1, 2), np.nan)
+    yaw = np.full(window + 1, np.nan)
+    speed_at = np.full(window + 1, np.nan)
+    inside = s_sorted[:m] <= window
+    idx = s_sorted[:m][inside]
+    center[idx], yaw[idx], speed_at[idx] = xy[:m][inside], heading[inside], speed[:m][inside]
+    boxes = Series(center, yaw, ego_half)
+    rows = {step: row for row, step in enumerate(s_sorted.tolist())}
+    return PlanData(s_sorted, xy, speed, boxes, speed_at, rows)
+
+
+def build_predicted(
+    track: Track,
+    pose: EgoPose,
+    state: tuple[FloatArray, float] | None,
+    half: FloatArray,
+    window: int,
+    heading_min_step: float,
+) -> Series:
+    """Boxes of one predicted track: offset key k is k + 1 frames ahead (k < window only),
+    anchored at the ego pose at ts and rotated by its yaw; heading from the predicted motion
+    where a step is at least ``heading_min_step``, else the previous heading (initially the
+    actor's yaw at ts, the step from its real location at ts)."""
+    center = np.full((window + 1, 2), np.nan)
+    yaw = np.full(window + 1, np.nan)
+    order, k = step_order(track.keys, window)
+    if order.size == 0:
+        return Series(center, yaw, half)
+    world = ego_to_world(track.offsets[order, :2], np.array([pose.x, pose.y]), pose.yaw)
+    if state is not None:
+        start, yaw0 = state
+    else:  # the actor has no entry at ts: no step from it; start from the first motion
+        start, yaw0 = world[0], float("nan")
+    step = np.diff(world, axis=0, prepend=start[None, :])
+    heading = np.empty(len(k) + 1)
+    heading[0] = yaw0
+    heading[1:] = np.rad2deg(np.arctan2(step[:, 1], step[:, 0]))
+    valid = np.empty(len(k) + 1, dtype=bool)
+    valid[0] = True
+    valid[1:] = step[:, 0] * step[:, 0] + step[:, 1] * step[:, 1] >= heading_min_step**2
+    if np.isnan(yaw0):
+        moving = np.flatnonzero(valid[1:])
+        heading[0] = heading[1 + moving[0]] if moving.size else 0.0
+    if not valid.all():
+        heading = forward_fill(heading, valid)
+    center[k + 1] = world
+    yaw[k + 1] = heading[1:]
+    return Series(center, yaw, half)
+
+
+def braking_boxes(
+    plan: PlanData, yaw0: float, v0: float, decel: float, dt: float, window: int
+) -> Series:
+    """The ego's boxes at indices 0..W driving the plan's path from v0 braking at ``decel``
+    to a stop: arc length s = v0·t − ½·a·t² (v0²/2a once stopped) from the first plan
+    point, heading of the segment there (``yaw0`` where every segment has zero length)."""
+    t = np.arange(window + 1) * dt
+    v0 = max(v0, 0.0) if math.isfinite(v0) else 0.0
+    if decel > 0:
+        tau = np.minimum(t, v0 / decel)
+        arc = v0 * tau - 0.5 * decel * tau * tau
+    else:
+        arc = v0 * t
+    center, heading = along_polyline(plan.xy, arc)
+    heading = np.where(np.isnan(heading), yaw0, heading)
+    return Series(center, heading, plan.boxes.half)

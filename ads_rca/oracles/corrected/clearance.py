@@ -1,0 +1,256 @@
+"""Clearance, the common currency of the `corrected` rules, and the partner's view at ts.
+
+Clearance c(X) at ts is the minimum over horizon indices i = 1..``prediction_window`` (where
+both boxes exist) of the signed edge-to-edge distance between the ego's plan box i and X's
+box i; negative is penetration. A clearance with no such index is undefined (NaN), so
+every comparison with it is false, which is exactly the spec's reading.
+
+:class:`PartnerView` gathers, once per timestamp, everything perception, prediction and
+planning ask about the partner: its real, pwp (``predictions_with_perception``) and raw
+(planner's ``predictions``, linked by the reference's rule) boxes, the three clearances,
+displacement errors and the displacement threshold.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ads_rca.geometry import FloatArray, box_signed_distance
+from ads_rca.model import Predictions
+from ads_rca.oracles.corrected.boxes import PlanData, Series, braking_boxes
+from ads_rca.oracles.corrected.context import CorrectedContext
+
+NAN = float("nan")
+#: The reference's linking rule only considers step-"0" offsets closer than this.
+LINK_MAX_DISTANCE = 100.0
+#: Clearances this close count as equal when choosing the earliest index of the minimum.
+TIE_TOLERANCE = 1e-9
+
+
+@dataclass(frozen=True)
+class Clearance:
+    """A clearance and where it is reached (``index`` -1 and NaN when undefined)."""
+
+    value: float
+    index: int
+    per_index: FloatArray  # (W + 1,) signed distance per index, NaN where undefined
+
+    @property
+    def defined(self) -> bool:
+        return self.index >= 0
+
+
+def undefined_clearance(window: int) -> Clearance:
+    return Clearance(NAN, -1, np.full(window + 1, np.nan))
+
+
+def clearances(
+    plan: Series | None, others: Sequence[Series | None], window: int
+) -> list[Clearance]:
+    """c(X) for each X in ``others`` against the plan boxes, in one vectorised call."""
+    return pair_clearances([(plan, other) for other in others], window)
+
+
+def pair_clearances(
+    pairs: Sequence[tuple[Series | None, Series | None]], window: int
+) -> list[Clearance]:
+    """The clearance of each (ego boxes, other boxes) pair, all in one vectorised call.
+
+    Indices where either box is missing give NaN distances, ignored by the minimum.
+    """
+    out = [undefined_clearance(window) for _ in pairs]
+    given = [(n, a, b) for n, (a, b) in enumerate(pairs) if a is not None and b is not None]
+    if not given or window < 1:
+        return out
+    count = len(given)
+    dist = box_signed_distance(
+        np.concatenate([a.center[1:] for _, a, _ in given]),
+        np.repeat(np.array([a.half for _, a, _ in given]), window, axis=0),
+        np.concatenate([a.yaw[1:] for _, a, _ in given]),
+        np.concatenate([b.center[1:] for _, _, b in given]),
+        np.repeat(np.array([b.half for _, _, b in given]), window, axis=0),
+        np.concatenate([b.yaw[1:] for _, _, b in given]),
+    ).reshape(count, window)
+    masked = np.where(np.isnan(dist), np.inf, dist)
+    low = masked.min(axis=1)
+    first = np.argmax(masked <= (low + TIE_TOLERANCE)[:, None], axis=1)  # earliest minimum
+    per = np.full((count, window + 1), np.nan)
+    per[:, 1:] = dist
+    for row, (n, _, _) in enumerate(given):
+        if np.isfinite(low[row]):
+            out[n] = Clearance(float(low[row]), int(first[row]) + 1, per[row])
+    return out
+
+
+def displacement(a: Series | None, b: Series | None) -> float:
+    """Max over i = 1..W (both present) of the centre distance between two series; NaN if none."""
+    if a is None or b is None:
+        return NAN
+    both = a.present & b.present
+    both[0] = False  # a fresh array
+    if not both.any():
+        return NAN
+    d = a.center[both] - b.center[both]
+    return float(np.hypot(d[:, 0], d[:, 1]).max())
+
+
+def path_length(real: Series | None) -> float:
+    """Path length of the real positions at ts, ts + tpf, …, ts + W·tpf (present ones)."""
+    if real is None:
+        return NAN
+    pts = real.center[real.present]
+    if len(pts) < 2:
+        return 0.0 if len(pts) == 1 else NAN
+    step = np.diff(pts, axis=0)
+    return float(np.hypot(step[:, 0], step[:, 1]).sum())
+
+
+def displacement_threshold(cc: CorrectedContext, travelled: float) -> float:
+    """max(pred_abs_threshold, pred_score_threshold × distance travelled over the horizon)."""
+    p = cc.params
+    scaled = p.pred_score_threshold * travelled if np.isfinite(travelled) else 0.0
+    return float(max(p.pred_abs_threshold, scaled))
+
+
+@dataclass(frozen=True)
+class PartnerView:
+    """What the partner-dependent rules need at one timestamp."""
+
+    partner_id: str | None
+    plan: PlanData | None
+    real: Series | None
+    pwp: Series | None
+    raw: Series | None
+    raw_id: str | None
+    ref: Series | None
+    c_gt: Clearance
+    c_pwp: Clearance
+    c_raw: Clearance
+    c_ref: Clearance
+    c_brake: Clearance  # the plan's path braking at max_decel from v0, vs the raw boxes
+    e_pwp: float  # max |pwp − real| of the partner over the horizon
+    raw_displacement: float  # max |raw − reference| over the horizon
+    travelled: float
+    threshold: float  # displacement threshold
+    in_view: bool | None  # partner has a gt box (None: no bboxes_gt file)
+    in_pwp: bool | None  # partner in predictions_with_perception (None: no file)
+    raw_file: bool  # the predictions file exists
+    real_conflict: bool
+
+
+def partner_view(cc: CorrectedContext, ts: int) -> PartnerView:
+    """The partner's view at ts (cached per timestamp)."""
+    return cc.cache("partner_view").get(ts, lambda: _build_view(cc, ts))
+
+
+def _build_view(cc: CorrectedContext, ts: int) -> PartnerView:
+    log, w = cc.log, cc.window
+    partner = cc.partner_id
+    plan = cc.plan(ts)
+    pose = log.pose.get(ts)
+    gt = log.bboxes_gt.get(ts)
+    pwp_file = log.predictions_with_perception.get(ts)
+    raw_file = log.predictions.get(ts)
+    in_view = None if gt is None or partner is None else partner in gt.ids
+    in_pwp = None if pwp_file is None or partner is None else partner in pwp_file
+    real = pwp = raw = None
+    raw_id = None
+    if partner is not None:
+        real = cc.real_series(partner, ts)
+        if pose is not None and pwp_file is not None and partner in pwp_file:
+            pwp = cc.predicted_series(pwp_file[partner], pose, partner, ts)
+            if raw_file is not None:
+                raw_id = link_raw(cc, ts, raw_file, pwp_file, partner)
+                if raw_id is not None:
+                    raw = cc.predicted_series(raw_file[raw_id], pose, partner, ts)
+    ref = _reference(pwp, real)
+    ego = plan.boxes if plan else None
+    brake = None
+    if plan is not None and raw is not None and pose is not None:
+        p = cc.params
+        brake = braking_boxes(plan, pose.yaw, plan.speed_of(0), p.max_decel, cc.tpf / 1000.0, w)
+    pairs = [(ego, real), (ego, pwp), (ego, raw), (ego, ref), (brake, raw)]
+    c_gt, c_pwp, c_raw, c_ref, c_brake = pair_clearances(pairs, w)
+    travelled = path_length(real)
+    return PartnerView(
+        partner_id=partner,
+        plan=plan,
+        real=real,
+        pwp=pwp,
+        raw=raw,
+        raw_id=raw_id,
+        ref=ref,
+        c_gt=c_gt,
+        c_pwp=c_pwp,
+        c_raw=c_raw,
+        c_ref=c_ref,
+        c_brake=c_brake,
+        e_pwp=displacement(pwp, real),
+        raw_displacement=displacement(raw, ref),
+        travelled=travelled,
+        threshold=displacement_threshold(cc, travelled),
+        in_view=in_view,
+        in_pwp=in_pwp,
+        raw_file=raw_file is not None,
+        real_conflict=bool(c_gt.value < cc.params.safety_margin),
+    )
+
+
+def _reference(pwp: Series | None, real: Series | None) -> Series | None:
+    """The pwp boxes, with the real boxes at indices where there is no pwp box."""
+    if pwp is None:
+        return real
+    if real is None:
+        return pwp
+    fill = ~pwp.present
+    center, yaw = pwp.center.copy(), pwp.yaw.copy()
+    center[fill], yaw[fill] = real.center[fill], real.yaw[fill]
+    return Series(center, yaw, pwp.half)
+
+
+def _step0(tracks: Predictions, skip: str | None) -> tuple[list[str], FloatArray]:
+    """Ids (file order, ``skip`` left out) with a step "0", and those offsets (N, 2)."""
+    ids = [obstacle for obstacle in tracks if obstacle != skip]
+    if not ids:
+        return [], np.zeros((0, 2))
+    keys = tracks[ids[0]].keys
+    if "0" in keys and all(tracks[i].keys == keys for i in ids):  # the usual case
+        row = keys.index("0")
+        return ids, np.array([tracks[i].offsets[row, :2] for i in ids])
+    found = [(i, tracks[i].offset("0")) for i in ids]
+    kept = [(i, offset[:2]) for i, offset in found if offset is not None]
+    if not kept:
+        return [], np.zeros((0, 2))
+    return [i for i, _ in kept], np.array([offset for _, offset in kept])
+
+
+def link_raw(
+    cc: CorrectedContext, ts: int, raw: Predictions, pwp: Predictions, partner: str
+) -> str | None:
+    """The raw id linked to the partner by the reference's linking rule.
+
+    Each raw id links to the pwp id (file order, ego skipped) with the smallest distance
+    between the unrotated step-"0" offsets, strictly below 100 m, earlier id on ties. If
+    several raw ids link to the partner: the one nearest the partner's pwp step "0".
+    """
+    pwp_ids, pwp_xy = _step0(pwp, cc.ego_id)
+    if partner not in pwp_ids:
+        return None
+    raw_ids, raw_xy = _step0(raw, None)
+    if len(raw_ids) < len(raw):  # only raw ids without step "0" are left out
+        cc.ctx.report(
+            cc.log.file_of("predictions", ts), "step 0", "a raw id has no step 0; ignored", ts
+        )
+    if not raw_ids:
+        return None
+    d = np.hypot(raw_xy[:, None, 0] - pwp_xy[None, :, 0], raw_xy[:, None, 1] - pwp_xy[None, :, 1])
+    d = np.where(d < LINK_MAX_DISTANCE, d, np.inf)
+    best = np.argmin(d, axis=1)
+    col = pwp_ids.index(partner)
+    linked = np.flatnonzero((best == col) & np.isfinite(d[np.arange(len(raw_ids)), best]))
+    if linked.size == 0:
+        return None
+    return raw_ids[int(linked[np.argmin(d[linked, col])])]

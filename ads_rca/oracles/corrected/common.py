@@ -1,0 +1,41 @@
+"""Small helpers the four `corrected` oracles share: result building and input checks."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+
+from ads_rca.oracles.base import Metric, Module, OracleResult
+from ads_rca.oracles.corrected.clearance import Clearance
+from ads_rca.oracles.corrected.context import CorrectedContext
+
+
+def num(value: float | None) -> float:
+    """A plain float (NaN for None), so metrics stay JSON-friendly via json_safe."""
+    return math.nan if value is None else float(value)
+
+
+def clearance_metrics(prefix: str, c: Clearance) -> dict[str, Metric]:
+    """``<prefix>`` value and ``<prefix>_index`` (the earliest index of the minimum)."""
+    return {prefix: num(c.value), f"{prefix}_index": c.index if c.defined else None}
+
+
+def missing_inputs(cc: CorrectedContext, ts: int, folders: Iterable[str], why: str) -> list[str]:
+    """The folders with no record at ts among ``folders``; each is reported as a problem."""
+    absent = [f for f in folders if ts not in cc.folders[f]]
+    for folder in absent:
+        cc.missing(folder, ts, why)
+    return absent
+
+
+def skipped(
+    module: Module,
+    ts: int,
+    reason: str,
+    metrics: dict[str, Metric] | None = None,
+    thresholds: dict[str, float] | None = None,
+) -> OracleResult:
+    """A result whose check could not run (no failure)."""
+    return OracleResult(
+        module, ts, False, dict(metrics or {}), dict(thresholds or {}), (), skipped=reason
+    )

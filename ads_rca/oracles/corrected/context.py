@@ -1,0 +1,273 @@
+"""Per-run facts the `corrected` oracles share, derived on first use and cached.
+
+The oracles are per-frame functions ``(ctx, ts)`` that will also run in live monitors on a
+bounded window of frames, so nothing here scans the whole log up front: the one per-run
+fact is the collision partner (read at ``collision_frame``); everything else is derived
+per timestamp from ts and the frames the rules look ahead to, and kept in small LRU caches
+so the four oracles (and the control horizon's overlapping plans) build each thing once.
+
+The caches live on a :class:`CorrectedContext` attached to the :class:`RunContext` as a
+private attribute (``RunContext`` is a plain dataclass we do not own), so they die with it.
+They assume the data at ts … ts + horizon is final when an oracle first asks for ts.
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+from collections.abc import Callable
+from typing import Any, Generic, TypeVar
+
+import numpy as np
+import numpy.typing as npt
+
+from ads_rca.geometry import FloatArray, box_signed_distance
+from ads_rca.model import FOLDERS, EgoPose, RunLog, Track
+from ads_rca.oracles.base import RunContext
+from ads_rca.oracles.corrected.boxes import PlanData, Series, build_plan, build_predicted, key_steps
+from ads_rca.params import Params
+
+K = TypeVar("K")
+V = TypeVar("V")
+
+#: Per-timestamp cache size: enough for the control horizon's plans plus slack.
+CACHE_SIZE = 64
+
+
+class LRU(Generic[K, V]):
+    """A small least-recently-used cache with a compute-on-miss accessor."""
+
+    def __init__(self, size: int = CACHE_SIZE) -> None:
+        self._data: OrderedDict[K, V] = OrderedDict()
+        self._size = size
+
+    def lookup(self, key: K) -> V | None:
+        """The cached value, or None (no computation)."""
+        if key in self._data:
+            self._data.move_to_end(key)
+            return self._data[key]
+        return None
+
+    def put(self, key: K, value: V) -> None:
+        self._data[key] = value
+        self._data.move_to_end(key)
+        if len(self._data) > self._size:
+            self._data.popitem(last=False)
+
+    def get(self, key: K, compute: Callable[[], V]) -> V:
+        if key in self._data:
+            self._data.move_to_end(key)
+            return self._data[key]
+        value = compute()
+        self.put(key, value)
+        return value
+
+
+class CorrectedContext:
+    """The `corrected` oracles' view of one run: parameters, identities and caches."""
+
+    def __init__(self, ctx: RunContext) -> None:
+        self.ctx = ctx
+        self.log: RunLog = ctx.log
+        self.params: Params = ctx.params
+        self.tpf: int = ctx.log.tpf
+        self.window: int = max(int(ctx.params.prediction_window), 1)
+        self.ego_id: str | None = ctx.ego_id
+        extent = self.log.actor_extents.get(self.ego_id) if self.ego_id is not None else None
+        if extent is None:
+            ctx.report("actors/", "ego extent", "the ego has no actor extent; clearances undefined")
+            self.ego_half: FloatArray = np.full(2, np.nan)
+        else:
+            self.ego_half = np.asarray(extent[:2], dtype=np.float64)
+        self._partner: tuple[int, str | None] | None = None
+        self.plans: LRU[int, PlanData | None] = LRU()
+        #: Per-timestamp caches of the oracle modules, by name.
+        self.caches: dict[str, LRU[int, Any]] = {}
+        self.ts_max = max(self.log.frames) if self.log.frames else 0
+        #: The log's per-folder dicts by folder name (``RunLog.folder`` builds a dict per call).
+        self.folders: dict[str, dict[int, Any]] = {name: self.log.folder(name) for name in FOLDERS}
+        #: A run-wide integer for every actor id seen so far (grows as frames are read).
+        self._gid: dict[str, int] = {}
+
+    # -- identities -------------------------------------------------------------------------
+    @property
+    def partner_id(self) -> str | None:
+        """The collision partner (cached per collision frame; None without a collision)."""
+        cf = self.log.metadata.collision_frame
+        if self._partner is None or self._partner[0] != cf:
+            self._partner = (cf, find_partner(self) if cf >= 0 else None)
+        return self._partner[1]
+
+    def cache(self, name: str) -> LRU[int, Any]:
+        """A named per-timestamp cache (created on first use)."""
+        if name not in self.caches:
+            self.caches[name] = LRU()
+        return self.caches[name]
+
+    def seconds(self, index: int | npt.NDArray[Any]) -> FloatArray:
+        """Time of horizon index i in seconds (frames × tpf / 1000)."""
+        return np.asarray(index, dtype=np.float64) * (self.tpf / 1000.0)
+
+    def in_log(self, ts: int) -> bool:
+        """Whether ``ts`` lies within the analysed span (missing data there is a problem)."""
+        return ts <= self.ts_max
+
+    def missing(self, folder: str, ts: int, what: str) -> None:
+        """Report a missing input file needed at ``ts`` (once per file)."""
+        self.ctx.report(self.log.file_of(folder, ts), "", f"missing ({what})", ts)
+
+    # -- plans ------------------------------------------------------------------------------
+    def plan(self, ts: int) -> PlanData | None:
+        """The plan at ts with the ego's plan boxes, or None without a usable plan or pose."""
+        return self.plans.get(ts, lambda: self._build_plan(ts))
+
+    def _build_plan(self, ts: int) -> PlanData | None:
+        plan, pose = self.log.waypoints.get(ts), self.log.pose.get(ts)
+        if plan is None or pose is None or len(plan) == 0:
+            return None
+        if (key_steps(plan.keys) < 0).any():
+            self.ctx.report(
+                self.log.file_of("waypoint", ts), "keys", "non-integer plan key ignored", ts
+            )
+        return build_plan(plan, pose, self.ego_half, self.window)
+
+    # -- actors -----------------------------------------------------------------------------
+    def actor_state(self, actor_id: str, ts: int) -> tuple[FloatArray, float] | None:
+        """An actor's world location (2,) and yaw (deg) at ts, if it has an entry there."""
+        actors = self.log.actors.get(ts)
+        if actors is None:
+            return None
+        row = actors.index.get(actor_id)
+        if row is None:
+            return None
+        return actors.location[row, :2], float(actors.rotation[row, 2])
+
+    def gids(self, ids: list[str] | tuple[str, ...]) -> npt.NDArray[np.int64]:
+        """Run-wide integer ids of actor ids (new ones are registered)."""
+        table = self._gid
+        return np.array([table.setdefault(a, len(table)) for a in ids], dtype=np.int64)
+
+    def _location_table(self, ts: int) -> FloatArray | None:
+        """Locations (G, 2) at ts indexed by run-wide id (NaN for ids absent at ts)."""
+        actors = self.log.actors.get(ts)
+        if actors is None:
+            return None
+        gids = self.gids(actors.ids)
+        table = np.full((len(self._gid), 2), np.nan)
+        table[gids[::-1]] = actors.location[::-1, :2]  # the first row of a repeated id
+        return table
+
+    def locations_over(self, gids: npt.NDArray[np.int64], times: list[int]) -> FloatArray:
+        """World locations (N, T, 2) of the actors ``gids`` at each of ``times`` (NaN where
+        absent)."""
+        out = np.full((len(gids), len(times), 2), np.nan)
+        top = int(gids.max()) if len(gids) else -1
+        cache = self.cache("locations")
+        for j, t in enumerate(times):
+            table = cache.lookup(t)
+            if table is None and t in self.log.actors:
+                table = self._location_table(t)
+                cache.put(t, table)
+            if table is None:
+                continue
+            if top < len(table):
+                out[:, j] = table[gids]
+            else:  # ids first seen after this table was made are absent at t
+                known = gids < len(table)
+                out[known, j] = table[gids[known]]
+        return out
+
+    def real_series(self, actor_id: str, ts: int) -> Series | None:
+        """The actor's real boxes at ts + i·tpf, i = 0..W (None without an extent)."""
+        extent = self.log.actor_extents.get(actor_id)
+        if extent is None:
+            return None
+        w = self.window
+        center = np.full((w + 1, 2), np.nan)
+        yaw = np.full(w + 1, np.nan)
+        for i in range(w + 1):
+            state = self.actor_state(actor_id, ts + i * self.tpf)
+            if state is not None:
+                center[i], yaw[i] = state
+        return Series(center, yaw, np.asarray(extent[:2], dtype=np.float64))
+
+    def predicted_series(
+        self, track: Track, pose: EgoPose, actor_id: str, ts: int
+    ) -> Series | None:
+        """Predicted boxes of an actor (rule 1): key k at index k + 1, anchored at the pose."""
+        extent = self.log.actor_extents.get(actor_id)
+        if extent is None:
+            return None
+        state = self.actor_state(actor_id, ts)
+        return build_predicted(
+            track,
+            pose,
+            state,
+            np.asarray(extent[:2], dtype=np.float64),
+            self.window,
+            self.params.heading_min_step,
+        )
+
+
+def find_partner(cc: CorrectedContext) -> str | None:
+    """The non-ego actor with the smallest signed box distance to the ego at collision_frame.
+
+    Boxes from location, rotation yaw and first-appearance half extents (the ego's from its
+    actor entry, its pose where it has none); ties go to the earlier actor in file order.
+    Without an actors file at the collision frame, the latest earlier analysed frame.
+    """
+    log = cc.log
+    cf_ms = log.metadata.collision_frame * cc.tpf
+    ts = cf_ms
+    if ts not in log.actors:
+        earlier = [t for t in log.unique_frames if t < cf_ms and t in log.actors]
+        cc.ctx.report(
+            log.file_of("actors", cf_ms),
+            "collision partner",
+            "no actors file at collision_frame; used the latest earlier analysed frame",
+            cf_ms,
+        )
+        if not earlier:
+            return None
+        ts = earlier[-1]
+    actors = log.actors[ts]
+    ego_state = cc.actor_state(cc.ego_id, ts) if cc.ego_id is not None else None
+    if ego_state is None:
+        pose = log.pose.get(ts)
+        if pose is None:
+            cc.ctx.report(log.file_of("actors", ts), "collision partner", "no ego box", ts)
+            return None
+        ego_state = (np.array([pose.x, pose.y]), pose.yaw)
+    extents = log.actor_extents
+    rows = [
+        r
+        for r, actor_id in enumerate(actors.ids)
+        if actor_id != cc.ego_id and actor_id in extents and actors.index[actor_id] == r
+    ]
+    if not rows:
+        return None
+    half = np.array([extents[actors.ids[r]][:2] for r in rows])
+    dist = box_signed_distance(
+        ego_state[0],
+        cc.ego_half,
+        np.asarray(ego_state[1]),
+        actors.location[rows, :2],
+        half,
+        actors.rotation[rows, 2],
+    )
+    dist = np.where(np.isnan(dist), np.inf, dist)
+    if not np.isfinite(dist).any():
+        return None
+    return actors.ids[rows[int(np.argmin(dist))]]
+
+
+_ATTRIBUTE = "_corrected_context"
+
+
+def corrected_context(ctx: RunContext) -> CorrectedContext:
+    """The :class:`CorrectedContext` of ``ctx``, created on first use and kept on it."""
+    found = ctx.__dict__.get(_ATTRIBUTE)
+    if isinstance(found, CorrectedContext):
+        return found
+    made = CorrectedContext(ctx)
+    ctx.__dict__[_ATTRIBUTE] = made
+    return made

@@ -1,0 +1,126 @@
+"""Rule 5: control is judged on tracking over a horizon, in the partner's direction.
+
+For each step t = ts … ts + (``control_horizon`` − 1)·tpf the speed innovation is the
+realised speed at t + tpf minus plan[t]'s index-1 speed, and the lateral innovation the
+signed offset of the realised position at t + tpf from plan[t]'s polyline (sign of the
+ego-frame y axis at t). Signed sums cancel noise; the sums stop at the first missing input.
+Tracking fails when |Σ speed| exceeds max(``control_speed_threshold``, ``actuator_delay`` ×
+the largest commanded deceleration) or |Σ lateral| exceeds ``control_lateral_threshold``.
+It concerns the partner only when the deviation points toward it: faster than planned with
+the partner ahead (slower with it behind), or drift to its side. There is no speed gate:
+exact tracking never fires, and a real deviation fires at any speed.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ads_rca.geometry import world_to_ego
+from ads_rca.oracles.base import Metric, OracleResult, RunContext
+from ads_rca.oracles.corrected.common import skipped
+from ads_rca.oracles.corrected.context import CorrectedContext, corrected_context
+
+
+@dataclass(frozen=True)
+class Step:
+    """One control step t: innovations realised at t + tpf against plan[t]."""
+
+    speed: float  # realised speed at t + tpf − plan[t]'s step-1 speed
+    lateral: float  # signed offset of pose[t + tpf] from plan[t]'s polyline
+    decel: float  # commanded deceleration (step-0 − step-1 speed) / dt; NaN without step 0
+
+
+def control_step(cc: CorrectedContext, t: int) -> Step | tuple[str, int]:
+    """The step at t (cached: overlapping horizons share it), or the first missing input.
+
+    Each frame's horizon adds one new step, so steps are computed one at a time.
+    """
+    cache = cc.cache("control_step")
+    found = cache.lookup(t)
+    if found is not None:
+        return found
+    tpf = cc.tpf
+    checks = (("pose", t), ("waypoint", t), ("pose", t + tpf))
+    absent = [(folder, at) for folder, at in checks if at not in cc.folders[folder]]
+    plan = None if absent else cc.plan(t)
+    if plan is None or 1 not in plan.rows:
+        if not absent:
+            cc.ctx.report(cc.log.file_of("waypoint", t), "1", "plan has no step 1", t)
+            return ("waypoint", t)
+        for folder, at in absent:
+            if cc.in_log(at):
+                cc.missing(folder, at, "control tracking")
+        return absent[0]
+    before, after = cc.log.pose[t], cc.log.pose[t + tpf]
+    v1 = plan.speed_of(1)
+    lateral = plan.lateral_offset(after.x, after.y, before.yaw)
+    step = Step(after.speed - v1, lateral, (plan.speed_of(0) - v1) / (tpf / 1000.0))
+    cache.put(t, step)
+    return step
+
+
+def _steps(cc: CorrectedContext, ts: int) -> tuple[list[Step], str | None]:
+    """The usable steps from ts, stopping at the first missing input, and why it stopped."""
+    steps: list[Step] = []
+    for j in range(max(int(cc.params.control_horizon), 0)):
+        step = control_step(cc, ts + j * cc.tpf)
+        if not isinstance(step, Step):
+            return steps, f"missing {step[0]} at {step[1]} ms"
+        steps.append(step)
+    return steps, None
+
+
+def control(ctx: RunContext, ts: int) -> OracleResult:
+    """Rule 5 at ts, with tracking-error metrics."""
+    cc = corrected_context(ctx)
+    p = cc.params
+    thresholds: dict[str, float] = {
+        "control_speed_threshold": p.control_speed_threshold,
+        "actuator_delay": p.actuator_delay,
+        "control_lateral_threshold": p.control_lateral_threshold,
+        "control_horizon": p.control_horizon,
+    }
+    steps, stop = _steps(cc, ts)
+    if not steps:
+        return skipped("controller", ts, stop or "no control step", thresholds=thresholds)
+    sum_v = math.fsum(s.speed for s in steps)
+    sum_lat = math.fsum(s.lateral for s in steps)
+    decels = [s.decel for s in steps if math.isfinite(s.decel)]
+    max_decel = max(decels) if decels else math.nan
+    thr_v = p.control_speed_threshold
+    if decels:
+        thr_v = max(thr_v, p.actuator_delay * max_decel)
+    thr_lat = p.control_lateral_threshold
+    thresholds["speed_threshold"] = thr_v
+    speed_fail = abs(sum_v) > thr_v
+    lateral_fail = abs(sum_lat) > thr_lat
+    metrics: dict[str, Metric] = {
+        "steps": len(steps),
+        "stopped_at": stop,
+        "sum_speed_innovation": sum_v,
+        "sum_lateral_innovation": sum_lat,
+        "speed_threshold": thr_v,
+        "max_commanded_decel": max_decel,
+        "tracking_failure": bool(speed_fail or lateral_fail),
+        "speed_tracking_error": math.fsum(abs(s.speed) for s in steps) / len(steps),
+        "lateral_tracking_error": math.fsum(abs(s.lateral) for s in steps) / len(steps),
+        "first_step_speed_error": steps[0].speed,
+        "first_step_lateral_error": steps[0].lateral,
+    }
+    partner = cc.partner_id
+    state = cc.actor_state(partner, ts) if partner is not None else None
+    if partner is None or state is None:
+        metrics["toward_partner"] = None
+        return OracleResult("controller", ts, False, metrics, thresholds)
+    pose = cc.log.pose[ts]
+    rx, ry = world_to_ego(state[0], np.array([pose.x, pose.y]), pose.yaw)
+    toward = bool(
+        (sum_v > thr_v and rx > 0)
+        or (sum_v < -thr_v and rx < 0)
+        or (lateral_fail and sum_lat * ry > 0)
+    )
+    metrics.update(partner_rx=float(rx), partner_ry=float(ry), toward_partner=toward)
+    return OracleResult("controller", ts, toward, metrics, thresholds, (partner,))

@@ -1,0 +1,134 @@
+"""Rule 2: perception is blamed only when a missed partner degraded what the planner saw.
+
+Every frame reports the standard detection metrics from an optimal one-to-one (Hungarian)
+matching of detections to ground-truth boxes with IoU >= ``perc_match_iou``: precision,
+recall, mean matched IoU, missed gt ids with their best IoU (0 = missed outright, else
+mislocated) and false positives. A failure needs three things at once: the partner is in
+view (has a gt box) but unmatched; a real conflict (c_gt < ``safety_margin``); and the
+planner's input about the partner is degraded (no raw prediction links to it, or its raw
+boxes understate the danger relative to the reference boxes by more than
+``understate_min`` while being displaced beyond the threshold or hiding the conflict).
+A dropout that tracking bridges never reaches the planner, so it is not blamed.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from ads_rca.geometry import FloatArray, axis_aligned_iou
+from ads_rca.model import Boxes
+from ads_rca.oracles.base import Metric, OracleResult, RunContext
+from ads_rca.oracles.corrected.clearance import PartnerView, partner_view
+from ads_rca.oracles.corrected.common import clearance_metrics, missing_inputs, num, skipped
+from ads_rca.oracles.corrected.context import CorrectedContext, corrected_context
+
+
+def match_boxes(
+    detections: FloatArray, gts: FloatArray, threshold: float
+) -> tuple[np.ndarray, np.ndarray, FloatArray, FloatArray]:
+    """Hungarian matching with IoU >= threshold.
+
+    Returns matched detection rows, matched gt rows, their IoUs, and the IoU matrix
+    (NaN coordinates score 0).
+    """
+    iou = np.nan_to_num(axis_aligned_iou(detections, gts), nan=0.0)
+    if iou.size == 0:
+        empty = np.zeros(0, dtype=np.int64)
+        return empty, empty, np.zeros(0), iou
+    eligible = iou >= threshold
+    rows, cols = linear_sum_assignment(np.where(eligible, -iou, 0.0))
+    keep = eligible[rows, cols]
+    rows, cols = rows[keep], cols[keep]
+    return rows, cols, iou[rows, cols], iou
+
+
+def detection_metrics(
+    det: Boxes, gt: Boxes, threshold: float
+) -> tuple[dict[str, Metric], set[str]]:
+    """Precision, recall, mean matched IoU, missed gt ids (best IoU), false positives;
+    and the matched gt ids."""
+    rows, cols, ious, iou = match_boxes(det.corners, gt.corners, threshold)
+    n_det, n_gt, n_match = len(det), len(gt), len(rows)
+    best = iou.max(axis=0) if n_det else np.zeros(n_gt)
+    gt_free = np.ones(n_gt, dtype=bool)
+    gt_free[cols] = False
+    det_free = np.ones(n_det, dtype=bool)
+    det_free[rows] = False
+    missed, false_pos = np.flatnonzero(gt_free), np.flatnonzero(det_free)
+    best_list = best.tolist()
+    metrics: dict[str, Metric] = {
+        "detections": n_det,
+        "gt_boxes": n_gt,
+        "matched": n_match,
+        "precision": n_match / n_det if n_det else math.nan,
+        "recall": n_match / n_gt if n_gt else math.nan,
+        "mean_iou": float(ious.mean()) if n_match else math.nan,
+        "missed": {gt.ids[c]: round(best_list[c], 4) for c in missed},
+        "false_positives": [det.ids[r] for r in false_pos],
+    }
+    return metrics, {gt.ids[c] for c in cols}
+
+
+def degraded(cc: CorrectedContext, view: PartnerView) -> bool:
+    """The planner's input about the partner is degraded (rule 2's third condition)."""
+    if view.raw is None:
+        return True
+    understated = view.c_raw.value - view.c_ref.value > cc.params.understate_min
+    displaced = view.raw_displacement > view.threshold
+    hidden = view.c_raw.value >= cc.params.safety_margin
+    return bool(understated and (displaced or hidden))
+
+
+def perception(ctx: RunContext, ts: int) -> OracleResult:
+    """Rule 2 at ts, with the standard detection metrics."""
+    cc = corrected_context(ctx)
+    p = cc.params
+    thresholds = {
+        "perc_match_iou": p.perc_match_iou,
+        "safety_margin": p.safety_margin,
+        "understate_min": p.understate_min,
+        "pred_abs_threshold": p.pred_abs_threshold,
+        "pred_score_threshold": p.pred_score_threshold,
+    }
+    absent = missing_inputs(cc, ts, ("bboxes", "bboxes_gt"), "perception check")
+    if absent:
+        return skipped("perception", ts, f"missing {', '.join(absent)}", thresholds=thresholds)
+    det, gt = cc.log.bboxes[ts], cc.log.bboxes_gt[ts]
+    metrics, matched_gt = detection_metrics(det, gt, p.perc_match_iou)
+    partner = cc.partner_id
+    in_view = partner is not None and partner in gt.ids
+    unmatched = partner is not None and in_view and partner not in matched_gt
+    best = metrics["missed"]
+    partner_best = best.get(partner) if partner is not None and isinstance(best, dict) else None
+    metrics.update(
+        partner_in_view=in_view,
+        partner_matched=in_view and not unmatched,
+        partner_best_iou=partner_best,
+        unconditioned=unmatched,
+    )
+    ids = (partner,) if partner is not None else ()
+    if not unmatched:
+        return OracleResult("perception", ts, False, metrics, thresholds, ids)
+    needed = ("pose", "waypoint", "predictions", "predictions_with_perception")
+    absent = missing_inputs(cc, ts, needed, "perception degradation check")
+    if absent:
+        return skipped("perception", ts, f"missing {', '.join(absent)}", metrics, thresholds)
+    view = partner_view(cc, ts)
+    is_degraded = degraded(cc, view)
+    metrics.update(
+        real_conflict=view.real_conflict,
+        planner_input_degraded=is_degraded,
+        raw_linked=view.raw is not None,
+        raw_displacement=num(view.raw_displacement),
+        displacement_threshold=view.threshold,
+        **clearance_metrics("c_gt", view.c_gt),
+        **clearance_metrics("c_raw", view.c_raw),
+        **clearance_metrics("c_ref", view.c_ref),
+    )
+    failed = bool(view.real_conflict and is_degraded)
+    if view.raw_id is not None:
+        ids = (*ids, view.raw_id)
+    return OracleResult("perception", ts, failed, metrics, thresholds, ids)

@@ -1,0 +1,108 @@
+"""Rule 4: planning is judged against its own inputs (the raw predictions), with feasibility.
+
+If the partner is not in the planner's inputs (no raw prediction links to it), planning is
+not at fault: that is an upstream failure. Otherwise c_plan is the clearance of the plan
+against the partner's raw boxes, reached at i*. Planning fails when c_plan <
+``safety_margin``, the plan was not already braking at the limit, and a safer plan existed:
+the same path driven from v0 braking at ``max_decel`` to a stop keeps clearance > 0 against
+the same raw boxes at every index (``boxes.braking_boxes``, computed with the partner's view).
+A plan unsafe only against ground truth is not a planning failure. Metrics also give
+clearances and times to collision against predictions and ground truth, and the
+plan-vs-realised ego displacement error.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ads_rca.oracles.base import Metric, OracleResult, RunContext
+from ads_rca.oracles.corrected.boxes import PlanData
+from ads_rca.oracles.corrected.clearance import Clearance, partner_view
+from ads_rca.oracles.corrected.common import clearance_metrics, missing_inputs, num, skipped
+from ads_rca.oracles.corrected.context import CorrectedContext, corrected_context
+
+
+def time_to_collision(cc: CorrectedContext, c: Clearance) -> float:
+    """Seconds to the first horizon index with contact (distance <= 0); NaN if none."""
+    contact = np.flatnonzero(c.per_index <= 0.0)
+    return float(cc.seconds(int(contact[0]))) if contact.size else math.nan
+
+
+def realised_error(cc: CorrectedContext, ts: int, plan: PlanData) -> dict[str, Metric]:
+    """Plan point i vs the realised pose at ts + i·tpf, i = 1..W: mean, max and last."""
+    w = cc.window
+    points = plan.boxes.center[1:]
+    real = np.full((w, 2), np.nan)
+    for i in range(1, w + 1):
+        pose = cc.log.pose.get(ts + i * cc.tpf)
+        if pose is not None:
+            real[i - 1] = (pose.x, pose.y)
+    err = np.hypot(*(points - real).T)
+    err = err[np.isfinite(err)]
+    if err.size == 0:
+        return {"plan_realised_error_mean": math.nan, "plan_realised_error_max": math.nan}
+    return {
+        "plan_realised_error_mean": float(err.mean()),
+        "plan_realised_error_max": float(err.max()),
+    }
+
+
+def planning(ctx: RunContext, ts: int) -> OracleResult:
+    """Rule 4 at ts, with clearance, TTC and plan-vs-realised metrics."""
+    cc = corrected_context(ctx)
+    p = cc.params
+    thresholds = {
+        "safety_margin": p.safety_margin,
+        "max_decel": p.max_decel,
+        "decel_tolerance": p.decel_tolerance,
+        "standstill_speed": p.standstill_speed,
+    }
+    absent = missing_inputs(cc, ts, ("pose", "waypoint"), "planning check")
+    plan = None if absent else cc.plan(ts)
+    if plan is None:
+        reason = f"missing {', '.join(absent)}" if absent else "empty plan"
+        if not absent:
+            cc.ctx.report(cc.log.file_of("waypoint", ts), "", "plan has no usable point", ts)
+        return skipped("planning", ts, reason, thresholds=thresholds)
+    metrics: dict[str, Metric] = realised_error(cc, ts, plan)
+    partner = cc.partner_id
+    if partner is None:
+        return OracleResult("planning", ts, False, metrics, thresholds)
+    absent = missing_inputs(
+        cc, ts, ("predictions", "predictions_with_perception"), "planning check (planner inputs)"
+    )
+    if absent:
+        return skipped("planning", ts, f"missing {', '.join(absent)}", metrics, thresholds)
+    view = partner_view(cc, ts)
+    metrics.update(
+        partner_in_planner_inputs=view.raw is not None,
+        **clearance_metrics("c_plan", view.c_raw),
+        **clearance_metrics("c_gt", view.c_gt),
+        ttc_pred=time_to_collision(cc, view.c_raw),
+        ttc_gt=time_to_collision(cc, view.c_gt),
+    )
+    ids = (partner,) if view.raw_id is None else (partner, view.raw_id)
+    if view.raw is None or not view.c_raw.defined:
+        return OracleResult("planning", ts, False, metrics, thresholds, ids)
+    i_star = view.c_raw.index
+    t_star = float(cc.seconds(i_star))
+    v0 = plan.speed_of(0)
+    v_star = float(plan.speed_at[i_star])
+    limit = max(0.0, v0 - (p.max_decel - p.decel_tolerance) * t_star) + p.standstill_speed
+    not_at_limit = bool(v_star > limit and v0 >= p.standstill_speed)
+    brake = view.c_brake.value
+    safer_exists = bool(brake > 0.0)
+    unsafe = bool(view.c_raw.value < p.safety_margin)
+    metrics.update(
+        v0=num(v0),
+        speed_at_i_star=num(v_star),
+        braking_limit_speed=limit,
+        plan_decel=(v0 - v_star) / t_star if t_star > 0 else math.nan,
+        braking_at_limit=not not_at_limit,
+        braking_clearance=num(brake),
+        safer_plan_existed=safer_exists,
+    )
+    failed = unsafe and not_at_limit and safer_exists
+    return OracleResult("planning", ts, failed, metrics, thresholds, ids)

@@ -1,0 +1,127 @@
+"""Rule 3: prediction is judged on ``predictions_with_perception`` (correct perception given).
+
+Predictions are anchored at the ego pose at ts and rotated by its yaw; key k is k + 1
+frames ahead (rule 1), so exact predictions are never flagged. A failure needs a real
+conflict (c_gt < ``safety_margin``) that the prediction made look safer than it was:
+c_pwp − c_gt > ``understate_min``, and either the partner's displacement error e (max over
+the horizon of |predicted − real|) exceeds the threshold or the prediction hid the conflict
+(c_pwp >= ``safety_margin``). Pessimistic errors are reported in the metrics, never blamed.
+The partner in view but absent from the pwp file during a real conflict also fails.
+
+Every frame also reports ADE, FDE and the miss rate (FDE > 2 m) over all predicted actors.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ads_rca.geometry import ego_to_world
+from ads_rca.model import EgoPose, Predictions
+from ads_rca.oracles.base import Metric, OracleResult, RunContext
+from ads_rca.oracles.corrected.boxes import step_order
+from ads_rca.oracles.corrected.clearance import partner_view
+from ads_rca.oracles.corrected.common import clearance_metrics, missing_inputs, num, skipped
+from ads_rca.oracles.corrected.context import CorrectedContext, corrected_context
+
+#: A final displacement error above this is a miss (the usual motion-forecasting metric).
+MISS_DISTANCE = 2.0
+
+
+def displacement_metrics(
+    cc: CorrectedContext, ts: int, pwp: Predictions, pose: EgoPose
+) -> dict[str, Metric]:
+    """ADE, FDE per actor and overall, and the miss rate, vs the realised positions."""
+    w, tpf = cc.window, cc.tpf
+    ids = [a for a in pwp if a != cc.ego_id]
+    out: dict[str, Metric] = {
+        "ade": math.nan,
+        "fde": math.nan,
+        "miss_rate": math.nan,
+        "missed_actors": [],
+        "ade_per_actor": {},
+        "fde_per_actor": {},
+    }
+    if not ids:
+        return out
+    tracks = [pwp[a] for a in ids]
+    keys = tracks[0].keys
+    anchor = np.array([pose.x, pose.y])
+    predicted = np.full((len(ids), w, 2), np.nan)
+    if all(t.keys == keys for t in tracks):  # the usual case: one key set, stack at once
+        order, k = step_order(keys, w)
+        if order.size:
+            offsets = np.array([t.offsets for t in tracks])[:, order, :2]
+            predicted[:, k] = ego_to_world(offsets, anchor, pose.yaw)
+    else:
+        for n, track in enumerate(tracks):
+            order, k = step_order(track.keys, w)
+            if order.size:
+                predicted[n, k] = ego_to_world(track.offsets[order, :2], anchor, pose.yaw)
+    real = cc.locations_over(cc.gids(ids), [ts + (j + 1) * tpf for j in range(w)])
+    diff = predicted - real
+    err = np.hypot(diff[..., 0], diff[..., 1])  # (A, W), NaN where undefined
+    finite = np.isfinite(err)
+    count = finite.sum(axis=1)
+    has = count > 0
+    ade = np.where(has, np.where(finite, err, 0.0).sum(axis=1) / np.maximum(count, 1), np.nan)
+    last = w - 1 - np.argmax(finite[:, ::-1], axis=1)
+    fde = np.where(has, err[np.arange(len(ids)), last], np.nan)
+    if has.any():
+        out["ade"] = float(ade[has].mean())
+        out["fde"] = float(fde[has].mean())
+        out["miss_rate"] = float((fde[has] > MISS_DISTANCE).mean())
+        out["missed_actors"] = [ids[n] for n in np.flatnonzero(fde > MISS_DISTANCE)]
+    out["ade_per_actor"] = dict(zip(ids, ade.tolist(), strict=True))
+    out["fde_per_actor"] = dict(zip(ids, fde.tolist(), strict=True))
+    return out
+
+
+def prediction(ctx: RunContext, ts: int) -> OracleResult:
+    """Rule 3 at ts, with ADE/FDE/miss rate."""
+    cc = corrected_context(ctx)
+    p = cc.params
+    thresholds = {
+        "safety_margin": p.safety_margin,
+        "understate_min": p.understate_min,
+        "pred_abs_threshold": p.pred_abs_threshold,
+        "pred_score_threshold": p.pred_score_threshold,
+        "miss_distance": MISS_DISTANCE,
+    }
+    absent = missing_inputs(cc, ts, ("pose", "predictions_with_perception"), "prediction check")
+    if absent:
+        return skipped("prediction", ts, f"missing {', '.join(absent)}", thresholds=thresholds)
+    pwp, pose = cc.log.predictions_with_perception[ts], cc.log.pose[ts]
+    metrics = displacement_metrics(cc, ts, pwp, pose)
+    partner = cc.partner_id
+    if partner is None:
+        metrics["unconditioned"] = False
+        return OracleResult("prediction", ts, False, metrics, thresholds)
+    view = partner_view(cc, ts)
+    thresholds["displacement_threshold"] = view.threshold
+    absent_from_pwp = bool(view.in_view) and view.in_pwp is False
+    e_over = view.e_pwp > view.threshold
+    understated = view.c_pwp.value - view.c_gt.value > p.understate_min
+    hidden = view.c_pwp.value >= p.safety_margin
+    judged = understated and (e_over or hidden)
+    metrics.update(
+        partner_in_view=view.in_view,
+        partner_in_pwp=view.in_pwp,
+        displacement_error=num(view.e_pwp),
+        displacement_threshold=view.threshold,
+        partner_travelled=num(view.travelled),
+        real_conflict=view.real_conflict,
+        understated=bool(understated),
+        conflict_hidden=bool(hidden),
+        pessimistic=bool(view.c_pwp.value < view.c_gt.value),
+        unconditioned=bool(e_over or absent_from_pwp),
+        **clearance_metrics("c_gt", view.c_gt),
+        **clearance_metrics("c_pwp", view.c_pwp),
+    )
+    failed = bool(view.real_conflict and (judged or absent_from_pwp))
+    reason = None
+    if ts not in cc.log.waypoints:
+        cc.missing("waypoint", ts, "prediction check needs the plan for clearances")
+        reason = "missing waypoint"
+    return OracleResult("prediction", ts, failed, metrics, thresholds, (partner,), reason)

@@ -1,0 +1,87 @@
+"""Benchmark: diagnose time and peak memory vs log length and actor count; prints a table.
+
+    python bench/bench_diagnose.py [--frames 1000 10000] [--actors 50 200] [--semantics corrected]
+
+Each configuration runs in its own process (so peak memory is its own): synthesise a
+``cruise`` log, write it under ``--dir``, then time loading it from disk and judging it.
+The cruise log has no crash, so its last frame is declared the collision frame: the
+corrected rules then judge every frame against the nearest actor as the partner, which is
+the expensive path. Cost should grow linearly with frames (the last column: µs per frame).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import replace
+from pathlib import Path
+
+
+def one_run(frames: int, actors: int, semantics: str, folder: Path) -> dict[str, float]:
+    """Synthesise, write, load and diagnose one log (in this process)."""
+    from ads_rca.engine import diagnose
+    from ads_rca.io.json_log import read_run_log
+    from ads_rca.io.json_writer import write_run_log
+    from ads_rca.params import make_params
+    from ads_rca.synth import synthesise
+
+    log = synthesise("cruise", "none", seed=1, frames=frames, actors=actors)
+    last = log.frames[-1] // log.tpf
+    log.metadata = replace(log.metadata, collision_frame=last, total_frames=last)
+    write_run_log(log, folder)
+    del log
+    start = time.perf_counter()
+    loaded = read_run_log(folder)
+    load_s = time.perf_counter() - start
+    start = time.perf_counter()
+    result = diagnose(loaded, make_params(semantics))
+    judge_s = time.perf_counter() - start
+    peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    return {
+        "frames": len(result.frames),
+        "load_s": load_s,
+        "judge_s": judge_s,
+        "peak_mb": peak_mb,
+        "problems": len(result.problems),
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--frames", type=int, nargs="+", default=[1000, 10_000])
+    parser.add_argument("--actors", type=int, nargs="+", default=[50, 200])
+    parser.add_argument("--semantics", default="corrected", choices=["reference", "corrected"])
+    parser.add_argument("--dir", default="out/bench", help="where logs are written")
+    parser.add_argument("--child", nargs=2, type=int, help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.child:
+        frames, actors = args.child
+        print(json.dumps(one_run(frames, actors, args.semantics, Path(args.dir))))
+        return
+
+    Path(args.dir).mkdir(parents=True, exist_ok=True)
+    print(f"semantics {args.semantics}; each row in its own process; load = JSON from disk")
+    header = f"{'frames':>7}{'actors':>7}{'load s':>9}{'judge s':>9}{'total s':>9}"
+    print(header + f"{'peak MB':>9}{'µs/frame':>10}")
+    for actors in args.actors:
+        for frames in args.frames:
+            with tempfile.TemporaryDirectory(dir=args.dir) as tmp:
+                command = [sys.executable, __file__, "--child", str(frames), str(actors)]
+                command += ["--semantics", args.semantics, "--dir", str(Path(tmp) / "log")]
+                done = subprocess.run(command, capture_output=True, text=True, check=True)
+            row = json.loads(done.stdout.strip().splitlines()[-1])
+            total = row["load_s"] + row["judge_s"]
+            per_frame = total / row["frames"] * 1e6
+            print(
+                f"{row['frames']:>7}{actors:>7}{row['load_s']:>9.2f}{row['judge_s']:>9.2f}"
+                f"{total:>9.2f}{row['peak_mb']:>9.0f}{per_frame:>10.0f}"
+            )
+
+
+if __name__ == "__main__":
+    main()

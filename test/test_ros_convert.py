@@ -55,13 +55,9 @@ def test_round_trip_survives_cdr_serialisation() -> None:
 
 
 def test_synthesised_log_round_trips() -> None:
-    synth = pytest.importorskip("ads_rca.synth")
-    if not hasattr(synth, "synthesise"):
-        pytest.skip("ads_rca.synth.synthesise not available")
-    try:
-        log = synth.synthesise("cruise", "none", 1, frames=40, actors=6, horizon=10)
-    except Exception as error:  # the synthesiser is another team's work in progress
-        pytest.skip(f"synthesiser unavailable: {error}")
+    from ads_rca.synth import synthesise
+
+    log = synthesise("cruise", "none", 1, frames=40, actors=6, horizon=10)
     assert_logs_equal(log, play_through_assembler(log).build(), angle_tol=1e-9)
 
 

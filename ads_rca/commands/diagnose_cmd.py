@@ -122,12 +122,22 @@ def summary_text(result: Diagnosis, max_problems: int = 10) -> str:
     for module in a.root_causes:
         evidence = a.modules[module].evidence
         if evidence:
-            shown = ", ".join(f"{k}={_short(v)}" for k, v in list(evidence.items())[:8])
-            lines.append(f"  {module}: {shown}")
+            lines.append(f"  {module}: " + ", ".join(_flat(evidence)[:10]))
     problems = result.problems
     lines.append(f"input problems: {len(problems)}")
     lines.extend(f"  {line}" for line in problems.summary_lines(max_problems))
     return "\n".join(lines)
+
+
+def _flat(values: dict[str, Any], prefix: str = "") -> list[str]:
+    """``key=value`` items, nested dicts flattened with dotted keys (ids and lists kept short)."""
+    items: list[str] = []
+    for key, value in values.items():
+        if isinstance(value, dict):
+            items.extend(_flat(value, f"{prefix}{key}."))
+        else:
+            items.append(f"{prefix}{key}={_short(value)}")
+    return items
 
 
 def _short(value: Any) -> str:

@@ -1,0 +1,160 @@
+"""``ads-rca diagnose``: attribution of injected faults, the JSON contract, the CLI's behaviour."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from ads_rca.engine import diagnose
+from ads_rca.io.json_writer import write_run_log
+from ads_rca.oracles.base import MODULES
+from ads_rca.params import make_params
+from ads_rca.synth import FAULTS, SCENARIOS, synthesise
+from ads_rca.verdict import NO_COLLISION, NO_MODULE_FAILED
+
+EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "cut_in_perception"
+CRASH_SCENARIOS = [s for s in SCENARIOS if s != "cruise"]
+#: The synthesiser names the control fault "control"; the verdict's module is "controller".
+MODULE_OF = {"perception": "perception", "prediction": "prediction", "planning": "planning"}
+MODULE_OF["control"] = "controller"
+
+
+def run_cli(*args: str, check: bool = True) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "ads_rca.cli", *args], capture_output=True, text=True, check=check
+    )
+
+
+def strict_json(text: str) -> Any:
+    """JSON that must not contain NaN or Infinity (the contract writes them as null)."""
+
+    def reject(constant: str) -> None:
+        raise AssertionError(f"non-finite constant {constant} in the JSON")
+
+    return json.loads(text, parse_constant=reject)
+
+
+@pytest.mark.parametrize("fault", FAULTS)
+@pytest.mark.parametrize("scenario", CRASH_SCENARIOS)
+def test_corrected_names_the_injected_module(scenario: str, fault: str) -> None:
+    log = synthesise(scenario, fault, seed=2)
+    result = diagnose(log, make_params("corrected"))
+    attribution = result.attribution
+    if fault == "none":
+        assert attribution.primary_root_cause is None
+        assert attribution.reason in (NO_COLLISION, NO_MODULE_FAILED)
+        assert result.verdict_text.startswith("no fault found")
+    else:
+        assert attribution.primary_root_cause == MODULE_OF[fault]
+        assert attribution.modules[MODULE_OF[fault]].evidence
+    assert not [p for p in result.problems if "check failed" in p.issue]
+
+
+def test_json_contract_in_both_modes(tmp_path: Path) -> None:
+    for semantics in ("reference", "corrected"):
+        out = tmp_path / f"{semantics}.json"
+        done = run_cli("diagnose", str(EXAMPLE), "--semantics", semantics, "--json", str(out))
+        assert f"semantics {semantics}" in done.stdout
+        document = strict_json(out.read_text())
+        assert document["semantics"] == semantics
+        assert document["thresholds"] == make_params(semantics).used()
+        assert document["collision_frame"] == 81
+        assert set(document["modules"]) == set(MODULES)
+        for counts in document["modules"].values():
+            assert isinstance(counts["collision"], int) and isinstance(counts["safe"], int)
+            first = counts["first_failure_frame"]
+            assert first is None or isinstance(first, int)
+        causes = document["root_causes"]
+        assert causes == [m for m in MODULES if m in causes]  # pipeline order
+        assert document["primary_root_cause"] == (causes[0] if causes else None)
+        assert len(document["frames"]) == 81
+        assert set(document["frames"][0]) >= {"frame", "timestamp_ms", *MODULES}
+        assert document["input_problems"] == []
+    assert strict_json((tmp_path / "corrected.json").read_text())["primary_root_cause"] == (
+        "perception"
+    )
+
+
+def test_parameters_from_config_and_p_are_used_and_recorded(tmp_path: Path) -> None:
+    config = tmp_path / "rca.yaml"
+    config.write_text(
+        "/**:\n  ros__parameters:\n    semantics: reference\n    effect_time_window: 5\n"
+        "    log_path: ignored-node-parameter\n"
+    )
+    out = tmp_path / "v.json"
+    run_cli("diagnose", str(EXAMPLE), "--config", str(config), "-p", "perc_score_threshold=0.9",
+            "--json", str(out))  # fmt: skip
+    document = strict_json(out.read_text())
+    assert document["semantics"] == "reference"
+    assert document["thresholds"]["effect_time_window"] == 5
+    assert document["thresholds"]["perc_score_threshold"] == 0.9
+    window_counts = document["modules"]["controller"]["collision"]
+    assert window_counts <= 5  # the narrower window counts fewer frames
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["-p", "no_such_threshold=1"], "unknown parameter 'no_such_threshold'"),
+        (["-p", "effect_time_window=1.5"], "is not an integer"),
+        (["-p", "safety_margin"], "-p expects name=value"),
+    ],
+)
+def test_bad_parameters_are_one_line_errors(args: list[str], message: str) -> None:
+    done = run_cli("diagnose", str(EXAMPLE), *args, check=False)
+    assert done.returncode == 2
+    assert message in done.stderr and done.stderr.count("\n") == 1
+    assert "Traceback" not in done.stderr
+
+
+def test_logs_that_cannot_be_diagnosed_exit_non_zero(tmp_path: Path) -> None:
+    missing = run_cli("diagnose", str(tmp_path / "nope"), check=False)
+    assert missing.returncode == 2 and "no such log folder" in missing.stderr
+    empty = tmp_path / "empty"
+    (empty / "actors").mkdir(parents=True)
+    (empty / "metadata.json").write_text('{"timesteps_per_frame": 50}')
+    nothing = run_cli("diagnose", str(empty), check=False)
+    assert nothing.returncode == 2 and "no frame to analyse" in nothing.stderr
+    assert "Traceback" not in missing.stderr + nothing.stderr
+
+
+def test_damaged_log_is_still_diagnosed_and_problems_reported(tmp_path: Path) -> None:
+    log_dir = tmp_path / "log"
+    shutil.copytree(EXAMPLE, log_dir)
+    (log_dir / "bboxes" / "bboxes-3000.json").write_text('[{"id": 1, "bounding_b')
+    (log_dir / "pose" / "pose-3500.json").unlink()
+    waypoints = log_dir / "waypoint" / "waypoints-3600.json"
+    waypoints.write_text(waypoints.read_text().replace('"speed":', '"speed": "fast", "x_":', 1))
+    out = tmp_path / "v.json"
+    for semantics in ("reference", "corrected"):
+        done = run_cli("diagnose", str(log_dir), "--semantics", semantics, "--json", str(out))
+        assert "input problems:" in done.stdout
+        document = strict_json(out.read_text())
+        files = {p["file"] for p in document["input_problems"]}
+        assert "bboxes/bboxes-3000.json" in files and "pose/" in files
+        assert len(document["frames"]) == 81
+    assert document["primary_root_cause"] == "perception"
+
+
+def test_html_report_is_self_contained(tmp_path: Path) -> None:
+    report = tmp_path / "r.html"
+    run_cli("diagnose", str(EXAMPLE), "--report", str(report))
+    page = report.read_text()
+    assert "Verdict: perception" in page
+    assert page.count("data:image/png;base64,") == 2
+    assert "http://" not in page and "https://" not in page
+
+
+def test_no_collision_says_no_fault_found(tmp_path: Path) -> None:
+    log = synthesise("cruise", "none", seed=3, frames=60, actors=5)
+    out = tmp_path / "v.json"
+    run_cli("diagnose", str(write_run_log(log, tmp_path / "log")), "--json", str(out))
+    document = strict_json(out.read_text())
+    assert document["primary_root_cause"] is None and document["reason"] == NO_COLLISION
+    assert document["verdict"] == "no fault found (no collision)"

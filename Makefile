@@ -26,10 +26,10 @@ $(STAMP): requirements.txt requirements-dev.txt constraints.txt setup.py
 	$(BIN)/python -m pip install -q --no-deps --no-build-isolation -e .
 	@touch $(STAMP)
 
-# The offline verdict, then the same run through the live node graph (separate processes,
+# The offline verdict (JSON + HTML report), then the same run through the live node graph (separate processes,
 # local-only DDS), ending with the live verdict and the MCAP recording's path.
 demo: $(STAMP)
-	$(BIN)/ads-rca diagnose $(EXAMPLE) --json $(OUT)/diagnose.json
+	$(BIN)/ads-rca diagnose $(EXAMPLE) --json $(OUT)/diagnose.json --report $(OUT)/report.html
 	rm -rf $(OUT)/replay_recording
 	$(BIN)/ads-rca replay $(EXAMPLE) --domain-id $(ROS_DOMAIN_ID) \
 		--json $(OUT)/replay_verdict.json --record $(OUT)/replay_recording
@@ -48,7 +48,11 @@ format: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python bench/bench_load.py
-	$(BIN)/python bench/bench_player.py
+	$(BIN)/python bench/bench_diagnose.py
+	$(BIN)/python bench/bench_player.py --frames 2000
+	$(BIN)/python bench/bench_graph.py
+	$(BIN)/python bench/bench_recorder.py
+	$(BIN)/python bench/accuracy.py 20
 
 clean:
 	rm -rf $(VENV) build install log .ros_log $(OUT) .pytest_cache .mypy_cache .ruff_cache

@@ -93,6 +93,7 @@ class Diagnosis:
             "semantics": self.params.semantics,
             "thresholds": self.params.used(),
             "collision_frame": self.log.metadata.collision_frame,
+            "window_frames": self.params.window_frames(self.log.tpf),
             "ego_id": self.ctx.ego_id,
             "partner_id": a.partner_id,
             "modules": {

@@ -9,10 +9,9 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-from ads_rca.engine import Diagnosis, analysed_timestamps, diagnose
+from ads_rca.engine import analysed_timestamps, diagnose
 from ads_rca.errors import InputError
 from ads_rca.io import open_run
-from ads_rca.oracles.base import MODULES
 from ads_rca.params import (
     DEFAULT_SEMANTICS,
     SEMANTICS,
@@ -22,6 +21,7 @@ from ads_rca.params import (
     make_params,
 )
 from ads_rca.params import parse_assignments as parse_p
+from ads_rca.summary import summary_text
 
 #: Logs longer than this get a progress bar on stderr (when it is a terminal).
 PROGRESS_MIN_FRAMES = 300
@@ -79,9 +79,10 @@ def run(args: argparse.Namespace) -> int:
     if not analysed_timestamps(log, params):
         raise InputError(f"{args.path}: no frame to analyse (no readable actors/ file)")
     result = diagnose(log, params, progress=_progress_bar(len(log.frames)))
-    print(summary_text(result, args.max_problems))
+    document = result.to_json()
+    print(summary_text(document, args.max_problems))
     if args.json_out:
-        write_json(result, Path(args.json_out))
+        write_json(document, Path(args.json_out))
         print(f"verdict JSON: {args.json_out}")
     if args.report:
         from ads_rca.report.html import write_report
@@ -91,60 +92,10 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def write_json(result: Diagnosis, path: Path) -> None:
+def write_json(document: dict[str, Any], path: Path) -> None:
+    """The verdict JSON (the contract; NaN and infinity are already null)."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(result.to_json(), indent=1, allow_nan=False) + "\n")
-
-
-def summary_text(result: Diagnosis, max_problems: int = 10) -> str:
-    """The short human summary: counts, verdict, evidence, input problems."""
-    a = result.attribution
-    meta = result.log.metadata
-    lines = [
-        f"{result.log.source}: {len(result.frames)} frames judged, "
-        f"semantics {result.params.semantics}",
-    ]
-    if meta.has_collision:
-        window = result.params.window_frames(meta.timesteps_per_frame)
-        partner = f" with actor {a.partner_id}" if a.partner_id else ""
-        lines.append(
-            f"collision at frame {meta.collision_frame}{partner}; "
-            f"effect window: {window} frames before it"
-        )
-    else:
-        lines.append("no collision in this run")
-    lines.append(f"{'module':<12}{'collision':>10}{'safe':>7}  first failure")
-    for module in MODULES:
-        m = a.modules[module]
-        first = "-" if m.first_failure_frame is None else f"frame {m.first_failure_frame}"
-        lines.append(f"{module:<12}{m.collision:>10}{m.safe:>7}  {first}")
-    lines.append(f"verdict: {result.verdict_text}  [{a.attribution_basis}]")
-    for module in a.root_causes:
-        evidence = a.modules[module].evidence
-        if evidence:
-            lines.append(f"  {module}: " + ", ".join(_flat(evidence)[:10]))
-    problems = result.problems
-    lines.append(f"input problems: {len(problems)}")
-    lines.extend(f"  {line}" for line in problems.summary_lines(max_problems))
-    return "\n".join(lines)
-
-
-def _flat(values: dict[str, Any], prefix: str = "") -> list[str]:
-    """``key=value`` items, nested dicts flattened with dotted keys (ids and lists kept short)."""
-    items: list[str] = []
-    for key, value in values.items():
-        if isinstance(value, dict):
-            items.extend(_flat(value, f"{prefix}{key}."))
-        else:
-            items.append(f"{prefix}{key}={_short(value)}")
-    return items
-
-
-def _short(value: Any) -> str:
-    if isinstance(value, float):
-        return f"{value:.3g}"
-    text = str(value)
-    return text if len(text) <= 60 else text[:57] + "..."
+    path.write_text(json.dumps(document, indent=1, allow_nan=False) + "\n")
 
 
 def _progress_bar(frames: int) -> Any:

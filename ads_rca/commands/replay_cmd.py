@@ -11,16 +11,15 @@ at its collision (as recorded crashes do) the verdict equals ``ads-rca diagnose`
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import tempfile
 from pathlib import Path
 from typing import Any
 
-from ads_rca.commands.diagnose_cmd import add_engine_arguments, params_from_args
+from ads_rca.commands.diagnose_cmd import add_engine_arguments, params_from_args, write_json
 from ads_rca.errors import InputError
-from ads_rca.oracles.base import MODULES
 from ads_rca.ros.env import pick_domain_id, ros_environment
+from ads_rca.summary import summary_text
 
 
 def register(subparsers: Any) -> None:
@@ -82,59 +81,21 @@ def run(args: argparse.Namespace) -> int:
             tail = "\n".join(text.splitlines()[-8:])
             print(f"--- {name} (exit {codes.get(name)}):\n{tail}", file=sys.stderr)
         return 2 if codes.get("player") == 2 else 1
-    print(summary_from_document(document))
+    print(live_summary(document))
     if args.json_out:
-        write_document(document, Path(args.json_out))
+        write_json(document, Path(args.json_out))
         print(f"verdict JSON: {args.json_out}")
     if record is not None:
-        write_document(document, record / "verdict.json")
+        write_json(document, record / "verdict.json")
         print(f"MCAP recording: {record} (verdict JSON beside it: {record / 'verdict.json'})")
     return 0
 
 
-def write_document(document: dict[str, Any], path: Path) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(document, indent=1, allow_nan=False) + "\n")
-
-
-def summary_from_document(document: dict[str, Any], max_problems: int = 10) -> str:
-    """``diagnose``'s summary, from the verdict JSON (plus the live graph's figures)."""
+def live_summary(document: dict[str, Any]) -> str:
+    """``diagnose``'s summary of the same contract, plus the live graph's own figures."""
     live = document.get("live") or {}
-    lines = [
-        f"{document.get('source')}: {len(document.get('frames') or [])} frames judged live, "
-        f"semantics {document.get('semantics')}"
-    ]
-    cf = document.get("collision_frame", -1)
-    if isinstance(cf, int) and cf >= 0:
-        partner = f" with actor {document['partner_id']}" if document.get("partner_id") else ""
-        lines.append(f"collision at frame {cf}{partner}")
-    else:
-        lines.append("no collision in this run")
-    lines.append(f"{'module':<12}{'collision':>10}{'safe':>7}  first failure")
-    for module in MODULES:
-        m = document["modules"][module]
-        first = m.get("first_failure_frame")
-        shown = "-" if first is None else f"frame {first}"
-        lines.append(f"{module:<12}{m['collision']:>10}{m['safe']:>7}  {shown}")
-    lines.append(f"verdict: {document.get('verdict')}  [{document.get('attribution_basis')}]")
-    for module in document.get("root_causes") or []:
-        evidence = (document.get("evidence") or {}).get(module) or {}
-        shown_items = ", ".join(f"{k}={_short(v)}" for k, v in list(evidence.items())[:6])
-        if shown_items:
-            lines.append(f"  {module}: {shown_items}")
+    lines = [summary_text(document, how="judged live")]
     lines.append(f"verdict latency: {document.get('verdict_latency_s', 0.0):.3f} s")
     if not live.get("complete", True):
         lines.append("INCOMPLETE: " + "; ".join(live.get("why_incomplete") or []))
-    problems = document.get("input_problems") or []
-    lines.append(f"input problems: {len(problems)}")
-    for p in problems[:max_problems]:
-        where = f"{p.get('file')}: {p.get('field')}" if p.get("field") else p.get("file")
-        lines.append(f"  {p.get('severity')}: {where}: {p.get('issue')} ({p.get('action')})")
     return "\n".join(lines)
-
-
-def _short(value: Any) -> str:
-    if isinstance(value, float):
-        return f"{value:.3g}"
-    text = str(value)
-    return text if len(text) <= 60 else text[:57] + "..."

@@ -20,10 +20,7 @@ import time
 from pathlib import Path
 from typing import Any, TextIO
 
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
-from rclpy.logging import get_logger
 from rclpy.node import Node
 from std_msgs.msg import String
 
@@ -35,6 +32,7 @@ from ads_rca.ros import diagnostics as diag
 from ads_rca.ros import live_topics, topics
 from ads_rca.ros.assembler import metadata_from_document
 from ads_rca.ros.jsontext import loads_json
+from ads_rca.ros.nodemain import run_node
 from ads_rca.ros.nodeparams import declare_engine_parameters, declare_node_parameters
 from ads_rca.ros.playback import FINISHED, METADATA_DOCUMENT_KEY, read_document
 
@@ -228,26 +226,7 @@ class Aggregator(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    rclpy.init(args=args)
-    node: Aggregator | None = None
-    try:
-        try:
-            node = Aggregator()
-        except (InputError, OSError) as error:
-            get_logger("aggregator").error(str(error))
-            return 2
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        while rclpy.ok():
-            executor.spin_once(timeout_sec=0.1)
-        return 0
-    except (KeyboardInterrupt, ExternalShutdownException):
-        return 0
-    finally:
-        if node is not None:
-            node.close()
-            node.destroy_node()
-        rclpy.try_shutdown()
+    return run_node("aggregator", Aggregator, args, (InputError, OSError))
 
 
 if __name__ == "__main__":

@@ -20,14 +20,10 @@ import sys
 import time
 from typing import Any
 
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
-from rclpy.logging import get_logger
 from rclpy.node import Node
 from std_msgs.msg import String
 
-from ads_rca.errors import InputError
 from ads_rca.live.results import FrameMarker, LiveResult
 from ads_rca.live.window import MonitorCore, WindowSettings, module_folders
 from ads_rca.oracles.base import Module
@@ -36,6 +32,7 @@ from ads_rca.ros import live_topics, topics
 from ads_rca.ros.assembler import metadata_from_document
 from ads_rca.ros.cdr_decode import decode_record, stamp_ms
 from ads_rca.ros.jsontext import dumps_json
+from ads_rca.ros.nodemain import run_node
 from ads_rca.ros.nodeparams import declare_engine_parameters, declare_node_parameters
 from ads_rca.ros.playback import FINISHED, METADATA_DOCUMENT_KEY, read_document
 
@@ -218,25 +215,7 @@ def _count(value: object) -> int | None:
 
 
 def run(node_name: str, args: list[str] | None = None) -> int:
-    rclpy.init(args=args)
-    node: Monitor | None = None
-    try:
-        try:
-            node = Monitor(node_name, MONITORS[node_name])
-        except InputError as error:
-            get_logger(node_name).error(str(error))
-            return 2
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        while rclpy.ok():
-            executor.spin_once(timeout_sec=0.1)
-        return 0
-    except (KeyboardInterrupt, ExternalShutdownException):
-        return 0
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    return run_node(node_name, lambda: Monitor(node_name, MONITORS[node_name]), args)
 
 
 def perception_main(args: list[str] | None = None) -> int:

@@ -1,0 +1,64 @@
+"""The short human summary of a verdict, rendered from the JSON contract.
+
+``diagnose`` and ``replay`` both print this, from the same document they write with
+``--json``, so the offline and live outputs read the same.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from ads_rca.oracles.base import MODULES
+from ads_rca.problems import Problem, ProblemLog
+
+
+def summary_text(document: dict[str, Any], max_problems: int = 10, how: str = "judged") -> str:
+    """Counts per module, the verdict with evidence, and the input problems."""
+    lines = [
+        f"{document.get('source')}: {len(document.get('frames') or [])} frames {how}, "
+        f"semantics {document.get('semantics')}"
+    ]
+    collision = document.get("collision_frame", -1)
+    if isinstance(collision, int) and collision >= 0:
+        partner = document.get("partner_id")
+        with_partner = f" with actor {partner}" if partner else ""
+        window = document.get("window_frames")
+        in_window = f"; effect window: {window} frames before it" if window is not None else ""
+        lines.append(f"collision at frame {collision}{with_partner}{in_window}")
+    else:
+        lines.append("no collision in this run")
+    lines.append(f"{'module':<12}{'collision':>10}{'safe':>7}  first failure")
+    for module in MODULES:
+        counts = document["modules"][module]
+        first = counts.get("first_failure_frame")
+        shown = "-" if first is None else f"frame {first}"
+        lines.append(f"{module:<12}{counts['collision']:>10}{counts['safe']:>7}  {shown}")
+    lines.append(f"verdict: {document.get('verdict')}  [{document.get('attribution_basis')}]")
+    evidence = document.get("evidence") or {}
+    lines.extend(
+        f"  {module}: " + ", ".join(_flat(evidence[module])[:10])
+        for module in document.get("root_causes") or []
+        if evidence.get(module)
+    )
+    problems = ProblemLog(Problem(**p) for p in document.get("input_problems") or [])
+    lines.append(f"input problems: {len(problems)}")
+    lines.extend(f"  {line}" for line in problems.summary_lines(max_problems))
+    return "\n".join(lines)
+
+
+def _flat(values: dict[str, Any], prefix: str = "") -> list[str]:
+    """``key=value`` items, nested dicts flattened with dotted keys."""
+    items: list[str] = []
+    for key, value in values.items():
+        if isinstance(value, dict):
+            items.extend(_flat(value, f"{prefix}{key}."))
+        else:
+            items.append(f"{prefix}{key}={_short(value)}")
+    return items
+
+
+def _short(value: Any) -> str:
+    if isinstance(value, float):
+        return f"{value:.3g}"
+    text = str(value)
+    return text if len(text) <= 60 else text[:57] + "..."

@@ -14,7 +14,7 @@ from ads_rca import __version__
 from ads_rca.model import RunLog
 from ads_rca.oracles.base import MODULES, Module, OracleResult, RunContext
 from ads_rca.params import Params
-from ads_rca.problems import CHECK_SKIPPED, ProblemLog
+from ads_rca.problems import CHECK_SKIPPED, Problem, ProblemLog
 from ads_rca.verdict import Attribution, FrameResults, attribute_reference, frame_number, json_safe
 
 Oracle = Callable[[RunContext, int], OracleResult]
@@ -131,17 +131,86 @@ def frame_json(frame: FrameResults) -> dict[str, Any]:
     return out
 
 
+#: Logs shorter than this are judged in-process (a worker costs ~50 ms to fork and collect).
+PARALLEL_MIN_FRAMES = 400
+
+
 def diagnose(
-    log: RunLog, params: Params, progress: Callable[[Iterable[int]], Iterable[int]] | None = None
+    log: RunLog,
+    params: Params,
+    progress: Callable[[Iterable[int]], Iterable[int]] | None = None,
+    workers: int = 1,
 ) -> Diagnosis:
     """Judge every analysed frame with the mode's oracles, then attribute the crash.
 
-    ``progress`` may wrap the timestamp iterable (a progress bar).
+    ``progress`` may wrap the timestamp iterable (a progress bar). ``workers`` > 1 judges
+    slices of frames in forked processes (the oracles are pure per-frame functions, and a
+    fork shares the loaded log without copying it); results are the same, in frame order.
     """
     ctx = RunContext.create(log, params)
     oracles = oracles_for(params)
-    timestamps: Iterable[int] = analysed_timestamps(log, params)
-    if progress is not None:
-        timestamps = progress(timestamps)
-    frames = [evaluate_frame(ctx, oracles, ts) for ts in timestamps]
+    timestamps = analysed_timestamps(log, params)
+    if workers > 1 and len(timestamps) >= PARALLEL_MIN_FRAMES and _can_fork():
+        frames = _judge_in_workers(ctx, oracles, timestamps, workers, progress)
+    else:
+        stamps: Iterable[int] = progress(timestamps) if progress is not None else timestamps
+        frames = [evaluate_frame(ctx, oracles, ts) for ts in stamps]
     return Diagnosis(log, ctx, frames, attribute(frames, ctx))
+
+
+# The forked workers read the run from here (set just before forking, cleared after).
+_SHARED: tuple[RunContext, dict[Module, Oracle]] | None = None
+
+
+def _judge_slice(
+    bounds: tuple[int, int, tuple[int, ...]],
+) -> tuple[list[FrameResults], list[Problem]]:
+    """In a worker: judge one slice; return its results and the problems it reported."""
+    assert _SHARED is not None
+    ctx, oracles = _SHARED
+    start, stop, timestamps = bounds
+    before = len(ctx.problems)
+    frames = [evaluate_frame(ctx, oracles, ts) for ts in timestamps[start:stop]]
+    return frames, list(ctx.problems)[before:]
+
+
+def _judge_in_workers(
+    ctx: RunContext,
+    oracles: dict[Module, Oracle],
+    timestamps: tuple[int, ...],
+    workers: int,
+    progress: Callable[[Iterable[int]], Iterable[int]] | None,
+) -> list[FrameResults]:
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    global _SHARED  # noqa: PLW0603 - inherited by the forked workers, never written there
+    chunk = max(50, len(timestamps) // (workers * 8))
+    slices = [
+        (i, min(i + chunk, len(timestamps)), timestamps) for i in range(0, len(timestamps), chunk)
+    ]
+    bar = iter(progress(timestamps)) if progress is not None else None
+    frames: list[FrameResults] = []
+    _SHARED = (ctx, oracles)
+    try:
+        context = multiprocessing.get_context("fork")
+        with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
+            for (start, stop, _), (judged, problems) in zip(
+                slices, pool.map(_judge_slice, slices), strict=True
+            ):
+                frames.extend(judged)
+                ctx.merge(problems)
+                if bar is not None:
+                    for _ in range(stop - start):
+                        next(bar, None)
+    finally:
+        _SHARED = None
+    return frames
+
+
+def _can_fork() -> bool:
+    """Fork only where it is the platform's safe default and no ROS context runs here."""
+    import multiprocessing
+    import sys
+
+    return "fork" in multiprocessing.get_all_start_methods() and "rclpy" not in sys.modules

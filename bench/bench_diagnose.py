@@ -1,6 +1,6 @@
 """Benchmark: diagnose time and peak memory vs log length and actor count; prints a table.
 
-    python bench/bench_diagnose.py [--frames 1000 10000] [--actors 50 200] [--semantics corrected]
+    python bench/bench_diagnose.py [--frames 1000 10000] [--actors 50 200] [--workers N]
 
 Each configuration runs in its own process (so peak memory is its own): synthesise a
 ``cruise`` log, write it under ``--dir``, then time loading it from disk and judging it.
@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import resource
 import subprocess
 import sys
@@ -22,7 +23,9 @@ from dataclasses import replace
 from pathlib import Path
 
 
-def one_run(frames: int, actors: int, semantics: str, folder: Path) -> dict[str, float]:
+def one_run(
+    frames: int, actors: int, semantics: str, folder: Path, workers: int
+) -> dict[str, float]:
     """Synthesise, write, load and diagnose one log (in this process)."""
     from ads_rca.engine import diagnose
     from ads_rca.io.json_log import read_run_log
@@ -39,7 +42,7 @@ def one_run(frames: int, actors: int, semantics: str, folder: Path) -> dict[str,
     loaded = read_run_log(folder)
     load_s = time.perf_counter() - start
     start = time.perf_counter()
-    result = diagnose(loaded, make_params(semantics))
+    result = diagnose(loaded, make_params(semantics), workers=workers)
     judge_s = time.perf_counter() - start
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     return {
@@ -57,15 +60,19 @@ def main() -> None:
     parser.add_argument("--actors", type=int, nargs="+", default=[50, 200])
     parser.add_argument("--semantics", default="corrected", choices=["reference", "corrected"])
     parser.add_argument("--dir", default="out/bench", help="where logs are written")
+    parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     parser.add_argument("--child", nargs=2, type=int, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
         frames, actors = args.child
-        print(json.dumps(one_run(frames, actors, args.semantics, Path(args.dir))))
+        print(json.dumps(one_run(frames, actors, args.semantics, Path(args.dir), args.workers)))
         return
 
     Path(args.dir).mkdir(parents=True, exist_ok=True)
-    print(f"semantics {args.semantics}; each row in its own process; load = JSON from disk")
+    print(
+        f"semantics {args.semantics}, {args.workers} judging workers; each row in its own "
+        "process; load = JSON from disk"
+    )
     header = f"{'frames':>7}{'actors':>7}{'load s':>9}{'judge s':>9}{'total s':>9}"
     print(header + f"{'peak MB':>9}{'µs/frame':>10}")
     for actors in args.actors:
@@ -73,6 +80,7 @@ def main() -> None:
             with tempfile.TemporaryDirectory(dir=args.dir) as tmp:
                 command = [sys.executable, __file__, "--child", str(frames), str(actors)]
                 command += ["--semantics", args.semantics, "--dir", str(Path(tmp) / "log")]
+                command += ["--workers", str(args.workers)]
                 done = subprocess.run(command, capture_output=True, text=True, check=True)
             row = json.loads(done.stdout.strip().splitlines()[-1])
             total = row["load_s"] + row["judge_s"]

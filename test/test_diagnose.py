@@ -158,3 +158,20 @@ def test_no_collision_says_no_fault_found(tmp_path: Path) -> None:
     document = strict_json(out.read_text())
     assert document["primary_root_cause"] is None and document["reason"] == NO_COLLISION
     assert document["verdict"] == "no fault found (no collision)"
+
+
+@pytest.mark.parametrize("semantics", ["reference", "corrected"])
+def test_judging_in_worker_processes_gives_the_same_diagnosis(
+    semantics: str, tmp_path: Path
+) -> None:
+    log = synthesise("cruise", "none", seed=5, frames=450, actors=8)
+    log_dir = write_run_log(log, tmp_path / "log")
+    (log_dir / "pose" / "pose-5000.json").write_text("{")  # a problem found while judging
+    (log_dir / "waypoint" / "waypoints-9000.json").unlink()
+    from ads_rca.io.json_log import read_run_log
+
+    params = make_params(semantics)
+    alone = diagnose(read_run_log(log_dir), params).to_json()
+    shared = diagnose(read_run_log(log_dir), params, workers=2).to_json()
+    assert len(alone["frames"]) >= 400  # long enough to be split between the workers
+    assert shared == alone

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from collections.abc import Iterable
 from pathlib import Path
@@ -70,6 +71,12 @@ def register(subparsers: Any) -> None:
     parser.add_argument(
         "--max-problems", type=int, default=10, help="input problems to print (default 10)"
     )
+    parser.add_argument(
+        "--workers",
+        type=int,
+        default=os.cpu_count() or 1,
+        help="processes judging frames of long logs (default: one per core)",
+    )
     parser.set_defaults(run=run)
 
 
@@ -78,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
     log = open_run(args.path)
     if not analysed_timestamps(log, params):
         raise InputError(f"{args.path}: no frame to analyse (no readable actors/ file)")
-    result = diagnose(log, params, progress=_progress_bar(len(log.frames)))
+    result = diagnose(log, params, _progress_bar(len(log.frames)), workers=max(1, args.workers))
     document = result.to_json()
     print(summary_text(document, args.max_problems))
     if args.json_out:

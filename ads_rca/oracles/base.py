@@ -8,6 +8,7 @@ result with ``failed=False`` and ``skipped`` saying why.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -15,7 +16,7 @@ import numpy as np
 
 from ads_rca.model import RunLog
 from ads_rca.params import Params
-from ads_rca.problems import CHECK_SKIPPED, ProblemLog
+from ads_rca.problems import CHECK_SKIPPED, Problem, ProblemLog
 
 Module = Literal["perception", "prediction", "planning", "controller"]
 #: Pipeline order, upstream first (the reference's names).
@@ -64,6 +65,14 @@ class RunContext:
         if key not in self._reported:
             self._reported.add(key)
             self.problems.add(file, field_name, issue, CHECK_SKIPPED, "error", ts)
+
+    def merge(self, problems: Iterable[Problem]) -> None:
+        """Problems found by a copy of this context (a worker process), minus repeats."""
+        for problem in problems:
+            key = (problem.file, problem.field, problem.issue)
+            if key not in self._reported:
+                self._reported.add(key)
+                self.problems.extend([problem])
 
 
 #: The reference reads the ego's identity at this timestamp.

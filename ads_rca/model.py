@@ -219,6 +219,29 @@ class RunLog:
     #: bounded window of a longer run); they win over the extents in ``actors``.
     first_extents: dict[str, FloatArray] = field(default_factory=dict)
 
+    @classmethod
+    def from_folders(
+        cls,
+        metadata: RunMetadata,
+        frames: tuple[int, ...],
+        folders: Mapping[str, dict[int, Any]],
+        **fields: Any,
+    ) -> RunLog:
+        """A run from per-folder dicts keyed by the names in :data:`FOLDERS` (any missing)."""
+        records = {name: dict(folders.get(name, {})) for name in FOLDERS}
+        return cls(
+            metadata=metadata,
+            frames=frames,
+            pose=records["pose"],
+            actors=records["actors"],
+            bboxes=records["bboxes"],
+            bboxes_gt=records["bboxes_gt"],
+            predictions=records["predictions"],
+            predictions_with_perception=records["predictions_with_perception"],
+            waypoints=records["waypoint"],
+            **fields,
+        )
+
     @property
     def tpf(self) -> int:
         """Milliseconds per frame."""

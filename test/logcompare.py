@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ads_rca.model import Actors, Boxes, EgoPose, Plan, Predictions, RunLog
+from ads_rca.model import FOLDERS, Actors, Boxes, EgoPose, Plan, Predictions, RunLog
 
 
 def _exact(a: np.ndarray, b: np.ndarray, where: str) -> None:
@@ -64,15 +64,7 @@ def assert_logs_equal(
     assert a.metadata.to_dict() == b.metadata.to_dict(), "metadata differs"
     if check_frames:
         assert a.frames == b.frames, f"frames {a.frames} != {b.frames}"
-    for name in (
-        "pose",
-        "actors",
-        "bboxes",
-        "bboxes_gt",
-        "predictions",
-        "predictions_with_perception",
-        "waypoint",
-    ):
+    for name in FOLDERS:
         fa, fb = a.folder(name), b.folder(name)
         assert sorted(fa) == sorted(fb), f"{name}: stamps {sorted(fa)} != {sorted(fb)}"
         for ts in fa:

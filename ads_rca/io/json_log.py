@@ -99,16 +99,10 @@ def read_run_log(path: str | os.PathLike[str]) -> RunLog:
     records = {folder: dict(sorted(r.items())) for folder, r in records.items()}
     actors_listing = [ts for ts, _ in listings["actors"]]
     metadata = read_metadata(root / "metadata.json", actors_listing, problems)
-    log = RunLog(
-        metadata=metadata,
-        frames=tuple(sorted(actors_listing)),
-        pose=records["pose"],
-        actors=records["actors"],
-        bboxes=records["bboxes"],
-        bboxes_gt=records["bboxes_gt"],
-        predictions=records["predictions"],
-        predictions_with_perception=records["predictions_with_perception"],
-        waypoints=records["waypoint"],
+    log = RunLog.from_folders(
+        metadata,
+        tuple(sorted(actors_listing)),
+        records,
         problems=problems,
         source=str(root),
         files=files,

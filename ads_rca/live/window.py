@@ -287,17 +287,10 @@ class MonitorCore:
         assert self.metadata is not None
         metadata = replace(self.metadata, collision_frame=self.collision_frame)
         frames = tuple(self.analysed[i] for i in sorted(self.analysed))
-        folders = {f: dict(self.records.get(f, {})) for f in FOLDERS}
-        return RunLog(
-            metadata=metadata,
-            frames=frames,
-            pose=folders["pose"],
-            actors=folders["actors"],
-            bboxes=folders["bboxes"],
-            bboxes_gt=folders["bboxes_gt"],
-            predictions=folders["predictions"],
-            predictions_with_perception=folders["predictions_with_perception"],
-            waypoints=folders["waypoint"],
+        return RunLog.from_folders(
+            metadata,
+            frames,
+            self.records,
             source="live",
             first_extents=dict(self.first_extents),
         )

@@ -232,21 +232,28 @@ def boxes_to_markers(boxes: Boxes, timestamp_ms: int, topic: str) -> MarkerArray
         zip(boxes.ids, boxes.corners.tolist(), boxes.extras, strict=True)
     ):
         p1 = _point(x1, y1, 0.0)
-        markers.append(
-            Marker(
-                header=head,
-                ns=ns,
-                id=index,
-                type=Marker.LINE_STRIP,
-                action=Marker.ADD,
-                pose=Pose(orientation=Quaternion(w=1.0)),
-                scale=Vector3(x=2.0),
-                color=color,
-                points=[p1, _point(x2, y1, 0.0), _point(x2, y2, 0.0), _point(x1, y2, 0.0), p1],
-                text=dumps_json({"id": box_id, **extras}),
-            )
-        )
+        corners = [p1, _point(x2, y1, 0.0), _point(x2, y2, 0.0), _point(x1, y2, 0.0), p1]
+        text = dumps_json({"id": box_id, **extras})
+        markers.append(_line_strip(head, ns, index, 2.0, color, corners, text))
     return MarkerArray(markers=markers)
+
+
+def _line_strip(
+    head: Header, ns: str, index: int, width: float, color: Any, points: list[Point], text: str
+) -> Marker:
+    """An ADD LINE_STRIP marker (boxes and predictions are both drawn as these)."""
+    return Marker(
+        header=head,
+        ns=ns,
+        id=index,
+        type=Marker.LINE_STRIP,
+        action=Marker.ADD,
+        pose=Pose(orientation=Quaternion(w=1.0)),
+        scale=Vector3(x=width),
+        color=color,
+        points=points,
+        text=text,
+    )
 
 
 def markers_to_boxes(msg: MarkerArray) -> Boxes:
@@ -277,20 +284,9 @@ def predictions_to_markers(predictions: Predictions, timestamp_ms: int, topic: s
     markers = [_delete_all(timestamp_ms, topics.EGO_FRAME, ns)]
     for index, (obstacle_id, track) in enumerate(predictions.items()):
         offsets = (track.offsets * np.array([1.0, -1.0, 1.0])).tolist()
-        markers.append(
-            Marker(
-                header=head,
-                ns=ns,
-                id=index,
-                type=Marker.LINE_STRIP,
-                action=Marker.ADD,
-                pose=Pose(orientation=Quaternion(w=1.0)),
-                scale=Vector3(x=0.2),
-                color=color,
-                points=[_point(*o) for o in offsets],
-                text=dumps_json({"id": obstacle_id, "keys": list(track.keys)}),
-            )
-        )
+        text = dumps_json({"id": obstacle_id, "keys": list(track.keys)})
+        points = [_point(*o) for o in offsets]
+        markers.append(_line_strip(head, ns, index, 0.2, color, points, text))
     return MarkerArray(markers=markers)
 
 

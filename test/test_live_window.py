@@ -21,7 +21,7 @@ from ads_rca.model import RunLog
 from ads_rca.oracles.base import MODULES
 from ads_rca.params import make_params
 from ads_rca.ros.jsontext import dumps_json, loads_json
-from ads_rca.synth import synthesise
+from ads_rca.synth import FAULTS, SCENARIOS, synthesise
 
 #: Every scenario and every fault kind at least once.
 CASES = [
@@ -95,8 +95,12 @@ def assert_same_as_diagnose(log: RunLog, semantics: str, **options: Any) -> Any:
     return run
 
 
+#: Every crash scenario with every fault (the DDS replay tests run the CASES subset).
+MATRIX = [(s, f) for s in SCENARIOS if s != "cruise" for f in FAULTS] + [("cruise", "none")]
+
+
 @pytest.mark.parametrize("semantics", ["reference", "corrected"])
-@pytest.mark.parametrize("case", CASES, ids=["-".join(c) for c in CASES])
+@pytest.mark.parametrize("case", MATRIX, ids=["-".join(c) for c in MATRIX])
 def test_windowed_judging_equals_diagnose(case: tuple[str, str], semantics: str) -> None:
     run = assert_same_as_diagnose(synth(*case), semantics)
     assert run.outcome is not None and run.outcome.complete

@@ -24,12 +24,21 @@ from ads_rca.engine import Diagnosis
 from ads_rca.geometry import box_corners, ego_to_world
 from ads_rca.oracles.base import MODULES, Module
 
-#: Per module, the metric plotted over time (first one present wins) and its threshold name.
-HEADLINE: dict[Module, list[tuple[str, str | None]]] = {
-    "perception": [("mean_iou", "perc_score_threshold"), ("recall", None)],
-    "prediction": [("ratio", "pred_score_threshold"), ("displacement_error", None)],
-    "planning": [("c_plan", "safety_margin"), ("min_gap", None)],
-    "controller": [("speed_innovation", "control_speed_threshold"), ("s_x", None)],
+#: Per mode and module, the metric plotted over time (first one present wins) and the
+#: threshold parameter drawn with it.
+HEADLINE: dict[str, dict[Module, list[tuple[str, str | None]]]] = {
+    "reference": {
+        "perception": [("mean_iou", "perc_score_threshold")],
+        "prediction": [("ratio", "pred_score_threshold")],
+        "planning": [("gap_y", None), ("gap_x", None)],
+        "controller": [("s_x", None)],
+    },
+    "corrected": {
+        "perception": [("recall", None), ("mean_iou", "perc_match_iou")],
+        "prediction": [("displacement_error", None), ("ade", None)],
+        "planning": [("c_plan", "safety_margin"), ("c_gt", "safety_margin")],
+        "controller": [("sum_speed_innovation", "control_speed_threshold")],
+    },
 }
 
 
@@ -105,7 +114,7 @@ def _metrics_figure(result: Diagnosis) -> Figure:
 
 def _headline(result: Diagnosis, module: Module) -> tuple[str | None, str | None]:
     present = {k for f in result.frames if module in f.results for k in f.results[module].metrics}
-    for key, threshold in HEADLINE[module]:
+    for key, threshold in HEADLINE[result.params.semantics][module]:
         if key in present:
             return key, threshold
     for frame in result.frames:  # otherwise the first numeric metric the oracle reports

@@ -39,6 +39,19 @@ def start(launcher: Launcher, name: str, module: str, params: dict[str, ParamVal
     return launcher.start(name, node_command(module, params))
 
 
+def start_player(launcher: Launcher, log_dir: Path, ns: str, **extra: ParamValue) -> Any:
+    """The player at rate 0, waiting for the recorder to subscribe first."""
+    params: dict[str, ParamValue] = {
+        "log_path": str(log_dir),
+        "rate": 0.0,
+        "topic_namespace": ns,
+        "wait_for_subscribers": 1,
+        "wait_timeout_s": 15.0,
+        **extra,
+    }
+    return start(launcher, "player", "ads_rca.ros.player", params)
+
+
 def announced(bag: Path) -> tuple[Counter[str], int]:
     """Per topic key, what the recorded frame markers announced; frames the status claims."""
     assembler = RunLogAssembler()
@@ -87,18 +100,7 @@ def test_every_published_message_is_recorded(ros_env, tmp_path: Path, log_dir: P
             "ads_rca.ros.recorder",
             {"output": str(bag), "topic_namespace": ns, "stop_on_finished": True},
         )
-        player = start(
-            launcher,
-            "player",
-            "ads_rca.ros.player",
-            {
-                "log_path": str(log_dir),
-                "rate": 0.0,
-                "topic_namespace": ns,
-                "wait_for_subscribers": 1,
-                "wait_timeout_s": 15.0,
-            },
-        )
+        player = start_player(launcher, log_dir, ns)
         assert player.wait(60) == 0, player.output
         assert recorder.wait(30) == 0, recorder.output
     expected, frames = announced(bag)
@@ -138,18 +140,7 @@ def test_sigterm_finalises_the_bag(ros_env, tmp_path: Path, log_dir: Path) -> No
             "ads_rca.ros.recorder",
             {"output": str(bag), "topic_namespace": ns},
         )
-        player = start(
-            launcher,
-            "player",
-            "ads_rca.ros.player",
-            {
-                "log_path": str(log_dir),
-                "rate": 0.0,
-                "topic_namespace": ns,
-                "wait_for_subscribers": 1,
-                "wait_timeout_s": 15.0,
-            },
-        )
+        player = start_player(launcher, log_dir, ns)
         assert player.wait(60) == 0, player.output
         recorder.process.send_signal(signal.SIGTERM)
         assert recorder.wait(20) == 0, recorder.output
@@ -180,19 +171,7 @@ def test_sigkill_keeps_every_complete_chunk(ros_env, tmp_path: Path, log_dir: Pa
                 "compression": "none",
             },
         )
-        player = start(
-            launcher,
-            "player",
-            "ads_rca.ros.player",
-            {
-                "log_path": str(log_dir),
-                "rate": 0.0,
-                "loop": True,
-                "topic_namespace": ns,
-                "wait_for_subscribers": 1,
-                "wait_timeout_s": 15.0,
-            },
-        )
+        player = start_player(launcher, log_dir, ns, loop=True)
         deadline = time.monotonic() + 30
         mcap = bag / "bag_0.mcap"
         while not (mcap.exists() and mcap.stat().st_size > 3 * 16384):

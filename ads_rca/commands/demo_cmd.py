@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from ads_rca.commands.playback_args import add_playback_arguments, check_playback_arguments
 from ads_rca.errors import InputError
 from ads_rca.ros.env import pick_domain_id, ros_environment
 from ads_rca.ros.launcher import Launcher, ParamValue, node_command
@@ -24,11 +25,7 @@ def register(subparsers: Any) -> None:
     )
     parser.add_argument("log_dir", help="running-log folder")
     parser.add_argument("--out", help="write the log rebuilt from the messages here")
-    parser.add_argument(
-        "--rate", type=float, default=0.0, help="playback rate (0 = as fast as acknowledged)"
-    )
-    parser.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID (default: from the pid)")
-    parser.add_argument("--timeout", type=float, default=300.0, help="seconds before giving up")
+    add_playback_arguments(parser)
     parser.set_defaults(run=run)
 
 
@@ -36,8 +33,7 @@ def run(args: argparse.Namespace) -> int:
     log_dir = Path(args.log_dir)
     if not log_dir.is_dir():
         raise InputError(f"{log_dir}: no such log folder")
-    if args.rate < 0:
-        raise InputError(f"--rate must be >= 0, got {args.rate}")
+    check_playback_arguments(args)
     out = Path(args.out) if args.out else None
     domain_id = args.domain_id if args.domain_id is not None else pick_domain_id()
     log_root = None

@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from ads_rca.commands.diagnose_cmd import add_engine_arguments, params_from_args, write_json
+from ads_rca.commands.playback_args import add_playback_arguments, check_playback_arguments
 from ads_rca.errors import InputError
 from ads_rca.ros.env import pick_domain_id, ros_environment
 from ads_rca.summary import summary_text
@@ -28,13 +29,9 @@ def register(subparsers: Any) -> None:
     )
     parser.add_argument("path", help="running-log folder (or a bag the player reads)")
     add_engine_arguments(parser)
-    parser.add_argument(
-        "--rate", type=float, default=0.0, help="playback rate (0 = as fast as acknowledged)"
-    )
+    add_playback_arguments(parser)
     parser.add_argument("--record", metavar="OUT", help="record every topic to this MCAP bag")
     parser.add_argument("--json", dest="json_out", help="write the verdict JSON here")
-    parser.add_argument("--timeout", type=float, default=300.0, help="seconds before giving up")
-    parser.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID (default: from the pid)")
     parser.add_argument("--verbose", action="store_true", help="show every node's output")
     parser.set_defaults(run=run)
 
@@ -45,8 +42,7 @@ def run(args: argparse.Namespace) -> int:
     path = Path(args.path)
     if not path.exists():
         raise InputError(f"{path}: no such log folder or bag")
-    if args.rate < 0:
-        raise InputError(f"--rate must be >= 0, got {args.rate}")
+    check_playback_arguments(args)
     params = params_from_args(args)
     record = Path(args.record) if args.record else None
     if record is not None and not recorder_available():

@@ -39,6 +39,12 @@ def start(launcher: Launcher, name: str, module: str, params: dict[str, ParamVal
     return launcher.start(name, node_command(module, params))
 
 
+def start_recorder(launcher: Launcher, bag: Path, ns: str, **extra: ParamValue) -> Any:
+    """The recorder writing ``bag``, listening under namespace ``ns``."""
+    params: dict[str, ParamValue] = {"output": str(bag), "topic_namespace": ns, **extra}
+    return start(launcher, "recorder", "ads_rca.ros.recorder", params)
+
+
 def start_player(launcher: Launcher, log_dir: Path, ns: str, **extra: ParamValue) -> Any:
     """The player at rate 0, waiting for the recorder to subscribe first."""
     params: dict[str, ParamValue] = {
@@ -94,12 +100,7 @@ def test_every_published_message_is_recorded(ros_env, tmp_path: Path, log_dir: P
 
     bag, ns = tmp_path / "bag", ros_env.namespace
     with Launcher(ros_env.env, echo=sys.stderr) as launcher:
-        recorder = start(
-            launcher,
-            "recorder",
-            "ads_rca.ros.recorder",
-            {"output": str(bag), "topic_namespace": ns, "stop_on_finished": True},
-        )
+        recorder = start_recorder(launcher, bag, ns, stop_on_finished=True)
         player = start_player(launcher, log_dir, ns)
         assert player.wait(60) == 0, player.output
         assert recorder.wait(30) == 0, recorder.output
@@ -134,12 +135,7 @@ def test_sigterm_finalises_the_bag(ros_env, tmp_path: Path, log_dir: Path) -> No
 
     bag, ns = tmp_path / "bag", ros_env.namespace
     with Launcher(ros_env.env, echo=sys.stderr) as launcher:
-        recorder = start(
-            launcher,
-            "recorder",
-            "ads_rca.ros.recorder",
-            {"output": str(bag), "topic_namespace": ns},
-        )
+        recorder = start_recorder(launcher, bag, ns)
         player = start_player(launcher, log_dir, ns)
         assert player.wait(60) == 0, player.output
         recorder.process.send_signal(signal.SIGTERM)
@@ -159,17 +155,8 @@ def test_sigterm_finalises_the_bag(ros_env, tmp_path: Path, log_dir: Path) -> No
 def test_sigkill_keeps_every_complete_chunk(ros_env, tmp_path: Path, log_dir: Path) -> None:
     bag, ns = tmp_path / "bag", ros_env.namespace
     with Launcher(ros_env.env, echo=sys.stderr) as launcher:
-        recorder = start(
-            launcher,
-            "recorder",
-            "ads_rca.ros.recorder",
-            {
-                "output": str(bag),
-                "topic_namespace": ns,
-                "chunk_size": 16384,
-                "flush_period_s": 0.0,
-                "compression": "none",
-            },
+        recorder = start_recorder(
+            launcher, bag, ns, chunk_size=16384, flush_period_s=0.0, compression="none"
         )
         player = start_player(launcher, log_dir, ns, loop=True)
         deadline = time.monotonic() + 30

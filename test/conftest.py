@@ -20,6 +20,8 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
 
+from shmclean import remove_zombie_segments
+
 from ads_rca.ros.env import MAX_DOMAIN_ID, ros_environment
 
 _COUNTER = itertools.count(1)
@@ -32,6 +34,7 @@ def _domain_id() -> int:
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ["ROS_DOMAIN_ID"] = str(_domain_id())
 os.environ.setdefault("ROS_LOG_DIR", tempfile.mkdtemp(prefix="ads_rca_test_ros_log_"))
+remove_zombie_segments()
 
 
 @dataclass(frozen=True)
@@ -54,3 +57,5 @@ def ros_env(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[RosEnv]
         monkeypatch.setenv(key, env[key])
     namespace = f"/ads_rca_test_{os.getpid()}_{domain_id}"
     yield RosEnv(domain_id, log_dir, namespace, env)
+    # Nodes a test killed leave their shared memory behind; see shmclean.
+    remove_zombie_segments()

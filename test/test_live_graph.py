@@ -88,6 +88,18 @@ def test_replay_gives_the_diagnose_verdict(ros_env, tmp_path, log_dirs, case, se
     assert f"verdict: {offline['verdict']}" in replay.output
 
 
+def test_replay_stops_at_once_when_a_node_fails(ros_env, tmp_path):
+    """A player that cannot start ends the replay with its error, not after --timeout."""
+    not_a_log = tmp_path / "not_a_log"
+    not_a_log.mkdir()
+    argv = [sys.executable, "-m", "ads_rca.cli", "replay", str(not_a_log), "--timeout", "600"]
+    replay = ManagedProcess("replay", [*argv, "--domain-id", str(ros_env.domain_id)], ros_env.env)
+    assert replay.wait(120) == 2, replay.output
+    line = next(x for x in replay.lines if "no verdict" in x)
+    assert "player exited early (status 2)" in line
+    assert f"{not_a_log}: not an ADS running log" in line
+
+
 def start_probe(ros_env, path: Path) -> ManagedProcess:
     probe = ManagedProcess("probe", [sys.executable, str(PROBE), str(path)], ros_env.env)
     wait_for(lambda: "probe ready" in probe.output, 20, "the probe")
@@ -136,7 +148,7 @@ def test_monitor_killed_and_restarted_goes_stale_recovers_and_a_verdict_comes(
             )
             assert stale[0]["values"]["reported_by"] == "aggregator"
             graph.restart("control_monitor")
-            document = graph.wait_verdict(90)
+            document = graph.wait_verdict(90, fail_fast=False)
             assert document is not None, graph.processes["aggregator"].output
             graph.stop()
     finally:
@@ -181,7 +193,7 @@ def test_stalled_input_is_reported_and_not_waited_on_forever(ros_env, tmp_path, 
             wait_for(lambda: pending() >= 15, 60, "frames held by the monitors")
             graph.processes["player"].process.kill()  # inputs stop mid-run
             stopped = time.monotonic()
-            document = graph.wait_verdict(60)
+            document = graph.wait_verdict(60, fail_fast=False)
             assert document is not None, graph.processes["aggregator"].output
             took = time.monotonic() - stopped
             graph.stop()

@@ -11,6 +11,7 @@ at its collision (as recorded crashes do) the verdict equals ``ads-rca diagnose`
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 import tempfile
 from pathlib import Path
@@ -69,10 +70,19 @@ def run(args: argparse.Namespace) -> int:
     with Graph(spec, env, echo=echo) as graph:
         graph.start()
         document = graph.wait_verdict(args.timeout)
+        failed = graph.failed() if document is None else {}
         codes = graph.stop()
         outputs = {name: p.output for name, p in graph.processes.items()}
     if document is None:
-        print(f"ads-rca replay: no verdict within {args.timeout:g} s", file=sys.stderr)
+        for name, code in failed.items():
+            last = next((x for x in reversed(outputs[name].splitlines()) if x.strip()), "")
+            print(
+                f"ads-rca replay: no verdict: {name} exited early ({exit_status(code)})"
+                + (f": {last.strip()}" if last else ""),
+                file=sys.stderr,
+            )
+        if not failed:
+            print(f"ads-rca replay: no verdict within {args.timeout:g} s", file=sys.stderr)
         for name, text in outputs.items():
             tail = "\n".join(text.splitlines()[-8:])
             print(f"--- {name} (exit {codes.get(name)}):\n{tail}", file=sys.stderr)
@@ -85,6 +95,16 @@ def run(args: argparse.Namespace) -> int:
         write_json(document, record / "verdict.json")
         print(f"MCAP recording: {record} (verdict JSON beside it: {record / 'verdict.json'})")
     return 0
+
+
+def exit_status(code: int) -> str:
+    """``status 2`` or ``killed by SIGSEGV``: how a child process ended."""
+    if code >= 0:
+        return f"status {code}"
+    try:
+        return f"killed by {signal.Signals(-code).name}"
+    except ValueError:
+        return f"killed by signal {-code}"
 
 
 def live_summary(document: dict[str, Any]) -> str:

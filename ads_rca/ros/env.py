@@ -47,6 +47,8 @@ def ros_environment(
     elif not env.get("ROS_LOG_DIR"):
         env["ROS_LOG_DIR"] = tempfile.mkdtemp(prefix="ads_rca_ros_log_")
     env["PYTHONUNBUFFERED"] = "1"
+    # A crash in native code (DDS, rcl) then prints the Python stack instead of nothing.
+    env["PYTHONFAULTHANDLER"] = "1"
     env["RCUTILS_COLORIZED_OUTPUT"] = "0"
     return env
 

@@ -118,8 +118,9 @@ class Graph:
             return None
         return document if isinstance(document, dict) else None
 
-    def wait_verdict(self, timeout: float) -> dict[str, Any] | None:
-        """Poll for the verdict; None on timeout or when the aggregator died."""
+    def wait_verdict(self, timeout: float, fail_fast: bool = True) -> dict[str, Any] | None:
+        """Poll for the verdict; None on timeout, when the aggregator died, or (``fail_fast``)
+        as soon as any node failed (see :meth:`failed`)."""
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             found = self.verdict()
@@ -128,15 +129,22 @@ class Graph:
             aggregator = self.processes.get("aggregator")
             if aggregator is not None and aggregator.returncode is not None:
                 return self.verdict()
+            if fail_fast and self.failed():
+                return self.verdict()
             time.sleep(0.05)
         return None
 
-    def failed_early(self) -> dict[str, int]:
-        """Nodes (player excepted) that already exited, with their status."""
+    def failed(self) -> dict[str, int]:
+        """Nodes that exited before the verdict, with their status.
+
+        Every node but the player runs until stopped; the player exits 0 after playing
+        (``exit_on_end``), so only a non-zero player status counts (2: unusable input,
+        negative: killed by that signal).
+        """
         return {
             name: code
             for name, p in self.processes.items()
-            if name != "player" and (code := p.returncode) is not None
+            if (code := p.returncode) is not None and (name != "player" or code != 0)
         }
 
     def stop(self, player_grace_s: float = 10.0) -> dict[str, int]:

@@ -8,7 +8,8 @@ the collision partner) through player, four monitors and aggregator, and reports
   and the same as a multiple of real time (20 Hz);
 - per monitor, processing time per frame (oracle only, p50/p99) and the delay from the
   frame's marker arriving to its result (p50/p99; includes waiting for look-ahead);
-- the verdict latency the aggregator measured.
+- the verdict latency the aggregator measured;
+- CPU seconds each node process used (user + system), per frame: where the two cores go.
 
 Usage: ``python bench/bench_graph.py [--frames 200] [--actors 50] [--semantics both]``.
 """
@@ -17,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import tempfile
 import time
@@ -38,6 +40,15 @@ def percentiles(values: list[float]) -> str:
         return "-"
     p50, p99 = np.percentile(np.array(values) * 1000.0, [50, 99])
     return f"p50 {p50:7.2f} ms  p99 {p99:7.2f} ms"
+
+
+def cpu_seconds(pid: int) -> float:
+    """User + system CPU time of a running process (Linux /proc), in seconds."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return float("nan")
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 def run_once(log_dir: Path, frames: int, semantics: str, work: Path) -> dict[str, Any]:
@@ -64,6 +75,7 @@ def run_once(log_dir: Path, frames: int, semantics: str, work: Path) -> dict[str
                 break
             time.sleep(0.01)
         done = time.monotonic()
+        cpu = {name: cpu_seconds(p.process.pid) for name, p in graph.processes.items()}
         graph.stop()
     if document is None or first is None:
         raise SystemExit(f"no verdict for {semantics}")
@@ -78,6 +90,8 @@ def run_once(log_dir: Path, frames: int, semantics: str, work: Path) -> dict[str
         "verdict_latency_s": document["verdict_latency_s"],
         "complete": document["live"]["complete"],
         "verdict": document["verdict"],
+        "cpu": cpu,
+        "wall_s": done - graph.started_at,
     }
 
 
@@ -106,6 +120,11 @@ def main() -> int:
                 f"  {m:<11} oracle {percentiles(r['compute'][m])} | marker->result "
                 f"{percentiles(r['wait'][m])}"
             )
+        total = sum(r["cpu"].values())
+        print(f"  CPU per process (start to verdict, {r['wall_s']:.1f} s wall, 2 cores):")
+        for name, seconds in r["cpu"].items():
+            print(f"    {name:<19} {seconds:7.2f} s  {seconds / n * 1000:6.2f} ms/frame")
+        print(f"    {'total':<19} {total:7.2f} s  {total / n * 1000:6.2f} ms/frame")
     return 0
 
 

@@ -15,6 +15,7 @@ NODES = {
     "prediction_monitor": "ads_rca.ros.monitor:prediction_main",
     "planning_monitor": "ads_rca.ros.monitor:planning_main",
     "control_monitor": "ads_rca.ros.monitor:control_main",
+    "monitors": "ads_rca.ros.monitor:group_main",
     "aggregator": "ads_rca.ros.aggregator:main",
 }
 

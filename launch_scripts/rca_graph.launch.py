@@ -1,5 +1,8 @@
 """ROS 2 launch file: the live graph (player, four monitors, aggregator, optional recorder).
 
+``monitors:=shared`` (the default) runs the four monitor nodes in one ``monitors`` process,
+which receives and decodes the inputs once; ``monitors:=separate`` runs one process each.
+
 For users with a ROS install (``ros2 launch ads_rca rca_graph.launch.py log_path:=RUN``);
 here ``ads-rca replay`` starts the same graph through ``ads_rca.ros.graph``. ``launch`` and
 ``launch_ros`` are not installed in this venv, so their imports stay inside
@@ -34,6 +37,7 @@ def generate_launch_description() -> Any:
         "verdict_json": "verdict.json",
         "record": "false",
         "record_output": "rca_recording",
+        "monitors": "shared",
     }
     semantics = LaunchConfiguration("semantics")
     engine_file = PythonExpression(
@@ -41,6 +45,19 @@ def generate_launch_description() -> Any:
     )
     common = {"topic_namespace": LaunchConfiguration("topic_namespace"), "semantics": semantics}
     env = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+    layout = LaunchConfiguration("monitors")
+    shared = IfCondition(PythonExpression(["'", layout, "' == 'shared'"]))
+    separate = IfCondition(PythonExpression(["'", layout, "' == 'separate'"]))
+    # The player waits until every process subscribed to run/frame.
+    subscribers = PythonExpression(
+        [
+            "1 + (1 if '",
+            layout,
+            "' == 'shared' else 4) + (1 if '",
+            LaunchConfiguration("record"),
+            "'.lower() == 'true' else 0)",
+        ]
+    )
     nodes = [
         Node(
             package="ads_rca",
@@ -67,6 +84,14 @@ def generate_launch_description() -> Any:
             ],
             additional_env=env,
         ),
+        Node(
+            package="ads_rca",
+            executable="monitors",
+            output="screen",
+            parameters=[engine_file, common],
+            condition=shared,
+            additional_env=env,
+        ),
         *(
             Node(
                 package="ads_rca",
@@ -74,6 +99,7 @@ def generate_launch_description() -> Any:
                 name=name,
                 output="screen",
                 parameters=[engine_file, common],
+                condition=separate,
                 additional_env=env,
             )
             for name in MONITORS
@@ -89,7 +115,7 @@ def generate_launch_description() -> Any:
                     "log_path": LaunchConfiguration("log_path"),
                     "rate": LaunchConfiguration("rate"),
                     "topic_namespace": LaunchConfiguration("topic_namespace"),
-                    "wait_for_subscribers": 5,
+                    "wait_for_subscribers": subscribers,
                 },
             ],
             additional_env=env,

@@ -27,7 +27,7 @@ from ads_rca.io.json_log import read_run_log
 from ads_rca.io.json_writer import write_run_log
 from ads_rca.oracles.base import MODULES
 from ads_rca.params import make_params
-from ads_rca.ros.graph import Graph, GraphSpec
+from ads_rca.ros.graph import MONITORS_SEPARATE, Graph, GraphSpec
 from ads_rca.ros.launcher import ManagedProcess, ros_args
 
 pytestmark = pytest.mark.timeout(180)
@@ -88,6 +88,21 @@ def test_replay_gives_the_diagnose_verdict(ros_env, tmp_path, log_dirs, case, se
     assert f"verdict: {offline['verdict']}" in replay.output
 
 
+def test_replay_with_one_process_per_monitor_gives_the_same_verdict(ros_env, tmp_path, log_dirs):
+    """``--monitors separate``: the layout a monitor can be restarted in, same verdict."""
+    log_dir = log_dirs("cut_in", "planning")
+    out = tmp_path / "verdict.json"
+    argv = [sys.executable, "-m", "ads_rca.cli", "replay", str(log_dir), "--monitors", "separate"]
+    argv += ["--json", str(out), "--domain-id", str(ros_env.domain_id), "--timeout", "90"]
+    replay = ManagedProcess("replay", argv, ros_env.env)
+    assert replay.wait(120) == 0, replay.output
+    live = json.loads(out.read_text())
+    offline = diagnose(read_run_log(log_dir), make_params("corrected")).to_json()
+    assert live["live"]["complete"], live["live"]
+    assert failed_flags(live) == failed_flags(offline)
+    assert_close(verdict_keys(live), verdict_keys(offline))
+
+
 def test_replay_stops_at_once_when_a_node_fails(ros_env, tmp_path):
     """A player that cannot start ends the replay with its error, not after --timeout."""
     not_a_log = tmp_path / "not_a_log"
@@ -120,6 +135,7 @@ def test_monitor_killed_and_restarted_goes_stale_recovers_and_a_verdict_comes(
         rate=0.6,
         metrics_log=metrics,
         aggregator_params={"stale_timeout_s": 1.0},
+        monitors=MONITORS_SEPARATE,  # one monitor is killed on its own
     )
     diagnostics = tmp_path / "diagnostics.jsonl"
     probe = start_probe(ros_env, diagnostics)

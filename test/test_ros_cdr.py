@@ -27,6 +27,7 @@ from visualization_msgs.msg import MarkerArray
 
 from ads_rca.model import Actors, Boxes, EgoPose, Plan, RunLog, RunMetadata, Track
 from ads_rca.ros import cdr, convert, playback, topics
+from ads_rca.ros import diagnostics as diag
 from ads_rca.ros.assembler import RunLogAssembler
 from ads_rca.ros.cdr_decode import decode_clock, decode_record, decode_string, stamp_ms
 
@@ -163,6 +164,40 @@ def test_unicode_strings_of_every_length_keep_alignment(
     assert_bytes_match(cdr.encode_string(text), string)
     assert decode_string(serialize_message(string)) == text
     assert decode_clock(cdr.encode_clock(stamp)) == stamp
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    statuses=st.lists(
+        st.tuples(
+            st.integers(0, 3),
+            st.text(max_size=12),
+            st.text(max_size=7),
+            st.lists(st.tuples(st.text(max_size=6), st.text(max_size=9)), max_size=5),
+        ),
+        max_size=4,
+    ),
+    stamp_ns=st.integers(0, 2**62),
+)
+def test_diagnostic_arrays_encode_byte_for_byte(
+    statuses: list[tuple[int, str, str, list[tuple[str, str]]]], stamp_ns: int
+) -> None:
+    """Monitors publish DiagnosticArray bytes from diag.encode_array; rclpy must agree."""
+    from builtin_interfaces.msg import Time
+
+    def clean(text: str) -> str:
+        return text.replace("\x00", "")
+
+    built = [
+        diag.Status(level, clean(name), clean(msg), "hw", [(clean(k), clean(v)) for k, v in kv])
+        for level, name, msg, kv in statuses
+    ]
+    sec, nanosec = divmod(stamp_ns, 10**9)
+    msg = diag.array(Time(sec=sec % 2**31, nanosec=nanosec), built)
+    ours = diag.encode_array((sec % 2**31) * 10**9 + nanosec, built)
+    assert_bytes_match(ours, msg)
+    assert diag.status_names(ours) == [s.name for s in built]
+    assert isinstance(diag.status_names(ours[: len(ours) // 2]), list)  # truncated: no raise
 
 
 def test_decoder_walks_every_marker_field() -> None:

@@ -33,6 +33,12 @@ def register(subparsers: Any) -> None:
     add_playback_arguments(parser)
     parser.add_argument("--record", metavar="OUT", help="record every topic to this MCAP bag")
     parser.add_argument("--json", dest="json_out", help="write the verdict JSON here")
+    parser.add_argument(
+        "--monitors",
+        choices=("shared", "separate"),
+        default="shared",
+        help="the four monitors in one process (inputs decoded once; default) or one each",
+    )
     parser.add_argument("--verbose", action="store_true", help="show every node's output")
     parser.set_defaults(run=run)
 
@@ -60,6 +66,7 @@ def run(args: argparse.Namespace) -> int:
         verdict_json=work / "verdict.json",
         rate=args.rate,
         record=record.resolve() if record is not None else None,
+        monitors=args.monitors,
     )
     print(
         f"ads-rca replay: {path} through the node graph (semantics {params.semantics}, "

@@ -23,7 +23,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from ads_rca.engine import Diagnosis, attribute
+from ads_rca.engine import Diagnosis, attribute, oracles_for
 from ads_rca.live.results import FrameMarker, LiveResult, new_problems
 from ads_rca.model import RunLog, RunMetadata
 from ads_rca.oracles.base import MODULES, Module, RunContext
@@ -56,6 +56,7 @@ class AggregatorCore:
         self, params: Params, verdict_timeout_s: float = 10.0, stall_timeout_s: float = 20.0
     ) -> None:
         self.params = params
+        oracles_for(params)  # import the mode's modules now, not while the verdict is due
         self.verdict_timeout_s = verdict_timeout_s
         self.stall_timeout_s = stall_timeout_s
         self.metadata: RunMetadata | None = None

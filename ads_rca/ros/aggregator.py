@@ -92,12 +92,15 @@ class Aggregator(Node):
             self._on_collision,
             live_topics.latched_qos(),
         )
+        # Raw: only the status names are read (heartbeats), not 4 full statuses a frame.
         self.create_subscription(
             DiagnosticArray,
             live_topics.DIAGNOSTICS,
             self._on_diagnostics,
             live_topics.diagnostics_qos(),
+            raw=True,
         )
+        self._heartbeats = {diag.heartbeat_name(m): m for m in MODULES}
         latched = live_topics.latched_qos()
         self.verdict_pub = self.create_publisher(
             DiagnosticArray, topics.topic_name(live_topics.VERDICT, ns), latched
@@ -154,12 +157,12 @@ class Aggregator(Node):
         if isinstance(frame, int):
             self.core.set_collision(frame, time.monotonic())
 
-    def _on_diagnostics(self, msg: DiagnosticArray) -> None:
+    def _on_diagnostics(self, data: bytes) -> None:
         now = time.monotonic()
-        for status in msg.status:
-            for module in MODULES:
-                if status.name == f"{diag.status_name(module)}/monitor":
-                    self.heard[module] = now
+        for name in diag.status_names(data):
+            module = self._heartbeats.get(name)
+            if module is not None:
+                self.heard[module] = now
 
     # --- outputs ---------------------------------------------------------------------
 

@@ -71,13 +71,14 @@ _POSE_AT = 12  # offset of the first float64 in a MARKER_FIXED row
 #: Fields between ``points`` and ``text`` when all are empty (starts 8-aligned): colors [],
 #: texture_resource "", texture (stamp 0, frame_id "", format "", data []), uv_coordinates [].
 _EMPTY_STRING = b"\x01\x00\x00\x00\x00\x00\x00\x00"  # "" + 3 bytes to realign to 4
-_MIDDLE = (
+MIDDLE_WHEN_EMPTY = (
     _U32.pack(0) + _EMPTY_STRING + bytes(8) + _EMPTY_STRING + _EMPTY_STRING + bytes(4) + bytes(4)
 )
 #: After ``text`` (4-aligned): mesh_resource "", mesh_file (filename "", data []),
 #: mesh_use_embedded_materials false, then 3 bytes to realign the next marker to 4.
 #: ``_TAILS[(text length incl. NUL) % 4]`` also holds the text's NUL and its padding.
-_AFTER_TEXT = _EMPTY_STRING + _EMPTY_STRING + _U32.pack(0) + b"\x00\x00\x00\x00"
+MESH_WHEN_EMPTY = _EMPTY_STRING + _EMPTY_STRING + _U32.pack(0)
+_AFTER_TEXT = MESH_WHEN_EMPTY + b"\x00\x00\x00\x00"
 _TAILS = tuple(b"\x00" + bytes(-r % 4) + _AFTER_TEXT for r in range(4))
 _MARKER_GAP = 3  # a marker ends 1 past a 4-boundary; the next one starts aligned
 
@@ -214,7 +215,7 @@ def encode_marker_array(
     point_blob = np.ascontiguousarray(points, dtype="<f8").tobytes()
     point_ends = (np.cumsum(fixed["points"], dtype=np.int64) * 24).tolist()
     tails = [
-        _MIDDLE + _U32.pack(size) + data + _TAILS[size & 3]
+        MIDDLE_WHEN_EMPTY + _U32.pack(size) + data + _TAILS[size & 3]
         for data, size in zip(encoded, sizes.tolist(), strict=True)
     ]
     tails[-1] = tails[-1][:-_MARKER_GAP]  # no padding after the last marker

@@ -4,29 +4,67 @@ ROS conventions (REP-107 style, as ``diagnostic_updater`` does): status ``name``
 ``ads_rca/<module>``, a ``hardware_id``, level OK / WARN / ERROR / STALE, a short message, and
 every number in ``values`` as key/value strings. Nested metrics are flattened to
 ``parent.child`` keys; lists are JSON text. Pure message building, no node.
+
+Statuses are plain :class:`Status` values; :func:`array` makes the rclpy message (the
+verdict, heartbeats) and :func:`encode_array` its CDR bytes directly, for the per-frame
+statuses: a 40-value status as rclpy objects cost the monitor more than judging the frame.
 """
 
 from __future__ import annotations
 
 import math
+import struct
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
 from ads_rca.live.results import LiveResult, plain
+from ads_rca.ros.cdr import CdrWriter, cdr_string
+from ads_rca.ros.cdr_decode import CdrReader
 from ads_rca.ros.jsontext import dumps_json
 
-OK = DiagnosticStatus.OK
-WARN = DiagnosticStatus.WARN
-ERROR = DiagnosticStatus.ERROR
-STALE = DiagnosticStatus.STALE
+#: diagnostic_msgs/DiagnosticStatus levels (a ``byte`` field).
+OK = 0
+WARN = 1
+ERROR = 2
+STALE = 3
+
+_STAMP = struct.Struct("<iI")
+_U32 = struct.Struct("<I")
+
+
+@dataclass(frozen=True)
+class Status:
+    """One DiagnosticStatus as plain data: level, name, message, hardware_id, key/values."""
+
+    level: int
+    name: str
+    message: str
+    hardware_id: str
+    values: list[tuple[str, str]]
+
+    def to_msg(self) -> DiagnosticStatus:
+        return DiagnosticStatus(
+            level=bytes([self.level]),
+            name=self.name,
+            message=self.message,
+            hardware_id=self.hardware_id,
+            values=[KeyValue(key=k, value=v) for k, v in self.values],
+        )
+
 
 VERDICT_NAME = "ads_rca/verdict"
 
 
 def status_name(module: str) -> str:
     return f"ads_rca/{module}"
+
+
+def heartbeat_name(module: str) -> str:
+    """The status a monitor sends periodically to say it is alive."""
+    return f"{status_name(module)}/monitor"
 
 
 def text(value: Any) -> str:
@@ -42,19 +80,19 @@ def text(value: Any) -> str:
     return dumps_json(plain(value))
 
 
-def flatten(values: Mapping[str, Any], prefix: str = "") -> list[KeyValue]:
+def flatten(values: Mapping[str, Any], prefix: str = "") -> list[tuple[str, str]]:
     """Key/values, dicts flattened to ``a.b`` keys (lists stay JSON text)."""
-    out: list[KeyValue] = []
+    out: list[tuple[str, str]] = []
     for key, value in values.items():
         name = f"{prefix}{key}"
         if isinstance(value, Mapping) and value:
             out.extend(flatten(value, f"{name}."))
         else:
-            out.append(KeyValue(key=name, value=text(value)))
+            out.append((name, text(value)))
     return out
 
 
-def result_status(live: LiveResult, semantics: str, hardware_id: str) -> DiagnosticStatus:
+def result_status(live: LiveResult, semantics: str, hardware_id: str) -> Status:
     """One judged frame: ERROR failed, WARN skipped or judged with incomplete inputs, else OK."""
     r = live.result
     if r.failed:
@@ -79,24 +117,16 @@ def result_status(live: LiveResult, semantics: str, hardware_id: str) -> Diagnos
         "compute_s": live.compute_s,
     }
     values = flatten(head) + flatten(r.metrics, "metric.") + flatten(r.thresholds, "threshold.")
-    return DiagnosticStatus(
-        level=level,
-        name=status_name(r.module),
-        message=message,
-        hardware_id=hardware_id,
-        values=values,
-    )
+    return Status(level, status_name(r.module), message, hardware_id, values)
 
 
 def simple_status(
-    name: str, level: bytes, message: str, hardware_id: str, values: Mapping[str, Any]
-) -> DiagnosticStatus:
-    return DiagnosticStatus(
-        level=level, name=name, message=message, hardware_id=hardware_id, values=flatten(values)
-    )
+    name: str, level: int, message: str, hardware_id: str, values: Mapping[str, Any]
+) -> Status:
+    return Status(level, name, message, hardware_id, flatten(values))
 
 
-def verdict_status(document: Mapping[str, Any], hardware_id: str) -> DiagnosticStatus:
+def verdict_status(document: Mapping[str, Any], hardware_id: str) -> Status:
     """The verdict: ERROR naming the primary root cause (OK when no fault was found)."""
     primary = document.get("primary_root_cause")
     level = ERROR if primary else OK
@@ -120,12 +150,50 @@ def verdict_status(document: Mapping[str, Any], hardware_id: str) -> DiagnosticS
     modules = {m: dict(v) for m, v in (document.get("modules") or {}).items()}
     values = flatten(head) + flatten(modules, "modules.")
     values += flatten(document.get("evidence") or {}, "evidence.")
-    return DiagnosticStatus(
-        level=level, name=VERDICT_NAME, message=message, hardware_id=hardware_id, values=values
-    )
+    return Status(level, VERDICT_NAME, message, hardware_id, values)
 
 
-def array(stamp: Any, statuses: list[DiagnosticStatus]) -> DiagnosticArray:
-    msg = DiagnosticArray(status=statuses)
+def array(stamp: Any, statuses: list[Status]) -> DiagnosticArray:
+    """The rclpy message (``stamp``: a builtin_interfaces/Time)."""
+    msg = DiagnosticArray(status=[s.to_msg() for s in statuses])
     msg.header.stamp = stamp
     return msg
+
+
+def encode_array(stamp_ns: int, statuses: list[Status]) -> bytes:
+    """The same DiagnosticArray as CDR bytes (header frame_id "", as :func:`array`)."""
+    w = CdrWriter()
+    w.pack(_STAMP, *divmod(stamp_ns, 1_000_000_000), alignment=4)
+    w.string("")
+    w.pack(_U32, len(statuses), alignment=4)
+    for status in statuses:
+        w.buffer.append(status.level)
+        for field in (status.name, status.message, status.hardware_id):
+            w.string(field)
+        w.pack(_U32, len(status.values), alignment=4)
+        for key, value in status.values:
+            w.align(4)
+            w.buffer += cdr_string(key)
+            w.align(4)
+            w.buffer += cdr_string(value)
+    return w.getvalue()
+
+
+def status_names(data: bytes) -> list[str]:
+    """The status names of a DiagnosticArray in CDR bytes (what heartbeat watching needs),
+    without building the message; [] for bytes that are not one."""
+    try:
+        reader = CdrReader(data)
+        reader.skip_header()
+        names = []
+        for _ in range(reader.u32()):
+            reader.position += 1  # level
+            names.append(reader.string())
+            reader.skip_string()  # message
+            reader.skip_string()  # hardware_id
+            for _ in range(reader.u32()):
+                reader.skip_string()
+                reader.skip_string()
+        return names
+    except (ValueError, IndexError, struct.error, UnicodeDecodeError):
+        return []

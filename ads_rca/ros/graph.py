@@ -1,4 +1,4 @@
-"""The live node graph as separate processes: player, four monitors, aggregator, recorder.
+"""The live node graph as separate processes: player, monitors, aggregator, recorder.
 
 The pure-Python counterpart of ``launch_scripts/rca_graph.launch.py`` (``launch`` is not
 installed here), used by ``ads-rca replay``, the tests and the benchmark. Every node is its
@@ -6,6 +6,10 @@ own ``python -m`` process in the launcher's environment (local-only discovery, t
 domain). Start order: recorder, aggregator, monitors, then the player, which waits until
 all of them subscribe to ``run/frame`` so none misses the first frame. The verdict is read
 from the aggregator's ``verdict_json`` file (written atomically once it is published).
+
+The four monitors run either as one ``monitors`` process (``MONITORS_SHARED``, the default:
+inputs received and decoded once) or as four processes (``MONITORS_SEPARATE``: one monitor
+can be killed and restarted on its own).
 """
 
 from __future__ import annotations
@@ -21,13 +25,16 @@ from typing import Any, TextIO
 
 from ads_rca.params import Params
 from ads_rca.ros.launcher import Launcher, ManagedProcess, ParamValue, ros_args
-from ads_rca.ros.monitor import MONITORS
+from ads_rca.ros.monitor import GROUP, MONITORS
 from ads_rca.ros.nodeparams import engine_values
 
 PLAYER = "ads_rca.ros.player"
 AGGREGATOR = "ads_rca.ros.aggregator"
 MONITOR = "ads_rca.ros.monitor"
 RECORDER = "ads_rca.ros.recorder"
+MONITORS_SHARED = "shared"
+MONITORS_SEPARATE = "separate"
+MONITOR_LAYOUTS = (MONITORS_SHARED, MONITORS_SEPARATE)
 
 
 def recorder_available() -> bool:
@@ -49,6 +56,11 @@ class GraphSpec:
     monitor_params: dict[str, ParamValue] = field(default_factory=dict)
     aggregator_params: dict[str, ParamValue] = field(default_factory=dict)
     player_params: dict[str, ParamValue] = field(default_factory=dict)
+    monitors: str = MONITORS_SHARED
+
+    def __post_init__(self) -> None:
+        if self.monitors not in MONITOR_LAYOUTS:
+            raise ValueError(f"monitors must be one of {MONITOR_LAYOUTS}, not {self.monitors!r}")
 
     def common(self) -> dict[str, ParamValue]:
         return {**engine_values(self.params), "topic_namespace": self.namespace}
@@ -73,7 +85,8 @@ class GraphSpec:
             **self.aggregator_params,
         }
         out["aggregator"] = [sys.executable, "-m", AGGREGATOR, *ros_args(agg)]
-        for name in MONITORS:
+        names = MONITORS if self.monitors == MONITORS_SEPARATE else (GROUP,)
+        for name in names:
             out[name] = self.monitor_argv(name)
         player: dict[str, ParamValue] = {
             "log_path": str(self.log_path),

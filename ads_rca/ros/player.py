@@ -18,7 +18,7 @@ from typing import Any
 import rclpy
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.duration import Duration
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import ExternalShutdownException
 from rclpy.logging import get_logger
 from rclpy.node import Node
 
@@ -28,6 +28,7 @@ from ads_rca.ros import topics
 from ads_rca.ros.cdr import encode_clock, encode_string, frame_payloads
 from ads_rca.ros.convert import frame_messages
 from ads_rca.ros.env import use_fast_ack_profile
+from ads_rca.ros.nodemain import make_executor
 from ads_rca.ros.playback import (
     FINISHED,
     PLAYING,
@@ -274,7 +275,7 @@ def main(args: list[str] | None = None) -> int:
         except (ConfigError, InputError) as error:
             get_logger("player").error(str(error))
             return 2
-        executor = SingleThreadedExecutor()
+        executor = make_executor()
         executor.add_node(node)
         node.wait_for_subscribers()
         node.start()

@@ -17,11 +17,12 @@ from typing import Any
 import orjson
 import rclpy
 from rcl_interfaces.msg import ParameterDescriptor
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
 from ads_rca.ros import topics
 from ads_rca.ros.assembler import RunLogAssembler
+from ads_rca.ros.nodemain import make_executor
 
 PARAMETERS: dict[str, tuple[Any, str]] = {
     "topic_namespace": (topics.DEFAULT_NAMESPACE, "Namespace of the contract topics."),
@@ -140,7 +141,7 @@ def main(args: list[str] | None = None) -> int:
     code = 0
     try:
         node = TopicSummary()
-        executor = SingleThreadedExecutor()
+        executor = make_executor()
         executor.add_node(node)
         deadline = time.monotonic() + node.timeout if node.timeout > 0 else float("inf")
         while rclpy.ok() and not node.assembler.complete():

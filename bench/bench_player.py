@@ -5,7 +5,8 @@ Usage: ``python bench/bench_player.py [--frames N] [--actors M] [--object-dds-fr
 
 Conversion only (no DDS), per frame: the object path (``convert.frame_messages`` building
 rclpy message objects, plus ``serialize_message``, which ``publish`` does internally) and the
-fast path (``cdr.frame_payloads``: the bytes ``publish`` sends as they are).
+fast path (``cdr.frame_payloads``: the bytes ``publish`` sends as they are); and decoding
+those bytes back into model records (``cdr_decode``, what the monitors do with each frame).
 
 DDS: the log is written to a temp folder and played by the ``player`` node at rate 0 (each
 frame sent once the subscriber acknowledged the previous one) to ``topic_summary`` in another
@@ -28,6 +29,7 @@ from typing import Any
 from ads_rca.io.json_writer import write_run_log
 from ads_rca.model import RunLog
 from ads_rca.ros.cdr import frame_payloads
+from ads_rca.ros.cdr_decode import decode_record
 from ads_rca.ros.convert import frame_messages
 from ads_rca.ros.env import pick_domain_id, ros_environment
 from ads_rca.ros.launcher import Launcher, node_command
@@ -109,6 +111,20 @@ def dds_rate(
     return document
 
 
+def decode_rate(log: RunLog, limit: int) -> tuple[float, float, int]:
+    """frames/s and messages/s of decoding the fast path's bytes back into model records
+    (what a subscriber such as the monitors does with every frame)."""
+    payloads = [frame_payloads(log, tick.stamp_ms) for tick in timeline(log)[:limit]]
+    messages = 0
+    start = time.perf_counter()
+    for frame in payloads:
+        for key, data in frame.items():
+            decode_record(key, data, log.tpf)
+        messages += len(frame)
+    elapsed = time.perf_counter() - start
+    return len(payloads) / elapsed, messages / elapsed, len(payloads)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=10_000)
@@ -132,6 +148,7 @@ def main(argv: list[str] | None = None) -> int:
         path: conversion_rate(log, args.conversion_frames, path)
         for path in ("object", "object+cdr", "fast")
     }
+    conversions["decode (subscriber side)"] = decode_rate(log, args.conversion_frames)
     runs: dict[str, dict[str, Any]] = {}
     with tempfile.TemporaryDirectory(prefix="ads_rca_bench_player_") as tmp:
         work = Path(tmp)

@@ -78,6 +78,8 @@ class AggregatorCore:
         self.horizon_reached_at: float | None = None
         self.outcome: VerdictOutcome | None = None
         self.received: dict[Module, int] = {m: 0 for m in MODULES}
+        #: (horizon, number of expected frames) -> index of the last required frame.
+        self._last_required: tuple[int | None, int, int] = (None, -1, -1)
 
     # --- feeding ---------------------------------------------------------------------
 
@@ -153,6 +155,26 @@ class AggregatorCore:
         w = self.params.window_frames(self.metadata.timesteps_per_frame)
         return horizon - w * self.metadata.timesteps_per_frame
 
+    def _behind(self) -> bool:
+        """Some module's results stop before the last required frame (so it is awaited).
+
+        The cheap test run on every result: the full scan of :meth:`waiting_for` is
+        O(frames) and would make a long run's catching-up quadratic.
+        """
+        horizon = self.horizon_ms()
+        if horizon != self._last_required[0] or len(self.expected) != self._last_required[1]:
+            last = max(
+                (
+                    e.index
+                    for e in self.expected.values()
+                    if horizon is None or e.stamp_ms <= horizon
+                ),
+                default=-1,
+            )
+            self._last_required = (horizon, len(self.expected), last)
+        last = self._last_required[2]
+        return any(self.progress[m] < last for m in MODULES)
+
     def waiting_for(self) -> tuple[dict[Module, list[int]], dict[Module, list[int]]]:
         """Per module: required frames still awaited, and those lost (the module moved on)."""
         awaited: dict[Module, list[int]] = {m: [] for m in MODULES}
@@ -180,10 +202,13 @@ class AggregatorCore:
         if self.horizon_reached():
             if self.horizon_reached_at is None:
                 self.horizon_reached_at = now
+            progress = max(self.horizon_reached_at, self.last_input or 0.0)
+            waiting = now - progress < self.verdict_timeout_s
+            if waiting and self._behind():
+                return None  # a module has not reached the last required frame yet
             awaited, lost = self.waiting_for()
             if any(awaited.values()):
-                progress = max(self.horizon_reached_at, self.last_input or 0.0)
-                if now - progress < self.verdict_timeout_s:
+                if waiting:
                     return None
                 why.append(f"timed out waiting for results: {_frames_text(awaited)}")
             if any(lost.values()):

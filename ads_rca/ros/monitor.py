@@ -61,6 +61,11 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "stale_timeout_s": (2.0, "STALE on /diagnostics after this long without input."),
     "input_timeout_s": (5.0, "Judge with what arrived after this long without input."),
     "heartbeat_s": (0.5, "Period of the monitor heartbeat status."),
+    "poll_period_s": (
+        0.02,
+        "Judge ready frames at least this often; a frame marker judges at once unless the "
+        "last judgement is more recent (so a backlog is judged in batches).",
+    ),
     "max_lookahead_frames": (100, "Longest look-ahead waited for (reference prediction keys)."),
     "max_pending_frames": (1200, "Frames held at most before judging anyway (marked)."),
     "history_frames": (0, "Judged frames kept for a late collision (0 = automatic)."),
@@ -97,7 +102,9 @@ class Monitor(Node):
         self.diag_pub = self.create_publisher(
             DiagnosticArray, live_topics.DIAGNOSTICS, live_topics.diagnostics_qos()
         )
-        self.create_timer(0.02, self.poll)
+        self.poll_period = float(p["poll_period_s"])
+        self.last_poll = 0.0
+        self.create_timer(self.poll_period, self.poll)
         self.create_timer(float(p["heartbeat_s"]), self._heartbeat)
         self.inputs = MonitorInputs(self, [self]) if own_inputs else None
         self.get_logger().info(
@@ -108,7 +115,8 @@ class Monitor(Node):
 
     def poll(self) -> None:
         """Publish the results of every frame that became ready."""
-        for result in self.core.poll(time.monotonic()):
+        self.last_poll = now = time.monotonic()
+        for result in self.core.poll(now):
             self._publish(result)
 
     def _publish(self, result: LiveResult) -> None:
@@ -200,7 +208,10 @@ class MonitorInputs:
                 marker = FrameMarker.from_document(read_document(msg))
                 for monitor in self.monitors:
                     monitor.core.add_marker(marker, now)
-                    monitor.poll()
+                    # Judging has a fixed cost per batch (the window's view and context):
+                    # while markers stream in faster than poll_period_s, the timer batches.
+                    if now - monitor.last_poll >= monitor.poll_period:
+                        monitor.poll()
             elif key == topics.STATUS:
                 status = read_document(msg)
                 if status.get("state") == FINISHED:

@@ -99,29 +99,38 @@ def assert_same_as_diagnose(log: RunLog, semantics: str, **options: Any) -> Any:
 MATRIX = [(s, f) for s in SCENARIOS if s != "cruise" for f in FAULTS] + [("cruise", "none")]
 
 
+#: One core per module (``*_monitor`` processes) or one for all four (``monitors``).
+LAYOUTS = pytest.mark.parametrize("shared", [False, True], ids=["separate", "shared"])
+
+
+@LAYOUTS
 @pytest.mark.parametrize("semantics", ["reference", "corrected"])
 @pytest.mark.parametrize("case", MATRIX, ids=["-".join(c) for c in MATRIX])
-def test_windowed_judging_equals_diagnose(case: tuple[str, str], semantics: str) -> None:
-    run = assert_same_as_diagnose(synth(*case), semantics)
+def test_windowed_judging_equals_diagnose(
+    case: tuple[str, str], semantics: str, shared: bool
+) -> None:
+    run = assert_same_as_diagnose(synth(*case), semantics, shared=shared)
     assert run.outcome is not None and run.outcome.complete
 
 
+@LAYOUTS
 @pytest.mark.parametrize("semantics", ["reference", "corrected"])
-def test_duplicated_frames_and_records_only_stamps(semantics: str) -> None:
+def test_duplicated_frames_and_records_only_stamps(semantics: str, shared: bool) -> None:
     log = make_log(30, 6, 3, duplicate_frame=True, orphan_stamps=True)
     assert len(log.frames) != len(log.unique_frames)
-    run = assert_same_as_diagnose(log, semantics)
+    run = assert_same_as_diagnose(log, semantics, shared=shared)
     judged = len(run.results["perception"])
     assert judged == (len(log.frames) if semantics == "reference" else len(log.unique_frames))
 
 
+@LAYOUTS
 @pytest.mark.parametrize("semantics", ["reference", "corrected"])
-def test_memory_does_not_grow_with_run_length(semantics: str) -> None:
+def test_memory_does_not_grow_with_run_length(semantics: str, shared: bool) -> None:
     params = make_params(semantics)
     held = []
     for frames in (150, 300):
         log = synthesise("cruise", "none", 4, frames=frames, actors=10)
-        run = run_live(log, params)
+        run = run_live(log, params, shared=shared)
         assert run.outcome is not None and run.outcome.complete
         held.append(max(run.max_held_records.values()))
     assert held[0] == held[1]

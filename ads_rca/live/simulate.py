@@ -42,13 +42,15 @@ def run_live(
     collision_event_after: int | None = None,
     clock_step_s: float = 0.001,
     drain_s: float = 60.0,
+    shared: bool = False,
 ) -> LiveRun:
     """Play ``log`` (its timeline, as the player does) through the live cores.
 
     ``metadata_collision`` False hides the collision frame from the metadata (a live stack)
     and announces it as an event after the frame with index ``collision_event_after`` (or at
     the end). After the last frame the clock advances until the verdict (at most ``drain_s``
-    seconds of simulated time), so timeouts fire as they would.
+    seconds of simulated time), so timeouts fire as they would. ``shared``: one core judges
+    the four modules (the ``monitors`` process) instead of one core each.
     """
     from ads_rca.ros.playback import timeline
 
@@ -61,22 +63,28 @@ def run_live(
     metadata = log.metadata
     if not metadata_collision:
         metadata = replace(metadata, collision_frame=-1)
-    monitors = {m: MonitorCore(m, params, settings) for m in MODULES}
+    if shared:
+        one = MonitorCore(MODULES, params, settings)
+        monitors = {m: one for m in MODULES}
+    else:
+        monitors = {m: MonitorCore(m, params, settings) for m in MODULES}
+    cores = list({id(core): core for core in monitors.values()}.values())
     aggregator = AggregatorCore(params)
     run = LiveRun(results={m: [] for m in MODULES}, monitors=monitors)
 
     def pump() -> None:
-        for module, core in monitors.items():
+        for core in cores:
             for result in core.poll(now()):
-                run.results[module].append(result)
+                run.results[result.module].append(result)
                 aggregator.add_result(result, now())
-            run.max_held_records[module] = max(
-                run.max_held_records.get(module, 0), core.held_records()
-            )
+            for module in core.modules:
+                run.max_held_records[module] = max(
+                    run.max_held_records.get(module, 0), core.held_records()
+                )
         if run.outcome is None:
             run.outcome = aggregator.poll(now())
 
-    for core in monitors.values():
+    for core in cores:
         core.set_metadata(metadata, now())
     aggregator.set_metadata(metadata, log.source, now())
     announced = False
@@ -89,10 +97,10 @@ def run_live(
             folders.add(folder)
             if deliver is not None and not deliver(folder, tick.stamp_ms):
                 continue
-            for core in monitors.values():
+            for core in cores:
                 core.add_record(folder, tick.stamp_ms, record, now())
         marker = FrameMarker(tick.index, tick.stamp_ms, frozenset(folders), tick.duplicate)
-        for core in monitors.values():
+        for core in cores:
             core.add_marker(marker, now())
         aggregator.add_marker(marker, now())
         pump()
@@ -103,12 +111,12 @@ def run_live(
             and tick.index >= collision_event_after
             and log.metadata.collision_frame >= 0
         ):
-            announce(monitors, aggregator, log.metadata.collision_frame, now())
+            announce(cores, aggregator, log.metadata.collision_frame, now())
             announced = True
             pump()
     if not metadata_collision and not announced and log.metadata.collision_frame >= 0:
-        announce(monitors, aggregator, log.metadata.collision_frame, now())
-    for core in monitors.values():
+        announce(cores, aggregator, log.metadata.collision_frame, now())
+    for core in cores:
         core.set_finished(now())
     aggregator.set_finished(now())
     deadline = clock[0] + drain_s
@@ -118,9 +126,7 @@ def run_live(
     return run
 
 
-def announce(
-    monitors: dict[Module, MonitorCore], aggregator: AggregatorCore, frame: int, at: float
-) -> None:
-    for core in monitors.values():
+def announce(cores: list[MonitorCore], aggregator: AggregatorCore, frame: int, at: float) -> None:
+    for core in cores:
         core.set_collision(frame, at)
     aggregator.set_collision(frame, at)

@@ -24,6 +24,11 @@ re-evaluation history need are dropped: memory does not grow with run length.
 A collision announced later (a live stack's collision topic) moves the frames still held
 back to the queue (`corrected` only: reference results do not depend on the partner); they
 are judged again and published with a higher ``revision``.
+
+One core can judge several modules on one window (the ``monitors`` process): frames then
+wait for the longest look-ahead among them, and the modules of a frame are judged on one
+context, so the `corrected` oracles share their per-frame caches (clearances, plans) as
+they do in ``ads-rca diagnose``. Results are the same as with one core per module.
 """
 
 from __future__ import annotations
@@ -31,6 +36,7 @@ from __future__ import annotations
 import time
 import uuid
 from collections import deque
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -39,7 +45,7 @@ import numpy as np
 from ads_rca.engine import evaluate_frame, oracles_for
 from ads_rca.live.results import FrameMarker, LiveResult, new_problems
 from ads_rca.model import FOLDERS, FloatArray, RunLog, RunMetadata
-from ads_rca.oracles.base import EGO_ID_TIMESTAMP_MS, Module, RunContext
+from ads_rca.oracles.base import EGO_ID_TIMESTAMP_MS, MODULES, Module, RunContext
 from ads_rca.params import Params
 from ads_rca.verdict import frame_number
 
@@ -57,6 +63,12 @@ REFERENCE_EGO_MODULES: tuple[Module, ...] = ("prediction", "planning")
 def module_folders(semantics: str, module: Module) -> tuple[str, ...]:
     """The log folders (hence topics) one module's monitor subscribes to."""
     return REFERENCE_FOLDERS[module] if semantics == "reference" else FOLDERS
+
+
+def modules_folders(semantics: str, modules: Iterable[Module]) -> tuple[str, ...]:
+    """The folders any of ``modules`` reads, in :data:`FOLDERS` order."""
+    wanted = {f for m in modules for f in module_folders(semantics, m)}
+    return tuple(f for f in FOLDERS if f in wanted)
 
 
 @dataclass
@@ -90,18 +102,26 @@ class _Stats:
 
 
 class MonitorCore:
-    """One module's window and scheduler; feed it, then :meth:`poll` for new results."""
+    """The window and scheduler of one module (or several judged together); feed it, then
+    :meth:`poll` for new results (one per module and frame, in frame order)."""
 
     def __init__(
-        self, module: Module, params: Params, settings: WindowSettings | None = None
+        self,
+        modules: Module | Sequence[Module],
+        params: Params,
+        settings: WindowSettings | None = None,
     ) -> None:
-        self.module = module
+        chosen: tuple[Module, ...] = (modules,) if isinstance(modules, str) else tuple(modules)
+        self.modules = tuple(m for m in MODULES if m in chosen)  # pipeline order
+        if not self.modules:
+            raise ValueError("a monitor judges at least one module")
         self.params = params
         self.settings = settings or WindowSettings()
-        self.oracles = {module: oracles_for(params)[module]}
-        self.folders = module_folders(params.semantics, module)
+        every = oracles_for(params)
+        self.oracles = {m: every[m] for m in self.modules}
+        self.folders = modules_folders(params.semantics, self.modules)
         self.reference = params.semantics == "reference"
-        self.needs_ego = not self.reference or module in REFERENCE_EGO_MODULES
+        self.needs_ego = not self.reference or any(m in REFERENCE_EGO_MODULES for m in self.modules)
         self.metadata: RunMetadata | None = None
         self.collision_frame = -1
         self.records: dict[str, dict[int, Any]] = {f: {} for f in self.folders}
@@ -217,10 +237,12 @@ class MonitorCore:
         p = self.params
         if not self.reference:
             return max(p.prediction_window, p.control_horizon, 1)
-        if self.module == "controller":
-            return 1
-        if self.module != "prediction":
-            return 0
+        if "prediction" in self.modules:
+            return max(self._prediction_lookahead(entry), int("controller" in self.modules))
+        return int("controller" in self.modules)
+
+    def _prediction_lookahead(self, entry: _Entry) -> int:
+        """Reference prediction reads as far ahead as its step keys go (capped)."""
         pwp = self.records["predictions_with_perception"].get(entry.marker.stamp_ms)
         longest = 0
         for track in (pwp or {}).values():
@@ -309,29 +331,30 @@ class MonitorCore:
         out = []
         for entry, incomplete in ready:
             stamp = entry.marker.stamp_ms
-            started = time.perf_counter()
-            result = evaluate_frame(ctx, self.oracles, stamp).results[self.module]
-            spent = time.perf_counter() - started
             self.stats.evaluated += 1
             self.stats.incomplete += bool(incomplete)
-            self.stats.compute_s.append(spent)
-            del self.stats.compute_s[:-10000]
-            out.append(
-                LiveResult(
-                    index=int(entry.marker.index or 0),
-                    result=result,
-                    frame=frame_number(stamp, log.tpf),
-                    collision_frame=self.collision_frame,
-                    incomplete=incomplete,
-                    revision=entry.revision,
-                    ego_id=ctx.ego_id,
-                    partner_id=partner,
-                    problems=tuple(new_problems(ctx.problems, self._reported)),
-                    compute_s=spent,
-                    wait_s=max(0.0, now - entry.arrived),
-                    session=self.session,
+            for module, oracle in self.oracles.items():
+                started = time.perf_counter()
+                result = evaluate_frame(ctx, {module: oracle}, stamp).results[module]
+                spent = time.perf_counter() - started
+                self.stats.compute_s.append(spent)
+                out.append(
+                    LiveResult(
+                        index=int(entry.marker.index or 0),
+                        result=result,
+                        frame=frame_number(stamp, log.tpf),
+                        collision_frame=self.collision_frame,
+                        incomplete=incomplete,
+                        revision=entry.revision,
+                        ego_id=ctx.ego_id,
+                        partner_id=partner,
+                        problems=tuple(new_problems(ctx.problems, self._reported)),
+                        compute_s=spent,
+                        wait_s=max(0.0, now - entry.arrived),
+                        session=self.session,
+                    )
                 )
-            )
+        del self.stats.compute_s[:-10000]
         return out
 
     def _partner(self, ctx: RunContext) -> str | None:

@@ -13,11 +13,14 @@ Subscriptions use the lossless QoS of the contract (RELIABLE + KEEP_ALL) so a pl
 0 waits for us. Data that arrives before the (latched) metadata is queued: converting a
 trajectory needs the frame period.
 
-Inputs live in :class:`MonitorInputs`, which subscribes once and feeds one or more monitors:
-each monitor process has its own, and the ``monitors`` executable runs the four monitor
-nodes in one process behind one :class:`MonitorInputs`, so every message is received and
-decoded once instead of four times (decoding is most of a monitor's work). Each node keeps
-its own window, results and publishers either way, so results are the same.
+Three pieces: a :class:`Monitor` node per module (its publishers, heartbeat and STALE
+status), a :class:`MonitorUnit` (one window, ``MonitorCore``, judging one or more modules,
+and the nodes its results go to) and :class:`MonitorInputs` (the subscriptions of a process,
+feeding its unit). A ``*_monitor`` process is one node, one unit, one set of inputs. The
+``monitors`` executable runs the four nodes in one process on one unit: every message is
+received and decoded once instead of four times (decoding was most of a monitor's work) and
+a frame's four modules are judged on one context, sharing its caches as ``ads-rca
+diagnose`` does. Results are the same either way (tested).
 """
 
 from __future__ import annotations
@@ -30,8 +33,9 @@ from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from std_msgs.msg import String
 
+from ads_rca.errors import InputError
 from ads_rca.live.results import FrameMarker, LiveResult
-from ads_rca.live.window import MonitorCore, WindowSettings, module_folders
+from ads_rca.live.window import MonitorCore, WindowSettings
 from ads_rca.model import RunMetadata
 from ads_rca.oracles.base import Module
 from ads_rca.ros import diagnostics as diag
@@ -74,24 +78,26 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
 
 
 class Monitor(Node):
-    """Judges one module's frames as they complete (fed by a :class:`MonitorInputs`)."""
+    """One module's node: declares the parameters, publishes its results and heartbeat."""
 
-    def __init__(self, node_name: str, module: Module, own_inputs: bool = True) -> None:
+    def __init__(self, node_name: str, module: Module) -> None:
         super().__init__(node_name)
         self.module = module
         self.params = declare_engine_parameters(self)
         p = declare_node_parameters(self, PARAMETERS)
+        self.node_values = p
         self.hardware_id = str(p["hardware_id"])
         self.stale_timeout = float(p["stale_timeout_s"])
         self.publish_diagnostics = bool(p["publish_diagnostics"])
         self.namespace = str(p["topic_namespace"])
-        settings = WindowSettings(
+        self.poll_period = float(p["poll_period_s"])
+        self.settings = WindowSettings(
             max_lookahead_frames=int(p["max_lookahead_frames"]),
             input_timeout_s=float(p["input_timeout_s"]),
             max_pending_frames=int(p["max_pending_frames"]),
             history_frames=int(p["history_frames"]),
         )
-        self.core = MonitorCore(module, self.params, settings)
+        self.core: MonitorCore | None = None  # set by the unit that judges this module
         self._stale_since_report = False
         self.started = time.monotonic()
         self.metrics_pub = self.create_publisher(
@@ -102,24 +108,9 @@ class Monitor(Node):
         self.diag_pub = self.create_publisher(
             DiagnosticArray, live_topics.DIAGNOSTICS, live_topics.diagnostics_qos()
         )
-        self.poll_period = float(p["poll_period_s"])
-        self.last_poll = 0.0
-        self.create_timer(self.poll_period, self.poll)
         self.create_timer(float(p["heartbeat_s"]), self._heartbeat)
-        self.inputs = MonitorInputs(self, [self]) if own_inputs else None
-        self.get_logger().info(
-            f"{module} monitor, semantics {self.params.semantics}, session {self.core.session}"
-        )
 
-    # --- outputs ---------------------------------------------------------------------
-
-    def poll(self) -> None:
-        """Publish the results of every frame that became ready."""
-        self.last_poll = now = time.monotonic()
-        for result in self.core.poll(now):
-            self._publish(result)
-
-    def _publish(self, result: LiveResult) -> None:
+    def publish(self, result: LiveResult) -> None:
         # CDR bytes straight from our encoders: rclpy message objects cost more than judging.
         self.metrics_pub.publish(encode_string(dumps_json(result.to_document())))
         if self.publish_diagnostics:
@@ -127,8 +118,10 @@ class Monitor(Node):
             self.diag_pub.publish(diag.encode_array(self.get_clock().now().nanoseconds, [status]))
 
     def _heartbeat(self) -> None:
-        now = time.monotonic()
         core = self.core
+        if core is None:
+            return
+        now = time.monotonic()
         last = core.last_input if core.last_input is not None else self.started
         silent = now - last
         statuses = [
@@ -165,23 +158,73 @@ class Monitor(Node):
         self.diag_pub.publish(diag.array(self.get_clock().now().to_msg(), statuses))
 
 
-class MonitorInputs:
-    """The contract subscriptions of one process, feeding every monitor in it.
+class MonitorUnit:
+    """One window judging the modules of ``nodes``; results go to each module's node.
 
-    Subscribes (on ``node``) to the topics any of ``monitors`` reads, decodes each data
-    message once and hands the record to each monitor that reads its folder; markers,
-    metadata, the player's status and a live collision go to all of them.
+    Judging has a fixed cost per batch (the window's view and context), so :meth:`on_marker`
+    judges at once only if the last judgement is at least ``poll_period_s`` old; otherwise
+    the ``poll_period_s`` timer judges everything that became ready in one batch.
     """
 
-    def __init__(self, node: Node, monitors: list[Monitor]) -> None:
+    def __init__(self, nodes: list[Monitor]) -> None:
+        first = nodes[0]
+        for node in nodes[1:]:
+            _check_same_settings(first, node)
+        self.nodes = {node.module: node for node in nodes}
+        self.core = MonitorCore(tuple(self.nodes), first.params, first.settings)
+        for node in nodes:
+            node.core = self.core
+        self.logger = first.get_logger()
+        self.poll_period = first.poll_period
+        self.last_poll = 0.0
+        first.create_timer(self.poll_period, self.poll)
+        modules = ", ".join(self.core.modules)
+        self.logger.info(
+            f"judging {modules}, semantics {first.params.semantics}, session {self.core.session}"
+        )
+
+    def poll(self) -> None:
+        """Publish the results of every frame that became ready."""
+        self.last_poll = now = time.monotonic()
+        for result in self.core.poll(now):
+            self.nodes[result.module].publish(result)
+
+    def on_marker(self, now: float) -> None:
+        if now - self.last_poll >= self.poll_period:
+            self.poll()
+
+
+def _check_same_settings(first: Monitor, other: Monitor) -> None:
+    """Nodes judged on one window must agree on every engine and window parameter."""
+    differ = [
+        name
+        for name in ("params", "settings", "namespace", "poll_period")
+        if getattr(first, name) != getattr(other, name)
+    ]
+    if differ:
+        raise InputError(
+            f"{first.get_name()} and {other.get_name()} share one window in this process but "
+            f"their parameters differ ({', '.join(differ)}); give both the same values or run "
+            "one process per monitor"
+        )
+
+
+class MonitorInputs:
+    """The contract subscriptions of one process, feeding its monitor unit.
+
+    Subscribes (on ``node``) to the topics the unit's modules read and decodes each data
+    message once into a model record; markers, metadata, the player's status and a live
+    collision are handed over as they come.
+    """
+
+    def __init__(self, node: Node, unit: MonitorUnit) -> None:
         self.node = node
-        self.monitors = monitors
+        self.unit = unit
+        core = unit.core
         self._queued: list[tuple[str, bytes, float]] = []
         self._metadata: RunMetadata | None = None
-        semantics = monitors[0].params.semantics
-        wanted = {f for m in monitors for f in module_folders(semantics, m.module)}
-        lossless = [k for k, f in topics.TOPIC_FOLDERS.items() if f in wanted]
-        namespace = monitors[0].namespace
+        lossless = [k for k, f in topics.TOPIC_FOLDERS.items() if f in core.folders]
+        namespace = next(iter(unit.nodes.values())).namespace
         # Data topics arrive as CDR bytes and are decoded straight into model records
         # (ads_rca.ros.cdr_decode): building rclpy message objects costs ~10 ms a frame.
         for key in (*lossless, topics.FRAME, topics.METADATA, topics.STATUS):
@@ -200,23 +243,19 @@ class MonitorInputs:
         )
 
     def _callback(self, key: str) -> Any:
+        core = self.unit.core
+
         def on_message(msg: Any) -> None:
             now = time.monotonic()
             if key == topics.METADATA:
                 self._on_metadata(msg, now)
             elif key == topics.FRAME:
-                marker = FrameMarker.from_document(read_document(msg))
-                for monitor in self.monitors:
-                    monitor.core.add_marker(marker, now)
-                    # Judging has a fixed cost per batch (the window's view and context):
-                    # while markers stream in faster than poll_period_s, the timer batches.
-                    if now - monitor.last_poll >= monitor.poll_period:
-                        monitor.poll()
+                core.add_marker(FrameMarker.from_document(read_document(msg)), now)
+                self.unit.on_marker(now)
             elif key == topics.STATUS:
                 status = read_document(msg)
                 if status.get("state") == FINISHED:
-                    for monitor in self.monitors:
-                        monitor.core.set_finished(now, _count(status.get("frames_published")))
+                    core.set_finished(now, _count(status.get("frames_published")))
             elif self._metadata is None:
                 self._queued.append((key, msg, now))
             else:
@@ -233,8 +272,7 @@ class MonitorInputs:
             self.node.get_logger().error(f"unusable run/metadata: {error!r}")
             return
         self._metadata = metadata
-        for monitor in self.monitors:
-            monitor.core.set_metadata(metadata, now)
+        self.unit.core.set_metadata(metadata, now)
         queued, self._queued = self._queued, []
         for key, data, arrived in queued:
             self._add_data(key, data, arrived)
@@ -246,17 +284,19 @@ class MonitorInputs:
         except ValueError:  # a MarkerArray without markers carries no stamp
             return
         record = decode_record(key, data, self._metadata.timesteps_per_frame)
-        folder = topics.TOPIC_FOLDERS[key]
-        for monitor in self.monitors:
-            monitor.core.add_record(folder, stamp, record, now)
+        self.unit.core.add_record(topics.TOPIC_FOLDERS[key], stamp, record, now)
 
     def _on_collision(self, msg: String) -> None:
         frame = read_document(msg).get("frame")
-        if not isinstance(frame, int):
-            return
-        for monitor in self.monitors:
-            if monitor.core.set_collision(frame, time.monotonic()):
-                monitor.get_logger().info(f"collision at frame {frame}: judging held frames again")
+        if isinstance(frame, int) and self.unit.core.set_collision(frame, time.monotonic()):
+            self.unit.logger.info(f"collision at frame {frame}: judging held frames again")
+
+
+def build_monitors(names: list[str]) -> list[Node]:
+    """The monitor nodes ``names`` on one window, with the inputs of this process."""
+    nodes = [Monitor(name, MONITORS[name]) for name in names]
+    MonitorInputs(nodes[0], MonitorUnit(nodes))
+    return list(nodes)
 
 
 def _count(value: object) -> int | None:
@@ -264,14 +304,7 @@ def _count(value: object) -> int | None:
 
 
 def run(node_name: str, args: list[str] | None = None) -> int:
-    return run_node(node_name, lambda: Monitor(node_name, MONITORS[node_name]), args)
-
-
-def build_group() -> list[Node]:
-    """The four monitor nodes of one process, behind one set of subscriptions."""
-    monitors = [Monitor(name, module, own_inputs=False) for name, module in MONITORS.items()]
-    MonitorInputs(monitors[0], monitors)
-    return list(monitors)
+    return run_node(node_name, lambda: build_monitors([node_name]), args)
 
 
 def perception_main(args: list[str] | None = None) -> int:
@@ -292,7 +325,7 @@ def control_main(args: list[str] | None = None) -> int:
 
 def group_main(args: list[str] | None = None) -> int:
     """``monitors``: all four monitor nodes in one process (inputs decoded once)."""
-    return run_node(GROUP, build_group, args)
+    return run_node(GROUP, lambda: build_monitors(list(MONITORS)), args)
 
 
 if __name__ == "__main__":

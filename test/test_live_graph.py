@@ -270,3 +270,15 @@ def test_monitor_accepts_a_params_file(ros_env, tmp_path):
         wait_for(lambda: "semantics reference" in node.output, 20, "the monitor to start")
     finally:
         assert node.stop() == 0
+
+
+def test_monitors_process_refuses_nodes_with_different_parameters(ros_env):
+    """The four nodes of ``monitors`` share one window: per-node engine values are refused."""
+    argv = [sys.executable, "-m", "ads_rca.ros.monitor", "monitors", "--ros-args"]
+    argv += ["-p", "perception_monitor:effect_time_window:=7"]
+    node = ManagedProcess("monitors", argv, ros_env.env)
+    assert node.wait(60) == 2, node.output
+    errors = [line for line in node.lines if "[ERROR]" in line]
+    assert len(errors) == 1, node.output
+    assert "parameters differ (params)" in errors[0]
+    assert "Traceback" not in node.output

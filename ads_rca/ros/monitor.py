@@ -1,9 +1,9 @@
-"""Monitor nodes: one module's oracle judged live, frame by frame, on the player's topics.
+"""Monitor nodes: each module's oracle judged live, frame by frame, on the player's topics.
 
 ``perception_monitor``, ``prediction_monitor``, ``planning_monitor`` and ``control_monitor``
 are this one class with a different module. A thin shell over
 :class:`~ads_rca.live.window.MonitorCore`, which decides when a frame can be judged and
-runs the engine's own oracle on it: this node only converts messages, calls it, and
+runs the engine's own oracles on it: the shell only decodes messages, calls it, and
 publishes each result on ``/diagnostics`` (status ``ads_rca/<module>``) and, losslessly, on
 ``metrics/<module>`` for the aggregator. A heartbeat ``ads_rca/<module>/monitor`` tells the
 aggregator the node is alive; ``ads_rca/<module>`` goes STALE when inputs stop (no message

@@ -42,6 +42,21 @@ class Problem:
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
 
+    @classmethod
+    def from_dict(cls, document: Any) -> Problem:
+        """The inverse of :meth:`to_dict` (raises ValueError for anything else)."""
+        if not isinstance(document, dict):
+            raise ValueError(f"a problem is a JSON object, not {type(document).__name__}")
+        texts = [document.get(k) for k in ("file", "field", "issue", "action")]
+        severity = document.get("severity", "error")
+        stamp = document.get("timestamp_ms")
+        if not all(isinstance(t, str) for t in texts) or severity not in ("error", "warning"):
+            raise ValueError(f"not a problem: {document!r}")
+        if stamp is not None and (not isinstance(stamp, int) or isinstance(stamp, bool)):
+            raise ValueError(f"timestamp_ms must be an integer: {document!r}")
+        file, field, issue, action = (str(t) for t in texts)
+        return cls(file, field, issue, action, severity, stamp)
+
 
 class ProblemLog:
     """An append-only list of problems, shared by every stage that reads the input."""

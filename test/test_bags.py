@@ -64,6 +64,25 @@ def test_convert_round_trips(log_dir: Path, tmp_path: Path, storage: str) -> Non
     assert cli(["convert", str(bag), str(back)]) == 2  # never overwrites
 
 
+def test_a_bag_keeps_the_logs_reader_problems(tmp_path: Path) -> None:
+    """Values the reader read as NaN stay reported in the bag, so it is judged the same."""
+    from test_live_window import write_log_with_unreadable_values
+
+    from ads_rca.engine import diagnose
+    from ads_rca.params import make_params
+
+    log_dir = write_log_with_unreadable_values(tmp_path / "log")
+    assert cli(["convert", str(log_dir), str(tmp_path / "bag")]) == 0
+    original, bag = read_run_log(log_dir), read_bag(tmp_path / "bag")
+    assert list(bag.problems) == list(original.problems)
+    for semantics in ("reference", "corrected"):
+        params = make_params(semantics)
+        assert (
+            diagnose(bag, params).to_json()["frames"]
+            == (diagnose(original, params).to_json()["frames"])
+        )
+
+
 def test_mcap_layout_is_rosbag2s(log_dir: Path, tmp_path: Path) -> None:
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory

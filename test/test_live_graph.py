@@ -20,7 +20,14 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from test_live_window import CASES, assert_close, failed_flags, synth, verdict_keys
+from test_live_window import (
+    CASES,
+    assert_close,
+    failed_flags,
+    synth,
+    verdict_keys,
+    write_log_with_unreadable_values,
+)
 
 from ads_rca.engine import diagnose
 from ads_rca.io.json_log import read_run_log
@@ -101,6 +108,21 @@ def test_replay_with_one_process_per_monitor_gives_the_same_verdict(ros_env, tmp
     assert live["live"]["complete"], live["live"]
     assert failed_flags(live) == failed_flags(offline)
     assert_close(verdict_keys(live), verdict_keys(offline))
+
+
+def test_replay_of_a_log_with_unreadable_values_equals_diagnose(ros_env, tmp_path):
+    """Reader problems cross DDS in run/metadata: the live judging skips what diagnose skips."""
+    log_dir = write_log_with_unreadable_values(tmp_path / "log")
+    out = tmp_path / "verdict.json"
+    argv = [sys.executable, "-m", "ads_rca.cli", "replay", str(log_dir), "--semantics"]
+    argv += ["reference", "--json", str(out), "--domain-id", str(ros_env.domain_id)]
+    replay = ManagedProcess("replay", [*argv, "--timeout", "90"], ros_env.env)
+    assert replay.wait(120) == 0, replay.output
+    live = json.loads(out.read_text())
+    offline = diagnose(read_run_log(log_dir), make_params("reference")).to_json()
+    assert_close(live["frames"], offline["frames"])
+    assert live["input_problems"] == offline["input_problems"]
+    assert any(p["action"] == "read as NaN" for p in live["input_problems"])
 
 
 def test_replay_stops_at_once_when_a_node_fails(ros_env, tmp_path):

@@ -7,12 +7,16 @@ the nodes use, in one process.
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
 from typing import Any
 
 import pytest
 from logfactory import make_log
 
 from ads_rca.engine import diagnose
+from ads_rca.io.json_log import read_run_log
+from ads_rca.io.json_writer import write_run_log
 from ads_rca.live.aggregate import AggregatorCore
 from ads_rca.live.results import FrameMarker, LiveResult
 from ads_rca.live.simulate import run_live
@@ -20,6 +24,7 @@ from ads_rca.live.window import MonitorCore, WindowSettings
 from ads_rca.model import RunLog
 from ads_rca.oracles.base import MODULES
 from ads_rca.params import make_params
+from ads_rca.problems import Problem
 from ads_rca.ros.jsontext import dumps_json, loads_json
 from ads_rca.synth import FAULTS, SCENARIOS, synthesise
 
@@ -111,6 +116,40 @@ def test_windowed_judging_equals_diagnose(
 ) -> None:
     run = assert_same_as_diagnose(synth(*case), semantics, shared=shared)
     assert run.outcome is not None and run.outcome.complete
+
+
+def write_log_with_unreadable_values(folder: Path) -> Path:
+    """lead_braking with a control fault, where 7 pose files lack x and speed: the reader
+    reads them as NaN and reports it, and reference skips (not fails) those checks."""
+    write_run_log(synthesise("lead_braking", "control", 0), folder)
+    poses = sorted((folder / "pose").iterdir())
+    for path in poses[40:61:3]:
+        document = json.loads(path.read_text())
+        del document["x"], document["speed"]
+        path.write_text(json.dumps(document))
+    return folder
+
+
+@LAYOUTS
+@pytest.mark.parametrize("semantics", ["reference", "corrected"])
+def test_reader_problems_reach_the_monitors_and_the_verdict(
+    tmp_path: Path, semantics: str, shared: bool
+) -> None:
+    """The oracles read the reader's problems: live judging must get them too."""
+    log = read_run_log(write_log_with_unreadable_values(tmp_path / "log"))
+    assert sum(p.action == "read as NaN" for p in log.problems) == 14
+    run = assert_same_as_diagnose(log, semantics, shared=shared)
+    assert run.outcome is not None
+    offline = diagnose(log, make_params(semantics)).to_json()
+    assert run.outcome.document["input_problems"] == offline["input_problems"]
+
+
+def test_problems_survive_a_round_trip_through_json() -> None:
+    problem = Problem("pose/pose-100.json", "x", "missing", "read as NaN", "warning", 100)
+    assert Problem.from_dict(loads_json(dumps_json(problem.to_dict()))) == problem
+    for bad in ([], {"file": 1}, {**problem.to_dict(), "timestamp_ms": "100"}):
+        with pytest.raises(ValueError):
+            Problem.from_dict(bad)
 
 
 @LAYOUTS

@@ -19,7 +19,7 @@ then attributed and the verdict says why it is incomplete.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -70,7 +70,8 @@ class AggregatorCore:
         self.markers_received = 0
         self.results: dict[Module, dict[int, LiveResult]] = {m: {} for m in MODULES}
         self.progress: dict[Module, int] = {m: -1 for m in MODULES}
-        self.problems: list[Problem] = []
+        self.problems: list[Problem] = []  # found while judging (from the results)
+        self.input_problems: list[Problem] = []  # found by the player's reader
         self._seen_problems: set[tuple[str, str, str]] = set()
         self.ego_id: str | None = None
         self.partner_id: str | None = None
@@ -83,8 +84,17 @@ class AggregatorCore:
 
     # --- feeding ---------------------------------------------------------------------
 
-    def set_metadata(self, metadata: RunMetadata, source: str, now: float) -> None:
+    def set_metadata(
+        self,
+        metadata: RunMetadata,
+        source: str,
+        now: float,
+        input_problems: Iterable[Problem] = (),
+    ) -> None:
+        """The run's metadata and the reader's problems (listed first in the verdict, as
+        ``diagnose`` lists them)."""
         self.metadata, self.source = metadata, source
+        self.input_problems = list(input_problems)
         if metadata.collision_frame >= 0 and self.collision_source != "event":
             self.collision_frame, self.collision_source = metadata.collision_frame, "metadata"
         self.last_input = now
@@ -236,7 +246,7 @@ class AggregatorCore:
             metadata=metadata,
             frames=tuple(e.stamp_ms for e in required),
             source=self.source,
-            problems=ProblemLog(self.problems),
+            problems=ProblemLog([*self.input_problems, *self.problems]),
         )
         # The engine's attribution; its context reports nothing we keep (no records here).
         attribution = attribute(frames, RunContext(log, self.params, ego_id=self.ego_id))

@@ -84,9 +84,9 @@ def run_live(
         if run.outcome is None:
             run.outcome = aggregator.poll(now())
 
-    for core in cores:
-        core.set_metadata(metadata, now())
-    aggregator.set_metadata(metadata, log.source, now())
+    for core in cores:  # the player's metadata message carries the reader's problems
+        core.set_metadata(metadata, now(), log.problems)
+    aggregator.set_metadata(metadata, log.source, now(), log.problems)
     announced = False
     for tick in timeline(log):
         folders = set()

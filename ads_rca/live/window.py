@@ -47,6 +47,7 @@ from ads_rca.live.results import FrameMarker, LiveResult, new_problems
 from ads_rca.model import FOLDERS, FloatArray, RunLog, RunMetadata
 from ads_rca.oracles.base import EGO_ID_TIMESTAMP_MS, MODULES, Module, RunContext
 from ads_rca.params import Params
+from ads_rca.problems import Problem, ProblemLog
 from ads_rca.verdict import frame_number
 
 #: The folders each reference oracle reads (corrected oracles read every folder).
@@ -123,6 +124,7 @@ class MonitorCore:
         self.reference = params.semantics == "reference"
         self.needs_ego = not self.reference or any(m in REFERENCE_EGO_MODULES for m in self.modules)
         self.metadata: RunMetadata | None = None
+        self.input_problems: tuple[Problem, ...] = ()
         self.collision_frame = -1
         self.records: dict[str, dict[int, Any]] = {f: {} for f in self.folders}
         self.first_extents: dict[str, FloatArray] = {}
@@ -143,7 +145,12 @@ class MonitorCore:
 
     # --- feeding ---------------------------------------------------------------------
 
-    def set_metadata(self, metadata: RunMetadata, now: float) -> None:
+    def set_metadata(
+        self, metadata: RunMetadata, now: float, input_problems: Iterable[Problem] = ()
+    ) -> None:
+        """The run's metadata, and the problems the player's reader found (oracles read
+        them as ``RunLog.problems``, e.g. reference skips a value read as NaN)."""
+        self.input_problems = tuple(input_problems)
         changed = self.metadata is None or metadata.collision_frame != self.metadata.collision_frame
         if changed and metadata.collision_frame >= 0:
             self.set_collision(metadata.collision_frame, now)
@@ -315,6 +322,7 @@ class MonitorCore:
             self.records,
             source="live",
             first_extents=dict(self.first_extents),
+            problems=ProblemLog(self.input_problems),
         )
 
     def _context(self, log: RunLog) -> RunContext:

@@ -34,7 +34,12 @@ from ads_rca.ros.assembler import metadata_from_document
 from ads_rca.ros.jsontext import loads_json
 from ads_rca.ros.nodemain import run_node
 from ads_rca.ros.nodeparams import declare_engine_parameters, declare_node_parameters
-from ads_rca.ros.playback import FINISHED, METADATA_DOCUMENT_KEY, read_document
+from ads_rca.ros.playback import (
+    FINISHED,
+    METADATA_DOCUMENT_KEY,
+    read_document,
+    read_input_problems,
+)
 
 PARAMETERS: dict[str, tuple[Any, str]] = {
     "topic_namespace": (topics.DEFAULT_NAMESPACE, "Namespace of the contract topics."),
@@ -135,7 +140,12 @@ class Aggregator(Node):
                 except (KeyError, TypeError, ValueError) as error:
                     self.get_logger().error(f"unusable run/metadata: {error!r}")
                     return
-                self.core.set_metadata(metadata, str(document.get("source", "")), now)
+                self.core.set_metadata(
+                    metadata,
+                    str(document.get("source", "")),
+                    now,
+                    read_input_problems(document),
+                )
 
         return on_message
 

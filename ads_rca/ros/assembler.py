@@ -15,12 +15,18 @@ from typing import Any
 from std_msgs.msg import String
 
 from ads_rca.model import RunLog, RunMetadata
+from ads_rca.problems import Problem, ProblemLog
 from ads_rca.ros import topics
 from ads_rca.ros.cdr_decode import decode_record, decode_string, stamp_ms
 from ads_rca.ros.convert import message_stamp_ms, message_to_record
-from ads_rca.ros.playback import FINISHED, METADATA_DOCUMENT_KEY, read_document
+from ads_rca.ros.playback import (
+    FINISHED,
+    METADATA_DOCUMENT_KEY,
+    read_document,
+    read_input_problems,
+)
 
-_ADDED_METADATA_KEYS = ("source", "frames", "problems")
+_ADDED_METADATA_KEYS = ("source", "frames", "problems", "input_problems")
 
 
 def metadata_from_document(document: dict[str, Any]) -> RunMetadata:
@@ -41,6 +47,9 @@ class RunLogAssembler:
 
     def __init__(self) -> None:
         self.metadata_document: dict[str, Any] | None = None
+        #: The problems the player's reader found in the original log (a recording keeps
+        #: them, so diagnosing it judges as the original would).
+        self.input_problems: list[Problem] = []
         self.source = ""
         self.status: dict[str, Any] = {}
         #: index → frame-marker document (first one wins; a looping player repeats indices).
@@ -98,6 +107,7 @@ class RunLogAssembler:
                 k: v for k, v in document.items() if k not in _ADDED_METADATA_KEYS
             }
         self.source = str(document.get("source", ""))
+        self.input_problems = read_input_problems(document)
 
     def _add_marker(self, msg: String) -> None:
         document = read_document(msg)
@@ -143,7 +153,12 @@ class RunLogAssembler:
         frames = tuple(
             int(self.markers[i]["stamp_ms"]) for i in sorted(i for i in self.markers if i >= 0)
         )
-        log = RunLog(metadata=metadata, frames=frames, source=self.source)
+        log = RunLog(
+            metadata=metadata,
+            frames=frames,
+            source=self.source,
+            problems=ProblemLog(self.input_problems),
+        )
         tpf = metadata.timesteps_per_frame
         for topic, by_stamp in self._data.items():
             folder = log.folder(topics.TOPIC_FOLDERS[topic])

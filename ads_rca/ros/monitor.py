@@ -46,7 +46,12 @@ from ads_rca.ros.cdr_decode import decode_record, stamp_ms
 from ads_rca.ros.jsontext import dumps_json
 from ads_rca.ros.nodemain import run_node
 from ads_rca.ros.nodeparams import declare_engine_parameters, declare_node_parameters
-from ads_rca.ros.playback import FINISHED, METADATA_DOCUMENT_KEY, read_document
+from ads_rca.ros.playback import (
+    FINISHED,
+    METADATA_DOCUMENT_KEY,
+    read_document,
+    read_input_problems,
+)
 
 #: Node name → module it judges.
 MONITORS: dict[str, Module] = {
@@ -272,7 +277,7 @@ class MonitorInputs:
             self.node.get_logger().error(f"unusable run/metadata: {error!r}")
             return
         self._metadata = metadata
-        self.unit.core.set_metadata(metadata, now)
+        self.unit.core.set_metadata(metadata, now, read_input_problems(document))
         queued, self._queued = self._queued, []
         for key, data, arrived in queued:
             self._add_data(key, data, arrived)

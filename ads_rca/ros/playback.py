@@ -16,12 +16,15 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
 from ads_rca.model import FOLDERS, RunLog
+from ads_rca.problems import Problem
 from ads_rca.ros import topics
 from ads_rca.ros.convert import carried_plan_rows, to_time
 from ads_rca.ros.jsontext import dumps_json, loads_json
 
 #: Key in the metadata message holding the exact ``metadata.json`` document.
 METADATA_DOCUMENT_KEY = "metadata_json"
+#: Key in the metadata message listing the problems found while reading the log.
+INPUT_PROBLEMS_KEY = "input_problems"
 
 PLAYING = "playing"
 FINISHED = "finished"
@@ -100,8 +103,10 @@ def dropped_plan_keys(log: RunLog, timestamp_ms: int) -> int:
 def metadata_message(log: RunLog, **extra: Any) -> String:
     """``run/metadata``: the metadata.json document's keys, plus what the run adds.
 
-    Added keys: ``source``, ``frames`` (number of analysed frames), ``problems`` (reader
-    problems) and ``metadata_json`` (the exact document, so a key of the document called
+    Added keys: ``source``, ``frames`` (number of analysed frames), ``problems`` (number of
+    reader problems), ``input_problems`` (those problems, as ``diagnose --json`` lists them:
+    some oracles read them, e.g. a value the reader had to read as NaN is skipped, not
+    judged) and ``metadata_json`` (the exact document, so a key of the document called
     ``source`` or ``frames`` is not lost).
     """
     document = log.metadata.to_dict()
@@ -112,8 +117,21 @@ def metadata_message(log: RunLog, **extra: Any) -> String:
         problems=len(log.problems),
         **extra,
     )
+    out[INPUT_PROBLEMS_KEY] = [problem.to_dict() for problem in log.problems]
     out[METADATA_DOCUMENT_KEY] = document
     return String(data=dumps_json(out))
+
+
+def read_input_problems(document: dict[str, Any]) -> list[Problem]:
+    """The reader problems a metadata message lists (entries that are not one are skipped)."""
+    listed = document.get(INPUT_PROBLEMS_KEY)
+    out: list[Problem] = []
+    for entry in listed if isinstance(listed, list) else []:
+        try:
+            out.append(Problem.from_dict(entry))
+        except ValueError:
+            continue
+    return out
 
 
 def status_message(state: str, frames_published: int, **extra: Any) -> String:

@@ -11,7 +11,7 @@ from logfactory import make_log
 
 from ads_rca.model import Boxes, Plan, RunLog
 from ads_rca.ros import convert, playback, topics
-from ads_rca.ros.assembler import RunLogAssembler
+from ads_rca.ros.assembler import RunLogAssembler, run_metadata
 
 
 def play_through_assembler(log: RunLog, *, serialise: bool = False) -> RunLogAssembler:
@@ -199,3 +199,14 @@ def test_topic_names_follow_the_namespace() -> None:
     assert topics.topic_name(topics.FRAME, "/") == "/run/frame"
     assert topics.topic_name(topics.CLOCK, "/x") == "/clock"
     assert topics.QOS[topics.METADATA].describe() == "RELIABLE, TRANSIENT_LOCAL, KEEP_LAST 1"
+
+
+def test_run_metadata_reads_the_exact_document_and_rejects_garbage() -> None:
+    exact = {"timesteps_per_frame": 50, "collision_frame": 12}
+    message = {"timesteps_per_frame": 99, "metadata_json": exact}
+    assert run_metadata(message).collision_frame == 12
+    assert run_metadata(message).timesteps_per_frame == 50
+    assert run_metadata({"timesteps_per_frame": 20}).timesteps_per_frame == 20
+    for bad in ({}, {"timesteps_per_frame": "fast"}, {"metadata_json": {"collision_frame": 3}}):
+        with pytest.raises(ValueError, match="unusable run/metadata"):
+            run_metadata(bad)

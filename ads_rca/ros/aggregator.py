@@ -30,13 +30,12 @@ from ads_rca.live.results import FrameMarker, LiveResult
 from ads_rca.oracles.base import MODULES, Module
 from ads_rca.ros import diagnostics as diag
 from ads_rca.ros import live_topics, topics
-from ads_rca.ros.assembler import metadata_from_document
+from ads_rca.ros.assembler import run_metadata
 from ads_rca.ros.jsontext import loads_json
 from ads_rca.ros.nodemain import run_node
 from ads_rca.ros.nodeparams import declare_engine_parameters, declare_node_parameters
 from ads_rca.ros.playback import (
     FINISHED,
-    METADATA_DOCUMENT_KEY,
     read_document,
     read_input_problems,
 )
@@ -132,13 +131,10 @@ class Aggregator(Node):
                     published = document.get("frames_published")
                     self.core.set_finished(now, published if isinstance(published, int) else None)
             else:
-                exact = document.get(METADATA_DOCUMENT_KEY)
                 try:
-                    metadata = metadata_from_document(
-                        exact if isinstance(exact, dict) else document
-                    )
-                except (KeyError, TypeError, ValueError) as error:
-                    self.get_logger().error(f"unusable run/metadata: {error!r}")
+                    metadata = run_metadata(document)
+                except ValueError as error:
+                    self.get_logger().error(str(error))
                     return
                 self.core.set_metadata(
                     metadata,

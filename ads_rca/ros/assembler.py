@@ -42,6 +42,16 @@ def metadata_from_document(document: dict[str, Any]) -> RunMetadata:
     )
 
 
+def run_metadata(document: dict[str, Any]) -> RunMetadata:
+    """The RunMetadata a ``run/metadata`` message describes: from the exact metadata.json
+    document it carries, else from its top-level keys. ValueError when unusable."""
+    exact = document.get(METADATA_DOCUMENT_KEY)
+    try:
+        return metadata_from_document(exact if isinstance(exact, dict) else document)
+    except (KeyError, TypeError, ValueError) as error:
+        raise ValueError(f"unusable run/metadata: {error!r}") from error
+
+
 class RunLogAssembler:
     """Collects contract messages; builds the RunLog they describe."""
 

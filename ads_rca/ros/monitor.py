@@ -40,7 +40,7 @@ from ads_rca.model import RunMetadata
 from ads_rca.oracles.base import Module
 from ads_rca.ros import diagnostics as diag
 from ads_rca.ros import live_topics, topics
-from ads_rca.ros.assembler import metadata_from_document
+from ads_rca.ros.assembler import run_metadata
 from ads_rca.ros.cdr import encode_string
 from ads_rca.ros.cdr_decode import decode_record, stamp_ms
 from ads_rca.ros.jsontext import dumps_json
@@ -48,7 +48,6 @@ from ads_rca.ros.nodemain import run_node
 from ads_rca.ros.nodeparams import declare_engine_parameters, declare_node_parameters
 from ads_rca.ros.playback import (
     FINISHED,
-    METADATA_DOCUMENT_KEY,
     read_document,
     read_input_problems,
 )
@@ -270,11 +269,10 @@ class MonitorInputs:
 
     def _on_metadata(self, msg: String, now: float) -> None:
         document = read_document(msg)
-        exact = document.get(METADATA_DOCUMENT_KEY)
         try:
-            metadata = metadata_from_document(exact if isinstance(exact, dict) else document)
-        except (KeyError, TypeError, ValueError) as error:
-            self.node.get_logger().error(f"unusable run/metadata: {error!r}")
+            metadata = run_metadata(document)
+        except ValueError as error:
+            self.node.get_logger().error(str(error))
             return
         self._metadata = metadata
         self.unit.core.set_metadata(metadata, now, read_input_problems(document))

@@ -199,6 +199,14 @@ def test_monitor_killed_and_restarted_goes_stale_recovers_and_a_verdict_comes(
         if r["name"] == "ads_rca/controller" and r["level"] != STALE and r["t"] > first_stale
     ]
     assert recovered, "no controller status after the restart"
+    # One /diagnostics status per judged frame (a batch's statuses share one array).
+    statuses = [
+        int(r["values"]["index"])
+        for r in rows
+        if r["name"] == "ads_rca/perception" and "index" in r["values"]
+    ]
+    judged = [r["index"] for r in jsonl(metrics) if r["module"] == "perception"]
+    assert sorted(statuses) == sorted(judged) and judged
     offline = diagnose(read_run_log(log_dir), params).to_json()
     assert document["primary_root_cause"] == offline["primary_root_cause"]
     assert document["live"]["complete"] is False

@@ -114,12 +114,18 @@ class Monitor(Node):
         )
         self.create_timer(float(p["heartbeat_s"]), self._heartbeat)
 
-    def publish(self, result: LiveResult) -> None:
-        # CDR bytes straight from our encoders: rclpy message objects cost more than judging.
-        self.metrics_pub.publish(encode_string(dumps_json(result.to_document())))
-        if self.publish_diagnostics:
-            status = diag.result_status(result, self.params.semantics, self.hardware_id)
-            self.diag_pub.publish(diag.encode_array(self.get_clock().now().nanoseconds, [status]))
+    def publish(self, results: list[LiveResult]) -> None:
+        """Each result on the metrics topic; their statuses in one DiagnosticArray.
+
+        CDR bytes straight from our encoders: rclpy message objects cost more than judging.
+        One array per judged batch (one status per frame in it) rather than per frame.
+        """
+        for result in results:
+            self.metrics_pub.publish(encode_string(dumps_json(result.to_document())))
+        if self.publish_diagnostics and results:
+            semantics = self.params.semantics
+            statuses = [diag.result_status(r, semantics, self.hardware_id) for r in results]
+            self.diag_pub.publish(diag.encode_array(self.get_clock().now().nanoseconds, statuses))
 
     def _heartbeat(self) -> None:
         core = self.core
@@ -190,8 +196,11 @@ class MonitorUnit:
     def poll(self) -> None:
         """Publish the results of every frame that became ready."""
         self.last_poll = now = time.monotonic()
+        by_module: dict[Module, list[LiveResult]] = {}
         for result in self.core.poll(now):
-            self.nodes[result.module].publish(result)
+            by_module.setdefault(result.module, []).append(result)
+        for module, results in by_module.items():
+            self.nodes[module].publish(results)
 
     def on_marker(self, now: float) -> None:
         if now - self.last_poll >= self.poll_period:

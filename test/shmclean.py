@@ -1,9 +1,10 @@
 """Removes the shared-memory files of Fast DDS participants that died without closing them.
 
 Why: a test that SIGKILLs a node (on purpose) leaves its port and segment files in
-/dev/shm. Fast DDS 3.2 reopens such a "zombie" port when a later participant gets the same
-port number, and that path can crash the new process (SIGSEGV in create_participant,
-eProsima/Fast-DDS#6501). Removing zombies between tests means no process ever reopens one.
+/dev/shm. Fast DDS reopens such a "zombie" port when a later participant gets the same port
+number, and that path can crash the new process (SIGSEGV in create_participant,
+eProsima/Fast-DDS#6501, reported on 3.6.1; the wheels carry 3.2.3). Removing zombies
+between tests means no process ever reopens one.
 
 A file is a zombie when its ``_el`` lock file is not locked: a live participant holds an
 exclusive ``flock`` on it for as long as the segment is open (the rule Fast DDS's own

@@ -40,7 +40,7 @@ def summary_text(document: dict[str, Any], max_problems: int = 10, how: str = "j
         for module in document.get("root_causes") or []
         if evidence.get(module)
     )
-    problems = ProblemLog(Problem(**p) for p in document.get("input_problems") or [])
+    problems = ProblemLog(Problem.from_dict(p) for p in document.get("input_problems") or [])
     lines.append(f"input problems: {len(problems)}")
     lines.extend(f"  {line}" for line in problems.summary_lines(max_problems))
     return "\n".join(lines)

@@ -61,14 +61,11 @@ REFERENCE_FOLDERS: dict[Module, tuple[str, ...]] = {
 REFERENCE_EGO_MODULES: tuple[Module, ...] = ("prediction", "planning")
 
 
-def module_folders(semantics: str, module: Module) -> tuple[str, ...]:
-    """The log folders (hence topics) one module's monitor subscribes to."""
-    return REFERENCE_FOLDERS[module] if semantics == "reference" else FOLDERS
-
-
-def modules_folders(semantics: str, modules: Iterable[Module]) -> tuple[str, ...]:
-    """The folders any of ``modules`` reads, in :data:`FOLDERS` order."""
-    wanted = {f for m in modules for f in module_folders(semantics, m)}
+def module_folders(semantics: str, modules: Iterable[Module]) -> tuple[str, ...]:
+    """The log folders (hence topics) any of ``modules`` reads, in :data:`FOLDERS` order."""
+    if semantics != "reference":
+        return FOLDERS
+    wanted = {f for m in modules for f in REFERENCE_FOLDERS[m]}
     return tuple(f for f in FOLDERS if f in wanted)
 
 
@@ -120,7 +117,7 @@ class MonitorCore:
         self.settings = settings or WindowSettings()
         every = oracles_for(params)
         self.oracles = {m: every[m] for m in self.modules}
-        self.folders = modules_folders(params.semantics, self.modules)
+        self.folders = module_folders(params.semantics, self.modules)
         self.reference = params.semantics == "reference"
         self.needs_ego = not self.reference or any(m in REFERENCE_EGO_MODULES for m in self.modules)
         self.metadata: RunMetadata | None = None

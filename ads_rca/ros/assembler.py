@@ -21,12 +21,13 @@ from ads_rca.ros.cdr_decode import decode_record, decode_string, stamp_ms
 from ads_rca.ros.convert import message_stamp_ms, message_to_record
 from ads_rca.ros.playback import (
     FINISHED,
+    INPUT_PROBLEMS_KEY,
     METADATA_DOCUMENT_KEY,
     read_document,
     read_input_problems,
 )
 
-_ADDED_METADATA_KEYS = ("source", "frames", "problems", "input_problems")
+_ADDED_METADATA_KEYS = ("source", "frames", "problems", INPUT_PROBLEMS_KEY)
 
 
 def metadata_from_document(document: dict[str, Any]) -> RunMetadata:

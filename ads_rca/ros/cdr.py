@@ -125,9 +125,17 @@ class CdrWriter:
         self.align(4)
         self.buffer += cdr_string(text)
 
+    def u32(self, value: int) -> None:
+        """A uint32 (also a sequence's length)."""
+        self.pack(_U32, value, alignment=4)
+
+    def stamp(self, sec: int, nanosec: int) -> None:
+        """builtin_interfaces/Time."""
+        self.pack(_STAMP, sec, nanosec, alignment=4)
+
     def header(self, timestamp_ms: int, frame_id: str) -> None:
         """std_msgs/Header: stamp (sec int32, nanosec uint32) and frame_id."""
-        self.pack(_STAMP, *stamp_fields(timestamp_ms), alignment=4)
+        self.stamp(*stamp_fields(timestamp_ms))
         self.string(frame_id)
 
     def getvalue(self) -> bytes:

@@ -21,7 +21,7 @@ from typing import Any
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
 from ads_rca.live.results import LiveResult, plain
-from ads_rca.ros.cdr import CdrWriter, cdr_string
+from ads_rca.ros.cdr import CdrWriter
 from ads_rca.ros.cdr_decode import CdrReader
 from ads_rca.ros.jsontext import dumps_json
 
@@ -30,9 +30,6 @@ OK = 0
 WARN = 1
 ERROR = 2
 STALE = 3
-
-_STAMP = struct.Struct("<iI")
-_U32 = struct.Struct("<I")
 
 
 @dataclass(frozen=True)
@@ -163,19 +160,17 @@ def array(stamp: Any, statuses: list[Status]) -> DiagnosticArray:
 def encode_array(stamp_ns: int, statuses: list[Status]) -> bytes:
     """The same DiagnosticArray as CDR bytes (header frame_id "", as :func:`array`)."""
     w = CdrWriter()
-    w.pack(_STAMP, *divmod(stamp_ns, 1_000_000_000), alignment=4)
+    w.stamp(*divmod(stamp_ns, 1_000_000_000))
     w.string("")
-    w.pack(_U32, len(statuses), alignment=4)
+    w.u32(len(statuses))
     for status in statuses:
         w.buffer.append(status.level)
         for field in (status.name, status.message, status.hardware_id):
             w.string(field)
-        w.pack(_U32, len(status.values), alignment=4)
+        w.u32(len(status.values))
         for key, value in status.values:
-            w.align(4)
-            w.buffer += cdr_string(key)
-            w.align(4)
-            w.buffer += cdr_string(value)
+            w.string(key)
+            w.string(value)
     return w.getvalue()
 
 

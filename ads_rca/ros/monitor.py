@@ -89,7 +89,6 @@ class Monitor(Node):
         self.module = module
         self.params = declare_engine_parameters(self)
         p = declare_node_parameters(self, PARAMETERS)
-        self.node_values = p
         self.hardware_id = str(p["hardware_id"])
         self.stale_timeout = float(p["stale_timeout_s"])
         self.publish_diagnostics = bool(p["publish_diagnostics"])

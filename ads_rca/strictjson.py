@@ -43,6 +43,17 @@ def nonfinite_kind(value: float) -> str:
     return "nan" if math.isnan(value) else "inf" if value > 0 else "-inf"
 
 
+def all_finite(document: Any) -> bool:
+    """True when no float anywhere in the document is NaN or infinite."""
+    if isinstance(document, float):
+        return math.isfinite(document)
+    if isinstance(document, Mapping):
+        return all(all_finite(v) for v in document.values())
+    if isinstance(document, list | tuple):
+        return all(all_finite(v) for v in document)
+    return True
+
+
 def to_strict(document: Any) -> Any:
     """The document as strict-JSON-ready data (see the module doc): non-finite floats as
     None plus the annotation; numpy scalars and arrays as Python values, tuples as lists,

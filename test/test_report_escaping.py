@@ -193,3 +193,21 @@ def test_diagnose_report_from_the_command_line(tmp_path: Path) -> None:
     assert done.returncode == 0, done.stderr
     text = assert_only_report_markup(out.read_text())
     assert any(payload in text for payload in ids.values())
+
+
+@pytest.mark.parametrize("text", [MATHTEXT, r"a\$b", r"\$x$", "$$", "\\", r"$\alpha$", "x" * 500])
+def test_figure_text_is_never_mathtext_and_draws(text: str) -> None:
+    """A log string with ``$`` is shown as written, not parsed as mathtext (which fails)."""
+    from matplotlib import cbook
+    from matplotlib.figure import Figure
+
+    from ads_rca.report.html import PLOT_TEXT_MAX, plot_text
+
+    shown = plot_text(text)
+    assert not cbook.is_math_text(shown)
+    assert len(shown.replace(r"\$", "$")) <= PLOT_TEXT_MAX
+    if len(text) <= PLOT_TEXT_MAX:
+        assert shown.replace(r"\$", "$") == text
+    fig = Figure()
+    fig.add_subplot().annotate(shown, (0, 0))
+    fig.canvas.draw()

@@ -224,7 +224,7 @@ def plot_text(value: Any) -> str:
     text = str(value)
     if len(text) > PLOT_TEXT_MAX:
         text = text[: PLOT_TEXT_MAX - 1] + "\N{HORIZONTAL ELLIPSIS}"
-    return text.replace("\\", "\\\\").replace("$", r"\$")
+    return text.replace("$", r"\$")  # no unescaped "$" left: never mathtext
 
 
 def metrics_figure(result: Diagnosis, skipped: Skipped) -> Figure:

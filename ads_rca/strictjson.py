@@ -57,7 +57,8 @@ def all_finite(document: Any) -> bool:
 def to_strict(document: Any) -> Any:
     """The document as strict-JSON-ready data (see the module doc): non-finite floats as
     None plus the annotation; numpy scalars and arrays as Python values, tuples as lists,
-    keys as strings. Always a new structure."""
+    keys as strings. Always a new structure. Apply it once: its output has a top-level
+    ``"$nonfinite"`` of its own, which a second pass would escape like a log's key."""
     found: list[tuple[list[str], str]] = []
     plain = _walk(document, [], found)
     forced = isinstance(plain, dict) and NONFINITE_KEY in plain

@@ -8,17 +8,18 @@ The contract (stable; later tools parse it)::
 
 plus, additively, ``contributing``, ``attribution_basis``, ``reason`` (why no fault was
 found), ``evidence`` per blamed module, ``partner_id`` and ``ego_id``. NaN and infinity are
-written as null.
+written as null, each named in the top-level ``"$nonfinite"`` map (JSON Pointer → "nan",
+"inf" or "-inf"; :mod:`ads_rca.strictjson`), so the document is strict JSON.
 """
 
 from __future__ import annotations
 
-import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 from ads_rca.oracles.base import MODULES, Metric, Module, OracleResult, RunContext
+from ads_rca.strictjson import to_strict
 
 #: ``attribution_basis`` values.
 BASIS_REFERENCE = "reference counts"
@@ -108,13 +109,5 @@ def attribute_reference(frames: Sequence[FrameResults], ctx: RunContext) -> Attr
 
 
 def json_safe(value: Any) -> Any:
-    """NaN and infinity as None, tuples as lists, recursively (for the JSON contract)."""
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, Mapping):
-        return {str(k): json_safe(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [json_safe(v) for v in value]
-    if hasattr(value, "item") and callable(value.item):  # numpy scalar
-        return json_safe(value.item())
-    return value
+    """Strict-JSON-ready data for the contract: :func:`ads_rca.strictjson.to_strict`."""
+    return to_strict(value)

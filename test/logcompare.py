@@ -6,6 +6,8 @@ to NaN); angles may differ by ``angle_tol`` degrees modulo 360 (they go through 
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 
 from ads_rca.model import FOLDERS, Actors, Boxes, EgoPose, Plan, Predictions, RunLog
@@ -41,7 +43,8 @@ def _actors(a: Actors, b: Actors, tol: float, where: str) -> None:
 def _boxes(a: Boxes, b: Boxes, where: str) -> None:
     assert a.ids == b.ids, f"{where}: ids {a.ids} != {b.ids}"
     _exact(a.corners, b.corners, f"{where} corners")
-    assert [list(e.items()) for e in a.extras] == [list(e.items()) for e in b.extras], where
+    # as JSON text: key order counts, and NaN equals NaN (it is never == itself)
+    assert json.dumps(a.extras) == json.dumps(b.extras), where
 
 
 def _predictions(a: Predictions, b: Predictions, where: str) -> None:
@@ -61,7 +64,10 @@ def assert_logs_equal(
     a: RunLog, b: RunLog, angle_tol: float = 1e-9, *, check_frames: bool = True
 ) -> None:
     """Raise AssertionError naming the first difference between ``a`` and ``b``."""
-    assert a.metadata.to_dict() == b.metadata.to_dict(), "metadata differs"
+    same = json.dumps(a.metadata.to_dict(), sort_keys=True) == json.dumps(
+        b.metadata.to_dict(), sort_keys=True
+    )
+    assert same, "metadata differs"
     if check_frames:
         assert a.frames == b.frames, f"frames {a.frames} != {b.frames}"
     for name in FOLDERS:

@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import json
-import sys
 from typing import Any
 
 from ads_rca.io import open_run
 from ads_rca.model import FOLDERS, RunLog
+from ads_rca.strictjson import dumps
 
 
 def register(subparsers: Any) -> None:
@@ -41,8 +40,7 @@ def summary(log: RunLog) -> dict[str, Any]:
 def run(args: argparse.Namespace) -> int:
     log = open_run(args.path)
     if args.json:
-        json.dump(summary(log), sys.stdout, indent=2)
-        print()
+        print(dumps(summary(log), indent=2))  # strict JSON: NaN/inf as null + "$nonfinite"
         return 0
     info = summary(log)
     print(

@@ -18,6 +18,7 @@ import numpy as np
 import orjson
 
 from ads_rca.model import FILE_PREFIX, FOLDERS, Actors, Boxes, EgoPose, Plan, Predictions, RunLog
+from ads_rca.strictjson import all_finite
 
 
 def write_run_log(log: RunLog, out_dir: str | os.PathLike[str]) -> Path:
@@ -119,8 +120,10 @@ def record_is_finite(record: Any) -> bool:
         arrays = [np.array([getattr(record, f) for f in EgoPose.__dataclass_fields__])]
     elif isinstance(record, Actors):
         arrays = [record.location, record.rotation, record.extent]
-    elif isinstance(record, Boxes):
+    elif isinstance(record, Boxes):  # extras too: orjson would write their NaN as null
         arrays = [record.corners]
+        if not all_finite(record.extras):
+            return False
     elif isinstance(record, Plan):
         arrays = [record.xy, record.speed]
     else:  # Predictions

@@ -1,43 +1,49 @@
-"""Lossless JSON text for the contract's String payloads and Marker ``text`` fields.
+"""JSON text for the contract's String payloads and Marker ``text`` fields: strict, lossless.
 
-orjson is fast and keeps key order, but writes NaN/Infinity as null and rejects integers
-beyond 64 bits; log extras may hold either, so those documents fall back to the json module
-(whose NaN/Infinity literals both decoders below read back).
+Strict: no NaN/Infinity literals (any JSON parser reads every payload); non-finite numbers
+travel as ``null`` with the ``"$nonfinite"`` annotation of :mod:`ads_rca.strictjson`, which
+:func:`loads_json` undoes, so subscribers get back exactly the values that were sent.
+orjson is fast and keeps key order but cannot hold integers beyond 64 bits (writing them
+fails, reading them gives floats); those documents go through the json module. Texts with
+NaN/Infinity literals (bags recorded before the strict convention) are still read.
 """
 
 from __future__ import annotations
 
 import json
-import math
+import re
 from collections.abc import Mapping
 from typing import Any
 
 import orjson
 
+from ads_rca.strictjson import NONFINITE_KEY, all_finite, from_strict, to_strict
+
+#: 19 digits in a row: maybe an integer orjson cannot hold (in a string too: then harmless).
+_LONG_DIGITS = re.compile(r"[0-9]{19}")
+
 
 def dumps_json(document: Any) -> str:
-    """Compact JSON; falls back to the json module for NaN/Infinity and huge ints (lossless)."""
+    """Compact strict JSON; unchanged text for documents with only finite numbers."""
     try:
         text = orjson.dumps(document).decode()
     except TypeError:  # int beyond 64 bits
-        return json.dumps(document, separators=(",", ":"))
-    if "null" in text and not _all_finite(document):
-        return json.dumps(document, separators=(",", ":"))
+        return json.dumps(to_strict(document), separators=(",", ":"), allow_nan=False)
+    if ("null" in text and not all_finite(document)) or _has_annotation_key(document):
+        return orjson.dumps(to_strict(document)).decode()
     return text
 
 
 def loads_json(text: str) -> Any:
+    """The document :func:`dumps_json` was given (huge integers stay integers)."""
+    if _LONG_DIGITS.search(text):  # orjson reads integers beyond 64 bits as floats
+        return from_strict(json.loads(text))
     try:
-        return orjson.loads(text)
+        document = orjson.loads(text)
     except orjson.JSONDecodeError:
-        return json.loads(text)
+        document = json.loads(text)
+    return from_strict(document)
 
 
-def _all_finite(document: Any) -> bool:
-    if isinstance(document, float):
-        return math.isfinite(document)
-    if isinstance(document, Mapping):
-        return all(_all_finite(v) for v in document.values())
-    if isinstance(document, list | tuple):
-        return all(_all_finite(v) for v in document)
-    return True
+def _has_annotation_key(document: Any) -> bool:
+    return isinstance(document, Mapping) and NONFINITE_KEY in document

@@ -23,6 +23,7 @@ from rclpy.node import Node
 from ads_rca.ros import topics
 from ads_rca.ros.assembler import RunLogAssembler
 from ads_rca.ros.nodemain import make_executor
+from ads_rca.strictjson import to_strict
 
 PARAMETERS: dict[str, tuple[Any, str]] = {
     "topic_namespace": (topics.DEFAULT_NAMESPACE, "Namespace of the contract topics."),
@@ -121,7 +122,8 @@ class TopicSummary(Node):
         if summary_file:
             path = Path(summary_file)
             path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_bytes(orjson.dumps(self.counts(), option=orjson.OPT_INDENT_2))
+            counts = to_strict(self.counts())  # strict JSON, NaN/inf named (docs/topics.md)
+            path.write_bytes(orjson.dumps(counts, option=orjson.OPT_INDENT_2))
         if self.get_parameter("output_json").value:
             from ads_rca.io.json_writer import write_run_log
 

@@ -1,0 +1,169 @@
+"""Strict JSON out, the same values back: the one convention for NaN and infinity.
+
+RFC 8259 JSON has no NaN or Infinity. Python's json module writes them as literals that
+strict parsers (orjson, JavaScript's ``JSON.parse``, jq, ...) reject, so every JSON document
+this project emits goes through :func:`to_strict` (docs/topics.md, "Non-finite numbers"):
+
+- each non-finite float becomes ``null``;
+- the top-level object gets one more key, ``"$nonfinite"``: a map from the JSON Pointer
+  (RFC 6901, into the document as written) of each such ``null`` to what it was: ``"nan"``,
+  ``"inf"`` or ``"-inf"``;
+- a document whose top level is not an object (a list, a bare number) is wrapped:
+  ``{"$value": <document>, "$nonfinite": {"/$value/...": ...}}``;
+- so that a log's own keys can never pass for the annotation, whenever a document is
+  annotated every top-level key made of ``$`` signs and ``nonfinite`` or ``value`` gains one
+  more leading ``$`` (``"$nonfinite"`` → ``"$$nonfinite"``), and a document that has a
+  top-level ``"$nonfinite"`` key of its own is always annotated (maybe with an empty map).
+
+:func:`from_strict` undoes all of it exactly. A document with only finite numbers and no
+such key comes out unchanged, so its text is what it was before the convention existed.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from collections.abc import Mapping
+from typing import Any
+
+#: Top-level key of the annotation: JSON Pointer → "nan" | "inf" | "-inf".
+NONFINITE_KEY = "$nonfinite"
+#: Key of the wrapper around a document whose top level is not an object.
+VALUE_KEY = "$value"
+
+_RESERVED = re.compile(r"^\$+(?:nonfinite|value)$")
+_ESCAPED = re.compile(r"^\$\$+(?:nonfinite|value)$")
+_INDEX = re.compile(r"^(?:0|[1-9][0-9]*)$")
+_KIND_VALUE = {"nan": math.nan, "inf": math.inf, "-inf": -math.inf}
+
+
+def nonfinite_kind(value: float) -> str:
+    """``"nan"``, ``"inf"`` or ``"-inf"``."""
+    return "nan" if math.isnan(value) else "inf" if value > 0 else "-inf"
+
+
+def all_finite(document: Any) -> bool:
+    """True when no float anywhere in the document is NaN or infinite."""
+    if isinstance(document, float):
+        return math.isfinite(document)
+    if isinstance(document, Mapping):
+        return all(all_finite(v) for v in document.values())
+    if isinstance(document, list | tuple):
+        return all(all_finite(v) for v in document)
+    return True
+
+
+def to_strict(document: Any) -> Any:
+    """The document as strict-JSON-ready data (see the module doc): non-finite floats as
+    None plus the annotation; numpy scalars and arrays as Python values, tuples as lists,
+    keys as strings. Always a new structure. Apply it once: its output has a top-level
+    ``"$nonfinite"`` of its own, which a second pass would escape like a log's key."""
+    found: list[tuple[list[str], str]] = []
+    plain = _walk(document, [], found)
+    forced = isinstance(plain, dict) and NONFINITE_KEY in plain
+    if not found and not forced:
+        return plain
+    if not isinstance(plain, dict):
+        annotation = {_pointer([VALUE_KEY, *path]): kind for path, kind in found}
+        return {VALUE_KEY: plain, NONFINITE_KEY: annotation}
+    out = {_escape(k): v for k, v in plain.items()}
+    out[NONFINITE_KEY] = {_pointer([_escape(p[0]), *p[1:]]): kind for p, kind in found}
+    return out
+
+
+def from_strict(document: Any) -> Any:
+    """The document :func:`to_strict` was given (for JSON just parsed: modified in place).
+
+    Anything without a top-level ``"$nonfinite"`` object is returned as it is; annotation
+    entries that do not point at a ``null`` are ignored.
+    """
+    if not isinstance(document, dict) or not isinstance(document.get(NONFINITE_KEY), dict):
+        return document
+    annotation = document.pop(NONFINITE_KEY)
+    for pointer, kind in annotation.items():
+        if isinstance(pointer, str) and kind in _KIND_VALUE:
+            _restore(document, pointer, _KIND_VALUE[kind])
+    if VALUE_KEY in document:
+        return document[VALUE_KEY]
+    return {(k[1:] if _ESCAPED.match(k) else k): v for k, v in document.items()}
+
+
+def dumps(document: Any, indent: int | None = None) -> str:
+    """Strict JSON text of a document (compact, or indented like ``json.dumps``)."""
+    separators = (",", ":") if indent is None else None
+    return json.dumps(to_strict(document), indent=indent, separators=separators, allow_nan=False)
+
+
+def loads(text: str | bytes) -> Any:
+    """Parse JSON text and undo the convention (NaN/Infinity literals are also read)."""
+    return from_strict(json.loads(text))
+
+
+def _walk(value: Any, path: list[str], found: list[tuple[list[str], str]]) -> Any:
+    if isinstance(value, float):
+        if math.isfinite(value):
+            return value
+        found.append((list(path), nonfinite_kind(value)))
+        return None
+    if isinstance(value, str | int) or value is None:
+        return value
+    if isinstance(value, Mapping):
+        out: dict[str, Any] = {}
+        for key, item in value.items():
+            name = str(key)
+            path.append(name)
+            out[name] = _walk(item, path, found)
+            path.pop()
+        return out
+    if isinstance(value, list | tuple):
+        items = []
+        for index, item in enumerate(value):
+            path.append(str(index))
+            items.append(_walk(item, path, found))
+            path.pop()
+        return items
+    if hasattr(value, "tolist") and callable(value.tolist):  # numpy scalar or array
+        return _walk(value.tolist(), path, found)
+    return value
+
+
+def _escape(key: str) -> str:
+    return "$" + key if _RESERVED.match(key) else key
+
+
+def _pointer(tokens: list[str]) -> str:
+    return "".join("/" + t.replace("~", "~0").replace("/", "~1") for t in tokens)
+
+
+def _restore(document: dict[str, Any], pointer: str, value: float) -> None:
+    """Put ``value`` where ``pointer`` names a null; do nothing if it names anything else."""
+    if not pointer.startswith("/"):
+        return
+    tokens = [t.replace("~1", "/").replace("~0", "~") for t in pointer[1:].split("/")]
+    container: Any = document
+    for token in tokens[:-1]:
+        container = _child(container, token)
+    last = tokens[-1]
+    if isinstance(container, dict) and last in container and container[last] is None:
+        container[last] = value
+    elif isinstance(container, list):
+        index = _index(container, last)
+        if index is not None and container[index] is None:
+            container[index] = value
+
+
+def _child(container: Any, token: str) -> Any:
+    if isinstance(container, dict):
+        return container.get(token)
+    if isinstance(container, list):
+        index = _index(container, token)
+        return None if index is None else container[index]
+    return None
+
+
+def _index(items: list[Any], token: str) -> int | None:
+    """A list index token as RFC 6901 spells it (no leading zeros), inside the list."""
+    if _INDEX.match(token) and int(token) < len(items):
+        return int(token)
+    return None

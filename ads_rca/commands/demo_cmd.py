@@ -19,7 +19,12 @@ from ads_rca.commands.playback_args import (
     check_playback_arguments,
 )
 from ads_rca.errors import InputError
-from ads_rca.ros.env import pick_domain_id, requested_domain_id, ros_environment
+from ads_rca.ros.env import (
+    discovery_note,
+    pick_domain_id,
+    requested_domain_id,
+    ros_environment,
+)
 from ads_rca.ros.launcher import Launcher, ParamValue, node_command
 
 
@@ -60,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
         "rate": float(args.rate),
         "wait_for_subscribers": 1,
     }
-    print(f"ads-rca demo: ROS_DOMAIN_ID={domain_id}, discovery LOCALHOST", flush=True)
+    print(f"ads-rca demo: ROS_DOMAIN_ID={domain_id}, {discovery_note(env)}", flush=True)
     with Launcher(env, echo=sys.stdout) as launcher:
         summary = launcher.start(
             "topic_summary", node_command("ads_rca.ros.topic_summary", summary_params)

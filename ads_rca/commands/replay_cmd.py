@@ -24,7 +24,12 @@ from ads_rca.commands.playback_args import (
     check_playback_arguments,
 )
 from ads_rca.errors import InputError
-from ads_rca.ros.env import pick_domain_id, requested_domain_id, ros_environment
+from ads_rca.ros.env import (
+    discovery_note,
+    pick_domain_id,
+    requested_domain_id,
+    ros_environment,
+)
 from ads_rca.summary import summary_text
 
 
@@ -77,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
     )
     print(
         f"ads-rca replay: {path} through the node graph (semantics {params.semantics}, "
-        f"rate {args.rate:g}, ROS_DOMAIN_ID={domain_id}, discovery LOCALHOST)",
+        f"rate {args.rate:g}, ROS_DOMAIN_ID={domain_id}, {discovery_note(env)})",
         flush=True,
     )
     echo = sys.stdout if args.verbose else None

@@ -115,6 +115,13 @@ def external_discovery_allowed(environ: Mapping[str, str]) -> bool:
     return environ.get(ALLOW_EXTERNAL_VARIABLE, "") == "1"
 
 
+def discovery_note(env: Mapping[str, str]) -> str:
+    """How a command describes the discovery of the environment it made."""
+    if external_discovery_allowed(env):
+        return "discovery LOCALHOST, external discovery settings kept"
+    return "discovery LOCALHOST"
+
+
 def ros_environment(
     domain_id: int | None = None,
     log_dir: str | os.PathLike[str] | None = None,

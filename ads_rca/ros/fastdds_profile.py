@@ -22,6 +22,7 @@ import os
 import shutil
 import stat
 import tempfile
+from collections.abc import Mapping
 
 #: The variable Fast DDS 3 reads its default profiles file from.
 PROFILES_VARIABLE = "FASTDDS_DEFAULT_PROFILES_FILE"
@@ -91,7 +92,7 @@ def profile_file(loopback_only: bool) -> str:
     return _written[loopback_only]
 
 
-def private_parent(environ: dict[str, str] | os._Environ[str] | None = None) -> str:
+def private_parent(environ: Mapping[str, str] | None = None) -> str:
     """``XDG_RUNTIME_DIR`` when it is a real directory of ours with mode 0700, else the temp
     folder (``mkdtemp`` below it makes the private directory either way)."""
     runtime = (os.environ if environ is None else environ).get("XDG_RUNTIME_DIR", "")

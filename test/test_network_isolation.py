@@ -173,6 +173,20 @@ def test_replay_sends_nothing_to_a_discovery_server_from_the_environment(
     assert json.loads(out.read_text())["verdict"]
 
 
+def test_allow_external_discovery_flag_keeps_the_server(
+    ros_env, fake_discovery_server: socket.socket
+):
+    """Opted in on the command line, the children do use the server (so the test above
+    can see packets when they are sent)."""
+    host, port = fake_discovery_server.getsockname()
+    env = {**ros_env.env, "ROS_DISCOVERY_SERVER": f"{host}:{port}"}
+    argv = [*CLI, "demo", str(EXAMPLE), "--allow-external-discovery", "--timeout", "5"]
+    demo = ManagedProcess("demo", [*argv, "--domain-id", str(ros_env.domain_id)], env)
+    demo.wait(90)
+    assert "external discovery settings kept" in demo.output, demo.output
+    assert _datagrams(fake_discovery_server) > 0
+
+
 def test_node_started_by_hand_warns_and_the_variable_really_applies(
     ros_env, fake_discovery_server: socket.socket
 ):

@@ -13,9 +13,18 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ads_rca.commands.playback_args import add_playback_arguments, check_playback_arguments
+from ads_rca.commands.playback_args import (
+    add_playback_arguments,
+    allow_external,
+    check_playback_arguments,
+)
 from ads_rca.errors import InputError
-from ads_rca.ros.env import pick_domain_id, ros_environment
+from ads_rca.ros.env import (
+    discovery_note,
+    pick_domain_id,
+    requested_domain_id,
+    ros_environment,
+)
 from ads_rca.ros.launcher import Launcher, ParamValue, node_command
 
 
@@ -35,12 +44,15 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"{log_dir}: no such log folder")
     check_playback_arguments(args)
     out = Path(args.out) if args.out else None
-    domain_id = args.domain_id if args.domain_id is not None else pick_domain_id()
+    requested = requested_domain_id(args.domain_id)
+    domain_id = pick_domain_id() if requested is None else requested
     log_root = None
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
         log_root = out / "ros_log"
-    env = ros_environment(domain_id=domain_id, log_dir=log_root)
+    env = ros_environment(
+        domain_id=domain_id, log_dir=log_root, allow_external=allow_external(args)
+    )
     summary_params: dict[str, ParamValue] = {"timeout_s": float(args.timeout)}
     if out is not None:
         summary_params.update(
@@ -53,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
         "rate": float(args.rate),
         "wait_for_subscribers": 1,
     }
-    print(f"ads-rca demo: ROS_DOMAIN_ID={domain_id}, discovery LOCALHOST", flush=True)
+    print(f"ads-rca demo: ROS_DOMAIN_ID={domain_id}, {discovery_note(env)}", flush=True)
     with Launcher(env, echo=sys.stdout) as launcher:
         summary = launcher.start(
             "topic_summary", node_command("ads_rca.ros.topic_summary", summary_params)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ads_rca.errors import InputError
+from ads_rca.ros.env import ALLOW_EXTERNAL_VARIABLE, MAX_DOMAIN_ID, MAX_VALID_DOMAIN_ID
 
 
 def add_playback_arguments(parser: argparse.ArgumentParser) -> None:
@@ -12,9 +13,26 @@ def add_playback_arguments(parser: argparse.ArgumentParser) -> None:
         "--rate", type=float, default=0.0, help="playback rate (0 = as fast as acknowledged)"
     )
     parser.add_argument("--timeout", type=float, default=300.0, help="seconds before giving up")
-    parser.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID (default: from the pid)")
+    parser.add_argument(
+        "--domain-id",
+        metavar="ID",
+        help=f"ROS_DOMAIN_ID, 0..{MAX_VALID_DOMAIN_ID} (default: ROS_DOMAIN_ID from the "
+        f"environment, else one picked in 1..{MAX_DOMAIN_ID})",
+    )
+    parser.add_argument(
+        "--allow-external-discovery",
+        action="store_true",
+        help="keep ROS_DISCOVERY_SERVER, ROS_STATIC_PEERS, Fast DDS profiles files and the "
+        "other variables that can take discovery off this machine (default: cleared; "
+        f"same as {ALLOW_EXTERNAL_VARIABLE}=1)",
+    )
 
 
 def check_playback_arguments(args: argparse.Namespace) -> None:
     if args.rate < 0:
         raise InputError(f"--rate must be >= 0, got {args.rate}")
+
+
+def allow_external(args: argparse.Namespace) -> bool | None:
+    """True with ``--allow-external-discovery``; None leaves it to the environment."""
+    return True if args.allow_external_discovery else None

@@ -18,9 +18,18 @@ from pathlib import Path
 from typing import Any
 
 from ads_rca.commands.diagnose_cmd import add_engine_arguments, params_from_args, write_json
-from ads_rca.commands.playback_args import add_playback_arguments, check_playback_arguments
+from ads_rca.commands.playback_args import (
+    add_playback_arguments,
+    allow_external,
+    check_playback_arguments,
+)
 from ads_rca.errors import InputError
-from ads_rca.ros.env import pick_domain_id, ros_environment
+from ads_rca.ros.env import (
+    discovery_note,
+    pick_domain_id,
+    requested_domain_id,
+    ros_environment,
+)
 from ads_rca.summary import summary_text
 
 
@@ -57,9 +66,12 @@ def run(args: argparse.Namespace) -> int:
         record = None
     if record is not None and record.exists() and any(record.iterdir()):
         raise InputError(f"{record}: exists and is not empty (the recorder needs a new folder)")
-    domain_id = args.domain_id if args.domain_id is not None else pick_domain_id()
+    requested = requested_domain_id(args.domain_id)
+    domain_id = pick_domain_id() if requested is None else requested
     work = Path(tempfile.mkdtemp(prefix="ads_rca_replay_"))
-    env = ros_environment(domain_id=domain_id, log_dir=work / "ros_log")
+    env = ros_environment(
+        domain_id=domain_id, log_dir=work / "ros_log", allow_external=allow_external(args)
+    )
     spec = GraphSpec(
         log_path=path.resolve(),
         params=params,
@@ -70,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
     )
     print(
         f"ads-rca replay: {path} through the node graph (semantics {params.semantics}, "
-        f"rate {args.rate:g}, ROS_DOMAIN_ID={domain_id}, discovery LOCALHOST)",
+        f"rate {args.rate:g}, ROS_DOMAIN_ID={domain_id}, {discovery_note(env)})",
         flush=True,
     )
     echo = sys.stdout if args.verbose else None

@@ -2,11 +2,15 @@
 
 A node that cannot start (bad parameter, unreadable input) logs one line and exits 2;
 SIGINT/SIGTERM end the spin without a traceback; a node's optional ``close()`` runs before
-it is destroyed (so files are finalised).
+it is destroyed (so files are finalised). Before ``rclpy.init`` every node checks its
+environment (:func:`prepare_process`): a bad ``ROS_DOMAIN_ID`` is one error line and exit 2,
+variables that can send discovery off the machine are named in a warning, and Fast DDS is
+pointed at our profile (loopback transport, fast acknowledgements) unless one is chosen.
 """
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
 
 import rclpy
@@ -15,6 +19,7 @@ from rclpy.logging import get_logger
 from rclpy.node import Node
 
 from ads_rca.errors import InputError
+from ads_rca.ros.env import domain_id_problem, node_warnings, use_node_profile
 
 
 def make_executor() -> Executor:
@@ -31,6 +36,20 @@ def make_executor() -> Executor:
     return EventsExecutor()
 
 
+def prepare_process(name: str) -> bool:
+    """Check and set up this node process's environment before ``rclpy.init``; False: the
+    node cannot start (the reason was logged)."""
+    logger = get_logger(name)
+    problem = domain_id_problem()
+    if problem is not None:
+        logger.error(problem)
+        return False
+    for line in node_warnings(os.environ):
+        logger.warning(line)
+    use_node_profile()
+    return True
+
+
 def run_node(
     name: str,
     build: Callable[[], Node | list[Node]],
@@ -39,6 +58,8 @@ def run_node(
 ) -> int:
     """Run the node(s) ``build()`` makes until shutdown; exit status 0, or 2 if they cannot
     start. Several nodes share one executor (one thread: callbacks never overlap)."""
+    if not prepare_process(name):
+        return 2
     rclpy.init(args=args)
     nodes: list[Node] = []
     try:

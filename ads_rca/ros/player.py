@@ -27,8 +27,7 @@ from ads_rca.model import RunLog
 from ads_rca.ros import topics
 from ads_rca.ros.cdr import encode_clock, encode_string, frame_payloads
 from ads_rca.ros.convert import frame_messages
-from ads_rca.ros.env import use_fast_ack_profile
-from ads_rca.ros.nodemain import make_executor
+from ads_rca.ros.nodemain import make_executor, prepare_process
 from ads_rca.ros.playback import (
     FINISHED,
     PLAYING,
@@ -266,7 +265,8 @@ class Player(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    use_fast_ack_profile()
+    if not prepare_process("player"):
+        return 2
     rclpy.init(args=args)
     node: Player | None = None
     try:

@@ -39,6 +39,7 @@ from ads_rca.io.bag_writer import contract_qos_yaml
 from ads_rca.io.mcap_writer import COMPRESSIONS, DEFAULT_CHUNK_SIZE, McapBagWriter, qos_yaml
 from ads_rca.ros import topics
 from ads_rca.ros.assembler import RunLogAssembler
+from ads_rca.ros.nodemain import prepare_process
 
 PARAMETERS: dict[str, tuple[Any, str]] = {
     "output": ("", "Bag directory to create (required; must be new or empty)."),
@@ -252,6 +253,8 @@ def _drain(executor: SingleThreadedExecutor, node: Recorder, stop: _Stop) -> Non
 
 
 def main(args: list[str] | None = None) -> int:
+    if not prepare_process("recorder"):
+        return 2
     # Our own signal handlers: rclpy's would shut the context down at once, losing samples
     # DDS already holds for us; ours let the loop drain them before closing the bag.
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)

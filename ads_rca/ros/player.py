@@ -21,6 +21,7 @@ from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
 from rclpy.logging import get_logger
 from rclpy.node import Node
+from rclpy.subscription import RCLError
 
 from ads_rca.errors import InputError
 from ads_rca.model import RunLog
@@ -28,7 +29,9 @@ from ads_rca.ros import topics
 from ads_rca.ros.cdr import encode_clock, encode_string, frame_payloads
 from ads_rca.ros.convert import frame_messages
 from ads_rca.ros.env import use_fast_ack_profile
+from ads_rca.ros.lifeline import die_with_parent
 from ads_rca.ros.nodemain import make_executor
+from ads_rca.ros.runid import new_run_id
 from ads_rca.ros.playback import (
     FINISHED,
     PLAYING,
@@ -60,6 +63,11 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
         20,
         "At rate 0: frames sent between waits for acknowledgements (1 to 40; the publishers "
         "keep 100 messages, so a batch never overwrites an unacknowledged one).",
+    ),
+    "run_id": (
+        "",
+        "Identity of this run, carried by every JSON message ('' = a new random one); "
+        "monitors, aggregator and recorder of another run ignore this one.",
     ),
     "fast_publish": (
         True,
@@ -97,6 +105,7 @@ class Player(Node):
         self.fast_publish = bool(self._param("fast_publish"))
         self.ack_every = int(self._param("ack_every"))
         namespace = str(self._param("topic_namespace"))
+        self.run_id = str(self._param("run_id")) or new_run_id()
         if self.rate < 0:
             raise ConfigError(f"rate must be >= 0, got {self.rate}")
         if not 1 <= self.ack_every <= MAX_ACK_EVERY:
@@ -132,8 +141,10 @@ class Player(Node):
                     "stop_frame": self.stop_frame,
                     "ticks": len(self.ticks),
                 },
+                run=self.run_id,
             )
         )
+        self.get_logger().info(f"run {self.run_id}")
 
     def _param(self, name: str) -> Any:
         return self.get_parameter(name).value
@@ -164,7 +175,7 @@ class Player(Node):
             return True
         deadline = time.monotonic() + self.wait_timeout
         frame_pub = self.pubs[topics.FRAME]
-        while frame_pub.get_subscription_count() < self.wait_count:
+        while rclpy.ok() and frame_pub.get_subscription_count() < self.wait_count:
             if time.monotonic() > deadline:
                 self.get_logger().warning(
                     f"only {frame_pub.get_subscription_count()} of {self.wait_count} "
@@ -175,13 +186,15 @@ class Player(Node):
         # Endpoints of one participant are discovered together; allow stragglers a moment.
         grace = min(deadline, time.monotonic() + 2.0)
         data = [p for key, p in self.pubs.items() if not topics.QOS[key].latched]
-        while time.monotonic() < grace and any(
+        while rclpy.ok() and time.monotonic() < grace and any(
             p.get_subscription_count() < self.wait_count for p in data
         ):
             time.sleep(0.01)
         return True
 
     def wait_for_acks(self) -> bool:
+        if not rclpy.ok():  # stopped by a signal: nobody to wait for
+            return False
         timeout = Duration(seconds=self.wait_timeout)
         return all([p.wait_for_all_acked(timeout) for p in self.pubs.values()])
 
@@ -201,6 +214,7 @@ class Player(Node):
             loops=self.loops,
             source=self.log.source,
             elapsed_s=round(time.monotonic() - self._wall0, 6),
+            run=self.run_id,
         )
 
     def _on_timer(self) -> None:
@@ -241,7 +255,7 @@ class Player(Node):
         )
         for key, msg in messages.items():
             self.pubs[key].publish(msg)
-        extra = {}
+        extra: dict[str, Any] = {"run": self.run_id}
         if dropped := dropped_plan_keys(self.log, tick.stamp_ms):
             extra["dropped_plan_keys"] = dropped
         names = published_names(messages)
@@ -266,6 +280,7 @@ class Player(Node):
 
 
 def main(args: list[str] | None = None) -> int:
+    die_with_parent()
     use_fast_ack_profile()
     rclpy.init(args=args)
     node: Player | None = None
@@ -278,14 +293,19 @@ def main(args: list[str] | None = None) -> int:
         executor = make_executor()
         executor.add_node(node)
         node.wait_for_subscribers()
-        node.start()
+        if rclpy.ok():
+            node.start()
         while rclpy.ok() and not (node.done and node.exit_on_end):
             executor.spin_once(timeout_sec=0.1)
-        if not node.wait_for_acks():
+        if rclpy.ok() and not node.wait_for_acks():
             node.get_logger().warning("not every message was acknowledged before exit")
         return 0
     except (KeyboardInterrupt, ExternalShutdownException):
         return 0
+    except RCLError:
+        if rclpy.ok():
+            raise
+        return 0  # SIGINT/SIGTERM shut the context down in the middle of a call
     finally:
         if node is not None:
             node.destroy_node()

@@ -21,6 +21,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
 from ads_rca.ros import topics
+from ads_rca.ros.lifeline import die_with_parent
 from ads_rca.ros.assembler import RunLogAssembler
 from ads_rca.ros.nodemain import make_executor
 
@@ -136,6 +137,7 @@ class TopicSummary(Node):
 
 
 def main(args: list[str] | None = None) -> int:
+    die_with_parent()
     rclpy.init(args=args)
     node: TopicSummary | None = None
     code = 0

@@ -34,12 +34,12 @@ from ads_rca.ros.assembler import run_metadata
 from ads_rca.ros.jsontext import loads_json
 from ads_rca.ros.nodemain import run_node
 from ads_rca.ros.nodeparams import declare_engine_parameters, declare_node_parameters
-from ads_rca.ros.runid import RUN_KEY, RunFilter, document_run
 from ads_rca.ros.playback import (
     FINISHED,
     read_document,
     read_input_problems,
 )
+from ads_rca.ros.runid import RUN_KEY, RunFilter, document_run
 
 PARAMETERS: dict[str, tuple[Any, str]] = {
     "topic_namespace": (topics.DEFAULT_NAMESPACE, "Namespace of the contract topics."),

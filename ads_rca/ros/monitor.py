@@ -46,12 +46,12 @@ from ads_rca.ros.cdr_decode import decode_record, stamp_ms
 from ads_rca.ros.jsontext import dumps_json
 from ads_rca.ros.nodemain import run_node
 from ads_rca.ros.nodeparams import declare_engine_parameters, declare_node_parameters
-from ads_rca.ros.runid import RUN_KEY, RunFilter, document_run
 from ads_rca.ros.playback import (
     FINISHED,
     read_document,
     read_input_problems,
 )
+from ads_rca.ros.runid import RUN_KEY, RunFilter, document_run
 
 #: Node name → module it judges.
 MONITORS: dict[str, Module] = {

@@ -31,7 +31,6 @@ from ads_rca.ros.convert import frame_messages
 from ads_rca.ros.env import use_fast_ack_profile
 from ads_rca.ros.lifeline import die_with_parent
 from ads_rca.ros.nodemain import make_executor
-from ads_rca.ros.runid import new_run_id
 from ads_rca.ros.playback import (
     FINISHED,
     PLAYING,
@@ -45,6 +44,7 @@ from ads_rca.ros.playback import (
     status_message,
     timeline,
 )
+from ads_rca.ros.runid import new_run_id
 
 #: Every parameter: (default, description). Doubles accept integers too (dynamic typing).
 PARAMETERS: dict[str, tuple[Any, str]] = {
@@ -186,8 +186,10 @@ class Player(Node):
         # Endpoints of one participant are discovered together; allow stragglers a moment.
         grace = min(deadline, time.monotonic() + 2.0)
         data = [p for key, p in self.pubs.items() if not topics.QOS[key].latched]
-        while rclpy.ok() and time.monotonic() < grace and any(
-            p.get_subscription_count() < self.wait_count for p in data
+        while (
+            rclpy.ok()
+            and time.monotonic() < grace
+            and any(p.get_subscription_count() < self.wait_count for p in data)
         ):
             time.sleep(0.01)
         return True

@@ -38,10 +38,10 @@ from ads_rca.io import rosmsg
 from ads_rca.io.bag_writer import contract_qos_yaml
 from ads_rca.io.mcap_writer import COMPRESSIONS, DEFAULT_CHUNK_SIZE, McapBagWriter, qos_yaml
 from ads_rca.ros import topics
-from ads_rca.ros.lifeline import die_with_parent
 from ads_rca.ros.assembler import RunLogAssembler
 from ads_rca.ros.diagnostics import status_runs
 from ads_rca.ros.jsontext import loads_json
+from ads_rca.ros.lifeline import die_with_parent
 from ads_rca.ros.runid import document_run, writer_prefix
 
 PARAMETERS: dict[str, tuple[Any, str]] = {

@@ -72,7 +72,10 @@ class RunFilter:
         self.rejected = 0
 
     def accept(
-        self, document: Mapping[str, Any], info: Mapping[str, Any] | None = None, player: bool = False
+        self,
+        document: Mapping[str, Any],
+        info: Mapping[str, Any] | None = None,
+        player: bool = False,
     ) -> bool:
         """A JSON message: True if it belongs to our run (locking onto it if none yet)."""
         run = document_run(document)

@@ -21,8 +21,8 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
 from ads_rca.ros import topics
-from ads_rca.ros.lifeline import die_with_parent
 from ads_rca.ros.assembler import RunLogAssembler
+from ads_rca.ros.lifeline import die_with_parent
 from ads_rca.ros.nodemain import make_executor
 
 PARAMETERS: dict[str, tuple[Any, str]] = {

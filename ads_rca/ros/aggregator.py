@@ -39,7 +39,7 @@ from ads_rca.ros.playback import (
     read_document,
     read_input_problems,
 )
-from ads_rca.ros.runid import RUN_KEY, RunFilter, document_run
+from ads_rca.ros.runid import RUN_KEY, RunFilter, document_run, subscribe_ready
 
 PARAMETERS: dict[str, tuple[Any, str]] = {
     "topic_namespace": (topics.DEFAULT_NAMESPACE, "Namespace of the contract topics."),
@@ -99,6 +99,7 @@ class Aggregator(Node):
             self._on_collision,
             live_topics.latched_qos(),
         )
+        subscribe_ready(self, ns, str(p["run_id"]))
         # Raw: only the status names are read (heartbeats), not 4 full statuses a frame.
         self.create_subscription(
             DiagnosticArray,

@@ -51,7 +51,7 @@ from ads_rca.ros.playback import (
     read_document,
     read_input_problems,
 )
-from ads_rca.ros.runid import RUN_KEY, RunFilter, document_run
+from ads_rca.ros.runid import RUN_KEY, RunFilter, document_run, subscribe_ready
 
 #: Node name → module it judges.
 MONITORS: dict[str, Module] = {
@@ -266,6 +266,7 @@ class MonitorInputs:
             self._on_collision,
             live_topics.latched_qos(),
         )
+        subscribe_ready(node, namespace, first.run_id)
 
     def _callback(self, key: str) -> Any:
         core = self.unit.core

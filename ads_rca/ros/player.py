@@ -22,10 +22,11 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.logging import get_logger
 from rclpy.node import Node
 from rclpy.subscription import RCLError
+from std_msgs.msg import String
 
 from ads_rca.errors import InputError
 from ads_rca.model import RunLog
-from ads_rca.ros import topics
+from ads_rca.ros import live_topics, topics
 from ads_rca.ros.cdr import encode_clock, encode_string, frame_payloads
 from ads_rca.ros.convert import frame_messages
 from ads_rca.ros.env import use_fast_ack_profile
@@ -105,7 +106,8 @@ class Player(Node):
         self.fast_publish = bool(self._param("fast_publish"))
         self.ack_every = int(self._param("ack_every"))
         namespace = str(self._param("topic_namespace"))
-        self.run_id = str(self._param("run_id")) or new_run_id()
+        given_run = str(self._param("run_id"))
+        self.run_id = given_run or new_run_id()
         if self.rate < 0:
             raise ConfigError(f"rate must be >= 0, got {self.rate}")
         if not 1 <= self.ack_every <= MAX_ACK_EVERY:
@@ -128,6 +130,15 @@ class Player(Node):
             for key in topics.ALL_TOPICS
             if key != topics.CLOCK or self.publish_clock
         }
+        # Nodes given our run id subscribe here: counted before playing, they are ours
+        # (run/frame also counts the subscribers of any other run on this namespace).
+        self.ready_pub = (
+            self.create_publisher(
+                String, topics.topic_name(live_topics.ready_key(given_run), namespace), 1
+            )
+            if given_run
+            else None
+        )
         self.frames_published = 0
         self.loops = 0
         self.done = False
@@ -175,10 +186,14 @@ class Player(Node):
             return True
         deadline = time.monotonic() + self.wait_timeout
         frame_pub = self.pubs[topics.FRAME]
-        while rclpy.ok() and frame_pub.get_subscription_count() < self.wait_count:
+        ours = self.ready_pub if self.ready_pub is not None else frame_pub
+        while rclpy.ok() and (
+            ours.get_subscription_count() < self.wait_count
+            or frame_pub.get_subscription_count() < self.wait_count
+        ):
             if time.monotonic() > deadline:
                 self.get_logger().warning(
-                    f"only {frame_pub.get_subscription_count()} of {self.wait_count} "
+                    f"only {ours.get_subscription_count()} of {self.wait_count} "
                     f"subscribers after {self.wait_timeout} s; playing anyway"
                 )
                 return False

@@ -37,12 +37,12 @@ from std_msgs.msg import String
 from ads_rca.io import rosmsg
 from ads_rca.io.bag_writer import contract_qos_yaml
 from ads_rca.io.mcap_writer import COMPRESSIONS, DEFAULT_CHUNK_SIZE, McapBagWriter, qos_yaml
-from ads_rca.ros import topics
+from ads_rca.ros import live_topics, topics
 from ads_rca.ros.assembler import RunLogAssembler
 from ads_rca.ros.diagnostics import status_runs
 from ads_rca.ros.jsontext import loads_json
 from ads_rca.ros.lifeline import die_with_parent
-from ads_rca.ros.runid import document_run, writer_prefix
+from ads_rca.ros.runid import document_run, subscribe_ready, writer_prefix
 
 PARAMETERS: dict[str, tuple[Any, str]] = {
     "output": ("", "Bag directory to create (required; must be new or empty)."),
@@ -199,6 +199,7 @@ class Recorder(Node):
         self.progress = RunLogAssembler()  # only counts and the String topics
         run_id = str(self._param("run_id"))
         self.membership = RunMembership(run_id) if run_id else None
+        subscribe_ready(self, self.namespace, run_id)
         self.subs: dict[str, Any] = {}
         self.started = time.monotonic()
         for key, name in self.names.items():
@@ -220,6 +221,8 @@ class Recorder(Node):
     def _wanted(self, name: str) -> bool:
         if name in self.subs or name in _IGNORED:
             return False
+        if f"/{live_topics.READY_PREFIX}" in name:
+            return False  # another run's ready topic: subscribing would count as its node
         if self.explicit:
             return name in self.explicit
         prefix = topics.normalise_namespace(self.namespace) + "/"

@@ -106,3 +106,22 @@ class RunFilter:
         ok = prefix is None or prefix == self.player
         self.rejected += not ok
         return ok
+
+
+def subscribe_ready(node: Any, namespace: str, run_id: str) -> None:
+    """Be counted by the player of run ``run_id`` before it plays (nothing if no run id).
+
+    ``node`` is an rclpy Node; see ``live_topics.ready_key``.
+    """
+    if not run_id:
+        return
+    from std_msgs.msg import String
+
+    from ads_rca.ros import live_topics, topics
+
+    name = topics.topic_name(live_topics.ready_key(run_id), namespace)
+    node.create_subscription(String, name, _ignore, 1)
+
+
+def _ignore(msg: Any) -> None:
+    """Nothing is ever published on the ready topic."""

@@ -144,17 +144,16 @@ class Player(Node):
         self.done = False
         self._position = 0
         self._wall0 = 0.0
-        self.pubs[topics.METADATA].publish(
-            metadata_message(
-                self.log,
-                playback={
-                    "start_frame": self.start_frame,
-                    "stop_frame": self.stop_frame,
-                    "ticks": len(self.ticks),
-                },
-                run=self.run_id,
-            )
+        self.metadata = metadata_message(
+            self.log,
+            playback={
+                "start_frame": self.start_frame,
+                "stop_frame": self.stop_frame,
+                "ticks": len(self.ticks),
+            },
+            run=self.run_id,
         )
+        self.pubs[topics.METADATA].publish(self.metadata)
         self.get_logger().info(f"run {self.run_id}")
 
     def _param(self, name: str) -> Any:
@@ -218,6 +217,10 @@ class Player(Node):
     # --- playing ------------------------------------------------------------------------
 
     def start(self) -> None:
+        if self.ready_pub is not None:
+            # Sent again now that our run's nodes are matched: with another run's player on
+            # the same topic, the late-joiner copy of the first one was seen to go missing.
+            self.pubs[topics.METADATA].publish(self.metadata)
         self._wall0 = time.monotonic()
         self.pubs[topics.STATUS].publish(self._status(PLAYING))
         period = 0.0 if self.rate == 0 else self.log.tpf / 1000.0 / self.rate

@@ -259,7 +259,7 @@ def test_stalled_input_is_reported_and_not_waited_on_forever(ros_env, tmp_path, 
 
 
 def _stream(path: Path) -> dict[str, list[dict[str, Any]]]:
-    volatile = {"compute_s", "wait_s", "session"}
+    volatile = {"compute_s", "wait_s", "session", "run"}  # run: each replay's own id
     out: dict[str, list[dict[str, Any]]] = {m: [] for m in MODULES}
     for row in jsonl(path):
         out[row["module"]].append({k: v for k, v in row.items() if k not in volatile})
@@ -283,6 +283,7 @@ def test_three_replays_give_identical_metric_streams_and_verdicts(ros_env, tmp_p
             assert document is not None, graph.processes["aggregator"].output
             graph.stop()
         document.pop("verdict_latency_s")
+        assert document["live"].pop("run") == spec.run_id
         verdicts.append(document)
         streams.append(_stream(tmp_path / f"metrics{run}.jsonl"))
     assert all(len(streams[0][m]) == len(read_run_log(log_dir).frames) for m in MODULES)

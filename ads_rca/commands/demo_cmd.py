@@ -17,14 +17,10 @@ from ads_rca.commands.playback_args import (
     add_playback_arguments,
     allow_external,
     check_playback_arguments,
+    choose_domain_id,
 )
 from ads_rca.errors import InputError
-from ads_rca.ros.env import (
-    discovery_note,
-    pick_domain_id,
-    requested_domain_id,
-    ros_environment,
-)
+from ads_rca.ros.env import discovery_note, ros_environment
 from ads_rca.ros.launcher import Launcher, ParamValue, node_command
 
 
@@ -44,8 +40,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"{log_dir}: no such log folder")
     check_playback_arguments(args)
     out = Path(args.out) if args.out else None
-    requested = requested_domain_id(args.domain_id)
-    domain_id = pick_domain_id() if requested is None else requested
+    domain_id, domain_how = choose_domain_id(args)
     log_root = None
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
@@ -65,7 +60,10 @@ def run(args: argparse.Namespace) -> int:
         "rate": float(args.rate),
         "wait_for_subscribers": 1,
     }
-    print(f"ads-rca demo: ROS_DOMAIN_ID={domain_id}, {discovery_note(env)}", flush=True)
+    print(
+        f"ads-rca demo: ROS_DOMAIN_ID={domain_id} ({domain_how}), {discovery_note(env)}",
+        flush=True,
+    )
     with Launcher(env, echo=sys.stdout) as launcher:
         summary = launcher.start(
             "topic_summary", node_command("ads_rca.ros.topic_summary", summary_params)

@@ -5,7 +5,15 @@ from __future__ import annotations
 import argparse
 
 from ads_rca.errors import InputError
-from ads_rca.ros.env import ALLOW_EXTERNAL_VARIABLE, MAX_DOMAIN_ID, MAX_VALID_DOMAIN_ID
+from ads_rca.ros.domains import free_domain_id
+from ads_rca.ros.env import (
+    ALLOW_EXTERNAL_VARIABLE,
+    MAX_DOMAIN_ID,
+    MAX_VALID_DOMAIN_ID,
+    parse_domain_id,
+    pick_domain_id,
+    requested_domain_id,
+)
 
 
 def add_playback_arguments(parser: argparse.ArgumentParser) -> None:
@@ -17,7 +25,7 @@ def add_playback_arguments(parser: argparse.ArgumentParser) -> None:
         "--domain-id",
         metavar="ID",
         help=f"ROS_DOMAIN_ID, 0..{MAX_VALID_DOMAIN_ID} (default: ROS_DOMAIN_ID from the "
-        f"environment, else one picked in 1..{MAX_DOMAIN_ID})",
+        f"environment, else one in 1..{MAX_DOMAIN_ID} that no participant on this machine uses)",
     )
     parser.add_argument(
         "--allow-external-discovery",
@@ -36,3 +44,17 @@ def check_playback_arguments(args: argparse.Namespace) -> None:
 def allow_external(args: argparse.Namespace) -> bool | None:
     """True with ``--allow-external-discovery``; None leaves it to the environment."""
     return True if args.allow_external_discovery else None
+
+
+def choose_domain_id(args: argparse.Namespace) -> tuple[int, str]:
+    """The domain to run on and how it was chosen: ``--domain-id``, else a non-empty
+    ``ROS_DOMAIN_ID`` (both checked: InputError on a bad value), else a free one."""
+    if args.domain_id is not None:
+        return parse_domain_id(args.domain_id, "--domain-id"), "--domain-id"
+    requested = requested_domain_id(None)
+    if requested is not None:
+        return requested, "from ROS_DOMAIN_ID"
+    free = free_domain_id()
+    if free is None:
+        return pick_domain_id(), "every domain in use: the run id keeps runs apart"
+    return free, "free"

@@ -11,26 +11,33 @@ at its collision (as recorded crashes do) the verdict equals ``ads-rca diagnose`
 from __future__ import annotations
 
 import argparse
+import os
+import shutil
 import signal
+import subprocess
 import sys
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager, suppress
 from pathlib import Path
-from typing import Any
+from types import FrameType
+from typing import TYPE_CHECKING, Any
 
 from ads_rca.commands.diagnose_cmd import add_engine_arguments, params_from_args, write_json
 from ads_rca.commands.playback_args import (
     add_playback_arguments,
     allow_external,
     check_playback_arguments,
+    choose_domain_id,
 )
 from ads_rca.errors import InputError
-from ads_rca.ros.env import (
-    discovery_note,
-    pick_domain_id,
-    requested_domain_id,
-    ros_environment,
-)
+from ads_rca.params import Params
+from ads_rca.ros.env import discovery_note, ros_environment
+from ads_rca.ros.lifeline import PARENT_VARIABLE
 from ads_rca.summary import summary_text
+
+if TYPE_CHECKING:
+    from ads_rca.ros.graph import Graph, GraphSpec
 
 
 def register(subparsers: Any) -> None:
@@ -53,7 +60,7 @@ def register(subparsers: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ads_rca.ros.graph import Graph, GraphSpec, recorder_available
+    from ads_rca.ros.graph import recorder_available
 
     path = Path(args.path)
     if not path.exists():
@@ -66,32 +73,129 @@ def run(args: argparse.Namespace) -> int:
         record = None
     if record is not None and record.exists() and any(record.iterdir()):
         raise InputError(f"{record}: exists and is not empty (the recorder needs a new folder)")
-    requested = requested_domain_id(args.domain_id)
-    domain_id = pick_domain_id() if requested is None else requested
+    domain_id, domain_how = choose_domain_id(args)
+    with stop_signals() as graphs:
+        try:
+            return _run_graph(args, params, path, record, domain_id, domain_how, graphs)
+        except Interrupted as stop:
+            print(f"ads-rca replay: stopped by {stop}; every node stopped", file=sys.stderr)
+            return 128 + stop.signum
+
+
+def _run_graph(
+    args: argparse.Namespace,
+    params: Params,
+    path: Path,
+    record: Path | None,
+    domain_id: int,
+    domain_how: str,
+    graphs: list[Graph],
+) -> int:
+    """The replay in a work folder that is removed however it ends."""
+    from ads_rca.ros.graph import GraphSpec
+
     work = Path(tempfile.mkdtemp(prefix="ads_rca_replay_"))
-    env = ros_environment(
-        domain_id=domain_id, log_dir=work / "ros_log", allow_external=allow_external(args)
-    )
-    spec = GraphSpec(
-        log_path=path.resolve(),
-        params=params,
-        verdict_json=work / "verdict.json",
-        rate=args.rate,
-        record=record.resolve() if record is not None else None,
-        monitors=args.monitors,
-    )
-    print(
-        f"ads-rca replay: {path} through the node graph (semantics {params.semantics}, "
-        f"rate {args.rate:g}, ROS_DOMAIN_ID={domain_id}, {discovery_note(env)})",
-        flush=True,
-    )
+    reaper = start_reaper(work)
+    try:
+        env = ros_environment(
+            domain_id=domain_id, log_dir=work / "ros_log", allow_external=allow_external(args)
+        )
+        spec = GraphSpec(
+            log_path=path.resolve(),
+            params=params,
+            verdict_json=work / "verdict.json",
+            rate=args.rate,
+            record=record.resolve() if record is not None else None,
+            monitors=args.monitors,
+        )
+        print(
+            f"ads-rca replay: {path} through the node graph (semantics {params.semantics}, "
+            f"rate {args.rate:g}, ROS_DOMAIN_ID={domain_id} ({domain_how}), "
+            f"{discovery_note(env)}, run {spec.run_id})",
+            flush=True,
+        )
+        return _replay(args, spec, env, record, graphs)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+        if reaper is not None and reaper.stdin is not None:
+            reaper.stdin.close()  # the reaper finds nothing left to do and exits
+            with suppress(subprocess.TimeoutExpired):
+                reaper.wait(5.0)
+
+
+def start_reaper(work: Path) -> subprocess.Popen[bytes] | None:
+    """The process that stops our nodes and removes ``work`` if we are SIGKILLed
+    (:mod:`ads_rca.ros.reaper`); None if it cannot start (we still clean up ourselves)."""
+    env = {**os.environ, PARENT_VARIABLE: str(os.getpid())}
+    try:
+        return subprocess.Popen(
+            [sys.executable, "-m", "ads_rca.ros.reaper", str(work)],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            env=env,
+            start_new_session=True,
+        )
+    except OSError:
+        return None
+
+
+class Interrupted(Exception):
+    """A stop signal (SIGINT, SIGTERM, SIGHUP) arrived: stop the graph and exit."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+
+@contextmanager
+def stop_signals() -> Iterator[list[Graph]]:
+    """The first stop signal raises :class:`Interrupted` (so the graph is stopped in
+    order and the work folder removed); any later one SIGKILLs the nodes of the graph
+    put in the yielded list, and cleaning up goes on."""
+    received: list[int] = []
+    graphs: list[Graph] = []
+
+    def handle(signum: int, frame: FrameType | None) -> None:
+        received.append(signum)
+        if len(received) == 1:
+            raise Interrupted(signum)
+        for graph in graphs:
+            graph.launcher.kill_all()
+
+    previous = {sig: signal.signal(sig, handle) for sig in STOP_SIGNALS}
+    try:
+        yield graphs
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+def _replay(
+    args: argparse.Namespace,
+    spec: GraphSpec,
+    env: dict[str, str],
+    record: Path | None,
+    graphs: list[Graph],
+) -> int:
+    from ads_rca.ros.graph import Graph
+
     echo = sys.stdout if args.verbose else None
-    with Graph(spec, env, echo=echo) as graph:
-        graph.start()
-        document = graph.wait_verdict(args.timeout)
-        failed = graph.failed() if document is None else {}
-        codes = graph.stop()
-        outputs = {name: p.output for name, p in graph.processes.items()}
+    graph = Graph(spec, env, echo=echo)
+    graphs.append(graph)
+    try:
+        with graph:
+            graph.start()
+            document = graph.wait_verdict(args.timeout)
+            failed = graph.failed() if document is None else {}
+            codes = graph.stop()
+            outputs = {name: p.output for name, p in graph.processes.items()}
+    except Interrupted:
+        graph.launcher.stop_all()  # again: the signal may have cut the first stop short
+        raise
     if document is None:
         for name, code in failed.items():
             last = next((x for x in reversed(outputs[name].splitlines()) if x.strip()), "")

@@ -67,6 +67,7 @@ class LiveResult:
     compute_s: float = 0.0  # oracle time
     wait_s: float = 0.0  # from the frame's marker arriving to the result
     session: str = ""  # the monitor process's start token
+    run: str = ""  # the run judged (the player's run id; "" = none known)
     extra: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -98,6 +99,7 @@ class LiveResult:
             "compute_s": self.compute_s,
             "wait_s": self.wait_s,
             "session": self.session,
+            **({"run": self.run} if self.run else {}),
             **self.extra,
         }
 
@@ -128,6 +130,7 @@ class LiveResult:
             compute_s=float(d.get("compute_s", 0.0)),
             wait_s=float(d.get("wait_s", 0.0)),
             session=str(d.get("session", "")),
+            run=str(d.get("run") or ""),
         )
 
 

@@ -138,6 +138,7 @@ class MonitorCore:
         self.ego_resolved = not self.needs_ego
         self._reported: set[tuple[str, str, str]] = set()
         self.session = uuid.uuid4().hex[:8]
+        self.run = ""  # the run being judged, stamped on every result (set by the shell)
         self.stats = _Stats()
 
     # --- feeding ---------------------------------------------------------------------
@@ -357,6 +358,7 @@ class MonitorCore:
                         compute_s=spent,
                         wait_s=max(0.0, now - entry.arrived),
                         session=self.session,
+                        run=self.run,
                     )
                 )
         del self.stats.compute_s[:-10000]

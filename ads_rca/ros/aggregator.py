@@ -39,6 +39,7 @@ from ads_rca.ros.playback import (
     read_document,
     read_input_problems,
 )
+from ads_rca.ros.runid import RUN_KEY, RunFilter, document_run, subscribe_ready
 
 PARAMETERS: dict[str, tuple[Any, str]] = {
     "topic_namespace": (topics.DEFAULT_NAMESPACE, "Namespace of the contract topics."),
@@ -51,6 +52,7 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     ),
     "stall_timeout_s": (20.0, "Before the horizon, publish anyway after this long without input."),
     "stale_timeout_s": (2.0, "A monitor silent this long is reported STALE."),
+    "run_id": ("", "Attribute only this run ('' = the first run heard of); see ads_rca.ros.runid."),
 }
 _REPORTER = "aggregator"
 
@@ -65,6 +67,7 @@ class Aggregator(Node):
         self.hardware_id = str(p["hardware_id"])
         self.verdict_json = str(p["verdict_json"])
         self.stale_timeout = float(p["stale_timeout_s"])
+        self.runs = RunFilter(str(p["run_id"]))
         self.core = AggregatorCore(
             self.params, float(p["verdict_timeout_s"]), float(p["stall_timeout_s"])
         )
@@ -96,6 +99,7 @@ class Aggregator(Node):
             self._on_collision,
             live_topics.latched_qos(),
         )
+        subscribe_ready(self, ns, str(p["run_id"]))
         # Raw: only the status names are read (heartbeats), not 4 full statuses a frame.
         self.create_subscription(
             DiagnosticArray,
@@ -124,6 +128,8 @@ class Aggregator(Node):
         def on_message(msg: String) -> None:
             now = time.monotonic()
             document = read_document(msg)
+            if not self.runs.accept(document):
+                return  # another run's player
             if key == topics.FRAME:
                 self.core.add_marker(FrameMarker.from_document(document), now)
             elif key == topics.STATUS:
@@ -148,10 +154,13 @@ class Aggregator(Node):
     def _on_result(self, msg: String) -> None:
         now = time.monotonic()
         try:
-            result = LiveResult.from_document(loads_json(msg.data))
+            document = loads_json(msg.data)
+            result = LiveResult.from_document(document)
         except (KeyError, TypeError, ValueError) as error:
             self.get_logger().error(f"unreadable monitor result: {error!r}")
             return
+        if not self.runs.accept(document):
+            return  # a monitor judging another run
         self.heard[result.module] = now
         self.core.add_result(result, now)
         if self._metrics_log is not None:
@@ -159,15 +168,18 @@ class Aggregator(Node):
         self._poll()
 
     def _on_collision(self, msg: String) -> None:
-        frame = read_document(msg).get("frame")
+        document = read_document(msg)
+        if document_run(document) is not None and not self.runs.accept(document):
+            return  # another run's event (an event naming no run is a stack's: taken)
+        frame = document.get("frame")
         if isinstance(frame, int):
             self.core.set_collision(frame, time.monotonic())
 
     def _on_diagnostics(self, data: bytes) -> None:
         now = time.monotonic()
-        for name in diag.status_names(data):
+        for name, run in diag.status_runs(data):
             module = self._heartbeats.get(name)
-            if module is not None:
+            if module is not None and self.runs.accept_run(run):
                 self.heard[module] = now
 
     # --- outputs ---------------------------------------------------------------------
@@ -190,7 +202,11 @@ class Aggregator(Node):
                         diag.STALE,
                         f"{module} monitor silent for {silent:.1f} s",
                         self.hardware_id,
-                        {"reported_by": _REPORTER, "silent_s": round(silent, 3)},
+                        {
+                            "reported_by": _REPORTER,
+                            "silent_s": round(silent, 3),
+                            RUN_KEY: self.runs.run or "",
+                        },
                     )
                 )
         if statuses:
@@ -203,6 +219,7 @@ class Aggregator(Node):
 
     def _publish(self, outcome: VerdictOutcome) -> None:
         document = outcome.document
+        document["live"][RUN_KEY] = self.runs.run or ""
         text = json.dumps(document, indent=1, allow_nan=False)
         stamp = self.get_clock().now().to_msg()
         self.verdict_pub.publish(

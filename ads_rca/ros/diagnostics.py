@@ -24,6 +24,7 @@ from ads_rca.live.results import LiveResult, plain
 from ads_rca.ros.cdr import CdrWriter
 from ads_rca.ros.cdr_decode import CdrReader
 from ads_rca.ros.jsontext import dumps_json
+from ads_rca.ros.runid import RUN_KEY
 
 #: diagnostic_msgs/DiagnosticStatus levels (a ``byte`` field).
 OK = 0
@@ -113,6 +114,8 @@ def result_status(live: LiveResult, semantics: str, hardware_id: str) -> Status:
         "revision": live.revision,
         "compute_s": live.compute_s,
     }
+    if live.run:
+        head[RUN_KEY] = live.run
     values = flatten(head) + flatten(r.metrics, "metric.") + flatten(r.thresholds, "threshold.")
     return Status(level, status_name(r.module), message, hardware_id, values)
 
@@ -143,7 +146,10 @@ def verdict_status(document: Mapping[str, Any], hardware_id: str) -> Status:
             "verdict_latency_s",
         )
     }
-    head["complete"] = (document.get("live") or {}).get("complete")
+    live = document.get("live") or {}
+    head["complete"] = live.get("complete")
+    if live.get(RUN_KEY):
+        head[RUN_KEY] = live[RUN_KEY]
     modules = {m: dict(v) for m, v in (document.get("modules") or {}).items()}
     values = flatten(head) + flatten(modules, "modules.")
     values += flatten(document.get("evidence") or {}, "evidence.")
@@ -177,18 +183,29 @@ def encode_array(stamp_ns: int, statuses: list[Status]) -> bytes:
 def status_names(data: bytes) -> list[str]:
     """The status names of a DiagnosticArray in CDR bytes (what heartbeat watching needs),
     without building the message; [] for bytes that are not one."""
+    return [name for name, _run in status_runs(data)]
+
+
+def status_runs(data: bytes) -> list[tuple[str, str]]:
+    """(name, value of its ``run`` key or "") per status of a DiagnosticArray in CDR bytes,
+    without building the message; [] for bytes that are not one."""
     try:
         reader = CdrReader(data)
         reader.skip_header()
-        names = []
+        out = []
         for _ in range(reader.u32()):
             reader.position += 1  # level
-            names.append(reader.string())
+            name = reader.string()
             reader.skip_string()  # message
             reader.skip_string()  # hardware_id
+            run = ""
             for _ in range(reader.u32()):
-                reader.skip_string()
-                reader.skip_string()
-        return names
+                key = reader.string()
+                if key == RUN_KEY:
+                    run = reader.string()
+                else:
+                    reader.skip_string()
+            out.append((name, run))
+        return out
     except (ValueError, IndexError, struct.error, UnicodeDecodeError):
         return []

@@ -27,6 +27,7 @@ from ads_rca.params import Params
 from ads_rca.ros.launcher import Launcher, ManagedProcess, ParamValue, ros_args
 from ads_rca.ros.monitor import GROUP, MONITORS
 from ads_rca.ros.nodeparams import engine_values
+from ads_rca.ros.runid import new_run_id
 
 PLAYER = "ads_rca.ros.player"
 AGGREGATOR = "ads_rca.ros.aggregator"
@@ -57,13 +58,20 @@ class GraphSpec:
     aggregator_params: dict[str, ParamValue] = field(default_factory=dict)
     player_params: dict[str, ParamValue] = field(default_factory=dict)
     monitors: str = MONITORS_SHARED
+    #: Every node of the graph is given this run id, so it ignores any other run that
+    #: shares its domain and namespace (see ads_rca.ros.runid).
+    run_id: str = field(default_factory=new_run_id)
 
     def __post_init__(self) -> None:
         if self.monitors not in MONITOR_LAYOUTS:
             raise ValueError(f"monitors must be one of {MONITOR_LAYOUTS}, not {self.monitors!r}")
 
     def common(self) -> dict[str, ParamValue]:
-        return {**engine_values(self.params), "topic_namespace": self.namespace}
+        return {
+            **engine_values(self.params),
+            "topic_namespace": self.namespace,
+            "run_id": self.run_id,
+        }
 
     def monitor_argv(self, node_name: str) -> list[str]:
         params = {**self.common(), **self.monitor_params}
@@ -76,6 +84,7 @@ class GraphSpec:
             rec: dict[str, ParamValue] = {
                 "output": str(self.record),
                 "topic_namespace": self.namespace,
+                "run_id": self.run_id,
             }
             out["recorder"] = [sys.executable, "-m", RECORDER, *ros_args(rec)]
         agg: dict[str, ParamValue] = {
@@ -92,6 +101,7 @@ class GraphSpec:
             "log_path": str(self.log_path),
             "rate": float(self.rate),
             "topic_namespace": self.namespace,
+            "run_id": self.run_id,
             "wait_for_subscribers": len(out),  # every node subscribes to run/frame
             "wait_timeout_s": 30.0,
             **self.player_params,

@@ -4,6 +4,12 @@
 tests need to run a graph of nodes anyway. Each child gets the safe environment of
 :mod:`ads_rca.ros.env`, its output is read line by line (kept, and optionally echoed with a
 ``[name]`` prefix), and stopping escalates SIGINT → SIGTERM → SIGKILL with timeouts.
+
+Children must not outlive us, whatever ends us: each runs in its own session (so a
+terminal's Ctrl-C reaches only us, and we stop them in order; signals go to the child's
+whole process group) and learns our pid through ``ADS_RCA_PARENT_PID``, with which our
+nodes arm a parent-death signal at start (:mod:`ads_rca.ros.lifeline`). Start children
+from a thread that lives as long as they do (the parent-death signal follows the thread).
 Pure Python: no rclpy import.
 """
 
@@ -20,6 +26,7 @@ from types import TracebackType
 from typing import TextIO
 
 from ads_rca.ros.env import ros_environment
+from ads_rca.ros.lifeline import PARENT_VARIABLE
 
 ParamValue = bool | int | float | str
 
@@ -78,10 +85,13 @@ class ManagedProcess:
         self.lines: list[str] = []
         self._echo = echo
         self._lock = threading.Lock()
+        child_env = dict(env) if env is not None else ros_environment()
+        child_env[PARENT_VARIABLE] = str(os.getpid())
         self.process = subprocess.Popen(
             argv,
-            env=dict(env) if env is not None else ros_environment(),
+            env=child_env,
             cwd=cwd,
+            start_new_session=True,
             stdin=subprocess.DEVNULL,
             stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT,
@@ -119,12 +129,21 @@ class ManagedProcess:
         self._reader.join(timeout=2.0)
         return code
 
+    def signal(self, sig: int) -> None:
+        """Send ``sig`` to the child's process group (it and anything it started)."""
+        if self.process.poll() is not None:
+            return
+        try:
+            os.killpg(self.process.pid, sig)
+        except (ProcessLookupError, PermissionError):
+            self.process.send_signal(sig)
+
     def stop(self, timeout: float = 5.0) -> int:
         """SIGINT, then SIGTERM, then SIGKILL, each given ``timeout`` seconds; exit status."""
         for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
             if self.process.poll() is not None:
                 break
-            self.process.send_signal(sig)
+            self.signal(sig)
             if self.wait(timeout) is not None:
                 break
         code = self.process.wait()
@@ -157,6 +176,11 @@ class Launcher:
     def stop_all(self, timeout: float = 5.0) -> dict[str, int]:
         """Stop every process, last started first."""
         return {name: process.stop(timeout) for name, process in reversed(self.processes.items())}
+
+    def kill_all(self) -> None:
+        """SIGKILL every process group now (an impatient second stop request)."""
+        for process in self.processes.values():
+            process.signal(signal.SIGKILL)
 
     def __enter__(self) -> Launcher:
         return self

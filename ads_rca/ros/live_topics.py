@@ -10,7 +10,10 @@ analysis, not log data. Relative names live under ``topic_namespace`` like the c
 - ``verdict`` (diagnostic_msgs/DiagnosticArray, latched): the verdict status;
 - ``verdict/json`` (std_msgs/String, latched): the ``diagnose --json`` document (+ ``live``);
 - ``/diagnostics`` (diagnostic_msgs/DiagnosticArray; RELIABLE, VOLATILE, KEEP_LAST 100): per
-  judged frame, STALE, heartbeats.
+  judged frame, STALE, heartbeats;
+- ``run/ready_<run_id>`` (std_msgs/String, never published): every node given a ``run_id``
+  subscribes to it, so a player given the same ``run_id`` can count its own run's
+  subscribers before playing, not another run's sharing the domain and namespace.
 
 Metrics are TRANSIENT_LOCAL so an aggregator started late (or restarted) still gets every
 result a running monitor published.
@@ -34,6 +37,14 @@ METRICS_DEPTH = 5000
 
 def metrics_key(module: Module | str) -> str:
     return f"metrics/{module}"
+
+
+READY_PREFIX = "run/ready_"
+
+
+def ready_key(run_id: str) -> str:
+    """The topic whose subscribers are the nodes of run ``run_id`` (see the module doc)."""
+    return READY_PREFIX + run_id
 
 
 def latched_qos() -> QoSProfile:

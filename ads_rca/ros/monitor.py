@@ -51,6 +51,7 @@ from ads_rca.ros.playback import (
     read_document,
     read_input_problems,
 )
+from ads_rca.ros.runid import RUN_KEY, RunFilter, document_run, subscribe_ready
 
 #: Node name → module it judges.
 MONITORS: dict[str, Module] = {
@@ -78,6 +79,7 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "max_pending_frames": (1200, "Frames held at most before judging anyway (marked)."),
     "history_frames": (0, "Judged frames kept for a late collision (0 = automatic)."),
     "publish_diagnostics": (True, "Publish one /diagnostics status per judged frame."),
+    "run_id": ("", "Judge only this run ('' = the first run heard of); see ads_rca.ros.runid."),
 }
 
 
@@ -93,6 +95,7 @@ class Monitor(Node):
         self.stale_timeout = float(p["stale_timeout_s"])
         self.publish_diagnostics = bool(p["publish_diagnostics"])
         self.namespace = str(p["topic_namespace"])
+        self.run_id = str(p["run_id"])
         self.poll_period = float(p["poll_period_s"])
         self.settings = WindowSettings(
             max_lookahead_frames=int(p["max_lookahead_frames"]),
@@ -140,6 +143,7 @@ class Monitor(Node):
                 f"judged {core.stats.evaluated}, pending {len(core.pending)}",
                 self.hardware_id,
                 {
+                    RUN_KEY: core.run,
                     "session": core.session,
                     "judged": core.stats.evaluated,
                     "incomplete": core.stats.incomplete,
@@ -156,7 +160,11 @@ class Monitor(Node):
                     diag.STALE,
                     f"no input for {silent:.1f} s",
                     self.hardware_id,
-                    {"silent_s": round(silent, 3), "pending": len(core.pending)},
+                    {
+                        "silent_s": round(silent, 3),
+                        "pending": len(core.pending),
+                        RUN_KEY: core.run,
+                    },
                 )
             )
             if not self._stale_since_report:
@@ -210,7 +218,7 @@ def _check_same_settings(first: Monitor, other: Monitor) -> None:
     """Nodes judged on one window must agree on every engine and window parameter."""
     differ = [
         name
-        for name in ("params", "settings", "namespace", "poll_period")
+        for name in ("params", "settings", "namespace", "poll_period", "run_id")
         if getattr(first, name) != getattr(other, name)
     ]
     if differ:
@@ -226,17 +234,22 @@ class MonitorInputs:
 
     Subscribes (on ``node``) to the topics the unit's modules read and decodes each data
     message once into a model record; markers, metadata, the player's status and a live
-    collision are handed over as they come.
+    collision are handed over as they come. Messages of another run are dropped
+    (:class:`~ads_rca.ros.runid.RunFilter`: the run field of JSON messages, the writer's
+    participant for data), so callbacks take the MessageInfo too.
     """
 
     def __init__(self, node: Node, unit: MonitorUnit) -> None:
         self.node = node
         self.unit = unit
         core = unit.core
-        self._queued: list[tuple[str, bytes, float]] = []
+        self._queued: list[tuple[str, bytes, Any, float]] = []
         self._metadata: RunMetadata | None = None
+        first = next(iter(unit.nodes.values()))
+        self.runs = RunFilter(first.run_id)
+        core.run = first.run_id
         lossless = [k for k, f in topics.TOPIC_FOLDERS.items() if f in core.folders]
-        namespace = next(iter(unit.nodes.values())).namespace
+        namespace = first.namespace
         # Data topics arrive as CDR bytes and are decoded straight into model records
         # (ads_rca.ros.cdr_decode): building rclpy message objects costs ~10 ms a frame.
         for key in (*lossless, topics.FRAME, topics.METADATA, topics.STATUS):
@@ -253,30 +266,43 @@ class MonitorInputs:
             self._on_collision,
             live_topics.latched_qos(),
         )
+        subscribe_ready(node, namespace, first.run_id)
 
     def _callback(self, key: str) -> Any:
         core = self.unit.core
+        player = key in (topics.METADATA, topics.FRAME, topics.STATUS)
 
-        def on_message(msg: Any) -> None:
+        def on_message(msg: Any, info: Any) -> None:
             now = time.monotonic()
-            if key == topics.METADATA:
-                self._on_metadata(msg, now)
-            elif key == topics.FRAME:
-                core.add_marker(FrameMarker.from_document(read_document(msg)), now)
-                self.unit.on_marker(now)
-            elif key == topics.STATUS:
-                status = read_document(msg)
-                if status.get("state") == FINISHED:
-                    core.set_finished(now, _count(status.get("frames_published")))
+            if player:
+                document = read_document(msg)
+                if not self._ours(document, info):
+                    return
+                if key == topics.METADATA:
+                    self._on_metadata(document, now)
+                elif key == topics.FRAME:
+                    core.add_marker(FrameMarker.from_document(document), now)
+                    self.unit.on_marker(now)
+                elif document.get("state") == FINISHED:
+                    core.set_finished(now, _count(document.get("frames_published")))
             elif self._metadata is None:
-                self._queued.append((key, msg, now))
-            else:
+                self._queued.append((key, msg, info, now))
+            elif self.runs.accept_data(info):
                 self._add_data(key, msg, now)
 
         return on_message
 
-    def _on_metadata(self, msg: String, now: float) -> None:
-        document = read_document(msg)
+    def _ours(self, document: dict[str, Any], info: Any) -> bool:
+        """A player message of our run (the first one locks the run and its participant)."""
+        known = self.runs.run
+        if not self.runs.accept(document, info, player=True):
+            return False
+        if known is None and self.runs.run is not None:
+            self.unit.core.run = self.runs.run
+            self.node.get_logger().info(f"judging run {self.runs.run}")
+        return True
+
+    def _on_metadata(self, document: dict[str, Any], now: float) -> None:
         try:
             metadata = run_metadata(document)
         except ValueError as error:
@@ -285,8 +311,9 @@ class MonitorInputs:
         self._metadata = metadata
         self.unit.core.set_metadata(metadata, now, read_input_problems(document))
         queued, self._queued = self._queued, []
-        for key, data, arrived in queued:
-            self._add_data(key, data, arrived)
+        for key, data, info, arrived in queued:
+            if self.runs.accept_data(info):
+                self._add_data(key, data, arrived)
 
     def _add_data(self, key: str, data: bytes, now: float) -> None:
         assert self._metadata is not None
@@ -298,7 +325,10 @@ class MonitorInputs:
         self.unit.core.add_record(topics.TOPIC_FOLDERS[key], stamp, record, now)
 
     def _on_collision(self, msg: String) -> None:
-        frame = read_document(msg).get("frame")
+        document = read_document(msg)
+        if document_run(document) is not None and not self.runs.accept(document):
+            return  # another run's event (an event naming no run is a stack's: taken)
+        frame = document.get("frame")
         if isinstance(frame, int) and self.unit.core.set_collision(frame, time.monotonic()):
             self.unit.logger.info(f"collision at frame {frame}: judging held frames again")
 
@@ -315,7 +345,7 @@ def _count(value: object) -> int | None:
 
 
 def run(node_name: str, args: list[str] | None = None) -> int:
-    return run_node(node_name, lambda: build_monitors([node_name]), args)
+    return run_node(node_name, lambda: build_monitors([node_name]), args, message_info=True)
 
 
 def perception_main(args: list[str] | None = None) -> int:
@@ -336,7 +366,7 @@ def control_main(args: list[str] | None = None) -> int:
 
 def group_main(args: list[str] | None = None) -> int:
     """``monitors``: all four monitor nodes in one process (inputs decoded once)."""
-    return run_node(GROUP, lambda: build_monitors(list(MONITORS)), args)
+    return run_node(GROUP, lambda: build_monitors(list(MONITORS)), args, message_info=True)
 
 
 if __name__ == "__main__":

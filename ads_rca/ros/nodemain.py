@@ -20,15 +20,20 @@ from rclpy.node import Node
 
 from ads_rca.errors import InputError
 from ads_rca.ros.env import domain_id_problem, node_warnings, use_node_profile
+from ads_rca.ros.lifeline import die_with_parent
 
 
-def make_executor() -> Executor:
+def make_executor(message_info: bool = False) -> Executor:
     """rclpy's C++ events executor where available, else the single-threaded one.
 
     Why: the Python executor rebuilds its wait set for every callback it runs; at rate 0
     that bookkeeping cost the aggregator more CPU than its own work. The events executor
-    dispatches from a C++ event queue (same single-threaded callback semantics).
+    dispatches from a C++ event queue (same single-threaded callback semantics), but (rclpy
+    9.1) it cannot call a callback that takes the MessageInfo (``SystemError: null argument
+    to internal routine``): nodes with such callbacks ask for ``message_info``.
     """
+    if message_info:
+        return SingleThreadedExecutor()
     try:
         from rclpy.experimental.events_executor import EventsExecutor
     except ImportError:
@@ -39,6 +44,7 @@ def make_executor() -> Executor:
 def prepare_process(name: str) -> bool:
     """Check and set up this node process's environment before ``rclpy.init``; False: the
     node cannot start (the reason was logged)."""
+    die_with_parent()
     logger = get_logger(name)
     problem = domain_id_problem()
     if problem is not None:
@@ -55,9 +61,11 @@ def run_node(
     build: Callable[[], Node | list[Node]],
     args: list[str] | None = None,
     startup_errors: tuple[type[Exception], ...] = (InputError,),
+    message_info: bool = False,
 ) -> int:
     """Run the node(s) ``build()`` makes until shutdown; exit status 0, or 2 if they cannot
-    start. Several nodes share one executor (one thread: callbacks never overlap)."""
+    start. Several nodes share one executor (one thread: callbacks never overlap);
+    ``message_info``: some callbacks take the MessageInfo (see :func:`make_executor`)."""
     if not prepare_process(name):
         return 2
     rclpy.init(args=args)
@@ -69,7 +77,7 @@ def run_node(
         except startup_errors as error:
             get_logger(name).error(str(error))
             return 2
-        executor = make_executor()
+        executor = make_executor(message_info)
         for node in nodes:
             executor.add_node(node)
         while rclpy.ok():

@@ -21,10 +21,12 @@ from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
 from rclpy.logging import get_logger
 from rclpy.node import Node
+from rclpy.subscription import RCLError
+from std_msgs.msg import String
 
 from ads_rca.errors import InputError
 from ads_rca.model import RunLog
-from ads_rca.ros import topics
+from ads_rca.ros import live_topics, topics
 from ads_rca.ros.cdr import encode_clock, encode_string, frame_payloads
 from ads_rca.ros.convert import frame_messages
 from ads_rca.ros.nodemain import make_executor, prepare_process
@@ -41,6 +43,7 @@ from ads_rca.ros.playback import (
     status_message,
     timeline,
 )
+from ads_rca.ros.runid import new_run_id
 
 #: Every parameter: (default, description). Doubles accept integers too (dynamic typing).
 PARAMETERS: dict[str, tuple[Any, str]] = {
@@ -59,6 +62,11 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
         20,
         "At rate 0: frames sent between waits for acknowledgements (1 to 40; the publishers "
         "keep 100 messages, so a batch never overwrites an unacknowledged one).",
+    ),
+    "run_id": (
+        "",
+        "Identity of this run, carried by every JSON message ('' = a new random one); "
+        "monitors, aggregator and recorder of another run ignore this one.",
     ),
     "fast_publish": (
         True,
@@ -96,6 +104,8 @@ class Player(Node):
         self.fast_publish = bool(self._param("fast_publish"))
         self.ack_every = int(self._param("ack_every"))
         namespace = str(self._param("topic_namespace"))
+        given_run = str(self._param("run_id"))
+        self.run_id = given_run or new_run_id()
         if self.rate < 0:
             raise ConfigError(f"rate must be >= 0, got {self.rate}")
         if not 1 <= self.ack_every <= MAX_ACK_EVERY:
@@ -118,21 +128,31 @@ class Player(Node):
             for key in topics.ALL_TOPICS
             if key != topics.CLOCK or self.publish_clock
         }
+        # Nodes given our run id subscribe here: counted before playing, they are ours
+        # (run/frame also counts the subscribers of any other run on this namespace).
+        self.ready_pub = (
+            self.create_publisher(
+                String, topics.topic_name(live_topics.ready_key(given_run), namespace), 1
+            )
+            if given_run
+            else None
+        )
         self.frames_published = 0
         self.loops = 0
         self.done = False
         self._position = 0
         self._wall0 = 0.0
-        self.pubs[topics.METADATA].publish(
-            metadata_message(
-                self.log,
-                playback={
-                    "start_frame": self.start_frame,
-                    "stop_frame": self.stop_frame,
-                    "ticks": len(self.ticks),
-                },
-            )
+        self.metadata = metadata_message(
+            self.log,
+            playback={
+                "start_frame": self.start_frame,
+                "stop_frame": self.stop_frame,
+                "ticks": len(self.ticks),
+            },
+            run=self.run_id,
         )
+        self.pubs[topics.METADATA].publish(self.metadata)
+        self.get_logger().info(f"run {self.run_id}")
 
     def _param(self, name: str) -> Any:
         return self.get_parameter(name).value
@@ -163,10 +183,14 @@ class Player(Node):
             return True
         deadline = time.monotonic() + self.wait_timeout
         frame_pub = self.pubs[topics.FRAME]
-        while frame_pub.get_subscription_count() < self.wait_count:
+        ours = self.ready_pub if self.ready_pub is not None else frame_pub
+        while rclpy.ok() and (
+            ours.get_subscription_count() < self.wait_count
+            or frame_pub.get_subscription_count() < self.wait_count
+        ):
             if time.monotonic() > deadline:
                 self.get_logger().warning(
-                    f"only {frame_pub.get_subscription_count()} of {self.wait_count} "
+                    f"only {ours.get_subscription_count()} of {self.wait_count} "
                     f"subscribers after {self.wait_timeout} s; playing anyway"
                 )
                 return False
@@ -174,19 +198,27 @@ class Player(Node):
         # Endpoints of one participant are discovered together; allow stragglers a moment.
         grace = min(deadline, time.monotonic() + 2.0)
         data = [p for key, p in self.pubs.items() if not topics.QOS[key].latched]
-        while time.monotonic() < grace and any(
-            p.get_subscription_count() < self.wait_count for p in data
+        while (
+            rclpy.ok()
+            and time.monotonic() < grace
+            and any(p.get_subscription_count() < self.wait_count for p in data)
         ):
             time.sleep(0.01)
         return True
 
     def wait_for_acks(self) -> bool:
+        if not rclpy.ok():  # stopped by a signal: nobody to wait for
+            return False
         timeout = Duration(seconds=self.wait_timeout)
         return all([p.wait_for_all_acked(timeout) for p in self.pubs.values()])
 
     # --- playing ------------------------------------------------------------------------
 
     def start(self) -> None:
+        if self.ready_pub is not None:
+            # Sent again now that our run's nodes are matched: with another run's player on
+            # the same topic, the late-joiner copy of the first one was seen to go missing.
+            self.pubs[topics.METADATA].publish(self.metadata)
         self._wall0 = time.monotonic()
         self.pubs[topics.STATUS].publish(self._status(PLAYING))
         period = 0.0 if self.rate == 0 else self.log.tpf / 1000.0 / self.rate
@@ -200,6 +232,7 @@ class Player(Node):
             loops=self.loops,
             source=self.log.source,
             elapsed_s=round(time.monotonic() - self._wall0, 6),
+            run=self.run_id,
         )
 
     def _on_timer(self) -> None:
@@ -240,7 +273,7 @@ class Player(Node):
         )
         for key, msg in messages.items():
             self.pubs[key].publish(msg)
-        extra = {}
+        extra: dict[str, Any] = {"run": self.run_id}
         if dropped := dropped_plan_keys(self.log, tick.stamp_ms):
             extra["dropped_plan_keys"] = dropped
         names = published_names(messages)
@@ -278,14 +311,19 @@ def main(args: list[str] | None = None) -> int:
         executor = make_executor()
         executor.add_node(node)
         node.wait_for_subscribers()
-        node.start()
+        if rclpy.ok():
+            node.start()
         while rclpy.ok() and not (node.done and node.exit_on_end):
             executor.spin_once(timeout_sec=0.1)
-        if not node.wait_for_acks():
+        if rclpy.ok() and not node.wait_for_acks():
             node.get_logger().warning("not every message was acknowledged before exit")
         return 0
     except (KeyboardInterrupt, ExternalShutdownException):
         return 0
+    except RCLError:
+        if rclpy.ok():
+            raise
+        return 0  # SIGINT/SIGTERM shut the context down in the middle of a call
     finally:
         if node is not None:
             node.destroy_node()

@@ -37,9 +37,12 @@ from std_msgs.msg import String
 from ads_rca.io import rosmsg
 from ads_rca.io.bag_writer import contract_qos_yaml
 from ads_rca.io.mcap_writer import COMPRESSIONS, DEFAULT_CHUNK_SIZE, McapBagWriter, qos_yaml
-from ads_rca.ros import topics
+from ads_rca.ros import live_topics, topics
 from ads_rca.ros.assembler import RunLogAssembler
+from ads_rca.ros.diagnostics import status_runs
+from ads_rca.ros.jsontext import loads_json
 from ads_rca.ros.nodemain import prepare_process
+from ads_rca.ros.runid import document_run, subscribe_ready, writer_prefix
 
 PARAMETERS: dict[str, tuple[Any, str]] = {
     "output": ("", "Bag directory to create (required; must be new or empty)."),
@@ -51,10 +54,80 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "flush_period_s": (1.0, "Also end the current chunk this often (0 = only when full)."),
     "stop_on_finished": (False, "Stop once the player finished and all it announced is in."),
     "max_duration_s": (0.0, "Stop after this many seconds (0 = never)."),
+    "run_id": ("", "Record only this run ('' = everything); see ads_rca.ros.runid."),
 }
 _DOUBLES = {"flush_period_s", "max_duration_s"}
 _IGNORED = {"/rosout", "/parameter_events"}
 _STRING_TOPICS = {topics.METADATA, topics.FRAME, topics.STATUS}
+_STRING_TYPE = "std_msgs/msg/String"
+_DIAGNOSTICS_TYPE = "diagnostic_msgs/msg/DiagnosticArray"
+#: Messages held at most while their sender's run is not known yet (then: not recorded).
+MAX_HELD = 100_000
+
+
+class RunMembership:
+    """Which senders belong to the run being recorded (``run_id``), learnt per participant.
+
+    A participant is ours once one of its messages names our run (the ``run`` field of a
+    JSON String, ``live.run`` of a verdict, the ``run`` key of a diagnostic status) and
+    foreign once one names another. Until then its messages are held, in order, and
+    written when it turns out ours (so the bag keeps every message of the run, log times
+    unchanged); held messages of a participant never identified are not recorded. Where
+    the rmw gives no participant prefix, each message is judged on its own.
+    """
+
+    def __init__(self, run_id: str) -> None:
+        self.run = run_id
+        self.ours: set[bytes] = set()
+        self.foreign: set[bytes] = set()
+        self.held: dict[bytes, list[tuple[Any, ...]]] = {}
+        self.held_count = 0
+        self.skipped = 0
+
+    def sort(self, msg_type: str, data: bytes, info: Any, item: tuple[Any, ...]) -> list[Any]:
+        """The messages to write now (``item`` and any held ones it releases)."""
+        prefix = writer_prefix(info)
+        if prefix is not None and prefix in self.ours:
+            return [item]
+        if prefix is not None and prefix in self.foreign:
+            self.skipped += 1
+            return []
+        run = _named_run(msg_type, data)
+        if run is None:
+            if prefix is None:
+                return [item]
+            if self.held_count >= MAX_HELD:
+                self.skipped += 1
+                return []
+            self.held.setdefault(prefix, []).append(item)
+            self.held_count += 1
+            return []
+        released = self.held.pop(prefix, []) if prefix is not None else []
+        self.held_count -= len(released)
+        if run != self.run:
+            if prefix is not None:
+                self.foreign.add(prefix)
+            self.skipped += 1 + len(released)
+            return []
+        if prefix is not None:
+            self.ours.add(prefix)
+        return [*released, item]
+
+
+def _named_run(msg_type: str, data: bytes) -> str | None:
+    """The run a String (JSON) or DiagnosticArray message names, if any."""
+    if msg_type == _DIAGNOSTICS_TYPE:
+        return next((run for _name, run in status_runs(data) if run), None)
+    if msg_type != _STRING_TYPE:
+        return None
+    try:
+        document = loads_json(deserialize_message(data, String).data)
+    except (ValueError, TypeError):
+        return None
+    if not isinstance(document, dict):
+        return None
+    live = document.get("live")
+    return document_run(document) or (document_run(live) if isinstance(live, dict) else None)
 
 
 class ConfigError(Exception):
@@ -124,6 +197,9 @@ class Recorder(Node):
         )
         self.writer.set_custom_data("recorded_by", "ads_rca recorder")
         self.progress = RunLogAssembler()  # only counts and the String topics
+        run_id = str(self._param("run_id"))
+        self.membership = RunMembership(run_id) if run_id else None
+        subscribe_ready(self, self.namespace, run_id)
         self.subs: dict[str, Any] = {}
         self.started = time.monotonic()
         for key, name in self.names.items():
@@ -145,6 +221,8 @@ class Recorder(Node):
     def _wanted(self, name: str) -> bool:
         if name in self.subs or name in _IGNORED:
             return False
+        if f"/{live_topics.READY_PREFIX}" in name:
+            return False  # another run's ready topic: subscribing would count as its node
         if self.explicit:
             return name in self.explicit
         prefix = topics.normalise_namespace(self.namespace) + "/"
@@ -194,22 +272,29 @@ class Recorder(Node):
             self.writer.add_topic(name, msg_type, offered, topic_type_hash="", definition="")
 
     def _callback(self, name: str, msg_type: str) -> Any:
-        key = self.keys.get(name)
-
         def on_message(data: bytes, info: Any) -> None:
-            if not self.writer.has_topic(name):
-                self._register(name, msg_type)
             received = int(info["received_timestamp"]) or time.time_ns()
             source = int(info["source_timestamp"]) or received
-            self.writer.write(name, received, data, publish_time_ns=source)
-            if key is None:
+            item = (name, msg_type, data, received, source)
+            if self.membership is None:
+                self._record(*item)
                 return
-            if key in _STRING_TOPICS:
-                self.progress.add(key, deserialize_message(data, String))
-            else:
-                self.progress.received[key] += 1
+            for held in self.membership.sort(msg_type, data, info, item):
+                self._record(*held)
 
         return on_message
+
+    def _record(self, name: str, msg_type: str, data: bytes, received: int, source: int) -> None:
+        if not self.writer.has_topic(name):
+            self._register(name, msg_type)
+        self.writer.write(name, received, data, publish_time_ns=source)
+        key = self.keys.get(name)
+        if key is None:
+            return
+        if key in _STRING_TOPICS:
+            self.progress.add(key, deserialize_message(data, String))
+        else:
+            self.progress.received[key] += 1
 
     # --- stopping -----------------------------------------------------------------------
 
@@ -221,7 +306,14 @@ class Recorder(Node):
     def summary(self) -> str:
         counts = self.writer.counts()
         rows = ", ".join(f"{name}: {n}" for name, n in sorted(counts.items()))
-        return f"{self.writer.message_count} messages in {self.writer.path} ({rows})"
+        text = f"{self.writer.message_count} messages in {self.writer.path} ({rows})"
+        runs = self.membership
+        if runs is not None and (runs.skipped or runs.held_count):
+            text += (
+                f"; not recorded: {runs.skipped} messages of other runs, {runs.held_count} "
+                "from senders that never named a run"
+            )
+        return text
 
 
 class _Stop:

@@ -329,7 +329,12 @@ def read_bag(
     if assembler.metadata_document is None and remap is not None and remap.metadata:
         assembler.metadata_document = dict(remap.metadata)
     if assembler.metadata_document is None:
-        cut = [f"{p.file}: {p.issue}" for p in problems if p.action == KEPT_BEFORE_CUT]
+        metadata_topics = {name for name, key in keys.items() if key == topics.METADATA}
+        cut = [
+            f"{p.file}: {p.issue}"
+            for p in problems
+            if p.action == KEPT_BEFORE_CUT or p.field in metadata_topics
+        ]
         raise InputError(
             f"{path}: the bag has no run/metadata message (map one, or give 'metadata' in "
             "the remapping file)" + (f"; {cut[0]}" if cut else "")

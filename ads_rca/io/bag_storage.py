@@ -27,6 +27,7 @@ import io
 import os
 import sqlite3
 import struct
+import tempfile
 import zlib
 from collections import Counter
 from dataclasses import dataclass, field
@@ -92,6 +93,15 @@ class _Corrupt(ValueError):
     """A record that cannot be what its header says."""
 
 
+@dataclass(frozen=True)
+class _Stop:
+    """Where and why an MCAP walk ended before the end magic."""
+
+    section: str
+    reason: str
+    damaged_at: int | None = None  # None: the file is cut; else the damaged record's byte
+
+
 class _McapWalk:
     """One pass over an MCAP file; fills a :class:`StorageRead`."""
 
@@ -109,35 +119,34 @@ class _McapWalk:
 
     # records ----------------------------------------------------------------------------
 
-    def walk(self) -> tuple[str, str] | None:
-        """Read records up to the end magic. None for a complete file, else where the file
-        stops (section, reason)."""
+    def walk(self) -> _Stop | None:
+        """Read records up to the end magic. None for a complete file, else why it stops."""
         section = "data section"
         while True:
             head = self.stream.read(_RECORD_HEAD)
             if len(head) < _RECORD_HEAD:
                 missing = "summary and footer" if section == "data section" else "footer"
-                return section, f"it ends without {missing}"
+                return _Stop(section, f"it ends without {missing}")
             opcode, length = struct.unpack("<BQ", head)
             start = self.pos
             remaining = self.size - start - _RECORD_HEAD
             if opcode == 0:
-                return section, f"invalid record (opcode 0) at byte {start}"
+                return _Stop(section, "invalid record (opcode 0)", damaged_at=start)
             if length > remaining:
                 if opcode == _CHUNK:
                     self._partial_chunk(self.stream.read(remaining))
-                return section, f"the record at byte {start} is cut"
+                return _Stop(section, f"the record at byte {start} is cut")
             body = self.stream.read(length)
             self.pos += _RECORD_HEAD + length
             try:
                 self._record(opcode, body, start)
             except (_Corrupt, struct.error, UnicodeDecodeError, ValueError) as error:
-                return section, f"damaged record at byte {start}: {error}"
+                return _Stop(section, f"damaged record: {error}", damaged_at=start)
             if opcode == _DATA_END:
                 section = "summary"
             elif opcode == _FOOTER:
                 if self.stream.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
-                    return "footer", "the end magic is missing"
+                    return _Stop("footer", "the end magic is missing")
                 return None
 
     def _record(self, opcode: int, body: bytes, offset: int) -> None:
@@ -223,7 +232,7 @@ class _McapWalk:
             self._record(opcode, data[pos : pos + length], -1)
             pos += length
 
-    def finish(self, stop: tuple[str, str] | None, expected: int | None) -> StorageRead:
+    def finish(self, stop: _Stop | None, expected: int | None) -> StorageRead:
         out = self.out
         for channel_id in sorted(self.unknown_channels):
             out.problem(
@@ -236,13 +245,13 @@ class _McapWalk:
         for topic, schema_id, _encoding in self.channels.values():
             out.topics.setdefault(topic, self.schemas.get(schema_id, ""))
         if stop is not None:
-            section, reason = stop
             out.truncated = True
-            out.problem(
-                section,
-                truncation_issue(self.size, len(out.messages), expected) + f" ({reason})",
-                KEPT_BEFORE_CUT,
-            )
+            n = len(out.messages)
+            if stop.damaged_at is None:
+                issue = truncation_issue(self.size, n, expected)
+            else:
+                issue = f"unreadable from byte {stop.damaged_at} on: {n} messages recovered"
+            out.problem(stop.section, f"{issue} ({stop.reason})", KEPT_BEFORE_CUT)
         return out
 
 
@@ -354,29 +363,65 @@ def read_mcap(path: Path, expected_messages: int | None = None) -> StorageRead:
 
 
 def read_sqlite3(path: Path, expected_messages: int | None = None) -> StorageRead:
-    """Every row a rosbag2 sqlite3 file still yields (read-only, in row order)."""
+    """Every row a rosbag2 sqlite3 file still yields (read-only, in row order).
+
+    sqlite refuses a file shorter than its header announces ("malformed"); such a cut file
+    is read from a private copy of its whole pages with the header's page count set to
+    them, so the tables and rows stored before the cut are still found."""
     out = StorageRead(path)
-    pages = _sqlite_size(path)
-    uri = f"{path.resolve().as_uri()}?immutable=1"
+    size = path.stat().st_size
+    announced = _sqlite_size(path)
+    if announced is not None and size < announced:
+        with tempfile.TemporaryDirectory(prefix="ads_rca_db3_") as private:
+            try:
+                damage = _sqlite_rows(_whole_pages(path, Path(private)), path, out)
+            except InputError as error:
+                raise InputError(f"{error} (truncated after {size} of {announced} bytes)") from None
+        out.truncated = True
+        out.problem(
+            "database",
+            truncation_issue(size, len(out.messages), expected_messages)
+            + f" (the header announces {announced} bytes"
+            + (f"; {damage}" if damage else "")
+            + ")",
+            KEPT_BEFORE_CUT,
+        )
+        return out
+    damage = _sqlite_rows(path, path, out)
+    if damage is not None:
+        out.truncated = True
+        out.problem(
+            "messages",
+            f"damaged after {len(out.messages)} messages ({damage}): "
+            f"{len(out.messages)} messages recovered",
+            KEPT_BEFORE_CUT,
+        )
+    return out
+
+
+def _sqlite_rows(database: Path, path: Path, out: StorageRead) -> str | None:
+    """Fill ``out`` from ``database`` (``path``: the bag's file, for names); returns the
+    damage that stopped the rows, if any. InputError when not even the topics are readable."""
+    uri = f"{database.resolve().as_uri()}?immutable=1"
     try:
         connection = sqlite3.connect(uri, uri=True)
     except sqlite3.Error as error:
         raise InputError(f"{path}: cannot open the sqlite3 bag: {error}") from error
+    by_id: dict[int, tuple[str, str]] = {}
+    foreign: Counter[str] = Counter()
+    unknown = 0
+    damage: str | None = None
     try:
         try:
             rows = connection.execute("SELECT id, name, type, serialization_format FROM topics")
             topic_rows = rows.fetchall()
         except sqlite3.Error as error:
             raise InputError(f"{path}: not a readable rosbag2 sqlite3 file: {error}") from error
-        by_id: dict[int, tuple[str, str]] = {}
-        foreign: Counter[str] = Counter()
         for topic_id, name, msg_type, encoding in topic_rows:
             by_id[int(topic_id)] = (str(name), str(msg_type))
             out.topics.setdefault(str(name), str(msg_type))
             if encoding != "cdr":
                 foreign[str(name)] = 0
-        damage: str | None = None
-        unknown = 0
         try:
             cursor = connection.execute("SELECT topic_id, timestamp, data FROM messages")
             for topic_id, timestamp, data in cursor:
@@ -397,24 +442,23 @@ def read_sqlite3(path: Path, expected_messages: int | None = None) -> StorageRea
         out.problem("messages", f"{unknown} messages on a topic id never defined", SKIPPED_MESSAGES)
     for topic, n in sorted(foreign.items()):
         out.problem(topic, f"{n} messages not in CDR encoding", SKIPPED_MESSAGES)
-    size = path.stat().st_size
-    if pages is not None and size < pages:
-        out.truncated = True
-        out.problem(
-            "database",
-            truncation_issue(size, len(out.messages), expected_messages)
-            + f" (the header announces {pages} bytes)",
-            KEPT_BEFORE_CUT,
-        )
-    elif damage is not None:
-        out.truncated = True
-        out.problem(
-            "messages",
-            f"damaged after {len(out.messages)} messages ({damage}): "
-            f"{len(out.messages)} messages recovered",
-            KEPT_BEFORE_CUT,
-        )
-    return out
+    return damage
+
+
+def _whole_pages(path: Path, directory: Path) -> Path:
+    """A copy of the whole pages of a cut sqlite file, its header's page count set to them."""
+    with path.open("rb") as stream:
+        data = bytearray(stream.read())
+    (page_size,) = struct.unpack_from(">H", data, 16)
+    page_size = 65536 if page_size == 1 else page_size
+    pages = len(data) // page_size
+    if pages == 0:
+        raise InputError(f"{path}: cut inside its first page")
+    del data[pages * page_size :]
+    struct.pack_into(">I", data, 28, pages)
+    copy = directory / path.name
+    copy.write_bytes(bytes(data))
+    return copy
 
 
 def _sqlite_size(path: Path) -> int | None:

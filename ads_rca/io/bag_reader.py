@@ -330,11 +330,10 @@ def read_bag(
         assembler.metadata_document = dict(remap.metadata)
     if assembler.metadata_document is None:
         metadata_topics = {name for name, key in keys.items() if key == topics.METADATA}
-        cut = [
-            f"{p.file}: {p.issue}"
-            for p in problems
-            if p.action == KEPT_BEFORE_CUT or p.field in metadata_topics
-        ]
+        why = [p for p in problems if p.field in metadata_topics and p.severity == "error"]
+        why += [p for p in problems if p.action == KEPT_BEFORE_CUT]
+        why += [p for p in problems if p.file.endswith(BAG_SUFFIXES) and p.severity == "error"]
+        cut = [f"{p.file}: {p.field}: {p.issue}" for p in why]
         raise InputError(
             f"{path}: the bag has no run/metadata message (map one, or give 'metadata' in "
             "the remapping file)" + (f"; {cut[0]}" if cut else "")

@@ -154,6 +154,9 @@ def test_cut_mcap_through_the_command_line(
     code, out, _ = verdict(copy, capsys)
     assert code == 0 and "verdict: perception" in out
     assert f"footer: truncated after {len(data) - 8} bytes: 732 of 732" in out, out
+    copy = copy_bag(bag, tmp_path / "toconvert", data[:middle_of_a_chunk])
+    assert cli(["convert", str(copy), str(tmp_path / "converted")]) == 0
+    assert f"truncated after {middle_of_a_chunk} bytes" in capsys.readouterr().err
     for cut in (0, 8):  # nothing readable: one line, exit 2
         copy = copy_bag(bag, tmp_path / f"tiny{cut}", data[:cut])
         code, out, err = verdict(copy, capsys)
@@ -308,7 +311,14 @@ def test_lying_metadata_yaml_is_said_and_ignored(
         if entry["topic_metadata"]["name"] == detections:
             entry["topic_metadata"]["type"] = "std_msgs/msg/String"
     entries.append(
-        {"topic_metadata": {"name": "/ghost", "type": "std_msgs/msg/String"}, "message_count": 3}
+        {
+            "topic_metadata": {
+                "name": "/ghost",
+                "type": "std_msgs/msg/String",
+                "serialization_format": "cdr",
+            },
+            "message_count": 3,
+        }
     )
     info["topics_with_message_count"] = entries
     path.write_text(yaml.safe_dump(document))

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import io
 import os
+import shutil
 import sqlite3
 import struct
 import tempfile
@@ -446,18 +447,19 @@ def _sqlite_rows(database: Path, path: Path, out: StorageRead) -> str | None:
 
 
 def _whole_pages(path: Path, directory: Path) -> Path:
-    """A copy of the whole pages of a cut sqlite file, its header's page count set to them."""
-    with path.open("rb") as stream:
-        data = bytearray(stream.read())
-    (page_size,) = struct.unpack_from(">H", data, 16)
-    page_size = 65536 if page_size == 1 else page_size
-    pages = len(data) // page_size
-    if pages == 0:
-        raise InputError(f"{path}: cut inside its first page")
-    del data[pages * page_size :]
-    struct.pack_into(">I", data, 28, pages)
+    """A copy of the whole pages of a cut sqlite file, its header's page count set to them
+    (copied on disk, not through memory: a bag can be large)."""
     copy = directory / path.name
-    copy.write_bytes(bytes(data))
+    shutil.copyfile(path, copy)
+    with copy.open("r+b") as stream:
+        (page_size,) = struct.unpack(">H", stream.read(18)[16:18])
+        page_size = 65536 if page_size == 1 else page_size
+        pages = os.fstat(stream.fileno()).st_size // page_size
+        if pages == 0:
+            raise InputError(f"{path}: cut inside its first page")
+        stream.truncate(pages * page_size)
+        stream.seek(28)
+        stream.write(struct.pack(">I", pages))
     return copy
 
 

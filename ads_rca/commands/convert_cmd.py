@@ -9,6 +9,7 @@ holding what the player would publish; a bag (directory, ``.mcap`` or ``.db3``, 
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -54,6 +55,10 @@ def run(args: argparse.Namespace) -> int:
         log = read_bag(source, remap=args.remap, namespace=args.namespace)
         write_run_log(log, out)
         print(f"{source} → {out}: log folder, {len(log.frames)} analysed frames")
+        if log.problems:  # a cut or damaged bag must not become a clean-looking folder
+            print(f"problems in {source}: {len(log.problems)}", file=sys.stderr)
+            for line in log.problems.summary_lines(10):
+                print(f"  {line}", file=sys.stderr)
         return 0
     log = read_run_log(source)
     options: dict[str, Any] = {}

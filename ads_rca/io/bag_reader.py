@@ -3,40 +3,54 @@
 A bag recorded from the player (``recorder`` node), written by ``ads-rca convert``, or made
 by a stack whose topics carry the contract's types under other names (mapped by a remapping
 YAML, see docs/topics.md) is replayed into the same :class:`RunLogAssembler` the live
-subscribers use, so a bag and a DDS stream rebuild the same log. Pure: rosbags reads the
-storage, :mod:`ads_rca.io.rosmsg` turns CDR into message objects; no rclpy.
+subscribers use, so a bag and a DDS stream rebuild the same log. Pure:
+:mod:`ads_rca.io.bag_storage` reads the storage files, :mod:`ads_rca.io.rosmsg` turns CDR
+into message objects; no rclpy.
 
 Accepted paths: a bag directory with ``metadata.yaml``; a directory holding one ``.mcap`` /
 ``.db3`` file (a recording whose writer was killed before writing ``metadata.yaml``); a bare
-``.mcap`` or ``.db3`` file. An MCAP file without a summary (killed recorder) is read
-up to its last complete chunk.
+``.mcap`` or ``.db3`` file. A bag nobody checked is read as far as it can be: a cut or
+damaged storage file gives what it holds (a killed recorder's MCAP up to its last complete
+chunk), a message that cannot be decoded is skipped, and the storage's own topics and types
+are trusted over ``metadata.yaml``; each of these is a Problem in the log, so ``inspect``,
+``diagnose`` and the JSON list it.
 """
 
 from __future__ import annotations
 
 import os
+from collections import Counter
 from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import yaml
+from rosbags.serde import SerdeError
 
 from ads_rca.errors import InputError
 from ads_rca.io import rosmsg
+from ads_rca.io.bag_storage import (
+    KEPT_BEFORE_CUT,
+    BagMessage,
+    StorageRead,
+    read_mcap,
+    read_storage,
+)
 from ads_rca.model import RunLog
+from ads_rca.problems import IGNORED, USED_DEFAULT, Problem
 from ads_rca.ros import topics
 from ads_rca.ros.assembler import RunLogAssembler
+from ads_rca.ros.convert import message_to_record
 
 BAG_SUFFIXES = (".mcap", ".db3")
+METADATA_YAML = "metadata.yaml"
+#: A rosbag2 metadata.yaml is a few KiB per topic; anything this large is not one.
+MAX_METADATA_YAML_BYTES = 64 << 20
+_IGNORED_YAML = "metadata.yaml ignored; the storage files are read"
+_TRUSTED_STORAGE = "the storage's own channels and types are used"
 
-
-@dataclass(frozen=True)
-class BagMessage:
-    topic: str
-    msg_type: str
-    log_time_ns: int
-    data: bytes
+__all__ = ["BagMessage", "is_bag", "iter_bag", "iter_mcap_stream", "load_bag", "read_bag"]
 
 
 @dataclass(frozen=True)
@@ -65,7 +79,17 @@ def load_remap(path: str | os.PathLike[str]) -> Remap:
     return Remap(mapping, metadata)
 
 
-# --- locating and iterating -------------------------------------------------------------
+# --- locating and reading -----------------------------------------------------------------
+
+
+@dataclass
+class BagContents:
+    """Every message of a bag (log-time order), the storage's own topics, and the defects
+    found in its files and in ``metadata.yaml``."""
+
+    messages: list[BagMessage]
+    topics: dict[str, str]
+    problems: list[Problem]
 
 
 def _storage_files(directory: Path) -> list[Path]:
@@ -82,78 +106,174 @@ def is_bag(path: str | os.PathLike[str]) -> bool:
     return False
 
 
-def iter_bag(path: str | os.PathLike[str]) -> Iterator[BagMessage]:
-    """Every message of a bag in log-time order (file order for a truncated MCAP)."""
+def load_bag(path: str | os.PathLike[str]) -> BagContents:
+    """Read a bag's storage files (see the module docstring), checking metadata.yaml against
+    them. Raises InputError only when no storage file can be read at all."""
     p = Path(path)
-    if p.is_dir() and (p / "metadata.yaml").is_file():
-        yield from _iter_rosbags_dir(p)
-        return
     if p.is_dir():
-        files = _storage_files(p)
-        if len(files) != 1:
-            raise InputError(f"{p}: not a bag (no metadata.yaml and no single .mcap/.db3)")
-        p = files[0]
-    if not p.is_file():
-        raise InputError(f"{p}: no such bag")
-    if p.suffix == ".mcap":
-        yield from _iter_mcap_file(p)
-    elif p.suffix == ".db3":
-        yield from _iter_storage(p, "sqlite3")
-    else:
+        info, problems = _metadata_yaml(p)
+        files = _bag_files(p, info, problems)
+    elif p.is_file() and p.suffix in BAG_SUFFIXES:
+        info, problems, files = None, [], [p]
+    elif p.is_file():
         raise InputError(f"{p}: not a bag file (.mcap or .db3)")
+    else:
+        raise InputError(f"{p}: no such bag")
+    reads = [read_storage(f, _announced_messages(info, f)) for f in files]
+    messages = sorted(
+        (m for read in reads for m in read.messages), key=lambda m: m.log_time_ns
+    )  # stable: file order within a log time
+    storage_topics: dict[str, str] = {}
+    for read in reads:
+        problems.extend(read.problems)
+        for name, msg_type in read.topics.items():
+            storage_topics.setdefault(name, msg_type)
+    if info is not None:
+        problems.extend(_disagreements(info, storage_topics, messages, reads))
+    return BagContents(messages, storage_topics, problems)
 
 
-def _iter_rosbags_dir(path: Path) -> Iterator[BagMessage]:
-    from rosbags.rosbag2 import Reader
-
-    with Reader(path) as reader:
-        for conn, timestamp, data in reader.messages():
-            yield BagMessage(conn.topic, conn.msgtype, timestamp, bytes(data))
-
-
-def _iter_storage(path: Path, kind: str) -> Iterator[BagMessage]:
-    from rosbags.rosbag2.storage_mcap import McapReader
-    from rosbags.rosbag2.storage_sqlite3 import Sqlite3Reader
-
-    storage: Any = McapReader(path) if kind == "mcap" else Sqlite3Reader(path)
-    storage.open()
+def _metadata_yaml(directory: Path) -> tuple[dict[str, Any] | None, list[Problem]]:
+    """The ``rosbag2_bagfile_information`` document (None when absent or unusable)."""
+    path = directory / "metadata.yaml"
+    if not path.is_file():
+        return None, []
     try:
-        for conn, timestamp, data in storage.messages(storage.connections):
-            yield BagMessage(conn.topic, conn.msgtype, timestamp, bytes(data))
-    finally:
-        storage.close()
+        # libyaml's safe loader when present: the pure-Python one takes ~80 ms per bag.
+        loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+        if path.stat().st_size > MAX_METADATA_YAML_BYTES:
+            raise OSError(f"larger than {MAX_METADATA_YAML_BYTES} bytes")
+        document = yaml.load(path.read_text(encoding="utf-8"), Loader=loader)
+    except (OSError, UnicodeDecodeError, yaml.YAMLError, RecursionError) as error:
+        detail = str(error).splitlines()[0] if str(error) else type(error).__name__
+        return None, [Problem(METADATA_YAML, "", f"unreadable: {detail}", _IGNORED_YAML)]
+    info = document.get("rosbag2_bagfile_information") if isinstance(document, dict) else None
+    if not isinstance(info, dict):
+        issue = "no rosbag2_bagfile_information mapping"
+        return None, [Problem(METADATA_YAML, "", issue, _IGNORED_YAML)]
+    return info, []
 
 
-def _iter_mcap_file(path: Path) -> Iterator[BagMessage]:
-    from rosbags.rosbag2.errors import ReaderError
+def _bag_files(directory: Path, info: dict[str, Any] | None, problems: list[Problem]) -> list[Path]:
+    """The storage files of a bag directory: metadata.yaml's list when it names files that
+    exist, else the one .mcap/.db3 the directory holds."""
+    listed = info.get("relative_file_paths") if info is not None else None
+    files: list[Path] = []
+    if isinstance(listed, list):
+        for name in listed:
+            candidate = directory / str(name)
+            inside = Path(str(name)).name == str(name)  # no path into other directories
+            if inside and candidate.is_file() and candidate.suffix in BAG_SUFFIXES:
+                files.append(candidate)
+            else:
+                problems.append(
+                    Problem(
+                        METADATA_YAML,
+                        "relative_file_paths",
+                        f"lists {str(name)!r}, which is not a storage file of the bag",
+                        IGNORED,
+                    )
+                )
+    if files:
+        return files
+    present = _storage_files(directory)
+    if len(present) != 1:
+        raise InputError(
+            f"{directory}: not a bag (no usable metadata.yaml and no single .mcap/.db3)"
+        )
+    if info is not None:
+        problems.append(
+            Problem(
+                METADATA_YAML,
+                "relative_file_paths",
+                f"names no storage file of the bag; {present[0].name} read instead",
+                USED_DEFAULT,
+            )
+        )
+    return present
 
-    try:
-        messages = list(_iter_storage(path, "mcap"))
-    except (ReaderError, AssertionError, ValueError, OSError):
-        messages = list(iter_mcap_stream(path))
-    yield from messages
+
+def _announced_messages(info: dict[str, Any] | None, file: Path) -> int | None:
+    """How many messages metadata.yaml says ``file`` holds (None when it does not say)."""
+    entries = info.get("files") if info is not None else None
+    for entry in entries if isinstance(entries, list) else []:
+        if isinstance(entry, dict) and entry.get("path") == file.name:
+            count = entry.get("message_count")
+            return count if isinstance(count, int) and not isinstance(count, bool) else None
+    return None
+
+
+def _yaml_topics(info: dict[str, Any]) -> dict[str, tuple[str, int | None]]:
+    """metadata.yaml's topic name → (type, message count)."""
+    out: dict[str, tuple[str, int | None]] = {}
+    entries = info.get("topics_with_message_count")
+    for entry in entries if isinstance(entries, list) else []:
+        meta = entry.get("topic_metadata") if isinstance(entry, dict) else None
+        if isinstance(meta, dict) and isinstance(meta.get("name"), str):
+            count = entry.get("message_count")
+            out[meta["name"]] = (
+                str(meta.get("type", "")),
+                count if isinstance(count, int) and not isinstance(count, bool) else None,
+            )
+    return out
+
+
+def _disagreements(
+    info: dict[str, Any],
+    storage: dict[str, str],
+    messages: list[BagMessage],
+    reads: list[StorageRead],
+) -> list[Problem]:
+    """Every way metadata.yaml differs from the storage files (which are what is used)."""
+    declared = _yaml_topics(info)
+    out: list[Problem] = []
+    for name, msg_type in sorted(storage.items()):
+        if name not in declared:
+            out.append(
+                Problem(
+                    METADATA_YAML,
+                    name,
+                    f"topic missing (the storage holds it, type {msg_type})",
+                    _TRUSTED_STORAGE,
+                )
+            )
+        elif rosmsg.normalise_type(declared[name][0]) != rosmsg.normalise_type(msg_type):
+            out.append(
+                Problem(
+                    METADATA_YAML,
+                    name,
+                    f"type {declared[name][0]}, the storage's is {msg_type}",
+                    _TRUSTED_STORAGE,
+                )
+            )
+    out.extend(
+        Problem(METADATA_YAML, name, "topic not in the storage files", IGNORED, "warning")
+        for name in sorted(set(declared) - set(storage))
+    )
+    if not any(read.truncated for read in reads):  # a cut file already says what it lost
+        counts = Counter(m.topic for m in messages)
+        for name, (_type, count) in sorted(declared.items()):
+            if name in storage and count is not None and count != counts[name]:
+                out.append(
+                    Problem(
+                        METADATA_YAML,
+                        name,
+                        f"message_count {count}, the storage holds {counts[name]}",
+                        _TRUSTED_STORAGE,
+                        severity="warning",
+                    )
+                )
+    return out
+
+
+def iter_bag(path: str | os.PathLike[str]) -> Iterator[BagMessage]:
+    """Every message of a bag in log-time order (what a damaged file still holds)."""
+    yield from load_bag(path).messages
 
 
 def iter_mcap_stream(path: str | os.PathLike[str]) -> Iterator[BagMessage]:
-    """Stream-read an MCAP, stopping quietly at a truncated end (complete chunks only)."""
-    from mcap.reader import NonSeekingReader
-
-    with open(path, "rb") as stream:
-        reader = NonSeekingReader(stream)
-        iterator = reader.iter_messages(log_time_order=False)
-        while True:
-            try:
-                schema, channel, message = next(iterator)
-            except StopIteration:
-                return
-            except Exception:  # a truncated tail: end of the complete chunks
-                return
-            yield BagMessage(
-                channel.topic,
-                schema.name if schema is not None else "",
-                message.log_time,
-                bytes(message.data),
-            )
+    """Every message an MCAP file holds, in file order, up to where it is cut."""
+    yield from read_mcap(Path(path)).messages
 
 
 def bag_topics(path: str | os.PathLike[str]) -> dict[str, str]:
@@ -197,36 +317,101 @@ def read_bag(
     remap: Remap | str | os.PathLike[str] | None = None,
     namespace: str | None = None,
 ) -> RunLog:
-    """Rebuild the RunLog a bag carries (see the module docstring for accepted paths)."""
+    """Rebuild the RunLog a bag carries (see the module docstring for accepted paths).
+
+    Every defect of the bag (a cut file, an undecodable message, a metadata.yaml that
+    disagrees with the storage) is a Problem in the log; InputError only when nothing
+    usable is left (no storage file readable, or no run/metadata)."""
     if remap is not None and not isinstance(remap, Remap):
         remap = load_remap(remap)
-    from rosbags.rosbag2.errors import ReaderError
-
-    try:
-        messages = list(iter_bag(path))
-    except (ReaderError, OSError) as error:
-        raise InputError(f"{path}: cannot read the bag: {error}") from error
-    keys = topic_keys(sorted({m.topic for m in messages}), remap, namespace)
+    contents = load_bag(path)
+    problems = list(contents.problems)
+    keys = topic_keys(sorted(contents.topics), remap, namespace)
+    usable = _usable_topics(keys, contents.topics, problems)
     assembler = RunLogAssembler()
-    for message in messages:
-        key = keys.get(message.topic)
-        if key is None:
-            continue
-        expected = rosmsg.type_name(topics.MESSAGE_TYPES[key])
-        if rosmsg.normalise_type(message.msg_type) != expected:
-            raise InputError(
-                f"{path}: topic {message.topic} has type {message.msg_type}, "
-                f"the contract's {key} is {expected}"
-            )
-        assembler.add(key, rosmsg.deserialize(message.data, expected))
+    for message in contents.messages:
+        key = usable.get(message.topic)
+        if key is not None:
+            _add_message(assembler, key, message, problems)
     if assembler.metadata_document is None and remap is not None and remap.metadata:
         assembler.metadata_document = dict(remap.metadata)
     if assembler.metadata_document is None:
+        metadata_topics = {name for name, key in keys.items() if key == topics.METADATA}
+        why = [p for p in problems if p.field in metadata_topics and p.severity == "error"]
+        why += [p for p in problems if p.action == KEPT_BEFORE_CUT]
+        why += [p for p in problems if p.file.endswith(BAG_SUFFIXES) and p.severity == "error"]
+        cut = [f"{p.file}: {p.field}: {p.issue}" for p in why]
         raise InputError(
             f"{path}: the bag has no run/metadata message (map one, or give 'metadata' in "
-            "the remapping file)"
+            "the remapping file)" + (f"; {cut[0]}" if cut else "")
         )
-    log = assembler.build()
+    try:
+        log = assembler.build()
+    except (KeyError, TypeError, ValueError, ArithmeticError) as error:
+        raise InputError(f"{path}: cannot rebuild the log (run/metadata): {error!r}") from error
     if not assembler.markers:  # no frame markers (a stack's bag): actors stamps are frames
         log = replace(log, frames=tuple(sorted(log.actors)))
+    log.problems.extend(problems)
     return replace(log, source=str(path))
+
+
+def _usable_topics(
+    keys: dict[str, str], types: dict[str, str], problems: list[Problem]
+) -> dict[str, str]:
+    """Bag topic → contract key, for topics whose stored type is the contract's."""
+    usable: dict[str, str] = {}
+    for name, key in keys.items():
+        expected = rosmsg.type_name(topics.MESSAGE_TYPES[key])
+        if rosmsg.normalise_type(types[name]) == expected:
+            usable[name] = key
+        else:
+            problems.append(
+                Problem(
+                    name,
+                    "type",
+                    f"stored type {types[name]}, the contract's {key} is {expected}",
+                    "topic skipped",
+                )
+            )
+    return usable
+
+
+#: What the deserialisation of a damaged message can raise (rosbags checks every length
+#: against the bytes that remain, so a damaged length is refused, never allocated).
+_DECODE_ERRORS = (
+    SerdeError,
+    ValueError,
+    TypeError,
+    KeyError,
+    IndexError,
+    AssertionError,
+    OverflowError,
+    RecursionError,
+    UnicodeDecodeError,
+)
+
+
+def _add_message(
+    assembler: RunLogAssembler, key: str, message: BagMessage, problems: list[Problem]
+) -> None:
+    """Decode one message into the assembler; a damaged one is skipped and reported.
+
+    Data messages are converted to model records here too, so a message that decodes into
+    something no record can be made of is refused before the assembler keeps it."""
+    expected = rosmsg.type_name(topics.MESSAGE_TYPES[key])
+    try:
+        msg = rosmsg.deserialize(message.data, expected)
+        if key in topics.DATA_TOPICS:
+            message_to_record(key, msg, 1)
+        assembler.add(key, msg)
+    except _DECODE_ERRORS as error:
+        detail = str(error).splitlines()[0] if str(error) else type(error).__name__
+        problems.append(
+            Problem(
+                message.source or message.topic,
+                message.topic,
+                f"message at log time {message.log_time_ns} ns: cannot decode this {expected}: "
+                f"{detail}",
+                "message skipped",
+            )
+        )

@@ -164,7 +164,7 @@ def test_graph_ignores_a_foreign_player_on_its_namespace(ros_env, tmp_path, log_
             for c, _t, raw in reader.messages()
             if c.topic == topics.topic_name(topics.METADATA, ns)
         ]
-    assert metadata and {m["run"] for m in metadata} == {spec.run_id}  # sent twice: docs
+    assert metadata and {m["run"] for m in metadata} == {spec.run_id}
 
 
 def test_run_filter_locks_onto_one_run_and_its_player(tmp_path):

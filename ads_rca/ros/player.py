@@ -215,10 +215,6 @@ class Player(Node):
     # --- playing ------------------------------------------------------------------------
 
     def start(self) -> None:
-        if self.ready_pub is not None:
-            # Sent again now that our run's nodes are matched: with another run's player on
-            # the same topic, the late-joiner copy of the first one was seen to go missing.
-            self.pubs[topics.METADATA].publish(self.metadata)
         self._wall0 = time.monotonic()
         self.pubs[topics.STATUS].publish(self._status(PLAYING))
         period = 0.0 if self.rate == 0 else self.log.tpf / 1000.0 / self.rate

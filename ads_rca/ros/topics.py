@@ -88,6 +88,8 @@ class QoSSpec:
 
 DATA_QOS = QoSSpec(depth=100)
 LATCHED_QOS = QoSSpec(depth=1, latched=True)
+#: History depth of a lossless reader of a latched topic (see :func:`qos_profile`).
+LATCHED_READER_DEPTH = 100
 
 QOS: dict[str, QoSSpec] = {
     topic: (LATCHED_QOS if topic in (METADATA, STATUS) else DATA_QOS) for topic in ALL_TOPICS
@@ -118,15 +120,22 @@ def qos_profile(key: str, depth: int | None = None, keep_all: bool = False) -> Q
     ``keep_all``: for subscribers that must lose nothing (recorder, monitors, summary). A
     reliable KEEP_ALL reader withholds its acknowledgements while its queue is full, so a
     player pacing itself on acknowledgements (rate 0) waits instead of overwriting samples
-    the reader has not taken yet. Latched topics keep their depth-1 history.
+    the reader has not taken yet. Latched topics stay KEEP_LAST (a late joiner gets the
+    writer's last sample), but such a reader keeps :data:`LATCHED_READER_DEPTH` samples:
+    its history is shared by every writer of the topic (keyless types have one instance),
+    so with depth 1 another run's player sending its metadata just after ours would
+    overwrite ours before the callback took it.
     """
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
     spec = QOS[key]
-    keep_all = keep_all and not spec.latched
+    if depth is None:
+        depth = LATCHED_READER_DEPTH if keep_all and spec.latched else spec.depth
     return QoSProfile(
-        history=HistoryPolicy.KEEP_ALL if keep_all else HistoryPolicy.KEEP_LAST,
-        depth=spec.depth if depth is None else depth,
+        history=HistoryPolicy.KEEP_ALL
+        if keep_all and not spec.latched
+        else HistoryPolicy.KEEP_LAST,
+        depth=depth,
         reliability=(
             ReliabilityPolicy.RELIABLE if spec.reliable else ReliabilityPolicy.BEST_EFFORT
         ),

@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from ads_rca.commands.outputs import check_output_dir
 from ads_rca.commands.playback_args import add_playback_arguments, check_playback_arguments
 from ads_rca.errors import InputError
 from ads_rca.ros.env import pick_domain_id, ros_environment
@@ -34,7 +35,7 @@ def run(args: argparse.Namespace) -> int:
     if not log_dir.is_dir():
         raise InputError(f"{log_dir}: no such log folder")
     check_playback_arguments(args)
-    out = Path(args.out) if args.out else None
+    out = check_output_dir(args.out, "--out", empty=False) if args.out else None
     domain_id = args.domain_id if args.domain_id is not None else pick_domain_id()
     log_root = None
     if out is not None:

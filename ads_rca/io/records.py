@@ -56,10 +56,10 @@ class _Reader:
         try:
             number = float(value)
         except (TypeError, ValueError):
-            self.report(field, f"{_show(value)} is not a number", "read as NaN")
+            self.report(field, f"{show_value(value)} is not a number", "read as NaN")
             return math.nan
         if not math.isfinite(number):
-            self.report(field, f"{_show(value)} is not finite", KEPT_VALUE, "warning")
+            self.report(field, f"{show_value(value)} is not finite", KEPT_VALUE, "warning")
         return number
 
 
@@ -297,7 +297,8 @@ def _box_id(value: Any) -> str:
     return str(value)
 
 
-def _show(value: Any) -> str:
+def show_value(value: Any) -> str:
+    """A short repr of a value for a problem message (at most 40 characters)."""
     text = repr(value)
     return text if len(text) <= 40 else text[:37] + "..."
 

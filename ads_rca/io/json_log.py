@@ -43,10 +43,11 @@ from ads_rca.model import FOLDERS, RunLog, RunMetadata
 from ads_rca.problems import IGNORED, KEPT_VALUE, SKIPPED_FILE, USED_DEFAULT, Problem, ProblemLog
 
 DEFAULT_TPF_MS = 50
-#: Deepest JSON nesting read. Far beyond any real log (records nest 4 levels), and half of
-#: Python's recursion limit, so every recursive consumer of a document (repr, json.dumps)
-#: has room; the reference's json.loads overflows at about 995 levels.
-MAX_JSON_DEPTH = 512
+#: Deepest JSON nesting read. Far beyond any real log (records nest 4 levels), and below
+#: every recursive consumer of what the reader keeps: orjson writes at most 255 levels
+#: (convert, the live graph write box extras and metadata again), repr and json.dumps stop
+#: near Python's recursion limit (1000). The reference's json.loads overflows at ~995.
+MAX_JSON_DEPTH = 200
 Job = tuple[str, int, str]  # folder, timestamp, file name
 
 Parser = Callable[[Any, str, ProblemLog, int], Any]

@@ -381,3 +381,23 @@ def test_printable_escapes_every_control_and_keeps_text() -> None:
     assert printable("a\nb\r\t\x00\x7f\x85\x9b") == "a\\x0ab\\x0d\\x09\\x00\\x7f\\x85\\x9b"
     assert printable("\u2028\u2029\u202e\u2066\u200f") == "\\u2028\\u2029\\u202e\\u2066\\u200f"
     assert printable("naïve → café 🚗 \\x0a") == "naïve → café 🚗 \\x0a"
+
+
+def test_replay_player_skips_a_fifo_and_honours_max_file_mb(
+    log_dir: Path, tmp_path: Path, ros_env: Any
+) -> None:
+    """The live graph's player reads with the same rules; ``--max-file-mb`` reaches it."""
+    fifo = _one(log_dir / "pose")
+    fifo.unlink()
+    os.mkfifo(fifo)
+    big = _one(log_dir / "bboxes_gt", 5)
+    big.write_text(
+        json.dumps([{"id": i, "bounding_box": [[i, 1], [i + 9, 20]]} for i in range(40_000)])
+    )
+    out = tmp_path / "v.json"
+    args = ["replay", str(log_dir), "--domain-id", str(ros_env.domain_id), "--timeout", "90"]
+    done = run_cli(*args, "--max-file-mb", "1", "--json", str(out))
+    assert_clean(done)
+    issues = {(p["file"], p["issue"]) for p in json.loads(out.read_text())["input_problems"]}
+    assert (f"pose/{fifo.name}", "not a regular file (FIFO)") in issues
+    assert (f"bboxes_gt/{big.name}", "larger than 1 MB (max_file_mb)") in issues

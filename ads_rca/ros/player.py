@@ -43,6 +43,7 @@ from ads_rca.ros.playback import (
     status_message,
     timeline,
 )
+from ads_rca.text import printable
 
 #: Every parameter: (default, description). Doubles accept integers too (dynamic typing).
 PARAMETERS: dict[str, tuple[Any, str]] = {
@@ -157,8 +158,10 @@ class Player(Node):
         for problem in log.problems:
             self.get_logger().warning(str(problem))
         self.get_logger().info(
-            f"{log_path}: {len(log.frames)} analysed frames, tpf {log.tpf} ms, "
-            f"{len(log.problems)} problems"
+            printable(
+                f"{log_path}: {len(log.frames)} analysed frames, tpf {log.tpf} ms, "
+                f"{len(log.problems)} problems"
+            )
         )
         return log
 
@@ -279,7 +282,7 @@ def main(args: list[str] | None = None) -> int:
         try:
             node = Player()
         except (ConfigError, InputError) as error:
-            get_logger("player").error(str(error))
+            get_logger("player").error(printable(error))
             return 2
         executor = make_executor()
         executor.add_node(node)

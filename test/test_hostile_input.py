@@ -386,7 +386,7 @@ def test_printable_escapes_every_control_and_keeps_text() -> None:
 def test_replay_player_skips_a_fifo_and_honours_max_file_mb(
     log_dir: Path, tmp_path: Path, ros_env: Any
 ) -> None:
-    """The live graph's player reads with the same rules; ``--max-file-mb`` reaches it."""
+    """The live graph's player reads with the same rules; ``max_file_mb`` reaches it."""
     fifo = _one(log_dir / "pose")
     fifo.unlink()
     os.mkfifo(fifo)
@@ -395,8 +395,10 @@ def test_replay_player_skips_a_fifo_and_honours_max_file_mb(
         json.dumps([{"id": i, "bounding_box": [[i, 1], [i + 9, 20]]} for i in range(40_000)])
     )
     out = tmp_path / "v.json"
+    config = tmp_path / "reader.yaml"  # the YAML key, same name as the flag and ROS parameter
+    config.write_text("max_file_mb: 1\n")
     args = ["replay", str(log_dir), "--domain-id", str(ros_env.domain_id), "--timeout", "90"]
-    done = run_cli(*args, "--max-file-mb", "1", "--json", str(out))
+    done = run_cli(*args, "--config", str(config), "--json", str(out))
     assert_clean(done)
     issues = {(p["file"], p["issue"]) for p in json.loads(out.read_text())["input_problems"]}
     assert (f"pose/{fifo.name}", "not a regular file (FIFO)") in issues

@@ -164,34 +164,51 @@ def _nested(depth: int) -> str:
     return "[" * depth + "1" + "]" * depth
 
 
-@pytest.mark.parametrize("depth", [300, 2000, 100_000])
-@pytest.mark.parametrize("folder", ["predictions", "bboxes", "metadata.json"])
-def test_deeply_nested_json_is_reported_and_the_rest_diagnosed(
-    log_dir: Path, tmp_path: Path, depth: int, folder: str
-) -> None:
-    target = log_dir / folder if folder.endswith(".json") else _one(log_dir / folder)
-    if folder == "bboxes":  # deep inside a box's extra field, which the reader keeps
-        target.write_text(
-            '[{"id": 1, "bounding_box": [[1, 2], [3, 4]], "x": ' + _nested(depth) + "}]"
-        )
+#: (depth, folder, the limit named): parsers read 1024 levels; kept raw JSON 200.
+DEEP_CASES = [
+    (2000, "predictions", 1024),
+    (100_000, "predictions", 1024),
+    (2000, "bboxes", 1024),
+    (100_000, "metadata.json", 1024),
+    (300, "bboxes", 200),  # a box's extra field, kept and written again by convert
+    (300, "metadata.json", 200),  # metadata.json is kept whole
+]
+
+
+def _write_nested(target: Path, depth: int) -> None:
+    if target.parent.name == "bboxes":
+        box = '{"id": 1, "bounding_box": [[1, 2], [3, 4]], "x": ' + _nested(depth) + "}"
+        target.write_text("[" + box + "]")
     else:
         target.write_text('{"x": ' + _nested(depth) + "}")
+
+
+@pytest.mark.parametrize(("depth", "folder", "limit"), DEEP_CASES)
+def test_deeply_nested_json_is_reported_and_the_rest_diagnosed(
+    log_dir: Path, tmp_path: Path, depth: int, folder: str, limit: int
+) -> None:
+    target = log_dir / folder if folder.endswith(".json") else _one(log_dir / folder)
+    _write_nested(target, depth)
     name = target.relative_to(log_dir).as_posix()
     done = run_cli("diagnose", str(log_dir), "--max-problems", "50")
     assert_clean(done)
-    assert f"{name}: invalid JSON (nested too deep: more than 200 levels)" in done.stdout
+    assert f"{name}: invalid JSON (nested too deep: more than {limit} levels)" in done.stdout
     assert "frames judged" in done.stdout
     # What is kept can be written again: both conversions run through.
     assert_clean(run_cli("convert", str(log_dir), str(tmp_path / "bag")))
     assert_clean(run_cli("convert", str(tmp_path / "bag"), str(tmp_path / "back")))
 
 
-def test_nesting_within_the_limit_is_read_and_converted(log_dir: Path, tmp_path: Path) -> None:
-    target = _one(log_dir / "bboxes")
-    target.write_text('[{"id": 1, "bounding_box": [[1, 2], [3, 4]], "x": ' + _nested(150) + "}]")
-    done = run_cli("inspect", "--json", str(log_dir))
+def test_nesting_the_parser_reads_never_overflows_later(log_dir: Path, tmp_path: Path) -> None:
+    """1000 levels: orjson reads it, but repr and json.dumps of it overflow Python's stack."""
+    _write_nested(_one(log_dir / "predictions"), 1000)  # an unknown key: ignored
+    _write_nested(_one(log_dir / "bboxes"), 150)  # kept, within the limit
+    pose = _one(log_dir / "pose")
+    document = json.loads(pose.read_text())
+    pose.write_text(json.dumps(document)[:-1] + ', "x": ' + _nested(1000) + "}")
+    done = run_cli("diagnose", str(log_dir), "--max-problems", "50")
     assert_clean(done)
-    assert not any(p["file"].endswith(target.name) for p in problems_of(done))
+    assert f"pose/{pose.name}: x: a list nested too deep is not a number" in done.stdout
     assert_clean(run_cli("convert", str(log_dir), str(tmp_path / "bag")))
     assert_clean(run_cli("convert", str(tmp_path / "bag"), str(tmp_path / "back")))
 

@@ -11,9 +11,11 @@ file name without a timestamp, a wrong value... each becomes a Problem and the r
 log still loads. Only a path that is not a log folder at all raises InputError.
 
 Hostile files too: only regular files of at most ``max_file_mb`` are read (FIFOs, devices,
-symlinks to them are reported, see :mod:`ads_rca.io.files`), and JSON nested deeper than
-:data:`MAX_JSON_DEPTH` levels is reported as invalid, so that no later recursive step
-(``repr``, the JSON encoders) can overflow on it.
+symlinks to them are reported, see :mod:`ads_rca.io.files`); JSON nested deeper than the
+parsers can read (1024 levels) is reported as invalid, never a RecursionError; and what the
+reader keeps as raw JSON (``metadata.json``, box extras) may nest at most
+:data:`MAX_KEPT_DEPTH` levels, so that writing it again (convert, the live graph) cannot
+overflow either.
 """
 
 from __future__ import annotations
@@ -43,11 +45,13 @@ from ads_rca.model import FOLDERS, RunLog, RunMetadata
 from ads_rca.problems import IGNORED, KEPT_VALUE, SKIPPED_FILE, USED_DEFAULT, Problem, ProblemLog
 
 DEFAULT_TPF_MS = 50
-#: Deepest JSON nesting read. Far beyond any real log (records nest 4 levels), and below
-#: every recursive consumer of what the reader keeps: orjson writes at most 255 levels
-#: (convert, the live graph write box extras and metadata again), repr and json.dumps stop
-#: near Python's recursion limit (1000). The reference's json.loads overflows at ~995.
-MAX_JSON_DEPTH = 200
+#: Deepest nesting of what the reader keeps as raw JSON (``metadata.json``, box extras).
+#: Far beyond any real log (records nest 4 levels), and below every writer of it: orjson
+#: writes at most 255 levels (convert and the live graph write both again); json.dumps and
+#: repr stop near Python's recursion limit (1000). Whole documents are bounded by the
+#: parsers themselves: orjson reads 1024 levels, the reference's json.loads about 995.
+MAX_KEPT_DEPTH = 200
+_BOX_KEYS = frozenset(("bounding_box",))
 Job = tuple[str, int, str]  # folder, timestamp, file name
 
 Parser = Callable[[Any, str, ProblemLog, int], Any]
@@ -84,27 +88,40 @@ def is_log_file(file_name: str) -> bool:
 def decode_json(data: bytes) -> Any:
     """Strict JSON first (fast); Python's json for the NaN/Infinity literals it also accepts.
 
-    Raises ValueError for invalid JSON, including nesting deeper than MAX_JSON_DEPTH.
+    Raises ValueError for invalid JSON, nesting deeper than the parser reads included.
     """
     try:
-        document = orjson.loads(data)
+        return orjson.loads(data)
     except orjson.JSONDecodeError as error:
         if "depth limit" in str(error):
-            raise _too_deep() from None
-        try:
-            document = json.loads(data)
-        except RecursionError:
-            raise _too_deep() from None
-    # Only a document with that many brackets can be that deep: most files skip the walk.
-    if data.count(b"[") + data.count(b"{") > MAX_JSON_DEPTH and _deeper_than(
-        document, MAX_JSON_DEPTH
-    ):
-        raise _too_deep()
-    return document
+            raise ValueError("nested too deep: more than 1024 levels") from None
+    try:
+        return json.loads(data)
+    except RecursionError:
+        raise ValueError("nested too deep for the parser") from None
 
 
-def _too_deep() -> ValueError:
-    return ValueError(f"nested too deep: more than {MAX_JSON_DEPTH} levels")
+def kept_too_deep(folder: str, document: Any) -> bool:
+    """True when the raw JSON the reader keeps of ``document`` nests over MAX_KEPT_DEPTH.
+
+    ``metadata.json`` is kept whole; of a boxes file, each box's fields but the corners
+    (which become numbers or a reported NaN). Other folders keep numbers only.
+    """
+    if folder == "metadata":
+        return _deeper_than(document, MAX_KEPT_DEPTH)
+    if folder not in ("bboxes", "bboxes_gt") or not isinstance(document, list):
+        return False
+    return any(
+        isinstance(value, dict | list) and _deeper_than(value, MAX_KEPT_DEPTH - 2)
+        for box in document
+        if isinstance(box, dict)
+        for key, value in box.items()
+        if key not in _BOX_KEYS
+    )
+
+
+def _too_deep_kept() -> str:
+    return f"invalid JSON (nested too deep: more than {MAX_KEPT_DEPTH} levels)"
 
 
 def _deeper_than(document: Any, limit: int) -> bool:
@@ -209,6 +226,9 @@ def _parse_files(
         document = _decode(read_regular(base / folder / name, limit), file, problems, ts)
         if document is _UNUSABLE:
             continue
+        if kept_too_deep(folder, document):
+            problems.add(file, "", _too_deep_kept(), SKIPPED_FILE, timestamp_ms=ts)
+            continue
         record = PARSERS[folder](document, file, problems, ts)
         if record is not None:
             parsed.append((folder, ts, record))
@@ -255,7 +275,9 @@ def read_metadata(
         problems.add(file, "", "missing", USED_DEFAULT)
     else:
         decoded = _decode(data, file, problems, None)
-        if decoded is not _UNUSABLE:
+        if decoded is not _UNUSABLE and kept_too_deep("metadata", decoded):
+            problems.add(file, "", _too_deep_kept(), USED_DEFAULT)
+        elif decoded is not _UNUSABLE:
             document = decoded
     if not isinstance(document, dict):
         problems.add(file, "", "expected an object", USED_DEFAULT)

@@ -299,7 +299,10 @@ def _box_id(value: Any) -> str:
 
 def show_value(value: Any) -> str:
     """A short repr of a value for a problem message (at most 40 characters)."""
-    text = repr(value)
+    try:
+        text = repr(value)
+    except RecursionError:  # a list nested ~1000 levels (the JSON parser reads 1024)
+        return f"a {type(value).__name__} nested too deep"
     return text if len(text) <= 40 else text[:37] + "..."
 
 

@@ -14,6 +14,7 @@ from collections.abc import Sequence
 from ads_rca import __version__
 from ads_rca.commands import COMMANDS
 from ads_rca.errors import InputError
+from ads_rca.text import printable
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -32,7 +33,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return int(args.run(args))
     except InputError as error:
-        print(f"ads-rca {args.command}: error: {error}", file=sys.stderr)
+        print(printable(f"ads-rca {args.command}: error: {error}"), file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         return 130

@@ -12,6 +12,8 @@ from collections.abc import Iterable, Iterator
 from dataclasses import asdict, dataclass
 from typing import Any, Literal
 
+from ads_rca.text import printable
+
 Severity = Literal["error", "warning"]
 
 # What the reader (or an oracle) did about a problem.
@@ -36,8 +38,9 @@ class Problem:
     timestamp_ms: int | None = None
 
     def __str__(self) -> str:
+        """One terminal line: text from the log has its control characters escaped."""
         where = f"{self.file}: {self.field}" if self.field else self.file
-        return f"{self.severity}: {where}: {self.issue} ({self.action})"
+        return printable(f"{self.severity}: {where}: {self.issue} ({self.action})")
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -94,5 +97,5 @@ class ProblemLog:
         if rest:
             by_issue = Counter(p.issue.split(":")[0] for p in rest)
             kinds = ", ".join(f"{n}× {issue}" for issue, n in by_issue.most_common(5))
-            lines.append(f"... and {len(rest)} more problems ({kinds})")
+            lines.append(printable(f"... and {len(rest)} more problems ({kinds})"))
         return lines

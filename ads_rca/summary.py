@@ -10,10 +10,15 @@ from typing import Any
 
 from ads_rca.oracles.base import MODULES
 from ads_rca.problems import Problem, ProblemLog
+from ads_rca.text import printable
 
 
 def summary_text(document: dict[str, Any], max_problems: int = 10, how: str = "judged") -> str:
-    """Counts per module, the verdict with evidence, and the input problems."""
+    """Counts per module, the verdict with evidence, and the input problems.
+
+    Each line is made printable on its own (source, ids, evidence come from the log), so no
+    text from the log can start a line of its own or drive the terminal.
+    """
     lines = [
         f"{document.get('source')}: {len(document.get('frames') or [])} frames {how}, "
         f"semantics {document.get('semantics')}"
@@ -43,7 +48,7 @@ def summary_text(document: dict[str, Any], max_problems: int = 10, how: str = "j
     problems = ProblemLog(Problem.from_dict(p) for p in document.get("input_problems") or [])
     lines.append(f"input problems: {len(problems)}")
     lines.extend(f"  {line}" for line in problems.summary_lines(max_problems))
-    return "\n".join(lines)
+    return "\n".join(printable(line) for line in lines)
 
 
 def _flat(values: dict[str, Any], prefix: str = "") -> list[str]:

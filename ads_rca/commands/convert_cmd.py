@@ -13,6 +13,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from ads_rca.commands.input_args import add_reader_arguments, max_file_mb_from_args
+from ads_rca.commands.outputs import check_output_dir
 from ads_rca.errors import InputError
 from ads_rca.io.bag_reader import is_bag, read_bag
 from ads_rca.io.bag_writer import STORAGES, write_bag
@@ -20,6 +22,7 @@ from ads_rca.io.json_log import read_run_log
 from ads_rca.io.json_writer import write_run_log
 from ads_rca.io.mcap_writer import COMPRESSIONS, DEFAULT_CHUNK_SIZE
 from ads_rca.ros import topics
+from ads_rca.text import printable
 
 
 def register(subparsers: Any) -> None:
@@ -42,6 +45,7 @@ def register(subparsers: Any) -> None:
         f"{topics.DEFAULT_NAMESPACE} when writing, detected when reading)",
     )
     parser.add_argument("--remap", help="topic remapping YAML for a stack's bag (reading)")
+    add_reader_arguments(parser)
     parser.set_defaults(run=run)
 
 
@@ -49,18 +53,18 @@ def run(args: argparse.Namespace) -> int:
     source, out = Path(args.source), Path(args.out)
     if not source.exists():
         raise InputError(f"{source}: no such log folder or bag")
-    if out.exists() and (not out.is_dir() or any(out.iterdir())):
-        raise InputError(f"{out}: exists and is not an empty directory")
+    check_output_dir(out, "OUT")
+    max_file_mb = max_file_mb_from_args(args)
     if is_bag(source) or args.remap:
         log = read_bag(source, remap=args.remap, namespace=args.namespace)
         write_run_log(log, out)
-        print(f"{source} → {out}: log folder, {len(log.frames)} analysed frames")
+        print(printable(f"{source} → {out}: log folder, {len(log.frames)} analysed frames"))
         if log.problems:  # a cut or damaged bag must not become a clean-looking folder
-            print(f"problems in {source}: {len(log.problems)}", file=sys.stderr)
+            print(printable(f"problems in {source}: {len(log.problems)}"), file=sys.stderr)
             for line in log.problems.summary_lines(10):
                 print(f"  {line}", file=sys.stderr)
         return 0
-    log = read_run_log(source)
+    log = read_run_log(source, max_file_mb)
     options: dict[str, Any] = {}
     if args.storage == "mcap":
         options = {"compression": args.compression, "chunk_size": args.chunk_size}
@@ -68,7 +72,9 @@ def run(args: argparse.Namespace) -> int:
         log, out, args.storage, namespace=args.namespace or topics.DEFAULT_NAMESPACE, **options
     )
     print(
-        f"{source} → {out}: {args.storage} bag, {sum(counts.values())} messages on "
-        f"{len(counts)} topics, {len(log.frames)} analysed frames"
+        printable(
+            f"{source} → {out}: {args.storage} bag, {sum(counts.values())} messages on "
+            f"{len(counts)} topics, {len(log.frames)} analysed frames"
+        )
     )
     return 0

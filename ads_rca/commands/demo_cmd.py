@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from ads_rca.commands.outputs import check_output_dir
 from ads_rca.commands.playback_args import (
     add_playback_arguments,
     allow_external,
@@ -39,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
     if not log_dir.is_dir():
         raise InputError(f"{log_dir}: no such log folder")
     check_playback_arguments(args)
-    out = Path(args.out) if args.out else None
+    out = check_output_dir(args.out, "--out", empty=False) if args.out else None
     domain_id, domain_how = choose_domain_id(args)
     log_root = None
     if out is not None:

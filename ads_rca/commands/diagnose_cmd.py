@@ -10,6 +10,12 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
+from ads_rca.commands.input_args import (
+    READER_PARAMS,
+    add_reader_arguments,
+    max_file_mb_from_args,
+)
+from ads_rca.commands.outputs import check_output_file
 from ads_rca.engine import analysed_timestamps, diagnose
 from ads_rca.errors import InputError
 from ads_rca.io import open_run
@@ -23,6 +29,7 @@ from ads_rca.params import (
 )
 from ads_rca.params import parse_assignments as parse_p
 from ads_rca.summary import summary_text
+from ads_rca.text import printable
 
 #: Logs longer than this get a progress bar on stderr (when it is a terminal).
 PROGRESS_MIN_FRAMES = 300
@@ -51,6 +58,8 @@ def params_from_args(args: argparse.Namespace) -> Params:
     """Config file, then -p overrides; --semantics wins over both."""
     config: dict[str, Any] = load_config(args.config) if args.config else {}
     overrides = parse_p(args.params)
+    for name in READER_PARAMS:  # the reader's, not the engine's
+        overrides.pop(name, None)
     semantics = (
         args.semantics
         or overrides.pop("semantics", None)
@@ -66,6 +75,7 @@ def register(subparsers: Any) -> None:
     parser = subparsers.add_parser("diagnose", help="find the root cause of a crash in a run log")
     parser.add_argument("path", help="running-log folder")
     add_engine_arguments(parser)
+    add_reader_arguments(parser)
     parser.add_argument("--json", dest="json_out", help="write the verdict JSON here")
     parser.add_argument("--report", help="write a self-contained HTML report here")
     parser.add_argument(
@@ -82,7 +92,12 @@ def register(subparsers: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     params = params_from_args(args)
-    log = open_run(args.path)
+    max_file_mb = max_file_mb_from_args(args)
+    if args.json_out:
+        check_output_file(args.json_out, "--json")
+    if args.report:
+        check_output_file(args.report, "--report")
+    log = open_run(args.path, max_file_mb=max_file_mb)
     if not analysed_timestamps(log, params):
         raise InputError(f"{args.path}: no frame to analyse (no readable actors/ file)")
     result = diagnose(log, params, _progress_bar(len(log.frames)), workers=max(1, args.workers))
@@ -90,19 +105,30 @@ def run(args: argparse.Namespace) -> int:
     print(summary_text(document, args.max_problems))
     if args.json_out:
         write_json(document, Path(args.json_out))
-        print(f"verdict JSON: {args.json_out}")
+        print(printable(f"verdict JSON: {args.json_out}"))
     if args.report:
         from ads_rca.report.html import write_report
 
-        write_report(result, Path(args.report))
-        print(f"HTML report: {args.report}")
+        try:
+            write_report(result, Path(args.report))
+        except OSError as error:  # checked up front; this is a failure during the write
+            raise InputError(f"--report {args.report}: {error.strerror}") from None
+        print(printable(f"HTML report: {args.report}"))
     return 0
 
 
 def write_json(document: dict[str, Any], path: Path) -> None:
-    """The verdict JSON (the contract; NaN and infinity are already null)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(document, indent=1, allow_nan=False) + "\n")
+    """The verdict JSON (the contract; NaN and infinity are already null).
+
+    The path was checked before the work started; a write that fails all the same (disk
+    full, a file that refuses data) is still one line, not a traceback.
+    """
+    text = json.dumps(document, indent=1, allow_nan=False) + "\n"
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text)
+    except OSError as error:
+        raise InputError(f"{path}: cannot write the verdict JSON ({error.strerror})") from None
 
 
 def _progress_bar(frames: int) -> Any:

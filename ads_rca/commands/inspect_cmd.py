@@ -5,9 +5,11 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from ads_rca.commands.input_args import add_reader_arguments, max_file_mb_from_args
 from ads_rca.io import open_run
 from ads_rca.model import FOLDERS, RunLog
 from ads_rca.strictjson import dumps
+from ads_rca.text import printable
 
 
 def register(subparsers: Any) -> None:
@@ -16,6 +18,7 @@ def register(subparsers: Any) -> None:
     )
     parser.add_argument("path", help="running-log folder")
     parser.add_argument("--json", action="store_true", help="print the summary as JSON")
+    add_reader_arguments(parser)
     parser.add_argument(
         "--max-problems", type=int, default=20, help="problem lines to print (default 20)"
     )
@@ -38,19 +41,20 @@ def summary(log: RunLog) -> dict[str, Any]:
 
 
 def run(args: argparse.Namespace) -> int:
-    log = open_run(args.path)
+    log = open_run(args.path, max_file_mb=max_file_mb_from_args(args))
     if args.json:
         print(dumps(summary(log), indent=2))  # strict JSON: NaN/inf as null + "$nonfinite"
         return 0
     info = summary(log)
-    print(
+    lines = [
         f"{info['source']}: {info['analysed_frames']} analysed frames "
         f"({info['unique_frames']} timestamps) at {info['timesteps_per_frame']} ms, "
         f"{info['actors']} actors, collision frame {info['collision_frame']}, "
-        f"total_frames {info['total_frames']}"
-    )
-    print("files: " + ", ".join(f"{k} {v}" for k, v in info["files"].items()))
-    print(f"problems: {len(log.problems)}")
-    for line in log.problems.summary_lines(args.max_problems):
-        print(f"  {line}")
+        f"total_frames {info['total_frames']}",
+        "files: " + ", ".join(f"{k} {v}" for k, v in info["files"].items()),
+        f"problems: {len(log.problems)}",
+        *(f"  {line}" for line in log.problems.summary_lines(args.max_problems)),
+    ]
+    for line in lines:  # the source and problems come from the log: one line each, escaped
+        print(printable(line))
     return 0

@@ -24,6 +24,8 @@ from types import FrameType
 from typing import TYPE_CHECKING, Any
 
 from ads_rca.commands.diagnose_cmd import add_engine_arguments, params_from_args, write_json
+from ads_rca.commands.input_args import add_reader_arguments, max_file_mb_from_args
+from ads_rca.commands.outputs import check_output_dir, check_output_file
 from ads_rca.commands.playback_args import (
     add_playback_arguments,
     allow_external,
@@ -33,8 +35,10 @@ from ads_rca.commands.playback_args import (
 from ads_rca.errors import InputError
 from ads_rca.params import Params
 from ads_rca.ros.env import discovery_note, ros_environment
+from ads_rca.ros.launcher import ParamValue
 from ads_rca.ros.lifeline import PARENT_VARIABLE
 from ads_rca.summary import summary_text
+from ads_rca.text import printable, printable_lines
 
 if TYPE_CHECKING:
     from ads_rca.ros.graph import Graph, GraphSpec
@@ -46,6 +50,7 @@ def register(subparsers: Any) -> None:
     )
     parser.add_argument("path", help="running-log folder (or a bag the player reads)")
     add_engine_arguments(parser)
+    add_reader_arguments(parser)
     add_playback_arguments(parser)
     parser.add_argument("--record", metavar="OUT", help="record every topic to this MCAP bag")
     parser.add_argument("--json", dest="json_out", help="write the verdict JSON here")
@@ -67,16 +72,21 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"{path}: no such log folder or bag")
     check_playback_arguments(args)
     params = params_from_args(args)
+    player_params: dict[str, ParamValue] = {"max_file_mb": float(max_file_mb_from_args(args))}
+    if args.json_out:
+        check_output_file(args.json_out, "--json")
     record = Path(args.record) if args.record else None
     if record is not None and not recorder_available():
         print("ads-rca replay: no recorder node in this installation; not recording")
         record = None
-    if record is not None and record.exists() and any(record.iterdir()):
-        raise InputError(f"{record}: exists and is not empty (the recorder needs a new folder)")
+    if record is not None:  # the recorder needs a new (or empty) folder
+        check_output_dir(record, "--record")
     domain_id, domain_how = choose_domain_id(args)
     with stop_signals() as graphs:
         try:
-            return _run_graph(args, params, path, record, domain_id, domain_how, graphs)
+            return _run_graph(
+                args, params, player_params, path, record, domain_id, domain_how, graphs
+            )
         except Interrupted as stop:
             print(f"ads-rca replay: stopped by {stop}; every node stopped", file=sys.stderr)
             return 128 + stop.signum
@@ -85,6 +95,7 @@ def run(args: argparse.Namespace) -> int:
 def _run_graph(
     args: argparse.Namespace,
     params: Params,
+    player_params: dict[str, ParamValue],
     path: Path,
     record: Path | None,
     domain_id: int,
@@ -107,11 +118,14 @@ def _run_graph(
             rate=args.rate,
             record=record.resolve() if record is not None else None,
             monitors=args.monitors,
+            player_params=player_params,
         )
         print(
-            f"ads-rca replay: {path} through the node graph (semantics {params.semantics}, "
-            f"rate {args.rate:g}, ROS_DOMAIN_ID={domain_id} ({domain_how}), "
-            f"{discovery_note(env)}, run {spec.run_id})",
+            printable(
+                f"ads-rca replay: {path} through the node graph (semantics "
+                f"{params.semantics}, rate {args.rate:g}, ROS_DOMAIN_ID={domain_id} "
+                f"({domain_how}), {discovery_note(env)}, run {spec.run_id})"
+            ),
             flush=True,
         )
         return _replay(args, spec, env, record, graphs)
@@ -200,23 +214,29 @@ def _replay(
         for name, code in failed.items():
             last = next((x for x in reversed(outputs[name].splitlines()) if x.strip()), "")
             print(
-                f"ads-rca replay: no verdict: {name} exited early ({exit_status(code)})"
-                + (f": {last.strip()}" if last else ""),
+                printable(
+                    f"ads-rca replay: no verdict: {name} exited early ({exit_status(code)})"
+                    + (f": {last.strip()}" if last else "")
+                ),
                 file=sys.stderr,
             )
         if not failed:
             print(f"ads-rca replay: no verdict within {args.timeout:g} s", file=sys.stderr)
         for name, text in outputs.items():
             tail = "\n".join(text.splitlines()[-8:])
-            print(f"--- {name} (exit {codes.get(name)}):\n{tail}", file=sys.stderr)
+            print(printable_lines(f"--- {name} (exit {codes.get(name)}):\n{tail}"), file=sys.stderr)
         return 2 if codes.get("player") == 2 else 1
     print(live_summary(document))
     if args.json_out:
         write_json(document, Path(args.json_out))
-        print(f"verdict JSON: {args.json_out}")
+        print(printable(f"verdict JSON: {args.json_out}"))
     if record is not None:
         write_json(document, record / "verdict.json")
-        print(f"MCAP recording: {record} (verdict JSON beside it: {record / 'verdict.json'})")
+        print(
+            printable(
+                f"MCAP recording: {record} (verdict JSON beside it: {record / 'verdict.json'})"
+            )
+        )
     return 0
 
 
@@ -236,5 +256,5 @@ def live_summary(document: dict[str, Any]) -> str:
     lines = [summary_text(document, how="judged live")]
     lines.append(f"verdict latency: {document.get('verdict_latency_s', 0.0):.3f} s")
     if not live.get("complete", True):
-        lines.append("INCOMPLETE: " + "; ".join(live.get("why_incomplete") or []))
+        lines.append(printable("INCOMPLETE: " + "; ".join(live.get("why_incomplete") or [])))
     return "\n".join(lines)

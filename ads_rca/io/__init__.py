@@ -4,12 +4,18 @@ from __future__ import annotations
 
 import os
 
+from ads_rca.io.files import DEFAULT_MAX_FILE_MB
 from ads_rca.model import RunLog
 
 
-def open_run(path: str | os.PathLike[str], remap: str | os.PathLike[str] | None = None) -> RunLog:
+def open_run(
+    path: str | os.PathLike[str],
+    remap: str | os.PathLike[str] | None = None,
+    max_file_mb: float = DEFAULT_MAX_FILE_MB,
+) -> RunLog:
     """Load a run from any supported source: an ADS running-log folder, or a rosbag2 bag
-    (directory, ``.mcap`` or ``.db3``; ``remap`` = topic remapping YAML for a stack's bag)."""
+    (directory, ``.mcap`` or ``.db3``; ``remap`` = topic remapping YAML for a stack's bag).
+    ``max_file_mb`` caps each file of a log folder (larger ones are reported and skipped)."""
     from ads_rca.io.bag_reader import is_bag
 
     if remap is not None or is_bag(path):
@@ -18,4 +24,4 @@ def open_run(path: str | os.PathLike[str], remap: str | os.PathLike[str] | None 
         return read_bag(path, remap=remap)
     from ads_rca.io.json_log import read_run_log
 
-    return read_run_log(path)
+    return read_run_log(path, max_file_mb)

@@ -9,6 +9,13 @@ are one per ``actors/`` file, ascending, duplicates kept.
 Nothing here raises on bad data: a missing folder, an unreadable or invalid JSON file, a
 file name without a timestamp, a wrong value... each becomes a Problem and the rest of the
 log still loads. Only a path that is not a log folder at all raises InputError.
+
+Hostile files too: only regular files of at most ``max_file_mb`` are read (FIFOs, devices,
+symlinks to them are reported, see :mod:`ads_rca.io.files`); JSON nested deeper than the
+parsers can read (1024 levels) is reported as invalid, never a RecursionError; and what the
+reader keeps as raw JSON (``metadata.json``, box extras) may nest at most
+:data:`MAX_KEPT_DEPTH` levels, so that writing it again (convert, the live graph) cannot
+overflow either.
 """
 
 from __future__ import annotations
@@ -24,12 +31,27 @@ from typing import Any
 import orjson
 
 from ads_rca.errors import InputError
-from ads_rca.io.records import parse_actors, parse_boxes, parse_plan, parse_pose, parse_predictions
+from ads_rca.io.files import DEFAULT_MAX_FILE_MB, Unreadable, max_bytes, read_regular
+from ads_rca.io.records import (
+    parse_actors,
+    parse_boxes,
+    parse_plan,
+    parse_pose,
+    parse_predictions,
+    show_value,
+)
 from ads_rca.io.validate import validate_run_log
 from ads_rca.model import FOLDERS, RunLog, RunMetadata
-from ads_rca.problems import IGNORED, SKIPPED_FILE, USED_DEFAULT, Problem, ProblemLog
+from ads_rca.problems import IGNORED, KEPT_VALUE, SKIPPED_FILE, USED_DEFAULT, Problem, ProblemLog
 
 DEFAULT_TPF_MS = 50
+#: Deepest nesting of what the reader keeps as raw JSON (``metadata.json``, box extras).
+#: Far beyond any real log (records nest 4 levels), and below every writer of it: orjson
+#: writes at most 255 levels (convert and the live graph write both again); json.dumps and
+#: repr stop near Python's recursion limit (1000). Whole documents are bounded by the
+#: parsers themselves: orjson reads 1024 levels, the reference's json.loads about 995.
+MAX_KEPT_DEPTH = 200
+_BOX_KEYS = frozenset(("bounding_box",))
 Job = tuple[str, int, str]  # folder, timestamp, file name
 
 Parser = Callable[[Any, str, ProblemLog, int], Any]
@@ -64,21 +86,67 @@ def is_log_file(file_name: str) -> bool:
 
 
 def decode_json(data: bytes) -> Any:
-    """Strict JSON first (fast); Python's json for the NaN/Infinity literals it also accepts."""
+    """Strict JSON first (fast); Python's json for the NaN/Infinity literals it also accepts.
+
+    Raises ValueError for invalid JSON, nesting deeper than the parser reads included.
+    """
     try:
         return orjson.loads(data)
-    except orjson.JSONDecodeError:
+    except orjson.JSONDecodeError as error:
+        if "depth limit" in str(error):
+            raise ValueError("nested too deep: more than 1024 levels") from None
+    try:
         return json.loads(data)
+    except RecursionError:
+        raise ValueError("nested too deep for the parser") from None
 
 
-def read_run_log(path: str | os.PathLike[str]) -> RunLog:
+def kept_too_deep(folder: str, document: Any) -> bool:
+    """True when the raw JSON the reader keeps of ``document`` nests over MAX_KEPT_DEPTH.
+
+    ``metadata.json`` is kept whole; of a boxes file, each box's fields but the corners
+    (which become numbers or a reported NaN). Other folders keep numbers only.
+    """
+    if folder == "metadata":
+        return _deeper_than(document, MAX_KEPT_DEPTH)
+    if folder not in ("bboxes", "bboxes_gt") or not isinstance(document, list):
+        return False
+    return any(
+        isinstance(value, dict | list) and _deeper_than(value, MAX_KEPT_DEPTH - 2)
+        for box in document
+        if isinstance(box, dict)
+        for key, value in box.items()
+        if key not in _BOX_KEYS
+    )
+
+
+def _too_deep_kept() -> str:
+    return f"invalid JSON (nested too deep: more than {MAX_KEPT_DEPTH} levels)"
+
+
+def _deeper_than(document: Any, limit: int) -> bool:
+    """True when arrays/objects nest more than ``limit`` levels (iterative: no recursion)."""
+    stack: list[tuple[Any, int]] = [(document, 1)]
+    while stack:
+        value, depth = stack.pop()
+        children = value.values() if isinstance(value, dict) else value
+        if depth > limit:
+            return True
+        stack.extend((c, depth + 1) for c in children if isinstance(c, dict | list))
+    return False
+
+
+def read_run_log(path: str | os.PathLike[str], max_file_mb: float = DEFAULT_MAX_FILE_MB) -> RunLog:
     """Load a running-log folder. Raises InputError only when ``path`` is no log folder.
+
+    ``max_file_mb``: files larger than this are reported and skipped, not read.
 
     Parsing is single-process on purpose: it is CPU-bound (threads do not help), and
     shipping parsed records back from worker processes costs as much as parsing them
     (measured in bench/bench_load.py's notes).
     """
     root = Path(path)
+    limit = check_max_file_mb(max_file_mb)
     if not root.exists():
         raise InputError(f"{root}: no such log folder")
     if not root.is_dir():
@@ -92,13 +160,13 @@ def read_run_log(path: str | os.PathLike[str]) -> RunLog:
     files = {folder: {ts: name for ts, name in listings[folder]} for folder in FOLDERS}
     jobs = [(folder, ts, name) for folder in FOLDERS for ts, name in files[folder].items()]
     records: dict[str, dict[int, Any]] = {folder: {} for folder in FOLDERS}
-    parsed, found = _parse_files(str(root), jobs)
+    parsed, found = _parse_files(str(root), jobs, limit)
     problems.extend(found)
     for folder, ts, record in parsed:
         records[folder][ts] = record
     records = {folder: dict(sorted(r.items())) for folder, r in records.items()}
     actors_listing = [ts for ts, _ in listings["actors"]]
-    metadata = read_metadata(root / "metadata.json", actors_listing, problems)
+    metadata = read_metadata(root / "metadata.json", actors_listing, problems, limit)
     log = RunLog.from_folders(
         metadata,
         tuple(sorted(actors_listing)),
@@ -109,6 +177,15 @@ def read_run_log(path: str | os.PathLike[str]) -> RunLog:
     )
     validate_run_log(log, listings, missing_folders=[f for f in FOLDERS if not (root / f).is_dir()])
     return log
+
+
+def check_max_file_mb(max_file_mb: float) -> int:
+    """The byte cap of ``max_file_mb``; InputError unless it is a positive number."""
+    if not (isinstance(max_file_mb, int | float) and math.isfinite(max_file_mb)) or (
+        max_file_mb <= 0
+    ):
+        raise InputError(f"max_file_mb must be a positive number of MB, not {max_file_mb!r}")
+    return max_bytes(max_file_mb)
 
 
 def _list_folder(root: Path, folder: str, problems: ProblemLog) -> list[tuple[int, str]]:
@@ -136,15 +213,21 @@ def _list_folder(root: Path, folder: str, problems: ProblemLog) -> list[tuple[in
     return listing
 
 
-def _parse_files(root: str, jobs: list[Job]) -> tuple[list[tuple[str, int, Any]], list[Problem]]:
-    """Read, decode and parse files in ``jobs`` order; the problems found on the way."""
+def _parse_files(
+    root: str, jobs: list[Job], limit: int
+) -> tuple[list[tuple[str, int, Any]], list[Problem]]:
+    """Read (at most ``limit`` bytes a file), decode and parse files in ``jobs`` order; the
+    problems found on the way."""
     problems = ProblemLog()
     parsed: list[tuple[str, int, Any]] = []
     base = Path(root)
     for folder, ts, name in jobs:
         file = f"{folder}/{name}"
-        document = _decode(_read_bytes(base / folder / name), file, problems, ts)
+        document = _decode(read_regular(base / folder / name, limit), file, problems, ts)
         if document is _UNUSABLE:
+            continue
+        if kept_too_deep(folder, document):
+            problems.add(file, "", _too_deep_kept(), SKIPPED_FILE, timestamp_ms=ts)
             continue
         record = PARSERS[folder](document, file, problems, ts)
         if record is not None:
@@ -155,16 +238,9 @@ def _parse_files(root: str, jobs: list[Job]) -> tuple[list[tuple[str, int, Any]]
 _UNUSABLE = object()
 
 
-def _read_bytes(path: Path) -> bytes | OSError:
-    try:
-        return path.read_bytes()
-    except OSError as error:
-        return error
-
-
-def _decode(data: bytes | OSError, file: str, problems: ProblemLog, ts: int | None) -> Any:
-    if isinstance(data, OSError):
-        problems.add(file, "", f"cannot read: {data.strerror}", SKIPPED_FILE, timestamp_ms=ts)
+def _decode(data: bytes | Unreadable, file: str, problems: ProblemLog, ts: int | None) -> Any:
+    if isinstance(data, Unreadable):
+        problems.add(file, "", data.issue, SKIPPED_FILE, timestamp_ms=ts)
         return _UNUSABLE
     if not data.strip():
         problems.add(file, "", "empty file", SKIPPED_FILE, timestamp_ms=ts)
@@ -179,23 +255,29 @@ def _decode(data: bytes | OSError, file: str, problems: ProblemLog, ts: int | No
 
 
 def read_metadata(
-    path: Path, actors_timestamps: Iterable[int], problems: ProblemLog
+    path: Path,
+    actors_timestamps: Iterable[int],
+    problems: ProblemLog,
+    limit: int = max_bytes(DEFAULT_MAX_FILE_MB),
 ) -> RunMetadata:
     """``metadata.json``; every missing or bad field gets a reported default.
 
     Defaults: the frame period is inferred from the actors timestamps (their most common
     step, else 50 ms), camera at the origin, no collision, and as many frames as the last
-    actors timestamp covers.
+    actors timestamp covers. A number given as a string (``"64"``) or a boolean is used
+    as the number and reported; a collision frame past the last actors file is reported.
     """
     file = "metadata.json"
     timestamps = sorted(set(actors_timestamps))
     document: Any = {}
-    data = _read_bytes(path) if path.exists() else None
+    data = read_regular(path, limit) if path.exists() else None
     if data is None:
         problems.add(file, "", "missing", USED_DEFAULT)
     else:
         decoded = _decode(data, file, problems, None)
-        if decoded is not _UNUSABLE:
+        if decoded is not _UNUSABLE and kept_too_deep("metadata", decoded):
+            problems.add(file, "", _too_deep_kept(), USED_DEFAULT)
+        elif decoded is not _UNUSABLE:
             document = decoded
     if not isinstance(document, dict):
         problems.add(file, "", "expected an object", USED_DEFAULT)
@@ -206,14 +288,20 @@ def read_metadata(
             if data is not None:
                 problems.add(file, name, "missing", f"{USED_DEFAULT}: {default:g}")
             return default
+        shown = show_value(value)
         try:
             number = float(value)
         except (TypeError, ValueError):
-            problems.add(file, name, f"{value!r} is not a number", f"{USED_DEFAULT}: {default:g}")
+            problems.add(file, name, f"{shown} is not a number", f"{USED_DEFAULT}: {default:g}")
             return default
         if not math.isfinite(number) or (integral and not number.is_integer()):
-            problems.add(file, name, f"{value!r} is not an integer", f"{USED_DEFAULT}: {default:g}")
+            problems.add(file, name, f"{shown} is not an integer", f"{USED_DEFAULT}: {default:g}")
             return default
+        if isinstance(value, str | bool):
+            kind = "a string" if isinstance(value, str) else "a boolean"
+            problems.add(
+                file, name, f"{shown} is {kind}, not a number", f"{KEPT_VALUE}: {number:g}"
+            )
         return number
 
     tpf = int(
@@ -226,6 +314,14 @@ def read_metadata(
         tpf = _infer_tpf(timestamps)
     camera_loc = _camera_loc(document, file, problems)
     collision = int(field("collision_frame", document.get("collision_frame"), -1, True))
+    if timestamps and collision * tpf > timestamps[-1]:
+        problems.add(
+            file,
+            "collision_frame",
+            f"frame {collision} ({collision * tpf} ms) is past the last actors file "
+            f"({timestamps[-1]} ms)",
+            KEPT_VALUE,
+        )
     last_frame = (timestamps[-1] // tpf) if timestamps else 0
     total = int(field("total_frames", document.get("total_frames"), last_frame, True))
     return RunMetadata(tpf, camera_loc, collision, total, raw=document)

@@ -56,10 +56,10 @@ class _Reader:
         try:
             number = float(value)
         except (TypeError, ValueError):
-            self.report(field, f"{_show(value)} is not a number", "read as NaN")
+            self.report(field, f"{show_value(value)} is not a number", "read as NaN")
             return math.nan
         if not math.isfinite(number):
-            self.report(field, f"{_show(value)} is not finite", KEPT_VALUE, "warning")
+            self.report(field, f"{show_value(value)} is not finite", KEPT_VALUE, "warning")
         return number
 
 
@@ -297,8 +297,12 @@ def _box_id(value: Any) -> str:
     return str(value)
 
 
-def _show(value: Any) -> str:
-    text = repr(value)
+def show_value(value: Any) -> str:
+    """A short repr of a value for a problem message (at most 40 characters)."""
+    try:
+        text = repr(value)
+    except RecursionError:  # a list nested ~1000 levels (the JSON parser reads 1024)
+        return f"a {type(value).__name__} nested too deep"
     return text if len(text) <= 40 else text[:37] + "..."
 
 

@@ -25,6 +25,7 @@ from rclpy.subscription import RCLError
 from std_msgs.msg import String
 
 from ads_rca.errors import InputError
+from ads_rca.io.files import DEFAULT_MAX_FILE_MB
 from ads_rca.model import RunLog
 from ads_rca.ros import live_topics, topics
 from ads_rca.ros.cdr import encode_clock, encode_string, frame_payloads
@@ -44,12 +45,17 @@ from ads_rca.ros.playback import (
     timeline,
 )
 from ads_rca.ros.runid import new_run_id
+from ads_rca.text import printable
 
 #: Every parameter: (default, description). Doubles accept integers too (dynamic typing).
 PARAMETERS: dict[str, tuple[Any, str]] = {
     "log_path": ("", "Running-log folder or rosbag2 bag (dir, .mcap, .db3) to play (required)."),
     "bag_remap": ("", "Topic remapping YAML for a bag whose topic names differ ('' = none)."),
     "rate": (1.0, "Playback speed vs log time; 0 = as fast as subscribers acknowledge."),
+    "max_file_mb": (
+        DEFAULT_MAX_FILE_MB,
+        "Log files larger than this many MB are reported and skipped, not read.",
+    ),
     "start_frame": (0, "Index of the first analysed frame to play."),
     "stop_frame": (-1, "Index of the last analysed frame to play (inclusive); -1 = the end."),
     "loop": (False, "Start again from start_frame after the last frame."),
@@ -74,7 +80,7 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
         "~20x faster) instead of rclpy message objects.",
     ),
 }
-_DOUBLES = {"rate", "wait_timeout_s"}
+_DOUBLES = {"rate", "wait_timeout_s", "max_file_mb"}
 #: A tick may carry a few extra stamps; 40 frames stay far below the 100-message history.
 MAX_ACK_EVERY = 40
 
@@ -112,6 +118,7 @@ class Player(Node):
             raise ConfigError(f"ack_every must be 1 to {MAX_ACK_EVERY}, got {self.ack_every}")
         if self.start_frame < 0 or self.stop_frame < -1:
             raise ConfigError("start_frame must be >= 0 and stop_frame >= -1")
+        self.max_file_mb = float(self._param("max_file_mb"))
         self.log = self._load(str(self._param("log_path")), str(self._param("bag_remap")))
         self.ticks = select(timeline(self.log), self.start_frame, self.stop_frame)
         if not self.ticks:
@@ -166,12 +173,14 @@ class Player(Node):
             raise ConfigError(f"{log_path}: no such log folder")
         if remap and not Path(remap).is_file():
             raise ConfigError(f"{remap}: no such remapping file")
-        log = open_run(log_path, remap=remap or None)
+        log = open_run(log_path, remap=remap or None, max_file_mb=self.max_file_mb)
         for problem in log.problems:
             self.get_logger().warning(str(problem))
         self.get_logger().info(
-            f"{log_path}: {len(log.frames)} analysed frames, tpf {log.tpf} ms, "
-            f"{len(log.problems)} problems"
+            printable(
+                f"{log_path}: {len(log.frames)} analysed frames, tpf {log.tpf} ms, "
+                f"{len(log.problems)} problems"
+            )
         )
         return log
 
@@ -302,7 +311,7 @@ def main(args: list[str] | None = None) -> int:
         try:
             node = Player()
         except (ConfigError, InputError) as error:
-            get_logger("player").error(str(error))
+            get_logger("player").error(printable(error))
             return 2
         executor = make_executor()
         executor.add_node(node)

@@ -1,0 +1,75 @@
+"""Output paths checked before the work starts: one line and exit status 2, not a traceback
+after minutes of work.
+
+Every command that writes (``--json``, ``--report``, ``convert``'s OUT, ``replay --record``,
+``demo --out``) checks its paths here first. The writers create missing parent folders, so
+a path is usable when its nearest existing ancestor is a directory we can create files in,
+or when it is an existing file we can open for writing. Both are tested for real (a probe
+file created and removed; an open without truncation), not with ``os.access``: root passes
+every permission check, yet cannot write in ``/proc`` or on a read-only mount.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+from ads_rca.errors import InputError
+
+
+def check_output_file(path: str | os.PathLike[str], option: str) -> Path:
+    """``path`` can be written as a file (``option`` names it in the error)."""
+    target = Path(path)
+    if target.is_dir():
+        raise InputError(f"{option} {target}: is a directory (expected a file name)")
+    if os.path.lexists(target):
+        _probe_open(target, option)
+        return target
+    _check_can_create_in(target, option)
+    return target
+
+
+def check_output_dir(path: str | os.PathLike[str], option: str, empty: bool = True) -> Path:
+    """``path`` can be created as a new folder, or is an (``empty``) one we can write in."""
+    target = Path(path)
+    if os.path.lexists(target):
+        if not target.is_dir():
+            raise InputError(f"{option} {target}: exists and is not a directory")
+        if empty and any(target.iterdir()):
+            raise InputError(f"{option} {target}: exists and is not an empty directory")
+        _probe(target, target, option)
+        return target
+    _check_can_create_in(target, option)
+    return target
+
+
+def _check_can_create_in(target: Path, option: str) -> None:
+    ancestor = target.absolute().parent
+    while not os.path.lexists(ancestor) and ancestor != ancestor.parent:
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        raise InputError(f"{option} {target}: {ancestor} is not a directory")
+    _probe(ancestor, target, option)
+
+
+def _probe_open(target: Path, option: str) -> None:
+    """Open an existing ``target`` for writing without truncating it or writing anything
+    (non-blocking: a FIFO nobody reads fails here instead of hanging the write later)."""
+    try:
+        fd = os.open(target, os.O_WRONLY | os.O_APPEND | os.O_NONBLOCK | os.O_NOCTTY)
+    except OSError as error:
+        raise InputError(f"{option} {target}: cannot write ({error.strerror})") from None
+    os.close(fd)
+
+
+def _probe(directory: Path, target: Path, option: str) -> None:
+    """Create and remove a file in ``directory``: the only check root cannot pass wrongly."""
+    try:
+        fd, name = tempfile.mkstemp(prefix=".ads_rca_probe_", dir=directory)
+    except OSError as error:
+        raise InputError(
+            f"{option} {target}: cannot write in {directory} ({error.strerror})"
+        ) from None
+    os.close(fd)
+    os.unlink(name)

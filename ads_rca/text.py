@@ -1,0 +1,35 @@
+"""Text from a log made safe for a terminal: control characters shown as escapes.
+
+A log is untrusted: a file name, an actor id or a field value can hold a newline (and so
+forge a whole output line such as ``verdict: planning``), an ANSI escape sequence (clear the
+screen, recolour, move the cursor) or a bidi override (show text in another order than it
+is). Everything human-facing that can carry such text goes through :func:`printable`.
+JSON outputs keep the exact strings: JSON escapes control characters itself.
+"""
+
+from __future__ import annotations
+
+import re
+
+#: C0 controls (tab and newline included), DEL, C1 controls, the Unicode line and
+#: paragraph separators, and the bidi embedding/override/isolate controls.
+_UNSAFE = re.compile("[\x00-\x1f\x7f-\x9f\u2028\u2029\u200e\u200f\u202a-\u202e\u2066-\u2069]")
+
+
+def _escape(match: re.Match[str]) -> str:
+    code = ord(match.group())
+    return f"\\x{code:02x}" if code <= 0xFF else f"\\u{code:04x}"
+
+
+def printable(text: object) -> str:
+    """``str(text)`` with every unsafe character as ``\\x0a`` / ``\\u202e`` escapes.
+
+    Backslashes are left as they are: the escapes are for reading, not for parsing back.
+    """
+    return _UNSAFE.sub(_escape, str(text))
+
+
+def printable_lines(text: str) -> str:
+    """Each line of ``text`` made printable, keeping its line breaks (another process's
+    output, shown line by line)."""
+    return "\n".join(printable(line) for line in text.split("\n"))

@@ -1,0 +1,422 @@
+"""Hostile input (issue 12, items 1, 2, 5, 6, 7): every case is a real file, run through the
+real CLI in a subprocess, with a timeout (a hang fails the test) and an address-space limit
+(reading /dev/zero until memory runs out fails the test instead of the machine).
+
+- FIFOs, devices and symlinks to them named like log files; files over ``max_file_mb``.
+- JSON nested deeper than the reader's limit (and deeper than the parsers' own).
+- Output paths that are directories or cannot be written: refused before the work starts.
+- ``metadata.json`` numbers given as strings, a collision frame past the last frame.
+- File names, folder names and paths with newlines and terminal escape sequences.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import resource
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from ads_rca.io.json_writer import write_run_log
+from ads_rca.synth import synthesise
+
+#: Seconds before a CLI run counts as hung.
+TIMEOUT = 120
+#: Address space of a CLI run: plenty for a diagnosis, far below the machine's memory.
+MEMORY_LIMIT = 3 << 30
+FORGED = "\nverdict: planning\n"
+CLEAR_SCREEN = "\x1b[2J"
+
+
+def _limit_memory() -> None:
+    resource.setrlimit(resource.RLIMIT_AS, (MEMORY_LIMIT, MEMORY_LIMIT))
+
+
+def run_cli(*args: str, timeout: float = TIMEOUT) -> subprocess.CompletedProcess[str]:
+    """``ads-rca ARGS`` in a subprocess; a hang raises TimeoutExpired (a failure)."""
+    return subprocess.run(
+        [sys.executable, "-m", "ads_rca.cli", *args],
+        capture_output=True,
+        check=False,
+        text=True,
+        timeout=timeout,
+        preexec_fn=_limit_memory,
+    )
+
+
+def assert_clean(done: subprocess.CompletedProcess[str], code: int = 0) -> None:
+    output = done.stdout + done.stderr
+    assert "Traceback" not in output, output
+    assert done.returncode == code, output
+
+
+@pytest.fixture(scope="module")
+def crash_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A synthesised crash with a planning fault (a verdict to protect), written once."""
+    return write_run_log(
+        synthesise("cut_in", "planning", seed=0), tmp_path_factory.mktemp("c") / "log"
+    )
+
+
+@pytest.fixture
+def log_dir(crash_log: Path, tmp_path: Path) -> Path:
+    """A private copy of the crash log, free to damage."""
+    return Path(shutil.copytree(crash_log, tmp_path / "log"))
+
+
+def _one(folder: Path, index: int = 3) -> Path:
+    return sorted(folder.iterdir())[index]
+
+
+def problems_of(done: subprocess.CompletedProcess[str]) -> list[dict[str, Any]]:
+    """The problems of ``inspect --json`` output."""
+    return list(json.loads(done.stdout)["problems"])
+
+
+# --- 1. only regular files, at most max_file_mb ---------------------------------------
+
+
+@pytest.mark.parametrize("command", ["diagnose", "inspect", "convert"])
+def test_a_fifo_named_like_a_record_file_is_reported_not_read(
+    log_dir: Path, tmp_path: Path, command: str
+) -> None:
+    fifo = _one(log_dir / "pose")
+    fifo.unlink()
+    os.mkfifo(fifo)
+    args = [command, str(log_dir)] + ([str(tmp_path / "bag")] if command == "convert" else [])
+    done = run_cli(*args)
+    assert_clean(done)
+    if command == "convert":
+        assert (tmp_path / "bag" / "metadata.yaml").is_file()
+    else:
+        assert f"pose/{fifo.name}: not a regular file (FIFO) (file skipped)" in done.stdout
+
+
+def test_a_fifo_as_metadata_json_is_reported_and_defaults_used(log_dir: Path) -> None:
+    (log_dir / "metadata.json").unlink()
+    os.mkfifo(log_dir / "metadata.json")
+    done = run_cli("inspect", "--json", str(log_dir))
+    assert_clean(done)
+    assert {
+        "file": "metadata.json",
+        "field": "",
+        "issue": "not a regular file (FIFO)",
+        "action": "file skipped",
+        "severity": "error",
+        "timestamp_ms": None,
+    } in problems_of(done)
+
+
+@pytest.mark.parametrize("device", ["/dev/zero", "/dev/urandom"])
+@pytest.mark.parametrize("folder", ["actors", "bboxes", "metadata.json"])
+def test_a_symlink_to_a_device_is_reported_and_the_rest_diagnosed(
+    log_dir: Path, device: str, folder: str
+) -> None:
+    target = log_dir / folder if folder.endswith(".json") else _one(log_dir / folder)
+    target.unlink()
+    target.symlink_to(device)
+    done = run_cli("diagnose", str(log_dir))
+    assert_clean(done)
+    name = target.relative_to(log_dir).as_posix()
+    assert f"{name}: not a regular file (character device) (file skipped)" in done.stdout
+    assert "frames judged" in done.stdout
+
+
+def test_a_symlink_to_a_regular_file_is_still_read(log_dir: Path) -> None:
+    original = _one(log_dir / "actors")
+    moved = log_dir / "elsewhere.data"
+    original.rename(moved)
+    original.symlink_to(moved)
+    done = run_cli("inspect", "--json", str(log_dir))
+    assert_clean(done)
+    assert not any(p["file"].endswith(original.name) for p in problems_of(done))
+
+
+def test_a_file_over_max_file_mb_is_skipped_with_the_cap_named(log_dir: Path) -> None:
+    big = _one(log_dir / "bboxes_gt")
+    boxes = [{"id": i, "bounding_box": [[i, 1.5], [i + 10, 20.25]]} for i in range(40_000)]
+    big.write_text(json.dumps(boxes))
+    assert big.stat().st_size > 1 << 20
+    expected = f"bboxes_gt/{big.name}: larger than 1 MB (max_file_mb) (file skipped)"
+    for option in (["--max-file-mb", "1"], ["-p", "max_file_mb=1"]):
+        done = run_cli("diagnose", str(log_dir), *option)
+        assert_clean(done)
+        assert expected in done.stdout
+    done = run_cli("inspect", "--json", str(log_dir))  # the default cap is generous
+    assert not any(p["issue"].startswith("larger than") for p in problems_of(done))
+
+
+def test_max_file_mb_must_be_positive(log_dir: Path) -> None:
+    done = run_cli("inspect", str(log_dir), "--max-file-mb", "0")
+    assert_clean(done, 2)
+    assert done.stderr.strip().endswith("max_file_mb must be a positive number of MB, not 0.0")
+
+
+# --- 2. JSON nested too deep ------------------------------------------------------------
+
+
+def _nested(depth: int) -> str:
+    return "[" * depth + "1" + "]" * depth
+
+
+#: (depth, folder, the limit named): parsers read 1024 levels; kept raw JSON 200.
+DEEP_CASES = [
+    (2000, "predictions", 1024),
+    (100_000, "predictions", 1024),
+    (2000, "bboxes", 1024),
+    (100_000, "metadata.json", 1024),
+    (300, "bboxes", 200),  # a box's extra field, kept and written again by convert
+    (300, "metadata.json", 200),  # metadata.json is kept whole
+]
+
+
+def _write_nested(target: Path, depth: int) -> None:
+    if target.parent.name == "bboxes":
+        box = '{"id": 1, "bounding_box": [[1, 2], [3, 4]], "x": ' + _nested(depth) + "}"
+        target.write_text("[" + box + "]")
+    else:
+        target.write_text('{"x": ' + _nested(depth) + "}")
+
+
+@pytest.mark.parametrize(("depth", "folder", "limit"), DEEP_CASES)
+def test_deeply_nested_json_is_reported_and_the_rest_diagnosed(
+    log_dir: Path, tmp_path: Path, depth: int, folder: str, limit: int
+) -> None:
+    target = log_dir / folder if folder.endswith(".json") else _one(log_dir / folder)
+    _write_nested(target, depth)
+    name = target.relative_to(log_dir).as_posix()
+    done = run_cli("diagnose", str(log_dir), "--max-problems", "50")
+    assert_clean(done)
+    assert f"{name}: invalid JSON (nested too deep: more than {limit} levels)" in done.stdout
+    assert "frames judged" in done.stdout
+    # What is kept can be written again: both conversions run through.
+    assert_clean(run_cli("convert", str(log_dir), str(tmp_path / "bag")))
+    assert_clean(run_cli("convert", str(tmp_path / "bag"), str(tmp_path / "back")))
+
+
+def test_nesting_the_parser_reads_never_overflows_later(log_dir: Path, tmp_path: Path) -> None:
+    """1000 levels: orjson reads it, but repr and json.dumps of it overflow Python's stack."""
+    _write_nested(_one(log_dir / "predictions"), 1000)  # an unknown key: ignored
+    _write_nested(_one(log_dir / "bboxes"), 150)  # kept, within the limit
+    pose = _one(log_dir / "pose")
+    document = json.loads(pose.read_text())
+    pose.write_text(json.dumps(document)[:-1] + ', "x": ' + _nested(1000) + "}")
+    done = run_cli("diagnose", str(log_dir), "--max-problems", "50")
+    assert_clean(done)
+    assert f"pose/{pose.name}: x: a list nested too deep is not a number" in done.stdout
+    assert_clean(run_cli("convert", str(log_dir), str(tmp_path / "bag")))
+    assert_clean(run_cli("convert", str(tmp_path / "bag"), str(tmp_path / "back")))
+
+
+# --- 5. output paths checked before the work --------------------------------------------
+
+
+def _unwritable_outputs(tmp_path: Path) -> dict[str, Path]:
+    """Paths no process can write, root included (chmod does not stop root)."""
+    a_file = tmp_path / "a_file"
+    a_file.write_text("x")
+    (tmp_path / "a_dir").mkdir()
+    (tmp_path / "full_dir").mkdir()
+    (tmp_path / "full_dir" / "x").write_text("x")
+    return {
+        "directory": tmp_path / "a_dir",
+        "under a file": a_file / "sub" / "out.json",
+        "in /proc": Path("/proc/ads_rca_out.json"),
+    }
+
+
+@pytest.mark.parametrize("case", ["directory", "under a file", "in /proc"])
+@pytest.mark.parametrize("option", ["--json", "--report"])
+def test_diagnose_refuses_an_unwritable_output_before_the_work(
+    log_dir: Path, tmp_path: Path, option: str, case: str
+) -> None:
+    out = _unwritable_outputs(tmp_path)[case]
+    done = run_cli("diagnose", str(log_dir), option, str(out))
+    assert_clean(done, 2)
+    assert done.stdout == ""  # refused before the diagnosis, not after it
+    assert done.stderr.startswith(f"ads-rca diagnose: error: {option} {out}: ")
+    assert len(done.stderr.splitlines()) == 1
+
+
+def test_missing_parents_of_an_output_are_created_as_before(log_dir: Path, tmp_path: Path) -> None:
+    out = tmp_path / "new" / "deeper" / "verdict.json"
+    assert_clean(run_cli("diagnose", str(log_dir), "--json", str(out)))
+    assert json.loads(out.read_text())["verdict"]
+
+
+@pytest.mark.parametrize("case", ["a file", "not empty", "under a file", "in /proc"])
+def test_convert_refuses_an_unwritable_out_before_reading(
+    log_dir: Path, tmp_path: Path, case: str
+) -> None:
+    outputs = _unwritable_outputs(tmp_path)
+    out = {
+        "a file": tmp_path / "a_file",
+        "not empty": tmp_path / "full_dir",
+        "under a file": outputs["under a file"].parent,
+        "in /proc": Path("/proc/ads_rca_out"),
+    }[case]
+    done = run_cli("convert", str(log_dir), str(out))
+    assert_clean(done, 2)
+    assert done.stdout == ""
+    assert done.stderr.startswith(f"ads-rca convert: error: OUT {out}: ")
+
+
+@pytest.mark.parametrize("case", ["directory", "under a file"])
+def test_replay_refuses_an_unwritable_output_before_starting_the_graph(
+    log_dir: Path, tmp_path: Path, ros_env: Any, case: str
+) -> None:
+    out = _unwritable_outputs(tmp_path)[case]
+    args = ["replay", str(log_dir), "--domain-id", str(ros_env.domain_id), "--timeout", "60"]
+    done = run_cli(*args, "--json", str(out))
+    assert_clean(done, 2)
+    assert done.stdout == ""  # no graph was started
+    assert done.stderr.startswith(f"ads-rca replay: error: --json {out}: ")
+    record = tmp_path / "a_file" / "bag"
+    done = run_cli(*args, "--record", str(record))
+    assert_clean(done, 2)
+    assert done.stdout == ""
+    assert done.stderr.startswith(f"ads-rca replay: error: --record {record}: ")
+
+
+# --- 6. metadata.json numbers -----------------------------------------------------------
+
+
+def _metadata(log_dir: Path) -> dict[str, Any]:
+    return dict(json.loads((log_dir / "metadata.json").read_text()))
+
+
+def _verdict(log_dir: Path, out: Path, semantics: str) -> dict[str, Any]:
+    done = run_cli("diagnose", str(log_dir), "--semantics", semantics, "--json", str(out))
+    assert_clean(done)
+    return dict(json.loads(out.read_text()))
+
+
+@pytest.mark.parametrize("semantics", ["reference", "corrected"])
+def test_numbers_given_as_strings_are_used_and_reported(
+    log_dir: Path, tmp_path: Path, semantics: str
+) -> None:
+    before = _verdict(log_dir, tmp_path / "before.json", semantics)
+    metadata = _metadata(log_dir)
+    for name in ("collision_frame", "timesteps_per_frame", "total_frames"):
+        metadata[name] = str(metadata[name])
+    (log_dir / "metadata.json").write_text(json.dumps(metadata))
+    after = _verdict(log_dir, tmp_path / "after.json", semantics)
+    problems = after.pop("input_problems")
+    before.pop("input_problems")
+    assert after == before  # the values are still used: the same verdict
+    for name in ("collision_frame", "timesteps_per_frame", "total_frames"):
+        value = metadata[name]
+        assert {
+            "file": "metadata.json",
+            "field": name,
+            "issue": f"{value!r} is a string, not a number",
+            "action": f"value kept: {value}",
+            "severity": "error",
+            "timestamp_ms": None,
+        } in problems
+
+
+@pytest.mark.parametrize("semantics", ["reference", "corrected"])
+def test_a_collision_frame_past_the_last_frame_is_reported_against_metadata(
+    log_dir: Path, tmp_path: Path, semantics: str
+) -> None:
+    metadata = _metadata(log_dir)
+    last_ms = max(int(p.stem.rpartition("-")[2]) for p in (log_dir / "actors").iterdir())
+    metadata["collision_frame"] = last_ms // metadata["timesteps_per_frame"] + 30
+    (log_dir / "metadata.json").write_text(json.dumps(metadata))
+    document = _verdict(log_dir, tmp_path / "v.json", semantics)
+    assert document["collision_frame"] == metadata["collision_frame"]  # still used
+    past = [
+        p
+        for p in document["input_problems"]
+        if p["file"] == "metadata.json" and p["field"] == "collision_frame"
+    ]
+    assert len(past) == 1 and "is past the last actors file" in past[0]["issue"], past
+
+
+# --- 7. control characters never reach the terminal raw ---------------------------------
+
+
+def _terminal_safe(text: str) -> None:
+    """No escape sequence, no bidi override, at most the one real verdict line."""
+    assert "\x1b" not in text and "\u202e" not in text
+    assert sum(line.startswith("verdict:") for line in text.splitlines()) <= 1
+
+
+def test_forged_lines_and_escapes_in_file_names_are_escaped(log_dir: Path, tmp_path: Path) -> None:
+    """The real verdict is planning too: a forged line would be indistinguishable."""
+    (log_dir / "actors" / f"evil{FORGED}.json").write_text("{}")
+    (log_dir / "pose" / f"{CLEAR_SCREEN}.json").write_text("{}")
+    for args in (
+        ["diagnose", str(log_dir), "--json", str(tmp_path / "v.json")],
+        ["inspect", str(log_dir)],
+    ):
+        done = run_cli(*args)
+        assert_clean(done)
+        _terminal_safe(done.stdout)
+        assert "actors/evil\\x0averdict: planning\\x0a.json: file name" in done.stdout
+        assert "pose/\\x1b[2J.json: file name" in done.stdout
+        lines = done.stdout.splitlines()
+        assert sum(line.startswith("verdict:") for line in lines) == (args[0] == "diagnose")
+    # JSON keeps the exact names (JSON escapes them itself).
+    files = {p["file"] for p in json.loads((tmp_path / "v.json").read_text())["input_problems"]}
+    assert {f"actors/evil{FORGED}.json", f"pose/{CLEAR_SCREEN}.json"} <= files
+
+
+def test_a_log_folder_name_cannot_forge_lines(crash_log: Path, tmp_path: Path) -> None:
+    log_dir = Path(shutil.copytree(crash_log, tmp_path / f"log{FORGED}{CLEAR_SCREEN}"))
+    done = run_cli("diagnose", str(log_dir))
+    assert_clean(done)
+    _terminal_safe(done.stdout)
+    assert sum(line.startswith("verdict:") for line in done.stdout.splitlines()) == 1
+    missing = run_cli("inspect", str(tmp_path / f"nothing{FORGED}{CLEAR_SCREEN}"))
+    assert_clean(missing, 2)
+    assert len(missing.stderr.splitlines()) == 1 and "\x1b" not in missing.stderr
+
+
+def test_ids_and_field_values_from_a_log_are_escaped(log_dir: Path) -> None:
+    actors = _one(log_dir / "actors")
+    document = json.loads(actors.read_text())
+    document[f"id{FORGED}\u202e"] = {"location": {"x": "far\x1b[31m", "y": 0}}
+    actors.write_text(json.dumps(document))
+    done = run_cli("diagnose", str(log_dir), "--max-problems", "50")
+    assert_clean(done)
+    _terminal_safe(done.stdout)
+    assert "id\\x0averdict: planning\\x0a\\u202e.location.x: 'far\\x1b[31m' is not a number" in (
+        done.stdout
+    )
+
+
+def test_printable_escapes_every_control_and_keeps_text() -> None:
+    from ads_rca.text import printable
+
+    assert printable("a\nb\r\t\x00\x7f\x85\x9b") == "a\\x0ab\\x0d\\x09\\x00\\x7f\\x85\\x9b"
+    assert printable("\u2028\u2029\u202e\u2066\u200f") == "\\u2028\\u2029\\u202e\\u2066\\u200f"
+    assert printable("naïve → café 🚗 \\x0a") == "naïve → café 🚗 \\x0a"
+
+
+def test_replay_player_skips_a_fifo_and_honours_max_file_mb(
+    log_dir: Path, tmp_path: Path, ros_env: Any
+) -> None:
+    """The live graph's player reads with the same rules; ``max_file_mb`` reaches it."""
+    fifo = _one(log_dir / "pose")
+    fifo.unlink()
+    os.mkfifo(fifo)
+    big = _one(log_dir / "bboxes_gt", 5)
+    big.write_text(
+        json.dumps([{"id": i, "bounding_box": [[i, 1], [i + 9, 20]]} for i in range(40_000)])
+    )
+    out = tmp_path / "v.json"
+    config = tmp_path / "reader.yaml"  # the YAML key, same name as the flag and ROS parameter
+    config.write_text("max_file_mb: 1\n")
+    args = ["replay", str(log_dir), "--domain-id", str(ros_env.domain_id), "--timeout", "90"]
+    done = run_cli(*args, "--config", str(config), "--json", str(out))
+    assert_clean(done)
+    issues = {(p["file"], p["issue"]) for p in json.loads(out.read_text())["input_problems"]}
+    assert (f"pose/{fifo.name}", "not a regular file (FIFO)") in issues
+    assert (f"bboxes_gt/{big.name}", "larger than 1 MB (max_file_mb)") in issues

@@ -46,7 +46,7 @@ def write_log(folder: Path, boxes: int) -> int:
         gt = random_boxes(rng, boxes)
         det = gt + rng.normal(0, 3, gt.shape)
         ids = tuple(str(i) for i in range(boxes))
-        extras = tuple({} for _ in range(boxes))
+        extras: tuple[dict[str, object], ...] = tuple({} for _ in range(boxes))
         log.bboxes_gt[ts] = Boxes(ids, gt, extras)
         log.bboxes[ts] = Boxes(ids, det, extras)
     write_run_log(log, folder)

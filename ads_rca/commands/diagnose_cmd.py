@@ -100,9 +100,15 @@ def run(args: argparse.Namespace) -> int:
 
 
 def write_json(document: dict[str, Any], path: Path) -> None:
-    """The verdict JSON (the contract; NaN and infinity are already null)."""
+    """The verdict JSON (the contract; NaN and infinity are already null).
+
+    Streamed to the file piece by piece: the text of a long run's frames is never held
+    whole in memory (the same bytes as ``json.dumps(document, indent=1)`` plus a newline).
+    """
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(document, indent=1, allow_nan=False) + "\n")
+    with path.open("w", encoding="utf-8", buffering=1 << 16) as out:
+        json.dump(document, out, indent=1, allow_nan=False)
+        out.write("\n")
 
 
 def _progress_bar(frames: int) -> Any:

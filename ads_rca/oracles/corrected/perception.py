@@ -28,7 +28,7 @@ from ads_rca.oracles.corrected.common import clearance_metrics, missing_inputs, 
 from ads_rca.oracles.corrected.context import CorrectedContext, corrected_context
 
 #: Frames with at most this many detection x gt pairs are matched on the whole IoU matrix.
-DENSE_PAIRS = 1 << 20
+DENSE_PAIRS = 1 << 18
 
 
 def match_boxes(

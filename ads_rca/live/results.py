@@ -8,9 +8,10 @@ literals) and every field of :class:`~ads_rca.oracles.base.OracleResult`. Pure d
 from __future__ import annotations
 
 import pickle
+import sys
 import tempfile
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -276,7 +277,9 @@ class ResultStore:
         self._file.seek(columns.get("offset", index))
         data = self._file.read(columns.get("length", index))
         result: OracleResult = pickle.loads(data)  # our own private file
-        return result
+        # Unpickled keys are new strings each time: share them, as the wire's decoder does.
+        metrics = _shared_keys(result.metrics)
+        return replace(result, metrics=metrics, thresholds=_shared_keys(result.thresholds))
 
     def incomplete(self) -> list[tuple[Module, int]]:
         """(module, index) of the held results judged with incomplete inputs."""
@@ -289,3 +292,14 @@ class ResultStore:
 
     def close(self) -> None:
         self._file.close()
+
+
+def _shared_keys(value: Any) -> Any:
+    """``value`` with every dict key interned (so a thousand results share their keys)."""
+    if isinstance(value, dict):
+        return {
+            sys.intern(k) if isinstance(k, str) else k: _shared_keys(v) for k, v in value.items()
+        }
+    if isinstance(value, list):
+        return [_shared_keys(v) for v in value]
+    return value

@@ -6,6 +6,7 @@ through the same oracles) the live monitor nodes, so they cannot disagree.
 
 from __future__ import annotations
 
+import gc
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -192,6 +193,9 @@ def _judge_in_workers(
     bar = iter(progress(timestamps)) if progress is not None else None
     frames: list[FrameResults] = []
     _SHARED = (ctx, oracles)
+    # Frozen objects are never visited by the collector, so the workers' collections do not
+    # write to (and copy) every page of the forked log.
+    gc.freeze()
     try:
         context = multiprocessing.get_context("fork")
         with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
@@ -204,6 +208,7 @@ def _judge_in_workers(
                     for _ in range(stop - start):
                         next(bar, None)
     finally:
+        gc.unfreeze()
         _SHARED = None
     return frames
 

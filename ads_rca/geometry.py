@@ -7,6 +7,8 @@ interfaces. An ego-frame offset (x, y) at ego yaw θ maps to the world as
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import numpy as np
 import numpy.typing as npt
 
@@ -58,6 +60,41 @@ def axis_aligned_iou(a: FloatArray, b: FloatArray) -> FloatArray:
     nan_b = np.asarray(np.isnan(b).any(axis=1))
     nan = nan_a[:, None] | nan_b[None, :]
     return np.where(nan, np.nan, iou)
+
+
+#: Pair scores computed at once by the block-wise box matchers: a few arrays of this many
+#: floats (2 MB each) bound the working memory of a frame, whatever its box count.
+BLOCK_PAIRS = 1 << 18
+
+
+def overlap_blocks(
+    a: FloatArray, b: FloatArray, max_pairs: int = BLOCK_PAIRS
+) -> Iterator[tuple[int, int, npt.NDArray[np.intp]]]:
+    """Row blocks of image boxes ``a`` (N, 4) with the columns of ``b`` (M, 4) worth scoring.
+
+    Yields ``(start, stop, cols)``: rows ``a[start:stop]`` (in order, at most ``max_pairs``
+    pairs a block) and, ascending, the boxes of ``b`` whose normalised extent touches the
+    block's. A pair left out has no overlap, so its intersection is 0 and its IoU 0 (or NaN:
+    NaN coordinates compare false and are left out too): the pair can neither match nor
+    raise a best IoU above 0. Blocks with no such column are skipped.
+    """
+    bx1, bx2 = np.fmin(b[:, 0], b[:, 2]), np.fmax(b[:, 0], b[:, 2])
+    by1, by2 = np.fmin(b[:, 1], b[:, 3]), np.fmax(b[:, 1], b[:, 3])
+    ax1, ax2 = np.fmin(a[:, 0], a[:, 2]), np.fmax(a[:, 0], a[:, 2])
+    ay1, ay2 = np.fmin(a[:, 1], a[:, 3]), np.fmax(a[:, 1], a[:, 3])
+    rows = max(1, max_pairs // max(len(b), 1))
+    with np.errstate(invalid="ignore"):
+        for start in range(0, len(a), rows):
+            stop = min(start + rows, len(a))
+            block = slice(start, stop)
+            # fmin/fmax skip NaN; an all-NaN block gives NaN bounds and keeps nothing.
+            keep = bx2 >= np.fmin.reduce(ax1[block])
+            keep &= bx1 <= np.fmax.reduce(ax2[block])
+            keep &= by2 >= np.fmin.reduce(ay1[block])
+            keep &= by1 <= np.fmax.reduce(ay2[block])
+            cols = np.flatnonzero(keep)
+            if cols.size:
+                yield start, stop, cols
 
 
 def box_corners(

@@ -120,13 +120,16 @@ def run(args: argparse.Namespace) -> int:
 def write_json(document: dict[str, Any], path: Path) -> None:
     """The verdict JSON (the contract; NaN and infinity are already null).
 
+    Streamed to the file piece by piece: the text of a long run's frames is never held
+    whole in memory (the same bytes as ``json.dumps(document, indent=1)`` plus a newline).
     The path was checked before the work started; a write that fails all the same (disk
     full, a file that refuses data) is still one line, not a traceback.
     """
-    text = json.dumps(document, indent=1, allow_nan=False) + "\n"
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(text)
+        with path.open("w", encoding="utf-8", buffering=1 << 16) as out:
+            json.dump(document, out, indent=1, allow_nan=False)
+            out.write("\n")
     except OSError as error:
         raise InputError(f"{path}: cannot write the verdict JSON ({error.strerror})") from None
 

@@ -23,8 +23,10 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
+import numpy as np
+
 from ads_rca.engine import Diagnosis, attribute, oracles_for
-from ads_rca.live.results import FrameMarker, LiveResult, new_problems
+from ads_rca.live.results import Columns, FrameMarker, LiveResult, ResultStore, new_problems
 from ads_rca.model import RunLog, RunMetadata
 from ads_rca.oracles.base import MODULES, Module, RunContext
 from ads_rca.params import Params
@@ -63,12 +65,14 @@ class AggregatorCore:
         self.source = ""
         self.collision_frame = -1
         self.collision_source = "none"
-        self.expected: dict[int, _Expected] = {}
+        #: Analysed frames announced by markers: stamp and arrival time per index.
+        self.expected = Columns(stamp_ms=np.int64, arrived=np.float64)
         self.last_stamp: int | None = None
         self.finished = False
         self._finished_after: int | None = None
         self.markers_received = 0
-        self.results: dict[Module, dict[int, LiveResult]] = {m: {} for m in MODULES}
+        #: Each module's latest result per index, spilled to disk (flat memory on long runs).
+        self.results = ResultStore()
         self.progress: dict[Module, int] = {m: -1 for m in MODULES}
         self.problems: list[Problem] = []  # found while judging (from the results)
         self.input_problems: list[Problem] = []  # found by the player's reader
@@ -112,7 +116,9 @@ class AggregatorCore:
         if marker.index is None:
             return
         if self.params.semantics == "reference" or not marker.duplicate:
-            self.expected.setdefault(marker.index, _Expected(marker.index, marker.stamp_ms, now))
+            index = marker.index
+            if self.expected.accepts(index) and not self.expected.has(index):
+                self.expected.set(index, stamp_ms=marker.stamp_ms, arrived=now)
 
     def set_finished(self, now: float, frames_published: int | None = None) -> None:
         """The player's end; effective once ``frames_published`` markers arrived (DDS does
@@ -129,10 +135,9 @@ class AggregatorCore:
         self.last_input = now
         module = result.module
         self.received[module] += 1
-        held = self.results[module].get(result.index)
-        if held is None or result.revision >= held.revision:
-            self.results[module][result.index] = result
-        self.progress[module] = max(self.progress[module], result.index)
+        # put() keeps the highest revision; an absurd index is dropped and moves nothing.
+        if self.results.put(result) or self.results.has(module, result.index):
+            self.progress[module] = max(self.progress[module], result.index)
         self.problems.extend(new_problems(result.problems, self._seen_problems))
         if result.ego_id is not None and (self.ego_id is None or module == "prediction"):
             self.ego_id = result.ego_id
@@ -153,10 +158,20 @@ class AggregatorCore:
             return True
         return horizon is not None and self.last_stamp is not None and self.last_stamp >= horizon
 
-    def required(self) -> list[_Expected]:
+    def _required_indices(self) -> np.ndarray:
+        """Indices of the expected frames at or before the horizon, ascending."""
         horizon = self.horizon_ms()
-        frames = sorted(self.expected.values(), key=lambda e: e.index)
-        return [e for e in frames if horizon is None or e.stamp_ms <= horizon]
+        indices = self.expected.indices()
+        if horizon is not None:
+            indices = indices[self.expected.columns["stamp_ms"][indices] <= horizon]
+        return indices
+
+    def required(self) -> list[_Expected]:
+        stamps, arrived = self.expected.columns["stamp_ms"], self.expected.columns["arrived"]
+        return [
+            _Expected(int(i), int(stamps[i]), float(arrived[i]))
+            for i in self._required_indices().tolist()
+        ]
 
     def _window_start_ms(self) -> int | None:
         horizon = self.horizon_ms()
@@ -172,16 +187,11 @@ class AggregatorCore:
         O(frames) and would make a long run's catching-up quadratic.
         """
         horizon = self.horizon_ms()
-        if horizon != self._last_required[0] or len(self.expected) != self._last_required[1]:
-            last = max(
-                (
-                    e.index
-                    for e in self.expected.values()
-                    if horizon is None or e.stamp_ms <= horizon
-                ),
-                default=-1,
-            )
-            self._last_required = (horizon, len(self.expected), last)
+        count = self.expected.count
+        if horizon != self._last_required[0] or count != self._last_required[1]:
+            indices = self._required_indices()
+            last = int(indices[-1]) if indices.size else -1
+            self._last_required = (horizon, count, last)
         last = self._last_required[2]
         return any(self.progress[m] < last for m in MODULES)
 
@@ -192,14 +202,14 @@ class AggregatorCore:
         fresh_from = self._window_start_ms() if self.params.semantics == "corrected" else None
         for e in self.required():
             for m in MODULES:
-                got = self.results[m].get(e.index)
+                got = self.results.has(m, e.index)
                 stale = (
-                    got is not None
+                    got
                     and fresh_from is not None
                     and e.stamp_ms >= fresh_from
-                    and got.collision_frame != self.collision_frame
+                    and self.results.collision_frame(m, e.index) != self.collision_frame
                 )
-                if got is not None and not stale:
+                if got and not stale:
                     continue
                 (lost if self.progress[m] > e.index and not stale else awaited)[m].append(e.index)
         return awaited, lost
@@ -239,8 +249,9 @@ class AggregatorCore:
         required = self.required()
         frames: list[FrameResults] = []
         for e in required:
-            got = {m: self.results[m][e.index] for m in MODULES if e.index in self.results[m]}
-            results = {m: r.result for m, r in got.items()}
+            results = {
+                m: self.results.result(m, e.index) for m in MODULES if self.results.has(m, e.index)
+            }
             frames.append(FrameResults(e.stamp_ms, frame_number(e.stamp_ms, tpf), results))
         log = RunLog(
             metadata=metadata,
@@ -257,9 +268,7 @@ class AggregatorCore:
         )
         document = diagnosis.to_json()
         last = max((e.arrived for e in required), default=now)
-        incomplete = sorted(
-            {(m, r.index) for m in MODULES for r in self.results[m].values() if r.incomplete}
-        )
+        incomplete = self.results.incomplete()
         document["verdict_latency_s"] = round(max(0.0, now - last), 6)
         document["live"] = {
             "complete": not why and not incomplete,

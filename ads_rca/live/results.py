@@ -8,9 +8,14 @@ with the strict ``"$nonfinite"`` annotation and reads them back) and every field
 
 from __future__ import annotations
 
+import pickle
+import sys
+import tempfile
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
+
+import numpy as np
 
 from ads_rca.oracles.base import MODULES, Module, OracleResult
 from ads_rca.problems import Problem
@@ -168,3 +173,137 @@ def new_problems(problems: Iterable[Problem], seen: set[tuple[str, str, str]]) -
             seen.add(key)
             out.append(problem)
     return out
+
+
+#: A result or marker this far beyond the highest index held is dropped: the columns grow
+#: to the largest index, so one absurd index must not allocate gigabytes.
+MAX_INDEX_AHEAD = 1 << 16
+
+
+class Columns:
+    """Fixed-size values per analysed-frame index in growable numpy columns (no per-frame
+    Python objects: a long run holds a few dozen bytes a frame)."""
+
+    def __init__(self, **dtypes: Any) -> None:
+        self._dtypes = dtypes
+        self.present = np.zeros(0, dtype=np.bool_)
+        self.columns: dict[str, np.ndarray] = {k: np.zeros(0, dtype=t) for k, t in dtypes.items()}
+        self.top = -1  # highest index held
+        self._count = 0
+
+    def accepts(self, index: int) -> bool:
+        return 0 <= index <= self.top + MAX_INDEX_AHEAD
+
+    def set(self, index: int, **values: Any) -> None:
+        if index >= len(self.present):
+            size = max(1024, 2 * len(self.present), index + 1)
+            self.present = np.concatenate([self.present, np.zeros(size - len(self.present), bool)])
+            for name, column in self.columns.items():
+                grown = np.zeros(size, dtype=self._dtypes[name])
+                grown[: len(column)] = column
+                self.columns[name] = grown
+        if not self.present[index]:
+            self._count += 1
+        self.present[index] = True
+        for name, value in values.items():
+            self.columns[name][index] = value
+        self.top = max(self.top, index)
+
+    def has(self, index: int) -> bool:
+        return 0 <= index < len(self.present) and bool(self.present[index])
+
+    @property
+    def count(self) -> int:
+        """Indices held."""
+        return self._count
+
+    def get(self, name: str, index: int) -> Any:
+        return self.columns[name][index].item()
+
+    def indices(self) -> np.ndarray:
+        return np.flatnonzero(self.present)
+
+
+class ResultStore:
+    """Each module's latest result per analysed-frame index (the highest revision).
+
+    The oracle results themselves go to an anonymous temporary file (unlinked at creation,
+    so nothing is left behind and no other process can open it by name) and are read back
+    only when the verdict is rendered; memory holds fixed-size columns: revision, collision
+    frame, incompleteness, and where the result lies in the file.
+    """
+
+    def __init__(self) -> None:
+        self._file = tempfile.TemporaryFile()  # noqa: SIM115 - closed by close()
+        self._end = 0
+        self._modules = {
+            m: Columns(
+                revision=np.int64,
+                collision=np.int64,
+                incomplete=np.bool_,
+                offset=np.int64,
+                length=np.int64,
+            )
+            for m in MODULES
+        }
+
+    def put(self, result: LiveResult) -> bool:
+        """Keep ``result`` unless a higher revision is held (or its index is absurd)."""
+        columns = self._modules[result.module]
+        index = result.index
+        if not columns.accepts(index):
+            return False
+        if columns.has(index) and result.revision < columns.get("revision", index):
+            return False
+        data = pickle.dumps(result.result, protocol=pickle.HIGHEST_PROTOCOL)
+        self._file.seek(self._end)
+        self._file.write(data)
+        columns.set(
+            index,
+            revision=result.revision,
+            collision=result.collision_frame,
+            incomplete=bool(result.incomplete),
+            offset=self._end,
+            length=len(data),
+        )
+        self._end += len(data)
+        return True
+
+    def has(self, module: Module, index: int) -> bool:
+        return self._modules[module].has(index)
+
+    def collision_frame(self, module: Module, index: int) -> int:
+        return int(self._modules[module].get("collision", index))
+
+    def result(self, module: Module, index: int) -> OracleResult:
+        """The held result (read back from the file)."""
+        columns = self._modules[module]
+        self._file.seek(columns.get("offset", index))
+        data = self._file.read(columns.get("length", index))
+        result: OracleResult = pickle.loads(data)  # our own private file
+        # Unpickled keys are new strings each time: share them, as the wire's decoder does.
+        metrics = _shared_keys(result.metrics)
+        return replace(result, metrics=metrics, thresholds=_shared_keys(result.thresholds))
+
+    def incomplete(self) -> list[tuple[Module, int]]:
+        """(module, index) of the held results judged with incomplete inputs."""
+        out: list[tuple[Module, int]] = []
+        for module, columns in self._modules.items():
+            rows = columns.indices()
+            flagged = rows[columns.columns["incomplete"][rows]]
+            out.extend((module, int(i)) for i in flagged)
+        return sorted(out)
+
+    def close(self) -> None:
+        self._file.close()
+
+
+def _shared_keys(value: Any) -> Any:
+    """``value`` with every dict key interned (so a thousand results share their keys)."""
+    if isinstance(value, dict):
+        return {
+            sys.intern(k) if isinstance(k, str) else k: _shared_keys(v) for k, v in value.items()
+        }
+    if isinstance(value, list):
+        return [_shared_keys(v) for v in value]
+    return value

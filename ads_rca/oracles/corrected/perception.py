@@ -17,32 +17,100 @@ import math
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
-from ads_rca.geometry import FloatArray, axis_aligned_iou
+from ads_rca.geometry import FloatArray, axis_aligned_iou, overlap_blocks
 from ads_rca.model import Boxes
 from ads_rca.oracles.base import Metric, OracleResult, RunContext
 from ads_rca.oracles.corrected.clearance import PartnerView, partner_view
 from ads_rca.oracles.corrected.common import clearance_metrics, missing_inputs, num, skipped
 from ads_rca.oracles.corrected.context import CorrectedContext, corrected_context
 
+#: Frames with at most this many detection x gt pairs are matched on the whole IoU matrix.
+DENSE_PAIRS = 1 << 18
+
 
 def match_boxes(
-    detections: FloatArray, gts: FloatArray, threshold: float
+    detections: FloatArray, gts: FloatArray, threshold: float, dense_pairs: int = DENSE_PAIRS
 ) -> tuple[np.ndarray, np.ndarray, FloatArray, FloatArray]:
     """Hungarian matching with IoU >= threshold.
 
-    Returns matched detection rows, matched gt rows, their IoUs, and the IoU matrix
-    (NaN coordinates score 0).
+    Returns matched detection rows (ascending), matched gt rows, their IoUs, and each gt
+    box's best IoU over all detections (NaN coordinates score 0).
+
+    Up to ``dense_pairs`` pairs, one assignment on the whole matrix. Beyond, memory stays
+    linear: IoUs are computed block by block (only boxes whose extents touch), only the
+    eligible pairs are kept, and each connected group of them is assigned on its own. The
+    optimum is the same (ineligible pairs cost 0, so groups do not interact); where several
+    matchings are exactly equally good, the one chosen may differ from the whole matrix's.
     """
-    iou = np.nan_to_num(axis_aligned_iou(detections, gts), nan=0.0)
-    if iou.size == 0:
+    n, m = len(detections), len(gts)
+    if n == 0 or m == 0:
         empty = np.zeros(0, dtype=np.int64)
-        return empty, empty, np.zeros(0), iou
-    eligible = iou >= threshold
-    rows, cols = linear_sum_assignment(np.where(eligible, -iou, 0.0))
-    keep = eligible[rows, cols]
-    rows, cols = rows[keep], cols[keep]
-    return rows, cols, iou[rows, cols], iou
+        return empty, empty, np.zeros(0), np.zeros(m)
+    if n * m <= dense_pairs or not threshold > 0:  # a threshold <= 0 makes every pair eligible
+        iou = np.nan_to_num(axis_aligned_iou(detections, gts), nan=0.0)
+        eligible = iou >= threshold
+        rows, cols = linear_sum_assignment(np.where(eligible, -iou, 0.0))
+        keep = eligible[rows, cols]
+        rows, cols = rows[keep], cols[keep]
+        return rows, cols, iou[rows, cols], iou.max(axis=0)
+    best = np.zeros(m)
+    pair_rows, pair_cols, pair_iou = [], [], []
+    for start, stop, keep in overlap_blocks(detections, gts):
+        iou = np.nan_to_num(axis_aligned_iou(detections[start:stop], gts[keep]), nan=0.0)
+        best[keep] = np.maximum(best[keep], iou.max(axis=0))
+        r, c = np.nonzero(iou >= threshold)
+        pair_rows.append(r + start)
+        pair_cols.append(keep[c])
+        pair_iou.append(iou[r, c])
+    rows, cols, ious = _assign_groups(
+        np.concatenate([np.zeros(0, np.intp), *pair_rows]),
+        np.concatenate([np.zeros(0, np.intp), *pair_cols]),
+        np.concatenate([np.zeros(0), *pair_iou]),
+        n,
+        m,
+    )
+    return rows, cols, ious, best
+
+
+def _assign_groups(
+    rows: np.ndarray, cols: np.ndarray, iou: FloatArray, n: int, m: int
+) -> tuple[np.ndarray, np.ndarray, FloatArray]:
+    """Optimal assignment of the eligible pairs (row, col, iou), one connected group at a
+    time; matched rows ascending, with their columns and IoUs."""
+    graph = coo_matrix((np.ones(len(rows)), (rows, cols + n)), shape=(n + m, n + m))
+    _count, label = connected_components(graph, directed=False)
+    group = label[rows]
+    order = np.lexsort((cols, rows, group))  # by group, then row, then column
+    rows, cols, iou, group = rows[order], cols[order], iou[order], group[order]
+    bounds = np.flatnonzero(np.diff(group)) + 1
+    out_rows: list[np.ndarray] = []
+    out_cols: list[np.ndarray] = []
+    out_iou: list[FloatArray] = []
+    for g_rows, g_cols, g_iou in zip(
+        np.split(rows, bounds), np.split(cols, bounds), np.split(iou, bounds), strict=True
+    ):
+        if len(g_rows) == 1:  # one eligible pair, shared with no other: it is matched
+            out_rows.append(g_rows)
+            out_cols.append(g_cols)
+            out_iou.append(g_iou)
+            continue
+        row_ids, r = np.unique(g_rows, return_inverse=True)
+        col_ids, c = np.unique(g_cols, return_inverse=True)
+        cost = np.zeros((len(row_ids), len(col_ids)))
+        cost[r, c] = -g_iou
+        a, b = linear_sum_assignment(cost)
+        take = cost[a, b] < 0
+        out_rows.append(row_ids[a[take]])
+        out_cols.append(col_ids[b[take]])
+        out_iou.append(-cost[a[take], b[take]])
+    all_rows = np.concatenate([np.zeros(0, np.intp), *out_rows])
+    order = np.argsort(all_rows, kind="stable")
+    all_cols = np.concatenate([np.zeros(0, np.intp), *out_cols])
+    all_iou = np.concatenate([np.zeros(0), *out_iou])
+    return all_rows[order], all_cols[order], all_iou[order]
 
 
 def detection_metrics(
@@ -50,9 +118,8 @@ def detection_metrics(
 ) -> tuple[dict[str, Metric], set[str]]:
     """Precision, recall, mean matched IoU, missed gt ids (best IoU), false positives;
     and the matched gt ids."""
-    rows, cols, ious, iou = match_boxes(det.corners, gt.corners, threshold)
+    rows, cols, ious, best = match_boxes(det.corners, gt.corners, threshold)
     n_det, n_gt, n_match = len(det), len(gt), len(rows)
-    best = iou.max(axis=0) if n_det else np.zeros(n_gt)
     gt_free = np.ones(n_gt, dtype=bool)
     gt_free[cols] = False
     det_free = np.ones(n_det, dtype=bool)

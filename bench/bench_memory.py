@@ -1,0 +1,117 @@
+"""Benchmark: peak memory and time of ``ads-rca diagnose`` against boxes per frame and frames.
+
+    python bench/bench_memory.py [--boxes 100 1000 5000 10000] [--frames 1000 10000 100000]
+                                 [--actors 2] [--semantics reference corrected] [--workers 1]
+
+Each row is one whole ``ads-rca diagnose --json`` process (its peak resident set from
+``wait4``, so the interpreter and libraries are counted), on a log written to ``--dir``:
+
+* boxes: a short ``cruise`` log (20 frames, 5 actors) with one frame holding N detections
+  and N ground-truth boxes (random image boxes, each detection a jittered gt box);
+* frames: a ``cruise`` log of N frames with ``--actors`` background actors.
+
+``input MB`` is the log's size on disk (file contents). Peak memory should grow linearly in
+both and stay within a few times the input (the last column); the boxes rows should stay
+near the interpreter's own baseline.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from ads_rca.io.json_writer import write_run_log
+from ads_rca.model import Boxes
+from ads_rca.synth import synthesise
+
+
+def write_boxes_log(folder: Path, boxes: int) -> None:
+    """20 cruise frames; the middle one holds ``boxes`` detections and gt boxes."""
+    log = synthesise("cruise", "none", seed=1, frames=20, actors=5)
+    last = log.frames[-1] // log.tpf
+    log.metadata = replace(log.metadata, collision_frame=last, total_frames=last)
+    rng = np.random.default_rng(0)
+    xy = rng.uniform(0, 1920, (boxes, 2))
+    gt = np.concatenate([xy, xy + rng.uniform(5, 80, (boxes, 2))], axis=1)
+    det = gt + rng.normal(0, 3, gt.shape)
+    ids = tuple(str(i) for i in range(boxes))
+    extras = tuple({"label": "vehicle"} for _ in range(boxes))
+    ts = log.frames[len(log.frames) // 2]
+    log.bboxes_gt[ts] = Boxes(ids, gt, extras)
+    log.bboxes[ts] = Boxes(ids, det, extras)
+    write_run_log(log, folder)
+
+
+def write_frames_log(folder: Path, frames: int, actors: int) -> None:
+    """A cruise log of ``frames`` frames whose last frame is declared the collision."""
+    log = synthesise("cruise", "none", seed=1, frames=frames, actors=actors)
+    last = log.frames[-1] // log.tpf
+    log.metadata = replace(log.metadata, collision_frame=last, total_frames=last)
+    write_run_log(log, folder)
+
+
+def size_on_disk(folder: Path) -> int:
+    return sum(p.stat().st_size for p in folder.rglob("*") if p.is_file())
+
+
+def measure(folder: Path, semantics: str, workers: int) -> tuple[float, float]:
+    """(peak MB, seconds) of one ``diagnose --json`` process."""
+    command = [sys.executable, "-m", "ads_rca.cli", "diagnose", str(folder)]
+    command += ["--semantics", semantics, "--workers", str(workers)]
+    command += ["--json", str(folder.with_suffix(".json"))]
+    start = time.perf_counter()
+    child = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    _pid, status, usage = os.wait4(child.pid, 0)
+    seconds = time.perf_counter() - start
+    child.returncode = os.waitstatus_to_exitcode(status)
+    if child.returncode != 0:
+        raise SystemExit(f"diagnose failed ({child.returncode}) on {folder}")
+    return usage.ru_maxrss / 1024, seconds
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--boxes", type=int, nargs="*", default=[100, 1000, 5000, 10_000])
+    parser.add_argument("--frames", type=int, nargs="*", default=[1000, 10_000, 100_000])
+    parser.add_argument("--actors", type=int, default=2, help="background actors (frames rows)")
+    parser.add_argument("--semantics", nargs="+", default=["reference", "corrected"])
+    parser.add_argument("--workers", type=int, default=1, help="diagnose --workers")
+    parser.add_argument("--dir", default="out/bench_memory", help="where logs are written")
+    args = parser.parse_args()
+
+    root = Path(args.dir)
+    root.mkdir(parents=True, exist_ok=True)
+    print(f"diagnose --json, --workers {args.workers}; peak = the process's max RSS")
+    print(f"{'series':<8}{'N':>8}{'input MB':>10}", end="")
+    for semantics in args.semantics:
+        print(f"{semantics[:3] + ' MB':>10}{semantics[:3] + ' s':>9}{'x input':>9}", end="")
+    print()
+    jobs = [("boxes", n) for n in args.boxes] + [("frames", n) for n in args.frames]
+    for series, n in jobs:
+        folder = root / f"{series}-{n}"
+        if folder.exists():
+            shutil.rmtree(folder)
+        if series == "boxes":
+            write_boxes_log(folder, n)
+        else:
+            write_frames_log(folder, n, args.actors)
+        input_mb = size_on_disk(folder) / 2**20
+        print(f"{series:<8}{n:>8}{input_mb:>10.1f}", end="", flush=True)
+        for semantics in args.semantics:
+            peak, seconds = measure(folder, semantics, args.workers)
+            print(f"{peak:>10.0f}{seconds:>9.1f}{peak / input_mb:>9.1f}", end="", flush=True)
+        print()
+        shutil.rmtree(folder)
+        folder.with_suffix(".json").unlink(missing_ok=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -259,6 +259,31 @@ def test_id_that_appears_nowhere_else_is_reported(log_dir: Path) -> None:
     assert log.bboxes_gt[100].ids == ("404",)
 
 
+def test_unknown_ids_are_reported_in_file_order_whatever_the_hash_seed(log_dir: Path) -> None:
+    ids = [f"ghost_{i}" for i in range(12)]
+    _write(
+        log_dir / "bboxes_gt/bboxes_gt-100.json",
+        [{"id": i, "bounding_box": [[1, 2], [3, 4]]} for i in ids],
+    )
+    script = (
+        "import json, sys; from ads_rca.io.json_log import read_run_log; "
+        "print(json.dumps([p.issue for p in read_run_log(sys.argv[1]).problems]))"
+    )
+    outputs = {
+        subprocess.run(
+            [sys.executable, "-c", script, str(log_dir)],
+            env={**os.environ, "PYTHONHASHSEED": str(seed)},
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout
+        for seed in (0, 1, 2, 3)
+    }
+    assert len(outputs) == 1
+    [issues] = [json.loads(text) for text in outputs]
+    assert [i.split("'")[1] for i in issues] == ids
+
+
 def test_empty_records_load_as_empty(log_dir: Path) -> None:
     _write(log_dir / "predictions/predictions-100.json", {})
     _write(log_dir / "predictions_with_perception/predictions-100.json", {"20": {}})

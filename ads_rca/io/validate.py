@@ -150,9 +150,11 @@ def _unknown_ids(log: RunLog) -> None:
             actors = log.actors.get(ts)
             if actors is None:
                 continue
-            for actor_id in set(ids) - actors.index.keys():
-                unknown[actor_id] += 1
-                first_seen.setdefault(actor_id, ts)
+            # In file order (not a set's hash order): the problems' order is part of the output.
+            for actor_id in dict.fromkeys(ids):
+                if actor_id not in actors.index:
+                    unknown[actor_id] += 1
+                    first_seen.setdefault(actor_id, ts)
         for actor_id, count in unknown.items():
             ts = first_seen[actor_id]
             log.problems.add(

@@ -52,6 +52,9 @@ bench: $(STAMP)
 	$(BIN)/python bench/bench_player.py --frames 2000
 	$(BIN)/python bench/bench_graph.py
 	$(BIN)/python bench/bench_recorder.py
+	$(BIN)/python bench/bench_memory.py
+	$(BIN)/python bench/bench_aggregator_memory.py
+	$(BIN)/python bench/bench_safe_read.py
 	$(BIN)/python bench/accuracy.py 20
 
 clean:

@@ -29,6 +29,7 @@ from ads_rca.model import Boxes
 from ads_rca.oracles import reference
 from ads_rca.oracles.corrected.perception import match_boxes
 from ads_rca.params import make_params
+from ads_rca.strictjson import NONFINITE_KEY
 from ads_rca.synth import synthesise
 from ads_rca.verdict import FrameResults, json_safe
 
@@ -238,9 +239,15 @@ def test_the_aggregator_core_retains_little_per_frame(semantics: str) -> None:
     # What was spilled comes back exactly: frame 7000 is the template's frame 7000 % len.
     source = template[7000 % len(template)]
     assert frames[7000]["perception"]["failed"] == source.results["perception"].failed
-    want = json_safe(source.results["perception"].metrics)
-    got = {k: v for k, v in frames[7000]["perception"].items() if k in want}
+    metrics = source.results["perception"].metrics
+    got = {k: v for k, v in frames[7000]["perception"].items() if k in metrics}
+    # The document is the strict contract: NaN is null, named in the top-level annotation.
+    want = json_safe(metrics)
+    named = want.pop(NONFINITE_KEY, {})
     assert got == want
+    annotation = outcome.document.get(NONFINITE_KEY, {})
+    for pointer, kind in named.items():
+        assert annotation[f"/frames/7000/perception{pointer}"] == kind
 
 
 def test_the_aggregator_core_drops_an_absurd_index() -> None:

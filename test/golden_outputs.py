@@ -59,9 +59,9 @@ def digests() -> dict[str, str]:
         for name in make_logs(folder):
             for semantics in SEMANTICS:
                 target = folder / f"{name}.{semantics}.json"
+                options = ["--semantics", semantics, "--workers", "1", "--json", str(target)]
                 subprocess.run(
-                    [sys.executable, "-m", "ads_rca.cli", "diagnose", name]
-                    + ["--semantics", semantics, "--workers", "1", "--json", str(target)],
+                    [sys.executable, "-m", "ads_rca.cli", "diagnose", name, *options],
                     cwd=folder,
                     env=env,
                     check=True,

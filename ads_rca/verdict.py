@@ -1,4 +1,9 @@
-"""The verdict: per-module counts, root causes, and the JSON contract of ``diagnose --json``.
+"""The verdict: per-frame results, per-module counts, root causes, the ``diagnose --json``
+contract's types and JSON helpers.
+
+The types only: each mode's attribution (which fills them) lives with its oracles
+(``oracles/reference/attribution.py``, ``oracles/corrected/attribution.py``), so this
+module imports nothing of :mod:`ads_rca.oracles` and the oracles may import it.
 
 The contract (stable; later tools parse it)::
 

@@ -9,6 +9,7 @@ turn names into parameters, may name a mode.
 from __future__ import annotations
 
 import re
+import subprocess
 import sys
 import types
 from dataclasses import replace
@@ -133,3 +134,12 @@ def test_a_third_mode_is_one_module_and_one_registry_entry(
     assert third.attribution.primary_root_cause == "perception"
     core = MonitorCore(MODULES, params)
     assert core.semantics is module.SEMANTICS and core.folders == FOLDERS
+
+
+def test_the_verdict_types_do_not_import_the_oracles() -> None:
+    """verdict.py holds the types; the modes' attributions (in oracles/) fill them."""
+    code = "import sys, ads_rca.verdict; print(sorted(m for m in sys.modules if 'oracles' in m))"
+    loaded = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True
+    ).stdout
+    assert loaded.strip() == "[]"

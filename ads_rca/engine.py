@@ -1,49 +1,28 @@
 """The root-cause engine: run the mode's four oracles over a log and attribute the crash.
 
 One function, :func:`diagnose`, serves ``ads-rca diagnose``, the replay and (frame by frame,
-through the same oracles) the live monitor nodes, so they cannot disagree.
+through the same oracles) the live monitor nodes, so they cannot disagree. Everything that
+depends on the mode (oracles, analysed frames, ego, window, attribution) is asked of its
+:class:`~ads_rca.oracles.semantics.Semantics`.
 """
 
 from __future__ import annotations
 
 import gc
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
 from ads_rca import __version__
 from ads_rca.model import RunLog
 from ads_rca.oracles.base import MODULES, Module, OracleResult, RunContext
+from ads_rca.oracles.semantics import Oracle, Semantics, semantics_for
 from ads_rca.params import Params
 from ads_rca.problems import CHECK_SKIPPED, Problem, ProblemLog
-from ads_rca.verdict import Attribution, FrameResults, attribute_reference, frame_number, json_safe
-
-Oracle = Callable[[RunContext, int], OracleResult]
+from ads_rca.verdict import Attribution, FrameResults, frame_number, json_safe
 
 
-def oracles_for(params: Params) -> dict[Module, Oracle]:
-    """The mode's oracles, in pipeline order."""
-    if params.semantics == "reference":
-        from ads_rca.oracles.reference import ORACLES
-    else:
-        from ads_rca.oracles.corrected import ORACLES
-    return dict(ORACLES)
-
-
-def attribute(frames: Sequence[FrameResults], ctx: RunContext) -> Attribution:
-    if ctx.params.semantics == "reference":
-        return attribute_reference(frames, ctx)
-    from ads_rca.oracles.corrected import attribute_corrected
-
-    return attribute_corrected(frames, ctx)
-
-
-def analysed_timestamps(log: RunLog, params: Params) -> tuple[int, ...]:
-    """reference analyses a duplicated timestamp once per file; corrected once."""
-    return log.frames if params.semantics == "reference" else log.unique_frames
-
-
-def evaluate_frame(ctx: RunContext, oracles: dict[Module, Oracle], ts: int) -> FrameResults:
+def evaluate_frame(ctx: RunContext, oracles: Mapping[Module, Oracle], ts: int) -> FrameResults:
     """All oracles at one frame. An unexpected error in one oracle is reported, not raised."""
     results: dict[Module, OracleResult] = {}
     for module, oracle in oracles.items():
@@ -72,6 +51,15 @@ class Diagnosis:
         return self.ctx.params
 
     @property
+    def semantics(self) -> Semantics:
+        return semantics_for(self.params)
+
+    @property
+    def window_frames(self) -> int:
+        """W: the effect window's length in frames (the mode's rule)."""
+        return self.semantics.window_frames(self.params, self.log.tpf)
+
+    @property
     def problems(self) -> ProblemLog:
         """Input problems: the reader's, then those found while judging."""
         return ProblemLog([*self.log.problems, *self.ctx.problems])
@@ -94,7 +82,7 @@ class Diagnosis:
             "semantics": self.params.semantics,
             "thresholds": self.params.used(),
             "collision_frame": self.log.metadata.collision_frame,
-            "window_frames": self.params.window_frames(self.log.tpf),
+            "window_frames": self.window_frames,
             "ego_id": self.ctx.ego_id,
             "partner_id": a.partner_id,
             "modules": {
@@ -148,19 +136,20 @@ def diagnose(
     slices of frames in forked processes (the oracles are pure per-frame functions, and a
     fork shares the loaded log without copying it); results are the same, in frame order.
     """
+    semantics = semantics_for(params)
     ctx = RunContext.create(log, params)
-    oracles = oracles_for(params)
-    timestamps = analysed_timestamps(log, params)
+    oracles = semantics.oracles
+    timestamps = semantics.analysed_frames(log)
     if workers > 1 and len(timestamps) >= PARALLEL_MIN_FRAMES and _can_fork():
         frames = _judge_in_workers(ctx, oracles, timestamps, workers, progress)
     else:
         stamps: Iterable[int] = progress(timestamps) if progress is not None else timestamps
         frames = [evaluate_frame(ctx, oracles, ts) for ts in stamps]
-    return Diagnosis(log, ctx, frames, attribute(frames, ctx))
+    return Diagnosis(log, ctx, frames, semantics.attribute(frames, ctx))
 
 
 # The forked workers read the run from here (set just before forking, cleared after).
-_SHARED: tuple[RunContext, dict[Module, Oracle]] | None = None
+_SHARED: tuple[RunContext, Mapping[Module, Oracle]] | None = None
 
 
 def _judge_slice(
@@ -177,7 +166,7 @@ def _judge_slice(
 
 def _judge_in_workers(
     ctx: RunContext,
-    oracles: dict[Module, Oracle],
+    oracles: Mapping[Module, Oracle],
     timestamps: tuple[int, ...],
     workers: int,
     progress: Callable[[Iterable[int]], Iterable[int]] | None,

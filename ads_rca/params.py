@@ -56,12 +56,6 @@ class Params:
         values = asdict(self)
         return {name: values[name] for name in USED_BY[self.semantics]}
 
-    def window_frames(self, tpf_ms: int) -> int:
-        """W: frames before the collision that belong to the effect window."""
-        if self.semantics == "reference":
-            return self.effect_time_window
-        return max(self.effect_time_window, round(self.window_s * 1000.0 / tpf_ms))
-
 
 #: Defaults that differ from the field defaults in reference mode.
 REFERENCE_DEFAULTS: dict[str, Any] = {"effect_time_window": 10}

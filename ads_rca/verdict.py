@@ -1,4 +1,9 @@
-"""The verdict: per-module counts, root causes, and the JSON contract of ``diagnose --json``.
+"""The verdict: per-frame results, per-module counts, root causes, the ``diagnose --json``
+contract's types and JSON helpers.
+
+The types only: each mode's attribution (which fills them) lives with its oracles
+(``oracles/reference/attribution.py``, ``oracles/corrected/attribution.py``), so this
+module imports nothing of :mod:`ads_rca.oracles` and the oracles may import it.
 
 The contract (stable; later tools parse it)::
 
@@ -14,12 +19,16 @@ written as null, each named in the top-level ``"$nonfinite"`` map (JSON Pointer 
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
 
-from ads_rca.oracles.base import MODULES, Metric, Module, OracleResult, RunContext
 from ads_rca.strictjson import to_strict
+
+Module = Literal["perception", "prediction", "planning", "controller"]
+#: Pipeline order, upstream first (the reference's names).
+MODULES: tuple[Module, ...] = ("perception", "prediction", "planning", "controller")
+
+Metric = float | int | str | bool | None | list[Any] | dict[str, Any]
 
 #: ``attribution_basis`` values.
 BASIS_REFERENCE = "reference counts"
@@ -28,6 +37,20 @@ BASIS_FALLBACK = "consequence beyond the judged horizon"
 
 NO_COLLISION = "no collision"
 NO_MODULE_FAILED = "no module failed"
+
+
+@dataclass(frozen=True)
+class OracleResult:
+    """One module judged at one frame."""
+
+    module: Module
+    timestamp_ms: int
+    failed: bool
+    metrics: dict[str, Metric] = field(default_factory=dict)
+    thresholds: dict[str, float] = field(default_factory=dict)
+    ids: tuple[str, ...] = ()
+    #: Why the check could not run (missing input), else None.
+    skipped: str | None = None
 
 
 @dataclass
@@ -64,48 +87,6 @@ class FrameResults:
 def frame_number(timestamp_ms: int, tpf: int) -> int | float:
     """Frame index of a timestamp: an int on the frame grid, else a float."""
     return timestamp_ms // tpf if timestamp_ms % tpf == 0 else timestamp_ms / tpf
-
-
-def attribute_reference(frames: Sequence[FrameResults], ctx: RunContext) -> Attribution:
-    """The reference verdict: count failures in and before the (unbounded) window.
-
-    A failure at ts counts as ``collision`` when a collision happened and
-    ts > (collision_frame - effect_time_window) * tpf, with no upper bound; else ``safe``.
-    Root causes are the modules with any ``collision`` count, in pipeline order.
-    """
-    collision_frame = ctx.log.metadata.collision_frame
-    tpf = ctx.tpf
-    start_ms = (collision_frame - ctx.params.effect_time_window) * tpf
-    modules = {m: ModuleVerdict() for m in MODULES}
-    for frame in frames:
-        for module, result in frame.results.items():
-            if not result.failed:
-                continue
-            verdict = modules[module]
-            if collision_frame >= 0 and frame.timestamp_ms > start_ms:
-                verdict.collision += 1
-                if verdict.first_failure_frame is None:
-                    verdict.first_failure_frame = frame.frame
-            else:
-                verdict.safe += 1
-    for module in MODULES:  # modules that only failed outside the window: first failure at all
-        verdict = modules[module]
-        if verdict.first_failure_frame is None and verdict.safe:
-            verdict.first_failure_frame = next(
-                f.frame for f in frames if module in f.results and f.results[module].failed
-            )
-    root_causes = [m for m in MODULES if modules[m].collision > 0]
-    reason = None
-    if not root_causes:
-        reason = NO_COLLISION if collision_frame < 0 else NO_MODULE_FAILED
-    return Attribution(
-        modules=modules,
-        root_causes=root_causes,
-        primary_root_cause=root_causes[0] if root_causes else None,
-        contributing=root_causes[1:],
-        attribution_basis=BASIS_REFERENCE,
-        reason=reason,
-    )
 
 
 def json_safe(value: Any) -> Any:

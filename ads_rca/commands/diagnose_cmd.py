@@ -16,9 +16,10 @@ from ads_rca.commands.input_args import (
     max_file_mb_from_args,
 )
 from ads_rca.commands.outputs import check_output_file
-from ads_rca.engine import analysed_timestamps, diagnose
+from ads_rca.engine import diagnose
 from ads_rca.errors import InputError
 from ads_rca.io import open_run
+from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import (
     DEFAULT_SEMANTICS,
     SEMANTICS,
@@ -98,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
     if args.report:
         check_output_file(args.report, "--report")
     log = open_run(args.path, max_file_mb=max_file_mb)
-    if not analysed_timestamps(log, params):
+    if not semantics_for(params).analysed_frames(log):
         raise InputError(f"{args.path}: no frame to analyse (no readable actors/ file)")
     result = diagnose(log, params, _progress_bar(len(log.frames)), workers=max(1, args.workers))
     document = result.to_json()

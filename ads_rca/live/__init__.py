@@ -3,6 +3,7 @@
 No rclpy here. The monitor and aggregator nodes (``ads_rca.ros.monitor``,
 ``ads_rca.ros.aggregator``) are thin shells that feed these classes with converted messages
 and publish what they return, so the scheduling and the semantics can be tested without DDS
-and are guaranteed to be the engine's: every frame is judged by the same oracle functions
-(``ads_rca.engine.oracles_for``) and the verdict by the same ``ads_rca.engine.attribute``.
+and are guaranteed to be the engine's: every rule of the mode (oracles, analysed frames, ego,
+window, look-ahead, attribution) is asked of the same
+:class:`~ads_rca.oracles.semantics.Semantics` the engine asks.
 """

@@ -3,9 +3,10 @@
 Why this shape: the verdict must be ``ads-rca diagnose``'s, so the aggregator never judges
 anything itself. It gathers the four modules' per-frame results, keyed by analysed-frame
 index (reference judges a duplicated timestamp twice; corrected once, the first index), and
-when the verdict's horizon is covered it calls the engine's :func:`~ads_rca.engine.attribute`
-on them and renders :meth:`~ads_rca.engine.Diagnosis.to_json` (the ``diagnose --json``
-contract) plus a ``live`` section.
+when the verdict's horizon is covered it calls the mode's
+:meth:`~ads_rca.oracles.semantics.Semantics.attribute` on them (as the engine does) and
+renders :meth:`~ads_rca.engine.Diagnosis.to_json` (the ``diagnose --json`` contract) plus a
+``live`` section.
 
 The horizon is the collision frame (from the run metadata, or a later collision event): the
 frames at or before it decide the attribution. Without a collision it is the end of the run.
@@ -25,10 +26,18 @@ from typing import Any
 
 import numpy as np
 
-from ads_rca.engine import Diagnosis, attribute, oracles_for
-from ads_rca.live.results import Columns, FrameMarker, LiveResult, ResultStore, new_problems
+from ads_rca.engine import Diagnosis
+from ads_rca.live.results import (
+    Columns,
+    FrameMarker,
+    LiveResult,
+    ResultStore,
+    RunEnd,
+    new_problems,
+)
 from ads_rca.model import RunLog, RunMetadata
 from ads_rca.oracles.base import MODULES, Module, RunContext
+from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import Params
 from ads_rca.problems import Problem, ProblemLog
 from ads_rca.verdict import FrameResults, frame_number
@@ -58,7 +67,8 @@ class AggregatorCore:
         self, params: Params, verdict_timeout_s: float = 10.0, stall_timeout_s: float = 20.0
     ) -> None:
         self.params = params
-        oracles_for(params)  # import the mode's modules now, not while the verdict is due
+        # The mode's modules are imported now, not while the verdict is due.
+        self.semantics = semantics_for(params)
         self.verdict_timeout_s = verdict_timeout_s
         self.stall_timeout_s = stall_timeout_s
         self.metadata: RunMetadata | None = None
@@ -68,9 +78,7 @@ class AggregatorCore:
         #: Analysed frames announced by markers: stamp and arrival time per index.
         self.expected = Columns(stamp_ms=np.int64, arrived=np.float64)
         self.last_stamp: int | None = None
-        self.finished = False
-        self._finished_after: int | None = None
-        self.markers_received = 0
+        self.end = RunEnd()
         #: Each module's latest result per index, spilled to disk (flat memory on long runs).
         self.results = ResultStore()
         self.progress: dict[Module, int] = {m: -1 for m in MODULES}
@@ -111,11 +119,10 @@ class AggregatorCore:
     def add_marker(self, marker: FrameMarker, now: float) -> None:
         self.last_input = now
         self.last_stamp = marker.stamp_ms
-        self.markers_received += 1
-        self._update_finished()
+        self.end.marker()
         if marker.index is None:
             return
-        if self.params.semantics == "reference" or not marker.duplicate:
+        if self.semantics.analyses(marker.duplicate):
             index = marker.index
             if self.expected.accepts(index) and not self.expected.has(index):
                 self.expected.set(index, stamp_ms=marker.stamp_ms, arrived=now)
@@ -124,12 +131,15 @@ class AggregatorCore:
         """The player's end; effective once ``frames_published`` markers arrived (DDS does
         not order the status after the last markers)."""
         self.last_input = now
-        self._finished_after = 0 if frames_published is None else frames_published
-        self._update_finished()
+        self.end.end(frames_published)
 
-    def _update_finished(self) -> None:
-        if self._finished_after is not None and self.markers_received >= self._finished_after:
-            self.finished = True
+    @property
+    def finished(self) -> bool:
+        return self.end.finished
+
+    @property
+    def markers_received(self) -> int:
+        return self.end.markers_received
 
     def add_result(self, result: LiveResult, now: float) -> None:
         self.last_input = now
@@ -177,7 +187,7 @@ class AggregatorCore:
         horizon = self.horizon_ms()
         if horizon is None or self.metadata is None:
             return None
-        w = self.params.window_frames(self.metadata.timesteps_per_frame)
+        w = self.semantics.window_frames(self.params, self.metadata.timesteps_per_frame)
         return horizon - w * self.metadata.timesteps_per_frame
 
     def _behind(self) -> bool:
@@ -199,7 +209,8 @@ class AggregatorCore:
         """Per module: required frames still awaited, and those lost (the module moved on)."""
         awaited: dict[Module, list[int]] = {m: [] for m in MODULES}
         lost: dict[Module, list[int]] = {m: [] for m in MODULES}
-        fresh_from = self._window_start_ms() if self.params.semantics == "corrected" else None
+        # A result judged against another collision (partner) is stale inside the window.
+        fresh_from = self._window_start_ms() if self.semantics.uses_partner else None
         for e in self.required():
             for m in MODULES:
                 got = self.results.has(m, e.index)
@@ -260,8 +271,10 @@ class AggregatorCore:
             problems=ProblemLog([*self.input_problems, *self.problems]),
         )
         # The engine's attribution; its context reports nothing we keep (no records here).
-        attribution = attribute(frames, RunContext(log, self.params, ego_id=self.ego_id))
-        if self.params.semantics == "corrected":
+        attribution = self.semantics.attribute(
+            frames, RunContext(log, self.params, ego_id=self.ego_id)
+        )
+        if self.semantics.uses_partner:
             attribution.partner_id = self.partner_id if self.collision_frame >= 0 else None
         diagnosis = Diagnosis(
             log, RunContext(log, self.params, ego_id=self.ego_id), frames, attribution

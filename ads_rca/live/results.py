@@ -139,6 +139,34 @@ class LiveResult:
         )
 
 
+@dataclass
+class RunEnd:
+    """When the player's end counts, for a node that receives its markers.
+
+    DDS does not order topics: the end status may overtake the last markers, so the end only
+    counts once as many markers arrived as it announced (a node that joined late never gets
+    them all; it ends on its own timeouts).
+    """
+
+    markers_received: int = 0
+    finished: bool = False
+    _announced: int | None = None
+
+    def marker(self) -> None:
+        """One more marker arrived."""
+        self.markers_received += 1
+        self._update()
+
+    def end(self, frames_published: int | None) -> None:
+        """The player reached the end after ``frames_published`` markers (None: unknown)."""
+        self._announced = 0 if frames_published is None else frames_published
+        self._update()
+
+    def _update(self) -> None:
+        if self._announced is not None and self.markers_received >= self._announced:
+            self.finished = True
+
+
 def problem_from_dict(d: Mapping[str, Any]) -> Problem:
     ts = d.get("timestamp_ms")
     return Problem(

@@ -42,31 +42,14 @@ from typing import Any
 
 import numpy as np
 
-from ads_rca.engine import evaluate_frame, oracles_for
-from ads_rca.live.results import FrameMarker, LiveResult, new_problems
-from ads_rca.model import FOLDERS, FloatArray, RunLog, RunMetadata
-from ads_rca.oracles.base import EGO_ID_TIMESTAMP_MS, MODULES, Module, RunContext
+from ads_rca.engine import evaluate_frame
+from ads_rca.live.results import FrameMarker, LiveResult, RunEnd, new_problems
+from ads_rca.model import FloatArray, RunLog, RunMetadata
+from ads_rca.oracles.base import MODULES, Module, RunContext
+from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import Params
 from ads_rca.problems import Problem, ProblemLog
 from ads_rca.verdict import frame_number
-
-#: The folders each reference oracle reads (corrected oracles read every folder).
-REFERENCE_FOLDERS: dict[Module, tuple[str, ...]] = {
-    "perception": ("bboxes", "bboxes_gt"),
-    "prediction": ("pose", "actors", "predictions_with_perception"),
-    "planning": ("pose", "actors", "predictions", "predictions_with_perception", "waypoint"),
-    "controller": ("pose", "waypoint"),
-}
-#: Reference oracles that read the ego's identity.
-REFERENCE_EGO_MODULES: tuple[Module, ...] = ("prediction", "planning")
-
-
-def module_folders(semantics: str, modules: Iterable[Module]) -> tuple[str, ...]:
-    """The log folders (hence topics) any of ``modules`` reads, in :data:`FOLDERS` order."""
-    if semantics != "reference":
-        return FOLDERS
-    wanted = {f for m in modules for f in REFERENCE_FOLDERS[m]}
-    return tuple(f for f in FOLDERS if f in wanted)
 
 
 @dataclass
@@ -115,11 +98,10 @@ class MonitorCore:
             raise ValueError("a monitor judges at least one module")
         self.params = params
         self.settings = settings or WindowSettings()
-        every = oracles_for(params)
-        self.oracles = {m: every[m] for m in self.modules}
-        self.folders = module_folders(params.semantics, self.modules)
-        self.reference = params.semantics == "reference"
-        self.needs_ego = not self.reference or any(m in REFERENCE_EGO_MODULES for m in self.modules)
+        self.semantics = semantics_for(params)
+        self.oracles = {m: self.semantics.oracles[m] for m in self.modules}
+        self.folders = self.semantics.module_folders(self.modules)
+        self.needs_ego = any(self.semantics.reads_ego(m) for m in self.modules)
         self.metadata: RunMetadata | None = None
         self.input_problems: tuple[Problem, ...] = ()
         self.collision_frame = -1
@@ -130,9 +112,7 @@ class MonitorCore:
         self.pending: deque[_Entry] = deque()  # analysed frames to judge, in order
         self._judged: deque[_Entry] = deque()  # judged, kept for a re-evaluation
         self.complete_through: int | None = None  # every marker up to here settled
-        self.finished = False
-        self._finished_after: int | None = None
-        self.markers_received = 0
+        self.end = RunEnd()
         self.last_input: float | None = None
         self.ego_id: str | None = None
         self.ego_resolved = not self.needs_ego
@@ -164,7 +144,7 @@ class MonitorCore:
         if frame == self.collision_frame:
             return False
         self.collision_frame = frame
-        if self.reference or not self._judged:
+        if not self.semantics.uses_partner or not self._judged:
             return False
         again = list(self._judged)
         self._judged.clear()
@@ -189,28 +169,27 @@ class MonitorCore:
         self._touch(now)
         entry = _Entry(marker, now)
         self._markers.append(entry)
-        self.markers_received += 1
-        self._update_finished()
+        self.end.marker()
         if marker.index is not None:
             self.analysed[marker.index] = marker.stamp_ms
-            if self.reference or not marker.duplicate:
+            if self.semantics.analyses(marker.duplicate):
                 self.pending.append(entry)
         self._settle(now)
 
     def set_finished(self, now: float, frames_published: int | None = None) -> None:
-        """The player reached the end, after ``frames_published`` markers.
-
-        DDS does not order topics: the status may overtake the last markers, so the end only
-        counts once that many markers arrived (a monitor that joined late never gets them
-        all; it judges its last frames when inputs stall, marked incomplete).
-        """
+        """The player reached the end, after ``frames_published`` markers (see
+        :class:`~ads_rca.live.results.RunEnd`; a monitor that joined late judges its last
+        frames when inputs stall, marked incomplete)."""
         self._touch(now)
-        self._finished_after = 0 if frames_published is None else frames_published
-        self._update_finished()
+        self.end.end(frames_published)
 
-    def _update_finished(self) -> None:
-        if self._finished_after is not None and self.markers_received >= self._finished_after:
-            self.finished = True
+    @property
+    def finished(self) -> bool:
+        return self.end.finished
+
+    @property
+    def markers_received(self) -> int:
+        return self.end.markers_received
 
     def _touch(self, now: float) -> None:
         self.last_input = now
@@ -239,22 +218,13 @@ class MonitorCore:
         )
 
     def _lookahead_frames(self, entry: _Entry) -> int:
-        p = self.params
-        if not self.reference:
-            return max(p.prediction_window, p.control_horizon, 1)
-        if "prediction" in self.modules:
-            return max(self._prediction_lookahead(entry), int("controller" in self.modules))
-        return int("controller" in self.modules)
-
-    def _prediction_lookahead(self, entry: _Entry) -> int:
-        """Reference prediction reads as far ahead as its step keys go (capped)."""
-        pwp = self.records["predictions_with_perception"].get(entry.marker.stamp_ms)
-        longest = 0
-        for track in (pwp or {}).values():
-            steps = track.steps
-            if steps.size:
-                longest = max(longest, int(steps.max()))
-        return min(longest, self.settings.max_lookahead_frames)
+        return self.semantics.modules_lookahead(
+            self.modules,
+            self.params,
+            self.records,
+            entry.marker.stamp_ms,
+            self.settings.max_lookahead_frames,
+        )
 
     def _through(self, stamp_ms: int) -> bool:
         """Every marker up to ``stamp_ms`` has settled (or the run is over and all did)."""
@@ -273,10 +243,10 @@ class MonitorCore:
         ahead = stamp + self._lookahead_frames(entry) * tpf
         if not self._through(ahead):
             out.append(f"look-ahead to {ahead} ms not received")
-        if not self.ego_resolved and not self._through(EGO_ID_TIMESTAMP_MS):
+        if not self.ego_resolved and not self._through(self.semantics.ego_stamp_ms):
             out.append("ego not identified yet")
         if (
-            not self.reference
+            self.semantics.uses_partner
             and self.collision_frame >= 0
             and not self._through(self.collision_frame * tpf)
         ):
@@ -365,22 +335,20 @@ class MonitorCore:
         return out
 
     def _partner(self, ctx: RunContext) -> str | None:
-        if self.reference or self.collision_frame < 0:
+        if not self.semantics.uses_partner or self.collision_frame < 0:
             return None
-        from ads_rca.oracles.corrected.context import corrected_context
-
-        return corrected_context(ctx).partner_id
+        return self.semantics.partner_id(ctx)
 
     # --- forgetting ------------------------------------------------------------------
 
     def history_frames(self) -> int:
-        """Judged frames kept for a re-evaluation (corrected: the effect window + slack)."""
-        if self.reference or self.metadata is None:
+        """Judged frames kept for a re-evaluation (none where results do not depend on the
+        partner; else the setting, or the mode's own count)."""
+        if not self.semantics.uses_partner or self.metadata is None:
             return 0
         if self.settings.history_frames > 0:
             return self.settings.history_frames
-        p = self.params
-        return p.window_frames(self.metadata.timesteps_per_frame) + p.control_horizon + 5
+        return self.semantics.rejudge_history(self.params, self.metadata.timesteps_per_frame)
 
     def _trim(self) -> None:
         """Forget what no pending frame, re-evaluation or the collision partner will read."""
@@ -410,7 +378,7 @@ class MonitorCore:
 
     def _pinned_stamp(self) -> int | None:
         """The analysed frame the partner is read at: the latest one <= the collision frame."""
-        if self.reference or self.collision_frame < 0 or self.metadata is None:
+        if not self.semantics.uses_partner or self.collision_frame < 0 or self.metadata is None:
             return None
         cf_ms = self.collision_frame * self.metadata.timesteps_per_frame
         candidates = [s for s in self.analysed.values() if s <= cf_ms]

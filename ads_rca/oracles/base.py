@@ -1,4 +1,4 @@
-"""What every oracle shares: its result type, the run context, and the ego's identity.
+"""What every oracle shares: the run context, and the ego's identity.
 
 An oracle is a pure function ``(ctx, ts) -> OracleResult`` of one analysed frame plus the
 run context. It never raises on bad data: where the data a check needs is missing it
@@ -10,33 +10,27 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import Any, Literal
 
 import numpy as np
 
 from ads_rca.model import RunLog
+from ads_rca.oracles.semantics import EGO_ID_TIMESTAMP_MS, semantics_for
 from ads_rca.params import Params
 from ads_rca.problems import CHECK_SKIPPED, Problem, ProblemLog
+from ads_rca.verdict import MODULES, Metric, Module, OracleResult
 
-Module = Literal["perception", "prediction", "planning", "controller"]
-#: Pipeline order, upstream first (the reference's names).
-MODULES: tuple[Module, ...] = ("perception", "prediction", "planning", "controller")
-
-Metric = float | int | str | bool | None | list[Any] | dict[str, Any]
-
-
-@dataclass(frozen=True)
-class OracleResult:
-    """One module judged at one frame."""
-
-    module: Module
-    timestamp_ms: int
-    failed: bool
-    metrics: dict[str, Metric] = field(default_factory=dict)
-    thresholds: dict[str, float] = field(default_factory=dict)
-    ids: tuple[str, ...] = ()
-    #: Why the check could not run (missing input), else None.
-    skipped: str | None = None
+# The per-frame result types live with the verdict (they are its contract); oracles name
+# them from here.
+__all__ = [
+    "EGO_ID_TIMESTAMP_MS",
+    "MODULES",
+    "Metric",
+    "Module",
+    "OracleResult",
+    "RunContext",
+    "earliest_ego",
+    "ego_at",
+]
 
 
 @dataclass
@@ -52,7 +46,7 @@ class RunContext:
     @classmethod
     def create(cls, log: RunLog, params: Params) -> RunContext:
         ctx = cls(log, params)
-        ctx.ego_id = find_ego_id(ctx)
+        ctx.ego_id = semantics_for(params).find_ego(ctx)
         return ctx
 
     @property
@@ -75,42 +69,16 @@ class RunContext:
                 self.problems.extend([problem])
 
 
-#: The reference reads the ego's identity at this timestamp.
-EGO_ID_TIMESTAMP_MS = 50
 EGO_MATCH_DISTANCE_M = 0.5
 
 
-def find_ego_id(ctx: RunContext) -> str | None:
-    """The ego's actor id: the first actor (file order) within 0.5 m of the pose, per axis.
-
-    reference: at exactly 50 ms; where that actors file or pose is missing, or no actor
-    qualifies, the earliest analysed frame with both files (reported). corrected: the
-    earliest analysed frame with both files directly.
-    """
+def earliest_ego(ctx: RunContext) -> str | None:
+    """The ego in the earliest analysed frame with both an actors and a pose file (see
+    :func:`ego_at`); None, reported, when no actor matches there."""
     log = ctx.log
-    if ctx.params.semantics == "reference":
-        found = _ego_at(log, EGO_ID_TIMESTAMP_MS)
-        if found is not None:
-            return found
-        missing = [
-            f"{name}/"
-            for name, folder in (("actors", log.actors), ("pose", log.pose))
-            if EGO_ID_TIMESTAMP_MS not in folder
-        ]
-        issue = (
-            f"no {' or '.join(missing)} file at 50 ms"
-            if missing
-            else "no actor within 0.5 m of the pose at 50 ms"
-        )
-        ctx.report(
-            log.file_of("actors", EGO_ID_TIMESTAMP_MS),
-            "ego id",
-            f"{issue} (the reference stops here; used the earliest frame)",
-            EGO_ID_TIMESTAMP_MS,
-        )
     for ts in log.unique_frames:
         if ts in log.actors and ts in log.pose:
-            found = _ego_at(log, ts)
+            found = ego_at(log, ts)
             if found is not None:
                 return found
             break
@@ -118,7 +86,8 @@ def find_ego_id(ctx: RunContext) -> str | None:
     return None
 
 
-def _ego_at(log: RunLog, ts: int) -> str | None:
+def ego_at(log: RunLog, ts: int) -> str | None:
+    """The first actor (file order) within 0.5 m of the ego pose at ``ts``, per axis."""
     actors, pose = log.actors.get(ts), log.pose.get(ts)
     if actors is None or pose is None or len(actors) == 0:
         return None

@@ -37,23 +37,6 @@ from ads_rca.engine import Diagnosis
 from ads_rca.geometry import box_corners, ego_to_world
 from ads_rca.oracles.base import MODULES, Module
 
-#: Per mode and module, the metric plotted over time (first one present wins) and the
-#: threshold parameter drawn with it.
-HEADLINE: dict[str, dict[Module, list[tuple[str, str | None]]]] = {
-    "reference": {
-        "perception": [("mean_iou", "perc_score_threshold")],
-        "prediction": [("ratio", "pred_score_threshold")],
-        "planning": [("gap_y", None), ("gap_x", None)],
-        "controller": [("s_x", None)],
-    },
-    "corrected": {
-        "perception": [("recall", None), ("mean_iou", "perc_match_iou")],
-        "prediction": [("displacement_error", None), ("ade", None)],
-        "planning": [("c_plan", "safety_margin"), ("c_gt", "safety_margin")],
-        "controller": [("sum_speed_innovation", "control_speed_threshold")],
-    },
-}
-
 #: Largest magnitude drawn. Beyond it no log quantity (metres, ms, scores) means anything,
 #: and near float's limit matplotlib's transforms overflow (1.7e308 fails to draw).
 PLOT_LIMIT = 1e15
@@ -231,7 +214,7 @@ def metrics_figure(result: Diagnosis, skipped: Skipped) -> Figure:
     fig, axes = plt.subplots(len(MODULES), 1, figsize=(10, 2.2 * len(MODULES)), sharex=True)
     frames = _floats([f.frame for f in result.frames])
     meta = result.log.metadata
-    window = result.params.window_frames(meta.timesteps_per_frame)
+    window = result.window_frames
     used = result.params.used()
     for ax, module in zip(axes, MODULES, strict=True):
         key, threshold = _headline(result, module)
@@ -272,7 +255,7 @@ def metrics_figure(result: Diagnosis, skipped: Skipped) -> Figure:
 
 def _headline(result: Diagnosis, module: Module) -> tuple[str | None, str | None]:
     present = {k for f in result.frames if module in f.results for k in f.results[module].metrics}
-    for key, threshold in HEADLINE[result.params.semantics][module]:
+    for key, threshold in result.semantics.headline[module]:
         if key in present:
             return key, threshold
     for frame in result.frames:  # otherwise the first numeric metric the oracle reports

@@ -1,6 +1,6 @@
 """Rules 6–7: which module caused the crash, from the per-frame `corrected` results.
 
-Window: frames [collision_frame − W, collision_frame] with W = ``params.window_frames``.
+Window: frames [collision_frame − W, collision_frame] with W = :func:`window_frames`.
 A module's failing frames in the window count only in runs of at least its persistence
 (perception and prediction ``min_persistence``, planning ``planning_min_persistence``,
 control ``control_min_persistence``); runs are maximal runs of consecutive analysed frames
@@ -31,6 +31,11 @@ from ads_rca.verdict import (
 
 #: Modules with an unconditioned test, for the fallback (pipeline order).
 FALLBACK_MODULES: tuple[Module, ...] = ("perception", "prediction")
+
+
+def window_frames(params: Params, tpf_ms: int) -> int:
+    """W: ``effect_time_window`` frames, or ``window_s`` seconds when that is longer."""
+    return max(params.effect_time_window, round(params.window_s * 1000.0 / tpf_ms))
 
 
 def persistence(params: Params, module: Module) -> int:
@@ -93,7 +98,7 @@ def attribute_corrected(frames: Sequence[FrameResults], ctx: RunContext) -> Attr
     ordered = sorted({f.timestamp_ms: f for f in reversed(frames)}.values(), key=_ts)
     partner = corrected_context(ctx).partner_id if collision_frame >= 0 else None
     if collision_frame >= 0:
-        start, end = (collision_frame - params.window_frames(tpf)) * tpf, collision_frame * tpf
+        start, end = (collision_frame - window_frames(params, tpf)) * tpf, collision_frame * tpf
         window = [f for f in ordered if start <= f.timestamp_ms <= end]
     else:
         window = []

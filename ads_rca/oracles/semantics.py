@@ -1,0 +1,141 @@
+"""What a semantics mode is: one object the engine and the live nodes ask, never the name.
+
+Why: the engine (``ads-rca diagnose``), the live monitors' windows and the aggregator must
+apply the same rules of a mode — which oracles, which frames are analysed, how the ego is
+identified, the effect window, the attribution, which folders each oracle reads and how far
+ahead — so each rule is written once, on the mode's :class:`Semantics`, and nobody outside
+the parameter and CLI layers compares ``params.semantics`` with a mode's name.
+
+A mode is a module that exports ``SEMANTICS`` (an instance of a :class:`Semantics`
+subclass); :data:`MODES` maps each name to its module, imported on first use (a run loads
+only its own mode). Adding a mode: one new module, one entry here (and its parameters'
+defaults in :mod:`ads_rca.params`).
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any
+
+from ads_rca.model import FOLDERS, RunLog
+from ads_rca.params import Params
+from ads_rca.verdict import Attribution, FrameResults, Module, OracleResult
+
+if TYPE_CHECKING:
+    from ads_rca.oracles.base import RunContext
+
+#: An oracle: one module judged at one analysed frame (pure; problems go to ``ctx``).
+Oracle = Callable[["RunContext", int], OracleResult]
+
+#: Each mode's module (it exports ``SEMANTICS``).
+MODES: dict[str, str] = {
+    "reference": "ads_rca.oracles.reference",
+    "corrected": "ads_rca.oracles.corrected",
+}
+
+#: The ego's identity is final once every frame up to this stamp has arrived (reference
+#: reads it at exactly this stamp; the live window waits for it in every mode).
+EGO_ID_TIMESTAMP_MS = 50
+
+
+class Semantics:
+    """One mode's rules. Subclasses set the class attributes and override what differs."""
+
+    #: The mode's name (``params.semantics``).
+    name: str
+    #: The four oracles, in pipeline order.
+    oracles: Mapping[Module, Oracle]
+    #: A timestamp that appears in several files is analysed once per file (else once).
+    analyses_duplicates: bool = False
+    #: Results depend on the collision partner (the actors at the collision frame): a
+    #: later collision re-judges the frames in the window, and the verdict names the partner.
+    uses_partner: bool = False
+    #: Per module, the metric a report plots over time (the first one present wins) and
+    #: the threshold parameter drawn with it.
+    headline: Mapping[Module, Sequence[tuple[str, str | None]]]
+    #: See :data:`EGO_ID_TIMESTAMP_MS`.
+    ego_stamp_ms: int = EGO_ID_TIMESTAMP_MS
+
+    def attribute(self, frames: Sequence[FrameResults], ctx: RunContext) -> Attribution:
+        """The verdict from the analysed frames' oracle results."""
+        raise NotImplementedError
+
+    def find_ego(self, ctx: RunContext) -> str | None:
+        """The ego's actor id (default: the earliest analysed frame with actors and pose)."""
+        from ads_rca.oracles.base import earliest_ego
+
+        return earliest_ego(ctx)
+
+    def window_frames(self, params: Params, tpf_ms: int) -> int:
+        """W: frames before the collision that belong to the effect window."""
+        return params.effect_time_window
+
+    def folders(self, module: Module) -> tuple[str, ...]:
+        """The log folders (hence topics) ``module``'s oracle reads (default: every one)."""
+        return FOLDERS
+
+    def reads_ego(self, module: Module) -> bool:
+        """Whether ``module``'s oracle reads the ego's identity."""
+        return True
+
+    def lookahead_frames(
+        self,
+        module: Module,
+        params: Params,
+        records: Mapping[str, Mapping[int, Any]],
+        stamp_ms: int,
+        cap: int,
+    ) -> int:
+        """Frames after ``stamp_ms`` that ``module``'s oracle reads there.
+
+        ``records`` are the log's records per folder (at least ``stamp_ms``'s); ``cap``
+        bounds a look-ahead that depends on the data (a key reaching absurdly far).
+        """
+        return 0
+
+    def rejudge_history(self, params: Params, tpf_ms: int) -> int:
+        """Judged frames a live window keeps to re-judge them on a later collision."""
+        return 0
+
+    def partner_id(self, ctx: RunContext) -> str | None:
+        """The collision partner the results were judged against (None: not used)."""
+        return None
+
+    # --- derived: the same for every mode --------------------------------------------
+
+    def analyses(self, duplicate: bool) -> bool:
+        """Whether a frame (a duplicated timestamp's later file, when ``duplicate``) is
+        analysed."""
+        return self.analyses_duplicates or not duplicate
+
+    def analysed_frames(self, log: RunLog) -> tuple[int, ...]:
+        """The timestamps judged, in order."""
+        return log.frames if self.analyses_duplicates else log.unique_frames
+
+    def module_folders(self, modules: Iterable[Module]) -> tuple[str, ...]:
+        """The folders any of ``modules`` reads, in :data:`~ads_rca.model.FOLDERS` order."""
+        wanted = {f for m in modules for f in self.folders(m)}
+        return tuple(f for f in FOLDERS if f in wanted)
+
+    def modules_lookahead(
+        self,
+        modules: Iterable[Module],
+        params: Params,
+        records: Mapping[str, Mapping[int, Any]],
+        stamp_ms: int,
+        cap: int,
+    ) -> int:
+        """The longest look-ahead among ``modules`` at ``stamp_ms``."""
+        return max(
+            (self.lookahead_frames(m, params, records, stamp_ms, cap) for m in modules),
+            default=0,
+        )
+
+
+def semantics_for(mode: str | Params) -> Semantics:
+    """The :class:`Semantics` of a mode (by name, or the one ``params`` select)."""
+    name = mode.semantics if isinstance(mode, Params) else mode
+    found = importlib.import_module(MODES[name]).SEMANTICS
+    assert isinstance(found, Semantics)
+    return found

@@ -445,3 +445,24 @@ def test_monitors_skip_and_report_malformed_messages_and_judge_the_rest(ros_env:
     judged = {(r["module"], r["index"]) for r in results}
     assert len(judged) == expected, (len(judged), expected)
     assert int(heartbeat["skipped_messages"]) >= 5, heartbeat
+
+
+def test_the_assembler_leaves_undecodable_bytes_out_as_a_problem() -> None:
+    """``add_raw`` keeps data as bytes (stamp read only); a message cut after its stamp is
+    left out of ``build()`` and said, the rest of the log is built (topic_summary's path)."""
+    from ads_rca.ros.assembler import RunLogAssembler
+
+    log = read_run_log(EXAMPLE)
+    assembler = RunLogAssembler()
+    assembler.add_raw(topics.METADATA, cdr.encode_string(playback.metadata_message(log).data))
+    stamp = log.frames[5]
+    for key, data in cdr.frame_payloads(log, stamp).items():
+        assembler.add_raw(key, data[:-40] if key == topics.ACTORS else data)
+    for key, data in cdr.frame_payloads(log, log.frames[6]).items():
+        assembler.add_raw(key, data)
+    with pytest.raises(CdrError):
+        assembler.add_raw(topics.METADATA, b"\x00\x01\x00\x00\xff\xff\xff\x7f")
+    rebuilt = assembler.build()
+    assert stamp not in rebuilt.actors and log.frames[6] in rebuilt.actors
+    (problem,) = [p for p in rebuilt.problems if p.action == "message skipped"]
+    assert problem.file == topics.ACTORS and problem.timestamp_ms == stamp

@@ -6,6 +6,7 @@ lost, or one error line (exit 2), never a traceback or a silent partial read."""
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import signal
 import struct
@@ -16,6 +17,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+from test_hostile_input import assert_clean, run_cli
 from test_recorder import start_player, start_recorder
 
 from ads_rca.cli import main as cli
@@ -380,3 +382,78 @@ def test_sigkilled_recording_is_reported_as_cut(
     code, out, err = verdict(bag, capsys)
     assert code == 0 and "Traceback" not in err, err
     assert "bag_0.mcap: data section: truncated after" in out, out
+
+
+# --- 1 for bags: storage files and metadata.yaml that are not regular files ----------------
+
+
+def _not_regular(path: Path, kind: str) -> None:
+    """Put a FIFO, or a symlink to a device, at ``path``."""
+    path.unlink(missing_ok=True)
+    if kind == "fifo":
+        os.mkfifo(path)
+    else:
+        path.symlink_to(kind)
+
+
+@pytest.mark.parametrize("kind", ["fifo", "/dev/zero", "/dev/urandom"])
+@pytest.mark.parametrize("storage", ["zstd", "sqlite3"])
+def test_a_storage_file_that_is_not_regular_is_one_line(
+    bags: dict[str, Path], tmp_path: Path, kind: str, storage: str
+) -> None:
+    """The only storage file of a bag directory (listed in its metadata.yaml, or not), or
+    a bare path: never opened (a FIFO blocked forever, /dev/zero read until memory ran
+    out), one error line naming it, exit 2, from every command."""
+    bag = Path(shutil.copytree(bags[storage], tmp_path / "bag"))
+    listed = storage_file(bag)
+    _not_regular(listed, kind)
+    unlisted = tmp_path / "unlisted"  # metadata.yaml names no file there: the one present
+    unlisted.mkdir()
+    shutil.copy(bag / "metadata.yaml", unlisted)
+    _not_regular(unlisted / f"x_0{listed.suffix}", kind)
+    why = "FIFO" if kind == "fifo" else "character device"
+    for path, name in (
+        (bag, listed),
+        (unlisted, unlisted / f"x_0{listed.suffix}"),
+        (listed, listed),
+    ):
+        for command in ("inspect", "diagnose", "convert"):
+            out = [str(tmp_path / "out")] if command == "convert" else []
+            done = run_cli(command, str(path), *out)
+            assert_clean(done, 2)
+            assert done.stderr.count("\n") == 1, done.stderr
+            assert f"{name}: not a regular file ({why})" in done.stderr, done.stderr
+
+
+def test_a_fifo_beside_a_readable_storage_file_is_a_problem(
+    bags: dict[str, Path], tmp_path: Path
+) -> None:
+    """metadata.yaml lists two files, the second a FIFO: the first is read and diagnosed,
+    the FIFO named as skipped."""
+    bag = Path(shutil.copytree(bags["zstd"], tmp_path / "bag"))
+    path = bag / "metadata.yaml"
+    document = yaml.safe_load(path.read_text())
+    info = document["rosbag2_bagfile_information"]
+    info["relative_file_paths"].append("bag_1.mcap")
+    path.write_text(yaml.safe_dump(document))
+    os.mkfifo(bag / "bag_1.mcap")
+    done = run_cli("diagnose", str(bag), "--workers", "1")
+    assert_clean(done)
+    assert "verdict: perception" in done.stdout
+    assert "bag_1.mcap: not a regular file (FIFO) (file skipped)" in done.stdout, done.stdout
+
+
+@pytest.mark.parametrize("kind", ["fifo", "/dev/zero"])
+def test_a_metadata_yaml_that_is_not_regular_is_a_problem(
+    bags: dict[str, Path], tmp_path: Path, kind: str
+) -> None:
+    bag = Path(shutil.copytree(bags["zstd"], tmp_path / "bag"))
+    _not_regular(bag / "metadata.yaml", kind)
+    done = run_cli("inspect", "--json", str(bag))
+    assert_clean(done)
+    why = "FIFO" if kind == "fifo" else "character device"
+    problems = json.loads(done.stdout)["problems"]
+    assert any(
+        p["file"] == "metadata.yaml" and p["issue"] == f"unreadable: not a regular file ({why})"
+        for p in problems
+    ), problems

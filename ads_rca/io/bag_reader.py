@@ -14,6 +14,10 @@ damaged storage file gives what it holds (a killed recorder's MCAP up to its las
 chunk), a message that cannot be decoded is skipped, and the storage's own topics and types
 are trusted over ``metadata.yaml``; each of these is a Problem in the log, so ``inspect``,
 ``diagnose`` and the JSON list it.
+
+Only regular files are read (:mod:`ads_rca.io.files`): a FIFO or a device named like a
+storage file or ``metadata.yaml`` is found (by name and ``stat``, which never blocks) and
+reported, never opened: a Problem when other storage files can be read, else InputError.
 """
 
 from __future__ import annotations
@@ -37,8 +41,9 @@ from ads_rca.io.bag_storage import (
     read_mcap,
     read_storage,
 )
+from ads_rca.io.files import Unreadable, read_regular
 from ads_rca.model import RunLog
-from ads_rca.problems import IGNORED, USED_DEFAULT, Problem
+from ads_rca.problems import IGNORED, SKIPPED_FILE, USED_DEFAULT, Problem
 from ads_rca.ros import topics
 from ads_rca.ros.assembler import RunLogAssembler
 from ads_rca.ros.convert import message_to_record
@@ -92,18 +97,23 @@ class BagContents:
     problems: list[Problem]
 
 
+def _present(path: Path) -> bool:
+    """``path`` names something other than a directory (a FIFO or a dangling symlink too:
+    what it is is said when it is read). Only ``stat``s: never opens."""
+    return os.path.lexists(path) and not path.is_dir()
+
+
 def _storage_files(directory: Path) -> list[Path]:
-    return sorted(p for p in directory.iterdir() if p.suffix in BAG_SUFFIXES and p.is_file())
+    """Everything in ``directory`` named like a storage file (regular or not)."""
+    return sorted(p for p in directory.iterdir() if p.suffix in BAG_SUFFIXES and _present(p))
 
 
 def is_bag(path: str | os.PathLike[str]) -> bool:
     """A bag directory (metadata.yaml, or one storage file) or a .mcap/.db3 file."""
     p = Path(path)
-    if p.is_file():
-        return p.suffix in BAG_SUFFIXES
     if p.is_dir():
-        return (p / "metadata.yaml").is_file() or len(_storage_files(p)) == 1
-    return False
+        return _present(p / METADATA_YAML) or len(_storage_files(p)) == 1
+    return p.suffix in BAG_SUFFIXES and _present(p)
 
 
 def load_bag(path: str | os.PathLike[str]) -> BagContents:
@@ -113,13 +123,13 @@ def load_bag(path: str | os.PathLike[str]) -> BagContents:
     if p.is_dir():
         info, problems = _metadata_yaml(p)
         files = _bag_files(p, info, problems)
-    elif p.is_file() and p.suffix in BAG_SUFFIXES:
+    elif p.suffix in BAG_SUFFIXES and _present(p):
         info, problems, files = None, [], [p]
     elif p.is_file():
         raise InputError(f"{p}: not a bag file (.mcap or .db3)")
     else:
         raise InputError(f"{p}: no such bag")
-    reads = [read_storage(f, _announced_messages(info, f)) for f in files]
+    reads = _read_files(files, info, problems)
     messages = sorted(
         (m for read in reads for m in read.messages), key=lambda m: m.log_time_ns
     )  # stable: file order within a log time
@@ -133,17 +143,38 @@ def load_bag(path: str | os.PathLike[str]) -> BagContents:
     return BagContents(messages, storage_topics, problems)
 
 
+def _read_files(
+    files: list[Path], info: dict[str, Any] | None, problems: list[Problem]
+) -> list[StorageRead]:
+    """Each storage file read; one that cannot be read at all is a Problem when another
+    one can (InputError, the first file's reason, when none can)."""
+    reads: list[StorageRead] = []
+    failed: list[tuple[Path, InputError]] = []
+    for file in files:
+        try:
+            reads.append(read_storage(file, _announced_messages(info, file)))
+        except InputError as error:
+            failed.append((file, error))
+    if not reads:
+        raise failed[0][1]
+    for file, refused in failed:
+        issue = str(refused).removeprefix(f"{file}: ")
+        problems.append(Problem(file.name, "", issue, SKIPPED_FILE))
+    return reads
+
+
 def _metadata_yaml(directory: Path) -> tuple[dict[str, Any] | None, list[Problem]]:
     """The ``rosbag2_bagfile_information`` document (None when absent or unusable)."""
-    path = directory / "metadata.yaml"
-    if not path.is_file():
+    path = directory / METADATA_YAML
+    if not _present(path):
         return None, []
     try:
         # libyaml's safe loader when present: the pure-Python one takes ~80 ms per bag.
         loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
-        if path.stat().st_size > MAX_METADATA_YAML_BYTES:
-            raise OSError(f"larger than {MAX_METADATA_YAML_BYTES} bytes")
-        document = yaml.load(path.read_text(encoding="utf-8"), Loader=loader)
+        data = read_regular(path, MAX_METADATA_YAML_BYTES)
+        if isinstance(data, Unreadable):
+            raise OSError(data.issue.replace("(max_file_mb)", "").strip())
+        document = yaml.load(data.decode("utf-8"), Loader=loader)
     except (OSError, UnicodeDecodeError, yaml.YAMLError, RecursionError) as error:
         detail = str(error).splitlines()[0] if str(error) else type(error).__name__
         return None, [Problem(METADATA_YAML, "", f"unreadable: {detail}", _IGNORED_YAML)]
@@ -163,7 +194,7 @@ def _bag_files(directory: Path, info: dict[str, Any] | None, problems: list[Prob
         for name in listed:
             candidate = directory / str(name)
             inside = Path(str(name)).name == str(name)  # no path into other directories
-            if inside and candidate.is_file() and candidate.suffix in BAG_SUFFIXES:
+            if inside and _present(candidate) and candidate.suffix in BAG_SUFFIXES:
                 files.append(candidate)
             else:
                 problems.append(

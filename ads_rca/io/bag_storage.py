@@ -16,6 +16,12 @@ itself:
   database reports damage; the header's page count against the file size tells a truncated
   file that sqlite would read quietly.
 
+A storage file is opened only if it is a regular file, checked on the opened descriptor
+(:func:`ads_rca.io.files.open_regular`): a FIFO named ``x_0.mcap`` would block forever, a
+symlink to ``/dev/zero`` would be read until memory runs out. sqlite opens the database by
+name, so it is given ``/proc/self/fd/N`` of the checked descriptor: a name swapped for a
+FIFO after the check is never opened.
+
 Topics and types come from the storage itself (MCAP channels and schemas, the sqlite3
 ``topics`` table), never from ``metadata.yaml``. Pure Python, no rclpy. Nothing raises but
 :class:`~ads_rca.errors.InputError`, when the file holds nothing readable at all.
@@ -23,7 +29,6 @@ Topics and types come from the storage itself (MCAP channels and schemas, the sq
 
 from __future__ import annotations
 
-import io
 import os
 import shutil
 import sqlite3
@@ -33,9 +38,10 @@ import zlib
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 from ads_rca.errors import InputError
+from ads_rca.io.files import Unreadable, open_regular
 from ads_rca.problems import Problem, Severity
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
@@ -106,7 +112,7 @@ class _Stop:
 class _McapWalk:
     """One pass over an MCAP file; fills a :class:`StorageRead`."""
 
-    def __init__(self, path: Path, stream: io.BufferedReader, size: int) -> None:
+    def __init__(self, path: Path, stream: BinaryIO, size: int) -> None:
         self.out = StorageRead(path)
         self.stream = stream
         self.size = size
@@ -340,13 +346,17 @@ def _read_bounded(reader: Any, size: int) -> bytes:
     return b"".join(parts)
 
 
+def open_storage(path: Path) -> BinaryIO:
+    """``path`` opened if it is a regular file; InputError naming why not."""
+    stream = open_regular(path)
+    if isinstance(stream, Unreadable):
+        raise InputError(f"{path}: {stream.issue}")
+    return stream
+
+
 def read_mcap(path: Path, expected_messages: int | None = None) -> StorageRead:
     """Every message an MCAP file holds, up to where it is cut or damaged (see module doc)."""
-    try:
-        stream = path.open("rb")
-    except OSError as error:
-        raise InputError(f"{path}: cannot open: {error.strerror}") from error
-    with stream:
+    with open_storage(path) as stream:
         size = os.fstat(stream.fileno()).st_size
         magic = stream.read(len(MCAP_MAGIC))
         if magic != MCAP_MAGIC:
@@ -370,14 +380,20 @@ def read_sqlite3(path: Path, expected_messages: int | None = None) -> StorageRea
     is read from a private copy of its whole pages with the header's page count set to
     them, so the tables and rows stored before the cut are still found."""
     out = StorageRead(path)
-    size = path.stat().st_size
-    announced = _sqlite_size(path)
+    with open_storage(path) as stream:
+        size = os.fstat(stream.fileno()).st_size
+        announced = _sqlite_size(stream.read(100))
+        if announced is None or size >= announced:
+            damage = _sqlite_rows(_descriptor_path(stream, path), path, out)
+        else:
+            with tempfile.TemporaryDirectory(prefix="ads_rca_db3_") as private:
+                stream.seek(0)
+                try:
+                    damage = _sqlite_rows(_whole_pages(path, stream, Path(private)), path, out)
+                except InputError as error:
+                    cut = f"truncated after {size} of {announced} bytes"
+                    raise InputError(f"{error} ({cut})") from None
     if announced is not None and size < announced:
-        with tempfile.TemporaryDirectory(prefix="ads_rca_db3_") as private:
-            try:
-                damage = _sqlite_rows(_whole_pages(path, Path(private)), path, out)
-            except InputError as error:
-                raise InputError(f"{error} (truncated after {size} of {announced} bytes)") from None
         out.truncated = True
         out.problem(
             "database",
@@ -388,7 +404,6 @@ def read_sqlite3(path: Path, expected_messages: int | None = None) -> StorageRea
             KEPT_BEFORE_CUT,
         )
         return out
-    damage = _sqlite_rows(path, path, out)
     if damage is not None:
         out.truncated = True
         out.problem(
@@ -403,7 +418,7 @@ def read_sqlite3(path: Path, expected_messages: int | None = None) -> StorageRea
 def _sqlite_rows(database: Path, path: Path, out: StorageRead) -> str | None:
     """Fill ``out`` from ``database`` (``path``: the bag's file, for names); returns the
     damage that stopped the rows, if any. InputError when not even the topics are readable."""
-    uri = f"{database.resolve().as_uri()}?immutable=1"
+    uri = f"{Path(os.path.abspath(database)).as_uri()}?immutable=1"  # no resolve: /proc
     try:
         connection = sqlite3.connect(uri, uri=True)
     except sqlite3.Error as error:
@@ -446,11 +461,19 @@ def _sqlite_rows(database: Path, path: Path, out: StorageRead) -> str | None:
     return damage
 
 
-def _whole_pages(path: Path, directory: Path) -> Path:
-    """A copy of the whole pages of a cut sqlite file, its header's page count set to them
-    (copied on disk, not through memory: a bag can be large)."""
+def _descriptor_path(stream: BinaryIO, path: Path) -> Path:
+    """A name that opens exactly the checked file behind ``stream`` (Linux's
+    ``/proc/self/fd``), else ``path`` itself."""
+    proc = Path(f"/proc/self/fd/{stream.fileno()}")
+    return proc if proc.exists() else path
+
+
+def _whole_pages(path: Path, source: BinaryIO, directory: Path) -> Path:
+    """A copy of the whole pages of a cut sqlite file (read from ``source``), its header's
+    page count set to them (copied on disk, not through memory: a bag can be large)."""
     copy = directory / path.name
-    shutil.copyfile(path, copy)
+    with copy.open("wb") as out:
+        shutil.copyfileobj(source, out)
     with copy.open("r+b") as stream:
         (page_size,) = struct.unpack(">H", stream.read(18)[16:18])
         page_size = 65536 if page_size == 1 else page_size
@@ -463,13 +486,9 @@ def _whole_pages(path: Path, directory: Path) -> Path:
     return copy
 
 
-def _sqlite_size(path: Path) -> int | None:
-    """The database size its header announces (pages × page size), or None if unknown."""
-    try:
-        with path.open("rb") as stream:
-            header = stream.read(100)
-    except OSError:
-        return None
+def _sqlite_size(header: bytes) -> int | None:
+    """The database size its first 100 bytes announce (pages × page size), or None if
+    unknown."""
     if len(header) < 100 or not header.startswith(b"SQLite format 3\x00"):
         return None
     (page_size,) = struct.unpack_from(">H", header, 16)

@@ -7,6 +7,9 @@ file exhausts memory in the JSON parser. So a file is read only when it is a reg
 before opening, opened non-blocking (a FIFO swapped in after the check cannot block) and
 checked again with ``fstat`` on the opened descriptor; at most ``max_bytes + 1`` bytes are
 ever read. Anything else is an :class:`Unreadable` naming why, for the caller's Problem.
+
+:func:`open_regular` applies the same checks to a file read as a stream (a bag's storage
+file: large, read record by record, so no cap unless one is given).
 """
 
 from __future__ import annotations
@@ -14,6 +17,7 @@ from __future__ import annotations
 import os
 import stat
 from dataclasses import dataclass
+from typing import BinaryIO
 
 #: Default cap of one record file (``max_file_mb``): the largest seed-format record files
 #: (thousands of boxes) are a few MB, so this is generous and still bounds memory.
@@ -44,19 +48,12 @@ def max_bytes(max_file_mb: float) -> int:
 
 def read_regular(path: str | os.PathLike[str], limit: int) -> bytes | Unreadable:
     """The bytes of ``path`` if it is a regular file of at most ``limit`` bytes."""
+    opened = _open_checked(path, limit)
+    if isinstance(opened, Unreadable):
+        return opened
+    fd, size = opened
     try:
-        refused = _refuse(os.stat(path), limit)
-        if refused is not None:
-            return refused
-        fd = os.open(path, _OPEN_FLAGS)
-    except OSError as error:
-        return Unreadable(f"cannot read: {error.strerror}")
-    try:
-        info = os.fstat(fd)
-        refused = _refuse(info, limit)
-        if refused is not None:  # replaced between stat and open
-            return refused
-        data = _read_at_most(fd, info.st_size, limit)
+        data = _read_at_most(fd, size, limit)
     except OSError as error:
         return Unreadable(f"cannot read: {error.strerror}")
     finally:
@@ -66,15 +63,47 @@ def read_regular(path: str | os.PathLike[str], limit: int) -> bytes | Unreadable
     return data
 
 
+def open_regular(path: str | os.PathLike[str], limit: int | None = None) -> BinaryIO | Unreadable:
+    """``path`` opened for binary reading if it is a regular file (of at most ``limit``
+    bytes when given); the caller closes it. The descriptor is the one checked, so a file
+    swapped for a FIFO after the check is never read."""
+    opened = _open_checked(path, limit)
+    if isinstance(opened, Unreadable):
+        return opened
+    fd, _size = opened
+    return os.fdopen(fd, "rb")
+
+
+def _open_checked(path: str | os.PathLike[str], limit: int | None) -> tuple[int, int] | Unreadable:
+    """A descriptor of ``path`` and its size, checked before opening and after (fstat)."""
+    try:
+        refused = _refuse(os.stat(path), limit)
+        if refused is not None:
+            return refused
+        fd = os.open(path, _OPEN_FLAGS)
+    except OSError as error:
+        return Unreadable(f"cannot read: {error.strerror}")
+    try:
+        info = os.fstat(fd)
+    except OSError as error:
+        os.close(fd)
+        return Unreadable(f"cannot read: {error.strerror}")
+    refused = _refuse(info, limit)
+    if refused is not None:  # replaced between stat and open
+        os.close(fd)
+        return refused
+    return fd, info.st_size
+
+
 def file_kind(mode: int) -> str:
     """``FIFO``, ``character device``... for a non-regular ``st_mode``."""
     return next((name for test, name in _KINDS if test(mode)), "not a file")
 
 
-def _refuse(info: os.stat_result, limit: int) -> Unreadable | None:
+def _refuse(info: os.stat_result, limit: int | None) -> Unreadable | None:
     if not stat.S_ISREG(info.st_mode):
         return Unreadable(f"not a regular file ({file_kind(info.st_mode)})")
-    if info.st_size > limit:
+    if limit is not None and info.st_size > limit:
         return _too_large(limit)
     return None
 

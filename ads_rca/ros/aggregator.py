@@ -32,6 +32,7 @@ from ads_rca.ros import diagnostics as diag
 from ads_rca.ros import live_topics, topics
 from ads_rca.ros.assembler import run_metadata
 from ads_rca.ros.jsontext import loads_json
+from ads_rca.ros.malformed import SkippedMessages
 from ads_rca.ros.nodemain import run_node
 from ads_rca.ros.nodeparams import declare_engine_parameters, declare_node_parameters
 from ads_rca.ros.playback import (
@@ -68,6 +69,7 @@ class Aggregator(Node):
         self.verdict_json = str(p["verdict_json"])
         self.stale_timeout = float(p["stale_timeout_s"])
         self.runs = RunFilter(str(p["run_id"]))
+        self.skipped = SkippedMessages()
         self.core = AggregatorCore(
             self.params, float(p["verdict_timeout_s"]), float(p["stall_timeout_s"])
         )
@@ -76,7 +78,7 @@ class Aggregator(Node):
             path = Path(str(p["metrics_log"]))
             path.parent.mkdir(parents=True, exist_ok=True)
             self._metrics_log = path.open("w", encoding="utf-8")
-        ns = str(p["topic_namespace"])
+        ns = self.namespace = str(p["topic_namespace"])
         self.heard: dict[Module, float] = {}
         self.run_started: float | None = None
         for module in MODULES:
@@ -127,11 +129,16 @@ class Aggregator(Node):
     def _callback(self, key: str) -> Any:
         def on_message(msg: String) -> None:
             now = time.monotonic()
-            document = read_document(msg)
+            try:
+                document = read_document(msg)
+                marker = FrameMarker.from_document(document) if key == topics.FRAME else None
+            except (TypeError, ValueError, OverflowError) as error:  # JsonTextError included
+                self._skip(key, error, now)
+                return
             if not self.runs.accept(document):
                 return  # another run's player
-            if key == topics.FRAME:
-                self.core.add_marker(FrameMarker.from_document(document), now)
+            if marker is not None:
+                self.core.add_marker(marker, now)
             elif key == topics.STATUS:
                 if document.get("state") == FINISHED:
                     published = document.get("frames_published")
@@ -167,8 +174,18 @@ class Aggregator(Node):
             self._metrics_log.write(msg.data + "\n")
         self._poll()
 
+    def _skip(self, key: str, error: Exception, now: float) -> None:
+        """A message that cannot be read: counted, and said (at most every few seconds)."""
+        line = self.skipped.note(topics.topic_name(key, self.namespace), error, now)
+        if line is not None:
+            self.get_logger().warning(line)
+
     def _on_collision(self, msg: String) -> None:
-        document = read_document(msg)
+        try:
+            document = read_document(msg)
+        except ValueError as error:  # JsonTextError
+            self._skip(live_topics.COLLISION, error, time.monotonic())
+            return
         if document_run(document) is not None and not self.runs.accept(document):
             return  # another run's event (an event naming no run is a stack's: taken)
         frame = document.get("frame")

@@ -17,7 +17,7 @@ from std_msgs.msg import String
 from ads_rca.model import RunLog, RunMetadata
 from ads_rca.problems import Problem, ProblemLog
 from ads_rca.ros import topics
-from ads_rca.ros.cdr_decode import decode_record, decode_string, stamp_ms
+from ads_rca.ros.cdr_decode import CdrError, NoStamp, decode_record, decode_string, stamp_ms
 from ads_rca.ros.convert import message_stamp_ms, message_to_record
 from ads_rca.ros.playback import (
     FINISHED,
@@ -96,6 +96,7 @@ class RunLogAssembler:
         are kept as bytes (only the stamp is read) and decoded straight into model records
         by :mod:`ads_rca.ros.cdr_decode` in :meth:`build`; String topics are decoded now.
         Objects and bytes can be mixed; for a stamp the first arrival wins either way.
+        Raises CdrError for bytes that are not a message of the topic (nothing is kept).
         """
         if topic in (topics.METADATA, topics.FRAME, topics.STATUS):
             self.add(topic, String(data=decode_string(data)))
@@ -104,7 +105,7 @@ class RunLogAssembler:
         if topic in self._data:
             try:
                 stamp = stamp_ms(topic, data)
-            except ValueError:  # a MarkerArray without markers carries no stamp
+            except NoStamp:  # a MarkerArray without markers carries no stamp
                 return
             self._data[topic].setdefault(stamp, bytes(data))
 
@@ -157,7 +158,10 @@ class RunLogAssembler:
     # --- building -----------------------------------------------------------------------
 
     def build(self) -> RunLog:
-        """The RunLog carried so far (raises ValueError without metadata)."""
+        """The RunLog carried so far (raises ValueError without metadata).
+
+        Kept bytes that turn out not to be a message of their topic are left out and said
+        as a problem of the log (message skipped)."""
         if self.metadata_document is None:
             raise ValueError("no run/metadata message received")
         metadata = metadata_from_document(self.metadata_document)
@@ -175,9 +179,11 @@ class RunLogAssembler:
             folder = log.folder(topics.TOPIC_FOLDERS[topic])
             for stamp in sorted(by_stamp):
                 item = by_stamp[stamp]
-                folder[stamp] = (
-                    decode_record(topic, item, tpf)
-                    if isinstance(item, bytes)
-                    else message_to_record(topic, item, tpf)
-                )
+                if not isinstance(item, bytes):
+                    folder[stamp] = message_to_record(topic, item, tpf)
+                    continue
+                try:
+                    folder[stamp] = decode_record(topic, item, tpf)
+                except CdrError as error:
+                    log.problems.add(topic, "", str(error), "message skipped", timestamp_ms=stamp)
         return log

@@ -10,31 +10,104 @@ Any publisher's bytes are accepted, not only the fast encoder's: every Marker fi
 walked (colors, texture, uv_coordinates, mesh_file ...), whatever it holds. Only the
 little-endian representation (encapsulation ``00 01``) is read; that is what ROS 2 sends on
 every supported platform. Pure: no rclpy import.
+
+The bytes are untrusted: anyone on the domain can publish on the contract's topics. Every
+decoder either returns a record or raises :class:`CdrError` (a ValueError), never another
+exception, and never allocates for a count it has not checked against the bytes that
+remain (``count × smallest element ≤ remaining``): a sequence count of 2**32 - 1 is refused,
+not allocated. A MarkerArray without markers is not malformed: :func:`stamp_ms` raises
+:class:`NoStamp` for it.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 import struct
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ParamSpec, TypeVar
 
 import numpy as np
 
 from ads_rca.model import Actors, Boxes, EgoPose, Plan, Predictions, Track
 from ads_rca.ros import topics
 from ads_rca.ros.cdr import HEADER_SIZE, MESH_WHEN_EMPTY, MIDDLE_WHEN_EMPTY
-from ads_rca.ros.convert import quaternions_to_carla_rpy, step_ms
-from ads_rca.ros.jsontext import loads_json
+from ads_rca.ros.convert import (
+    check_box_points,
+    marker_document,
+    quaternions_to_carla_rpy,
+    step_ms,
+    track_keys,
+)
+
+_P = ParamSpec("_P")
+_R = TypeVar("_R")
 
 _NS_PER_MS = 1_000_000
 _U32 = struct.Struct("<I")
 _STAMP = struct.Struct("<iI")
+_F64 = struct.Struct("<d")
 _F64_3 = struct.Struct("<3d")
 _F64_7 = struct.Struct("<7d")
 _DELETEALL = 3
 #: Marker pose (7 float64), scale (3 float64), color (4 float32), lifetime, frame_locked.
 _FIXED_AFTER_POSE = 56 + 24 + 16 + 8 + 1
+#: Fewest bytes a Marker can take (every string and sequence empty, no alignment counted):
+#: stamp, frame_id, ns, id/type/action, pose..frame_locked, points, colors,
+#: texture_resource, texture (stamp, frame_id, format, data), uv, text, mesh_resource,
+#: mesh_file (filename, data), mesh_use_embedded_materials.
+MIN_MARKER_BYTES = 8 + 4 + 4 + 12 + _FIXED_AFTER_POSE + 4 + 4 + 4 + 16 + 4 + 4 + 4 + 4 + 4 + 1
+#: Fewest bytes of a MultiDOFJointTrajectoryPoint: three sequence counts and a Duration.
+MIN_TRAJECTORY_POINT_BYTES = 4 + 4 + 4 + 8
+
+
+class CdrError(ValueError):
+    """Bytes that are not a well-formed message of the expected type (cut, damaged, or a
+    count or length larger than the message): the message is skipped, never half-used."""
+
+
+class NoStamp(ValueError):
+    """A MarkerArray without markers: well-formed, but it carries no stamp."""
+
+
+#: What reading past the end, a wrong UTF-8 string or a value no record can hold raises
+#: inside the decoders; :func:`_typed` turns each into a CdrError.
+_LOW_LEVEL = (
+    struct.error,
+    IndexError,
+    KeyError,
+    TypeError,
+    AttributeError,
+    OverflowError,
+    MemoryError,
+    ValueError,
+)
+
+
+def _typed(decoder: Callable[_P, _R]) -> Callable[_P, _R]:
+    """``decoder`` raising :class:`CdrError` (or :class:`NoStamp`) for every bad payload."""
+
+    @functools.wraps(decoder)
+    def checked(*args: _P.args, **kwargs: _P.kwargs) -> _R:
+        try:
+            return decoder(*args, **kwargs)
+        except (CdrError, NoStamp):
+            raise
+        except _LOW_LEVEL as error:
+            detail = str(error) or type(error).__name__
+            raise CdrError(f"malformed {decoder.__name__[7:] or 'message'}: {detail}") from None
+
+    return checked
+
+
+def check_count(count: int, element_bytes: int, remaining: int, what: str) -> None:
+    """Refuse a sequence count the remaining bytes cannot hold (before allocating for it)."""
+    if count * element_bytes > remaining:
+        raise CdrError(
+            f"{what}: {count} elements need at least {count * element_bytes} bytes, "
+            f"{remaining} remain"
+        )
 
 
 class CdrReader:
@@ -63,11 +136,23 @@ class CdrReader:
         self.position += 4
         return int(value)
 
+    def remaining(self) -> int:
+        return len(self.data) - self.position
+
     def string(self) -> str:
         size = self.u32()
         start = self.position
         self.position += size
+        if self.position > len(self.data):
+            raise CdrError(f"a string claims {size} bytes, {len(self.data) - start} remain")
         return bytes(self.data[start : start + max(size - 1, 0)]).decode()
+
+    def check_end(self, what: str) -> None:
+        """Every field read lay inside the payload (skips only move the position)."""
+        if self.position > len(self.data):
+            raise CdrError(
+                f"{what} truncated: {self.position} bytes walked, {len(self.data)} present"
+            )
 
     def skip_string(self) -> None:
         size = self.u32()  # not ``position += u32()``: that would read position first
@@ -94,27 +179,31 @@ class CdrReader:
 # --- small messages -----------------------------------------------------------------------
 
 
+@_typed
 def decode_string(data: bytes) -> str:
     """std_msgs/String → its text."""
     return CdrReader(data).string()
 
 
+@_typed
 def decode_clock(data: bytes) -> int:
     """rosgraph_msgs/Clock → log milliseconds."""
     return CdrReader(data).stamp_ms()
 
 
+@_typed
 def stamp_ms(topic: str, data: bytes) -> int:
     """Log time of a data message (:func:`convert.message_stamp_ms`): its header stamp, or a
-    MarkerArray's first marker's. Raises ValueError for a MarkerArray without markers."""
+    MarkerArray's first marker's. Raises NoStamp for a MarkerArray without markers."""
     reader = CdrReader(data)
     if topic in (topics.ODOMETRY, topics.TRAJECTORY):
         return reader.stamp_ms()
     if reader.u32() == 0:
-        raise ValueError("empty MarkerArray carries no stamp")
+        raise NoStamp("empty MarkerArray carries no stamp")
     return reader.stamp_ms()
 
 
+@_typed
 def decode_odometry(data: bytes) -> EgoPose:
     """nav_msgs/Odometry → EgoPose (:func:`convert.odometry_to_pose`)."""
     r = CdrReader(data)
@@ -122,7 +211,7 @@ def decode_odometry(data: bytes) -> EgoPose:
     r.skip_string()  # child_frame_id
     x, y, z, qx, qy, qz, qw = r.unpack(_F64_7, 8)
     r.position += 36 * 8  # covariance
-    (speed,) = r.unpack(struct.Struct("<d"), 8)
+    (speed,) = r.unpack(_F64, 8)
     roll, pitch, yaw = quaternions_to_carla_rpy(np.array([qx, qy, qz, qw]))[0].tolist()
     return EgoPose(x=x, y=-y, z=z, roll=roll, pitch=pitch, yaw=yaw, speed=speed)
 
@@ -141,6 +230,7 @@ class MarkerFields:
     texts: list[str]
 
 
+@_typed
 def read_markers(data: bytes) -> MarkerFields:
     """Walk every field of every Marker; keep id, pose, scale, points and text of the markers
     whose action is not DELETEALL (as convert.py's ``_added``).
@@ -160,6 +250,7 @@ def read_markers(data: bytes) -> MarkerFields:
     texts: list[str] = []
     (n,) = u32(view, 0)
     pos = 4
+    check_count(n, MIN_MARKER_BYTES, len(view) - pos, "MarkerArray")
     for _ in range(n):
         pos += -pos % 4 + 8  # header.stamp
         pos += 4 + u32(view, pos)[0]  # header.frame_id (4-aligned after the stamp)
@@ -212,7 +303,7 @@ def read_markers(data: bytes) -> MarkerFields:
         spans.append((start, count))
         texts.append(bytes(view[text_at : text_at + max(size - 1, 0)]).decode())
     if pos > len(view):
-        raise ValueError(f"MarkerArray truncated: {pos} bytes walked, {len(view)} present")
+        raise CdrError(f"MarkerArray truncated: {pos} bytes walked, {len(view)} present")
     raw = np.frombuffer(view, dtype=np.uint8)
     fixed = raw[np.asarray(keep, dtype=np.intp)[:, None] + _POSE_SCALE_BYTES]
     values = fixed.view("<f8").reshape(len(keep), 10).astype(np.float64)
@@ -240,6 +331,7 @@ _POSE_SCALE_BYTES = np.arange(80, dtype=np.intp)
 _ITA = struct.Struct("<3i")
 
 
+@_typed
 def decode_actors(data: bytes) -> Actors:
     """``actors`` MarkerArray → Actors (:func:`convert.markers_to_actors`)."""
     m = read_markers(data)
@@ -253,6 +345,7 @@ def decode_actors(data: bytes) -> Actors:
     )
 
 
+@_typed
 def decode_boxes(data: bytes) -> Boxes:
     """``perception/*`` MarkerArray → Boxes (:func:`convert.markers_to_boxes`)."""
     m = read_markers(data)
@@ -260,20 +353,22 @@ def decode_boxes(data: bytes) -> Boxes:
     ids: list[str] = []
     extras: list[dict[str, Any]] = []
     for row, (marker_id, pts, text) in enumerate(zip(m.ids, m.points, m.texts, strict=True)):
+        check_box_points(len(pts))
         corners[row] = (pts[0, 0], pts[0, 1], pts[2, 0], pts[2, 1])
-        document = loads_json(text) if text else {}
+        document = marker_document(text)
         ids.append(str(document.pop("id", marker_id)))
         extras.append(document)
     return Boxes(ids=tuple(ids), corners=corners, extras=tuple(extras))
 
 
+@_typed
 def decode_predictions(data: bytes) -> Predictions:
     """``prediction/*`` MarkerArray → Predictions (:func:`convert.markers_to_predictions`)."""
     m = read_markers(data)
     out: Predictions = {}
     for marker_id, pts, text in zip(m.ids, m.points, m.texts, strict=True):
-        document = loads_json(text) if text else {}
-        keys = tuple(map(str, document.get("keys", range(len(pts)))))
+        document = marker_document(text)
+        keys = track_keys(document, len(pts))
         offsets = pts.copy()
         offsets[:, 1] = -offsets[:, 1]
         out.setdefault(str(document.get("id", marker_id)), Track(keys=keys, offsets=offsets))
@@ -283,37 +378,44 @@ def decode_predictions(data: bytes) -> Predictions:
 # --- trajectory ---------------------------------------------------------------------------
 
 
+@_typed
 def decode_trajectory(data: bytes, timesteps_per_frame: int) -> Plan:
     """MultiDOFJointTrajectory → Plan (:func:`convert.trajectory_to_plan`)."""
     step = step_ms(timesteps_per_frame)
     r = CdrReader(data)
     r.skip_header()
-    for _ in range(r.u32()):  # joint_names
+    names = r.u32()
+    check_count(names, 4, r.remaining(), "joint_names")
+    for _ in range(names):
         r.skip_string()
     n = r.u32()
+    check_count(n, MIN_TRAJECTORY_POINT_BYTES, r.remaining(), "trajectory points")
     xy = np.empty((n, 2))
     speed = np.empty(n)
     keys: list[str] = []
     for row in range(n):
         transforms = r.u32()
         if not transforms:
-            raise ValueError(f"trajectory point {row} has no transform")
+            raise CdrError(f"trajectory point {row} has no transform")
         x, y, _z = r.unpack(_F64_3, 8)
         r.position += (transforms * 7 - 3) * 8
         xy[row] = (x, -y)
         velocities = r.u32()
         if velocities:
-            (speed[row],) = r.unpack(struct.Struct("<d"), 8)
+            (speed[row],) = r.unpack(_F64, 8)
             r.position += (velocities * 6 - 1) * 8
         else:
             speed[row] = math.nan
         r.skip_sequence(48, 8)  # accelerations
         keys.append(str(r.stamp_ms() // step))
+    r.check_end("MultiDOFJointTrajectory")
     return Plan(keys=tuple(keys), xy=xy, speed=speed)
 
 
 def decode_record(topic: str, data: bytes, timesteps_per_frame: int) -> Any:
-    """The model record a data message's bytes carry (:func:`convert.message_to_record`)."""
+    """The model record a data message's bytes carry (:func:`convert.message_to_record`).
+
+    Raises :class:`CdrError` for bytes that are not a well-formed message of the topic."""
     if topic == topics.ODOMETRY:
         return decode_odometry(data)
     if topic == topics.ACTORS:

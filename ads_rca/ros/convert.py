@@ -256,15 +256,41 @@ def _line_strip(
     )
 
 
+def marker_document(text: str) -> dict[str, Any]:
+    """The JSON object of a marker's ``text`` ({} when empty); ValueError (JsonTextError)
+    when it is not one: the marker's message cannot be used."""
+    document = loads_json(text) if text else {}
+    if not isinstance(document, dict):
+        raise ValueError(f"marker text is not a JSON object: {type(document).__name__}")
+    return document
+
+
+def check_box_points(count: int) -> None:
+    """A box marker carries its two corners as points 0 and 2."""
+    if count < 3:
+        raise ValueError(f"a box marker has {count} points, its corners need 3")
+
+
+def track_keys(document: dict[str, Any], points: int) -> tuple[str, ...]:
+    """A prediction marker's step keys: one per point (its text's ``keys``, else 0..n-1)."""
+    listed = document.get("keys")
+    if listed is None:
+        return tuple(map(str, range(points)))
+    if not isinstance(listed, list) or len(listed) != points:
+        raise ValueError(f"prediction marker keys do not match its {points} points")
+    return tuple(map(str, listed))
+
+
 def markers_to_boxes(msg: MarkerArray) -> Boxes:
     markers = _added(msg)
     corners = np.empty((len(markers), 4))
     ids: list[str] = []
     extras: list[dict[str, Any]] = []
     for row, m in enumerate(markers):
+        check_box_points(len(m.points))
         p1, p2 = m.points[0], m.points[2]
         corners[row] = (p1.x, p1.y, p2.x, p2.y)
-        document = loads_json(m.text) if m.text else {}
+        document = marker_document(m.text)
         ids.append(str(document.pop("id", m.id)))
         extras.append(document)
     return Boxes(ids=tuple(ids), corners=corners, extras=tuple(extras))
@@ -293,8 +319,8 @@ def predictions_to_markers(predictions: Predictions, timestamp_ms: int, topic: s
 def markers_to_predictions(msg: MarkerArray) -> Predictions:
     out: Predictions = {}
     for m in _added(msg):
-        document = loads_json(m.text) if m.text else {}
-        keys = tuple(str(k) for k in document.get("keys", range(len(m.points))))
+        document = marker_document(m.text)
+        keys = track_keys(document, len(m.points))
         offsets = np.array([(p.x, -p.y, p.z) for p in m.points], dtype=np.float64).reshape(-1, 3)
         out.setdefault(str(document.get("id", m.id)), Track(keys=keys, offsets=offsets))
     return out

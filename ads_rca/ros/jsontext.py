@@ -6,6 +6,11 @@ travel as ``null`` with the ``"$nonfinite"`` annotation of :mod:`ads_rca.strictj
 orjson is fast and keeps key order but cannot hold integers beyond 64 bits (writing them
 fails, reading them gives floats); those documents go through the json module. Texts with
 NaN/Infinity literals (bags recorded before the strict convention) are still read.
+
+Texts come from the wire (anyone on the domain can publish) or from a bag nobody checked, so
+:func:`loads_json` fails in one way only, :class:`JsonTextError` (a ValueError), for invalid
+JSON and for nesting deeper than the parsers read (orjson stops at 1024 levels; the json
+module would overflow Python's stack: RecursionError).
 """
 
 from __future__ import annotations
@@ -34,14 +39,29 @@ def dumps_json(document: Any) -> str:
     return text
 
 
+class JsonTextError(ValueError):
+    """A JSON text that cannot be read: invalid, or nested deeper than the parsers read."""
+
+
 def loads_json(text: str) -> Any:
-    """The document :func:`dumps_json` was given (huge integers stay integers)."""
-    if _LONG_DIGITS.search(text):  # orjson reads integers beyond 64 bits as floats
-        return from_strict(json.loads(text))
+    """The document :func:`dumps_json` was given (huge integers stay integers).
+
+    Raises :class:`JsonTextError` for anything that is not such a document."""
     try:
-        document = orjson.loads(text)
-    except orjson.JSONDecodeError:
-        document = json.loads(text)
+        if _LONG_DIGITS.search(text):  # orjson reads integers beyond 64 bits as floats
+            return from_strict(json.loads(text))
+        try:
+            document = orjson.loads(text)
+        except orjson.JSONDecodeError as error:
+            if "depth limit" in str(error):
+                raise JsonTextError("nested too deep: more than 1024 levels") from None
+            document = json.loads(text)  # NaN/Infinity literals
+    except RecursionError:
+        raise JsonTextError("nested too deep for the parser") from None
+    except JsonTextError:
+        raise
+    except ValueError as error:
+        raise JsonTextError(f"invalid JSON: {error}") from None
     return from_strict(document)
 
 

@@ -42,8 +42,9 @@ from ads_rca.ros import diagnostics as diag
 from ads_rca.ros import live_topics, topics
 from ads_rca.ros.assembler import run_metadata
 from ads_rca.ros.cdr import encode_string
-from ads_rca.ros.cdr_decode import decode_record, stamp_ms
+from ads_rca.ros.cdr_decode import CdrError, NoStamp, decode_record, stamp_ms
 from ads_rca.ros.jsontext import dumps_json
+from ads_rca.ros.malformed import SkippedMessages
 from ads_rca.ros.nodemain import run_node
 from ads_rca.ros.nodeparams import declare_engine_parameters, declare_node_parameters
 from ads_rca.ros.playback import (
@@ -104,6 +105,7 @@ class Monitor(Node):
             history_frames=int(p["history_frames"]),
         )
         self.core: MonitorCore | None = None  # set by the unit that judges this module
+        self.skipped = SkippedMessages()  # shared with the unit's inputs
         self._stale_since_report = False
         self.started = time.monotonic()
         self.metrics_pub = self.create_publisher(
@@ -150,6 +152,7 @@ class Monitor(Node):
                     "pending": len(core.pending),
                     "held_records": core.held_records(),
                     "finished": core.finished,
+                    "skipped_messages": self.skipped.total,
                 },
             )
         ]
@@ -189,8 +192,10 @@ class MonitorUnit:
             _check_same_settings(first, node)
         self.nodes = {node.module: node for node in nodes}
         self.core = MonitorCore(tuple(self.nodes), first.params, first.settings)
+        self.skipped = SkippedMessages()
         for node in nodes:
             node.core = self.core
+            node.skipped = self.skipped
         self.logger = first.get_logger()
         self.poll_period = first.poll_period
         self.last_poll = 0.0
@@ -236,7 +241,10 @@ class MonitorInputs:
     message once into a model record; markers, metadata, the player's status and a live
     collision are handed over as they come. Messages of another run are dropped
     (:class:`~ads_rca.ros.runid.RunFilter`: the run field of JSON messages, the writer's
-    participant for data), so callbacks take the MessageInfo too.
+    participant for data), so callbacks take the MessageInfo too. A message that cannot be
+    read (bytes that are not its type, JSON that is not a document of the contract) is
+    skipped and said (:class:`~ads_rca.ros.malformed.SkippedMessages`); a data message is
+    only decoded once its writer is known to be the run's player.
     """
 
     def __init__(self, node: Node, unit: MonitorUnit) -> None:
@@ -249,7 +257,7 @@ class MonitorInputs:
         self.runs = RunFilter(first.run_id)
         core.run = first.run_id
         lossless = [k for k, f in topics.TOPIC_FOLDERS.items() if f in core.folders]
-        namespace = first.namespace
+        namespace = self.node_namespace = first.namespace
         # Data topics arrive as CDR bytes and are decoded straight into model records
         # (ads_rca.ros.cdr_decode): building rclpy message objects costs ~10 ms a frame.
         for key in (*lossless, topics.FRAME, topics.METADATA, topics.STATUS):
@@ -275,13 +283,22 @@ class MonitorInputs:
         def on_message(msg: Any, info: Any) -> None:
             now = time.monotonic()
             if player:
-                document = read_document(msg)
+                try:
+                    document = read_document(msg)
+                except ValueError as error:  # JsonTextError
+                    self._skip(key, error, now)
+                    return
                 if not self._ours(document, info):
                     return
                 if key == topics.METADATA:
                     self._on_metadata(document, now)
                 elif key == topics.FRAME:
-                    core.add_marker(FrameMarker.from_document(document), now)
+                    try:
+                        marker = FrameMarker.from_document(document)
+                    except (TypeError, ValueError, OverflowError) as error:
+                        self._skip(key, error, now)
+                        return
+                    core.add_marker(marker, now)
                     self.unit.on_marker(now)
                 elif document.get("state") == FINISHED:
                     core.set_finished(now, _count(document.get("frames_published")))
@@ -319,13 +336,27 @@ class MonitorInputs:
         assert self._metadata is not None
         try:
             stamp = stamp_ms(key, data)
-        except ValueError:  # a MarkerArray without markers carries no stamp
+            record = decode_record(key, data, self._metadata.timesteps_per_frame)
+        except NoStamp:  # a MarkerArray without markers carries no stamp
             return
-        record = decode_record(key, data, self._metadata.timesteps_per_frame)
+        except CdrError as error:
+            self._skip(key, error, now)
+            return
         self.unit.core.add_record(topics.TOPIC_FOLDERS[key], stamp, record, now)
 
+    def _skip(self, key: str, error: Exception, now: float) -> None:
+        """A message that cannot be read: counted, and said (at most every few seconds)."""
+        name = topics.topic_name(key, self.node_namespace)
+        line = self.unit.skipped.note(name, error, now)
+        if line is not None:
+            self.node.get_logger().warning(line)
+
     def _on_collision(self, msg: String) -> None:
-        document = read_document(msg)
+        try:
+            document = read_document(msg)
+        except ValueError as error:  # JsonTextError
+            self._skip(live_topics.COLLISION, error, time.monotonic())
+            return
         if document_run(document) is not None and not self.runs.accept(document):
             return  # another run's event (an event naming no run is a stack's: taken)
         frame = document.get("frame")

@@ -22,6 +22,7 @@ from rclpy.node import Node
 
 from ads_rca.ros import topics
 from ads_rca.ros.assembler import RunLogAssembler
+from ads_rca.ros.malformed import SkippedMessages
 from ads_rca.ros.nodemain import make_executor, prepare_process
 from ads_rca.strictjson import to_strict
 
@@ -53,6 +54,7 @@ class TopicSummary(Node):
         namespace = str(self.get_parameter("topic_namespace").value)
         self.timeout = float(self.get_parameter("timeout_s").value)
         self.assembler = RunLogAssembler()
+        self.skipped = SkippedMessages()
         self.first_arrival: float | None = None
         self.last_arrival: float | None = None
         self.names = topics.topic_names(namespace)
@@ -78,7 +80,12 @@ class TopicSummary(Node):
             if self.first_arrival is None:
                 self.first_arrival = now
             self.last_arrival = now
-            add(key, msg)
+            try:
+                add(key, msg)
+            except (TypeError, ValueError, OverflowError) as error:  # CdrError, JsonTextError
+                line = self.skipped.note(self.names[key], error, now)
+                if line is not None:
+                    self.get_logger().warning(line)
 
         return on_message
 
@@ -105,6 +112,7 @@ class TopicSummary(Node):
             "status": a.status,
             "frames": len([i for i in a.markers if i >= 0]),
             "elapsed_s": elapsed,
+            "skipped": dict(self.skipped.counts),
         }
 
     def table(self) -> str:

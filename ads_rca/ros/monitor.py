@@ -10,8 +10,8 @@ aggregator the node is alive; ``ads_rca/<module>`` goes STALE when inputs stop (
 for ``stale_timeout_s`` before the player said ``finished``).
 
 Subscriptions use the lossless QoS of the contract (RELIABLE + KEEP_ALL) so a player at rate
-0 waits for us. Data that arrives before the (latched) metadata is queued: converting a
-trajectory needs the frame period.
+0 waits for us. Data that arrives before the (latched) metadata is queued (at most 64 MiB,
+:mod:`ads_rca.ros.early_queue`): converting a trajectory needs the frame period.
 
 Three pieces: a :class:`Monitor` node per module (its publishers, heartbeat and STALE
 status), a :class:`MonitorUnit` (one window, ``MonitorCore``, judging one or more modules,
@@ -43,6 +43,7 @@ from ads_rca.ros import live_topics, topics
 from ads_rca.ros.assembler import run_metadata
 from ads_rca.ros.cdr import encode_string
 from ads_rca.ros.cdr_decode import CdrError, NoStamp, decode_record, stamp_ms
+from ads_rca.ros.early_queue import EarlyQueue
 from ads_rca.ros.jsontext import dumps_json
 from ads_rca.ros.malformed import SkippedMessages
 from ads_rca.ros.nodemain import run_node
@@ -251,7 +252,7 @@ class MonitorInputs:
         self.node = node
         self.unit = unit
         core = unit.core
-        self._queued: list[tuple[str, bytes, Any, float]] = []
+        self._queued: EarlyQueue[Any] = EarlyQueue()
         self._metadata: RunMetadata | None = None
         first = next(iter(unit.nodes.values()))
         self.runs = RunFilter(first.run_id)
@@ -303,7 +304,8 @@ class MonitorInputs:
                 elif document.get("state") == FINISHED:
                     core.set_finished(now, _count(document.get("frames_published")))
             elif self._metadata is None:
-                self._queued.append((key, msg, info, now))
+                if self._queued.add(key, msg, info, now):
+                    self._skip(key, self._queued.overflow_reason(), now)
             elif self.runs.accept_data(info):
                 self._add_data(key, msg, now)
 
@@ -327,8 +329,7 @@ class MonitorInputs:
             return
         self._metadata = metadata
         self.unit.core.set_metadata(metadata, now, read_input_problems(document))
-        queued, self._queued = self._queued, []
-        for key, data, info, arrived in queued:
+        for key, data, info, arrived in self._queued.drain():
             if self.runs.accept_data(info):
                 self._add_data(key, data, arrived)
 
@@ -344,7 +345,7 @@ class MonitorInputs:
             return
         self.unit.core.add_record(topics.TOPIC_FOLDERS[key], stamp, record, now)
 
-    def _skip(self, key: str, error: Exception, now: float) -> None:
+    def _skip(self, key: str, error: object, now: float) -> None:
         """A message that cannot be read: counted, and said (at most every few seconds)."""
         name = topics.topic_name(key, self.node_namespace)
         line = self.unit.skipped.note(name, error, now)

@@ -466,3 +466,59 @@ def test_the_assembler_leaves_undecodable_bytes_out_as_a_problem() -> None:
     assert stamp not in rebuilt.actors and log.frames[6] in rebuilt.actors
     (problem,) = [p for p in rebuilt.problems if p.action == "message skipped"]
     assert problem.file == topics.ACTORS and problem.timestamp_ms == stamp
+
+
+def test_the_aggregator_skips_malformed_results_and_says_so_once(ros_env: Any) -> None:
+    """A real ``aggregator`` process gets 40 monitor results that are not results (not JSON,
+    nested 5000 levels, a list, a document missing its fields) and bad run/frame texts: it
+    stays up, logs one rate-limited line per topic, never a traceback, never a line each."""
+    import rclpy
+    from std_msgs.msg import String
+
+    ns = ros_env.namespace
+    log = read_run_log(EXAMPLE)
+    aggregator = ManagedProcess(
+        "aggregator",
+        [sys.executable, "-m", "ads_rca.ros.aggregator", *ros_args({"topic_namespace": ns})],
+        ros_env.env,
+        echo=sys.stderr,
+    )
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        node = rclpy.create_node("hostile_monitor", context=context)
+        metrics = node.create_publisher(
+            String,
+            topics.topic_name(live_topics.metrics_key("perception"), ns),
+            live_topics.metrics_qos(),
+        )
+        frames = node.create_publisher(
+            String, topics.topic_name(topics.FRAME, ns), topics.qos_profile(topics.FRAME)
+        )
+        metadata = node.create_publisher(
+            String, topics.topic_name(topics.METADATA, ns), topics.qos_profile(topics.METADATA)
+        )
+        deadline = time.monotonic() + 30
+        while min(p.get_subscription_count() for p in (metrics, frames, metadata)) < 1:
+            assert time.monotonic() < deadline, aggregator.output
+            time.sleep(0.05)
+        metadata.publish(playback.metadata_message(log, run="hostile-aggregator-run"))
+        bad = ["not json", deep(5000), "[1, 2]", json.dumps({"module": "perception"})]
+        for i in range(40):
+            metrics.publish(String(data=bad[i % len(bad)]))
+            frames.publish(String(data=bad[i % len(bad)]))
+        for pub in (metrics, frames, metadata):
+            pub.wait_for_all_acked()
+        deadline = time.monotonic() + 30
+        while "on " + ns + "/metrics" not in aggregator.output and time.monotonic() < deadline:
+            time.sleep(0.1)
+        time.sleep(1.0)
+        assert aggregator.returncode is None, aggregator.output  # alive
+    finally:
+        rclpy.try_shutdown(context=context)
+        aggregator.stop()
+    output = aggregator.output
+    assert "Traceback" not in output, output
+    for key in ("metrics", topics.FRAME):
+        said = [line for line in output.splitlines() if f"malformed message on {ns}/{key} " in line]
+        assert len(said) == 1, output  # 40 bad messages, one line (rate-limited)

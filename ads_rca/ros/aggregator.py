@@ -147,7 +147,7 @@ class Aggregator(Node):
                 try:
                     metadata = run_metadata(document)
                 except ValueError as error:
-                    self.get_logger().error(str(error))
+                    self._skip(key, error, now)
                     return
                 self.core.set_metadata(
                     metadata,
@@ -164,7 +164,7 @@ class Aggregator(Node):
             document = loads_json(msg.data)
             result = LiveResult.from_document(document)
         except (KeyError, TypeError, ValueError) as error:
-            self.get_logger().error(f"unreadable monitor result: {error!r}")
+            self._skip("metrics", f"unreadable monitor result: {error!r}", now)
             return
         if not self.runs.accept(document):
             return  # a monitor judging another run
@@ -174,7 +174,7 @@ class Aggregator(Node):
             self._metrics_log.write(msg.data + "\n")
         self._poll()
 
-    def _skip(self, key: str, error: Exception, now: float) -> None:
+    def _skip(self, key: str, error: object, now: float) -> None:
         """A message that cannot be read: counted, and said (at most every few seconds)."""
         line = self.skipped.note(topics.topic_name(key, self.namespace), error, now)
         if line is not None:

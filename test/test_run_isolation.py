@@ -38,6 +38,7 @@ from ads_rca.ros.graph import Graph, GraphSpec
 from ads_rca.ros.launcher import ManagedProcess, node_command
 from ads_rca.ros.runid import RunFilter, writer_prefix
 
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "cut_in_perception"
 pytestmark = pytest.mark.timeout(240)
 
 _LOGS: dict[tuple[str, str], Path] = {}
@@ -299,3 +300,38 @@ def test_a_stop_signal_ends_a_player_cleanly(ros_env, tmp_path, sig):
         assert "Traceback" not in player.output, player.output
     finally:
         player.stop()
+
+
+@pytest.mark.parametrize(
+    ("run_id", "said"),
+    [
+        ("x/../y z!", "run_id must be 1 to 64 letters"),  # valid YAML, not a topic name
+        ("y\x1b[2J", "bad ROS arguments"),  # rcl cannot parse it at all
+    ],
+)
+@pytest.mark.parametrize(
+    "node", ["ads_rca.ros.player", "ads_rca.ros.aggregator", "ads_rca.ros.recorder", "monitors"]
+)
+def test_a_hostile_run_id_is_one_line_and_exit_2(
+    ros_env: Any, tmp_path: Path, node: str, run_id: str, said: str
+) -> None:
+    """``run_id`` becomes part of a topic name (``run/ready_<id>``): a hostile one is refused
+    at start in one line (escaped), never an rclpy traceback."""
+    from ads_rca.ros.launcher import ros_args
+    from ads_rca.ros.monitor import GROUP
+
+    params: dict[str, Any] = {"run_id": run_id, "topic_namespace": ros_env.namespace}
+    if node == "ads_rca.ros.player":
+        params["log_path"] = str(EXAMPLE)
+    if node == "ads_rca.ros.recorder":
+        params["output"] = str(tmp_path / "bag")
+    argv = [sys.executable, "-m", node, *ros_args(params)]
+    if node == "monitors":
+        argv = [sys.executable, "-m", "ads_rca.ros.monitor", GROUP, *ros_args(params)]
+    process = ManagedProcess(node, argv, ros_env.env)
+    code = process.wait(60)
+    output = process.output
+    process.stop()
+    assert code == 2, output
+    assert "Traceback" not in output and "\x1b[" not in output.replace("\\x1b", ""), output
+    assert said in output, output

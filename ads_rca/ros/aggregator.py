@@ -40,7 +40,7 @@ from ads_rca.ros.playback import (
     read_document,
     read_input_problems,
 )
-from ads_rca.ros.runid import RUN_KEY, RunFilter, document_run, subscribe_ready
+from ads_rca.ros.runid import RUN_KEY, RunFilter, checked_run_id, document_run, subscribe_ready
 
 PARAMETERS: dict[str, tuple[Any, str]] = {
     "topic_namespace": (topics.DEFAULT_NAMESPACE, "Namespace of the contract topics."),
@@ -68,7 +68,7 @@ class Aggregator(Node):
         self.hardware_id = str(p["hardware_id"])
         self.verdict_json = str(p["verdict_json"])
         self.stale_timeout = float(p["stale_timeout_s"])
-        self.runs = RunFilter(str(p["run_id"]))
+        self.runs = RunFilter(checked_run_id(str(p["run_id"])))
         self.skipped = SkippedMessages()
         self.core = AggregatorCore(
             self.params, float(p["verdict_timeout_s"]), float(p["stall_timeout_s"])

@@ -53,7 +53,13 @@ from ads_rca.ros.playback import (
     read_document,
     read_input_problems,
 )
-from ads_rca.ros.runid import RUN_KEY, RunFilter, document_run, subscribe_ready
+from ads_rca.ros.runid import (
+    RUN_KEY,
+    RunFilter,
+    checked_run_id,
+    document_run,
+    subscribe_ready,
+)
 
 #: Node name → module it judges.
 MONITORS: dict[str, Module] = {
@@ -97,7 +103,7 @@ class Monitor(Node):
         self.stale_timeout = float(p["stale_timeout_s"])
         self.publish_diagnostics = bool(p["publish_diagnostics"])
         self.namespace = str(p["topic_namespace"])
-        self.run_id = str(p["run_id"])
+        self.run_id = checked_run_id(str(p["run_id"]))
         self.poll_period = float(p["poll_period_s"])
         self.settings = WindowSettings(
             max_lookahead_frames=int(p["max_lookahead_frames"]),

@@ -12,15 +12,18 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable
+from typing import Any
 
 import rclpy
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.logging import get_logger
 from rclpy.node import Node
+from rclpy.subscription import RCLError
 
 from ads_rca.errors import InputError
 from ads_rca.ros.env import domain_id_problem, node_warnings, use_node_profile
 from ads_rca.ros.lifeline import die_with_parent
+from ads_rca.text import printable
 
 
 def make_executor(message_info: bool = False) -> Executor:
@@ -56,6 +59,22 @@ def prepare_process(name: str) -> bool:
     return True
 
 
+def start_process(name: str, args: list[str] | None, **init: Any) -> bool:
+    """:func:`prepare_process`, then ``rclpy.init`` (``init``: its keyword arguments);
+    False: the node cannot start, and one line says why. rcl refuses command-line
+    arguments it cannot parse (a ``-p`` value that is not YAML, a bad remapping) with an
+    exception whose text spans lines; that is one error line here, never a traceback."""
+    if not prepare_process(name):
+        return False
+    try:
+        rclpy.init(args=args, **init)
+    except (RCLError, ValueError) as error:
+        reason = next((line for line in str(error).splitlines() if line.strip()), "")
+        get_logger(name).error(printable(f"cannot start: bad ROS arguments: {reason}"))
+        return False
+    return True
+
+
 def run_node(
     name: str,
     build: Callable[[], Node | list[Node]],
@@ -66,9 +85,8 @@ def run_node(
     """Run the node(s) ``build()`` makes until shutdown; exit status 0, or 2 if they cannot
     start. Several nodes share one executor (one thread: callbacks never overlap);
     ``message_info``: some callbacks take the MessageInfo (see :func:`make_executor`)."""
-    if not prepare_process(name):
+    if not start_process(name, args):
         return 2
-    rclpy.init(args=args)
     nodes: list[Node] = []
     try:
         try:

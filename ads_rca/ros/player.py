@@ -30,7 +30,7 @@ from ads_rca.model import RunLog
 from ads_rca.ros import live_topics, topics
 from ads_rca.ros.cdr import encode_clock, encode_string, frame_payloads
 from ads_rca.ros.convert import frame_messages
-from ads_rca.ros.nodemain import make_executor, prepare_process
+from ads_rca.ros.nodemain import make_executor, start_process
 from ads_rca.ros.playback import (
     FINISHED,
     PLAYING,
@@ -44,7 +44,7 @@ from ads_rca.ros.playback import (
     status_message,
     timeline,
 )
-from ads_rca.ros.runid import new_run_id
+from ads_rca.ros.runid import checked_run_id, new_run_id
 from ads_rca.text import printable
 
 #: Every parameter: (default, description). Doubles accept integers too (dynamic typing).
@@ -110,7 +110,7 @@ class Player(Node):
         self.fast_publish = bool(self._param("fast_publish"))
         self.ack_every = int(self._param("ack_every"))
         namespace = str(self._param("topic_namespace"))
-        given_run = str(self._param("run_id"))
+        given_run = checked_run_id(str(self._param("run_id")))
         self.run_id = given_run or new_run_id()
         if self.rate < 0:
             raise ConfigError(f"rate must be >= 0, got {self.rate}")
@@ -303,9 +303,8 @@ class Player(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    if not prepare_process("player"):
+    if not start_process("player", args):
         return 2
-    rclpy.init(args=args)
     node: Player | None = None
     try:
         try:

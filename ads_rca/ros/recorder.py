@@ -34,6 +34,7 @@ from rclpy.serialization import deserialize_message
 from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import String
 
+from ads_rca.errors import InputError
 from ads_rca.io import rosmsg
 from ads_rca.io.bag_writer import contract_qos_yaml
 from ads_rca.io.mcap_writer import COMPRESSIONS, DEFAULT_CHUNK_SIZE, McapBagWriter, qos_yaml
@@ -41,8 +42,8 @@ from ads_rca.ros import live_topics, topics
 from ads_rca.ros.assembler import RunLogAssembler
 from ads_rca.ros.diagnostics import status_runs
 from ads_rca.ros.jsontext import loads_json
-from ads_rca.ros.nodemain import prepare_process
-from ads_rca.ros.runid import document_run, subscribe_ready, writer_prefix
+from ads_rca.ros.nodemain import start_process
+from ads_rca.ros.runid import checked_run_id, document_run, subscribe_ready, writer_prefix
 
 PARAMETERS: dict[str, tuple[Any, str]] = {
     "output": ("", "Bag directory to create (required; must be new or empty)."),
@@ -197,7 +198,7 @@ class Recorder(Node):
         )
         self.writer.set_custom_data("recorded_by", "ads_rca recorder")
         self.progress = RunLogAssembler()  # only counts and the String topics
-        run_id = str(self._param("run_id"))
+        run_id = checked_run_id(str(self._param("run_id")))
         self.membership = RunMembership(run_id) if run_id else None
         subscribe_ready(self, self.namespace, run_id)
         self.subs: dict[str, Any] = {}
@@ -345,17 +346,16 @@ def _drain(executor: SingleThreadedExecutor, node: Recorder, stop: _Stop) -> Non
 
 
 def main(args: list[str] | None = None) -> int:
-    if not prepare_process("recorder"):
-        return 2
     # Our own signal handlers: rclpy's would shut the context down at once, losing samples
     # DDS already holds for us; ours let the loop drain them before closing the bag.
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    if not start_process("recorder", args, signal_handler_options=SignalHandlerOptions.NO):
+        return 2
     stop = _Stop()
     node: Recorder | None = None
     try:
         try:
             node = Recorder()
-        except (ConfigError, FileExistsError, ValueError) as error:
+        except (ConfigError, InputError, FileExistsError, ValueError) as error:
             get_logger("recorder").error(str(error))
             return 2
         executor = SingleThreadedExecutor()

@@ -19,9 +19,12 @@ Pure Python: no rclpy import (``MessageInfo`` is a plain dict).
 
 from __future__ import annotations
 
+import re
 import uuid
 from collections.abc import Mapping
 from typing import Any
+
+from ads_rca.errors import InputError
 
 #: The JSON field (and diagnostic key) that names the run.
 RUN_KEY = "run"
@@ -32,6 +35,20 @@ PREFIX_RMWS = frozenset(
     {"rmw_fastrtps_cpp", "rmw_fastrtps_dynamic_cpp", "rmw_cyclonedds_cpp", "rmw_connextdds"}
 )
 PREFIX_BYTES = 12
+
+
+#: What a run id may be: it becomes part of a topic name (``run/ready_<id>``).
+RUN_ID_PATTERN = re.compile(r"[A-Za-z0-9_]{1,64}")
+
+
+def checked_run_id(value: str) -> str:
+    """A ``run_id`` parameter as given ("" = none), or InputError (one line) when it could
+    not be part of a topic name."""
+    if value and not RUN_ID_PATTERN.fullmatch(value):
+        raise InputError(
+            f"run_id must be 1 to 64 letters, digits or '_' (it names a topic), got {value!r}"
+        )
+    return value
 
 
 def new_run_id() -> str:

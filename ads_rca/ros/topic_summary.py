@@ -23,7 +23,7 @@ from rclpy.node import Node
 from ads_rca.ros import topics
 from ads_rca.ros.assembler import RunLogAssembler
 from ads_rca.ros.malformed import SkippedMessages
-from ads_rca.ros.nodemain import make_executor, prepare_process
+from ads_rca.ros.nodemain import make_executor, start_process
 from ads_rca.strictjson import to_strict
 
 PARAMETERS: dict[str, tuple[Any, str]] = {
@@ -146,9 +146,8 @@ class TopicSummary(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    if not prepare_process("topic_summary"):
+    if not start_process("topic_summary", args):
         return 2
-    rclpy.init(args=args)
     node: TopicSummary | None = None
     code = 0
     try:

@@ -56,6 +56,14 @@ _STEP_CLAMP = 10**12
 _READ_AS_NAN = "read as NaN"
 #: What the reference does on the inputs we report.
 _STOPS = "the reference stops here"
+#: The parameters each oracle's results report in ``thresholds``, in that order (the mode's
+#: ``Semantics.reported``); an oracle adds its constants after them.
+REPORTED: dict[Module, tuple[str, ...]] = {
+    "perception": ("perc_score_threshold",),
+    "prediction": ("pred_score_threshold",),
+    "planning": ("planning_toleration_future_step", "planning_toleration"),
+    "controller": (),
+}
 #: Bound of each parse cache (logs repeat a handful of layouts).
 _CACHE_SIZE = 256
 
@@ -480,7 +488,7 @@ def perception(ctx: RunContext, ts: int) -> OracleResult:
         for name in missing:
             ctx.report(log.file_of(name, ts), "", f"file missing ({_STOPS})", ts)
         skipped = f"{log.file_of(missing[0], ts)}: file missing"
-        thresholds = {"perc_score_threshold": thr}
+        thresholds = ctx.params.values(REPORTED["perception"])
         return OracleResult("perception", ts, False, thresholds=thresholds, skipped=skipped)
     dropped = _tables(log).dropped
     if dropped:
@@ -488,7 +496,7 @@ def perception(ctx: RunContext, ts: int) -> OracleResult:
             file = log.file_of(name, ts)
             if file in dropped:
                 issue = "a box without an id or without two points"
-                thresholds = {"perc_score_threshold": thr}
+                thresholds = ctx.params.values(REPORTED["perception"])
                 return _skip(ctx, "perception", ts, file, "bounding_box", issue, thresholds)
     return judge_perception(det, gt, ts, thr)
 
@@ -524,7 +532,10 @@ def prediction(ctx: RunContext, ts: int) -> OracleResult:
     """
     log = ctx.log
     thr = ctx.params.pred_score_threshold
-    thresholds = {"pred_score_threshold": thr, "distance_gate_m": PRED_DISTANCE_GATE_M}
+    thresholds = {
+        **ctx.params.values(REPORTED["prediction"]),
+        "distance_gate_m": PRED_DISTANCE_GATE_M,
+    }
     pwp = log.predictions_with_perception.get(ts)
     if pwp is None:
         file = log.file_of("predictions_with_perception", ts)
@@ -619,11 +630,8 @@ def _prediction_crash(
 def planning(ctx: RunContext, ts: int) -> OracleResult:
     """First plan point whose box gap to a linked raw prediction is below the tolerance."""
     log, params = ctx.log, ctx.params
-    thresholds = {
-        "planning_toleration_future_step": float(params.planning_toleration_future_step),
-        "planning_toleration": params.planning_toleration,
-        "link_distance_m": LINK_DISTANCE_M,
-    }
+    thresholds = {k: float(v) for k, v in params.values(REPORTED["planning"]).items()}
+    thresholds["link_distance_m"] = LINK_DISTANCE_M
     # 1. The ego yaw at ts and plan["0"] are read first.
     pose = log.pose.get(ts)
     if pose is None:

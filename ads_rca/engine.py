@@ -80,7 +80,7 @@ class Diagnosis:
             "version": __version__,
             "source": self.log.source,
             "semantics": self.params.semantics,
-            "thresholds": self.params.used(),
+            "thresholds": self.semantics.used(self.params),
             "collision_frame": self.log.metadata.collision_frame,
             "window_frames": self.window_frames,
             "ego_id": self.ctx.ego_id,

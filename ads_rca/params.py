@@ -6,8 +6,8 @@ keys of the YAML files in ``config/``. Every output records the mode and the val
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from dataclasses import asdict, dataclass, fields, replace
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -22,7 +22,7 @@ DEFAULT_SEMANTICS: Semantics = "corrected"
 
 @dataclass(frozen=True)
 class Params:
-    """Every threshold of both modes (each mode reads only its own; see ``used()``)."""
+    """Every threshold of both modes (each mode reads its own, ``Semantics.parameters``)."""
 
     semantics: Semantics = DEFAULT_SEMANTICS
     # Shared names.
@@ -51,45 +51,14 @@ class Params:
     planning_min_persistence: int = 1
     heading_min_step: float = 0.1  # m
 
-    def used(self) -> dict[str, float | int]:
-        """The thresholds this mode reads, for outputs."""
-        values = asdict(self)
-        return {name: values[name] for name in USED_BY[self.semantics]}
+    def values(self, names: Iterable[str]) -> dict[str, Any]:
+        """``{name: value}`` of the parameters ``names``, in that order (for outputs: a
+        mode's ``Semantics.parameters``, an oracle's reported thresholds)."""
+        return {name: getattr(self, name) for name in names}
 
 
 #: Defaults that differ from the field defaults in reference mode.
 REFERENCE_DEFAULTS: dict[str, Any] = {"effect_time_window": 10}
-
-USED_BY: dict[Semantics, tuple[str, ...]] = {
-    "reference": (
-        "effect_time_window",
-        "perc_score_threshold",
-        "pred_score_threshold",
-        "planning_toleration_future_step",
-        "planning_toleration",
-    ),
-    "corrected": (
-        "effect_time_window",
-        "window_s",
-        "perc_match_iou",
-        "prediction_window",
-        "safety_margin",
-        "understate_min",
-        "pred_abs_threshold",
-        "pred_score_threshold",
-        "max_decel",
-        "decel_tolerance",
-        "standstill_speed",
-        "control_horizon",
-        "control_speed_threshold",
-        "actuator_delay",
-        "control_lateral_threshold",
-        "min_persistence",
-        "control_min_persistence",
-        "planning_min_persistence",
-        "heading_min_step",
-    ),
-}
 
 _FIELD_TYPES = {f.name: f.type for f in fields(Params)}
 

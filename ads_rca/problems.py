@@ -60,6 +60,33 @@ class Problem:
         file, field, issue, action = (str(t) for t in texts)
         return cls(file, field, issue, action, severity, stamp)
 
+    @property
+    def key(self) -> tuple[str, str, str]:
+        """What makes two reports the same problem: file, field and issue."""
+        return (self.file, self.field, self.issue)
+
+
+def problems_from_list(entries: Any) -> list[Problem]:
+    """The problems a JSON list holds (:meth:`Problem.from_dict`); entries that are not one,
+    or a value that is not a list, are skipped."""
+    out: list[Problem] = []
+    for entry in entries if isinstance(entries, list) else []:
+        try:
+            out.append(Problem.from_dict(entry))
+        except ValueError:
+            continue
+    return out
+
+
+def new_problems(problems: Iterable[Problem], seen: set[tuple[str, str, str]]) -> list[Problem]:
+    """Problems not reported before (by :attr:`Problem.key`); ``seen`` is updated."""
+    out = []
+    for problem in problems:
+        if problem.key not in seen:
+            seen.add(problem.key)
+            out.append(problem)
+    return out
+
 
 class ProblemLog:
     """An append-only list of problems, shared by every stage that reads the input."""

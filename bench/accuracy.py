@@ -1,8 +1,9 @@
 """Attribution accuracy of the `corrected` semantics on synthesised closed-loop logs.
 
-For every scenario × fault over N seeds: synthesise a log, run the corrected oracles over
-``log.unique_frames`` and ``attribute_corrected``, and compare the primary root cause with
-the injected fault ("none" expects "no fault found"). Prints the confusion table, the
+For every scenario × fault over N seeds: synthesise a log, diagnose it with
+:func:`ads_rca.engine.diagnose` (corrected mode, exactly what ``ads-rca diagnose`` runs), and
+compare the primary root cause with the injected fault its ``metadata.json["synthesis"]``
+label names ("none" expects "no fault found"). Prints the confusion table, the
 accuracy per scenario and overall, and the misattributed cases (scenario, fault, seed).
 
 Usage: ``python bench/accuracy.py [N] [--scenarios a,b] [--faults x,y] [--first SEED]
@@ -16,12 +17,11 @@ import time
 from collections import Counter
 from collections.abc import Sequence
 
+from ads_rca.engine import diagnose as diagnose_log
 from ads_rca.model import RunLog
-from ads_rca.oracles.base import RunContext
-from ads_rca.oracles.corrected import ORACLES, attribute_corrected
 from ads_rca.params import make_params
 from ads_rca.synth import FAULTS, SCENARIOS, SynthesisError, synthesise
-from ads_rca.verdict import Attribution, FrameResults, frame_number
+from ads_rca.verdict import Attribution
 
 #: The fault names of the synthesiser mapped to module names of the verdict.
 MODULE_OF = {
@@ -34,17 +34,11 @@ MODULE_OF = {
 
 
 def diagnose(log: RunLog) -> tuple[Attribution, float]:
-    """The corrected attribution of a log and the oracles' time per frame (ms)."""
-    ctx = RunContext.create(log, make_params("corrected"))
-    frames: list[FrameResults] = []
+    """The corrected attribution of a log and the diagnosis time per analysed frame (ms)."""
     start = time.perf_counter()
-    for ts in log.unique_frames:
-        frame = FrameResults(ts, frame_number(ts, log.tpf))
-        for module, oracle in ORACLES.items():
-            frame.results[module] = oracle(ctx, ts)
-        frames.append(frame)
-    per_frame = (time.perf_counter() - start) * 1000 / max(len(frames), 1)
-    return attribute_corrected(frames, ctx), per_frame
+    found = diagnose_log(log, make_params("corrected"))
+    per_frame = (time.perf_counter() - start) * 1000 / max(len(found.frames), 1)
+    return found.attribution, per_frame
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -79,7 +73,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 attribution, ms = diagnose(log)
                 times.append(ms)
                 got = attribution.primary_root_cause or "none"
-                want = MODULE_OF[fault]
+                want = MODULE_OF[log.metadata.raw["synthesis"]["fault"]]
                 confusion[want, got] += 1
                 per_scenario[scenario, got == want] += 1
                 if got != want:
@@ -104,7 +98,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     correct = sum(confusion[x, x] for x in labels)
     if total:
         print(f"overall accuracy: {correct}/{total} = {100 * correct / total:.1f} %")
-        print(f"oracles: {sum(times) / len(times):.2f} ms per frame (all four, mean)")
+        print(f"diagnose: {sum(times) / len(times):.2f} ms per frame (oracles + attribution, mean)")
     if wrong:
         print("\nmisattributed:")
         print("\n".join(wrong))

@@ -9,6 +9,7 @@ from typing import Any
 
 import pytest
 
+from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import SEMANTICS, load_config, make_params
 
 CONFIG = Path(__file__).resolve().parent.parent / "config"
@@ -22,6 +23,6 @@ def typed(values: dict[str, Any]) -> dict[str, tuple[str, Any]]:
 @pytest.mark.parametrize("semantics", SEMANTICS)
 def test_the_mode_config_file_holds_exactly_the_mode_defaults(semantics: str) -> None:
     stated = load_config(CONFIG / f"rca_{semantics}.yaml")
-    defaults = {"semantics": semantics, **make_params(semantics).used()}
+    defaults = {"semantics": semantics, **semantics_for(semantics).used(make_params(semantics))}
     assert typed(stated) == typed(defaults)
-    assert list(stated) == list(defaults)  # same order as params.USED_BY
+    assert list(stated) == list(defaults)  # same order as Semantics.parameters

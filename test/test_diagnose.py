@@ -14,6 +14,7 @@ import pytest
 from ads_rca.engine import diagnose
 from ads_rca.io.json_writer import write_run_log
 from ads_rca.oracles.base import MODULES
+from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import make_params
 from ads_rca.synth import FAULTS, SCENARIOS, synthesise
 from ads_rca.verdict import NO_COLLISION, NO_MODULE_FAILED
@@ -63,7 +64,7 @@ def test_json_contract_in_both_modes(tmp_path: Path) -> None:
         assert f"semantics {semantics}" in done.stdout
         document = strict_json(out.read_text())
         assert document["semantics"] == semantics
-        assert document["thresholds"] == make_params(semantics).used()
+        assert document["thresholds"] == semantics_for(semantics).used(make_params(semantics))
         assert document["collision_frame"] == 81
         assert set(document["modules"]) == set(MODULES)
         for counts in document["modules"].values():

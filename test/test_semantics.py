@@ -143,3 +143,23 @@ def test_the_verdict_types_do_not_import_the_oracles() -> None:
         [sys.executable, "-c", code], capture_output=True, text=True, check=True
     ).stdout
     assert loaded.strip() == "[]"
+
+
+def test_each_mode_declares_the_parameters_it_reads_and_its_oracles_report() -> None:
+    """One list per mode (``Semantics.parameters``, the outputs' ``thresholds``) and one
+    per oracle (``Semantics.reported``), which the oracles' results use as written."""
+    fields = set(vars(make_params("corrected")))
+    for name in SEMANTICS:
+        sem, params = semantics_for(name), make_params(name)
+        assert len(set(sem.parameters)) == len(sem.parameters)
+        assert set(sem.parameters) <= fields - {"semantics"}
+        assert tuple(sem.reported) == MODULES
+        for module in MODULES:
+            assert set(sem.reported[module]) <= set(sem.parameters), (name, module)
+        found = diagnose(synthesise("cut_in", "perception", 1), params)
+        assert list(found.to_json(include_frames=False)["thresholds"]) == list(sem.parameters)
+        for frame in found.frames:
+            for module, result in frame.results.items():
+                names = sem.reported[module]
+                assert tuple(result.thresholds)[: len(names)] == names
+                assert all(result.thresholds[n] == getattr(params, n) for n in names)

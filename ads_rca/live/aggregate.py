@@ -33,13 +33,12 @@ from ads_rca.live.results import (
     LiveResult,
     ResultStore,
     RunEnd,
-    new_problems,
 )
 from ads_rca.model import RunLog, RunMetadata
 from ads_rca.oracles.base import MODULES, Module, RunContext
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import Params
-from ads_rca.problems import Problem, ProblemLog
+from ads_rca.problems import Problem, ProblemLog, new_problems
 from ads_rca.verdict import FrameResults, frame_number
 
 

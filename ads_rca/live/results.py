@@ -11,25 +11,15 @@ from __future__ import annotations
 import pickle
 import sys
 import tempfile
-from collections.abc import Iterable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
+from ads_rca.contract.topics import TOPIC_FOLDERS
 from ads_rca.oracles.base import MODULES, Module, OracleResult
-from ads_rca.problems import Problem
-
-#: Player topic keys (docs/topics.md) → log folder, for the markers' ``published`` lists.
-TOPIC_FOLDER: dict[str, str] = {
-    "ego/odometry": "pose",
-    "actors": "actors",
-    "perception/detections": "bboxes",
-    "perception/ground_truth": "bboxes_gt",
-    "prediction/raw": "predictions",
-    "prediction/with_perception": "predictions_with_perception",
-    "planning/trajectory": "waypoint",
-}
+from ads_rca.problems import Problem, problems_from_list
 
 
 @dataclass(frozen=True, slots=True)
@@ -45,7 +35,7 @@ class FrameMarker:
     def from_document(cls, document: Mapping[str, Any]) -> FrameMarker:
         index = document.get("index")
         published = document.get("published") or ()
-        folders = frozenset(TOPIC_FOLDER[str(k)] for k in published if str(k) in TOPIC_FOLDER)
+        folders = frozenset(TOPIC_FOLDERS[str(k)] for k in published if str(k) in TOPIC_FOLDERS)
         return cls(
             index if isinstance(index, int) else None,
             int(document.get("stamp_ms", 0)),
@@ -131,7 +121,7 @@ class LiveResult:
             revision=int(d.get("revision", 0)),
             ego_id=d.get("ego_id"),
             partner_id=d.get("partner_id"),
-            problems=tuple(problem_from_dict(p) for p in d.get("problems") or ()),
+            problems=tuple(problems_from_list(d.get("problems"))),
             compute_s=float(d.get("compute_s", 0.0)),
             wait_s=float(d.get("wait_s", 0.0)),
             session=str(d.get("session", "")),
@@ -167,18 +157,6 @@ class RunEnd:
             self.finished = True
 
 
-def problem_from_dict(d: Mapping[str, Any]) -> Problem:
-    ts = d.get("timestamp_ms")
-    return Problem(
-        str(d.get("file", "")),
-        str(d.get("field", "")),
-        str(d.get("issue", "")),
-        str(d.get("action", "")),
-        "warning" if d.get("severity") == "warning" else "error",
-        int(ts) if isinstance(ts, int) else None,
-    )
-
-
 def plain(value: Any) -> Any:
     """JSON-ready without loss: numpy scalars as Python numbers, tuples as lists (NaN kept)."""
     if isinstance(value, bool | int | float | str) or value is None:
@@ -190,17 +168,6 @@ def plain(value: Any) -> Any:
     if hasattr(value, "tolist"):  # numpy scalar or array
         return plain(value.tolist())
     return str(value)
-
-
-def new_problems(problems: Iterable[Problem], seen: set[tuple[str, str, str]]) -> list[Problem]:
-    """Problems not reported before (by file, field and issue); ``seen`` is updated."""
-    out = []
-    for problem in problems:
-        key = (problem.file, problem.field, problem.issue)
-        if key not in seen:
-            seen.add(key)
-            out.append(problem)
-    return out
 
 
 #: A result or marker this far beyond the highest index held is dropped: the columns grow

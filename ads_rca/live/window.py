@@ -43,12 +43,12 @@ from typing import Any
 import numpy as np
 
 from ads_rca.engine import evaluate_frame
-from ads_rca.live.results import FrameMarker, LiveResult, RunEnd, new_problems
+from ads_rca.live.results import FrameMarker, LiveResult, RunEnd
 from ads_rca.model import FloatArray, RunLog, RunMetadata
 from ads_rca.oracles.base import MODULES, Module, RunContext
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import Params
-from ads_rca.problems import Problem, ProblemLog
+from ads_rca.problems import Problem, ProblemLog, new_problems
 from ads_rca.verdict import frame_number
 
 

@@ -16,7 +16,7 @@ import numpy as np
 from ads_rca.model import RunLog
 from ads_rca.oracles.semantics import EGO_ID_TIMESTAMP_MS, semantics_for
 from ads_rca.params import Params
-from ads_rca.problems import CHECK_SKIPPED, Problem, ProblemLog
+from ads_rca.problems import CHECK_SKIPPED, Problem, ProblemLog, new_problems
 from ads_rca.verdict import MODULES, Metric, Module, OracleResult
 
 # The per-frame result types live with the verdict (they are its contract); oracles name
@@ -55,18 +55,12 @@ class RunContext:
 
     def report(self, file: str, field_name: str, issue: str, ts: int | None = None) -> None:
         """An input problem found while judging (reported once per file, field and issue)."""
-        key = (file, field_name, issue)
-        if key not in self._reported:
-            self._reported.add(key)
-            self.problems.add(file, field_name, issue, CHECK_SKIPPED, "error", ts)
+        problem = Problem(file, field_name, issue, CHECK_SKIPPED, "error", ts)
+        self.merge([problem])
 
     def merge(self, problems: Iterable[Problem]) -> None:
         """Problems found by a copy of this context (a worker process), minus repeats."""
-        for problem in problems:
-            key = (problem.file, problem.field, problem.issue)
-            if key not in self._reported:
-                self._reported.add(key)
-                self.problems.extend([problem])
+        self.problems.extend(new_problems(problems, self._reported))
 
 
 EGO_MATCH_DISTANCE_M = 0.5

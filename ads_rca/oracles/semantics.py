@@ -9,7 +9,7 @@ the parameter and CLI layers compares ``params.semantics`` with a mode's name.
 A mode is a module that exports ``SEMANTICS`` (an instance of a :class:`Semantics`
 subclass); :data:`MODES` maps each name to its module, imported on first use (a run loads
 only its own mode). Adding a mode: one new module, one entry here (and its parameters'
-defaults in :mod:`ads_rca.params`).
+defaults in :mod:`ads_rca.params`; the mode's ``parameters`` say which it reads).
 """
 
 from __future__ import annotations
@@ -56,6 +56,12 @@ class Semantics:
     headline: Mapping[Module, Sequence[tuple[str, str | None]]]
     #: See :data:`EGO_ID_TIMESTAMP_MS`.
     ego_stamp_ms: int = EGO_ID_TIMESTAMP_MS
+    #: The parameters this mode reads, in the order outputs list them (``thresholds`` of
+    #: ``diagnose --json``, ``config/rca_<mode>.yaml``).
+    parameters: tuple[str, ...]
+    #: Per module, the parameters its oracle's results report in ``thresholds`` (each a
+    #: subset of :attr:`parameters`; an oracle adds its own constants and derived values).
+    reported: Mapping[Module, tuple[str, ...]]
 
     def attribute(self, frames: Sequence[FrameResults], ctx: RunContext) -> Attribution:
         """The verdict from the analysed frames' oracle results."""
@@ -103,6 +109,10 @@ class Semantics:
         return None
 
     # --- derived: the same for every mode --------------------------------------------
+
+    def used(self, params: Params) -> dict[str, Any]:
+        """The values of the parameters this mode reads (``thresholds`` of the outputs)."""
+        return params.values(self.parameters)
 
     def analyses(self, duplicate: bool) -> bool:
         """Whether a frame (a duplicated timestamp's later file, when ``duplicate``) is

@@ -169,7 +169,7 @@ def render(result: Diagnosis) -> str:
         el("h2", f"Not plotted ({len(unplotted)})"),
         el("ul", *(el("li", line) for line in unplotted)),
         el("h2", "Thresholds"),
-        _table(result.params.used()),
+        _table(result.semantics.used(result.params)),
         el("h2", f"Input problems ({len(result.problems)})"),
         el("ul", *(el("li", str(p)) for p in result.problems)),
     ]
@@ -215,7 +215,7 @@ def metrics_figure(result: Diagnosis, skipped: Skipped) -> Figure:
     frames = _floats([f.frame for f in result.frames])
     meta = result.log.metadata
     window = result.window_frames
-    used = result.params.used()
+    used = result.semantics.used(result.params)
     for ax, module in zip(axes, MODULES, strict=True):
         key, threshold = _headline(result, module)
         raw = [_metric(f.results.get(module), key) for f in result.frames]

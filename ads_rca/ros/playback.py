@@ -16,10 +16,11 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
 from ads_rca.model import FOLDERS, RunLog
-from ads_rca.problems import Problem
+from ads_rca.problems import Problem, problems_from_list
 from ads_rca.ros import topics
 from ads_rca.ros.convert import carried_plan_rows, to_time
 from ads_rca.ros.jsontext import dumps_json, loads_json
+from ads_rca.verdict import frame_number
 
 #: Key in the metadata message holding the exact ``metadata.json`` document.
 METADATA_DOCUMENT_KEY = "metadata_json"
@@ -80,9 +81,7 @@ def frame_marker(
 ) -> String:
     """The ``run/frame`` message sent after a tick's data: what was published for it."""
     tpf = timesteps_per_frame
-    frame: float | int | None = None
-    if tpf > 0:
-        frame = tick.stamp_ms // tpf if tick.stamp_ms % tpf == 0 else tick.stamp_ms / tpf
+    frame = frame_number(tick.stamp_ms, tpf) if tpf > 0 else None
     document = {
         "index": tick.index,
         "stamp_ms": tick.stamp_ms,
@@ -124,14 +123,7 @@ def metadata_message(log: RunLog, **extra: Any) -> String:
 
 def read_input_problems(document: dict[str, Any]) -> list[Problem]:
     """The reader problems a metadata message lists (entries that are not one are skipped)."""
-    listed = document.get(INPUT_PROBLEMS_KEY)
-    out: list[Problem] = []
-    for entry in listed if isinstance(listed, list) else []:
-        try:
-            out.append(Problem.from_dict(entry))
-        except ValueError:
-            continue
-    return out
+    return problems_from_list(document.get(INPUT_PROBLEMS_KEY))
 
 
 def status_message(state: str, frames_published: int, **extra: Any) -> String:

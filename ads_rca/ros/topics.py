@@ -1,8 +1,10 @@
 """The topic contract in one place: names, message types and QoS of everything the player sends.
 
 Nodes, the assembler, the tests and the docs all take topic names from here so that the
-contract (docs/topics.md) cannot drift between publisher and subscribers. Topic keys are the
-names relative to the ``topic_namespace`` parameter; ``/clock`` is absolute, as ROS wants it.
+contract (docs/topics.md) cannot drift between publisher and subscribers. The keys and the
+folder ↔ topic table are :mod:`ads_rca.contract.topics` (pure, re-exported here).
+Topic keys are the names relative to the ``topic_namespace`` parameter; ``/clock`` is
+absolute, as ROS wants it.
 QoS is described with plain data so this module imports no rclpy; :func:`qos_profile` builds
 the rclpy profile where a node needs it.
 """
@@ -18,37 +20,60 @@ from std_msgs.msg import String
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 from visualization_msgs.msg import MarkerArray
 
+from ads_rca.contract.topics import (
+    ACTORS,
+    CLOCK,
+    DATA_TOPICS,
+    DEFAULT_NAMESPACE,
+    DETECTIONS,
+    FOLDER_TOPICS,
+    FRAME,
+    GROUND_TRUTH,
+    METADATA,
+    ODOMETRY,
+    PREDICTION_RAW,
+    PREDICTION_WITH_PERCEPTION,
+    STATUS,
+    TOPIC_FOLDERS,
+    TRAJECTORY,
+)
+
 if TYPE_CHECKING:
     from rclpy.qos import QoSProfile
 
-DEFAULT_NAMESPACE = "/ads_rca"
+#: The keys and folder table come from :mod:`ads_rca.contract.topics` (re-exported).
+__all__ = [
+    "ACTORS",
+    "ALL_TOPICS",
+    "CLOCK",
+    "DATA_QOS",
+    "DATA_TOPICS",
+    "DEFAULT_NAMESPACE",
+    "DETECTIONS",
+    "EGO_FRAME",
+    "FOLDER_TOPICS",
+    "FRAME",
+    "GROUND_TRUTH",
+    "IMAGE_FRAME",
+    "LATCHED_QOS",
+    "LATCHED_READER_DEPTH",
+    "MESSAGE_TYPES",
+    "METADATA",
+    "ODOMETRY",
+    "PREDICTION_RAW",
+    "PREDICTION_WITH_PERCEPTION",
+    "QOS",
+    "STATUS",
+    "TOPIC_FOLDERS",
+    "TRAJECTORY",
+    "WORLD_FRAME",
+    "QoSSpec",
+    "normalise_namespace",
+    "qos_profile",
+    "topic_name",
+    "topic_names",
+]
 
-# Topic keys (relative names).
-METADATA = "run/metadata"
-ODOMETRY = "ego/odometry"
-ACTORS = "actors"
-DETECTIONS = "perception/detections"
-GROUND_TRUTH = "perception/ground_truth"
-PREDICTION_RAW = "prediction/raw"
-PREDICTION_WITH_PERCEPTION = "prediction/with_perception"
-TRAJECTORY = "planning/trajectory"
-FRAME = "run/frame"
-STATUS = "player/status"
-CLOCK = "/clock"
-
-#: Per-frame data topics, keyed by the log folder they carry (in :data:`ads_rca.model.FOLDERS`
-#: order). Their messages are stamped with the frame's log time.
-FOLDER_TOPICS: dict[str, str] = {
-    "pose": ODOMETRY,
-    "actors": ACTORS,
-    "bboxes": DETECTIONS,
-    "bboxes_gt": GROUND_TRUTH,
-    "predictions": PREDICTION_RAW,
-    "predictions_with_perception": PREDICTION_WITH_PERCEPTION,
-    "waypoint": TRAJECTORY,
-}
-TOPIC_FOLDERS: dict[str, str] = {topic: folder for folder, topic in FOLDER_TOPICS.items()}
-DATA_TOPICS: tuple[str, ...] = tuple(FOLDER_TOPICS.values())
 
 #: Message type of every topic key.
 MESSAGE_TYPES: dict[str, type[Any]] = {

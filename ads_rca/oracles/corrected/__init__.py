@@ -13,6 +13,7 @@ from typing import Any
 
 from ads_rca.oracles.base import Module, OracleResult, RunContext
 from ads_rca.oracles.corrected.attribution import attribute_corrected, window_frames
+from ads_rca.oracles.corrected.common import REPORTED
 from ads_rca.oracles.corrected.context import corrected_context
 from ads_rca.oracles.corrected.control import control
 from ads_rca.oracles.corrected.perception import perception
@@ -38,6 +39,28 @@ class CorrectedSemantics(Semantics):
     oracles = ORACLES
     analyses_duplicates = False
     uses_partner = True
+    parameters = (
+        "effect_time_window",
+        "window_s",
+        "perc_match_iou",
+        "prediction_window",
+        "safety_margin",
+        "understate_min",
+        "pred_abs_threshold",
+        "pred_score_threshold",
+        "max_decel",
+        "decel_tolerance",
+        "standstill_speed",
+        "control_horizon",
+        "control_speed_threshold",
+        "actuator_delay",
+        "control_lateral_threshold",
+        "min_persistence",
+        "control_min_persistence",
+        "planning_min_persistence",
+        "heading_min_step",
+    )
+    reported = REPORTED
     headline: Mapping[Module, Sequence[tuple[str, str | None]]] = {
         "perception": [("recall", None), ("mean_iou", "perc_match_iou")],
         "prediction": [("displacement_error", None), ("ade", None)],

@@ -18,24 +18,23 @@ import numpy.typing as npt
 
 from ads_rca.geometry import FloatArray, along_polyline, ego_to_world
 from ads_rca.model import EgoPose, Plan, Track
+from ads_rca.oracles.cache import LRU
 
 #: Plan headings from neighbouring points shorter than this keep the previous heading.
 PLAN_HEADING_MIN_STEP = 1e-3
 
-_KEY_STEPS: dict[tuple[str, ...], npt.NDArray[np.int64]] = {}
 _KEY_STEPS_MAX = 256
+_KEY_STEPS: LRU[tuple[str, ...], npt.NDArray[np.int64]] = LRU(_KEY_STEPS_MAX)
 
 
 def key_steps(keys: tuple[str, ...]) -> npt.NDArray[np.int64]:
     """Integer value of each step key (-1 where not an integer), memoised per key tuple:
     nearly every track and plan of a log has the same keys."""
-    found = _KEY_STEPS.get(keys)
+    found = _KEY_STEPS.lookup(keys)
     if found is None:
         found = np.array([_int_or_minus_one(k) for k in keys], dtype=np.int64)
         found.flags.writeable = False
-        if len(_KEY_STEPS) >= _KEY_STEPS_MAX:
-            _KEY_STEPS.clear()
-        _KEY_STEPS[keys] = found
+        _KEY_STEPS.put(keys, found)
     return found
 
 
@@ -117,7 +116,7 @@ def step_order(keys: tuple[str, ...], limit: int) -> tuple[np.ndarray, np.ndarra
     """Rows of the integer keys 0 <= k < limit in ascending step order (a repeated step keeps
     its first row), and those steps; memoised per key tuple."""
     memo_key = (keys, limit)
-    found = _ORDER.get(memo_key)
+    found = _ORDER.lookup(memo_key)
     if found is None:
         steps = key_steps(keys)
         keep = np.flatnonzero((steps >= 0) & (steps < limit))
@@ -125,13 +124,11 @@ def step_order(keys: tuple[str, ...], limit: int) -> tuple[np.ndarray, np.ndarra
         k = steps[order]
         first = np.concatenate(([True], k[1:] != k[:-1])) if k.size else np.zeros(0, bool)
         found = (order[first], k[first])
-        if len(_ORDER) >= _KEY_STEPS_MAX:
-            _ORDER.clear()
-        _ORDER[memo_key] = found
+        _ORDER.put(memo_key, found)
     return found
 
 
-_ORDER: dict[tuple[tuple[str, ...], int], tuple[np.ndarray, np.ndarray]] = {}
+_ORDER: LRU[tuple[tuple[str, ...], int], tuple[np.ndarray, np.ndarray]] = LRU(_KEY_STEPS_MAX)
 _NO_LIMIT = 1 << 62
 
 

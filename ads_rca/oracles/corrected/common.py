@@ -9,6 +9,26 @@ from ads_rca.oracles.base import Metric, Module, OracleResult
 from ads_rca.oracles.corrected.clearance import Clearance
 from ads_rca.oracles.corrected.context import CorrectedContext
 
+#: The parameters each oracle's results report in ``thresholds``, in that order (the mode's
+#: ``Semantics.reported``); an oracle adds its constants and derived values after them.
+REPORTED: dict[Module, tuple[str, ...]] = {
+    "perception": (
+        "perc_match_iou",
+        "safety_margin",
+        "understate_min",
+        "pred_abs_threshold",
+        "pred_score_threshold",
+    ),
+    "prediction": ("safety_margin", "understate_min", "pred_abs_threshold", "pred_score_threshold"),
+    "planning": ("safety_margin", "max_decel", "decel_tolerance", "standstill_speed"),
+    "controller": (
+        "control_speed_threshold",
+        "actuator_delay",
+        "control_lateral_threshold",
+        "control_horizon",
+    ),
+}
+
 
 def num(value: float | None) -> float:
     """A plain float (NaN for None), so metrics stay JSON-friendly via json_safe."""

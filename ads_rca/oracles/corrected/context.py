@@ -13,9 +13,7 @@ They assume the data at ts … ts + horizon is final when an oracle first asks f
 
 from __future__ import annotations
 
-from collections import OrderedDict
-from collections.abc import Callable
-from typing import Any, Generic, TypeVar
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -23,43 +21,9 @@ import numpy.typing as npt
 from ads_rca.geometry import FloatArray, box_signed_distance
 from ads_rca.model import FOLDERS, EgoPose, RunLog, Track
 from ads_rca.oracles.base import RunContext
+from ads_rca.oracles.cache import LRU
 from ads_rca.oracles.corrected.boxes import PlanData, Series, build_plan, build_predicted, key_steps
 from ads_rca.params import Params
-
-K = TypeVar("K")
-V = TypeVar("V")
-
-#: Per-timestamp cache size: enough for the control horizon's plans plus slack.
-CACHE_SIZE = 64
-
-
-class LRU(Generic[K, V]):
-    """A small least-recently-used cache with a compute-on-miss accessor."""
-
-    def __init__(self, size: int = CACHE_SIZE) -> None:
-        self._data: OrderedDict[K, V] = OrderedDict()
-        self._size = size
-
-    def lookup(self, key: K) -> V | None:
-        """The cached value, or None (no computation)."""
-        if key in self._data:
-            self._data.move_to_end(key)
-            return self._data[key]
-        return None
-
-    def put(self, key: K, value: V) -> None:
-        self._data[key] = value
-        self._data.move_to_end(key)
-        if len(self._data) > self._size:
-            self._data.popitem(last=False)
-
-    def get(self, key: K, compute: Callable[[], V]) -> V:
-        if key in self._data:
-            self._data.move_to_end(key)
-            return self._data[key]
-        value = compute()
-        self.put(key, value)
-        return value
 
 
 class CorrectedContext:

@@ -20,7 +20,7 @@ import numpy as np
 
 from ads_rca.geometry import world_to_ego
 from ads_rca.oracles.base import Metric, OracleResult, RunContext
-from ads_rca.oracles.corrected.common import skipped
+from ads_rca.oracles.corrected.common import REPORTED, skipped
 from ads_rca.oracles.corrected.context import CorrectedContext, corrected_context
 
 
@@ -77,12 +77,7 @@ def control(ctx: RunContext, ts: int) -> OracleResult:
     """Rule 5 at ts, with tracking-error metrics."""
     cc = corrected_context(ctx)
     p = cc.params
-    thresholds: dict[str, float] = {
-        "control_speed_threshold": p.control_speed_threshold,
-        "actuator_delay": p.actuator_delay,
-        "control_lateral_threshold": p.control_lateral_threshold,
-        "control_horizon": p.control_horizon,
-    }
+    thresholds: dict[str, float] = p.values(REPORTED["controller"])
     steps, stop = _steps(cc, ts)
     if not steps:
         return skipped("controller", ts, stop or "no control step", thresholds=thresholds)

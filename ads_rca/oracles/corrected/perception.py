@@ -24,7 +24,13 @@ from ads_rca.geometry import FloatArray, axis_aligned_iou, overlap_blocks
 from ads_rca.model import Boxes
 from ads_rca.oracles.base import Metric, OracleResult, RunContext
 from ads_rca.oracles.corrected.clearance import PartnerView, partner_view
-from ads_rca.oracles.corrected.common import clearance_metrics, missing_inputs, num, skipped
+from ads_rca.oracles.corrected.common import (
+    REPORTED,
+    clearance_metrics,
+    missing_inputs,
+    num,
+    skipped,
+)
 from ads_rca.oracles.corrected.context import CorrectedContext, corrected_context
 
 #: Frames with at most this many detection x gt pairs are matched on the whole IoU matrix.
@@ -153,13 +159,7 @@ def perception(ctx: RunContext, ts: int) -> OracleResult:
     """Rule 2 at ts, with the standard detection metrics."""
     cc = corrected_context(ctx)
     p = cc.params
-    thresholds = {
-        "perc_match_iou": p.perc_match_iou,
-        "safety_margin": p.safety_margin,
-        "understate_min": p.understate_min,
-        "pred_abs_threshold": p.pred_abs_threshold,
-        "pred_score_threshold": p.pred_score_threshold,
-    }
+    thresholds = p.values(REPORTED["perception"])
     absent = missing_inputs(cc, ts, ("bboxes", "bboxes_gt"), "perception check")
     if absent:
         return skipped("perception", ts, f"missing {', '.join(absent)}", thresholds=thresholds)

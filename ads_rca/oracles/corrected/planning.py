@@ -20,7 +20,13 @@ import numpy as np
 from ads_rca.oracles.base import Metric, OracleResult, RunContext
 from ads_rca.oracles.corrected.boxes import PlanData
 from ads_rca.oracles.corrected.clearance import Clearance, partner_view
-from ads_rca.oracles.corrected.common import clearance_metrics, missing_inputs, num, skipped
+from ads_rca.oracles.corrected.common import (
+    REPORTED,
+    clearance_metrics,
+    missing_inputs,
+    num,
+    skipped,
+)
 from ads_rca.oracles.corrected.context import CorrectedContext, corrected_context
 
 
@@ -53,12 +59,7 @@ def planning(ctx: RunContext, ts: int) -> OracleResult:
     """Rule 4 at ts, with clearance, TTC and plan-vs-realised metrics."""
     cc = corrected_context(ctx)
     p = cc.params
-    thresholds = {
-        "safety_margin": p.safety_margin,
-        "max_decel": p.max_decel,
-        "decel_tolerance": p.decel_tolerance,
-        "standstill_speed": p.standstill_speed,
-    }
+    thresholds = p.values(REPORTED["planning"])
     absent = missing_inputs(cc, ts, ("pose", "waypoint"), "planning check")
     plan = None if absent else cc.plan(ts)
     if plan is None:

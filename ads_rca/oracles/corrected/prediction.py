@@ -22,7 +22,13 @@ from ads_rca.model import EgoPose, Predictions
 from ads_rca.oracles.base import Metric, OracleResult, RunContext
 from ads_rca.oracles.corrected.boxes import step_order
 from ads_rca.oracles.corrected.clearance import partner_view
-from ads_rca.oracles.corrected.common import clearance_metrics, missing_inputs, num, skipped
+from ads_rca.oracles.corrected.common import (
+    REPORTED,
+    clearance_metrics,
+    missing_inputs,
+    num,
+    skipped,
+)
 from ads_rca.oracles.corrected.context import CorrectedContext, corrected_context
 
 #: A final displacement error above this is a miss (the usual motion-forecasting metric).
@@ -82,13 +88,7 @@ def prediction(ctx: RunContext, ts: int) -> OracleResult:
     """Rule 3 at ts, with ADE/FDE/miss rate."""
     cc = corrected_context(ctx)
     p = cc.params
-    thresholds = {
-        "safety_margin": p.safety_margin,
-        "understate_min": p.understate_min,
-        "pred_abs_threshold": p.pred_abs_threshold,
-        "pred_score_threshold": p.pred_score_threshold,
-        "miss_distance": MISS_DISTANCE,
-    }
+    thresholds = {**p.values(REPORTED["prediction"]), "miss_distance": MISS_DISTANCE}
     absent = missing_inputs(cc, ts, ("pose", "predictions_with_perception"), "prediction check")
     if absent:
         return skipped("prediction", ts, f"missing {', '.join(absent)}", thresholds=thresholds)

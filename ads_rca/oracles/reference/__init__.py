@@ -14,6 +14,7 @@ from ads_rca.oracles.base import EGO_ID_TIMESTAMP_MS, Module, RunContext, earlie
 from ads_rca.oracles.reference.attribution import attribute_reference
 from ads_rca.oracles.reference.oracles import (
     ORACLES,
+    REPORTED,
     control,
     greedy_match,
     perception,
@@ -43,6 +44,14 @@ class ReferenceSemantics(Semantics):
     oracles = ORACLES
     analyses_duplicates = True
     uses_partner = False
+    parameters = (
+        "effect_time_window",
+        "perc_score_threshold",
+        "pred_score_threshold",
+        "planning_toleration_future_step",
+        "planning_toleration",
+    )
+    reported = REPORTED
     headline: Mapping[Module, Sequence[tuple[str, str | None]]] = {
         "perception": [("mean_iou", "perc_score_threshold")],
         "prediction": [("ratio", "pred_score_threshold")],

@@ -34,6 +34,7 @@ import numpy.typing as npt
 from ads_rca.geometry import BLOCK_PAIRS, overlap_blocks
 from ads_rca.model import Boxes, Plan, Predictions, RunLog, Track
 from ads_rca.oracles.base import Metric, Module, OracleResult, RunContext
+from ads_rca.oracles.cache import LRU
 from ads_rca.problems import DROPPED_RECORD
 
 FloatArray = npt.NDArray[np.float64]
@@ -55,7 +56,15 @@ _STEP_CLAMP = 10**12
 _READ_AS_NAN = "read as NaN"
 #: What the reference does on the inputs we report.
 _STOPS = "the reference stops here"
-#: Bound of each parse cache (cleared when full: logs repeat a handful of layouts).
+#: The parameters each oracle's results report in ``thresholds``, in that order (the mode's
+#: ``Semantics.reported``); an oracle adds its constants after them.
+REPORTED: dict[Module, tuple[str, ...]] = {
+    "perception": ("perc_score_threshold",),
+    "prediction": ("pred_score_threshold",),
+    "planning": ("planning_toleration_future_step", "planning_toleration"),
+    "controller": (),
+}
+#: Bound of each parse cache (logs repeat a handful of layouts).
 _CACHE_SIZE = 256
 
 
@@ -93,19 +102,17 @@ def _parse_step(key: str) -> int | None:
         return None
 
 
-_STEPS: dict[tuple[str, ...], tuple[IntArray, BoolArray]] = {}
+_STEPS: LRU[tuple[str, ...], tuple[IntArray, BoolArray]] = LRU(_CACHE_SIZE)
 
 
 def _parse_steps(keys: tuple[str, ...]) -> tuple[IntArray, BoolArray]:
     """Integer value of each key (0 where not an integer) and which keys are integers."""
-    found = _STEPS.get(keys)
+    found = _STEPS.lookup(keys)
     if found is None:
         values = [_parse_step(k) for k in keys]
         ok = np.array([v is not None for v in values], dtype=np.bool_)
         found = (np.array([v or 0 for v in values], dtype=np.int64), ok)
-        if len(_STEPS) >= _CACHE_SIZE:
-            _STEPS.clear()
-        _STEPS[keys] = found
+        _STEPS.put(keys, found)
     return found
 
 
@@ -134,14 +141,14 @@ class _Layout:
     zero_rows: IntArray  # (tracks,) row of each track's step "0" (identical string), -1
     all_zero: bool
     #: plan keys -> the pairs of a plan with these keys.
-    plan_pairs: dict[tuple[str, ...], _PlanPairs] = field(default_factory=dict)
+    plan_pairs: LRU[tuple[str, ...], _PlanPairs] = field(default_factory=lambda: LRU(16))
 
 
-_LAYOUTS: dict[tuple[tuple[str, ...], ...], _Layout] = {}
+_LAYOUTS: LRU[tuple[tuple[str, ...], ...], _Layout] = LRU(_CACHE_SIZE)
 
 
 def _layout(key_tuples: tuple[tuple[str, ...], ...]) -> _Layout:
-    found = _LAYOUTS.get(key_tuples)
+    found = _LAYOUTS.lookup(key_tuples)
     if found is None:
         keys = tuple(k for keys in key_tuples for k in keys)
         steps, int_ok = _parse_steps(keys)
@@ -161,9 +168,7 @@ def _layout(key_tuples: tuple[tuple[str, ...], ...]) -> _Layout:
             np.array(zero_rows, dtype=np.int64),
             -1 not in zero_rows,
         )
-        if len(_LAYOUTS) >= _CACHE_SIZE:
-            _LAYOUTS.clear()
-        _LAYOUTS[key_tuples] = found
+        _LAYOUTS.put(key_tuples, found)
     return found
 
 
@@ -179,13 +184,14 @@ class _Flat:
 
 
 #: The last few flattened records: prediction and planning share the frame's pwp record.
-_FLAT_CACHE: list[tuple[Predictions, _Flat]] = []
+#: Keyed by the record's identity; the entry holds the record, so its id is not reused.
+_FLAT_CACHE: LRU[int, tuple[Predictions, _Flat]] = LRU(4)
 
 
 def _flatten(preds: Predictions) -> _Flat:
-    for record, flat in _FLAT_CACHE:
-        if record is preds:
-            return flat
+    cached = _FLAT_CACHE.lookup(id(preds))
+    if cached is not None and cached[0] is preds:
+        return cached[1]
     tracks = tuple(preds.values())
     layout = _layout(tuple(t.keys for t in tracks))
     if layout.keys:
@@ -194,8 +200,7 @@ def _flatten(preds: Predictions) -> _Flat:
     else:
         x = y = np.zeros(0, dtype=np.float64)
     flat = _Flat(tuple(preds), tracks, layout, x, y)
-    _FLAT_CACHE.insert(0, (preds, flat))
-    del _FLAT_CACHE[4:]
+    _FLAT_CACHE.put(id(preds), (preds, flat))
     return flat
 
 
@@ -483,7 +488,7 @@ def perception(ctx: RunContext, ts: int) -> OracleResult:
         for name in missing:
             ctx.report(log.file_of(name, ts), "", f"file missing ({_STOPS})", ts)
         skipped = f"{log.file_of(missing[0], ts)}: file missing"
-        thresholds = {"perc_score_threshold": thr}
+        thresholds = ctx.params.values(REPORTED["perception"])
         return OracleResult("perception", ts, False, thresholds=thresholds, skipped=skipped)
     dropped = _tables(log).dropped
     if dropped:
@@ -491,7 +496,7 @@ def perception(ctx: RunContext, ts: int) -> OracleResult:
             file = log.file_of(name, ts)
             if file in dropped:
                 issue = "a box without an id or without two points"
-                thresholds = {"perc_score_threshold": thr}
+                thresholds = ctx.params.values(REPORTED["perception"])
                 return _skip(ctx, "perception", ts, file, "bounding_box", issue, thresholds)
     return judge_perception(det, gt, ts, thr)
 
@@ -527,7 +532,10 @@ def prediction(ctx: RunContext, ts: int) -> OracleResult:
     """
     log = ctx.log
     thr = ctx.params.pred_score_threshold
-    thresholds = {"pred_score_threshold": thr, "distance_gate_m": PRED_DISTANCE_GATE_M}
+    thresholds = {
+        **ctx.params.values(REPORTED["prediction"]),
+        "distance_gate_m": PRED_DISTANCE_GATE_M,
+    }
     pwp = log.predictions_with_perception.get(ts)
     if pwp is None:
         file = log.file_of("predictions_with_perception", ts)
@@ -622,11 +630,8 @@ def _prediction_crash(
 def planning(ctx: RunContext, ts: int) -> OracleResult:
     """First plan point whose box gap to a linked raw prediction is below the tolerance."""
     log, params = ctx.log, ctx.params
-    thresholds = {
-        "planning_toleration_future_step": float(params.planning_toleration_future_step),
-        "planning_toleration": params.planning_toleration,
-        "link_distance_m": LINK_DISTANCE_M,
-    }
+    thresholds = {k: float(v) for k, v in params.values(REPORTED["planning"]).items()}
+    thresholds["link_distance_m"] = LINK_DISTANCE_M
     # 1. The ego yaw at ts and plan["0"] are read first.
     pose = log.pose.get(ts)
     if pose is None:
@@ -719,7 +724,7 @@ def _link(
 
 def _plan_pairs(layout: _Layout, plan: Plan) -> _PlanPairs:
     """Raw keys equal (as strings) to a plan key, by plan row then raw track (cached)."""
-    found = layout.plan_pairs.get(plan.keys)
+    found = layout.plan_pairs.lookup(plan.keys)
     if found is None:
         index = plan.index
         plan_row = np.array([index.get(k, -1) for k in layout.keys], dtype=np.int64)
@@ -733,9 +738,7 @@ def _plan_pairs(layout: _Layout, plan: Plan) -> _PlanPairs:
         if bad_row >= 0:
             reachable &= row < bad_row
         found = _PlanPairs(key, row, layout.track_of[key], steps[row], reachable, bad_row)
-        if len(layout.plan_pairs) >= 16:
-            layout.plan_pairs.clear()
-        layout.plan_pairs[plan.keys] = found
+        layout.plan_pairs.put(plan.keys, found)
     return found
 
 

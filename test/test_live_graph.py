@@ -210,7 +210,11 @@ def test_monitor_killed_and_restarted_goes_stale_recovers_and_a_verdict_comes(
         if r["name"] == "ads_rca/perception" and "index" in r["values"]
     ]
     judged = [r["index"] for r in jsonl(metrics) if r["module"] == "perception"]
-    assert sorted(statuses) == sorted(judged) and judged
+    # /diagnostics is volatile: the probe sees what was sent once discovery matched it to
+    # the monitor (up to ~2.5 s, environment.md), which may be after the first frames.
+    assert statuses and judged
+    seen = [i for i in judged if i >= min(statuses)]
+    assert sorted(statuses) == sorted(seen) and len(seen) >= len(judged) // 2
     offline = diagnose(read_run_log(log_dir), params).to_json()
     assert document["primary_root_cause"] == offline["primary_root_cause"]
     assert document["live"]["complete"] is False

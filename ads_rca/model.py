@@ -3,7 +3,7 @@
 Pure data, no I/O. Per-frame records keep the file order of their entries (the reference
 semantics iterate in file order) and hold numbers in numpy arrays so metric code can work on
 whole frames at once. Geometry stays in the log's own frame: the CARLA world (left-handed,
-metres, angles in degrees); conversions to ROS conventions live in ``ads_rca.ros``.
+metres, angles in degrees); conversions to ROS conventions live in ``ads_rca.contract``.
 
 Timestamps are integer milliseconds. Frame ``f`` is ``f * timesteps_per_frame`` ms.
 """

@@ -26,14 +26,14 @@ import time
 from pathlib import Path
 from typing import Any
 
+from ads_rca.contract.cdr import frame_payloads
+from ads_rca.contract.cdr_decode import decode_record
+from ads_rca.contract.convert import frame_messages
+from ads_rca.contract.playback import timeline
 from ads_rca.io.json_writer import write_run_log
 from ads_rca.model import RunLog
-from ads_rca.ros.cdr import frame_payloads
-from ads_rca.ros.cdr_decode import decode_record
-from ads_rca.ros.convert import frame_messages
 from ads_rca.ros.env import pick_domain_id, ros_environment
 from ads_rca.ros.launcher import Launcher, node_command
-from ads_rca.ros.playback import timeline
 
 
 def make_log(frames: int, actors: int, seed: int) -> tuple[RunLog, str]:

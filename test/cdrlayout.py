@@ -3,7 +3,7 @@
 ``rclpy.serialization.serialize_message`` leaves alignment padding uninitialised (heap
 garbage, e.g. ``00 32 2e 2b``), so its bytes can only be compared with another encoder's on
 the non-padding positions. This walker finds those positions independently of
-``ads_rca.ros.cdr``: it follows the rosidl ``SLOT_TYPES`` of the message object (XCDR1,
+``ads_rca.contract.cdr``: it follows the rosidl ``SLOT_TYPES`` of the message object (XCDR1,
 alignment = primitive size relative to the payload start, after the 4-byte header).
 """
 

@@ -13,15 +13,15 @@ from logfactory import make_log
 from rosrun import run_pair
 
 from ads_rca.cli import main as cli
-from ads_rca.io import open_run, rosmsg
+from ads_rca.contract import rosmsg, topics
+from ads_rca.contract.convert import frame_messages
+from ads_rca.contract.playback import metadata_message
+from ads_rca.io import open_run
 from ads_rca.io.bag_reader import is_bag, iter_mcap_stream, read_bag
 from ads_rca.io.bag_writer import contract_qos_yaml, playback_messages, write_bag
 from ads_rca.io.json_log import read_run_log
 from ads_rca.io.json_writer import write_run_log
 from ads_rca.io.mcap_writer import McapBagWriter
-from ads_rca.ros import topics
-from ads_rca.ros.convert import frame_messages
-from ads_rca.ros.playback import metadata_message
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -48,7 +48,7 @@ def test_cdr_matches_rclpy_both_ways(log_dir: Path) -> None:
         assert ours == bytes(store.serialize_cdr(store.deserialize_cdr(theirs, name), name))
         assert rosmsg.serialize(deserialize_message(ours, type(msg))) == ours
         assert rosmsg.serialize(rosmsg.deserialize(ours, name)) == ours
-    for key, cls in topics.MESSAGE_TYPES.items():  # rosbags' Kilted hashes are rclpy's
+    for key, cls in topics.message_types().items():  # rosbags' Kilted hashes are rclpy's
         assert rosmsg.type_hash(rosmsg.type_name(cls)).startswith("RIHS01_"), key
 
 
@@ -176,7 +176,7 @@ def _stack_bag(log_dir: Path, bag: Path) -> dict[str, object]:
     log = read_run_log(log_dir)
     with McapBagWriter(bag) as writer:
         for key, their in names.items():
-            writer.add_topic(their, rosmsg.type_name(topics.MESSAGE_TYPES[key]))
+            writer.add_topic(their, rosmsg.type_name(topics.message_types()[key]))
         for key, log_time, msg in playback_messages(log):
             if key in names:
                 writer.write(names[key], log_time, rosmsg.serialize(msg))

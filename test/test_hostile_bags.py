@@ -21,11 +21,11 @@ from test_hostile_input import assert_clean, run_cli
 from test_recorder import start_player, start_recorder
 
 from ads_rca.cli import main as cli
+from ads_rca.contract import topics
 from ads_rca.errors import InputError
 from ads_rca.io.bag_reader import iter_mcap_stream, load_bag, read_bag
 from ads_rca.io.mcap_writer import McapBagWriter
 from ads_rca.model import RunLog
-from ads_rca.ros import topics
 from ads_rca.ros.launcher import Launcher
 
 pytestmark = pytest.mark.timeout(600)

@@ -1,6 +1,6 @@
 """Hostile messages on the contract's topics (issue #12): anyone on the domain can publish.
 
-- Every CDR decoder of the live path (``ads_rca.ros.cdr_decode``), fed real payloads (the
+- Every CDR decoder of the live path (``ads_rca.contract.cdr_decode``), fed real payloads (the
   project's own encoder on the example log) cut at every length, with absurd counts written
   over every 4-byte field and with random bytes flipped: a record, or ``CdrError``; nothing
   else, and no allocation for a count the message cannot hold (checked under an
@@ -28,17 +28,17 @@ from typing import Any
 import pytest
 from test_hostile_bags import convert
 
+from ads_rca.contract import cdr, cdr_decode, playback, rosmsg, topics
+from ads_rca.contract.cdr_decode import CdrError, NoStamp
+from ads_rca.contract.jsontext import JsonTextError, loads_json
+from ads_rca.contract.malformed import SkippedMessages
 from ads_rca.errors import InputError
-from ads_rca.io import rosmsg
 from ads_rca.io.bag_reader import iter_mcap_stream, read_bag
 from ads_rca.io.json_log import read_run_log
 from ads_rca.io.mcap_writer import McapBagWriter
-from ads_rca.ros import cdr, cdr_decode, live_topics, playback, topics
 from ads_rca.ros import diagnostics as diag
-from ads_rca.ros.cdr_decode import CdrError, NoStamp
-from ads_rca.ros.jsontext import JsonTextError, loads_json
+from ads_rca.ros import live_topics
 from ads_rca.ros.launcher import ManagedProcess, ros_args
-from ads_rca.ros.malformed import SkippedMessages
 from ads_rca.ros.monitor import GROUP, MONITORS
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "cut_in_perception"
@@ -133,7 +133,7 @@ def test_absurd_counts_are_refused_before_allocating(tmp_path: Path) -> None:
         """
         import json, resource, sys
         resource.setrlimit(resource.RLIMIT_AS, (3 << 29, 3 << 29))
-        from ads_rca.ros.cdr_decode import CdrError, decode_record
+        from ads_rca.contract.cdr_decode import CdrError, decode_record
         for key, data in json.load(open(sys.argv[1])):
             try:
                 decode_record(key, bytes.fromhex(data), 50)
@@ -306,11 +306,11 @@ def _patched_count(key: str, count: int = 2**31) -> bytes:
 
 FOREIGN = """
 import sys, time, rclpy
-from ads_rca.ros import topics
+from ads_rca.contract import topics
 rclpy.init()
 node = rclpy.create_node("foreign")
 pub = node.create_publisher(
-    topics.MESSAGE_TYPES[topics.DETECTIONS],
+    topics.message_types()[topics.DETECTIONS],
     topics.topic_name(topics.DETECTIONS, sys.argv[1]),
     topics.qos_profile(topics.DETECTIONS),
 )
@@ -359,7 +359,7 @@ def test_monitors_skip_and_report_malformed_messages_and_judge_the_rest(ros_env:
         keys = (topics.METADATA, topics.FRAME, topics.STATUS, *topics.DATA_TOPICS)
         pubs = {
             key: node.create_publisher(
-                topics.MESSAGE_TYPES[key], topics.topic_name(key, ns), topics.qos_profile(key)
+                topics.message_types()[key], topics.topic_name(key, ns), topics.qos_profile(key)
             )
             for key in keys
         }
@@ -450,7 +450,7 @@ def test_monitors_skip_and_report_malformed_messages_and_judge_the_rest(ros_env:
 def test_the_assembler_leaves_undecodable_bytes_out_as_a_problem() -> None:
     """``add_raw`` keeps data as bytes (stamp read only); a message cut after its stamp is
     left out of ``build()`` and said, the rest of the log is built (topic_summary's path)."""
-    from ads_rca.ros.assembler import RunLogAssembler
+    from ads_rca.contract.assembler import RunLogAssembler
 
     log = read_run_log(EXAMPLE)
     assembler = RunLogAssembler()

@@ -11,15 +11,14 @@ import re
 from pathlib import Path
 
 import ads_rca
-from ads_rca.contract import topics as contract_topics
+from ads_rca.contract import topics
+from ads_rca.contract.jsontext import loads_json
+from ads_rca.contract.playback import Tick, frame_marker
 from ads_rca.live.results import FrameMarker, LiveResult
 from ads_rca.oracles.base import RunContext
 from ads_rca.oracles.cache import LRU
 from ads_rca.params import make_params
 from ads_rca.problems import Problem, new_problems, problems_from_list
-from ads_rca.ros import topics
-from ads_rca.ros.jsontext import loads_json
-from ads_rca.ros.playback import Tick, frame_marker
 from ads_rca.synth import synthesise
 from ads_rca.verdict import frame_number
 
@@ -75,9 +74,8 @@ def test_the_player_numbers_frames_as_the_verdict_does() -> None:
 
 
 def test_one_topic_to_folder_table() -> None:
-    assert topics.TOPIC_FOLDERS is contract_topics.TOPIC_FOLDERS
     marker = FrameMarker.from_document({"stamp_ms": 50, "published": list(topics.DATA_TOPICS)})
-    assert marker.folders == frozenset(contract_topics.FOLDER_TOPICS)
+    assert marker.folders == frozenset(topics.FOLDER_TOPICS)
     live = (PACKAGE / "live" / "results.py").read_text()
     assert "TOPIC_FOLDER:" not in live and "TOPIC_FOLDER " not in live
 

@@ -19,12 +19,11 @@ import pytest
 from logcompare import assert_logs_equal
 from logfactory import make_log
 
-from ads_rca.io import rosmsg
+from ads_rca.contract import rosmsg, topics
+from ads_rca.contract.assembler import RunLogAssembler
 from ads_rca.io.bag_reader import is_bag, iter_mcap_stream, read_bag
 from ads_rca.io.json_log import read_run_log
 from ads_rca.io.json_writer import write_run_log
-from ads_rca.ros import topics
-from ads_rca.ros.assembler import RunLogAssembler
 from ads_rca.ros.launcher import Launcher, ManagedProcess, ParamValue, node_command
 
 pytestmark = pytest.mark.timeout(120)

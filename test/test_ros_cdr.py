@@ -1,4 +1,4 @@
-"""The fast CDR path (ads_rca.ros.cdr / cdr_decode) against rclpy and convert.py.
+"""The fast CDR path (ads_rca.contract.cdr / cdr_decode) against rclpy and convert.py.
 
 Byte equality: our bytes must equal ``rclpy.serialization.serialize_message`` of the message
 convert.py builds on every non-padding byte, with zero padding (rclpy leaves its padding
@@ -25,11 +25,11 @@ from rclpy.serialization import deserialize_message, serialize_message
 from std_msgs.msg import String
 from visualization_msgs.msg import MarkerArray
 
+from ads_rca.contract import cdr, convert, playback, topics
+from ads_rca.contract.assembler import RunLogAssembler
+from ads_rca.contract.cdr_decode import decode_clock, decode_record, decode_string, stamp_ms
 from ads_rca.model import Actors, Boxes, EgoPose, Plan, RunLog, RunMetadata, Track
-from ads_rca.ros import cdr, convert, playback, topics
 from ads_rca.ros import diagnostics as diag
-from ads_rca.ros.assembler import RunLogAssembler
-from ads_rca.ros.cdr_decode import decode_clock, decode_record, decode_string, stamp_ms
 
 TPF = 50
 
@@ -247,7 +247,7 @@ def test_assembler_add_raw_rebuilds_the_log_like_add() -> None:
         if n % 2:
             mixed.add_raw(key, raw)
         else:
-            mixed.add(key, deserialize_message(raw, topics.MESSAGE_TYPES[key]))
+            mixed.add(key, deserialize_message(raw, topics.message_types()[key]))
     assert by_bytes.complete() and mixed.complete()
     assert by_bytes.received == by_objects.received
     for assembler in (by_bytes, mixed):
@@ -271,7 +271,7 @@ def test_empty_marker_array_has_no_stamp() -> None:
 
 def test_encoder_modules_do_not_import_rclpy() -> None:
     code = (
-        "import sys, ads_rca.ros.cdr, ads_rca.ros.cdr_decode; "
+        "import sys, ads_rca.contract.cdr, ads_rca.contract.cdr_decode; "
         "assert 'rclpy' not in sys.modules, 'rclpy imported'"
     )
     subprocess.run([sys.executable, "-c", code], check=True, timeout=60)
@@ -295,9 +295,9 @@ def test_subscribers_receive_identical_bytes_over_dds(ros_env: Any) -> None:
         for kind, received in got.items():
             for key in (*topics.DATA_TOPICS, topics.CLOCK):
                 name = f"{ros_env.namespace}/{kind}/{key.strip('/')}"
-                pubs[kind, key] = node.create_publisher(topics.MESSAGE_TYPES[key], name, 100)
+                pubs[kind, key] = node.create_publisher(topics.message_types()[key], name, 100)
                 node.create_subscription(
-                    topics.MESSAGE_TYPES[key], name, received.append, 100, raw=True
+                    topics.message_types()[key], name, received.append, 100, raw=True
                 )
         deadline = time.monotonic() + 15
         while any(p.get_subscription_count() < 1 for p in pubs.values()):

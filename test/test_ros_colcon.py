@@ -16,8 +16,8 @@ import pytest
 from logfactory import make_log
 from rosrun import run_pair
 
+from ads_rca.contract import topics
 from ads_rca.io.json_writer import write_run_log
-from ads_rca.ros import topics
 
 REPO = Path(__file__).resolve().parent.parent
 COLCON = Path(sys.executable).parent / "colcon"

@@ -9,9 +9,9 @@ import pytest
 from logcompare import assert_logs_equal
 from logfactory import make_log
 
+from ads_rca.contract import convert, playback, topics
+from ads_rca.contract.assembler import RunLogAssembler, run_metadata
 from ads_rca.model import Boxes, Plan, RunLog
-from ads_rca.ros import convert, playback, topics
-from ads_rca.ros.assembler import RunLogAssembler, run_metadata
 
 
 def play_through_assembler(log: RunLog, *, serialise: bool = False) -> RunLogAssembler:
@@ -22,7 +22,7 @@ def play_through_assembler(log: RunLog, *, serialise: bool = False) -> RunLogAss
         if serialise:
             from rclpy.serialization import deserialize_message, serialize_message
 
-            msg = deserialize_message(serialize_message(msg), topics.MESSAGE_TYPES[key])
+            msg = deserialize_message(serialize_message(msg), topics.message_types()[key])
         assembler.add(key, msg)
 
     send(topics.METADATA, playback.metadata_message(log))

@@ -15,9 +15,9 @@ from logcompare import assert_logs_equal
 from logfactory import make_log
 from rosrun import run_pair
 
+from ads_rca.contract import topics
 from ads_rca.io.json_log import read_run_log
 from ads_rca.io.json_writer import write_run_log
-from ads_rca.ros import topics
 from ads_rca.ros.launcher import ManagedProcess, node_command
 
 pytestmark = pytest.mark.timeout(120)

@@ -26,21 +26,21 @@ from logcompare import assert_logs_equal
 from rosrun import run_pair
 from test_live_window import assert_close, failed_flags, verdict_keys
 
+from ads_rca.contract.assembler import run_metadata
+from ads_rca.contract.cdr_decode import decode_string
+from ads_rca.contract.jsontext import dumps_json, loads_json
+from ads_rca.contract.playback import METADATA_DOCUMENT_KEY, metadata_message, read_document
+from ads_rca.contract.rosmsg import deserialize
 from ads_rca.engine import diagnose
 from ads_rca.io import open_run
 from ads_rca.io.bag_reader import iter_bag
 from ads_rca.io.json_log import read_run_log
 from ads_rca.io.json_writer import write_run_log
-from ads_rca.io.rosmsg import deserialize
 from ads_rca.live.results import LiveResult
 from ads_rca.model import RunLog, RunMetadata
 from ads_rca.oracles.base import OracleResult
 from ads_rca.params import make_params
-from ads_rca.ros.assembler import run_metadata
-from ads_rca.ros.cdr_decode import decode_string
-from ads_rca.ros.jsontext import dumps_json, loads_json
 from ads_rca.ros.launcher import ManagedProcess
-from ads_rca.ros.playback import METADATA_DOCUMENT_KEY, metadata_message, read_document
 from ads_rca.strictjson import NONFINITE_KEY, VALUE_KEY, dumps, from_strict, loads, to_strict
 from ads_rca.synth import synthesise
 

@@ -15,13 +15,13 @@ from typing import Any
 
 from ads_rca.commands.input_args import add_reader_arguments, max_file_mb_from_args
 from ads_rca.commands.outputs import check_output_dir
+from ads_rca.contract import topics
 from ads_rca.errors import InputError
 from ads_rca.io.bag_reader import is_bag, read_bag
 from ads_rca.io.bag_writer import STORAGES, write_bag
 from ads_rca.io.json_log import read_run_log
 from ads_rca.io.json_writer import write_run_log
 from ads_rca.io.mcap_writer import COMPRESSIONS, DEFAULT_CHUNK_SIZE
-from ads_rca.ros import topics
 from ads_rca.text import printable
 
 

@@ -4,7 +4,7 @@ A bag recorded from the player (``recorder`` node), written by ``ads-rca convert
 by a stack whose topics carry the contract's types under other names (mapped by a remapping
 YAML, see docs/topics.md) is replayed into the same :class:`RunLogAssembler` the live
 subscribers use, so a bag and a DDS stream rebuild the same log. Pure:
-:mod:`ads_rca.io.bag_storage` reads the storage files, :mod:`ads_rca.io.rosmsg` turns CDR
+:mod:`ads_rca.io.bag_storage` reads the storage files, :mod:`ads_rca.contract.rosmsg` turns CDR
 into message objects; no rclpy.
 
 Accepted paths: a bag directory with ``metadata.yaml``; a directory holding one ``.mcap`` /
@@ -32,8 +32,10 @@ from typing import Any
 import yaml
 from rosbags.serde import SerdeError
 
+from ads_rca.contract import rosmsg, topics
+from ads_rca.contract.assembler import RunLogAssembler
+from ads_rca.contract.convert import message_to_record
 from ads_rca.errors import InputError
-from ads_rca.io import rosmsg
 from ads_rca.io.bag_storage import (
     KEPT_BEFORE_CUT,
     BagMessage,
@@ -44,9 +46,6 @@ from ads_rca.io.bag_storage import (
 from ads_rca.io.files import Unreadable, read_regular
 from ads_rca.model import RunLog
 from ads_rca.problems import IGNORED, SKIPPED_FILE, USED_DEFAULT, Problem
-from ads_rca.ros import topics
-from ads_rca.ros.assembler import RunLogAssembler
-from ads_rca.ros.convert import message_to_record
 
 BAG_SUFFIXES = (".mcap", ".db3")
 METADATA_YAML = "metadata.yaml"
@@ -392,7 +391,7 @@ def _usable_topics(
     """Bag topic → contract key, for topics whose stored type is the contract's."""
     usable: dict[str, str] = {}
     for name, key in keys.items():
-        expected = rosmsg.type_name(topics.MESSAGE_TYPES[key])
+        expected = rosmsg.type_name(topics.message_types()[key])
         if rosmsg.normalise_type(types[name]) == expected:
             usable[name] = key
         else:
@@ -429,7 +428,7 @@ def _add_message(
 
     Data messages are converted to model records here too, so a message that decodes into
     something no record can be made of is refused before the assembler keeps it."""
-    expected = rosmsg.type_name(topics.MESSAGE_TYPES[key])
+    expected = rosmsg.type_name(topics.message_types()[key])
     try:
         msg = rosmsg.deserialize(message.data, expected)
         if key in topics.DATA_TOPICS:

@@ -5,7 +5,7 @@ default parameters: ``run/metadata``, ``player/status`` (playing), then per tick
 the tick's data messages and its ``run/frame`` marker, and finally the ``finished`` status.
 So a converted bag and a recorded one read back the same way (bag_reader.py), and a bag
 player replaying it drives every contract subscriber. Messages are built by the player's own
-converters (ads_rca.ros.convert / playback) and serialised by :mod:`ads_rca.io.rosmsg`
+converters (ads_rca.contract.convert / playback) and serialised by :mod:`ads_rca.contract.rosmsg`
 (rosbags, CDR identical to rclpy's). Bag log times are the records' log times.
 """
 
@@ -16,12 +16,9 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, Protocol
 
-from ads_rca.io import rosmsg
-from ads_rca.io.mcap_writer import McapBagWriter, qos_dict, qos_yaml
-from ads_rca.model import RunLog
-from ads_rca.ros import topics
-from ads_rca.ros.convert import frame_messages
-from ads_rca.ros.playback import (
+from ads_rca.contract import rosmsg, topics
+from ads_rca.contract.convert import frame_messages
+from ads_rca.contract.playback import (
     FINISHED,
     PLAYING,
     clock_message,
@@ -32,6 +29,8 @@ from ads_rca.ros.playback import (
     status_message,
     timeline,
 )
+from ads_rca.io.mcap_writer import McapBagWriter, qos_dict, qos_yaml
+from ads_rca.model import RunLog
 
 STORAGES = ("mcap", "sqlite3")
 _NS_PER_MS = 1_000_000
@@ -132,7 +131,7 @@ def write_bag(
     try:
         for key in topics.ALL_TOPICS:
             sink.add_topic(
-                names[key], rosmsg.type_name(topics.MESSAGE_TYPES[key]), contract_qos_yaml(key)
+                names[key], rosmsg.type_name(topics.message_types()[key]), contract_qos_yaml(key)
             )
         for key, log_time, msg in playback_messages(log):
             sink.write(names[key], log_time, rosmsg.serialize(msg))

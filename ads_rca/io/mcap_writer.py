@@ -27,7 +27,7 @@ from typing import Any
 import yaml
 from mcap.writer import CompressionType, Writer
 
-from ads_rca.io.rosmsg import message_definition, type_hash
+from ads_rca.contract.rosmsg import message_definition, type_hash
 
 #: rosbag2 metadata version written (Jazzy/Kilted readers and rosbags read it).
 BAG_VERSION = 9

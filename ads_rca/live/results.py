@@ -1,7 +1,7 @@
 """What travels between the live graph's nodes: frame markers and per-frame monitor results.
 
 A monitor's result must reach the aggregator bit for bit (the verdict is computed again from
-it), so the JSON form keeps NaN and infinity (``ads_rca.ros.jsontext`` writes them as null
+it), so the JSON form keeps NaN and infinity (``ads_rca.contract.jsontext`` writes them as null
 with the strict ``"$nonfinite"`` annotation and reads them back) and every field of
 :class:`~ads_rca.oracles.base.OracleResult`. Pure data, no rclpy.
 """

@@ -52,7 +52,7 @@ def run_live(
     seconds of simulated time), so timeouts fire as they would. ``shared``: one core judges
     the four modules (the ``monitors`` process) instead of one core each.
     """
-    from ads_rca.ros.playback import timeline
+    from ads_rca.contract.playback import timeline
 
     clock = [0.0]
 

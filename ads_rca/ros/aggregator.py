@@ -24,22 +24,23 @@ from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from std_msgs.msg import String
 
+from ads_rca.contract import topics
+from ads_rca.contract.assembler import run_metadata
+from ads_rca.contract.jsontext import loads_json
+from ads_rca.contract.malformed import SkippedMessages
+from ads_rca.contract.playback import (
+    FINISHED,
+    read_document,
+    read_input_problems,
+)
 from ads_rca.errors import InputError
 from ads_rca.live.aggregate import AggregatorCore, VerdictOutcome
 from ads_rca.live.results import FrameMarker, LiveResult
 from ads_rca.oracles.base import MODULES, Module
 from ads_rca.ros import diagnostics as diag
-from ads_rca.ros import live_topics, topics
-from ads_rca.ros.assembler import run_metadata
-from ads_rca.ros.jsontext import loads_json
-from ads_rca.ros.malformed import SkippedMessages
+from ads_rca.ros import live_topics
 from ads_rca.ros.nodemain import run_node
 from ads_rca.ros.nodeparams import declare_engine_parameters, declare_node_parameters
-from ads_rca.ros.playback import (
-    FINISHED,
-    read_document,
-    read_input_problems,
-)
 from ads_rca.ros.runid import RUN_KEY, RunFilter, checked_run_id, document_run, subscribe_ready
 
 PARAMETERS: dict[str, tuple[Any, str]] = {

@@ -20,10 +20,10 @@ from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
+from ads_rca.contract.cdr import CdrWriter
+from ads_rca.contract.cdr_decode import CdrReader
+from ads_rca.contract.jsontext import dumps_json
 from ads_rca.live.results import LiveResult, plain
-from ads_rca.ros.cdr import CdrWriter
-from ads_rca.ros.cdr_decode import CdrReader
-from ads_rca.ros.jsontext import dumps_json
 from ads_rca.ros.runid import RUN_KEY
 
 #: diagnostic_msgs/DiagnosticStatus levels (a ``byte`` field).

@@ -33,26 +33,27 @@ from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from std_msgs.msg import String
 
+from ads_rca.contract import topics
+from ads_rca.contract.assembler import run_metadata
+from ads_rca.contract.cdr import encode_string
+from ads_rca.contract.cdr_decode import CdrError, NoStamp, decode_record, stamp_ms
+from ads_rca.contract.jsontext import dumps_json
+from ads_rca.contract.malformed import SkippedMessages
+from ads_rca.contract.playback import (
+    FINISHED,
+    read_document,
+    read_input_problems,
+)
 from ads_rca.errors import InputError
 from ads_rca.live.results import FrameMarker, LiveResult
 from ads_rca.live.window import MonitorCore, WindowSettings
 from ads_rca.model import RunMetadata
 from ads_rca.oracles.base import Module
 from ads_rca.ros import diagnostics as diag
-from ads_rca.ros import live_topics, topics
-from ads_rca.ros.assembler import run_metadata
-from ads_rca.ros.cdr import encode_string
-from ads_rca.ros.cdr_decode import CdrError, NoStamp, decode_record, stamp_ms
+from ads_rca.ros import live_topics
 from ads_rca.ros.early_queue import EarlyQueue
-from ads_rca.ros.jsontext import dumps_json
-from ads_rca.ros.malformed import SkippedMessages
 from ads_rca.ros.nodemain import run_node
 from ads_rca.ros.nodeparams import declare_engine_parameters, declare_node_parameters
-from ads_rca.ros.playback import (
-    FINISHED,
-    read_document,
-    read_input_problems,
-)
 from ads_rca.ros.runid import (
     RUN_KEY,
     RunFilter,
@@ -250,7 +251,7 @@ class MonitorInputs:
     (:class:`~ads_rca.ros.runid.RunFilter`: the run field of JSON messages, the writer's
     participant for data), so callbacks take the MessageInfo too. A message that cannot be
     read (bytes that are not its type, JSON that is not a document of the contract) is
-    skipped and said (:class:`~ads_rca.ros.malformed.SkippedMessages`); a data message is
+    skipped and said (:class:`~ads_rca.contract.malformed.SkippedMessages`); a data message is
     only decoded once its writer is known to be the run's player.
     """
 
@@ -266,10 +267,10 @@ class MonitorInputs:
         lossless = [k for k, f in topics.TOPIC_FOLDERS.items() if f in core.folders]
         namespace = self.node_namespace = first.namespace
         # Data topics arrive as CDR bytes and are decoded straight into model records
-        # (ads_rca.ros.cdr_decode): building rclpy message objects costs ~10 ms a frame.
+        # (ads_rca.contract.cdr_decode): building rclpy message objects costs ~10 ms a frame.
         for key in (*lossless, topics.FRAME, topics.METADATA, topics.STATUS):
             node.create_subscription(
-                topics.MESSAGE_TYPES[key],
+                topics.message_types()[key],
                 topics.topic_name(key, namespace),
                 self._callback(key),
                 topics.qos_profile(key, keep_all=True),

@@ -24,14 +24,10 @@ from rclpy.node import Node
 from rclpy.subscription import RCLError
 from std_msgs.msg import String
 
-from ads_rca.errors import InputError
-from ads_rca.io.files import DEFAULT_MAX_FILE_MB
-from ads_rca.model import RunLog
-from ads_rca.ros import live_topics, topics
-from ads_rca.ros.cdr import encode_clock, encode_string, frame_payloads
-from ads_rca.ros.convert import frame_messages
-from ads_rca.ros.nodemain import make_executor, start_process
-from ads_rca.ros.playback import (
+from ads_rca.contract import topics
+from ads_rca.contract.cdr import encode_clock, encode_string, frame_payloads
+from ads_rca.contract.convert import frame_messages
+from ads_rca.contract.playback import (
     FINISHED,
     PLAYING,
     Tick,
@@ -44,6 +40,11 @@ from ads_rca.ros.playback import (
     status_message,
     timeline,
 )
+from ads_rca.errors import InputError
+from ads_rca.io.files import DEFAULT_MAX_FILE_MB
+from ads_rca.model import RunLog
+from ads_rca.ros import live_topics
+from ads_rca.ros.nodemain import make_executor, start_process
 from ads_rca.ros.runid import checked_run_id, new_run_id
 from ads_rca.text import printable
 
@@ -76,7 +77,7 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     ),
     "fast_publish": (
         True,
-        "Publish per-frame messages as CDR bytes built by ads_rca.ros.cdr (byte-identical, "
+        "Publish per-frame messages as CDR bytes built by ads_rca.contract.cdr (byte-identical, "
         "~20x faster) instead of rclpy message objects.",
     ),
 }
@@ -128,7 +129,7 @@ class Player(Node):
             )
         self.pubs = {
             key: self.create_publisher(
-                topics.MESSAGE_TYPES[key],
+                topics.message_types()[key],
                 topics.topic_name(key, namespace),
                 topics.qos_profile(key),
             )

@@ -34,14 +34,14 @@ from rclpy.serialization import deserialize_message
 from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import String
 
+from ads_rca.contract import rosmsg, topics
+from ads_rca.contract.assembler import RunLogAssembler
+from ads_rca.contract.jsontext import loads_json
 from ads_rca.errors import InputError
-from ads_rca.io import rosmsg
 from ads_rca.io.bag_writer import contract_qos_yaml
 from ads_rca.io.mcap_writer import COMPRESSIONS, DEFAULT_CHUNK_SIZE, McapBagWriter, qos_yaml
-from ads_rca.ros import live_topics, topics
-from ads_rca.ros.assembler import RunLogAssembler
+from ads_rca.ros import live_topics
 from ads_rca.ros.diagnostics import status_runs
-from ads_rca.ros.jsontext import loads_json
 from ads_rca.ros.nodemain import start_process
 from ads_rca.ros.runid import checked_run_id, document_run, subscribe_ready, writer_prefix
 
@@ -205,7 +205,7 @@ class Recorder(Node):
         self.started = time.monotonic()
         for key, name in self.names.items():
             if not self.explicit or name in self.explicit:
-                self._subscribe(name, rosmsg.type_name(topics.MESSAGE_TYPES[key]))
+                self._subscribe(name, rosmsg.type_name(topics.message_types()[key]))
         if self.discover or self.explicit - set(self.subs):
             self._discover()
             self.create_timer(0.5, self._discover)

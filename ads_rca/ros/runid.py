@@ -134,7 +134,8 @@ def subscribe_ready(node: Any, namespace: str, run_id: str) -> None:
         return
     from std_msgs.msg import String
 
-    from ads_rca.ros import live_topics, topics
+    from ads_rca.contract import topics
+    from ads_rca.ros import live_topics
 
     name = topics.topic_name(live_topics.ready_key(run_id), namespace)
     node.create_subscription(String, name, _ignore, 1)

@@ -1,7 +1,7 @@
 """``topic_summary`` node: listens to every contract topic, counts, optionally rebuilds the log.
 
 The separate-process subscriber of the demo and the tests. It counts messages per topic,
-feeds them to the :class:`~ads_rca.ros.assembler.RunLogAssembler`, and stops when the player
+feeds them to the :class:`~ads_rca.contract.assembler.RunLogAssembler`, and stops when the player
 said "finished" and everything the frame markers announced has arrived (or at ``timeout_s``).
 With ``output_json`` it writes the rebuilt log as a running-log folder to ``output_dir``;
 ``summary_file`` receives the per-topic counts as JSON. Exit status: 0 complete, 1 timed out.
@@ -20,9 +20,9 @@ from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
-from ads_rca.ros import topics
-from ads_rca.ros.assembler import RunLogAssembler
-from ads_rca.ros.malformed import SkippedMessages
+from ads_rca.contract import topics
+from ads_rca.contract.assembler import RunLogAssembler
+from ads_rca.contract.malformed import SkippedMessages
 from ads_rca.ros.nodemain import make_executor, start_process
 from ads_rca.strictjson import to_strict
 
@@ -34,7 +34,7 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "timeout_s": (60.0, "Give up after this many seconds without completing (0 = never)."),
     "fast_decode": (
         True,
-        "Subscribe raw (CDR bytes) and decode with ads_rca.ros.cdr_decode instead of "
+        "Subscribe raw (CDR bytes) and decode with ads_rca.contract.cdr_decode instead of "
         "deserialising into rclpy message objects.",
     ),
 }
@@ -61,7 +61,7 @@ class TopicSummary(Node):
         self.fast_decode = bool(self.get_parameter("fast_decode").value)
         self.subs = [
             self.create_subscription(
-                topics.MESSAGE_TYPES[key],
+                topics.message_types()[key],
                 self.names[key],
                 self._callback(key),
                 topics.qos_profile(key, keep_all=True),
@@ -94,7 +94,7 @@ class TopicSummary(Node):
         a = self.assembler
         rows = {}
         for key in topics.ALL_TOPICS:
-            msg_type = topics.MESSAGE_TYPES[key]
+            msg_type = topics.message_types()[key]
             rows[self.names[key]] = {
                 "type": f"{msg_type.__module__.split('.')[0]}/{msg_type.__name__}",
                 "received": a.received[key],

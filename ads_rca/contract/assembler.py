@@ -10,22 +10,23 @@ is how a subscriber knows it may stop. No rclpy: the same code serves tests and 
 from __future__ import annotations
 
 from collections import Counter
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from std_msgs.msg import String
-
-from ads_rca.model import RunLog, RunMetadata
-from ads_rca.problems import Problem, ProblemLog
-from ads_rca.ros import topics
-from ads_rca.ros.cdr_decode import CdrError, NoStamp, decode_record, decode_string, stamp_ms
-from ads_rca.ros.convert import message_stamp_ms, message_to_record
-from ads_rca.ros.playback import (
+from ads_rca.contract import topics
+from ads_rca.contract.cdr_decode import CdrError, NoStamp, decode_record, decode_string, stamp_ms
+from ads_rca.contract.convert import message_stamp_ms, message_to_record
+from ads_rca.contract.playback import (
     FINISHED,
     INPUT_PROBLEMS_KEY,
     METADATA_DOCUMENT_KEY,
     read_document,
     read_input_problems,
 )
+from ads_rca.model import RunLog, RunMetadata
+from ads_rca.problems import Problem, ProblemLog
+
+if TYPE_CHECKING:
+    from std_msgs.msg import String
 
 _ADDED_METADATA_KEYS = ("source", "frames", "problems", INPUT_PROBLEMS_KEY)
 
@@ -94,10 +95,12 @@ class RunLogAssembler:
 
         Why: deserialising into rclpy objects costs as much as building them. Data messages
         are kept as bytes (only the stamp is read) and decoded straight into model records
-        by :mod:`ads_rca.ros.cdr_decode` in :meth:`build`; String topics are decoded now.
+        by :mod:`ads_rca.contract.cdr_decode` in :meth:`build`; String topics are decoded now.
         Objects and bytes can be mixed; for a stamp the first arrival wins either way.
         Raises CdrError for bytes that are not a message of the topic (nothing is kept).
         """
+        from std_msgs.msg import String
+
         if topic in (topics.METADATA, topics.FRAME, topics.STATUS):
             self.add(topic, String(data=decode_string(data)))
             return

@@ -1,7 +1,7 @@
 """Model records → CDR bytes of the contract's messages, without rclpy message objects.
 
 Why: building rclpy message objects costs ~19 µs per Marker and ~1 µs per Point, so
-:func:`ads_rca.ros.convert.frame_messages` plus serialisation takes 10-17 ms for a 50-actor
+:func:`ads_rca.contract.convert.frame_messages` plus serialisation takes 10-17 ms for a 50-actor
 frame. Here the same messages are written straight as XCDR1 little-endian bytes (the 4-byte
 encapsulation header ``00 01 00 00`` then the payload, alignment relative to the payload
 start, strings as uint32 length incl. NUL + bytes + NUL, no trailing padding), which
@@ -12,7 +12,7 @@ Padding bytes are zero, as Fast DDS sends them for message objects; ``serialize_
 leaves them uninitialised, so only non-padding bytes are comparable with it (see the tests).
 
 Pure: numpy, struct and the message-free helpers of convert.py; no rclpy import.
-Decoders live in :mod:`ads_rca.ros.cdr_decode`.
+Decoders live in :mod:`ads_rca.contract.cdr_decode`.
 """
 
 from __future__ import annotations
@@ -23,9 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from ads_rca.model import Actors, Boxes, EgoPose, Plan, Predictions, RunLog
-from ads_rca.ros import topics
-from ads_rca.ros.convert import (
+from ads_rca.contract import topics
+from ads_rca.contract.convert import (
     _COLORS,
     MARKER_NS,
     carla_rpy_to_quaternions,
@@ -33,7 +32,8 @@ from ads_rca.ros.convert import (
     marker_id,
     step_ms,
 )
-from ads_rca.ros.jsontext import dumps_json
+from ads_rca.contract.jsontext import dumps_json
+from ads_rca.model import Actors, Boxes, EgoPose, Plan, Predictions, RunLog
 
 #: Encapsulation header: representation CDR_LE (0x0001), options 0.
 ENCAPSULATION = b"\x00\x01\x00\x00"

@@ -14,19 +14,21 @@ from __future__ import annotations
 import math
 import zlib
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from builtin_interfaces.msg import Duration, Time
-from geometry_msgs.msg import Point, Pose, Quaternion, Transform, Twist, Vector3
-from nav_msgs.msg import Odometry
-from std_msgs.msg import ColorRGBA, Header
-from trajectory_msgs.msg import MultiDOFJointTrajectory, MultiDOFJointTrajectoryPoint
-from visualization_msgs.msg import Marker, MarkerArray
 
+from ads_rca.contract import topics
+from ads_rca.contract.jsontext import dumps_json, loads_json
 from ads_rca.model import Actors, Boxes, EgoPose, FloatArray, Plan, Predictions, RunLog, Track
-from ads_rca.ros import topics
-from ads_rca.ros.jsontext import dumps_json, loads_json
+
+if TYPE_CHECKING:
+    from builtin_interfaces.msg import Duration, Time
+    from geometry_msgs.msg import Point, Quaternion
+    from nav_msgs.msg import Odometry
+    from std_msgs.msg import ColorRGBA, Header
+    from trajectory_msgs.msg import MultiDOFJointTrajectory
+    from visualization_msgs.msg import Marker, MarkerArray
 
 INT32_MAX = 2**31 - 1
 _NS_PER_MS = 1_000_000
@@ -53,6 +55,8 @@ _COLORS = {
 
 def to_time(timestamp_ms: int) -> Time:
     """Log milliseconds → builtin_interfaces/Time (floor division keeps negatives exact)."""
+    from builtin_interfaces.msg import Time
+
     sec, ms = divmod(int(timestamp_ms), 1000)
     return Time(sec=sec, nanosec=ms * _NS_PER_MS)
 
@@ -63,6 +67,8 @@ def from_time(stamp: Time) -> int:
 
 
 def to_duration(ms: int) -> Duration:
+    from builtin_interfaces.msg import Duration
+
     sec, rest = divmod(int(ms), 1000)
     return Duration(sec=sec, nanosec=rest * _NS_PER_MS)
 
@@ -72,6 +78,8 @@ def from_duration(duration: Duration) -> int:
 
 
 def header(timestamp_ms: int, frame_id: str) -> Header:
+    from std_msgs.msg import Header
+
     return Header(stamp=to_time(timestamp_ms), frame_id=frame_id)
 
 
@@ -117,10 +125,14 @@ def quaternions_to_carla_rpy(quaternions: FloatArray) -> FloatArray:
 
 
 def _quaternion(q: Sequence[float]) -> Quaternion:
+    from geometry_msgs.msg import Quaternion
+
     return Quaternion(x=q[0], y=q[1], z=q[2], w=q[3])
 
 
 def _point(x: float, y: float, z: float) -> Point:
+    from geometry_msgs.msg import Point
+
     return Point(x=x, y=y, z=z)
 
 
@@ -129,6 +141,9 @@ def _point(x: float, y: float, z: float) -> Point:
 
 def pose_to_odometry(pose: EgoPose, timestamp_ms: int) -> Odometry:
     """Ego pose → nav_msgs/Odometry in ``map``, speed as body-frame linear x."""
+    from geometry_msgs.msg import Pose
+    from nav_msgs.msg import Odometry
+
     q = carla_rpy_to_quaternions(np.array([pose.roll, pose.pitch, pose.yaw]))[0].tolist()
     msg = Odometry(header=header(timestamp_ms, topics.WORLD_FRAME), child_frame_id=topics.EGO_FRAME)
     msg.pose.pose = Pose(position=_point(pose.x, -pose.y, pose.z), orientation=_quaternion(q))
@@ -158,16 +173,23 @@ def marker_id(actor_id: str) -> int:
 
 
 def _delete_all(timestamp_ms: int, frame_id: str, ns: str) -> Marker:
+    from visualization_msgs.msg import Marker
+
     return Marker(header=header(timestamp_ms, frame_id), ns=ns, action=Marker.DELETEALL)
 
 
 def _color(topic: str) -> ColorRGBA:
+    from std_msgs.msg import ColorRGBA
+
     r, g, b = _COLORS[topic]
     return ColorRGBA(r=r, g=g, b=b, a=1.0)
 
 
 def actors_to_markers(actors: Actors, timestamp_ms: int) -> MarkerArray:
     """Actors → DELETEALL + one CUBE per actor (file order), full size, pose in ``map``."""
+    from geometry_msgs.msg import Pose, Vector3
+    from visualization_msgs.msg import Marker, MarkerArray
+
     ns = MARKER_NS[topics.ACTORS]
     head = header(timestamp_ms, topics.WORLD_FRAME)
     color = _color(topics.ACTORS)
@@ -193,6 +215,8 @@ def actors_to_markers(actors: Actors, timestamp_ms: int) -> MarkerArray:
 
 
 def _added(msg: MarkerArray) -> list[Marker]:
+    from visualization_msgs.msg import Marker
+
     return [m for m in msg.markers if m.action != Marker.DELETEALL]
 
 
@@ -224,6 +248,8 @@ def boxes_to_markers(boxes: Boxes, timestamp_ms: int, topic: str) -> MarkerArray
     points[0] and points[2] are the two corners as written; ``text`` is JSON of the id and
     every extra key (label, score ...), in file order.
     """
+    from visualization_msgs.msg import MarkerArray
+
     ns = MARKER_NS[topic]
     head = header(timestamp_ms, topics.IMAGE_FRAME)
     color = _color(topic)
@@ -242,6 +268,9 @@ def _line_strip(
     head: Header, ns: str, index: int, width: float, color: Any, points: list[Point], text: str
 ) -> Marker:
     """An ADD LINE_STRIP marker (boxes and predictions are both drawn as these)."""
+    from geometry_msgs.msg import Pose, Quaternion, Vector3
+    from visualization_msgs.msg import Marker
+
     return Marker(
         header=head,
         ns=ns,
@@ -304,6 +333,8 @@ def predictions_to_markers(predictions: Predictions, timestamp_ms: int, topic: s
 
     ``text`` is JSON {"id", "keys"}: the obstacle id and its step keys as written.
     """
+    from visualization_msgs.msg import MarkerArray
+
     ns = MARKER_NS[topic]
     head = header(timestamp_ms, topics.EGO_FRAME)
     color = _color(topic)
@@ -354,6 +385,9 @@ def plan_to_trajectory(
 
     translation (x, −y, 0), identity rotation, linear.x = speed, time_from_start = key × tpf.
     """
+    from geometry_msgs.msg import Quaternion, Transform, Twist, Vector3
+    from trajectory_msgs.msg import MultiDOFJointTrajectory, MultiDOFJointTrajectoryPoint
+
     step = step_ms(timesteps_per_frame)
     xy, speed = plan.xy.tolist(), plan.speed.tolist()
     points = []
@@ -431,6 +465,8 @@ def message_to_record(topic: str, msg: Any, timesteps_per_frame: int) -> Any:
 
 def message_stamp_ms(msg: Any) -> int:
     """Log time of a data message: its header stamp (a MarkerArray's first marker's)."""
+    from visualization_msgs.msg import MarkerArray
+
     if isinstance(msg, MarkerArray):
         if not msg.markers:
             raise ValueError("empty MarkerArray carries no stamp")

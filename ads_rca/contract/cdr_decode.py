@@ -30,16 +30,16 @@ from typing import Any, ParamSpec, TypeVar
 
 import numpy as np
 
-from ads_rca.model import Actors, Boxes, EgoPose, Plan, Predictions, Track
-from ads_rca.ros import topics
-from ads_rca.ros.cdr import HEADER_SIZE, MESH_WHEN_EMPTY, MIDDLE_WHEN_EMPTY
-from ads_rca.ros.convert import (
+from ads_rca.contract import topics
+from ads_rca.contract.cdr import HEADER_SIZE, MESH_WHEN_EMPTY, MIDDLE_WHEN_EMPTY
+from ads_rca.contract.convert import (
     check_box_points,
     marker_document,
     quaternions_to_carla_rpy,
     step_ms,
     track_keys,
 )
+from ads_rca.model import Actors, Boxes, EgoPose, Plan, Predictions, Track
 
 _P = ParamSpec("_P")
 _R = TypeVar("_R")

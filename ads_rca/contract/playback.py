@@ -10,17 +10,18 @@ those too is what makes the topic stream carry the whole log, losslessly.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from rosgraph_msgs.msg import Clock
-from std_msgs.msg import String
-
+from ads_rca.contract import topics
+from ads_rca.contract.convert import carried_plan_rows, to_time
+from ads_rca.contract.jsontext import dumps_json, loads_json
 from ads_rca.model import FOLDERS, RunLog
 from ads_rca.problems import Problem, problems_from_list
-from ads_rca.ros import topics
-from ads_rca.ros.convert import carried_plan_rows, to_time
-from ads_rca.ros.jsontext import dumps_json, loads_json
 from ads_rca.verdict import frame_number
+
+if TYPE_CHECKING:
+    from rosgraph_msgs.msg import Clock
+    from std_msgs.msg import String
 
 #: Key in the metadata message holding the exact ``metadata.json`` document.
 METADATA_DOCUMENT_KEY = "metadata_json"
@@ -80,6 +81,8 @@ def frame_marker(
     tick: Tick, published: list[str], timesteps_per_frame: int, **extra: Any
 ) -> String:
     """The ``run/frame`` message sent after a tick's data: what was published for it."""
+    from std_msgs.msg import String
+
     tpf = timesteps_per_frame
     frame = frame_number(tick.stamp_ms, tpf) if tpf > 0 else None
     document = {
@@ -108,6 +111,8 @@ def metadata_message(log: RunLog, **extra: Any) -> String:
     judged) and ``metadata_json`` (the exact document, so a key of the document called
     ``source`` or ``frames`` is not lost).
     """
+    from std_msgs.msg import String
+
     document = log.metadata.to_dict()
     out: dict[str, Any] = dict(document)
     out.update(
@@ -128,10 +133,14 @@ def read_input_problems(document: dict[str, Any]) -> list[Problem]:
 
 def status_message(state: str, frames_published: int, **extra: Any) -> String:
     """``player/status``: ``frames_published`` counts the ``run/frame`` markers sent."""
+    from std_msgs.msg import String
+
     return String(data=dumps_json({"state": state, "frames_published": frames_published, **extra}))
 
 
 def clock_message(timestamp_ms: int) -> Clock:
+    from rosgraph_msgs.msg import Clock
+
     return Clock(clock=to_time(timestamp_ms))
 
 

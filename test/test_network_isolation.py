@@ -376,3 +376,22 @@ def _non_loopback_ipv4_addresses() -> list[str]:
                     found.add(address)
             previous = line
     return sorted(found)
+
+
+@pytest.mark.parametrize("value", ["", "0", "yes", "true", " 1", "1 ", "01", "1\n"])
+def test_only_exactly_1_opts_in_to_external_discovery(value: str, tmp_path: Path) -> None:
+    """``ADS_RCA_ALLOW_EXTERNAL_DISCOVERY`` with anything but ``1`` keeps the rule: the
+    variables that redirect discovery are cleared and our loopback profile is used."""
+    from ads_rca.ros.env import ALLOW_EXTERNAL_VARIABLE, ros_environment
+
+    base = {
+        ALLOW_EXTERNAL_VARIABLE: value,
+        "ROS_DISCOVERY_SERVER": "192.0.2.1:11811",
+        "ROS_STATIC_PEERS": "192.0.2.2",
+        "FASTDDS_DEFAULT_PROFILES_FILE": str(tmp_path / "theirs.xml"),
+        "PATH": os.environ.get("PATH", ""),
+    }
+    env = ros_environment(domain_id=5, log_dir=tmp_path, base=base)
+    assert "ROS_DISCOVERY_SERVER" not in env and "ROS_STATIC_PEERS" not in env
+    assert env["FASTDDS_DEFAULT_PROFILES_FILE"] != str(tmp_path / "theirs.xml")
+    assert ALLOW_EXTERNAL_VARIABLE not in env

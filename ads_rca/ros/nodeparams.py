@@ -11,11 +11,13 @@ from __future__ import annotations
 from dataclasses import asdict, fields
 from typing import Any
 
-from rcl_interfaces.msg import ParameterDescriptor
+from rcl_interfaces.msg import ParameterDescriptor, ParameterType
+from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 
 from ads_rca.errors import InputError
 from ads_rca.params import DEFAULT_SEMANTICS, SEMANTICS, Params, make_params
+from ads_rca.text import printable
 
 ENGINE_NAMES: tuple[str, ...] = tuple(f.name for f in fields(Params) if f.name != "semantics")
 
@@ -25,12 +27,14 @@ def declare_engine_parameters(node: Node) -> Params:
 
     Raises InputError for an unknown mode or a value that is not a number.
     """
-    node.declare_parameter(
-        "semantics",
-        DEFAULT_SEMANTICS,
-        ParameterDescriptor(description=f"Oracle semantics: {' or '.join(SEMANTICS)}."),
+    semantics = str(
+        _declare(
+            node,
+            "semantics",
+            DEFAULT_SEMANTICS,
+            ParameterDescriptor(description=f"Oracle semantics: {' or '.join(SEMANTICS)}."),
+        )
     )
-    semantics = str(node.get_parameter("semantics").value)
     if semantics not in SEMANTICS:
         raise InputError(f"semantics must be one of {', '.join(SEMANTICS)}, not {semantics!r}")
     defaults = asdict(make_params(semantics))
@@ -39,25 +43,45 @@ def declare_engine_parameters(node: Node) -> Params:
         descriptor = ParameterDescriptor(
             description="Engine threshold (see ads_rca/params.py).", dynamic_typing=True
         )
-        node.declare_parameter(name, defaults[name], descriptor)
-        values[name] = node.get_parameter(name).value
+        values[name] = _declare(node, name, defaults[name], descriptor)
     return make_params(semantics, values)
 
 
 def declare_node_parameters(node: Node, table: dict[str, tuple[Any, str]]) -> dict[str, Any]:
     """Declare the node's own parameters (name → (default, description)); their values.
 
-    Doubles are dynamically typed so that ``-p timeout:=5`` (an integer) is accepted.
+    Doubles are dynamically typed so that ``-p timeout:=5`` (an integer) is accepted; a list
+    default is a string array. A value of the wrong type (``-p start_frame:=abc``) or a
+    double that is no number raises InputError naming the parameter (one line, exit 2),
+    never rclpy's traceback.
     """
     out: dict[str, Any] = {}
     for name, (default, description) in table.items():
         descriptor = ParameterDescriptor(
             description=description, dynamic_typing=isinstance(default, float)
         )
-        node.declare_parameter(name, default, descriptor)
-        value = node.get_parameter(name).value
-        out[name] = float(value) if isinstance(default, float) else value
+        if isinstance(default, list):
+            descriptor.type = ParameterType.PARAMETER_STRING_ARRAY
+        value = _declare(node, name, default, descriptor)
+        out[name] = _number(name, value) if isinstance(default, float) else value
     return out
+
+
+def _declare(node: Node, name: str, default: Any, descriptor: ParameterDescriptor) -> Any:
+    try:
+        node.declare_parameter(name, default, descriptor)
+    except ParameterException as error:
+        raise InputError(printable(f"parameter {name}: {error}")) from None
+    return node.get_parameter(name).value
+
+
+def _number(name: str, value: Any) -> float:
+    if isinstance(value, bool):
+        raise InputError(f"parameter {name}: {value!r} is not a number")
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise InputError(printable(f"parameter {name}: {value!r} is not a number")) from None
 
 
 def engine_values(params: Params) -> dict[str, bool | int | float | str]:

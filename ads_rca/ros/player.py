@@ -16,7 +16,6 @@ from pathlib import Path
 from typing import Any
 
 import rclpy
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
 from rclpy.logging import get_logger
@@ -45,10 +44,11 @@ from ads_rca.io.files import DEFAULT_MAX_FILE_MB
 from ads_rca.model import RunLog
 from ads_rca.ros import live_topics
 from ads_rca.ros.nodemain import make_executor, start_process
+from ads_rca.ros.nodeparams import declare_node_parameters
 from ads_rca.ros.runid import checked_run_id, new_run_id
 from ads_rca.text import printable
 
-#: Every parameter: (default, description). Doubles accept integers too (dynamic typing).
+#: Every parameter: (default, description); declared by ``nodeparams.declare_node_parameters``.
 PARAMETERS: dict[str, tuple[Any, str]] = {
     "log_path": ("", "Running-log folder or rosbag2 bag (dir, .mcap, .db3) to play (required)."),
     "bag_remap": ("", "Topic remapping YAML for a bag whose topic names differ ('' = none)."),
@@ -81,7 +81,6 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
         "~20x faster) instead of rclpy message objects.",
     ),
 }
-_DOUBLES = {"rate", "wait_timeout_s", "max_file_mb"}
 #: A tick may carry a few extra stamps; 40 frames stay far below the 100-message history.
 MAX_ACK_EVERY = 40
 
@@ -95,11 +94,7 @@ class Player(Node):
 
     def __init__(self) -> None:
         super().__init__("player")
-        for name, (default, description) in PARAMETERS.items():
-            descriptor = ParameterDescriptor(description=description)
-            if name in _DOUBLES:
-                descriptor.dynamic_typing = True
-            self.declare_parameter(name, default, descriptor)
+        self._values = declare_node_parameters(self, PARAMETERS)
         self.rate = float(self._param("rate"))
         self.start_frame = int(self._param("start_frame"))
         self.stop_frame = int(self._param("stop_frame"))
@@ -163,7 +158,7 @@ class Player(Node):
         self.get_logger().info(f"run {self.run_id}")
 
     def _param(self, name: str) -> Any:
-        return self.get_parameter(name).value
+        return self._values[name]
 
     def _load(self, log_path: str, remap: str = "") -> RunLog:
         from ads_rca.io import open_run

@@ -25,7 +25,6 @@ from types import FrameType
 from typing import Any
 
 import rclpy
-from rcl_interfaces.msg import ParameterDescriptor, ParameterType
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.logging import get_logger
 from rclpy.node import Node
@@ -43,6 +42,7 @@ from ads_rca.io.mcap_writer import COMPRESSIONS, DEFAULT_CHUNK_SIZE, McapBagWrit
 from ads_rca.ros import live_topics
 from ads_rca.ros.diagnostics import status_runs
 from ads_rca.ros.nodemain import start_process
+from ads_rca.ros.nodeparams import declare_node_parameters
 from ads_rca.ros.runid import checked_run_id, document_run, subscribe_ready, writer_prefix
 
 PARAMETERS: dict[str, tuple[Any, str]] = {
@@ -57,7 +57,6 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "max_duration_s": (0.0, "Stop after this many seconds (0 = never)."),
     "run_id": ("", "Record only this run ('' = everything); see ads_rca.ros.runid."),
 }
-_DOUBLES = {"flush_period_s", "max_duration_s"}
 _IGNORED = {"/rosout", "/parameter_events"}
 _STRING_TOPICS = {topics.METADATA, topics.FRAME, topics.STATUS}
 _STRING_TYPE = "std_msgs/msg/String"
@@ -169,13 +168,7 @@ class Recorder(Node):
 
     def __init__(self) -> None:
         super().__init__("recorder")
-        for name, (default, description) in PARAMETERS.items():
-            descriptor = ParameterDescriptor(description=description)
-            if name in _DOUBLES:
-                descriptor.dynamic_typing = True
-            if name == "topics":
-                descriptor.type = ParameterType.PARAMETER_STRING_ARRAY
-            self.declare_parameter(name, default, descriptor)
+        self._values = declare_node_parameters(self, PARAMETERS)
         output = str(self._param("output"))
         if not output:
             raise ConfigError("parameter output is required (a bag directory to create)")
@@ -215,7 +208,7 @@ class Recorder(Node):
         self.get_logger().info(f"recording {len(self.subs)} topics to {out}")
 
     def _param(self, name: str) -> Any:
-        return self.get_parameter(name).value
+        return self._values[name]
 
     # --- topics -------------------------------------------------------------------------
 

@@ -16,14 +16,16 @@ from typing import Any
 
 import orjson
 import rclpy
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.executors import ExternalShutdownException
+from rclpy.logging import get_logger
 from rclpy.node import Node
 
 from ads_rca.contract import topics
 from ads_rca.contract.assembler import RunLogAssembler
 from ads_rca.contract.malformed import SkippedMessages
+from ads_rca.errors import InputError
 from ads_rca.ros.nodemain import make_executor, start_process
+from ads_rca.ros.nodeparams import declare_node_parameters
 from ads_rca.strictjson import to_strict
 
 PARAMETERS: dict[str, tuple[Any, str]] = {
@@ -38,7 +40,6 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
         "deserialising into rclpy message objects.",
     ),
 }
-_DOUBLES = {"timeout_s"}
 
 
 class TopicSummary(Node):
@@ -46,13 +47,9 @@ class TopicSummary(Node):
 
     def __init__(self) -> None:
         super().__init__("topic_summary")
-        for name, (default, description) in PARAMETERS.items():
-            descriptor = ParameterDescriptor(
-                description=description, dynamic_typing=name in _DOUBLES
-            )
-            self.declare_parameter(name, default, descriptor)
-        namespace = str(self.get_parameter("topic_namespace").value)
-        self.timeout = float(self.get_parameter("timeout_s").value)
+        values = declare_node_parameters(self, PARAMETERS)
+        namespace = str(values["topic_namespace"])
+        self.timeout = float(values["timeout_s"])
         self.assembler = RunLogAssembler()
         self.skipped = SkippedMessages()
         self.first_arrival: float | None = None
@@ -151,7 +148,11 @@ def main(args: list[str] | None = None) -> int:
     node: TopicSummary | None = None
     code = 0
     try:
-        node = TopicSummary()
+        try:
+            node = TopicSummary()
+        except InputError as error:
+            get_logger("topic_summary").error(str(error))
+            return 2
         executor = make_executor()
         executor.add_node(node)
         deadline = time.monotonic() + node.timeout if node.timeout > 0 else float("inf")

@@ -12,7 +12,7 @@ import itertools
 import os
 import sys
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -59,3 +59,23 @@ def ros_env(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[RosEnv]
     yield RosEnv(domain_id, log_dir, namespace, env)
     # Nodes a test killed leave their shared memory behind; see shmclean.
     remove_zombie_segments()
+
+
+_LOG_DIRS: dict[tuple[str, str], Path] = {}
+
+
+@pytest.fixture(scope="module")
+def log_dirs(tmp_path_factory: pytest.TempPathFactory) -> Callable[[str, str], Path]:
+    """Synthesised log folders by (scenario, fault), written once per session."""
+    from test_live_window import synth
+
+    from ads_rca.io.json_writer import write_run_log
+
+    def get(scenario: str, fault: str) -> Path:
+        key = (scenario, fault)
+        if key not in _LOG_DIRS:
+            folder = tmp_path_factory.mktemp(f"{scenario}_{fault}")
+            _LOG_DIRS[key] = write_run_log(synth(scenario, fault), folder / "log")
+        return _LOG_DIRS[key]
+
+    return get

@@ -15,23 +15,21 @@ import contextlib
 import json
 import sys
 import time
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import pytest
+from rosrun import wait_for
 from test_live_window import (
     CASES,
     assert_close,
     failed_flags,
-    synth,
     verdict_keys,
     write_log_with_unreadable_values,
 )
 
 from ads_rca.engine import diagnose
 from ads_rca.io.json_log import read_run_log
-from ads_rca.io.json_writer import write_run_log
 from ads_rca.oracles.base import MODULES
 from ads_rca.params import make_params
 from ads_rca.ros.graph import MONITORS_SEPARATE, Graph, GraphSpec
@@ -41,29 +39,6 @@ pytestmark = pytest.mark.timeout(180)
 
 PROBE = Path(__file__).parent / "diag_probe.py"
 STALE = 3
-_DIRS: dict[tuple[str, str], Path] = {}
-
-
-@pytest.fixture(scope="module")
-def log_dirs(tmp_path_factory: pytest.TempPathFactory) -> Callable[[str, str], Path]:
-    def get(scenario: str, fault: str) -> Path:
-        key = (scenario, fault)
-        if key not in _DIRS:
-            folder = tmp_path_factory.mktemp(f"{scenario}_{fault}")
-            _DIRS[key] = write_run_log(synth(scenario, fault), folder / "log")
-        return _DIRS[key]
-
-    return get
-
-
-def wait_for(condition: Callable[[], Any], timeout: float, what: str) -> Any:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        found = condition()
-        if found:
-            return found
-        time.sleep(0.05)
-    raise AssertionError(f"timed out after {timeout} s waiting for {what}")
 
 
 def jsonl(path: Path) -> list[dict[str, Any]]:

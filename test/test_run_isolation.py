@@ -18,12 +18,11 @@ import json
 import os
 import signal
 import sys
-import time
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import pytest
+from rosrun import wait_for
 from test_live_window import assert_close, failed_flags, synth, verdict_keys
 
 from ads_rca.contract import topics
@@ -40,29 +39,6 @@ from ads_rca.ros.runid import RunFilter, writer_prefix
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "cut_in_perception"
 pytestmark = pytest.mark.timeout(240)
-
-_LOGS: dict[tuple[str, str], Path] = {}
-
-
-@pytest.fixture(scope="module")
-def log_dirs(tmp_path_factory: pytest.TempPathFactory) -> Callable[[str, str], Path]:
-    def get(scenario: str, fault: str) -> Path:
-        if (scenario, fault) not in _LOGS:
-            folder = tmp_path_factory.mktemp(f"{scenario}_{fault}")
-            _LOGS[scenario, fault] = write_run_log(synth(scenario, fault), folder / "log")
-        return _LOGS[scenario, fault]
-
-    return get
-
-
-def wait_for(condition: Callable[[], Any], timeout: float, what: str) -> Any:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        found = condition()
-        if found:
-            return found
-        time.sleep(0.1)
-    raise AssertionError(f"timed out after {timeout} s waiting for {what}")
 
 
 def ours_on_domain(domain_id: int) -> list[int]:

@@ -60,7 +60,8 @@ def make_logs(folder: Path) -> list[str]:
 
 
 def outputs() -> dict[str, dict[str, object]]:
-    """``{"<log>/<semantics>": {"sha256": ..., "json": parsed}}`` of diagnose --json, every log and mode."""
+    """``{"<log>/<semantics>": {"sha256": ..., "json": parsed}}`` of diagnose --json,
+    for every log and mode."""
     env = {**os.environ, "PYTHONHASHSEED": "0"}
     out: dict[str, dict[str, object]] = {}
     with tempfile.TemporaryDirectory(prefix="golden_") as scratch:
@@ -92,7 +93,8 @@ def stored() -> dict[str, dict[str, object]]:
 
 
 def first_difference(old: object, new: object, where: str = "") -> str | None:
-    """The JSON Pointer of the first place ``new`` differs from ``old`` (floats to REL_TOL), or None."""
+    """The JSON Pointer of the first place ``new`` differs from ``old`` (floats to REL_TOL),
+    or None."""
     if isinstance(old, float) and isinstance(new, float):
         close = math.isclose(old, new, rel_tol=REL_TOL, abs_tol=ABS_TOL)
         return None if close else f"{where}: {old!r} -> {new!r}"

@@ -23,14 +23,16 @@ def test_diagnose_json_is_the_recorded_output() -> None:
         where = first_difference(recorded[key]["json"], now[key]["json"])
         if where is not None:
             changed.append(f"{key} at {where}")
-    assert not changed, f"diagnose --json changed (floats to {REL_TOL:g}) for: " + "; ".join(changed)
+    message = f"diagnose --json changed (floats to {REL_TOL:g}) for: "
+    assert not changed, message + "; ".join(changed)
 
 
 def test_the_comparison_sees_a_changed_verdict_and_forgives_a_last_bit() -> None:
     old = {"verdict": "perception", "frames": [{"c_gt": 0.1 + 0.2, "ids": ["7"]}]}
     last_bit = {"verdict": "perception", "frames": [{"c_gt": 0.3, "ids": ["7"]}]}
     assert first_difference(old, last_bit) is None
-    assert first_difference(old, {**old, "verdict": "planning"}) == "/verdict: 'perception' -> 'planning'"
+    planning = {**old, "verdict": "planning"}
+    assert first_difference(old, planning) == "/verdict: 'perception' -> 'planning'"
     moved = {"verdict": "perception", "frames": [{"c_gt": 0.3001, "ids": ["7"]}]}
     assert first_difference(old, moved) == "/frames/0/c_gt: 0.30000000000000004 -> 0.3001"
     assert first_difference(old, {**old, "frames": []}) == "/frames: 1 items -> 0"

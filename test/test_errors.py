@@ -156,8 +156,9 @@ def test_the_bag_writer_refuses_a_used_folder_and_an_unknown_compression(tmp_pat
         McapBagWriter(tmp_path / "used")
     assert isinstance(caught.value, InputError)
     assert isinstance(caught.value, FileExistsError)  # as before it was typed
-    with pytest.raises(ConfigError, match=r"^compression must be one of \['lz4', 'none', 'zstd'\]$"):
+    with pytest.raises(ConfigError) as config:
         McapBagWriter(tmp_path / "new", compression="bzip")
+    assert str(config.value) == "compression must be one of ['lz4', 'none', 'zstd']"
 
 
 def test_message_reading_nodes_catch_only_typed_errors() -> None:

@@ -143,8 +143,8 @@ class RunLogAssembler:
         try:
             for key in document.get("published", ()):
                 self.expected[str(key)] += 1
-        except TypeError as error:  # "published" is not a list
-            raise MalformedMessage(str(error)) from None
+        except TypeError as error:  # "published" is a number
+            raise MalformedMessage(str(error)) from error
         index = document.get("index")
         key = int(index) if isinstance(index, int) else -self.markers_received
         self.markers.setdefault(key, document)

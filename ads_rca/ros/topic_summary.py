@@ -80,7 +80,7 @@ class TopicSummary(Node):
             self.last_arrival = now
             try:
                 add(key, msg)
-            except MalformedMessage as error:  # CdrError, JsonTextError, a marker's list
+            except MalformedMessage as error:  # CdrError, JsonTextError, a bad frame marker
                 line = self.skipped.note(self.names[key], error, now)
                 if line is not None:
                     self.get_logger().warning(line)

@@ -1,8 +1,8 @@
 """The ``ads-rca`` command line: one subcommand per module in :mod:`ads_rca.commands`.
 
 Every subcommand is a thin shell over the same core the ROS nodes use. Bad input never
-produces a traceback: :class:`~ads_rca.errors.InputError` becomes one line on stderr and
-exit status 2.
+produces a traceback: an :class:`~ads_rca.errors.AdsRcaError` (a log, a path or a parameter
+that cannot be used) becomes one line on stderr and exit status 2.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from collections.abc import Sequence
 
 from ads_rca import __version__
 from ads_rca.commands import COMMANDS
-from ads_rca.errors import InputError
+from ads_rca.errors import AdsRcaError
 from ads_rca.text import printable
 
 
@@ -32,7 +32,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return int(args.run(args))
-    except InputError as error:
+    except AdsRcaError as error:
         print(printable(f"ads-rca {args.command}: error: {error}"), file=sys.stderr)
         return 2
     except KeyboardInterrupt:

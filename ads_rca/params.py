@@ -13,7 +13,7 @@ from typing import Any, Literal
 
 import yaml
 
-from ads_rca.errors import InputError
+from ads_rca.errors import ConfigError
 
 Semantics = Literal["reference", "corrected"]
 SEMANTICS: tuple[Semantics, ...] = ("reference", "corrected")
@@ -68,7 +68,7 @@ def make_params(
 ) -> Params:
     """The mode's defaults with ``overrides`` applied (names checked, values converted)."""
     if semantics not in SEMANTICS:
-        raise InputError(f"semantics must be one of {', '.join(SEMANTICS)}, not {semantics!r}")
+        raise ConfigError(f"semantics must be one of {', '.join(SEMANTICS)}, not {semantics!r}")
     mode: Semantics = "reference" if semantics == "reference" else "corrected"
     base = Params(semantics=mode)
     if mode == "reference":
@@ -84,7 +84,7 @@ def parse_assignments(items: list[str]) -> dict[str, str]:
     for item in items:
         name, sep, value = item.replace(":=", "=", 1).partition("=")
         if not sep or not name.strip():
-            raise InputError(f"-p expects name=value, got {item!r}")
+            raise ConfigError(f"-p expects name=value, got {item!r}")
         out[name.strip()] = value.strip()
     return out
 
@@ -95,13 +95,13 @@ def load_config(path: str | Path) -> dict[str, Any]:
     try:
         document = yaml.safe_load(file.read_text())
     except OSError as error:
-        raise InputError(f"{file}: cannot read config ({error.strerror})") from None
+        raise ConfigError(f"{file}: cannot read config ({error.strerror})") from None
     except yaml.YAMLError as error:
-        raise InputError(f"{file}: invalid YAML ({str(error).splitlines()[0]})") from None
+        raise ConfigError(f"{file}: invalid YAML ({str(error).splitlines()[0]})") from None
     if document is None:
         return {}
     if not isinstance(document, dict):
-        raise InputError(f"{file}: expected a mapping of parameter names to values")
+        raise ConfigError(f"{file}: expected a mapping of parameter names to values")
     merged: dict[str, Any] = {}
     ros_sections = [v for v in document.values() if isinstance(v, dict) and "ros__parameters" in v]
     if ros_sections:
@@ -119,16 +119,16 @@ def engine_overrides(values: Mapping[str, Any]) -> dict[str, Any]:
 def _convert(name: str, value: Any) -> Any:
     if name not in _FIELD_TYPES:
         known = ", ".join(sorted(_FIELD_TYPES))
-        raise InputError(f"unknown parameter {name!r} (known: {known})")
+        raise ConfigError(f"unknown parameter {name!r} (known: {known})")
     if name == "semantics":
         return value
     kind = _FIELD_TYPES[name]
     try:
         number = float(value)
     except (TypeError, ValueError):
-        raise InputError(f"parameter {name}: {value!r} is not a number") from None
+        raise ConfigError(f"parameter {name}: {value!r} is not a number") from None
     if kind == "int":
         if not number.is_integer():
-            raise InputError(f"parameter {name}: {value!r} is not an integer")
+            raise ConfigError(f"parameter {name}: {value!r} is not an integer")
         return int(number)
     return number

@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from ads_rca.errors import InputError
+from ads_rca.errors import ConfigError
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB
 from ads_rca.params import load_config, parse_assignments
 
@@ -39,4 +39,4 @@ def max_file_mb_from_args(args: argparse.Namespace) -> float:
     try:
         return float(value)
     except (TypeError, ValueError):
-        raise InputError(f"parameter max_file_mb: {value!r} is not a number") from None
+        raise ConfigError(f"parameter max_file_mb: {value!r} is not a number") from None

@@ -32,7 +32,7 @@ from ads_rca.commands.playback_args import (
     check_playback_arguments,
     choose_domain_id,
 )
-from ads_rca.errors import InputError
+from ads_rca.errors import AdsRcaError, InputError
 from ads_rca.params import Params
 from ads_rca.ros.env import discovery_note, ros_environment
 from ads_rca.ros.launcher import ParamValue
@@ -154,8 +154,9 @@ def start_reaper(work: Path) -> subprocess.Popen[bytes] | None:
         return None
 
 
-class Interrupted(Exception):
-    """A stop signal (SIGINT, SIGTERM, SIGHUP) arrived: stop the graph and exit."""
+class Interrupted(AdsRcaError):
+    """A stop signal (SIGINT, SIGTERM, SIGHUP) arrived: stop the graph and exit (caught by
+    ``replay`` itself, which says which signal and exits 128 + its number)."""
 
     def __init__(self, signum: int) -> None:
         super().__init__(signal.Signals(signum).name)

@@ -13,8 +13,15 @@ from collections import Counter
 from typing import TYPE_CHECKING, Any
 
 from ads_rca.contract import topics
-from ads_rca.contract.cdr_decode import CdrError, NoStamp, decode_record, decode_string, stamp_ms
+from ads_rca.contract.cdr_decode import decode_record, decode_string, stamp_ms
 from ads_rca.contract.convert import message_stamp_ms, message_to_record
+from ads_rca.contract.errors import (
+    DOCUMENT_ERRORS,
+    CdrError,
+    IncompleteRun,
+    MalformedMessage,
+    NoStamp,
+)
 from ads_rca.contract.playback import (
     FINISHED,
     INPUT_PROBLEMS_KEY,
@@ -46,12 +53,15 @@ def metadata_from_document(document: dict[str, Any]) -> RunMetadata:
 
 def run_metadata(document: dict[str, Any]) -> RunMetadata:
     """The RunMetadata a ``run/metadata`` message describes: from the exact metadata.json
-    document it carries, else from its top-level keys. ValueError when unusable."""
+    document it carries, else from its top-level keys. MalformedMessage when unusable.
+
+    The document is anyone's: whatever reading it raises (a key missing, a list where a
+    number belongs, ``Infinity`` for an integer) is what "unusable" means here."""
     exact = document.get(METADATA_DOCUMENT_KEY)
     try:
         return metadata_from_document(exact if isinstance(exact, dict) else document)
-    except (KeyError, TypeError, ValueError) as error:
-        raise ValueError(f"unusable run/metadata: {error!r}") from error
+    except DOCUMENT_ERRORS as error:
+        raise MalformedMessage(f"unusable run/metadata: {error!r}") from error
 
 
 class RunLogAssembler:
@@ -75,7 +85,9 @@ class RunLogAssembler:
     # --- collecting ---------------------------------------------------------------------
 
     def add(self, topic: str, msg: Any) -> None:
-        """Any contract message by topic key (``/clock`` is counted and otherwise ignored)."""
+        """Any contract message by topic key (``/clock`` is counted and otherwise ignored).
+
+        Raises MalformedMessage for a String message that cannot be read (nothing is kept)."""
         self.received[topic] += 1
         if topic == topics.METADATA:
             self._add_metadata(msg)
@@ -86,7 +98,7 @@ class RunLogAssembler:
         elif topic in self._data:
             try:
                 stamp = message_stamp_ms(msg)
-            except ValueError:  # a MarkerArray without markers carries no stamp
+            except NoStamp:  # a MarkerArray without markers carries no stamp
                 return
             self._data[topic].setdefault(stamp, msg)
 
@@ -97,7 +109,8 @@ class RunLogAssembler:
         are kept as bytes (only the stamp is read) and decoded straight into model records
         by :mod:`ads_rca.contract.cdr_decode` in :meth:`build`; String topics are decoded now.
         Objects and bytes can be mixed; for a stamp the first arrival wins either way.
-        Raises CdrError for bytes that are not a message of the topic (nothing is kept).
+        Raises MalformedMessage (CdrError for bytes that are not a message of the topic;
+        nothing is kept).
         """
         from std_msgs.msg import String
 
@@ -127,8 +140,11 @@ class RunLogAssembler:
     def _add_marker(self, msg: String) -> None:
         document = read_document(msg)
         self.markers_received += 1
-        for key in document.get("published", ()):
-            self.expected[str(key)] += 1
+        try:
+            for key in document.get("published", ()):
+                self.expected[str(key)] += 1
+        except TypeError as error:  # "published" is a number
+            raise MalformedMessage(str(error)) from error
         index = document.get("index")
         key = int(index) if isinstance(index, int) else -self.markers_received
         self.markers.setdefault(key, document)
@@ -161,16 +177,21 @@ class RunLogAssembler:
     # --- building -----------------------------------------------------------------------
 
     def build(self) -> RunLog:
-        """The RunLog carried so far (raises ValueError without metadata).
+        """The RunLog carried so far: IncompleteRun without metadata, MalformedMessage (its
+        text the reader's error, which is its cause) when the metadata document or a frame
+        marker describes none.
 
         Kept bytes that turn out not to be a message of their topic are left out and said
         as a problem of the log (message skipped)."""
         if self.metadata_document is None:
-            raise ValueError("no run/metadata message received")
-        metadata = metadata_from_document(self.metadata_document)
-        frames = tuple(
-            int(self.markers[i]["stamp_ms"]) for i in sorted(i for i in self.markers if i >= 0)
-        )
+            raise IncompleteRun("no run/metadata message received")
+        try:
+            metadata = metadata_from_document(self.metadata_document)
+            frames = tuple(
+                int(self.markers[i]["stamp_ms"]) for i in sorted(i for i in self.markers if i >= 0)
+            )
+        except DOCUMENT_ERRORS as error:
+            raise MalformedMessage(str(error)) from error
         log = RunLog(
             metadata=metadata,
             frames=frames,

@@ -12,11 +12,11 @@ little-endian representation (encapsulation ``00 01``) is read; that is what ROS
 every supported platform. Pure: no rclpy import.
 
 The bytes are untrusted: anyone on the domain can publish on the contract's topics. Every
-decoder either returns a record or raises :class:`CdrError` (a ValueError), never another
-exception, and never allocates for a count it has not checked against the bytes that
-remain (``count × smallest element ≤ remaining``): a sequence count of 2**32 - 1 is refused,
-not allocated. A MarkerArray without markers is not malformed: :func:`stamp_ms` raises
-:class:`NoStamp` for it.
+decoder either returns a record or raises :class:`~ads_rca.contract.errors.CdrError` (a
+MalformedMessage), never another exception, and never allocates for a count it has not
+checked against the bytes that remain (``count × smallest element ≤ remaining``): a sequence
+count of 2**32 - 1 is refused, not allocated. A MarkerArray without markers is not
+malformed: :func:`stamp_ms` raises :class:`~ads_rca.contract.errors.NoStamp` for it.
 """
 
 from __future__ import annotations
@@ -39,6 +39,7 @@ from ads_rca.contract.convert import (
     step_ms,
     track_keys,
 )
+from ads_rca.contract.errors import CdrError, MalformedMessage, NoStamp, UnknownTopic
 from ads_rca.model import Actors, Boxes, EgoPose, Plan, Predictions, Track
 
 _P = ParamSpec("_P")
@@ -53,6 +54,7 @@ _F64_7 = struct.Struct("<7d")
 _DELETEALL = 3
 #: Marker pose (7 float64), scale (3 float64), color (4 float32), lifetime, frame_locked.
 _FIXED_AFTER_POSE = 56 + 24 + 16 + 8 + 1
+_NOT_CDR = "not a little-endian CDR message (encapsulation 00 01)"
 #: Fewest bytes a Marker can take (every string and sequence empty, no alignment counted):
 #: stamp, frame_id, ns, id/type/action, pose..frame_locked, points, colors,
 #: texture_resource, texture (stamp, frame_id, format, data), uv, text, mesh_resource,
@@ -62,18 +64,16 @@ MIN_MARKER_BYTES = 8 + 4 + 4 + 12 + _FIXED_AFTER_POSE + 4 + 4 + 4 + 16 + 4 + 4 +
 MIN_TRAJECTORY_POINT_BYTES = 4 + 4 + 4 + 8
 
 
-class CdrError(ValueError):
-    """Bytes that are not a well-formed message of the expected type (cut, damaged, or a
-    count or length larger than the message): the message is skipped, never half-used."""
+class _Unnamed(CdrError):
+    """A CdrError whose text is only the reason: the decoder that meets it names itself
+    (``malformed odometry: ...``), as for the low-level errors below."""
 
 
-class NoStamp(ValueError):
-    """A MarkerArray without markers: well-formed, but it carries no stamp."""
-
-
-#: What reading past the end, a wrong UTF-8 string or a value no record can hold raises
-#: inside the decoders; :func:`_typed` turns each into a CdrError.
+#: What reading past the end, a wrong UTF-8 string, a marker text that is no record's or a
+#: value no record can hold raises inside the decoders; :func:`_typed` turns each into a
+#: CdrError naming the decoder.
 _LOW_LEVEL = (
+    MalformedMessage,
     struct.error,
     IndexError,
     KeyError,
@@ -92,11 +92,13 @@ def _typed(decoder: Callable[_P, _R]) -> Callable[_P, _R]:
     def checked(*args: _P.args, **kwargs: _P.kwargs) -> _R:
         try:
             return decoder(*args, **kwargs)
-        except (CdrError, NoStamp):
-            raise
+        except (CdrError, NoStamp) as error:
+            if not isinstance(error, _Unnamed):
+                raise
+            detail = str(error)
         except _LOW_LEVEL as error:
             detail = str(error) or type(error).__name__
-            raise CdrError(f"malformed {decoder.__name__[7:] or 'message'}: {detail}") from None
+        raise CdrError(f"malformed {decoder.__name__[7:] or 'message'}: {detail}") from None
 
     return checked
 
@@ -117,7 +119,7 @@ class CdrReader:
 
     def __init__(self, data: bytes) -> None:
         if len(data) < HEADER_SIZE or data[1] != 1:
-            raise ValueError("not a little-endian CDR message (encapsulation 00 01)")
+            raise _Unnamed(_NOT_CDR)
         self.data = memoryview(data)[HEADER_SIZE:]
         self.position = 0
 
@@ -240,7 +242,7 @@ def read_markers(data: bytes) -> MarkerFields:
     all markers at once with numpy at the offsets found.
     """
     if len(data) < HEADER_SIZE or data[1] != 1:
-        raise ValueError("not a little-endian CDR message (encapsulation 00 01)")
+        raise _Unnamed(_NOT_CDR)
     view = memoryview(data)[HEADER_SIZE:]
     u32 = _U32.unpack_from
     ita = _ITA.unpack_from
@@ -426,4 +428,4 @@ def decode_record(topic: str, data: bytes, timesteps_per_frame: int) -> Any:
         return decode_predictions(data)
     if topic == topics.TRAJECTORY:
         return decode_trajectory(data, timesteps_per_frame)
-    raise ValueError(f"not a data topic: {topic!r}")
+    raise UnknownTopic(f"not a data topic: {topic!r}")

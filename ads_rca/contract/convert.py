@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ads_rca.contract import topics
+from ads_rca.contract.errors import MalformedMessage, NoStamp, UnknownTopic
 from ads_rca.contract.jsontext import dumps_json, loads_json
 from ads_rca.model import Actors, Boxes, EgoPose, FloatArray, Plan, Predictions, RunLog, Track
 
@@ -286,18 +287,18 @@ def _line_strip(
 
 
 def marker_document(text: str) -> dict[str, Any]:
-    """The JSON object of a marker's ``text`` ({} when empty); ValueError (JsonTextError)
-    when it is not one: the marker's message cannot be used."""
+    """The JSON object of a marker's ``text`` ({} when empty); MalformedMessage (JsonTextError
+    for text that is no JSON) when it is not one: the marker's message cannot be used."""
     document = loads_json(text) if text else {}
     if not isinstance(document, dict):
-        raise ValueError(f"marker text is not a JSON object: {type(document).__name__}")
+        raise MalformedMessage(f"marker text is not a JSON object: {type(document).__name__}")
     return document
 
 
 def check_box_points(count: int) -> None:
     """A box marker carries its two corners as points 0 and 2."""
     if count < 3:
-        raise ValueError(f"a box marker has {count} points, its corners need 3")
+        raise MalformedMessage(f"a box marker has {count} points, its corners need 3")
 
 
 def track_keys(document: dict[str, Any], points: int) -> tuple[str, ...]:
@@ -306,7 +307,7 @@ def track_keys(document: dict[str, Any], points: int) -> tuple[str, ...]:
     if listed is None:
         return tuple(map(str, range(points)))
     if not isinstance(listed, list) or len(listed) != points:
-        raise ValueError(f"prediction marker keys do not match its {points} points")
+        raise MalformedMessage(f"prediction marker keys do not match its {points} points")
     return tuple(map(str, listed))
 
 
@@ -460,15 +461,16 @@ def message_to_record(topic: str, msg: Any, timesteps_per_frame: int) -> Any:
         return markers_to_predictions(msg)
     if topic == topics.TRAJECTORY:
         return trajectory_to_plan(msg, timesteps_per_frame)
-    raise ValueError(f"not a data topic: {topic!r}")
+    raise UnknownTopic(f"not a data topic: {topic!r}")
 
 
 def message_stamp_ms(msg: Any) -> int:
-    """Log time of a data message: its header stamp (a MarkerArray's first marker's)."""
+    """Log time of a data message: its header stamp (a MarkerArray's first marker's);
+    NoStamp for a MarkerArray without markers."""
     from visualization_msgs.msg import MarkerArray
 
     if isinstance(msg, MarkerArray):
         if not msg.markers:
-            raise ValueError("empty MarkerArray carries no stamp")
+            raise NoStamp("empty MarkerArray carries no stamp")
         return from_time(msg.markers[0].header.stamp)
     return from_time(msg.header.stamp)

@@ -8,9 +8,9 @@ fails, reading them gives floats); those documents go through the json module. T
 NaN/Infinity literals (bags recorded before the strict convention) are still read.
 
 Texts come from the wire (anyone on the domain can publish) or from a bag nobody checked, so
-:func:`loads_json` fails in one way only, :class:`JsonTextError` (a ValueError), for invalid
-JSON and for nesting deeper than the parsers read (orjson stops at 1024 levels; the json
-module would overflow Python's stack: RecursionError).
+:func:`loads_json` fails in one way only, :class:`~ads_rca.contract.errors.JsonTextError`
+(a MalformedMessage), for invalid JSON and for nesting deeper than the parsers read (orjson
+stops at 1024 levels; the json module would overflow Python's stack: RecursionError).
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ from typing import Any
 
 import orjson
 
+from ads_rca.contract.errors import JsonTextError
 from ads_rca.strictjson import NONFINITE_KEY, all_finite, from_strict, to_strict
 
 #: 19 digits in a row: maybe an integer orjson cannot hold (in a string too: then harmless).
@@ -37,10 +38,6 @@ def dumps_json(document: Any) -> str:
     if ("null" in text and not all_finite(document)) or _has_annotation_key(document):
         return orjson.dumps(to_strict(document)).decode()
     return text
-
-
-class JsonTextError(ValueError):
-    """A JSON text that cannot be read: invalid, or nested deeper than the parsers read."""
 
 
 def loads_json(text: str) -> Any:

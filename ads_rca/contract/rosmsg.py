@@ -23,6 +23,8 @@ from rosbags.interfaces import Nodetype
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
+from ads_rca.contract.errors import UnknownMessageType
+
 #: rosbags base type → numpy dtype of its arrays and sequences.
 _DTYPES: dict[str, str] = {
     "bool": "bool",
@@ -78,7 +80,8 @@ def _share_dirs() -> list[Path]:
 def ensure_type(name: str) -> str:
     """Make sure the store knows ``name`` and its dependencies; return the normalised name.
 
-    Raises KeyError when no installed package has a ``.msg`` file for it.
+    Raises UnknownMessageType (a KeyError) when no installed package has a ``.msg`` file
+    for it.
     """
     name = normalise_type(name)
     store = typestore()
@@ -97,7 +100,7 @@ def ensure_type(name: str) -> str:
                     pending.extend(_referenced(fields))
                 break
         else:
-            raise KeyError(f"unknown message type {current!r} (no .msg file installed)")
+            raise UnknownMessageType(f"unknown message type {current!r} (no .msg file installed)")
     return name
 
 

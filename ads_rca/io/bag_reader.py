@@ -35,6 +35,7 @@ from rosbags.serde import SerdeError
 from ads_rca.contract import rosmsg, topics
 from ads_rca.contract.assembler import RunLogAssembler
 from ads_rca.contract.convert import message_to_record
+from ads_rca.contract.errors import MalformedMessage
 from ads_rca.errors import InputError
 from ads_rca.io.bag_storage import (
     KEPT_BEFORE_CUT,
@@ -377,8 +378,9 @@ def read_bag(
         )
     try:
         log = assembler.build()
-    except (KeyError, TypeError, ValueError, ArithmeticError) as error:
-        raise InputError(f"{path}: cannot rebuild the log (run/metadata): {error!r}") from error
+    except MalformedMessage as error:
+        reason = error.__cause__ or error  # the reader's own error, as always said
+        raise InputError(f"{path}: cannot rebuild the log (run/metadata): {reason!r}") from error
     if not assembler.markers:  # no frame markers (a stack's bag): actors stamps are frames
         log = replace(log, frames=tuple(sorted(log.actors)))
     log.problems.extend(problems)

@@ -41,6 +41,7 @@ from pathlib import Path
 from typing import Any, BinaryIO
 
 from ads_rca.errors import InputError
+from ads_rca.io.errors import CorruptRecord
 from ads_rca.io.files import Unreadable, open_regular
 from ads_rca.problems import Problem, Severity
 
@@ -96,10 +97,6 @@ def read_storage(path: Path, expected_messages: int | None = None) -> StorageRea
 # --- MCAP ----------------------------------------------------------------------------------
 
 
-class _Corrupt(ValueError):
-    """A record that cannot be what its header says."""
-
-
 @dataclass(frozen=True)
 class _Stop:
     """Where and why an MCAP walk ended before the end magic."""
@@ -147,7 +144,7 @@ class _McapWalk:
             self.pos += _RECORD_HEAD + length
             try:
                 self._record(opcode, body, start)
-            except (_Corrupt, struct.error, UnicodeDecodeError, ValueError) as error:
+            except (CorruptRecord, struct.error, UnicodeDecodeError, ValueError) as error:
                 return _Stop(section, f"damaged record: {error}", damaged_at=start)
             if opcode == _DATA_END:
                 section = "summary"
@@ -172,7 +169,7 @@ class _McapWalk:
 
     def _message(self, body: bytes) -> None:
         if len(body) < _MESSAGE_HEAD:
-            raise _Corrupt("message record shorter than its header")
+            raise CorruptRecord("message record shorter than its header")
         channel_id, _seq, log_time, _pub = struct.unpack_from("<HIQQ", body)
         channel = self.channels.get(channel_id)
         if channel is None:
@@ -196,7 +193,7 @@ class _McapWalk:
         where = f"chunk at byte {offset}"
         try:
             data = _decompress(compression, records, size)
-        except _Corrupt as error:
+        except CorruptRecord as error:
             self.out.problem(where, f"cannot be decompressed: {error}", SKIPPED_MESSAGES)
             return
         if crc and zlib.crc32(data) != crc:
@@ -207,7 +204,7 @@ class _McapWalk:
             )
         try:
             self._inner(data, complete=True)
-        except (_Corrupt, struct.error, UnicodeDecodeError, ValueError) as error:
+        except (CorruptRecord, struct.error, UnicodeDecodeError, ValueError) as error:
             self.out.problem(where, f"damaged: {error}", "the rest of the chunk skipped")
 
     def _partial_chunk(self, body: bytes) -> None:
@@ -219,7 +216,7 @@ class _McapWalk:
         try:
             size, _crc, compression, records = _chunk_fields(body, complete=False)
             self._inner(_decompress(compression, records, size, complete=False), complete=False)
-        except (_Corrupt, struct.error, UnicodeDecodeError, ValueError):
+        except (CorruptRecord, struct.error, UnicodeDecodeError, ValueError):
             return
 
     def _inner(self, data: bytes, complete: bool) -> None:
@@ -228,13 +225,13 @@ class _McapWalk:
         while pos < len(data):
             if len(data) - pos < _RECORD_HEAD:
                 if complete:
-                    raise _Corrupt("a record header is cut")
+                    raise CorruptRecord("a record header is cut")
                 return
             opcode, length = struct.unpack_from("<BQ", data, pos)
             pos += _RECORD_HEAD
             if length > len(data) - pos:
                 if complete:
-                    raise _Corrupt(f"a record claims {length} bytes, {len(data) - pos} remain")
+                    raise CorruptRecord(f"a record claims {length} bytes, {len(data) - pos} remain")
                 return
             self._record(opcode, data[pos : pos + length], -1)
             pos += length
@@ -285,7 +282,7 @@ def _string(body: bytes, pos: int) -> tuple[str, int]:
     (length,) = struct.unpack_from("<I", body, pos)
     end = pos + 4 + length
     if end > len(body):
-        raise _Corrupt(f"a string claims {length} bytes, {len(body) - pos - 4} remain")
+        raise CorruptRecord(f"a string claims {length} bytes, {len(body) - pos - 4} remain")
     return body[pos + 4 : end].decode("utf-8"), end
 
 
@@ -294,14 +291,14 @@ def _chunk_fields(body: bytes, complete: bool) -> tuple[int, int, str, bytes]:
     _start, _end, size, crc, clen = struct.unpack_from("<QQQII", body)
     pos = _CHUNK_HEAD
     if pos + clen + 8 > len(body):
-        raise _Corrupt("chunk header is cut")
+        raise CorruptRecord("chunk header is cut")
     compression = body[pos : pos + clen].decode("utf-8")
     pos += clen
     (records_length,) = struct.unpack_from("<Q", body, pos)
     pos += 8
     records = body[pos : pos + records_length]
     if complete and len(records) != records_length:
-        raise _Corrupt(f"chunk data claims {records_length} bytes, {len(records)} remain")
+        raise CorruptRecord(f"chunk data claims {records_length} bytes, {len(records)} remain")
     return size, crc, compression, records
 
 
@@ -309,7 +306,7 @@ def _decompress(compression: str, data: bytes, size: int, complete: bool = True)
     """A chunk's records, never more than its declared (and capped) size; ``complete``
     False: the start of a cut chunk (whatever its first bytes decode to)."""
     if size > MAX_CHUNK_BYTES:
-        raise _Corrupt(f"declares {size} uncompressed bytes (limit {MAX_CHUNK_BYTES})")
+        raise CorruptRecord(f"declares {size} uncompressed bytes (limit {MAX_CHUNK_BYTES})")
     if compression == "":
         return data
     try:
@@ -323,13 +320,13 @@ def _decompress(compression: str, data: bytes, size: int, complete: bool = True)
 
             out = lz4.frame.LZ4FrameDecompressor().decompress(data, max_length=size + 1)
         else:
-            raise _Corrupt(f"unknown compression {compression!r}")
-    except (_Corrupt, MemoryError):
+            raise CorruptRecord(f"unknown compression {compression!r}")
+    except (CorruptRecord, MemoryError):
         raise
     except Exception as error:  # zstd/lz4 report damage with their own error types
-        raise _Corrupt(f"{compression}: {error}") from error
+        raise CorruptRecord(f"{compression}: {error}") from error
     if complete and len(out) != size:
-        raise _Corrupt(f"{compression} data holds {len(out)} bytes, the chunk declares {size}")
+        raise CorruptRecord(f"{compression} data holds {len(out)} bytes, the chunk declares {size}")
     return out
 
 

@@ -29,6 +29,7 @@ from ads_rca.contract.playback import (
     status_message,
     timeline,
 )
+from ads_rca.errors import ConfigError
 from ads_rca.io.mcap_writer import McapBagWriter, qos_dict, qos_yaml
 from ads_rca.model import RunLog
 
@@ -85,7 +86,7 @@ def open_bag_writer(
         return McapBagWriter(out_dir, **options)
     if storage == "sqlite3":
         return Sqlite3BagWriter(out_dir)
-    raise ValueError(f"storage must be one of {STORAGES}, got {storage!r}")
+    raise ConfigError(f"storage must be one of {STORAGES}, got {storage!r}")
 
 
 def contract_qos_yaml(key: str) -> str:

@@ -31,6 +31,7 @@ from typing import Any
 import orjson
 
 from ads_rca.errors import InputError
+from ads_rca.io.errors import InvalidJson
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB, Unreadable, max_bytes, read_regular
 from ads_rca.io.records import (
     parse_actors,
@@ -88,17 +89,19 @@ def is_log_file(file_name: str) -> bool:
 def decode_json(data: bytes) -> Any:
     """Strict JSON first (fast); Python's json for the NaN/Infinity literals it also accepts.
 
-    Raises ValueError for invalid JSON, nesting deeper than the parser reads included.
+    Raises InvalidJson for invalid JSON, nesting deeper than the parser reads included.
     """
     try:
         return orjson.loads(data)
     except orjson.JSONDecodeError as error:
         if "depth limit" in str(error):
-            raise ValueError("nested too deep: more than 1024 levels") from None
+            raise InvalidJson("nested too deep: more than 1024 levels") from None
     try:
         return json.loads(data)
     except RecursionError:
-        raise ValueError("nested too deep for the parser") from None
+        raise InvalidJson("nested too deep for the parser") from None
+    except ValueError as error:  # UnicodeDecodeError included
+        raise InvalidJson(str(error)) from None
 
 
 def kept_too_deep(folder: str, document: Any) -> bool:
@@ -247,7 +250,7 @@ def _decode(data: bytes | Unreadable, file: str, problems: ProblemLog, ts: int |
         return _UNUSABLE
     try:
         return decode_json(data)
-    except (ValueError, UnicodeDecodeError) as error:
+    except InvalidJson as error:
         detail = str(error).splitlines()[0]
         issue = f"invalid JSON ({detail})"
         problems.add(file, "", issue, SKIPPED_FILE, timestamp_ms=ts)

@@ -28,6 +28,8 @@ import yaml
 from mcap.writer import CompressionType, Writer
 
 from ads_rca.contract.rosmsg import message_definition, type_hash
+from ads_rca.errors import ConfigError
+from ads_rca.io.errors import OutputExists
 
 #: rosbag2 metadata version written (Jazzy/Kilted readers and rosbags read it).
 BAG_VERSION = 9
@@ -96,10 +98,10 @@ class McapBagWriter:
         fsync: bool = False,
     ) -> None:
         if compression not in COMPRESSIONS:
-            raise ValueError(f"compression must be one of {sorted(COMPRESSIONS)}")
+            raise ConfigError(f"compression must be one of {sorted(COMPRESSIONS)}")
         self.root = Path(out_dir)
         if self.root.exists() and any(self.root.iterdir()):
-            raise FileExistsError(f"{self.root} exists and is not empty")
+            raise OutputExists(f"{self.root} exists and is not empty")
         self.root.mkdir(parents=True, exist_ok=True)
         self.path = bag_file_name(self.root)
         self.chunk_size = max(1, int(chunk_size))

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from ads_rca.contract.errors import DOCUMENT_ERRORS, MalformedMessage
 from ads_rca.contract.topics import TOPIC_FOLDERS
 from ads_rca.oracles.base import MODULES, Module, OracleResult
 from ads_rca.problems import Problem, problems_from_list
@@ -33,15 +34,20 @@ class FrameMarker:
 
     @classmethod
     def from_document(cls, document: Mapping[str, Any]) -> FrameMarker:
-        index = document.get("index")
-        published = document.get("published") or ()
-        folders = frozenset(TOPIC_FOLDERS[str(k)] for k in published if str(k) in TOPIC_FOLDERS)
-        return cls(
-            index if isinstance(index, int) else None,
-            int(document.get("stamp_ms", 0)),
-            folders,
-            bool(document.get("duplicate", False)),
-        )
+        """The marker a ``run/frame`` document describes; MalformedMessage (its text the
+        reader's error, which is its cause) when it describes none."""
+        try:
+            index = document.get("index")
+            published = document.get("published") or ()
+            folders = frozenset(TOPIC_FOLDERS[str(k)] for k in published if str(k) in TOPIC_FOLDERS)
+            return cls(
+                index if isinstance(index, int) else None,
+                int(document.get("stamp_ms", 0)),
+                folders,
+                bool(document.get("duplicate", False)),
+            )
+        except DOCUMENT_ERRORS as error:
+            raise MalformedMessage(str(error)) from error
 
 
 @dataclass(frozen=True)
@@ -100,9 +106,18 @@ class LiveResult:
 
     @classmethod
     def from_document(cls, d: Mapping[str, Any]) -> LiveResult:
+        """The result a monitor's document describes; MalformedMessage (its text the
+        reader's error, which is its cause) when it describes none."""
+        try:
+            return cls._read(d)
+        except DOCUMENT_ERRORS as error:
+            raise MalformedMessage(str(error)) from error
+
+    @classmethod
+    def _read(cls, d: Mapping[str, Any]) -> LiveResult:
         module = str(d["module"])
         if module not in MODULES:
-            raise ValueError(f"unknown module {module!r}")
+            raise ValueError(f"unknown module {module!r}")  # made a MalformedMessage above
         result = OracleResult(
             module,
             int(d["stamp_ms"]),

@@ -26,6 +26,7 @@ from std_msgs.msg import String
 
 from ads_rca.contract import topics
 from ads_rca.contract.assembler import run_metadata
+from ads_rca.contract.errors import MalformedMessage
 from ads_rca.contract.jsontext import loads_json
 from ads_rca.contract.malformed import SkippedMessages
 from ads_rca.contract.playback import (
@@ -33,7 +34,7 @@ from ads_rca.contract.playback import (
     read_document,
     read_input_problems,
 )
-from ads_rca.errors import InputError
+from ads_rca.errors import AdsRcaError
 from ads_rca.live.aggregate import AggregatorCore, VerdictOutcome
 from ads_rca.live.results import FrameMarker, LiveResult
 from ads_rca.oracles.base import MODULES, Module
@@ -133,7 +134,7 @@ class Aggregator(Node):
             try:
                 document = read_document(msg)
                 marker = FrameMarker.from_document(document) if key == topics.FRAME else None
-            except (TypeError, ValueError, OverflowError) as error:  # JsonTextError included
+            except MalformedMessage as error:
                 self._skip(key, error, now)
                 return
             if not self.runs.accept(document):
@@ -147,7 +148,7 @@ class Aggregator(Node):
             else:
                 try:
                     metadata = run_metadata(document)
-                except ValueError as error:
+                except MalformedMessage as error:
                     self._skip(key, error, now)
                     return
                 self.core.set_metadata(
@@ -164,8 +165,9 @@ class Aggregator(Node):
         try:
             document = loads_json(msg.data)
             result = LiveResult.from_document(document)
-        except (KeyError, TypeError, ValueError) as error:
-            self._skip("metrics", f"unreadable monitor result: {error!r}", now)
+        except MalformedMessage as error:
+            reason = error.__cause__ or error  # the reader's own error, as always said
+            self._skip("metrics", f"unreadable monitor result: {reason!r}", now)
             return
         if not self.runs.accept(document):
             return  # a monitor judging another run
@@ -184,7 +186,7 @@ class Aggregator(Node):
     def _on_collision(self, msg: String) -> None:
         try:
             document = read_document(msg)
-        except ValueError as error:  # JsonTextError
+        except MalformedMessage as error:
             self._skip(live_topics.COLLISION, error, time.monotonic())
             return
         if document_run(document) is not None and not self.runs.accept(document):
@@ -270,7 +272,7 @@ class Aggregator(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    return run_node("aggregator", Aggregator, args, (InputError, OSError))
+    return run_node("aggregator", Aggregator, args, (AdsRcaError, OSError))
 
 
 if __name__ == "__main__":

@@ -22,6 +22,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
 from ads_rca.contract.cdr import CdrWriter
 from ads_rca.contract.cdr_decode import CdrReader
+from ads_rca.contract.errors import CdrError
 from ads_rca.contract.jsontext import dumps_json
 from ads_rca.live.results import LiveResult, plain
 from ads_rca.ros.runid import RUN_KEY
@@ -207,5 +208,5 @@ def status_runs(data: bytes) -> list[tuple[str, str]]:
                     reader.skip_string()
             out.append((name, run))
         return out
-    except (ValueError, IndexError, struct.error, UnicodeDecodeError):
+    except (CdrError, IndexError, struct.error, UnicodeDecodeError):
         return []

@@ -36,7 +36,8 @@ from std_msgs.msg import String
 from ads_rca.contract import topics
 from ads_rca.contract.assembler import run_metadata
 from ads_rca.contract.cdr import encode_string
-from ads_rca.contract.cdr_decode import CdrError, NoStamp, decode_record, stamp_ms
+from ads_rca.contract.cdr_decode import decode_record, stamp_ms
+from ads_rca.contract.errors import CdrError, MalformedMessage, NoStamp
 from ads_rca.contract.jsontext import dumps_json
 from ads_rca.contract.malformed import SkippedMessages
 from ads_rca.contract.playback import (
@@ -293,7 +294,7 @@ class MonitorInputs:
             if player:
                 try:
                     document = read_document(msg)
-                except ValueError as error:  # JsonTextError
+                except MalformedMessage as error:
                     self._skip(key, error, now)
                     return
                 if not self._ours(document, info):
@@ -303,7 +304,7 @@ class MonitorInputs:
                 elif key == topics.FRAME:
                     try:
                         marker = FrameMarker.from_document(document)
-                    except (TypeError, ValueError, OverflowError) as error:
+                    except MalformedMessage as error:
                         self._skip(key, error, now)
                         return
                     core.add_marker(marker, now)
@@ -331,7 +332,7 @@ class MonitorInputs:
     def _on_metadata(self, document: dict[str, Any], now: float) -> None:
         try:
             metadata = run_metadata(document)
-        except ValueError as error:
+        except MalformedMessage as error:
             self.node.get_logger().error(str(error))
             return
         self._metadata = metadata
@@ -362,7 +363,7 @@ class MonitorInputs:
     def _on_collision(self, msg: String) -> None:
         try:
             document = read_document(msg)
-        except ValueError as error:  # JsonTextError
+        except MalformedMessage as error:
             self._skip(live_topics.COLLISION, error, time.monotonic())
             return
         if document_run(document) is not None and not self.runs.accept(document):

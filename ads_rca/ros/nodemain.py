@@ -20,7 +20,7 @@ from rclpy.logging import get_logger
 from rclpy.node import Node
 from rclpy.subscription import RCLError
 
-from ads_rca.errors import InputError
+from ads_rca.errors import AdsRcaError
 from ads_rca.ros.env import domain_id_problem, node_warnings, use_node_profile
 from ads_rca.ros.lifeline import die_with_parent
 from ads_rca.text import printable
@@ -79,7 +79,7 @@ def run_node(
     name: str,
     build: Callable[[], Node | list[Node]],
     args: list[str] | None = None,
-    startup_errors: tuple[type[Exception], ...] = (InputError,),
+    startup_errors: tuple[type[Exception], ...] = (AdsRcaError,),
     message_info: bool = False,
 ) -> int:
     """Run the node(s) ``build()`` makes until shutdown; exit status 0, or 2 if they cannot

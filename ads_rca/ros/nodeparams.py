@@ -15,7 +15,7 @@ from rcl_interfaces.msg import ParameterDescriptor, ParameterType
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 
-from ads_rca.errors import InputError
+from ads_rca.errors import ConfigError
 from ads_rca.params import DEFAULT_SEMANTICS, SEMANTICS, Params, make_params
 from ads_rca.text import printable
 
@@ -25,7 +25,7 @@ ENGINE_NAMES: tuple[str, ...] = tuple(f.name for f in fields(Params) if f.name !
 def declare_engine_parameters(node: Node) -> Params:
     """Declare ``semantics`` and every threshold; the resulting :class:`Params`.
 
-    Raises InputError for an unknown mode or a value that is not a number.
+    Raises ConfigError for an unknown mode or a value that is not a number.
     """
     semantics = str(
         _declare(
@@ -36,7 +36,7 @@ def declare_engine_parameters(node: Node) -> Params:
         )
     )
     if semantics not in SEMANTICS:
-        raise InputError(f"semantics must be one of {', '.join(SEMANTICS)}, not {semantics!r}")
+        raise ConfigError(f"semantics must be one of {', '.join(SEMANTICS)}, not {semantics!r}")
     defaults = asdict(make_params(semantics))
     values: dict[str, Any] = {}
     for name in ENGINE_NAMES:
@@ -52,7 +52,7 @@ def declare_node_parameters(node: Node, table: dict[str, tuple[Any, str]]) -> di
 
     Doubles are dynamically typed so that ``-p timeout:=5`` (an integer) is accepted; a list
     default is a string array. A value of the wrong type (``-p start_frame:=abc``) or a
-    double that is no number raises InputError naming the parameter (one line, exit 2),
+    double that is no number raises ConfigError naming the parameter (one line, exit 2),
     never rclpy's traceback.
     """
     out: dict[str, Any] = {}
@@ -71,17 +71,17 @@ def _declare(node: Node, name: str, default: Any, descriptor: ParameterDescripto
     try:
         node.declare_parameter(name, default, descriptor)
     except ParameterException as error:
-        raise InputError(printable(f"parameter {name}: {error}")) from None
+        raise ConfigError(printable(f"parameter {name}: {error}")) from None
     return node.get_parameter(name).value
 
 
 def _number(name: str, value: Any) -> float:
     if isinstance(value, bool):
-        raise InputError(f"parameter {name}: {value!r} is not a number")
+        raise ConfigError(f"parameter {name}: {value!r} is not a number")
     try:
         return float(value)
     except (TypeError, ValueError):
-        raise InputError(printable(f"parameter {name}: {value!r} is not a number")) from None
+        raise ConfigError(printable(f"parameter {name}: {value!r} is not a number")) from None
 
 
 def engine_values(params: Params) -> dict[str, bool | int | float | str]:

@@ -39,7 +39,7 @@ from ads_rca.contract.playback import (
     status_message,
     timeline,
 )
-from ads_rca.errors import InputError
+from ads_rca.errors import AdsRcaError, ConfigError
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB
 from ads_rca.model import RunLog
 from ads_rca.ros import live_topics
@@ -83,10 +83,6 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
 }
 #: A tick may carry a few extra stamps; 40 frames stay far below the 100-message history.
 MAX_ACK_EVERY = 40
-
-
-class ConfigError(Exception):
-    """A parameter value the player cannot use (reported as one line, exit status 2)."""
 
 
 class Player(Node):
@@ -305,7 +301,7 @@ def main(args: list[str] | None = None) -> int:
     try:
         try:
             node = Player()
-        except (ConfigError, InputError) as error:
+        except AdsRcaError as error:  # a parameter or the log cannot be used
             get_logger("player").error(printable(error))
             return 2
         executor = make_executor()

@@ -35,8 +35,9 @@ from std_msgs.msg import String
 
 from ads_rca.contract import rosmsg, topics
 from ads_rca.contract.assembler import RunLogAssembler
+from ads_rca.contract.errors import UnknownMessageType
 from ads_rca.contract.jsontext import loads_json
-from ads_rca.errors import InputError
+from ads_rca.errors import AdsRcaError, ConfigError
 from ads_rca.io.bag_writer import contract_qos_yaml
 from ads_rca.io.mcap_writer import COMPRESSIONS, DEFAULT_CHUNK_SIZE, McapBagWriter, qos_yaml
 from ads_rca.ros import live_topics
@@ -128,10 +129,6 @@ def _named_run(msg_type: str, data: bytes) -> str | None:
         return None
     live = document.get("live")
     return document_run(document) or (document_run(live) if isinstance(live, dict) else None)
-
-
-class ConfigError(Exception):
-    """A parameter value the recorder cannot use (one error line, exit status 2)."""
 
 
 def _duration(nanoseconds: int) -> dict[str, int]:
@@ -262,7 +259,7 @@ class Recorder(Node):
         offered = _offered_qos(info) if info else (contract_qos_yaml(key) if key else "")
         try:
             self.writer.add_topic(name, msg_type, offered)
-        except KeyError:  # no definition installed: still record, schema-less text
+        except UnknownMessageType:  # no definition installed: still record, schema-less text
             self.writer.add_topic(name, msg_type, offered, topic_type_hash="", definition="")
 
     def _callback(self, name: str, msg_type: str) -> Any:
@@ -348,7 +345,7 @@ def main(args: list[str] | None = None) -> int:
     try:
         try:
             node = Recorder()
-        except (ConfigError, InputError, FileExistsError, ValueError) as error:
+        except AdsRcaError as error:  # a parameter or the output folder cannot be used
             get_logger("recorder").error(str(error))
             return 2
         executor = SingleThreadedExecutor()

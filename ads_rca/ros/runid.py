@@ -24,7 +24,7 @@ import uuid
 from collections.abc import Mapping
 from typing import Any
 
-from ads_rca.errors import InputError
+from ads_rca.errors import ConfigError
 
 #: The JSON field (and diagnostic key) that names the run.
 RUN_KEY = "run"
@@ -42,10 +42,10 @@ RUN_ID_PATTERN = re.compile(r"[A-Za-z0-9_]{1,64}")
 
 
 def checked_run_id(value: str) -> str:
-    """A ``run_id`` parameter as given ("" = none), or InputError (one line) when it could
+    """A ``run_id`` parameter as given ("" = none), or ConfigError (one line) when it could
     not be part of a topic name."""
     if value and not RUN_ID_PATTERN.fullmatch(value):
-        raise InputError(
+        raise ConfigError(
             f"run_id must be 1 to 64 letters, digits or '_' (it names a topic), got {value!r}"
         )
     return value

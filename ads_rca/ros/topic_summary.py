@@ -22,8 +22,9 @@ from rclpy.node import Node
 
 from ads_rca.contract import topics
 from ads_rca.contract.assembler import RunLogAssembler
+from ads_rca.contract.errors import ContractError, MalformedMessage
 from ads_rca.contract.malformed import SkippedMessages
-from ads_rca.errors import InputError
+from ads_rca.errors import AdsRcaError
 from ads_rca.ros.nodemain import make_executor, start_process
 from ads_rca.ros.nodeparams import declare_node_parameters
 from ads_rca.strictjson import to_strict
@@ -79,7 +80,7 @@ class TopicSummary(Node):
             self.last_arrival = now
             try:
                 add(key, msg)
-            except (TypeError, ValueError, OverflowError) as error:  # CdrError, JsonTextError
+            except MalformedMessage as error:  # CdrError, JsonTextError, a bad frame marker
                 line = self.skipped.note(self.names[key], error, now)
                 if line is not None:
                     self.get_logger().warning(line)
@@ -135,7 +136,7 @@ class TopicSummary(Node):
             out = Path(str(self.get_parameter("output_dir").value))
             try:
                 log = self.assembler.build()
-            except ValueError as error:
+            except ContractError as error:  # no metadata, or a document that describes none
                 self.get_logger().error(f"cannot rebuild the log: {error}")
                 return
             write_run_log(log, out)
@@ -150,7 +151,7 @@ def main(args: list[str] | None = None) -> int:
     try:
         try:
             node = TopicSummary()
-        except InputError as error:
+        except AdsRcaError as error:
             get_logger("topic_summary").error(str(error))
             return 2
         executor = make_executor()

@@ -12,8 +12,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from ads_rca.errors import InputError
 from ads_rca.model import RunLog
+from ads_rca.synth.errors import SynthesisError
 from ads_rca.synth.faults import FAULTS, NO_FAULT, FaultSpec, onset_for
 from ads_rca.synth.scenarios import BUILDERS, DEFAULT_FRAMES, SCENARIOS
 from ads_rca.synth.simulate import SimResult, simulate
@@ -24,10 +24,6 @@ __all__ = ["FAULTS", "SCENARIOS", "SynthesisError", "synthesise", "synthesise_ru
 MAX_ATTEMPTS = 25
 DEFAULT_HORIZON = 30
 _ACCEPTED: dict[tuple[Any, ...], bool] = {}
-
-
-class SynthesisError(InputError, ValueError):
-    """Bad arguments, or no acceptable scene for a seed."""
 
 
 def synthesise(scenario: str, fault: str, seed: int, **options: int) -> RunLog:

@@ -38,6 +38,7 @@ from ads_rca.io.bag_writer import contract_qos_yaml
 from ads_rca.io.mcap_writer import COMPRESSIONS, DEFAULT_CHUNK_SIZE, McapBagWriter, qos_yaml
 from ads_rca.ros import live_topics
 from ads_rca.ros.diagnostics import status_runs
+from ads_rca.ros.env import ros_distro
 from ads_rca.ros.nodemain import ignore_stop_signals, keep_running, start_process, stop_requested
 from ads_rca.ros.nodeparams import declare_node_parameters
 from ads_rca.ros.runid import checked_run_id, document_run, subscribe_ready, writer_prefix
@@ -184,7 +185,10 @@ class Recorder(Node):
         self.stop_on_finished = bool(self._param("stop_on_finished"))
         self.max_duration = float(self._param("max_duration_s"))
         self.writer = McapBagWriter(
-            out, chunk_size=int(self._param("chunk_size")), compression=compression
+            out,
+            chunk_size=int(self._param("chunk_size")),
+            compression=compression,
+            ros_distro=ros_distro(),
         )
         self.writer.set_custom_data("recorded_by", "ads_rca recorder")
         self.progress = RunLogAssembler()  # only counts and the String topics

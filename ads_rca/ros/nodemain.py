@@ -12,10 +12,12 @@ instance of pybind11::error_already_set", exit -6). With a flag, every loop (the
 the player's waits, the recorder's drain) ends within one ``spin_once`` timeout, and the
 node is closed, destroyed and rclpy shut down in order: exit status 0. A terminal's Ctrl-C
 reaches every process of its group, and ``ros2 launch`` sends SIGINT again: a second
-signal is counted, not an error. Before ``rclpy.init`` every node checks its
-environment (:func:`prepare_process`): a bad ``ROS_DOMAIN_ID`` is one error line and exit 2,
-variables that can send discovery off the machine are named in a warning, and Fast DDS is
-pointed at our profile (loopback transport, fast acknowledgements) unless one is chosen.
+signal is counted, not an error.
+
+Before ``rclpy.init`` every node checks its environment (:func:`prepare_process`): a bad
+``ROS_DOMAIN_ID`` is one error line and exit 2, variables that can send discovery off the
+machine are named in a warning, and Fast DDS is pointed at our profile (loopback
+transport, fast acknowledgements) unless one is chosen.
 """
 
 from __future__ import annotations

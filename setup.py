@@ -30,9 +30,19 @@ setup(
         (f"share/{PACKAGE}/config", glob("config/*.yaml")),
         (f"share/{PACKAGE}/launch_scripts", glob("launch_scripts/*.py")),
     ],
-    # ROS client libraries and messages come from the ROS install (colcon) or from the pinned
-    # wheels in requirements.txt (plain pip), so they are deliberately not install_requires.
-    install_requires=["numpy", "scipy", "shapely", "orjson", "pyyaml", "tqdm"],
+    # ROS client libraries, messages and launch come from the ROS install (colcon) or from the
+    # pinned wheels in requirements.txt (plain pip), so they are deliberately not
+    # install_requires; package.xml declares them for rosdep. mcap brings zstandard and lz4.
+    install_requires=[
+        "numpy",
+        "scipy",
+        "orjson",
+        "pyyaml",
+        "tqdm",
+        "matplotlib",
+        "rosbags",
+        "mcap",
+    ],
     zip_safe=True,
     maintainer="ads_rca maintainers",
     maintainer_email="maintainers@ads-rca.dev",

@@ -78,6 +78,19 @@ def make_params(
     return replace(base, **changes)
 
 
+def params_from_sources(
+    semantics: str | None, config: Mapping[str, Any], overrides: Mapping[str, Any]
+) -> Params:
+    """The parameters of a run from its sources: a chosen ``semantics`` (CLI flag, launch
+    argument) wins, then ``overrides`` (``-p``), then the ``config`` file (its engine keys;
+    a node's params file has others too), then the mode's defaults."""
+    values = dict(overrides)
+    mode = semantics or values.pop("semantics", None) or config.get("semantics", DEFAULT_SEMANTICS)
+    merged = {**engine_overrides(config), **values}
+    merged.pop("semantics", None)
+    return make_params(str(mode), merged)
+
+
 def parse_assignments(items: list[str]) -> dict[str, str]:
     """``name=value`` strings (CLI ``-p``) into a dict; also accepts ROS's ``name:=value``."""
     out: dict[str, str] = {}

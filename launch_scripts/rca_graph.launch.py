@@ -1,132 +1,91 @@
 """ROS 2 launch file: the live graph (player, four monitors, aggregator, optional recorder).
 
-``monitors:=shared`` (the default) runs the four monitor nodes in one ``monitors`` process,
-which receives and decodes the inputs once; ``monitors:=separate`` runs one process each.
+``ros2 launch ads_rca rca_graph.launch.py log_path:=RUN [record:=BAG] [monitors:=separate]``;
+``--show-args`` lists and describes every argument. The arguments are ``ads-rca replay``'s
+options under their launch names, and the nodes with their parameters come from the
+description replay starts (``ads_rca.ros.graph``: ``LAUNCH_ARGUMENTS``,
+``spec_from_arguments``), so the two cannot drift apart.
 
-For users with a ROS install (``ros2 launch ads_rca rca_graph.launch.py log_path:=RUN``);
-here ``ads-rca replay`` starts the same graph through ``ads_rca.ros.graph``. ``launch`` and
-``launch_ros`` are not installed in this venv, so their imports stay inside
-:func:`generate_launch_description` and the module can be linted and type-checked without them.
-Every node gets the engine parameter file of the chosen semantics (``config/rca_<mode>.yaml``),
-then the launch arguments.
+How it ends (launch's own ``OnProcessExit`` and ``Shutdown``, per ``graph.exit_outcome``):
+
+- the aggregator exits 0 once its verdict is published and acknowledged by every
+  subscriber (the recorder among them): the launch shuts down, SIGINT to the rest, the
+  recorder finalises its bag, every node exits 0, and ``ros2 launch`` exits 0;
+- a node exits non-zero (the player's 2 for an unusable log, a crash): every node is
+  stopped and the launch fails (status 1: ``ros2 launch`` has no other failure status),
+  its error line naming the node and its exit status;
+- no ``log_path`` (or no such log, a bad ``params_file``, ``rate`` or ``monitors``): one
+  error line, no node started, status 1.
+
+``launch``/``launch_ros`` are imported inside the functions, so the module can be linted and
+type-checked where they are not installed.
 """
 
 from __future__ import annotations
 
+import functools
 from typing import Any
 
-MONITORS = ("perception_monitor", "prediction_monitor", "planning_monitor", "control_monitor")
+#: Every node discovers on this machine only, whatever the caller's environment says.
+LOCAL_DISCOVERY = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
 
 
 def generate_launch_description() -> Any:
-    import os
-
-    from ament_index_python.packages import get_package_share_directory
     from launch import LaunchDescription
-    from launch.actions import DeclareLaunchArgument
-    from launch.conditions import IfCondition
-    from launch.substitutions import LaunchConfiguration, PythonExpression
-    from launch_ros.actions import Node
+    from launch.actions import DeclareLaunchArgument, OpaqueFunction
 
-    share = get_package_share_directory("ads_rca")
-    arguments = {
-        "log_path": "",
-        "rate": "0.0",
-        "semantics": "corrected",
-        "topic_namespace": "/ads_rca",
-        "verdict_json": "verdict.json",
-        "record": "false",
-        "record_output": "rca_recording",
-        "monitors": "shared",
-    }
-    semantics = LaunchConfiguration("semantics")
-    engine_file = PythonExpression(
-        ["'", os.path.join(share, "config", "rca_"), "' + '", semantics, "' + '.yaml'"]
-    )
-    common = {"topic_namespace": LaunchConfiguration("topic_namespace"), "semantics": semantics}
-    env = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
-    layout = LaunchConfiguration("monitors")
-    shared = IfCondition(PythonExpression(["'", layout, "' == 'shared'"]))
-    separate = IfCondition(PythonExpression(["'", layout, "' == 'separate'"]))
-    # The player waits until every process subscribed to run/frame.
-    subscribers = PythonExpression(
-        [
-            "1 + (1 if '",
-            layout,
-            "' == 'shared' else 4) + (1 if '",
-            LaunchConfiguration("record"),
-            "'.lower() == 'true' else 0)",
-        ]
-    )
-    nodes = [
-        Node(
-            package="ads_rca",
-            executable="recorder",
-            name="recorder",
-            output="screen",
-            parameters=[
-                {
-                    "output": LaunchConfiguration("record_output"),
-                    "topic_namespace": LaunchConfiguration("topic_namespace"),
-                }
-            ],
-            condition=IfCondition(LaunchConfiguration("record")),
-            additional_env=env,
-        ),
-        Node(
-            package="ads_rca",
-            executable="aggregator",
-            name="aggregator",
-            output="screen",
-            parameters=[
-                engine_file,
-                {**common, "verdict_json": LaunchConfiguration("verdict_json")},
-            ],
-            additional_env=env,
-        ),
-        Node(
-            package="ads_rca",
-            executable="monitors",
-            output="screen",
-            parameters=[engine_file, common],
-            condition=shared,
-            additional_env=env,
-        ),
-        *(
-            Node(
-                package="ads_rca",
-                executable=name,
-                name=name,
-                output="screen",
-                parameters=[engine_file, common],
-                condition=separate,
-                additional_env=env,
-            )
-            for name in MONITORS
-        ),
-        Node(
-            package="ads_rca",
-            executable="player",
-            name="player",
-            output="screen",
-            parameters=[
-                os.path.join(share, "config", "player.yaml"),
-                {
-                    "log_path": LaunchConfiguration("log_path"),
-                    "rate": LaunchConfiguration("rate"),
-                    "topic_namespace": LaunchConfiguration("topic_namespace"),
-                    "wait_for_subscribers": subscribers,
-                },
-            ],
-            additional_env=env,
-        ),
+    from ads_rca.ros.graph import LAUNCH_ARGUMENTS
+
+    arguments = [
+        DeclareLaunchArgument(name, default_value=arg.default, description=arg.description)
+        for name, arg in LAUNCH_ARGUMENTS.items()
     ]
-    return LaunchDescription(
-        [
-            *(
-                DeclareLaunchArgument(name, default_value=default)
-                for name, default in arguments.items()
-            ),
-            *nodes,
-        ]
-    )
+    return LaunchDescription([*arguments, OpaqueFunction(function=graph_actions)])
+
+
+def graph_actions(context: Any) -> list[Any]:
+    """The nodes of the graph the arguments describe, each with its exit handler."""
+    from launch.actions import RegisterEventHandler
+    from launch.event_handlers import OnProcessExit
+    from launch.substitutions import LaunchConfiguration
+    from launch_ros.actions import Node
+    from launch_ros.parameter_descriptions import ParameterValue
+
+    from ads_rca.ros.graph import LAUNCH_ARGUMENTS, spec_from_arguments
+
+    values = {name: LaunchConfiguration(name).perform(context) for name in LAUNCH_ARGUMENTS}
+    spec = spec_from_arguments(values)
+    actions: list[Any] = []
+    for node in spec.nodes():
+        # Strings stay strings (launch_ros would read a run id of digits as an integer).
+        params = {
+            name: ParameterValue(value, value_type=str) if isinstance(value, str) else value
+            for name, value in node.params.items()
+        }
+        process = Node(
+            package="ads_rca",
+            executable=node.executable,
+            output="screen",
+            parameters=[params],
+            additional_env=LOCAL_DISCOVERY,
+        )
+        handler = OnProcessExit(
+            target_action=process, on_exit=functools.partial(on_exit, node.name)
+        )
+        actions += [process, RegisterEventHandler(handler)]
+    return actions
+
+
+def on_exit(name: str, event: Any, context: Any) -> list[Any]:
+    """End of the run: shut the launch down; a failed node: fail the launch, saying why."""
+    from launch.actions import LogInfo, Shutdown
+
+    from ads_rca.ros.graph import exit_outcome
+
+    outcome = exit_outcome(name, int(event.returncode), stopping=context.is_shutdown)
+    if outcome is None:
+        return []
+    over, why = outcome
+    if not over:
+        raise RuntimeError(why)  # launch logs it, stops every node, and returns 1
+    return [LogInfo(msg=why), Shutdown(reason=why)]

@@ -24,9 +24,8 @@ from ads_rca.params import (
     DEFAULT_SEMANTICS,
     SEMANTICS,
     Params,
-    engine_overrides,
     load_config,
-    make_params,
+    params_from_sources,
 )
 from ads_rca.params import parse_assignments as parse_p
 from ads_rca.summary import summary_text
@@ -61,15 +60,7 @@ def params_from_args(args: argparse.Namespace) -> Params:
     overrides = parse_p(args.params)
     for name in READER_PARAMS:  # the reader's, not the engine's
         overrides.pop(name, None)
-    semantics = (
-        args.semantics
-        or overrides.pop("semantics", None)
-        or config.get("semantics", DEFAULT_SEMANTICS)
-    )
-    # A node's params file also holds node parameters (log_path, rate...): keep the engine's.
-    values = {**engine_overrides(config), **overrides}
-    values.pop("semantics", None)
-    return make_params(str(semantics), values)
+    return params_from_sources(args.semantics, config, overrides)
 
 
 def register(subparsers: Any) -> None:

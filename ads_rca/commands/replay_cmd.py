@@ -35,6 +35,7 @@ from ads_rca.commands.playback_args import (
 from ads_rca.errors import AdsRcaError, InputError
 from ads_rca.params import Params
 from ads_rca.ros.env import discovery_note, ros_environment
+from ads_rca.ros.graph import LAUNCH_ARGUMENTS, exit_status
 from ads_rca.ros.launcher import ParamValue
 from ads_rca.ros.lifeline import PARENT_VARIABLE
 from ads_rca.summary import summary_text
@@ -49,6 +50,14 @@ def register(subparsers: Any) -> None:
         "replay", help="replay a run through the live node graph (monitors + aggregator)"
     )
     parser.add_argument("path", help="running-log folder (or a bag the player reads)")
+    parser.add_argument(
+        "--bag-remap", metavar="YAML", help=LAUNCH_ARGUMENTS["bag_remap"].description
+    )
+    parser.add_argument(
+        "--namespace",
+        default=LAUNCH_ARGUMENTS["namespace"].default,
+        help=LAUNCH_ARGUMENTS["namespace"].description,
+    )
     add_engine_arguments(parser)
     add_reader_arguments(parser)
     add_playback_arguments(parser)
@@ -73,6 +82,11 @@ def run(args: argparse.Namespace) -> int:
     check_playback_arguments(args)
     params = params_from_args(args)
     player_params: dict[str, ParamValue] = {"max_file_mb": float(max_file_mb_from_args(args))}
+    if args.bag_remap:
+        remap = Path(args.bag_remap)
+        if not remap.is_file():
+            raise InputError(f"--bag-remap {remap}: no such file")
+        player_params["bag_remap"] = str(remap.resolve())
     if args.json_out:
         check_output_file(args.json_out, "--json")
     record = Path(args.record) if args.record else None
@@ -118,6 +132,7 @@ def _run_graph(
             rate=args.rate,
             record=record.resolve() if record is not None else None,
             monitors=args.monitors,
+            namespace=args.namespace,
             player_params=player_params,
         )
         print(
@@ -239,16 +254,6 @@ def _replay(
             )
         )
     return 0
-
-
-def exit_status(code: int) -> str:
-    """``status 2`` or ``killed by SIGSEGV``: how a child process ended."""
-    if code >= 0:
-        return f"status {code}"
-    try:
-        return f"killed by {signal.Signals(-code).name}"
-    except ValueError:
-        return f"killed by signal {-code}"
 
 
 def live_summary(document: dict[str, Any]) -> str:

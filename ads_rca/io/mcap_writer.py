@@ -31,9 +31,14 @@ from ads_rca.contract.rosmsg import message_definition, type_hash
 from ads_rca.errors import ConfigError
 from ads_rca.io.errors import OutputExists
 
-#: rosbag2 metadata version written (Jazzy/Kilted readers and rosbags read it).
+#: rosbag2 metadata version written: Jazzy's and later rosbag2, rosbags and the mcap tools
+#: read it; Humble's rosbag2 (metadata version 5) does not (it reads each topic's
+#: ``offered_qos_profiles`` as a string, and version 9 writes a list).
 BAG_VERSION = 9
-ROS_DISTRO = "kilted"
+#: The distribution whose message definitions and type hashes the contract's types carry
+#: (rosbags' Kilted store): a bag written outside ROS (``ads-rca convert``) says this one;
+#: the recorder says the distribution it runs on (``ads_rca.ros.env.ros_distro``).
+TYPES_DISTRO = "kilted"
 DEFAULT_CHUNK_SIZE = 1 << 20
 COMPRESSIONS: dict[str, CompressionType] = {
     "zstd": CompressionType.ZSTD,
@@ -96,6 +101,7 @@ class McapBagWriter:
         chunk_size: int = DEFAULT_CHUNK_SIZE,
         compression: str = "zstd",
         fsync: bool = False,
+        ros_distro: str = TYPES_DISTRO,
     ) -> None:
         if compression not in COMPRESSIONS:
             raise ConfigError(f"compression must be one of {sorted(COMPRESSIONS)}")
@@ -107,10 +113,11 @@ class McapBagWriter:
         self.chunk_size = max(1, int(chunk_size))
         self.compression = compression
         self.fsync = fsync
+        self.ros_distro = ros_distro
         self._stream = self.path.open("xb")
         # The library's own chunk limit is never reached: chunks end where we flush.
         self._mcap = Writer(self._stream, chunk_size=2**62, compression=COMPRESSIONS[compression])
-        self._mcap.start(profile="ros2", library=f"ads_rca rosbag2-mcap ({ROS_DISTRO})")
+        self._mcap.start(profile="ros2", library=f"ads_rca rosbag2-mcap ({ros_distro})")
         self._schemas: dict[str, int] = {}
         self._topics: dict[str, _Topic] = {}
         self._pending = 0
@@ -229,7 +236,7 @@ class McapBagWriter:
                 }
             ],
             "custom_data": dict(self._custom) or None,
-            "ros_distro": ROS_DISTRO,
+            "ros_distro": self.ros_distro,
         }
 
     def close(self) -> None:
@@ -241,7 +248,7 @@ class McapBagWriter:
         serialized = yaml.safe_dump(document, default_flow_style=False, sort_keys=False)
         self.flush()
         self._mcap.add_metadata(
-            "rosbag2", {"serialized_metadata": serialized, "ROS_DISTRO": ROS_DISTRO}
+            "rosbag2", {"serialized_metadata": serialized, "ROS_DISTRO": self.ros_distro}
         )
         self._mcap.finish()
         self._stream.flush()

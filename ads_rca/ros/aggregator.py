@@ -10,6 +10,10 @@ module's status name (a dead process cannot report itself).
 
 ``metrics_log`` (optional) receives every result as it arrives, one JSON line each, for the
 determinism test and the benchmark.
+
+With ``exit_after_verdict`` the node ends once the verdict is out: it waits until every
+subscriber (the recorder among them) acknowledged the verdict messages, then exits 0, which
+is how ``rca_graph.launch.py`` knows the run is over and stops the rest of the graph.
 """
 
 from __future__ import annotations
@@ -40,7 +44,7 @@ from ads_rca.live.results import FrameMarker, LiveResult
 from ads_rca.oracles.base import MODULES, Module
 from ads_rca.ros import diagnostics as diag
 from ads_rca.ros import live_topics
-from ads_rca.ros.nodemain import run_node
+from ads_rca.ros.nodemain import run_node, wait_for_acks
 from ads_rca.ros.nodeparams import declare_engine_parameters, declare_node_parameters
 from ads_rca.ros.runid import RUN_KEY, RunFilter, checked_run_id, document_run, subscribe_ready
 
@@ -56,6 +60,11 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "stall_timeout_s": (20.0, "Before the horizon, publish anyway after this long without input."),
     "stale_timeout_s": (2.0, "A monitor silent this long is reported STALE."),
     "run_id": ("", "Attribute only this run ('' = the first run heard of); see ads_rca.ros.runid."),
+    "exit_after_verdict": (
+        False,
+        "Exit (status 0) once every subscriber acknowledged the published verdict.",
+    ),
+    "ack_timeout_s": (10.0, "With exit_after_verdict: longest wait for those acknowledgements."),
 }
 _REPORTER = "aggregator"
 
@@ -69,6 +78,10 @@ class Aggregator(Node):
         p = declare_node_parameters(self, PARAMETERS)
         self.hardware_id = str(p["hardware_id"])
         self.verdict_json = str(p["verdict_json"])
+        self.exit_after_verdict = bool(p["exit_after_verdict"])
+        self.ack_timeout = float(p["ack_timeout_s"])
+        #: The verdict is out and ``exit_after_verdict``: run_node stops spinning.
+        self.finished = False
         self.stale_timeout = float(p["stale_timeout_s"])
         self.runs = RunFilter(checked_run_id(str(p["run_id"])))
         self.skipped = SkippedMessages()
@@ -264,8 +277,15 @@ class Aggregator(Node):
         )
         if self._metrics_log is not None:
             self._metrics_log.flush()
+        self.finished = self.exit_after_verdict
 
     def close(self) -> None:
+        if self.finished:
+            publishers = (self.verdict_pub, self.json_pub, self.diag_pub)
+            if not wait_for_acks(publishers, self.ack_timeout):
+                self.get_logger().warning(
+                    f"verdict not acknowledged by every subscriber within {self.ack_timeout} s"
+                )
         if self._metrics_log is not None:
             self._metrics_log.close()
             self._metrics_log = None

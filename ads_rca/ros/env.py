@@ -13,6 +13,7 @@ Pure Python: no rclpy import.
 
 from __future__ import annotations
 
+import importlib.metadata
 import os
 import tempfile
 from collections.abc import Mapping, MutableMapping
@@ -235,3 +236,22 @@ def use_node_profile(environ: MutableMapping[str, str] | None = None) -> str | N
     env[PROFILES_VARIABLE] = path
     env[OWN_PROFILE_VARIABLE] = path
     return path
+
+
+#: rclpy's major version → the released ROS 2 distribution that ships it (a rolling
+#: install sets ROS_DISTRO).
+RCLPY_DISTROS = {3: "humble", 4: "iron", 7: "jazzy", 9: "kilted"}
+
+
+def ros_distro(environ: Mapping[str, str] | None = None) -> str:
+    """The ROS 2 distribution this process runs on: ``ROS_DISTRO`` (set by a sourced ROS
+    install, what rosbag2 itself records), else the one that released the installed rclpy
+    (the PyPI wheels set no ``ROS_DISTRO``); '' when neither tells."""
+    value = (os.environ if environ is None else environ).get("ROS_DISTRO", "").strip()
+    if value:
+        return value
+    try:
+        major = int(importlib.metadata.version("rclpy").split(".")[0])
+    except (importlib.metadata.PackageNotFoundError, ValueError):
+        return ""
+    return RCLPY_DISTROS.get(major, "")

@@ -1,10 +1,14 @@
-"""The live node graph as separate processes: player, monitors, aggregator, recorder.
+"""The live node graph, described once: which nodes, with which parameters, and when it ends.
 
-The pure-Python counterpart of ``launch_scripts/rca_graph.launch.py`` (``launch`` is not
-installed here), used by ``ads-rca replay``, the tests and the benchmark. Every node is its
+:class:`GraphSpec` lists the graph's nodes (:class:`NodeSpec`: the ``ros2 run`` executable,
+the ``python -m`` module, the parameters). Two things start it from that one description:
+``ads-rca replay`` (and the tests and the benchmark), through :class:`Graph`, each node its
 own ``python -m`` process in the launcher's environment (local-only discovery, the caller's
-domain). Start order: recorder, aggregator, monitors, then the player, which waits until
-all of them subscribe to ``run/frame`` so none misses the first frame. The verdict is read
+domain); and ``launch_scripts/rca_graph.launch.py``, whose arguments are
+:data:`LAUNCH_ARGUMENTS` (replay's options under their launch names, turned into a spec by
+:func:`spec_from_arguments`) and whose exit handlers follow :func:`exit_outcome`. Start
+order: recorder, aggregator, monitors, then the player, which waits until all of them
+subscribe to ``run/frame`` so none misses the first frame. ``replay`` reads the verdict
 from the aggregator's ``verdict_json`` file (written atomically once it is published).
 
 The four monitors run either as one ``monitors`` process (``MONITORS_SHARED``, the default:
@@ -16,23 +20,35 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import signal
 import sys
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
 
-from ads_rca.params import Params
+from ads_rca.contract import topics
+from ads_rca.errors import InputError
+from ads_rca.io.files import DEFAULT_MAX_FILE_MB
+from ads_rca.oracles.base import Module
+from ads_rca.params import SEMANTICS, Params, load_config, params_from_sources
 from ads_rca.ros.launcher import Launcher, ManagedProcess, ParamValue, ros_args
-from ads_rca.ros.monitor import GROUP, MONITORS
-from ads_rca.ros.nodeparams import engine_values
 from ads_rca.ros.runid import new_run_id
 
 PLAYER = "ads_rca.ros.player"
 AGGREGATOR = "ads_rca.ros.aggregator"
 MONITOR = "ads_rca.ros.monitor"
 RECORDER = "ads_rca.ros.recorder"
+#: Monitor node name → module it judges.
+MONITORS: dict[str, Module] = {
+    "perception_monitor": "perception",
+    "prediction_monitor": "prediction",
+    "planning_monitor": "planning",
+    "control_monitor": "controller",
+}
+#: The executable that runs all four monitors in one process.
+GROUP = "monitors"
 MONITORS_SHARED = "shared"
 MONITORS_SEPARATE = "separate"
 MONITOR_LAYOUTS = (MONITORS_SHARED, MONITORS_SEPARATE)
@@ -43,14 +59,33 @@ def recorder_available() -> bool:
     return importlib.util.find_spec(RECORDER) is not None
 
 
+@dataclass(frozen=True)
+class NodeSpec:
+    """One process of the graph."""
+
+    #: Its name in the graph (``replay``'s messages, the launcher's process table).
+    name: str
+    #: The executable ``ros2 run ads_rca <executable>`` starts (setup.py's console scripts).
+    executable: str
+    #: The module ``python -m`` runs, and its first argument (the monitor node's name).
+    module: str
+    module_argument: str | None
+    params: dict[str, ParamValue]
+
+    def argv(self) -> list[str]:
+        """``python -m module [argument] --ros-args -p ...`` with our interpreter."""
+        first = [self.module_argument] if self.module_argument else []
+        return [sys.executable, "-m", self.module, *first, *ros_args(self.params)]
+
+
 @dataclass
 class GraphSpec:
     """What to run: the log, the engine parameters and per-node extras."""
 
     log_path: Path
     params: Params
-    verdict_json: Path
-    namespace: str = "/ads_rca"
+    verdict_json: Path | None
+    namespace: str = topics.DEFAULT_NAMESPACE
     rate: float = 0.0
     record: Path | None = None
     metrics_log: Path | None = None
@@ -58,6 +93,8 @@ class GraphSpec:
     aggregator_params: dict[str, ParamValue] = field(default_factory=dict)
     player_params: dict[str, ParamValue] = field(default_factory=dict)
     monitors: str = MONITORS_SHARED
+    #: The aggregator exits 0 once its verdict is acknowledged (the launch file's end of run).
+    exit_after_verdict: bool = False
     #: Every node of the graph is given this run id, so it ignores any other run that
     #: shares its domain and namespace (see ads_rca.ros.runid).
     run_id: str = field(default_factory=new_run_id)
@@ -68,35 +105,33 @@ class GraphSpec:
 
     def common(self) -> dict[str, ParamValue]:
         return {
-            **engine_values(self.params),
+            **asdict(self.params),  # every engine parameter, semantics included
             "topic_namespace": self.namespace,
             "run_id": self.run_id,
         }
 
-    def monitor_argv(self, node_name: str) -> list[str]:
-        params = {**self.common(), **self.monitor_params}
-        return [sys.executable, "-m", MONITOR, node_name, *ros_args(params)]
-
-    def commands(self) -> dict[str, list[str]]:
-        """Node name → argv, in start order."""
-        out: dict[str, list[str]] = {}
+    def nodes(self) -> list[NodeSpec]:
+        """Every node, in start order."""
+        out: list[NodeSpec] = []
         if self.record is not None:
             rec: dict[str, ParamValue] = {
                 "output": str(self.record),
                 "topic_namespace": self.namespace,
                 "run_id": self.run_id,
             }
-            out["recorder"] = [sys.executable, "-m", RECORDER, *ros_args(rec)]
+            out.append(NodeSpec("recorder", "recorder", RECORDER, None, rec))
         agg: dict[str, ParamValue] = {
             **self.common(),
-            "verdict_json": str(self.verdict_json),
+            **({"verdict_json": str(self.verdict_json)} if self.verdict_json else {}),
             **({"metrics_log": str(self.metrics_log)} if self.metrics_log else {}),
+            **({"exit_after_verdict": True} if self.exit_after_verdict else {}),
             **self.aggregator_params,
         }
-        out["aggregator"] = [sys.executable, "-m", AGGREGATOR, *ros_args(agg)]
+        out.append(NodeSpec("aggregator", "aggregator", AGGREGATOR, None, agg))
         names = MONITORS if self.monitors == MONITORS_SEPARATE else (GROUP,)
         for name in names:
-            out[name] = self.monitor_argv(name)
+            params = {**self.common(), **self.monitor_params}
+            out.append(NodeSpec(name, name, MONITOR, name, params))
         player: dict[str, ParamValue] = {
             "log_path": str(self.log_path),
             "rate": float(self.rate),
@@ -106,8 +141,154 @@ class GraphSpec:
             "wait_timeout_s": 30.0,
             **self.player_params,
         }
-        out["player"] = [sys.executable, "-m", PLAYER, *ros_args(player)]
+        out.append(NodeSpec("player", "player", PLAYER, None, player))
         return out
+
+    def commands(self) -> dict[str, list[str]]:
+        """Node name → argv, in start order."""
+        return {node.name: node.argv() for node in self.nodes()}
+
+
+@dataclass(frozen=True)
+class LaunchArgument:
+    """A launch argument of ``rca_graph.launch.py`` and the ``replay`` option it mirrors."""
+
+    default: str
+    description: str
+    #: The ``argparse`` destination of the same option of ``ads-rca replay``.
+    replay_option: str
+
+
+#: The launch file's arguments: ``ads-rca replay``'s options for the graph, by launch name.
+LAUNCH_ARGUMENTS: dict[str, LaunchArgument] = {
+    "log_path": LaunchArgument(
+        "", "Running-log folder or rosbag2 bag (dir, .mcap, .db3) to play (required).", "path"
+    ),
+    "bag_remap": LaunchArgument(
+        "", "Topic remapping YAML for a bag whose topic names differ ('' = none).", "bag_remap"
+    ),
+    "semantics": LaunchArgument(
+        "",
+        f"Oracle semantics, {' or '.join(SEMANTICS)} ('' = the params file's, else corrected).",
+        "semantics",
+    ),
+    "params_file": LaunchArgument(
+        "",
+        "Engine parameters YAML, flat or a ROS 2 params file such as the installed "
+        "config/rca_reference.yaml ('' = the mode's defaults).",
+        "config",
+    ),
+    "record": LaunchArgument(
+        "", "Record every topic to this new MCAP bag directory ('' = no recording).", "record"
+    ),
+    "rate": LaunchArgument(
+        "0.0", "Playback rate against log time (0 = as fast as every node acknowledges).", "rate"
+    ),
+    "monitors": LaunchArgument(
+        MONITORS_SHARED,
+        "shared: the four monitors in one process (inputs decoded once); separate: one "
+        "process each.",
+        "monitors",
+    ),
+    "namespace": LaunchArgument(
+        topics.DEFAULT_NAMESPACE,
+        "Namespace of the contract topics (every node's topic_namespace).",
+        "namespace",
+    ),
+    "max_file_mb": LaunchArgument(
+        f"{DEFAULT_MAX_FILE_MB:g}",
+        "Log files larger than this many MB are reported and skipped, not read.",
+        "max_file_mb",
+    ),
+    "verdict_json": LaunchArgument(
+        "", "Also write the verdict JSON to this file ('' = none).", "json_out"
+    ),
+}
+#: ``replay`` options that are no launch argument, and where a launch user finds them.
+REPLAY_ONLY: dict[str, str] = {
+    "params": "-p NAME=VALUE: put the values in params_file",
+    "timeout": "--timeout: the launch runs until the verdict or a node fails",
+    "domain_id": "--domain-id: ROS_DOMAIN_ID in the launch's environment",
+    "allow_external_discovery": "--allow-external-discovery: the launch keeps its environment",
+    "verbose": "--verbose: the launch shows every node's output",
+}
+
+
+def spec_from_arguments(values: Mapping[str, str]) -> GraphSpec:
+    """The graph the launch file starts, from its arguments' values (strings, as
+    ``LaunchConfiguration`` gives them); InputError (one line) for what cannot run, before
+    any node starts. The aggregator exits after its verdict (the end of the run)."""
+
+    def value(name: str) -> str:
+        return str(values.get(name, LAUNCH_ARGUMENTS[name].default)).strip()
+
+    log_path = value("log_path")
+    if not log_path:
+        raise InputError(
+            "log_path is required: ros2 launch ads_rca rca_graph.launch.py "
+            "log_path:=<log folder or bag>"
+        )
+    if not Path(log_path).exists():
+        raise InputError(f"log_path {log_path}: no such log folder or bag")
+    monitors = value("monitors")
+    if monitors not in MONITOR_LAYOUTS:
+        raise InputError(f"monitors must be {' or '.join(MONITOR_LAYOUTS)}, not {monitors!r}")
+    rate = _number("rate", value("rate"))
+    if rate < 0:
+        raise InputError(f"rate must be >= 0, got {value('rate')}")
+    params_file = value("params_file")
+    params = params_from_sources(
+        value("semantics") or None, load_config(params_file) if params_file else {}, {}
+    )
+    player: dict[str, ParamValue] = {"max_file_mb": _number("max_file_mb", value("max_file_mb"))}
+    if value("bag_remap"):
+        player["bag_remap"] = str(Path(value("bag_remap")).resolve())
+    record, verdict_json = value("record"), value("verdict_json")
+    return GraphSpec(
+        log_path=Path(log_path).resolve(),
+        params=params,
+        verdict_json=Path(verdict_json).resolve() if verdict_json else None,
+        namespace=value("namespace"),
+        rate=rate,
+        record=Path(record).resolve() if record else None,
+        player_params=player,
+        monitors=monitors,
+        exit_after_verdict=True,
+    )
+
+
+def _number(name: str, text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise InputError(f"{name}: {text!r} is not a number") from None
+
+
+def exit_status(code: int) -> str:
+    """``status 2`` or ``killed by SIGSEGV``: how a child process ended."""
+    if code >= 0:
+        return f"status {code}"
+    try:
+        return f"killed by {signal.Signals(-code).name}"
+    except ValueError:
+        return f"killed by signal {-code}"
+
+
+def exit_outcome(name: str, code: int, stopping: bool = False) -> tuple[bool, str] | None:
+    """What node ``name`` exiting with ``code`` means for a launched graph (``stopping``:
+    the launch is already shutting its nodes down).
+
+    ``(True, why)``: the run is over (the aggregator exits 0 once its verdict is
+    acknowledged): stop the rest. ``(False, why)``: a node failed (any non-zero status,
+    signals included, also while stopping): the graph cannot give a verdict, or did not
+    stop cleanly; stop everything and fail. None: nothing to do (the player exits 0 after
+    playing; every node exits 0 when stopped).
+    """
+    if code != 0:
+        return False, f"{name} exited with {exit_status(code)}: the graph cannot give a verdict"
+    if name == "aggregator" and not stopping:
+        return True, "run over: the aggregator published the verdict"
+    return None
 
 
 class Graph:
@@ -119,7 +300,8 @@ class Graph:
         self.started_at = 0.0
 
     def start(self, skip: tuple[str, ...] = ()) -> None:
-        self.spec.verdict_json.unlink(missing_ok=True)
+        if self.spec.verdict_json is not None:
+            self.spec.verdict_json.unlink(missing_ok=True)
         self.started_at = time.monotonic()
         for name, argv in self.spec.commands().items():
             if name not in skip:
@@ -135,6 +317,8 @@ class Graph:
 
     def verdict(self) -> dict[str, Any] | None:
         """The verdict document once the aggregator wrote it."""
+        if self.spec.verdict_json is None:
+            return None
         try:
             document = json.loads(self.spec.verdict_json.read_text())
         except (OSError, ValueError):

@@ -53,6 +53,7 @@ from ads_rca.oracles.base import Module
 from ads_rca.ros import diagnostics as diag
 from ads_rca.ros import live_topics
 from ads_rca.ros.early_queue import EarlyQueue
+from ads_rca.ros.graph import GROUP, MONITORS
 from ads_rca.ros.nodemain import run_node
 from ads_rca.ros.nodeparams import declare_engine_parameters, declare_node_parameters
 from ads_rca.ros.runid import (
@@ -62,17 +63,6 @@ from ads_rca.ros.runid import (
     document_run,
     subscribe_ready,
 )
-
-#: Node name → module it judges.
-MONITORS: dict[str, Module] = {
-    "perception_monitor": "perception",
-    "prediction_monitor": "prediction",
-    "planning_monitor": "planning",
-    "control_monitor": "controller",
-}
-
-#: The executable that runs all four monitors in one process.
-GROUP = "monitors"
 
 PARAMETERS: dict[str, tuple[Any, str]] = {
     "topic_namespace": (topics.DEFAULT_NAMESPACE, "Namespace of the contract topics."),

@@ -2,28 +2,92 @@
 
 A node that cannot start (bad parameter, unreadable input) logs one line and exits 2;
 SIGINT/SIGTERM end the spin without a traceback; a node's optional ``close()`` runs before
-it is destroyed (so files are finalised). Before ``rclpy.init`` every node checks its
-environment (:func:`prepare_process`): a bad ``ROS_DOMAIN_ID`` is one error line and exit 2,
-variables that can send discovery off the machine are named in a warning, and Fast DDS is
-pointed at our profile (loopback transport, fast acknowledgements) unless one is chosen.
+it is destroyed (so files are finalised).
+
+Signals only set a flag (:func:`stop_requested`): rclpy's own handlers are not installed
+(``SignalHandlerOptions.NO``). Why: they chain to Python's, which raises KeyboardInterrupt
+wherever the main thread is, and inside a callback that rclpy's C++ executor called the
+exception crosses pybind11 and aborts the process ("terminate called after throwing an
+instance of pybind11::error_already_set", exit -6). With a flag, every loop (the spin,
+the player's waits, the recorder's drain) ends within one ``spin_once`` timeout, and the
+node is closed, destroyed and rclpy shut down in order: exit status 0. A terminal's Ctrl-C
+reaches every process of its group, and ``ros2 launch`` sends SIGINT again: a second
+signal is counted, not an error.
+
+Before ``rclpy.init`` every node checks its environment (:func:`prepare_process`): a bad
+``ROS_DOMAIN_ID`` is one error line and exit 2, variables that can send discovery off the
+machine are named in a warning, and Fast DDS is pointed at our profile (loopback
+transport, fast acknowledgements) unless one is chosen.
 """
 
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
-from typing import Any
+import signal
+import time
+from collections.abc import Callable, Iterable
+from types import FrameType
 
 import rclpy
+from rclpy.duration import Duration
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.logging import get_logger
 from rclpy.node import Node
+from rclpy.publisher import Publisher
+from rclpy.signals import SignalHandlerOptions
 from rclpy.subscription import RCLError
 
 from ads_rca.errors import AdsRcaError
 from ads_rca.ros.env import domain_id_problem, node_warnings, use_node_profile
 from ads_rca.ros.lifeline import die_with_parent
 from ads_rca.text import printable
+
+#: SIGINT/SIGTERM received by this process (see the module docstring).
+_SIGNALS: list[int] = []
+
+
+def _on_stop_signal(signum: int, frame: FrameType | None) -> None:
+    _SIGNALS.append(signum)
+
+
+def install_stop_handlers() -> None:
+    """SIGINT and SIGTERM set the stop flag instead of raising (call before ``rclpy.init``)."""
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, _on_stop_signal)
+
+
+def ignore_stop_signals() -> None:
+    """Once the node is shut down: further SIGINT/SIGTERM are ignored. Why: Python's
+    finalisation puts its own handlers back to SIG_DFL (not an ignored one), so a group
+    signal arriving while the interpreter exits would kill the process (status -2) after a
+    clean stop."""
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, signal.SIG_IGN)
+
+
+def stop_requested() -> int:
+    """How many stop signals arrived (0: keep going)."""
+    return len(_SIGNALS)
+
+
+def keep_running() -> bool:
+    """No stop signal yet and the ROS context is still valid."""
+    return not _SIGNALS and rclpy.ok()
+
+
+def wait_for_acks(publishers: Iterable[Publisher], timeout_s: float) -> bool:
+    """Every subscriber of ``publishers`` acknowledged every message; False after
+    ``timeout_s`` or on a stop signal (checked every 0.1 s: the wait is in C++)."""
+    deadline = time.monotonic() + timeout_s
+    slice_ = Duration(seconds=0.1)
+    waiting = list(publishers)
+    while keep_running():
+        waiting = [p for p in waiting if not p.wait_for_all_acked(slice_)]
+        if not waiting:
+            return True
+        if time.monotonic() > deadline:
+            return False
+    return False
 
 
 def make_executor(message_info: bool = False) -> Executor:
@@ -59,15 +123,17 @@ def prepare_process(name: str) -> bool:
     return True
 
 
-def start_process(name: str, args: list[str] | None, **init: Any) -> bool:
-    """:func:`prepare_process`, then ``rclpy.init`` (``init``: its keyword arguments);
-    False: the node cannot start, and one line says why. rcl refuses command-line
-    arguments it cannot parse (a ``-p`` value that is not YAML, a bad remapping) with an
-    exception whose text spans lines; that is one error line here, never a traceback."""
+def start_process(name: str, args: list[str] | None) -> bool:
+    """:func:`install_stop_handlers`, :func:`prepare_process`, then ``rclpy.init`` without
+    rclpy's signal handlers; False: the node cannot start, and one line says why. rcl
+    refuses command-line arguments it cannot parse (a ``-p`` value that is not YAML, a bad
+    remapping) with an exception whose text spans lines; that is one error line here,
+    never a traceback."""
+    install_stop_handlers()
     if not prepare_process(name):
         return False
     try:
-        rclpy.init(args=args, **init)
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     except (RCLError, ValueError) as error:
         reason = next((line for line in str(error).splitlines() if line.strip()), "")
         get_logger(name).error(printable(f"cannot start: bad ROS arguments: {reason}"))
@@ -82,9 +148,11 @@ def run_node(
     startup_errors: tuple[type[Exception], ...] = (AdsRcaError,),
     message_info: bool = False,
 ) -> int:
-    """Run the node(s) ``build()`` makes until shutdown; exit status 0, or 2 if they cannot
-    start. Several nodes share one executor (one thread: callbacks never overlap);
-    ``message_info``: some callbacks take the MessageInfo (see :func:`make_executor`)."""
+    """Run the node(s) ``build()`` makes until a stop signal, or until one of them says it
+    is ``finished`` (an attribute, e.g. the aggregator after its verdict); exit status 0, or
+    2 if they cannot start. Several nodes share one executor (one thread: callbacks never
+    overlap); ``message_info``: some callbacks take the MessageInfo (see
+    :func:`make_executor`)."""
     if not start_process(name, args):
         return 2
     nodes: list[Node] = []
@@ -98,7 +166,7 @@ def run_node(
         executor = make_executor(message_info)
         for node in nodes:
             executor.add_node(node)
-        while rclpy.ok():
+        while keep_running() and not any(getattr(n, "finished", False) for n in nodes):
             executor.spin_once(timeout_sec=0.1)
         return 0
     except (KeyboardInterrupt, ExternalShutdownException):
@@ -110,3 +178,4 @@ def run_node(
                 close()
             node.destroy_node()
         rclpy.try_shutdown()
+        ignore_stop_signals()

@@ -82,8 +82,3 @@ def _number(name: str, value: Any) -> float:
         return float(value)
     except (TypeError, ValueError):
         raise ConfigError(printable(f"parameter {name}: {value!r} is not a number")) from None
-
-
-def engine_values(params: Params) -> dict[str, bool | int | float | str]:
-    """Every engine parameter as ``-p`` values for a node (semantics included)."""
-    return dict(asdict(params).items())

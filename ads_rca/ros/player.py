@@ -16,7 +16,6 @@ from pathlib import Path
 from typing import Any
 
 import rclpy
-from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
 from rclpy.logging import get_logger
 from rclpy.node import Node
@@ -43,7 +42,13 @@ from ads_rca.errors import AdsRcaError, ConfigError
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB
 from ads_rca.model import RunLog
 from ads_rca.ros import live_topics
-from ads_rca.ros.nodemain import make_executor, start_process
+from ads_rca.ros.nodemain import (
+    ignore_stop_signals,
+    keep_running,
+    make_executor,
+    start_process,
+    wait_for_acks,
+)
 from ads_rca.ros.nodeparams import declare_node_parameters
 from ads_rca.ros.runid import checked_run_id, new_run_id
 from ads_rca.text import printable
@@ -185,7 +190,7 @@ class Player(Node):
         deadline = time.monotonic() + self.wait_timeout
         frame_pub = self.pubs[topics.FRAME]
         ours = self.ready_pub if self.ready_pub is not None else frame_pub
-        while rclpy.ok() and (
+        while keep_running() and (
             ours.get_subscription_count() < self.wait_count
             or frame_pub.get_subscription_count() < self.wait_count
         ):
@@ -200,7 +205,7 @@ class Player(Node):
         grace = min(deadline, time.monotonic() + 2.0)
         data = [p for key, p in self.pubs.items() if not topics.QOS[key].latched]
         while (
-            rclpy.ok()
+            keep_running()
             and time.monotonic() < grace
             and any(p.get_subscription_count() < self.wait_count for p in data)
         ):
@@ -208,10 +213,9 @@ class Player(Node):
         return True
 
     def wait_for_acks(self) -> bool:
-        if not rclpy.ok():  # stopped by a signal: nobody to wait for
-            return False
-        timeout = Duration(seconds=self.wait_timeout)
-        return all([p.wait_for_all_acked(timeout) for p in self.pubs.values()])
+        """Every subscriber acknowledged every message (False after ``wait_timeout_s`` or on
+        a stop signal)."""
+        return wait_for_acks(self.pubs.values(), self.wait_timeout)
 
     # --- playing ------------------------------------------------------------------------
 
@@ -307,11 +311,11 @@ def main(args: list[str] | None = None) -> int:
         executor = make_executor()
         executor.add_node(node)
         node.wait_for_subscribers()
-        if rclpy.ok():
+        if keep_running():
             node.start()
-        while rclpy.ok() and not (node.done and node.exit_on_end):
+        while keep_running() and not (node.done and node.exit_on_end):
             executor.spin_once(timeout_sec=0.1)
-        if rclpy.ok() and not node.wait_for_acks():
+        if keep_running() and not node.wait_for_acks():
             node.get_logger().warning("not every message was acknowledged before exit")
         return 0
     except (KeyboardInterrupt, ExternalShutdownException):
@@ -324,6 +328,7 @@ def main(args: list[str] | None = None) -> int:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+        ignore_stop_signals()
 
 
 if __name__ == "__main__":

@@ -17,11 +17,9 @@ and every message its frame markers announced is in the bag.
 
 from __future__ import annotations
 
-import signal
 import sys
 import time
 from pathlib import Path
-from types import FrameType
 from typing import Any
 
 import rclpy
@@ -30,7 +28,6 @@ from rclpy.logging import get_logger
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
-from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import String
 
 from ads_rca.contract import rosmsg, topics
@@ -42,7 +39,8 @@ from ads_rca.io.bag_writer import contract_qos_yaml
 from ads_rca.io.mcap_writer import COMPRESSIONS, DEFAULT_CHUNK_SIZE, McapBagWriter, qos_yaml
 from ads_rca.ros import live_topics
 from ads_rca.ros.diagnostics import status_runs
-from ads_rca.ros.nodemain import start_process
+from ads_rca.ros.env import ros_distro
+from ads_rca.ros.nodemain import ignore_stop_signals, keep_running, start_process, stop_requested
 from ads_rca.ros.nodeparams import declare_node_parameters
 from ads_rca.ros.runid import checked_run_id, document_run, subscribe_ready, writer_prefix
 
@@ -184,7 +182,10 @@ class Recorder(Node):
         self.stop_on_finished = bool(self._param("stop_on_finished"))
         self.max_duration = float(self._param("max_duration_s"))
         self.writer = McapBagWriter(
-            out, chunk_size=int(self._param("chunk_size")), compression=compression
+            out,
+            chunk_size=int(self._param("chunk_size")),
+            compression=compression,
+            ros_distro=ros_distro(),
         )
         self.writer.set_custom_data("recorded_by", "ads_rca recorder")
         self.progress = RunLogAssembler()  # only counts and the String topics
@@ -307,27 +308,14 @@ class Recorder(Node):
         return text
 
 
-class _Stop:
-    """SIGINT/SIGTERM set a flag; the main loop then drains and finalises the bag."""
-
-    def __init__(self) -> None:
-        self.requested = 0
-        signal.signal(signal.SIGINT, self._handle)
-        signal.signal(signal.SIGTERM, self._handle)
-
-    def _handle(self, signum: int, frame: FrameType | None) -> None:
-        self.requested += 1
-        if self.requested > 2:  # impatient: stop draining, still close the file
-            raise KeyboardInterrupt
-
-
-def _drain(executor: SingleThreadedExecutor, node: Recorder, stop: _Stop) -> None:
-    """Take what DDS already delivered (until 0.3 s pass with nothing new, at most 3 s)."""
+def _drain(executor: SingleThreadedExecutor, node: Recorder) -> None:
+    """Take what DDS already delivered (until 0.3 s pass with nothing new, at most 3 s;
+    a second stop signal ends it at once)."""
     deadline = time.monotonic() + 3.0
     quiet_since = time.monotonic()
     count = node.writer.message_count
     while time.monotonic() < deadline and time.monotonic() - quiet_since < 0.3:
-        if stop.requested > 1:
+        if stop_requested() > 1:
             return
         executor.spin_once(timeout_sec=0.05)
         if node.writer.message_count != count:
@@ -336,11 +324,10 @@ def _drain(executor: SingleThreadedExecutor, node: Recorder, stop: _Stop) -> Non
 
 
 def main(args: list[str] | None = None) -> int:
-    # Our own signal handlers: rclpy's would shut the context down at once, losing samples
-    # DDS already holds for us; ours let the loop drain them before closing the bag.
-    if not start_process("recorder", args, signal_handler_options=SignalHandlerOptions.NO):
+    # A stop signal only sets a flag (nodemain): rclpy's handlers would shut the context
+    # down at once, losing samples DDS already holds for us; the loop drains them first.
+    if not start_process("recorder", args):
         return 2
-    stop = _Stop()
     node: Recorder | None = None
     try:
         try:
@@ -350,9 +337,9 @@ def main(args: list[str] | None = None) -> int:
             return 2
         executor = SingleThreadedExecutor()
         executor.add_node(node)
-        while rclpy.ok() and not stop.requested and not node.done():
+        while keep_running() and not node.done():
             executor.spin_once(timeout_sec=0.1)
-        _drain(executor, node, stop)
+        _drain(executor, node)
         return 0
     except (KeyboardInterrupt, ExternalShutdownException):
         return 0
@@ -362,6 +349,7 @@ def main(args: list[str] | None = None) -> int:
             print(node.summary(), flush=True)
             node.destroy_node()
         rclpy.try_shutdown()
+        ignore_stop_signals()
 
 
 if __name__ == "__main__":

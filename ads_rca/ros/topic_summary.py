@@ -25,7 +25,13 @@ from ads_rca.contract.assembler import RunLogAssembler
 from ads_rca.contract.errors import ContractError, MalformedMessage
 from ads_rca.contract.malformed import SkippedMessages
 from ads_rca.errors import AdsRcaError
-from ads_rca.ros.nodemain import make_executor, start_process
+from ads_rca.ros.nodemain import (
+    ignore_stop_signals,
+    keep_running,
+    make_executor,
+    start_process,
+    stop_requested,
+)
 from ads_rca.ros.nodeparams import declare_node_parameters
 from ads_rca.strictjson import to_strict
 
@@ -157,7 +163,7 @@ def main(args: list[str] | None = None) -> int:
         executor = make_executor()
         executor.add_node(node)
         deadline = time.monotonic() + node.timeout if node.timeout > 0 else float("inf")
-        while rclpy.ok() and not node.assembler.complete():
+        while keep_running() and not node.assembler.complete():
             if time.monotonic() > deadline:
                 node.get_logger().error(
                     f"timed out after {node.timeout} s; missing {node.assembler.missing()}"
@@ -165,6 +171,8 @@ def main(args: list[str] | None = None) -> int:
                 code = 1
                 break
             executor.spin_once(timeout_sec=0.05)
+        if stop_requested():
+            code = 130
     except (KeyboardInterrupt, ExternalShutdownException):
         code = 130
     finally:
@@ -173,6 +181,7 @@ def main(args: list[str] | None = None) -> int:
             node.write_outputs()
             node.destroy_node()
         rclpy.try_shutdown()
+        ignore_stop_signals()
     return code
 
 

@@ -24,16 +24,21 @@ from ads_rca.contract import topics
 from ads_rca.contract.assembler import RunLogAssembler
 from ads_rca.contract.malformed import SkippedMessages
 from ads_rca.errors import InputError
+from ads_rca.paramspec import Range
 from ads_rca.ros.nodemain import make_executor, start_process
-from ads_rca.ros.nodeparams import declare_node_parameters
+from ads_rca.ros.nodeparams import NodeParameter, declare_node_parameters
 from ads_rca.strictjson import to_strict
 
-PARAMETERS: dict[str, tuple[Any, str]] = {
+PARAMETERS: dict[str, NodeParameter] = {
     "topic_namespace": (topics.DEFAULT_NAMESPACE, "Namespace of the contract topics."),
     "output_json": (False, "Rebuild the log from the messages and write it to output_dir."),
     "output_dir": ("rebuilt_log", "Folder for the rebuilt running log (with output_json)."),
     "summary_file": ("", "Write the per-topic counts as JSON to this file ('' = no file)."),
-    "timeout_s": (60.0, "Give up after this many seconds without completing (0 = never)."),
+    "timeout_s": (
+        60.0,
+        "Give up after this many seconds without completing (0 = never).",
+        Range(0.0, 86_400.0, unit="s"),
+    ),
     "fast_decode": (
         True,
         "Subscribe raw (CDR bytes) and decode with ads_rca.contract.cdr_decode instead of "

@@ -46,6 +46,7 @@ from ads_rca.ros.nodeparams import (
     NodeParameter,
     declare_engine_parameters,
     declare_node_parameters,
+    log_in_force,
 )
 from ads_rca.ros.runid import RUN_KEY, RunFilter, checked_run_id, document_run, subscribe_ready
 from ads_rca.summary import window_text
@@ -136,6 +137,7 @@ class Aggregator(Node):
         )
         self.create_timer(0.02, self._poll)
         self.create_timer(0.5, self._watch_monitors)
+        log_in_force(self, p, self.params)
 
     # --- inputs ----------------------------------------------------------------------
 

@@ -58,6 +58,7 @@ from ads_rca.ros.nodeparams import (
     NodeParameter,
     declare_engine_parameters,
     declare_node_parameters,
+    log_in_force,
 )
 from ads_rca.ros.runid import (
     RUN_KEY,
@@ -143,6 +144,7 @@ class Monitor(Node):
             DiagnosticArray, live_topics.DIAGNOSTICS, live_topics.diagnostics_qos()
         )
         self.create_timer(float(p["heartbeat_s"]), self._heartbeat)
+        log_in_force(self, p, self.params)
 
     def publish(self, results: list[LiveResult]) -> None:
         """Each result on the metrics topic; their statuses in one DiagnosticArray.

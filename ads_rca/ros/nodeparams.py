@@ -70,8 +70,9 @@ def declare_node_parameters(
     node: Node, table: dict[str, NodeParameter], engine: Params | None = None
 ) -> dict[str, Any]:
     """Declare the node's own parameters (name → (default, description[, range])); their
-    values. Call it last: it refuses overrides of parameters the node did not declare, and
-    logs the values in force (``engine``: the node's engine parameters, if it has them).
+    values. Call it last: it refuses overrides of parameters the node did not declare
+    (``engine``: the node declared the engine parameters first). Once the node has started,
+    it says so with :func:`log_in_force`.
 
     Doubles are dynamically typed so that ``-p timeout:=5`` (an integer) is accepted; a list
     default is a string array. A value of the wrong type (``-p start_frame:=abc``), a double
@@ -91,7 +92,6 @@ def declare_node_parameters(
         out[name] = check_number(name, value, bounds) if bounds is not None else value
         _freeze(node, name, _descriptor(description, is_float, bounds))
     refuse_unknown(node, [*(("semantics", *ENGINE_NAMES) if engine else ()), *table])
-    node.get_logger().info(in_force(engine, out))
     return out
 
 
@@ -109,6 +109,12 @@ def refuse_unknown(node: Node, known: list[str]) -> None:
         raise InputError(
             printable(f"unknown parameter {', '.join(map(repr, unknown))} (known: {names})")
         )
+
+
+def log_in_force(node: Node, values: dict[str, Any], engine: Params | None = None) -> None:
+    """Log the one line of :func:`in_force`: at the end of a node's start, so a node that
+    refuses to start never claims values were in force."""
+    node.get_logger().info(in_force(engine, values))
 
 
 def in_force(engine: Params | None, values: dict[str, Any]) -> str:

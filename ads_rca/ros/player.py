@@ -45,7 +45,7 @@ from ads_rca.model import RunLog
 from ads_rca.paramspec import MAX_FILE_MB, RATE, SECONDS, Range
 from ads_rca.ros import live_topics
 from ads_rca.ros.nodemain import make_executor, start_process
-from ads_rca.ros.nodeparams import NodeParameter, declare_node_parameters
+from ads_rca.ros.nodeparams import NodeParameter, declare_node_parameters, log_in_force
 from ads_rca.ros.runid import checked_run_id, new_run_id
 from ads_rca.text import printable
 
@@ -177,6 +177,7 @@ class Player(Node):
         )
         self.pubs[topics.METADATA].publish(self.metadata)
         self.get_logger().info(f"run {self.run_id}")
+        log_in_force(self, self._values)
 
     def _param(self, name: str) -> Any:
         return self._values[name]

@@ -43,7 +43,7 @@ from ads_rca.paramspec import SECONDS, Range
 from ads_rca.ros import live_topics
 from ads_rca.ros.diagnostics import status_runs
 from ads_rca.ros.nodemain import start_process
-from ads_rca.ros.nodeparams import NodeParameter, declare_node_parameters
+from ads_rca.ros.nodeparams import NodeParameter, declare_node_parameters, log_in_force
 from ads_rca.ros.runid import checked_run_id, document_run, subscribe_ready, writer_prefix
 
 PARAMETERS: dict[str, NodeParameter] = {
@@ -219,6 +219,7 @@ class Recorder(Node):
         if period > 0:
             self.create_timer(period, self.writer.flush)
         self.get_logger().info(f"recording {len(self.subs)} topics to {out}")
+        log_in_force(self, self._values)
 
     def _param(self, name: str) -> Any:
         return self._values[name]

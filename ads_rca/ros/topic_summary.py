@@ -26,7 +26,7 @@ from ads_rca.contract.malformed import SkippedMessages
 from ads_rca.errors import InputError
 from ads_rca.paramspec import Range
 from ads_rca.ros.nodemain import make_executor, start_process
-from ads_rca.ros.nodeparams import NodeParameter, declare_node_parameters
+from ads_rca.ros.nodeparams import NodeParameter, declare_node_parameters, log_in_force
 from ads_rca.strictjson import to_strict
 
 PARAMETERS: dict[str, NodeParameter] = {
@@ -71,6 +71,7 @@ class TopicSummary(Node):
             )
             for key in topics.ALL_TOPICS
         ]
+        log_in_force(self, values)
 
     def _callback(self, key: str) -> Any:
         # Raw subscriptions hand over the CDR bytes: the assembler keeps them and decodes

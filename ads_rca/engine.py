@@ -83,6 +83,7 @@ class Diagnosis:
             "thresholds": self.semantics.used(self.params),
             "collision_frame": self.log.metadata.collision_frame,
             "window_frames": self.window_frames,
+            "effect_window": self.semantics.effect_window(self.params, self.log.tpf),
             "ego_id": self.ctx.ego_id,
             "partner_id": a.partner_id,
             "modules": {

@@ -2,10 +2,12 @@
 
 The same names are ROS parameters of the nodes, ``-p name=value`` options of the CLI and
 keys of the YAML files in ``config/``. Every output records the mode and the values used.
+Each value is checked against its range (:mod:`ads_rca.paramspec`) wherever it comes from.
 """
 
 from __future__ import annotations
 
+import textwrap
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
@@ -14,6 +16,7 @@ from typing import Any, Literal
 import yaml
 
 from ads_rca.errors import ConfigError
+from ads_rca.paramspec import SPECS, check_number
 
 Semantics = Literal["reference", "corrected"]
 SEMANTICS: tuple[Semantics, ...] = ("reference", "corrected")
@@ -79,14 +82,24 @@ def make_params(
 
 
 def params_from_sources(
-    semantics: str | None, config: Mapping[str, Any], overrides: Mapping[str, Any]
+    semantics: str | None,
+    config: Mapping[str, Any],
+    overrides: Mapping[str, Any],
+    config_name: str | None = None,
 ) -> Params:
     """The parameters of a run from its sources: a chosen ``semantics`` (CLI flag, launch
     argument) wins, then ``overrides`` (``-p``), then the ``config`` file (its engine keys;
-    a node's params file has others too), then the mode's defaults."""
+    a node's params file has others too), then the mode's defaults. A bad value in the
+    config file is refused naming ``config_name``."""
     values = dict(overrides)
     mode = semantics or values.pop("semantics", None) or config.get("semantics", DEFAULT_SEMANTICS)
-    merged = {**engine_overrides(config), **values}
+    from_file = engine_overrides(config)
+    from_file.pop("semantics", None)
+    try:
+        make_params(str(mode), from_file)
+    except ConfigError as error:
+        raise ConfigError(f"{config_name}: {error}" if config_name else str(error)) from None
+    merged = {**from_file, **values}
     merged.pop("semantics", None)
     return make_params(str(mode), merged)
 
@@ -135,13 +148,37 @@ def _convert(name: str, value: Any) -> Any:
         raise ConfigError(f"unknown parameter {name!r} (known: {known})")
     if name == "semantics":
         return value
-    kind = _FIELD_TYPES[name]
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise ConfigError(f"parameter {name}: {value!r} is not a number") from None
-    if kind == "int":
-        if not number.is_integer():
-            raise ConfigError(f"parameter {name}: {value!r} is not an integer")
-        return int(number)
-    return number
+    return check_number(name, value, SPECS[name].range)
+
+
+def defaults_text(name: str) -> str:
+    """``10 / 20``: the parameter's default in each mode, in :data:`SEMANTICS` order."""
+    return " / ".join(str(getattr(make_params(mode), name)) for mode in SEMANTICS)
+
+
+def parameters_help() -> str:
+    """What every threshold does in each mode, its defaults and range (``--help``)."""
+    lines = [
+        f"parameters (-p NAME=VALUE, --config keys, ROS parameters of the nodes); default "
+        f"{' / '.join(SEMANTICS)}, range:"
+    ]
+    for name, spec in SPECS.items():
+        lines.append(f"  {name}: default {defaults_text(name)}, range {spec.range.text()}")
+        for mode in SEMANTICS:
+            lines += textwrap.wrap(
+                spec.effect_in(mode), 88, initial_indent=f"    {mode}: ", subsequent_indent=" " * 6
+            )
+    return "\n".join(lines)
+
+
+def parameters_markdown() -> str:
+    """The same as a Markdown table (``docs/parameters.md``, checked by a test)."""
+    head = " | ".join(f"in `{mode}`" for mode in SEMANTICS)
+    lines = [
+        f"| parameter | default ({' / '.join(SEMANTICS)}) | range | {head} |",
+        "|---|---|---|" + "---|" * len(SEMANTICS),
+    ]
+    for name, spec in SPECS.items():
+        effects = " | ".join(spec.effect_in(mode) for mode in SEMANTICS)
+        lines.append(f"| `{name}` | {defaults_text(name)} | {spec.range.text()} | {effects} |")
+    return "\n".join(lines)

@@ -27,11 +27,10 @@ def summary_text(document: dict[str, Any], max_problems: int = 10, how: str = "j
     if isinstance(collision, int) and collision >= 0:
         partner = document.get("partner_id")
         with_partner = f" with actor {partner}" if partner else ""
-        window = document.get("window_frames")
-        in_window = f"; effect window: {window} frames before it" if window is not None else ""
-        lines.append(f"collision at frame {collision}{with_partner}{in_window}")
+        lines.append(f"collision at frame {collision}{with_partner}")
     else:
         lines.append("no collision in this run")
+    lines.append(window_text(document.get("effect_window")))
     lines.append(f"{'module':<12}{'collision':>10}{'safe':>7}  first failure")
     for module in MODULES:
         counts = document["modules"][module]
@@ -49,6 +48,16 @@ def summary_text(document: dict[str, Any], max_problems: int = 10, how: str = "j
     lines.append(f"input problems: {len(problems)}")
     lines.extend(f"  {line}" for line in problems.summary_lines(max_problems))
     return "\n".join(printable(line) for line in lines)
+
+
+def window_text(window: Any) -> str:
+    """``effect window: 20 frames (1000 ms) = max(...); counts frames ...``."""
+    if not isinstance(window, dict):
+        return "effect window: unknown"
+    return (
+        f"effect window: {window.get('frames')} frames ({window.get('ms')} ms) = "
+        f"{window.get('rule')}; counts {window.get('counts')}"
+    )
 
 
 def _flat(values: dict[str, Any], prefix: str = "") -> list[str]:

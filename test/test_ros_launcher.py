@@ -61,4 +61,4 @@ def test_config_player_yaml_lists_every_parameter_with_its_default():
 
     path = Path(__file__).resolve().parent.parent / "config" / "player.yaml"
     params = yaml.safe_load(path.read_text())["/**"]["ros__parameters"]
-    assert params == {name: default for name, (default, _) in PARAMETERS.items()}
+    assert params == {name: entry[0] for name, entry in PARAMETERS.items()}

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from ads_rca.errors import InputError
+from ads_rca.paramspec import RATE, check_number
 from ads_rca.ros.domains import free_domain_id
 from ads_rca.ros.env import (
     ALLOW_EXTERNAL_VARIABLE,
@@ -18,7 +18,10 @@ from ads_rca.ros.env import (
 
 def add_playback_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "--rate", type=float, default=0.0, help="playback rate (0 = as fast as acknowledged)"
+        "--rate",
+        type=float,
+        default=0.0,
+        help=f"playback rate (0 = as fast as acknowledged; range {RATE.text()})",
     )
     parser.add_argument("--timeout", type=float, default=300.0, help="seconds before giving up")
     parser.add_argument(
@@ -37,8 +40,7 @@ def add_playback_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def check_playback_arguments(args: argparse.Namespace) -> None:
-    if args.rate < 0:
-        raise InputError(f"--rate must be >= 0, got {args.rate}")
+    check_number("--rate", args.rate, RATE)
 
 
 def allow_external(args: argparse.Namespace) -> bool | None:

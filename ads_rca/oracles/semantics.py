@@ -73,9 +73,20 @@ class Semantics:
 
         return earliest_ego(ctx)
 
+    #: Which frames the window holds (``{w}``: its length), for outputs.
+    window_counts: str = "frames collision_frame - {w} to collision_frame"
+
     def window_frames(self, params: Params, tpf_ms: int) -> int:
         """W: frames before the collision that belong to the effect window."""
         return params.effect_time_window
+
+    def window_rule(self, params: Params, tpf_ms: int) -> str:
+        """How W follows from the parameters, with their values (outputs print it)."""
+        return f"effect_time_window {params.effect_time_window}"
+
+    def window_terms(self, params: Params, tpf_ms: int) -> dict[str, int]:
+        """The window in frames each parameter that sets W asks for (W is the largest)."""
+        return {"effect_time_window": params.effect_time_window}
 
     def folders(self, module: Module) -> tuple[str, ...]:
         """The log folders (hence topics) ``module``'s oracle reads (default: every one)."""
@@ -109,6 +120,19 @@ class Semantics:
         return None
 
     # --- derived: the same for every mode --------------------------------------------
+
+    def effect_window(self, params: Params, tpf_ms: int) -> dict[str, Any]:
+        """The effective window as outputs name it: length, which parameter set it, the
+        rule with the values, the frames it holds (``effect_window`` of the JSON)."""
+        w = self.window_frames(params, tpf_ms)
+        terms = self.window_terms(params, tpf_ms)
+        return {
+            "frames": w,
+            "ms": w * tpf_ms,
+            "set_by": [name for name, frames in terms.items() if frames == w],
+            "rule": self.window_rule(params, tpf_ms),
+            "counts": self.window_counts.format(w=w),
+        }
 
     def used(self, params: Params) -> dict[str, Any]:
         """The values of the parameters this mode reads (``thresholds`` of the outputs)."""

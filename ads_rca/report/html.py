@@ -36,6 +36,7 @@ from matplotlib.patches import Polygon
 from ads_rca.engine import Diagnosis
 from ads_rca.geometry import box_corners, ego_to_world
 from ads_rca.oracles.base import MODULES, Module
+from ads_rca.summary import window_text
 
 #: Largest magnitude drawn. Beyond it no log quantity (metres, ms, scores) means anything,
 #: and near float's limit matplotlib's transforms overflow (1.7e308 fails to draw).
@@ -159,6 +160,7 @@ def render(result: Diagnosis) -> str:
         ),
         el("p", "Verdict: ", result.verdict_text, class_="verdict"),
         el("p", "Attribution basis: ", a.attribution_basis),
+        el("p", window_text(result.semantics.effect_window(result.params, result.log.tpf))),
         el("table", *rows),
         el("h2", "Evidence"),
         *(evidence or [el("p", "none")]),

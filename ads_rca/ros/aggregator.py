@@ -42,13 +42,21 @@ from ads_rca.errors import AdsRcaError
 from ads_rca.live.aggregate import AggregatorCore, VerdictOutcome
 from ads_rca.live.results import FrameMarker, LiveResult
 from ads_rca.oracles.base import MODULES, Module
+from ads_rca.oracles.semantics import semantics_for
+from ads_rca.paramspec import SECONDS
 from ads_rca.ros import diagnostics as diag
 from ads_rca.ros import live_topics
 from ads_rca.ros.nodemain import run_node, wait_for_acks
-from ads_rca.ros.nodeparams import declare_engine_parameters, declare_node_parameters
+from ads_rca.ros.nodeparams import (
+    NodeParameter,
+    declare_engine_parameters,
+    declare_node_parameters,
+    log_in_force,
+)
 from ads_rca.ros.runid import RUN_KEY, RunFilter, checked_run_id, document_run, subscribe_ready
+from ads_rca.summary import window_text
 
-PARAMETERS: dict[str, tuple[Any, str]] = {
+PARAMETERS: dict[str, NodeParameter] = {
     "topic_namespace": (topics.DEFAULT_NAMESPACE, "Namespace of the contract topics."),
     "hardware_id": ("ads_rca", "hardware_id of the diagnostic statuses."),
     "verdict_json": ("", "Write the verdict JSON here ('' = no file)."),
@@ -56,9 +64,14 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "verdict_timeout_s": (
         10.0,
         "After the horizon, publish anyway after this long without results.",
+        SECONDS,
     ),
-    "stall_timeout_s": (20.0, "Before the horizon, publish anyway after this long without input."),
-    "stale_timeout_s": (2.0, "A monitor silent this long is reported STALE."),
+    "stall_timeout_s": (
+        20.0,
+        "Before the horizon, publish anyway after this long without input.",
+        SECONDS,
+    ),
+    "stale_timeout_s": (2.0, "A monitor silent this long is reported STALE.", SECONDS),
     "run_id": ("", "Attribute only this run ('' = the first run heard of); see ads_rca.ros.runid."),
     "exit_after_verdict": (
         False,
@@ -75,7 +88,7 @@ class Aggregator(Node):
     def __init__(self) -> None:
         super().__init__("aggregator")
         self.params = declare_engine_parameters(self)
-        p = declare_node_parameters(self, PARAMETERS)
+        p = declare_node_parameters(self, PARAMETERS, self.params)
         self.hardware_id = str(p["hardware_id"])
         self.verdict_json = str(p["verdict_json"])
         self.exit_after_verdict = bool(p["exit_after_verdict"])
@@ -138,6 +151,7 @@ class Aggregator(Node):
         )
         self.create_timer(0.02, self._poll)
         self.create_timer(0.5, self._watch_monitors)
+        log_in_force(self, p, self.params)
 
     # --- inputs ----------------------------------------------------------------------
 
@@ -170,6 +184,10 @@ class Aggregator(Node):
                     now,
                     read_input_problems(document),
                 )
+                tpf = metadata.timesteps_per_frame
+                if tpf > 0:  # the window in frames needs the run's frame period
+                    window = semantics_for(self.params).effect_window(self.params, tpf)
+                    self.get_logger().info(f"{tpf} ms per frame, {window_text(window)}")
 
         return on_message
 

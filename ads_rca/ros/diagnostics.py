@@ -142,6 +142,7 @@ def verdict_status(document: Mapping[str, Any], hardware_id: str) -> Status:
             "attribution_basis",
             "reason",
             "collision_frame",
+            "effect_window",
             "partner_id",
             "ego_id",
             "verdict_latency_s",

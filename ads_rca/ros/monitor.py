@@ -50,12 +50,18 @@ from ads_rca.live.results import FrameMarker, LiveResult
 from ads_rca.live.window import MonitorCore, WindowSettings
 from ads_rca.model import RunMetadata
 from ads_rca.oracles.base import Module
+from ads_rca.paramspec import SECONDS, Range
 from ads_rca.ros import diagnostics as diag
 from ads_rca.ros import live_topics
 from ads_rca.ros.early_queue import EarlyQueue
 from ads_rca.ros.graph import GROUP, MONITORS
 from ads_rca.ros.nodemain import run_node
-from ads_rca.ros.nodeparams import declare_engine_parameters, declare_node_parameters
+from ads_rca.ros.nodeparams import (
+    NodeParameter,
+    declare_engine_parameters,
+    declare_node_parameters,
+    log_in_force,
+)
 from ads_rca.ros.runid import (
     RUN_KEY,
     RunFilter,
@@ -64,20 +70,33 @@ from ads_rca.ros.runid import (
     subscribe_ready,
 )
 
-PARAMETERS: dict[str, tuple[Any, str]] = {
+PARAMETERS: dict[str, NodeParameter] = {
     "topic_namespace": (topics.DEFAULT_NAMESPACE, "Namespace of the contract topics."),
     "hardware_id": ("ads_rca", "hardware_id of the diagnostic statuses."),
-    "stale_timeout_s": (2.0, "STALE on /diagnostics after this long without input."),
-    "input_timeout_s": (5.0, "Judge with what arrived after this long without input."),
-    "heartbeat_s": (0.5, "Period of the monitor heartbeat status."),
+    "stale_timeout_s": (2.0, "STALE on /diagnostics after this long without input.", SECONDS),
+    "input_timeout_s": (5.0, "Judge with what arrived after this long without input.", SECONDS),
+    "heartbeat_s": (0.5, "Period of the monitor heartbeat status.", Range(0.01, 60.0, unit="s")),
     "poll_period_s": (
         0.02,
         "Judge ready frames at least this often; a frame marker judges at once unless the "
         "last judgement is more recent (so a backlog is judged in batches).",
+        Range(0.001, 10.0, unit="s"),
     ),
-    "max_lookahead_frames": (100, "Longest look-ahead waited for (reference prediction keys)."),
-    "max_pending_frames": (1200, "Frames held at most before judging anyway (marked)."),
-    "history_frames": (0, "Judged frames kept for a late collision (0 = automatic)."),
+    "max_lookahead_frames": (
+        100,
+        "Longest look-ahead waited for (reference prediction keys).",
+        Range(0, 100_000, integer=True, unit="frames"),
+    ),
+    "max_pending_frames": (
+        1200,
+        "Frames held at most before judging anyway (marked).",
+        Range(1, 1_000_000, integer=True, unit="frames"),
+    ),
+    "history_frames": (
+        0,
+        "Judged frames kept for a late collision (0 = automatic).",
+        Range(0, 1_000_000, integer=True, unit="frames"),
+    ),
     "publish_diagnostics": (True, "Publish one /diagnostics status per judged frame."),
     "run_id": ("", "Judge only this run ('' = the first run heard of); see ads_rca.ros.runid."),
 }
@@ -90,7 +109,7 @@ class Monitor(Node):
         super().__init__(node_name)
         self.module = module
         self.params = declare_engine_parameters(self)
-        p = declare_node_parameters(self, PARAMETERS)
+        p = declare_node_parameters(self, PARAMETERS, self.params)
         self.hardware_id = str(p["hardware_id"])
         self.stale_timeout = float(p["stale_timeout_s"])
         self.publish_diagnostics = bool(p["publish_diagnostics"])
@@ -116,6 +135,7 @@ class Monitor(Node):
             DiagnosticArray, live_topics.DIAGNOSTICS, live_topics.diagnostics_qos()
         )
         self.create_timer(float(p["heartbeat_s"]), self._heartbeat)
+        log_in_force(self, p, self.params)
 
     def publish(self, results: list[LiveResult]) -> None:
         """Each result on the metrics topic; their statuses in one DiagnosticArray.

@@ -41,6 +41,7 @@ from ads_rca.contract.playback import (
 from ads_rca.errors import AdsRcaError, ConfigError
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB
 from ads_rca.model import RunLog
+from ads_rca.paramspec import MAX_FILE_MB, RATE, SECONDS, Range
 from ads_rca.ros import live_topics
 from ads_rca.ros.nodemain import (
     ignore_stop_signals,
@@ -49,31 +50,59 @@ from ads_rca.ros.nodemain import (
     start_process,
     wait_for_acks,
 )
-from ads_rca.ros.nodeparams import declare_node_parameters
+from ads_rca.ros.nodeparams import NodeParameter, declare_node_parameters, log_in_force
 from ads_rca.ros.runid import checked_run_id, new_run_id
 from ads_rca.text import printable
 
-#: Every parameter: (default, description); declared by ``nodeparams.declare_node_parameters``.
-PARAMETERS: dict[str, tuple[Any, str]] = {
+#: A tick may carry a few extra stamps; 40 frames stay far below the 100-message history.
+MAX_ACK_EVERY = 40
+#: The largest frame index a parameter can name.
+MAX_FRAME = 2**31 - 1
+
+#: Every parameter: (default, description[, range]); declared by
+#: ``nodeparams.declare_node_parameters``, which checks the ranges.
+PARAMETERS: dict[str, NodeParameter] = {
     "log_path": ("", "Running-log folder or rosbag2 bag (dir, .mcap, .db3) to play (required)."),
     "bag_remap": ("", "Topic remapping YAML for a bag whose topic names differ ('' = none)."),
-    "rate": (1.0, "Playback speed vs log time; 0 = as fast as subscribers acknowledge."),
+    "rate": (
+        1.0,
+        "Playback speed vs log time; 0 = as fast as subscribers acknowledge.",
+        RATE,
+    ),
     "max_file_mb": (
         DEFAULT_MAX_FILE_MB,
         "Log files larger than this many MB are reported and skipped, not read.",
+        MAX_FILE_MB,
     ),
-    "start_frame": (0, "Index of the first analysed frame to play."),
-    "stop_frame": (-1, "Index of the last analysed frame to play (inclusive); -1 = the end."),
+    "start_frame": (
+        0,
+        "Index of the first analysed frame to play.",
+        Range(0, MAX_FRAME, integer=True),
+    ),
+    "stop_frame": (
+        -1,
+        "Index of the last analysed frame to play (inclusive); -1 = the end.",
+        Range(-1, MAX_FRAME, integer=True),
+    ),
     "loop": (False, "Start again from start_frame after the last frame."),
     "publish_clock": (True, "Publish /clock with each frame's log time before its data."),
     "topic_namespace": (topics.DEFAULT_NAMESPACE, "Namespace of every contract topic."),
-    "wait_for_subscribers": (0, "Wait for this many subscribers on run/frame before playing."),
-    "wait_timeout_s": (10.0, "Longest wait for subscribers / acknowledgements, in seconds."),
+    "wait_for_subscribers": (
+        0,
+        "Wait for this many subscribers on run/frame before playing.",
+        Range(0, 1000, integer=True),
+    ),
+    "wait_timeout_s": (
+        10.0,
+        "Longest wait for subscribers / acknowledgements, in seconds.",
+        SECONDS,
+    ),
     "exit_on_end": (True, "After 'finished', wait for all acks, then exit with status 0."),
     "ack_every": (
         20,
         "At rate 0: frames sent between waits for acknowledgements (1 to 40; the publishers "
         "keep 100 messages, so a batch never overwrites an unacknowledged one).",
+        Range(1, MAX_ACK_EVERY, integer=True),
     ),
     "run_id": (
         "",
@@ -86,8 +115,6 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
         "~20x faster) instead of rclpy message objects.",
     ),
 }
-#: A tick may carry a few extra stamps; 40 frames stay far below the 100-message history.
-MAX_ACK_EVERY = 40
 
 
 class Player(Node):
@@ -109,12 +136,6 @@ class Player(Node):
         namespace = str(self._param("topic_namespace"))
         given_run = checked_run_id(str(self._param("run_id")))
         self.run_id = given_run or new_run_id()
-        if self.rate < 0:
-            raise ConfigError(f"rate must be >= 0, got {self.rate}")
-        if not 1 <= self.ack_every <= MAX_ACK_EVERY:
-            raise ConfigError(f"ack_every must be 1 to {MAX_ACK_EVERY}, got {self.ack_every}")
-        if self.start_frame < 0 or self.stop_frame < -1:
-            raise ConfigError("start_frame must be >= 0 and stop_frame >= -1")
         self.max_file_mb = float(self._param("max_file_mb"))
         self.log = self._load(str(self._param("log_path")), str(self._param("bag_remap")))
         self.ticks = select(timeline(self.log), self.start_frame, self.stop_frame)
@@ -157,6 +178,7 @@ class Player(Node):
         )
         self.pubs[topics.METADATA].publish(self.metadata)
         self.get_logger().info(f"run {self.run_id}")
+        log_in_force(self, self._values)
 
     def _param(self, name: str) -> Any:
         return self._values[name]

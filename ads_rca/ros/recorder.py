@@ -37,23 +37,36 @@ from ads_rca.contract.jsontext import loads_json
 from ads_rca.errors import AdsRcaError, ConfigError
 from ads_rca.io.bag_writer import contract_qos_yaml
 from ads_rca.io.mcap_writer import COMPRESSIONS, DEFAULT_CHUNK_SIZE, McapBagWriter, qos_yaml
+from ads_rca.paramspec import SECONDS, Range
 from ads_rca.ros import live_topics
 from ads_rca.ros.diagnostics import status_runs
 from ads_rca.ros.env import ros_distro
 from ads_rca.ros.nodemain import ignore_stop_signals, keep_running, start_process, stop_requested
-from ads_rca.ros.nodeparams import declare_node_parameters
+from ads_rca.ros.nodeparams import NodeParameter, declare_node_parameters, log_in_force
 from ads_rca.ros.runid import checked_run_id, document_run, subscribe_ready, writer_prefix
 
-PARAMETERS: dict[str, tuple[Any, str]] = {
+PARAMETERS: dict[str, NodeParameter] = {
     "output": ("", "Bag directory to create (required; must be new or empty)."),
     "topics": ([], "Topics to record ([] = contract + /diagnostics + namespace topics)."),
     "topic_namespace": (topics.DEFAULT_NAMESPACE, "Namespace of the contract topics."),
     "discover": (True, "Poll the graph for more topics to record (default topic set)."),
     "compression": ("zstd", "Chunk compression: zstd, lz4 or none."),
-    "chunk_size": (DEFAULT_CHUNK_SIZE, "Bytes per chunk; each full chunk goes to disk."),
-    "flush_period_s": (1.0, "Also end the current chunk this often (0 = only when full)."),
+    "chunk_size": (
+        DEFAULT_CHUNK_SIZE,
+        "Bytes per chunk; each full chunk goes to disk.",
+        Range(1024, 1 << 30, integer=True, unit="bytes"),
+    ),
+    "flush_period_s": (
+        1.0,
+        "Also end the current chunk this often (0 = only when full).",
+        SECONDS,
+    ),
     "stop_on_finished": (False, "Stop once the player finished and all it announced is in."),
-    "max_duration_s": (0.0, "Stop after this many seconds (0 = never)."),
+    "max_duration_s": (
+        0.0,
+        "Stop after this many seconds (0 = never).",
+        Range(0.0, 604_800.0, unit="s"),
+    ),
     "run_id": ("", "Record only this run ('' = everything); see ads_rca.ros.runid."),
 }
 _IGNORED = {"/rosout", "/parameter_events"}
@@ -204,6 +217,7 @@ class Recorder(Node):
         if period > 0:
             self.create_timer(period, self.writer.flush)
         self.get_logger().info(f"recording {len(self.subs)} topics to {out}")
+        log_in_force(self, self._values)
 
     def _param(self, name: str) -> Any:
         return self._values[name]

@@ -25,6 +25,7 @@ from ads_rca.contract.assembler import RunLogAssembler
 from ads_rca.contract.errors import ContractError, MalformedMessage
 from ads_rca.contract.malformed import SkippedMessages
 from ads_rca.errors import AdsRcaError
+from ads_rca.paramspec import Range
 from ads_rca.ros.nodemain import (
     ignore_stop_signals,
     keep_running,
@@ -32,15 +33,19 @@ from ads_rca.ros.nodemain import (
     start_process,
     stop_requested,
 )
-from ads_rca.ros.nodeparams import declare_node_parameters
+from ads_rca.ros.nodeparams import NodeParameter, declare_node_parameters, log_in_force
 from ads_rca.strictjson import to_strict
 
-PARAMETERS: dict[str, tuple[Any, str]] = {
+PARAMETERS: dict[str, NodeParameter] = {
     "topic_namespace": (topics.DEFAULT_NAMESPACE, "Namespace of the contract topics."),
     "output_json": (False, "Rebuild the log from the messages and write it to output_dir."),
     "output_dir": ("rebuilt_log", "Folder for the rebuilt running log (with output_json)."),
     "summary_file": ("", "Write the per-topic counts as JSON to this file ('' = no file)."),
-    "timeout_s": (60.0, "Give up after this many seconds without completing (0 = never)."),
+    "timeout_s": (
+        60.0,
+        "Give up after this many seconds without completing (0 = never).",
+        Range(0.0, 86_400.0, unit="s"),
+    ),
     "fast_decode": (
         True,
         "Subscribe raw (CDR bytes) and decode with ads_rca.contract.cdr_decode instead of "
@@ -73,6 +78,7 @@ class TopicSummary(Node):
             )
             for key in topics.ALL_TOPICS
         ]
+        log_in_force(self, values)
 
     def _callback(self, key: str) -> Any:
         # Raw subscriptions hand over the CDR bytes: the assembler keeps them and decodes

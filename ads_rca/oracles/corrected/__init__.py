@@ -12,7 +12,11 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from ads_rca.oracles.base import Module, OracleResult, RunContext
-from ads_rca.oracles.corrected.attribution import attribute_corrected, window_frames
+from ads_rca.oracles.corrected.attribution import (
+    attribute_corrected,
+    window_frames,
+    window_terms,
+)
 from ads_rca.oracles.corrected.common import REPORTED
 from ads_rca.oracles.corrected.context import corrected_context
 from ads_rca.oracles.corrected.control import control
@@ -73,6 +77,16 @@ class CorrectedSemantics(Semantics):
 
     def window_frames(self, params: Params, tpf_ms: int) -> int:
         return window_frames(params, tpf_ms)
+
+    def window_terms(self, params: Params, tpf_ms: int) -> dict[str, int]:
+        return window_terms(params, tpf_ms)
+
+    def window_rule(self, params: Params, tpf_ms: int) -> str:
+        terms = window_terms(params, tpf_ms)
+        return (
+            f"max(effect_time_window {terms['effect_time_window']}, "
+            f"round(window_s {params.window_s:g} s / {tpf_ms} ms) {terms['window_s']})"
+        )
 
     def lookahead_frames(
         self,

@@ -33,9 +33,18 @@ from ads_rca.verdict import (
 FALLBACK_MODULES: tuple[Module, ...] = ("perception", "prediction")
 
 
+def window_terms(params: Params, tpf_ms: int) -> dict[str, int]:
+    """The window each parameter asks for, in frames: ``effect_time_window``, and
+    ``window_s`` seconds at this frame period."""
+    return {
+        "effect_time_window": params.effect_time_window,
+        "window_s": round(params.window_s * 1000.0 / tpf_ms),
+    }
+
+
 def window_frames(params: Params, tpf_ms: int) -> int:
     """W: ``effect_time_window`` frames, or ``window_s`` seconds when that is longer."""
-    return max(params.effect_time_window, round(params.window_s * 1000.0 / tpf_ms))
+    return max(window_terms(params, tpf_ms).values())
 
 
 def persistence(params: Params, module: Module) -> int:

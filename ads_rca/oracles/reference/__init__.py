@@ -52,6 +52,7 @@ class ReferenceSemantics(Semantics):
         "planning_toleration",
     )
     reported = REPORTED
+    window_counts = "frames after collision_frame - {w}, with no upper bound"
     headline: Mapping[Module, Sequence[tuple[str, str | None]]] = {
         "perception": [("mean_iou", "perc_score_threshold")],
         "prediction": [("ratio", "pred_score_threshold")],

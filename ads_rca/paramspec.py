@@ -1,0 +1,214 @@
+"""What each parameter is: its unit, its range, and what it does in each semantics mode.
+
+Why one table: the range is checked in the same words on the command line (``-p``,
+``--config``) and by the nodes (whose ROS descriptors carry it as a
+``FloatingPointRange`` / ``IntegerRange``), and the help, the ROS descriptions and
+``docs/parameters.md`` say what a parameter does from the same text, so they cannot drift.
+A value out of range (``safety_margin=-1``, ``nan``, ``window_s=-3``) would silently change
+a verdict; it is refused instead, in one line naming the range.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from ads_rca.errors import ConfigError
+
+
+@dataclass(frozen=True)
+class Range:
+    """Inclusive bounds of a numeric parameter (``integer``: whole numbers only)."""
+
+    low: float
+    high: float
+    integer: bool = False
+    unit: str = ""
+
+    def text(self) -> str:
+        """``[0, 100] m``: as the refusal and the docs show it."""
+        unit = f" {self.unit}" if self.unit else ""
+        return f"[{_number_text(self.low)}, {_number_text(self.high)}]{unit}"
+
+    def check(self, name: str, value: float) -> None:
+        """Raise ConfigError unless ``low <= value <= high`` (NaN and infinities never are)."""
+        if not (math.isfinite(value) and self.low <= value <= self.high):
+            raise ConfigError(
+                f"parameter {name}: {_number_text(value)} is out of range {self.text()}"
+            )
+
+
+def _number_text(value: float) -> str:
+    if isinstance(value, float) and value.is_integer() and abs(value) < 1e15:
+        return str(int(value))
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """One engine parameter: its range, and per mode what it does (a mode absent from
+    ``effect`` does not read it)."""
+
+    range: Range
+    effect: Mapping[str, str] = field(default_factory=dict)
+
+    def effect_in(self, mode: str) -> str:
+        return self.effect.get(mode, "not read in this mode")
+
+
+def _frames(low: int, high: int) -> Range:
+    return Range(low, high, integer=True, unit="frames")
+
+
+#: What ``effect_time_window`` does in ``corrected`` (the help's old example did nothing there).
+_CORRECTED_WINDOW = (
+    "a lower bound on the window: W = max(effect_time_window, round(window_s / frame period)) "
+    "frames before the collision; it changes the verdict only when above round(window_s / "
+    "frame period) (20 frames at the default 1 s and 20 Hz)"
+)
+
+#: Every engine threshold, in :class:`~ads_rca.params.Params` field order.
+SPECS: dict[str, ParamSpec] = {
+    "effect_time_window": ParamSpec(
+        _frames(0, 100_000),
+        {
+            "reference": "a failing frame is counted as `collision` when its time is after "
+            "(collision_frame - effect_time_window) frames, with no upper bound; else `safe`",
+            "corrected": _CORRECTED_WINDOW,
+        },
+    ),
+    "pred_score_threshold": ParamSpec(
+        Range(0.0, 1000.0),
+        {
+            "reference": "prediction fails when the partner is within 4 m and error / distance "
+            ">= this",
+            "corrected": "displacement threshold = max(pred_abs_threshold, this x the distance "
+            "the partner travelled over the horizon)",
+        },
+    ),
+    "prediction_window": ParamSpec(
+        _frames(1, 1000),
+        {"corrected": "horizon of every clearance: prediction keys k < this, plan indices 1..this"},
+    ),
+    "perc_score_threshold": ParamSpec(
+        Range(0.0, 1.0),
+        {"reference": "perception fails when the mean matched IoU is below this"},
+    ),
+    "planning_toleration_future_step": ParamSpec(
+        Range(0, 1000, integer=True, unit="plan steps"),
+        {"reference": "plan indices below this use tolerance 0, later ones -planning_toleration"},
+    ),
+    "planning_toleration": ParamSpec(
+        Range(0.0, 1000.0, unit="m"),
+        {
+            "reference": "tolerance of the plan-vs-prediction gap test from "
+            "planning_toleration_future_step on"
+        },
+    ),
+    "window_s": ParamSpec(
+        Range(0.0, 3600.0, unit="s"),
+        {
+            "corrected": "the window in seconds: W = max(effect_time_window, round(window_s / "
+            "frame period)) frames before the collision"
+        },
+    ),
+    "perc_match_iou": ParamSpec(
+        Range(0.0, 1.0),
+        {"corrected": "a detection matches a gt box (optimal matching) only at IoU >= this"},
+    ),
+    "safety_margin": ParamSpec(
+        Range(0.0, 100.0, unit="m"),
+        {
+            "corrected": "clearance below which a future state is a conflict (real conflict: "
+            "c_gt < this; planning fails when c_plan < this)"
+        },
+    ),
+    "understate_min": ParamSpec(
+        Range(0.0, 100.0, unit="m"),
+        {
+            "corrected": "a clearance understatement (c_pwp - c_gt, c_raw - c_ref) below this is "
+            "noise, not a failure"
+        },
+    ),
+    "pred_abs_threshold": ParamSpec(
+        Range(0.0, 1000.0, unit="m"),
+        {"corrected": "floor of the displacement threshold (see pred_score_threshold)"},
+    ),
+    "max_decel": ParamSpec(
+        Range(0.1, 100.0, unit="m/s²"),
+        {
+            "corrected": "braking limit: planning is not blamed when already braking at it, and "
+            "the safer plan brakes at it"
+        },
+    ),
+    "decel_tolerance": ParamSpec(
+        Range(0.0, 100.0, unit="m/s²"),
+        {"corrected": "braking within this of max_decel counts as at the limit"},
+    ),
+    "standstill_speed": ParamSpec(
+        Range(0.0, 100.0, unit="m/s"),
+        {"corrected": "a plan slower than this counts as standing still (planning)"},
+    ),
+    "control_horizon": ParamSpec(
+        _frames(1, 1000),
+        {"corrected": "control tracking errors are summed over this many steps per frame"},
+    ),
+    "control_speed_threshold": ParamSpec(
+        Range(0.0, 1000.0, unit="m/s"),
+        {
+            "corrected": "speed tracking threshold = max(this, actuator_delay x the largest "
+            "commanded deceleration)"
+        },
+    ),
+    "actuator_delay": ParamSpec(
+        Range(0.0, 10.0, unit="s"),
+        {"corrected": "see control_speed_threshold"},
+    ),
+    "control_lateral_threshold": ParamSpec(
+        Range(0.0, 100.0, unit="m"),
+        {
+            "corrected": "control fails when the summed lateral drift toward the partner exceeds "
+            "this"
+        },
+    ),
+    "min_persistence": ParamSpec(
+        _frames(1, 1000),
+        {
+            "corrected": "perception and prediction failures count only in runs at least this "
+            "long inside the window"
+        },
+    ),
+    "control_min_persistence": ParamSpec(_frames(1, 1000), {"corrected": "the same for control"}),
+    "planning_min_persistence": ParamSpec(_frames(1, 1000), {"corrected": "the same for planning"}),
+    "heading_min_step": ParamSpec(
+        Range(0.0, 100.0, unit="m"),
+        {"corrected": "predicted motion shorter than this keeps the previous heading"},
+    ),
+}
+
+#: The log reader's parameter (not an engine threshold; ``commands/input_args.py``).
+MAX_FILE_MB = Range(0.001, 1_048_576.0, unit="MB")
+#: A node's timeout or period, in seconds (up to an hour).
+SECONDS = Range(0.0, 3600.0, unit="s")
+#: Playback speed relative to log time (the player's ``rate``, ``--rate``; 0 = no clock).
+RATE = Range(0.0, 1000.0)
+
+
+def check_number(name: str, value: Any, bounds: Range) -> int | float:
+    """``value`` (a number, or text of one) as the parameter's type, within ``bounds``;
+    else ConfigError naming the parameter (and the range)."""
+    if isinstance(value, bool):
+        raise ConfigError(f"parameter {name}: {value!r} is not a number")
+    try:
+        number = float(value)
+    except (TypeError, ValueError, OverflowError):
+        raise ConfigError(f"parameter {name}: {value!r} is not a number") from None
+    if bounds.integer and math.isfinite(number):
+        if not number.is_integer():
+            raise ConfigError(f"parameter {name}: {value!r} is not an integer")
+        bounds.check(name, int(number))
+        return int(number)
+    bounds.check(name, number)
+    return number

@@ -77,7 +77,11 @@ PARAMETERS: dict[str, NodeParameter] = {
         False,
         "Exit (status 0) once every subscriber acknowledged the published verdict.",
     ),
-    "ack_timeout_s": (10.0, "With exit_after_verdict: longest wait for those acknowledgements."),
+    "ack_timeout_s": (
+        10.0,
+        "With exit_after_verdict: longest wait for those acknowledgements.",
+        SECONDS,
+    ),
 }
 _REPORTER = "aggregator"
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from typing import Any
 
-MONITORS = ("perception_monitor", "prediction_monitor", "planning_monitor", "control_monitor")
+MONITORS = ("perception_monitor", "prediction_monitor", "planning_monitor", "controller_monitor")
 
 
 def generate_launch_description() -> Any:

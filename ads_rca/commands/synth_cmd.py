@@ -10,7 +10,7 @@ import argparse
 from typing import Any
 
 from ads_rca.io.json_writer import write_run_log
-from ads_rca.synth import FAULTS, SCENARIOS, synthesise_run
+from ads_rca.synth import FAULTS, SCENARIOS, canonical_fault, synthesise_run
 
 
 def register(subparsers: Any) -> None:
@@ -19,7 +19,13 @@ def register(subparsers: Any) -> None:
     )
     parser.add_argument("out_dir", metavar="OUT_DIR", help="folder to write the log into")
     parser.add_argument("--scenario", required=True, choices=SCENARIOS)
-    parser.add_argument("--fault", default="none", choices=FAULTS)
+    parser.add_argument(
+        "--fault",
+        default="none",
+        type=canonical_fault,  # the old spelling "control" is accepted for "controller"
+        choices=FAULTS,
+        help="the module whose fault is injected (default none)",
+    )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--frames", type=int, help="log length when nothing crashes")
     parser.add_argument("--actors", type=int, help="number of background actors")

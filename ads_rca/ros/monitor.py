@@ -1,7 +1,7 @@
 """Monitor nodes: each module's oracle judged live, frame by frame, on the player's topics.
 
-``perception_monitor``, ``prediction_monitor``, ``planning_monitor`` and ``control_monitor``
-are this one class with a different module. A thin shell over
+``perception_monitor``, ``prediction_monitor``, ``planning_monitor`` and ``controller_monitor``
+are this one class with a different module (node name = ``<module>_monitor``). A thin shell over
 :class:`~ads_rca.live.window.MonitorCore`, which decides when a frame can be judged and
 runs the engine's own oracles on it: the shell only decodes messages, calls it, and
 publishes each result on ``/diagnostics`` (status ``ads_rca/<module>``) and, losslessly, on
@@ -48,7 +48,7 @@ from ads_rca.errors import InputError
 from ads_rca.live.results import FrameMarker, LiveResult
 from ads_rca.live.window import MonitorCore, WindowSettings
 from ads_rca.model import RunMetadata
-from ads_rca.oracles.base import Module
+from ads_rca.oracles.base import MODULES, Module
 from ads_rca.ros import diagnostics as diag
 from ads_rca.ros import live_topics
 from ads_rca.ros.early_queue import EarlyQueue
@@ -62,13 +62,8 @@ from ads_rca.ros.runid import (
     subscribe_ready,
 )
 
-#: Node name → module it judges.
-MONITORS: dict[str, Module] = {
-    "perception_monitor": "perception",
-    "prediction_monitor": "prediction",
-    "planning_monitor": "planning",
-    "control_monitor": "controller",
-}
+#: Node name → module it judges: ``<module>_monitor``, in pipeline order.
+MONITORS: dict[str, Module] = {f"{module}_monitor": module for module in MODULES}
 
 #: The executable that runs all four monitors in one process.
 GROUP = "monitors"
@@ -399,8 +394,8 @@ def planning_main(args: list[str] | None = None) -> int:
     return run("planning_monitor", args)
 
 
-def control_main(args: list[str] | None = None) -> int:
-    return run("control_monitor", args)
+def controller_main(args: list[str] | None = None) -> int:
+    return run("controller_monitor", args)
 
 
 def group_main(args: list[str] | None = None) -> int:

@@ -9,6 +9,7 @@ from __future__ import annotations
 from typing import Any
 
 from ads_rca.oracles.base import MODULES
+from ads_rca.oracles.semantics import MODES, Semantics, semantics_for
 from ads_rca.problems import Problem, ProblemLog
 from ads_rca.text import printable
 
@@ -32,12 +33,15 @@ def summary_text(document: dict[str, Any], max_problems: int = 10, how: str = "j
         lines.append(f"collision at frame {collision}{with_partner}{in_window}")
     else:
         lines.append("no collision in this run")
-    lines.append(f"{'module':<12}{'collision':>10}{'safe':>7}  first failure")
+    (counted, other), legend = count_columns(document.get("semantics"))
+    lines.append(f"{'module':<12}{counted:>10}{other:>7}  first failure")
     for module in MODULES:
         counts = document["modules"][module]
         first = counts.get("first_failure_frame")
         shown = "-" if first is None else f"frame {first}"
         lines.append(f"{module:<12}{counts['collision']:>10}{counts['safe']:>7}  {shown}")
+    if legend:
+        lines.append(legend)
     lines.append(f"verdict: {document.get('verdict')}  [{document.get('attribution_basis')}]")
     evidence = document.get("evidence") or {}
     lines.extend(
@@ -49,6 +53,14 @@ def summary_text(document: dict[str, Any], max_problems: int = 10, how: str = "j
     lines.append(f"input problems: {len(problems)}")
     lines.extend(f"  {line}" for line in problems.summary_lines(max_problems))
     return "\n".join(printable(line) for line in lines)
+
+
+def count_columns(semantics: object) -> tuple[tuple[str, str], str]:
+    """The mode's names for the two counts, and what they mean (the JSON keys for a
+    document of no known mode)."""
+    mode = semantics_for(semantics) if isinstance(semantics, str) and semantics in MODES else None
+    found = mode or Semantics
+    return found.count_columns, found.count_legend
 
 
 def _flat(values: dict[str, Any], prefix: str = "") -> list[str]:

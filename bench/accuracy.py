@@ -24,7 +24,6 @@ from ads_rca.synth import FAULTS, SCENARIOS, SynthesisError, canonical_fault, sy
 from ads_rca.verdict import Attribution
 
 
-
 def diagnose(log: RunLog) -> tuple[Attribution, float]:
     """The corrected attribution of a log and the diagnosis time per analysed frame (ms)."""
     start = time.perf_counter()

@@ -53,7 +53,7 @@ def test_the_old_fault_spelling_is_an_alias_and_labels_use_the_module_name() -> 
 
 
 def test_monitor_nodes_are_named_after_their_module() -> None:
-    assert MONITORS == {f"{module}_monitor": module for module in MODULES}
+    assert {f"{module}_monitor": module for module in MODULES} == MONITORS
     assert list(MONITORS.values()) == list(MODULES)
 
 

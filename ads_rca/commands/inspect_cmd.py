@@ -16,7 +16,7 @@ def register(subparsers: Any) -> None:
     parser = subparsers.add_parser(
         "inspect", help="summarise a run log and list the problems found in it"
     )
-    parser.add_argument("path", help="running-log folder")
+    parser.add_argument("path", help="log folder or bag")
     parser.add_argument("--json", action="store_true", help="print the summary as JSON")
     add_reader_arguments(parser)
     parser.add_argument(

@@ -48,7 +48,7 @@ def register(subparsers: Any) -> None:
     parser = subparsers.add_parser(
         "replay", help="replay a run through the live node graph (monitors + aggregator)"
     )
-    parser.add_argument("path", help="running-log folder (or a bag the player reads)")
+    parser.add_argument("path", help="log folder or bag")
     add_engine_arguments(parser)
     add_reader_arguments(parser)
     add_playback_arguments(parser)

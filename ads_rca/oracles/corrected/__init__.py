@@ -61,6 +61,11 @@ class CorrectedSemantics(Semantics):
         "heading_min_step",
     )
     reported = REPORTED
+    count_columns = ("counted", "other")
+    count_legend = (
+        "counted: failing frames in persistent runs inside the effect window; "
+        "other: the other failing frames (JSON collision / safe)"
+    )
     headline: Mapping[Module, Sequence[tuple[str, str | None]]] = {
         "perception": [("recall", None), ("mean_iou", "perc_match_iou")],
         "prediction": [("displacement_error", None), ("ade", None)],

@@ -3,7 +3,8 @@
 ``diagnose --semantics both`` judges a log in every mode. The verdicts often differ (the
 modes judge with different rules and windows), and the first question is then which module
 made the difference and what the other mode saw of it. The answer is read from the modes'
-JSON documents alone, as the summary is, so it says nothing the documents do not.
+JSON documents, as the summary is, and from each mode's own short statement of its rules
+(``Semantics.rules``), quoted where a mode finds no failure at all.
 """
 
 from __future__ import annotations
@@ -11,7 +12,8 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from ads_rca.verdict import MODULES
+from ads_rca.oracles.semantics import MODES, semantics_for
+from ads_rca.verdict import MODULES, Module
 
 Document = Mapping[str, Any]
 
@@ -33,7 +35,7 @@ def why_modes_differ(documents: Sequence[Document]) -> str:
     return "why the modes differ: " + "; ".join(found)
 
 
-def _module_reason(documents: Sequence[Document], module: str) -> str:
+def _module_reason(documents: Sequence[Document], module: Module) -> str:
     blame = [module in (d.get("root_causes") or []) for d in documents]
     if all(blame) or not any(blame):
         return ""
@@ -44,23 +46,31 @@ def _module_reason(documents: Sequence[Document], module: str) -> str:
     return f"{module}: " + ", ".join(said)
 
 
-def _counted(document: Document, module: str) -> str:
+def _counted(document: Document, module: Module) -> str:
     counts = document["modules"][module]
     if not counts["collision"]:  # blamed on another basis (a fallback)
         return f"{_name(document)} blames it ({document.get('attribution_basis')})"
     return f"{_name(document)} counts {_frames(counts['collision'])} in its window"
 
 
-def _not_counted(document: Document, module: str) -> str:
+def _not_counted(document: Document, module: Module) -> str:
     counts = document["modules"][module]
     if counts["collision"]:
         return f"{_name(document)} counts {_frames(counts['collision'])} but blames others"
     if not counts["safe"]:
-        return f"{_name(document)} finds no failure"
+        rule = _rule(document, module)
+        return f"{_name(document)} finds no failure" + (f" (its rule: {rule})" if rule else "")
     return (
         f"{_name(document)} counts none of its {_frames(counts['safe'])} "
         f"(window: {document.get('window_frames')} frames)"
     )
+
+
+def _rule(document: Document, module: Module) -> str:
+    name = document.get("semantics")
+    if not isinstance(name, str) or name not in MODES:
+        return ""
+    return semantics_for(name).rules.get(module, "")
 
 
 def _frames(count: int) -> str:

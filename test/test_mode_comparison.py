@@ -19,8 +19,10 @@ import pytest
 from ads_rca.compare import why_modes_differ
 from ads_rca.engine import diagnose
 from ads_rca.io import open_run
-from ads_rca.params import make_params
+from ads_rca.oracles.semantics import semantics_for
+from ads_rca.params import SEMANTICS, make_params
 from ads_rca.summary import summary_text
+from ads_rca.verdict import MODULES
 
 EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "cut_in_perception"
 CLI = [sys.executable, "-m", "ads_rca.cli"]
@@ -28,8 +30,10 @@ CLI = [sys.executable, "-m", "ads_rca.cli"]
 #: controller, 9 frames in its window; corrected perception, 13 counted frames).
 WHY = (
     "why the modes differ: perception: corrected counts 13 failing frames in its window, "
-    "reference finds no failure; controller: reference counts 9 failing frames in its "
-    "window, corrected finds no failure"
+    "reference finds no failure (its rule: mean IoU of the matched detections below "
+    "perc_score_threshold; missed objects never count); controller: reference counts 9 "
+    "failing frames in its window, corrected finds no failure (its rule: summed speed or "
+    "lateral tracking error over control_horizon above its threshold, toward the partner)"
 )
 
 
@@ -54,6 +58,13 @@ def test_each_mode_heads_the_counts_with_its_own_names(documents) -> None:
 
 def test_the_line_names_each_module_one_mode_blames_and_what_the_other_saw(documents) -> None:
     assert why_modes_differ([documents["reference"], documents["corrected"]]) == WHY
+
+
+@pytest.mark.parametrize("mode", SEMANTICS)
+def test_every_mode_states_each_modules_rule(mode: str) -> None:
+    rules = semantics_for(mode).rules
+    assert list(rules) == list(MODULES)
+    assert all(rule and "\n" not in rule for rule in rules.values())
 
 
 def test_the_modes_agreeing_is_said_too(documents) -> None:

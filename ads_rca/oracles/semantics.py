@@ -67,6 +67,9 @@ class Semantics:
     #: this mode ("" when the names say it).
     count_columns: tuple[str, str] = ("collision", "safe")
     count_legend: str = ""
+    #: Per module, what makes a frame fail, in a few words: the mode comparison quotes it
+    #: when this mode finds no failure where another does.
+    rules: Mapping[Module, str] = {}
 
     def attribute(self, frames: Sequence[FrameResults], ctx: RunContext) -> Attribution:
         """The verdict from the analysed frames' oracle results."""

@@ -147,3 +147,23 @@ def test_help_says_log_folder_or_bag_where_both_are_read(command: str, dest: str
     parser = subparsers.choices[command]
     action = next(a for a in parser._actions if a.dest == dest)
     assert action.help == "log folder or bag"
+
+
+def test_demo_piped_to_head_ends_quietly_and_its_nodes_with_it(ros_env, tmp_path: Path) -> None:
+    """The echo of the nodes' lines meets the closed pipe in a reader thread: it stops
+    echoing (no thread traceback) and keeps draining the nodes, and the command ends."""
+    script = (
+        f'"{ADS_RCA}" demo "{EXAMPLE}" --domain-id {ros_env.domain_id} '
+        f'--out "{tmp_path / "out"}" | head -1'
+    )
+    result = subprocess.run(
+        ["sh", "-c", script],
+        env=ros_env.env,
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=120,
+    )
+    assert result.stdout.startswith(f"ads-rca demo: ROS_DOMAIN_ID={ros_env.domain_id} ")
+    assert result.stdout.count("\n") == 1
+    assert result.stderr == ""

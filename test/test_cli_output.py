@@ -73,6 +73,8 @@ def test_diagnose_shows_a_loading_and_judging_bar_on_a_terminal(long_log: Path) 
     assert b"\rjudging: " in terminal and f"/{LONG_FRAMES} [".encode() in terminal
     assert out.startswith(f"{long_log}: {LONG_FRAMES} frames judged".encode())
     assert b"loading" not in out and b"judging" not in out
+    status, out, terminal = run_on_pty([ADS_RCA, "inspect", str(long_log)])
+    assert status == 0 and b"\rloading: " in terminal and b"judging" not in terminal
 
 
 def test_diagnose_shows_no_bar_on_a_pipe(long_log: Path) -> None:

@@ -14,7 +14,7 @@ NODES = {
     "perception_monitor": "ads_rca.ros.monitor:perception_main",
     "prediction_monitor": "ads_rca.ros.monitor:prediction_main",
     "planning_monitor": "ads_rca.ros.monitor:planning_main",
-    "control_monitor": "ads_rca.ros.monitor:control_main",
+    "controller_monitor": "ads_rca.ros.monitor:controller_main",
     "monitors": "ads_rca.ros.monitor:group_main",
     "aggregator": "ads_rca.ros.aggregator:main",
 }

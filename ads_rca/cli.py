@@ -2,12 +2,17 @@
 
 Every subcommand is a thin shell over the same core the ROS nodes use. Bad input never
 produces a traceback: an :class:`~ads_rca.errors.AdsRcaError` (a log, a path or a parameter
-that cannot be used) becomes one line on stderr and exit status 2.
+that cannot be used) becomes one line on stderr and exit status 2. Like any Unix filter, the
+command ends quietly when the reader of its output goes away (``ads-rca ... | head``): no
+BrokenPipeError traceback, exit status 141 (128 + SIGPIPE, what the shell reports for ``cat``
+in the same place), as Ctrl-C gives 130.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import signal
 import sys
 from collections.abc import Sequence
 
@@ -28,7 +33,27 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+#: Exit statuses of a command stopped by a signal's effect (128 + the signal's number).
+EXIT_INTERRUPTED = 128 + signal.SIGINT
+EXIT_BROKEN_PIPE = 128 + signal.SIGPIPE
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    try:
+        try:
+            return run(argv)
+        finally:  # what is still buffered (a pipe's whole output, often) is written here
+            sys.stdout.flush()
+    except BrokenPipeError:
+        # Nothing more can be written, and the interpreter's own flush at exit would
+        # fail again: point stdout at /dev/null so it ends quietly.
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+        return EXIT_BROKEN_PIPE
+
+
+def run(argv: Sequence[str] | None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return int(args.run(args))
@@ -36,7 +61,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(printable(f"ads-rca {args.command}: error: {error}"), file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        return 130
+        return EXIT_INTERRUPTED
 
 
 if __name__ == "__main__":

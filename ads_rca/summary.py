@@ -9,6 +9,7 @@ from __future__ import annotations
 from typing import Any
 
 from ads_rca.oracles.base import MODULES
+from ads_rca.oracles.semantics import MODES, Semantics, semantics_for
 from ads_rca.problems import Problem, ProblemLog
 from ads_rca.text import printable
 
@@ -31,12 +32,15 @@ def summary_text(document: dict[str, Any], max_problems: int = 10, how: str = "j
     else:
         lines.append("no collision in this run")
     lines.append(window_text(document.get("effect_window")))
-    lines.append(f"{'module':<12}{'collision':>10}{'safe':>7}  first failure")
+    (counted, other), legend = count_columns(document.get("semantics"))
+    lines.append(f"{'module':<12}{counted:>10}{other:>7}  first failure")
     for module in MODULES:
         counts = document["modules"][module]
         first = counts.get("first_failure_frame")
         shown = "-" if first is None else f"frame {first}"
         lines.append(f"{module:<12}{counts['collision']:>10}{counts['safe']:>7}  {shown}")
+    if legend:
+        lines.append(legend)
     lines.append(f"verdict: {document.get('verdict')}  [{document.get('attribution_basis')}]")
     evidence = document.get("evidence") or {}
     lines.extend(
@@ -58,6 +62,14 @@ def window_text(window: Any) -> str:
         f"effect window: {window.get('frames')} frames ({window.get('ms')} ms) = "
         f"{window.get('rule')}; counts {window.get('counts')}"
     )
+
+
+def count_columns(semantics: object) -> tuple[tuple[str, str], str]:
+    """The mode's names for the two counts, and what they mean (the JSON keys for a
+    document of no known mode)."""
+    mode = semantics_for(semantics) if isinstance(semantics, str) and semantics in MODES else None
+    found = mode or Semantics
+    return found.count_columns, found.count_legend
 
 
 def _flat(values: dict[str, Any], prefix: str = "") -> list[str]:

@@ -20,17 +20,8 @@ from collections.abc import Sequence
 from ads_rca.engine import diagnose as diagnose_log
 from ads_rca.model import RunLog
 from ads_rca.params import make_params
-from ads_rca.synth import FAULTS, SCENARIOS, SynthesisError, synthesise
+from ads_rca.synth import FAULTS, SCENARIOS, SynthesisError, canonical_fault, synthesise
 from ads_rca.verdict import Attribution
-
-#: The fault names of the synthesiser mapped to module names of the verdict.
-MODULE_OF = {
-    "none": "none",
-    "perception": "perception",
-    "prediction": "prediction",
-    "planning": "planning",
-    "control": "controller",
-}
 
 
 def diagnose(log: RunLog) -> tuple[Attribution, float]:
@@ -57,7 +48,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         for name, value in (("actors", args.actors), ("horizon", args.horizon))
         if value is not None
     }
-    labels = [*MODULE_OF.values()]
+    labels = list(FAULTS)  # a fault is named by its module, as the verdict names it
     confusion: Counter[tuple[str, str]] = Counter()
     per_scenario: Counter[tuple[str, bool]] = Counter()
     wrong: list[str] = []
@@ -73,7 +64,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 attribution, ms = diagnose(log)
                 times.append(ms)
                 got = attribution.primary_root_cause or "none"
-                want = MODULE_OF[log.metadata.raw["synthesis"]["fault"]]
+                want = canonical_fault(log.metadata.raw["synthesis"]["fault"])
                 confusion[want, got] += 1
                 per_scenario[scenario, got == want] += 1
                 if got != want:

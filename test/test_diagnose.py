@@ -21,9 +21,6 @@ from ads_rca.verdict import NO_COLLISION, NO_MODULE_FAILED
 
 EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "cut_in_perception"
 CRASH_SCENARIOS = [s for s in SCENARIOS if s != "cruise"]
-#: The synthesiser names the control fault "control"; the verdict's module is "controller".
-MODULE_OF = {"perception": "perception", "prediction": "prediction", "planning": "planning"}
-MODULE_OF["control"] = "controller"
 
 
 def run_cli(*args: str, check: bool = True) -> subprocess.CompletedProcess[str]:
@@ -52,8 +49,8 @@ def test_corrected_names_the_injected_module(scenario: str, fault: str) -> None:
         assert attribution.reason in (NO_COLLISION, NO_MODULE_FAILED)
         assert result.verdict_text.startswith("no fault found")
     else:
-        assert attribution.primary_root_cause == MODULE_OF[fault]
-        assert attribution.modules[MODULE_OF[fault]].evidence
+        assert attribution.primary_root_cause == fault  # a fault is named by its module
+        assert attribution.modules[fault].evidence
     assert not [p for p in result.problems if "check failed" in p.issue]
 
 

@@ -84,7 +84,7 @@ def test_arguments_describe_replays_graph(tmp_path: Path) -> None:
         "perception_monitor",
         "prediction_monitor",
         "planning_monitor",
-        "control_monitor",
+        "controller_monitor",
         "player",
     ]
     assert {node.executable for node in nodes.values()} == set(nodes)
@@ -94,7 +94,7 @@ def test_arguments_describe_replays_graph(tmp_path: Path) -> None:
     aggregator = nodes["aggregator"].params
     assert aggregator["exit_after_verdict"] is True
     assert "verdict_json" not in aggregator
-    for name in ("aggregator", "control_monitor"):
+    for name in ("aggregator", "controller_monitor"):
         assert nodes[name].params["semantics"] == "reference"
         assert nodes[name].params["safety_margin"] == 0.75
         assert nodes[name].params["effect_time_window"] == 10  # reference's default

@@ -148,7 +148,7 @@ def test_monitor_killed_and_restarted_goes_stale_recovers_and_a_verdict_comes(
                 60,
                 "controller results",
             )
-            victim = graph.processes["control_monitor"]
+            victim = graph.processes["controller_monitor"]
             victim.process.kill()
             victim.wait(10)
             killed_at = time.monotonic()
@@ -164,7 +164,7 @@ def test_monitor_killed_and_restarted_goes_stale_recovers_and_a_verdict_comes(
                 "a STALE controller status",
             )
             assert stale[0]["values"]["reported_by"] == "aggregator"
-            graph.restart("control_monitor")
+            graph.restart("controller_monitor")
             document = graph.wait_verdict(90, fail_fast=False)
             assert document is not None, graph.processes["aggregator"].output
             graph.stop()

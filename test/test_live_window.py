@@ -33,7 +33,7 @@ CASES = [
     ("cut_in", "perception"),
     ("lead_braking", "prediction"),
     ("pedestrian_crossing", "planning"),
-    ("left_turn", "control"),
+    ("left_turn", "controller"),
     ("cruise", "none"),
 ]
 _LOGS: dict[tuple[str, str], RunLog] = {}
@@ -121,7 +121,7 @@ def test_windowed_judging_equals_diagnose(
 def write_log_with_unreadable_values(folder: Path) -> Path:
     """lead_braking with a control fault, where 7 pose files lack x and speed: the reader
     reads them as NaN and reports it, and reference skips (not fails) those checks."""
-    write_run_log(synthesise("lead_braking", "control", 0), folder)
+    write_run_log(synthesise("lead_braking", "controller", 0), folder)
     poses = sorted((folder / "pose").iterdir())
     for path in poses[40:61:3]:
         document = json.loads(path.read_text())
@@ -231,7 +231,7 @@ def test_lookahead_holds_a_reference_prediction_frame_until_it_arrives() -> None
 
 
 def test_result_json_round_trip_is_exact() -> None:
-    log = synth("left_turn", "control")
+    log = synth("left_turn", "controller")
     run = run_live(log, make_params("corrected"))
     for module in MODULES:
         for result in run.results[module][-5:]:

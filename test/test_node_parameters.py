@@ -120,6 +120,11 @@ def test_every_node_logs_its_parameters_once_at_start(ros_env: Any) -> None:
         "perc_score_threshold=0.5, pred_score_threshold=0.1, planning_toleration_future_step=3, "
         "planning_toleration=2.0; node: "
     )
-    for name in ("perception_monitor", "prediction_monitor", "planning_monitor", "control_monitor"):
+    for name in (
+        "perception_monitor",
+        "prediction_monitor",
+        "planning_monitor",
+        "controller_monitor",
+    ):
         mine = [line for line in in_force if f"[{name}]: " in line]
         assert len(mine) == 1 and f"[{name}]: {expected}" in mine[0], monitors.output

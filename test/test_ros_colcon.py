@@ -67,7 +67,12 @@ def test_colcon_sees_an_ament_python_package(tmp_path: Path) -> None:
 def test_installed_layout_is_what_ros2_run_expects(install: Path) -> None:
     prefix = install / "ads_rca"
     nodes = ("player", "topic_summary", "recorder", "aggregator", "monitors")
-    monitors = ("perception_monitor", "prediction_monitor", "planning_monitor", "control_monitor")
+    monitors = (
+        "perception_monitor",
+        "prediction_monitor",
+        "planning_monitor",
+        "controller_monitor",
+    )
     for exe in (*nodes, *monitors):
         assert os.access(prefix / "lib" / "ads_rca" / exe, os.X_OK), exe
     assert (prefix / "share/ament_index/resource_index/packages/ads_rca").is_file()

@@ -102,7 +102,7 @@ def test_two_replays_on_one_domain_and_namespace_give_their_own_verdicts(
 
 def test_graph_ignores_a_foreign_player_on_its_namespace(ros_env, tmp_path, log_dirs):
     """Aggregator, monitors and recorder of one run next to a player of another log."""
-    ours, theirs = log_dirs("pedestrian_crossing", "planning"), log_dirs("left_turn", "control")
+    ours, theirs = log_dirs("pedestrian_crossing", "planning"), log_dirs("left_turn", "controller")
     ns = ros_env.namespace
     foreign_argv = node_command(
         "ads_rca.ros.player",

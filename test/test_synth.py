@@ -35,8 +35,8 @@ def _dir_equal(a: Path, b: Path) -> bool:
 
 
 def test_same_seed_writes_byte_identical_folders(tmp_path: Path) -> None:
-    first = write_run_log(synthesise("lead_braking", "control", SEED), tmp_path / "a")
-    second = write_run_log(synthesise("lead_braking", "control", SEED), tmp_path / "b")
+    first = write_run_log(synthesise("lead_braking", "controller", SEED), tmp_path / "a")
+    second = write_run_log(synthesise("lead_braking", "controller", SEED), tmp_path / "b")
     assert _dir_equal(first, second)
 
 
@@ -124,7 +124,7 @@ def _same_predictions(a: RunLog, b: RunLog, ts: int) -> bool:
 def test_a_control_fault_leaves_perception_prediction_and_planning_untouched_until_onset(
     scenario: str,
 ) -> None:
-    log, summary = _run(scenario, "control")
+    log, summary = _run(scenario, "controller")
     twin, _ = _run(scenario, "none")
     onset = summary["fault_onset_frame"]
     for frame in range(1, onset + 1):
@@ -205,6 +205,6 @@ def test_cruise_is_long_and_collision_free() -> None:
 
 def test_bad_arguments_raise_a_synthesis_error() -> None:
     with pytest.raises(SynthesisError):
-        synthesise("cruise", "control", 1)
+        synthesise("cruise", "controller", 1)
     with pytest.raises(SynthesisError):
         synthesise("no_such_scenario", "none", 1)

@@ -31,7 +31,7 @@ def register(subparsers: Any) -> None:
         help="convert a running-log folder to a rosbag2 bag, or a bag to a log folder",
         description="LOG_DIR OUT_BAG writes a bag; BAG OUT_DIR writes a log folder.",
     )
-    parser.add_argument("source", metavar="IN", help="running-log folder, or a bag")
+    parser.add_argument("source", metavar="IN", help="log folder or bag")
     parser.add_argument("out", metavar="OUT", help="bag directory or log folder to create")
     parser.add_argument("--storage", choices=STORAGES, default="mcap", help="bag storage")
     parser.add_argument(

@@ -29,7 +29,7 @@ def register(subparsers: Any) -> None:
     parser = subparsers.add_parser(
         "demo", help="play a log on ROS 2 topics to a subscriber process (local-only DDS)"
     )
-    parser.add_argument("log_dir", help="running-log folder")
+    parser.add_argument("log_dir", metavar="PATH", help="log folder or bag")
     parser.add_argument("--out", help="write the log rebuilt from the messages here")
     add_playback_arguments(parser)
     parser.set_defaults(run=run)
@@ -37,8 +37,8 @@ def register(subparsers: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     log_dir = Path(args.log_dir)
-    if not log_dir.is_dir():
-        raise InputError(f"{log_dir}: no such log folder")
+    if not log_dir.exists():  # the player reads either, and says what is wrong with it
+        raise InputError(f"{log_dir}: no such log folder or bag")
     check_playback_arguments(args)
     out = check_output_dir(args.out, "--out", empty=False) if args.out else None
     domain_id, domain_how = choose_domain_id(args)

@@ -5,8 +5,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import sys
-from collections.abc import Iterable
 from dataclasses import fields
 from pathlib import Path
 from typing import Any
@@ -17,7 +15,9 @@ from ads_rca.commands.input_args import (
     max_file_mb_from_args,
 )
 from ads_rca.commands.outputs import check_output_file
-from ads_rca.engine import diagnose
+from ads_rca.commands.progress_bar import terminal_bar
+from ads_rca.compare import why_modes_differ
+from ads_rca.engine import Diagnosis, diagnose
 from ads_rca.errors import ConfigError, InputError
 from ads_rca.io import open_run
 from ads_rca.oracles.semantics import semantics_for
@@ -33,17 +33,19 @@ from ads_rca.params import parse_assignments as parse_p
 from ads_rca.summary import summary_text
 from ads_rca.text import printable
 
-#: Logs longer than this get a progress bar on stderr (when it is a terminal).
-PROGRESS_MIN_FRAMES = 300
+#: ``--semantics both``: judge in every mode and say why the verdicts differ.
+BOTH = "both"
 
 
-def add_engine_arguments(parser: argparse.ArgumentParser) -> None:
-    """--semantics, --config and -p: shared by every command that runs the engine."""
+def add_engine_arguments(parser: argparse.ArgumentParser, both: bool = False) -> None:
+    """--semantics, --config and -p: shared by every command that runs the engine
+    (``both``: ``--semantics both`` is accepted too)."""
     parser.add_argument(
         "--semantics",
-        choices=SEMANTICS,
+        choices=(*SEMANTICS, BOTH) if both else SEMANTICS,
         default=None,
-        help=f"oracle semantics (default {DEFAULT_SEMANTICS}, or the config file's)",
+        help=f"oracle semantics (default {DEFAULT_SEMANTICS}, or the config file's)"
+        + (f"; {BOTH}: every mode, and why their verdicts differ" if both else ""),
     )
     parser.add_argument("--config", help="YAML parameters (flat, or a ROS 2 params file)")
     parser.add_argument(
@@ -61,8 +63,8 @@ def add_engine_arguments(parser: argparse.ArgumentParser) -> None:
     parser.epilog = parameters_help()
 
 
-def params_from_args(args: argparse.Namespace) -> Params:
-    """Config file, then -p overrides; --semantics wins over both.
+def params_from_args(args: argparse.Namespace, semantics: str | None = None) -> Params:
+    """Config file, then -p overrides; ``semantics``, else --semantics, wins over both.
 
     A config key that no part of the package reads is refused with the known names (a
     misspelt threshold would otherwise be silently ignored); a value out of range is
@@ -73,7 +75,7 @@ def params_from_args(args: argparse.Namespace) -> Params:
     overrides = parse_p(args.params)
     for name in READER_PARAMS:  # the reader's, not the engine's
         overrides.pop(name, None)
-    return params_from_sources(args.semantics, config, overrides, args.config)
+    return params_from_sources(semantics or args.semantics, config, overrides, args.config)
 
 
 def check_config_keys(path: str | None, config: dict[str, Any]) -> None:
@@ -103,8 +105,8 @@ def graph_parameter_names() -> set[str]:
 
 def register(subparsers: Any) -> None:
     parser = subparsers.add_parser("diagnose", help="find the root cause of a crash in a run log")
-    parser.add_argument("path", help="running-log folder")
-    add_engine_arguments(parser)
+    parser.add_argument("path", help="log folder or bag")
+    add_engine_arguments(parser, both=True)
     add_reader_arguments(parser)
     parser.add_argument("--json", dest="json_out", help="write the verdict JSON here")
     parser.add_argument("--report", help="write a self-contained HTML report here")
@@ -121,30 +123,49 @@ def register(subparsers: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    params = params_from_args(args)
+    both = args.semantics == BOTH
+    if both and (args.json_out or args.report):
+        raise InputError(
+            f"--semantics {BOTH} prints a comparison; --json and --report take one mode"
+        )
+    all_params = [params_from_args(args, mode) for mode in (SEMANTICS if both else (None,))]
     max_file_mb = max_file_mb_from_args(args)
     if args.json_out:
         check_output_file(args.json_out, "--json")
     if args.report:
         check_output_file(args.report, "--report")
-    log = open_run(args.path, max_file_mb=max_file_mb)
-    if not semantics_for(params).analysed_frames(log):
-        raise InputError(f"{args.path}: no frame to analyse (no readable actors/ file)")
-    result = diagnose(log, params, _progress_bar(len(log.frames)), workers=max(1, args.workers))
-    document = result.to_json()
-    print(summary_text(document, args.max_problems))
-    if args.json_out:
-        write_json(document, Path(args.json_out))
-        print(printable(f"verdict JSON: {args.json_out}"))
-    if args.report:
-        from ads_rca.report.html import write_report
-
-        try:
-            write_report(result, Path(args.report))
-        except OSError as error:  # checked up front; this is a failure during the write
-            raise InputError(f"--report {args.report}: {error.strerror}") from None
-        print(printable(f"HTML report: {args.report}"))
+    log = open_run(args.path, max_file_mb=max_file_mb, progress=terminal_bar("loading"))
+    documents: list[dict[str, Any]] = []
+    for params in all_params:
+        if not semantics_for(params).analysed_frames(log):
+            raise InputError(f"{args.path}: no frame to analyse (no readable actors/ file)")
+        result = diagnose(log, params, terminal_bar("judging"), workers=max(1, args.workers))
+        document = result.to_json()
+        # The files first: they never depend on stdout (``| head`` may close it early).
+        if args.json_out:
+            write_json(document, Path(args.json_out))
+        if args.report:
+            _write_report(result, Path(args.report))
+        if documents:
+            print()
+        print(summary_text(document, args.max_problems))
+        if args.json_out:
+            print(printable(f"verdict JSON: {args.json_out}"))
+        if args.report:
+            print(printable(f"HTML report: {args.report}"))
+        documents.append(document)
+    if both:
+        print(printable(why_modes_differ(documents)))
     return 0
+
+
+def _write_report(result: Diagnosis, path: Path) -> None:
+    from ads_rca.report.html import write_report
+
+    try:
+        write_report(result, path)
+    except OSError as error:  # checked up front; this is a failure during the write
+        raise InputError(f"--report {path}: {error.strerror}") from None
 
 
 def write_json(document: dict[str, Any], path: Path) -> None:
@@ -162,15 +183,3 @@ def write_json(document: dict[str, Any], path: Path) -> None:
             out.write("\n")
     except OSError as error:
         raise InputError(f"{path}: cannot write the verdict JSON ({error.strerror})") from None
-
-
-def _progress_bar(frames: int) -> Any:
-    if frames < PROGRESS_MIN_FRAMES:
-        return None
-    from tqdm import tqdm
-
-    def wrap(timestamps: Iterable[int]) -> Iterable[int]:
-        # disable=None: shown on a terminal only, so logs and pipes stay clean.
-        return tqdm(timestamps, total=frames, unit="frame", file=sys.stderr, disable=None)
-
-    return wrap

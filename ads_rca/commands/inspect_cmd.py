@@ -6,6 +6,7 @@ import argparse
 from typing import Any
 
 from ads_rca.commands.input_args import add_reader_arguments, max_file_mb_from_args
+from ads_rca.commands.progress_bar import terminal_bar
 from ads_rca.io import open_run
 from ads_rca.model import FOLDERS, RunLog
 from ads_rca.strictjson import dumps
@@ -16,7 +17,7 @@ def register(subparsers: Any) -> None:
     parser = subparsers.add_parser(
         "inspect", help="summarise a run log and list the problems found in it"
     )
-    parser.add_argument("path", help="running-log folder")
+    parser.add_argument("path", help="log folder or bag")
     parser.add_argument("--json", action="store_true", help="print the summary as JSON")
     add_reader_arguments(parser)
     parser.add_argument(
@@ -41,7 +42,9 @@ def summary(log: RunLog) -> dict[str, Any]:
 
 
 def run(args: argparse.Namespace) -> int:
-    log = open_run(args.path, max_file_mb=max_file_mb_from_args(args))
+    log = open_run(
+        args.path, max_file_mb=max_file_mb_from_args(args), progress=terminal_bar("loading")
+    )
     if args.json:
         print(dumps(summary(log), indent=2))  # strict JSON: NaN/inf as null + "$nonfinite"
         return 0

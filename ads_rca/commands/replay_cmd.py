@@ -49,7 +49,7 @@ def register(subparsers: Any) -> None:
     parser = subparsers.add_parser(
         "replay", help="replay a run through the live node graph (monitors + aggregator)"
     )
-    parser.add_argument("path", help="running-log folder (or a bag the player reads)")
+    parser.add_argument("path", help="log folder or bag")
     parser.add_argument(
         "--bag-remap", metavar="YAML", help=LAUNCH_ARGUMENTS["bag_remap"].description
     )

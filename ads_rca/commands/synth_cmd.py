@@ -10,7 +10,8 @@ import argparse
 from typing import Any
 
 from ads_rca.io.json_writer import write_run_log
-from ads_rca.synth import FAULTS, SCENARIOS, synthesise_run
+from ads_rca.synth import FAULTS, SCENARIOS, canonical_fault, synthesise_run
+from ads_rca.text import printable
 
 
 def register(subparsers: Any) -> None:
@@ -19,7 +20,13 @@ def register(subparsers: Any) -> None:
     )
     parser.add_argument("out_dir", metavar="OUT_DIR", help="folder to write the log into")
     parser.add_argument("--scenario", required=True, choices=SCENARIOS)
-    parser.add_argument("--fault", default="none", choices=FAULTS)
+    parser.add_argument(
+        "--fault",
+        default="none",
+        type=canonical_fault,  # the old spelling "control" is accepted for "controller"
+        choices=FAULTS,
+        help="the module whose fault is injected (default none)",
+    )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--frames", type=int, help="log length when nothing crashes")
     parser.add_argument("--actors", type=int, help="number of background actors")
@@ -34,9 +41,23 @@ def run(args: argparse.Namespace) -> int:
     }
     log, summary = synthesise_run(args.scenario, args.fault, args.seed, **options)
     write_run_log(log, args.out_dir)
-    print(
-        f"{args.out_dir}: {summary['scenario']}/{summary['fault']} seed {summary['seed']}: "
-        f"{summary['total_frames']} frames, collision frame {summary['collision_frame']}, "
-        f"partner {summary['partner_id']}, fault onset {summary['fault_onset_frame']}"
-    )
+    print(printable(f"{args.out_dir}: {describe(summary)}"))
     return 0
+
+
+def describe(summary: dict[str, Any]) -> str:
+    """The synthesis label in words: what happened, never a -1 or None placeholder."""
+    head = f"{summary['scenario']}/{summary['fault']} seed {summary['seed']}"
+    partner = summary["partner_id"]
+    if summary["collision_frame"] >= 0:
+        with_whom = f" with actor {partner} (the partner)" if partner is not None else ""
+        outcome = f"collision at frame {summary['collision_frame']}{with_whom}"
+    elif partner is not None:
+        outcome = f"no collision (partner actor {partner} avoided)"
+    else:
+        outcome = "no collision, no partner"
+    if summary["fault_onset_frame"] >= 0:
+        fault = f"{summary['fault']} fault from frame {summary['fault_onset_frame']}"
+    else:
+        fault = "no fault injected"
+    return f"{head}: {summary['total_frames']} frames, {outcome}, {fault}"

@@ -4,24 +4,30 @@ from __future__ import annotations
 
 import os
 
+from ads_rca.errors import InputError
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB
 from ads_rca.model import RunLog
+from ads_rca.progress import Progress
 
 
 def open_run(
     path: str | os.PathLike[str],
     remap: str | os.PathLike[str] | None = None,
     max_file_mb: float = DEFAULT_MAX_FILE_MB,
+    progress: Progress | None = None,
 ) -> RunLog:
     """Load a run from any supported source: an ADS running-log folder, or a rosbag2 bag
     (directory, ``.mcap`` or ``.db3``; ``remap`` = topic remapping YAML for a stack's bag).
-    ``max_file_mb`` caps each file of a log folder (larger ones are reported and skipped)."""
+    ``max_file_mb`` caps each file of a log folder (larger ones are reported and skipped);
+    ``progress`` sees the files read, or the bag messages decoded."""
     from ads_rca.io.bag_reader import is_bag
 
+    if not os.path.lexists(path):
+        raise InputError(f"{os.fspath(path)}: no such log folder or bag")
     if remap is not None or is_bag(path):
         from ads_rca.io.bag_reader import read_bag
 
-        return read_bag(path, remap=remap)
+        return read_bag(path, remap=remap, progress=progress)
     from ads_rca.io.json_log import read_run_log
 
-    return read_run_log(path, max_file_mb)
+    return read_run_log(path, max_file_mb, progress)

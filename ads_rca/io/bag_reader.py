@@ -47,6 +47,7 @@ from ads_rca.io.bag_storage import (
 from ads_rca.io.files import Unreadable, read_regular
 from ads_rca.model import RunLog
 from ads_rca.problems import IGNORED, SKIPPED_FILE, USED_DEFAULT, Problem
+from ads_rca.progress import Progress, tracked
 
 BAG_SUFFIXES = (".mcap", ".db3")
 METADATA_YAML = "metadata.yaml"
@@ -347,8 +348,10 @@ def read_bag(
     path: str | os.PathLike[str],
     remap: Remap | str | os.PathLike[str] | None = None,
     namespace: str | None = None,
+    progress: Progress | None = None,
 ) -> RunLog:
-    """Rebuild the RunLog a bag carries (see the module docstring for accepted paths).
+    """Rebuild the RunLog a bag carries (see the module docstring for accepted paths);
+    ``progress`` sees each message as it is decoded.
 
     Every defect of the bag (a cut file, an undecodable message, a metadata.yaml that
     disagrees with the storage) is a Problem in the log; InputError only when nothing
@@ -360,7 +363,7 @@ def read_bag(
     keys = topic_keys(sorted(contents.topics), remap, namespace)
     usable = _usable_topics(keys, contents.topics, problems)
     assembler = RunLogAssembler()
-    for message in contents.messages:
+    for message in tracked(contents.messages, progress):
         key = usable.get(message.topic)
         if key is not None:
             _add_message(assembler, key, message, problems)

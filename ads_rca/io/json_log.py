@@ -44,6 +44,7 @@ from ads_rca.io.records import (
 from ads_rca.io.validate import validate_run_log
 from ads_rca.model import FOLDERS, RunLog, RunMetadata
 from ads_rca.problems import IGNORED, KEPT_VALUE, SKIPPED_FILE, USED_DEFAULT, Problem, ProblemLog
+from ads_rca.progress import Progress, tracked
 
 DEFAULT_TPF_MS = 50
 #: Deepest nesting of what the reader keeps as raw JSON (``metadata.json``, box extras).
@@ -139,10 +140,15 @@ def _deeper_than(document: Any, limit: int) -> bool:
     return False
 
 
-def read_run_log(path: str | os.PathLike[str], max_file_mb: float = DEFAULT_MAX_FILE_MB) -> RunLog:
+def read_run_log(
+    path: str | os.PathLike[str],
+    max_file_mb: float = DEFAULT_MAX_FILE_MB,
+    progress: Progress | None = None,
+) -> RunLog:
     """Load a running-log folder. Raises InputError only when ``path`` is no log folder.
 
     ``max_file_mb``: files larger than this are reported and skipped, not read.
+    ``progress`` sees each file as it is read (most of the loading time).
 
     Parsing is single-process on purpose: it is CPU-bound (threads do not help), and
     shipping parsed records back from worker processes costs as much as parsing them
@@ -163,7 +169,7 @@ def read_run_log(path: str | os.PathLike[str], max_file_mb: float = DEFAULT_MAX_
     files = {folder: {ts: name for ts, name in listings[folder]} for folder in FOLDERS}
     jobs = [(folder, ts, name) for folder in FOLDERS for ts, name in files[folder].items()]
     records: dict[str, dict[int, Any]] = {folder: {} for folder in FOLDERS}
-    parsed, found = _parse_files(str(root), jobs, limit)
+    parsed, found = _parse_files(str(root), jobs, limit, progress)
     problems.extend(found)
     for folder, ts, record in parsed:
         records[folder][ts] = record
@@ -217,14 +223,14 @@ def _list_folder(root: Path, folder: str, problems: ProblemLog) -> list[tuple[in
 
 
 def _parse_files(
-    root: str, jobs: list[Job], limit: int
+    root: str, jobs: list[Job], limit: int, progress: Progress | None = None
 ) -> tuple[list[tuple[str, int, Any]], list[Problem]]:
     """Read (at most ``limit`` bytes a file), decode and parse files in ``jobs`` order; the
     problems found on the way."""
     problems = ProblemLog()
     parsed: list[tuple[str, int, Any]] = []
     base = Path(root)
-    for folder, ts, name in jobs:
+    for folder, ts, name in tracked(jobs, progress):
         file = f"{folder}/{name}"
         document = _decode(read_regular(base / folder / name, limit), file, problems, ts)
         if document is _UNUSABLE:

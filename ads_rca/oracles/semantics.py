@@ -62,6 +62,14 @@ class Semantics:
     #: Per module, the parameters its oracle's results report in ``thresholds`` (each a
     #: subset of :attr:`parameters`; an oracle adds its own constants and derived values).
     reported: Mapping[Module, tuple[str, ...]]
+    #: How the text table heads a module's two counts (the JSON's ``collision`` and
+    #: ``safe``, whose names the reference fixes), and a line saying what they mean in
+    #: this mode ("" when the names say it).
+    count_columns: tuple[str, str] = ("collision", "safe")
+    count_legend: str = ""
+    #: Per module, what makes a frame fail, in a few words: the mode comparison quotes it
+    #: when this mode finds no failure where another does.
+    rules: Mapping[Module, str] = {}
 
     def attribute(self, frames: Sequence[FrameResults], ctx: RunContext) -> Attribution:
         """The verdict from the analysed frames' oracle results."""

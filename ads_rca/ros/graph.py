@@ -31,7 +31,7 @@ from typing import Any, TextIO
 from ads_rca.contract import topics
 from ads_rca.errors import InputError
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB
-from ads_rca.oracles.base import Module
+from ads_rca.oracles.base import MODULES, Module
 from ads_rca.params import SEMANTICS, Params, load_config, params_from_sources
 from ads_rca.ros.launcher import Launcher, ManagedProcess, ParamValue, ros_args
 from ads_rca.ros.runid import new_run_id
@@ -40,13 +40,8 @@ PLAYER = "ads_rca.ros.player"
 AGGREGATOR = "ads_rca.ros.aggregator"
 MONITOR = "ads_rca.ros.monitor"
 RECORDER = "ads_rca.ros.recorder"
-#: Monitor node name → module it judges.
-MONITORS: dict[str, Module] = {
-    "perception_monitor": "perception",
-    "prediction_monitor": "prediction",
-    "planning_monitor": "planning",
-    "control_monitor": "controller",
-}
+#: Monitor node name → module it judges: ``<module>_monitor``, in pipeline order.
+MONITORS: dict[str, Module] = {f"{module}_monitor": module for module in MODULES}
 #: The executable that runs all four monitors in one process.
 GROUP = "monitors"
 MONITORS_SHARED = "shared"

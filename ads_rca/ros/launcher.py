@@ -108,8 +108,13 @@ class ManagedProcess:
             with self._lock:
                 self.lines.append(text)
                 if self._echo is not None:
-                    self._echo.write(f"[{self.name}] {text}\n")
-                    self._echo.flush()
+                    try:
+                        self._echo.write(f"[{self.name}] {text}\n")
+                        self._echo.flush()
+                    except (BrokenPipeError, ValueError):
+                        # Its reader went away (``| head``) or it was closed: stop echoing
+                        # but keep draining the child, which would block on a full pipe.
+                        self._echo = None
 
     @property
     def output(self) -> str:

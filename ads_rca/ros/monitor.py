@@ -1,7 +1,7 @@
 """Monitor nodes: each module's oracle judged live, frame by frame, on the player's topics.
 
-``perception_monitor``, ``prediction_monitor``, ``planning_monitor`` and ``control_monitor``
-are this one class with a different module. A thin shell over
+``perception_monitor``, ``prediction_monitor``, ``planning_monitor`` and ``controller_monitor``
+are this one class with a different module (node name = ``<module>_monitor``). A thin shell over
 :class:`~ads_rca.live.window.MonitorCore`, which decides when a frame can be judged and
 runs the engine's own oracles on it: the shell only decodes messages, calls it, and
 publishes each result on ``/diagnostics`` (status ``ads_rca/<module>``) and, losslessly, on
@@ -410,8 +410,8 @@ def planning_main(args: list[str] | None = None) -> int:
     return run("planning_monitor", args)
 
 
-def control_main(args: list[str] | None = None) -> int:
-    return run("control_monitor", args)
+def controller_main(args: list[str] | None = None) -> int:
+    return run("controller_monitor", args)
 
 
 def group_main(args: list[str] | None = None) -> int:

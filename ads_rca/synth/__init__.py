@@ -14,12 +14,19 @@ from typing import Any
 
 from ads_rca.model import RunLog
 from ads_rca.synth.errors import SynthesisError
-from ads_rca.synth.faults import FAULTS, NO_FAULT, FaultSpec, onset_for
+from ads_rca.synth.faults import FAULTS, NO_FAULT, FaultSpec, canonical_fault, onset_for
 from ads_rca.synth.scenarios import BUILDERS, DEFAULT_FRAMES, SCENARIOS
 from ads_rca.synth.simulate import SimResult, simulate
 from ads_rca.synth.world import Scene
 
-__all__ = ["FAULTS", "SCENARIOS", "SynthesisError", "synthesise", "synthesise_run"]
+__all__ = [
+    "FAULTS",
+    "SCENARIOS",
+    "SynthesisError",
+    "canonical_fault",
+    "synthesise",
+    "synthesise_run",
+]
 
 MAX_ATTEMPTS = 25
 DEFAULT_HORIZON = 30
@@ -40,6 +47,7 @@ def synthesise_run(
     scenario: str, fault: str, seed: int, **options: int
 ) -> tuple[RunLog, dict[str, Any]]:
     """:func:`synthesise`, also returning the synthesis summary."""
+    fault = canonical_fault(fault)
     if scenario not in BUILDERS:
         raise SynthesisError(f"unknown scenario {scenario!r}; choose from {', '.join(SCENARIOS)}")
     if fault not in FAULTS:

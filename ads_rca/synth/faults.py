@@ -9,14 +9,20 @@ partner (its planner braked for it), so the fault is what turns a near miss into
 - ``prediction``: the partner gets an optimistic wrong motion model (see
   :func:`ads_rca.synth.prediction.wrong_model`) in both prediction files.
 - ``planning``: the planner ignores the partner and keeps speed through the conflict.
-- ``control``: the brake realises only ``BRAKE_GAIN`` of the commanded deceleration.
+- ``controller``: the brake realises only ``BRAKE_GAIN`` of the commanded deceleration.
+
+A fault is named by the module it hits, as the verdict names it (:data:`ads_rca.verdict.MODULES`),
+so a label compares with a verdict without translation. ``control``, this fault's former name,
+is still accepted (:func:`canonical_fault`).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-FAULTS = ("none", "perception", "prediction", "planning", "control")
+FAULTS = ("none", "perception", "prediction", "planning", "controller")
+#: Former spellings still accepted → the name used everywhere.
+FAULT_ALIASES = {"control": "controller"}
 BRAKE_GAIN = 0.1
 #: Frames between the onset and the twin's first reaction to the partner.
 ONSET_LEAD = 3
@@ -34,6 +40,11 @@ class FaultSpec:
 
 
 NO_FAULT = FaultSpec("none", 1 << 30)
+
+
+def canonical_fault(name: str) -> str:
+    """The fault's name as outputs spell it (an old alias mapped; anything else unchanged)."""
+    return FAULT_ALIASES.get(name, name)
 
 
 def onset_for(reaction_frame: int) -> int:

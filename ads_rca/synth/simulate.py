@@ -150,7 +150,7 @@ def simulate(scene: Scene, fault: FaultSpec, seed: int, horizon: int = 30) -> Si
             break
 
         # Control.
-        controller.brake_gain = BRAKE_GAIN if fault.active("control", f) else 1.0
+        controller.brake_gain = BRAKE_GAIN if fault.active("controller", f) else 1.0
         s, v = controller.step(s, v, float(result.speed[1]))
 
     log.frames = tuple(frames)

@@ -65,6 +65,21 @@ class CorrectedSemantics(Semantics):
         "heading_min_step",
     )
     reported = REPORTED
+    rules: Mapping[Module, str] = {
+        "perception": "the partner unmatched in a real conflict while the planner's view of "
+        "it is degraded",
+        "prediction": "the partner's clearance overstated by more than understate_min in a "
+        "real conflict",
+        "planning": "plan clearance below safety_margin against its own inputs where braking "
+        "would have kept clear",
+        "controller": "summed speed or lateral tracking error over control_horizon above its "
+        "threshold, toward the partner",
+    }
+    count_columns = ("counted", "other")
+    count_legend = (
+        "counted: failing frames in persistent runs inside the effect window; "
+        "other: the other failing frames (JSON collision / safe)"
+    )
     headline: Mapping[Module, Sequence[tuple[str, str | None]]] = {
         "perception": [("recall", None), ("mean_iou", "perc_match_iou")],
         "prediction": [("displacement_error", None), ("ade", None)],

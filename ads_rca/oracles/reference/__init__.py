@@ -53,6 +53,16 @@ class ReferenceSemantics(Semantics):
     )
     reported = REPORTED
     window_counts = "frames after collision_frame - {w}, with no upper bound"
+    rules: Mapping[Module, str] = {
+        "perception": "mean IoU of the matched detections below perc_score_threshold; missed "
+        "objects never count",
+        "prediction": "position error at least pred_score_threshold times the distance, for actors "
+        "within 4 m",
+        "planning": "a plan point inside a raw prediction's extents (both gaps below the "
+        "tolerance)",
+        "controller": "the ego's step against the planned step per axis: any move fails where "
+        "an axis's planned step is under 0.5 m",
+    }
     headline: Mapping[Module, Sequence[tuple[str, str | None]]] = {
         "perception": [("mean_iou", "perc_score_threshold")],
         "prediction": [("ratio", "pred_score_threshold")],

@@ -46,14 +46,15 @@ def documents() -> dict[str, dict[str, Any]]:
 def test_each_mode_heads_the_counts_with_its_own_names(documents) -> None:
     reference = summary_text(documents["reference"]).splitlines()
     corrected = summary_text(documents["corrected"]).splitlines()
-    assert reference[2].split() == ["module", "collision", "safe", "first", "failure"]
-    assert corrected[2].split() == ["module", "counted", "other", "first", "failure"]
-    assert corrected[3].split() == ["perception", "13", "0", "frame", "68"]
-    assert corrected[7] == (
+    assert reference[2].startswith("effect window: 10 frames (500 ms)")
+    assert reference[3].split() == ["module", "collision", "safe", "first", "failure"]
+    assert corrected[3].split() == ["module", "counted", "other", "first", "failure"]
+    assert corrected[4].split() == ["perception", "13", "0", "frame", "68"]
+    assert corrected[8] == (
         "counted: failing frames in persistent runs inside the effect window; "
         "other: the other failing frames (JSON collision / safe)"
     )
-    assert reference[7].startswith("verdict: controller")
+    assert reference[8].startswith("verdict: controller")
 
 
 def test_the_line_names_each_module_one_mode_blames_and_what_the_other_saw(documents) -> None:

@@ -88,5 +88,5 @@ def test_json_keys_and_table_rows_use_the_module_names(semantics: str) -> None:
     assert list(document["modules"]) == list(MODULES)
     for frame in document["frames"]:
         assert [k for k in frame if k not in ("frame", "timestamp_ms")] == list(MODULES)
-    rows = [line.split()[0] for line in summary_text(document).splitlines()[3:7]]
+    rows = [line.split()[0] for line in summary_text(document).splitlines()[4:8]]
     assert rows == list(MODULES)

@@ -4,8 +4,8 @@
 are this one class with a different module. A thin shell over
 :class:`~ads_rca.live.window.MonitorCore`, which decides when a frame can be judged and
 runs the engine's own oracles on it: the shell only decodes messages, calls it, and
-publishes each result on ``/diagnostics`` (status ``ads_rca/<module>``) and, losslessly, on
-``metrics/<module>`` for the aggregator. A heartbeat ``ads_rca/<module>/monitor`` tells the
+publishes each result losslessly on ``metrics/<module>`` for the aggregator, and each judged
+batch's latest frame on ``/diagnostics`` (status ``ads_rca/<module>``). A heartbeat ``ads_rca/<module>/monitor`` tells the
 aggregator the node is alive; ``ads_rca/<module>`` goes STALE when inputs stop (no message
 for ``stale_timeout_s`` before the player said ``finished``).
 
@@ -87,7 +87,11 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "max_lookahead_frames": (100, "Longest look-ahead waited for (reference prediction keys)."),
     "max_pending_frames": (1200, "Frames held at most before judging anyway (marked)."),
     "history_frames": (0, "Judged frames kept for a late collision (0 = automatic)."),
-    "publish_diagnostics": (True, "Publish one /diagnostics status per judged frame."),
+    "publish_diagnostics": (
+        True,
+        "Publish on /diagnostics one status per judged batch: its latest frame, with the "
+        "counts judged and failed since the previous status.",
+    ),
     "run_id": ("", "Judge only this run ('' = the first run heard of); see ads_rca.ros.runid."),
 }
 
@@ -127,17 +131,17 @@ class Monitor(Node):
         self.create_timer(float(p["heartbeat_s"]), self._heartbeat)
 
     def publish(self, results: list[LiveResult]) -> None:
-        """Each result on the metrics topic; their statuses in one DiagnosticArray.
+        """Each result on the metrics topic; the batch as one status on ``/diagnostics``.
 
         CDR bytes straight from our encoders: rclpy message objects cost more than judging.
-        One array per judged batch (one status per frame in it) rather than per frame.
+        Diagnostics tools key statuses by name, so the batch is one status (its latest
+        frame, :func:`~ads_rca.ros.diagnostics.batch_status`), not one per frame.
         """
         for result in results:
             self.metrics_pub.publish(encode_string(dumps_json(result.to_document())))
         if self.publish_diagnostics and results:
-            semantics = self.params.semantics
-            statuses = [diag.result_status(r, semantics, self.hardware_id) for r in results]
-            self.diag_pub.publish(diag.encode_array(self.get_clock().now().nanoseconds, statuses))
+            status = diag.batch_status(results, self.params.semantics, self.hardware_id)
+            self.diag_pub.publish(diag.encode_array(self.get_clock().now().nanoseconds, [status]))
 
     def _heartbeat(self) -> None:
         core = self.core

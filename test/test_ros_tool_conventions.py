@@ -9,12 +9,28 @@
 
 from __future__ import annotations
 
+import json
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from cdrlayout import differences
+
+from ads_rca.contract import cdr
+from ads_rca.contract.jsontext import loads_json
+from ads_rca.live.numeric import HEAD, NumericLayout
 from ads_rca.live.results import LiveResult
-from ads_rca.oracles.base import OracleResult
+from ads_rca.oracles.base import MODULES, OracleResult
 from ads_rca.ros import diagnostics as diag
+from ads_rca.ros.launcher import ManagedProcess
+
+pytestmark = pytest.mark.timeout(180)
 
 
-def _result(index: int, failed: bool, metrics: dict[str, object] | None = None) -> LiveResult:
+def _result(index: int, failed: bool, metrics: dict[str, Any] | None = None) -> LiveResult:
     oracle = OracleResult("perception", 50 * index, failed, metrics or {}, {}, (), None)
     return LiveResult(index=index, result=oracle, frame=index, run="r1")
 
@@ -34,3 +50,100 @@ def test_a_judged_batch_is_one_status_for_its_latest_frame() -> None:
     assert dict(failing.values)["failed_since_last"] == "1"
     # The encoded array holds that one status (what the aggregator's raw reader sees).
     assert diag.status_runs(diag.encode_array(0, [status])) == [("ads_rca/perception", "r1")]
+
+
+def test_numeric_rows_keep_every_label_at_its_position() -> None:
+    layout = NumericLayout(["c_plan", "c_gt"])
+    assert layout.labels == [*HEAD, "c_plan", "c_gt"]
+    first = layout.row(_result(2, True, {"c_gt": 1.5, "ids_n": 3, "note": "x", "m": {"a": 1}}))
+    assert layout.labels == [*HEAD, "c_plan", "c_gt", "ids_n"]
+    assert _same(first, [2.0, 1.0, 0.0, 0.0, 0.0, math.nan, 1.5, 3.0])
+    second = layout.row(_result(3, False, {"late": None, "flag": True, "c_plan": -0.25}))
+    assert layout.labels == [*HEAD, "c_plan", "c_gt", "ids_n", "late", "flag"]
+    assert _same(second, [3.0, 0.0, 0.0, 0.0, 0.0, -0.25, math.nan, math.nan, math.nan, 1.0])
+
+
+def _same(a: list[float], b: list[float]) -> bool:
+    return np.array_equal(np.asarray(a), np.asarray(b), equal_nan=True)
+
+
+def test_joint_state_bytes_equal_rclpy() -> None:
+    """Byte for byte. rclpy's serialize_message reports 8 bytes more for a JointState: its
+    size calculation aligns the two empty float64[] (velocity, effort) that the writer does
+    not; those trailing bytes are uninitialised and no reader looks at them."""
+    from rclpy.serialization import deserialize_message, serialize_message
+    from sensor_msgs.msg import JointState
+
+    for names, values in ((["frame", "c_gt"], [61.0, math.nan]), ([], [])):
+        msg = JointState(name=names, position=values)
+        msg.header.stamp.sec, msg.header.stamp.nanosec = 3, 50_000_000
+        ours = cdr.encode_joint_state(3050, names, values)
+        theirs = serialize_message(msg)
+        assert len(theirs) == len(ours) + 8
+        assert not differences(ours, theirs[: len(ours)], msg)
+        back = deserialize_message(ours, JointState)
+        assert back.name == names and _same(list(back.position), values)
+
+
+def test_recorded_values_equal_the_json_metrics_frame_by_frame(
+    ros_env: Any, tmp_path: Path, log_dirs: Any
+) -> None:
+    """A replay recorded to MCAP, read back with mcap-ros2-support: per module, the n-th
+    ``values`` message holds the n-th JSON result's numbers, labelled, at its log time."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    log_dir = log_dirs("cut_in", "planning")
+    bag = tmp_path / "bag"
+    argv = [sys.executable, "-m", "ads_rca.cli", "replay", str(log_dir), "--record", str(bag)]
+    argv += ["--domain-id", str(ros_env.domain_id), "--timeout", "90"]
+    replay = ManagedProcess("replay", argv, ros_env.env)
+    assert replay.wait(120) == 0, replay.output
+    documents: dict[str, list[dict[str, Any]]] = {m: [] for m in MODULES}
+    rows: dict[str, list[Any]] = {m: [] for m in MODULES}
+    with next(bag.glob("*.mcap")).open("rb") as stream:
+        reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+        # In the order recorded (= published, per topic): the log times (rmw's reception
+        # stamps) of a burst are not always increasing, and log-time order would mix them.
+        for schema, channel, _raw, msg in reader.iter_decoded_messages(log_time_order=False):
+            parts = channel.topic.split("/")  # "", "ads_rca", "metrics", module[, "values"]
+            if parts[2:3] != ["metrics"]:
+                continue
+            if parts[4:] == ["values"]:
+                assert schema is not None and schema.name == "sensor_msgs/msg/JointState"
+                rows[parts[3]].append(msg)
+            else:
+                documents[parts[3]].append(loads_json(msg.data))
+    verdict = json.loads((bag / "verdict.json").read_text())
+    for module in MODULES:
+        assert len(documents[module]) == len(rows[module]) == len(verdict["frames"]), module
+        for document, msg in zip(documents[module], rows[module], strict=True):
+            assert (
+                msg.header.stamp.sec * 1000 + msg.header.stamp.nanosec // 10**6
+                == (document["stamp_ms"])
+            )
+            assert list(msg.name[: len(HEAD)]) == list(HEAD)
+            expected = _numbers(document)
+            assert set(expected) <= set(msg.name)  # every numeric metric is there
+            got = dict(zip(msg.name, msg.position, strict=True))
+            for label, value in got.items():
+                want = expected.get(label, math.nan)  # a label of another frame: NaN here
+                assert value == want or (math.isnan(value) and math.isnan(want)), label
+    # The documented position of the partner's clearance (docs/topics.md).
+    assert rows["planning"][0].name[6] == "c_gt"
+
+
+def _numbers(document: dict[str, Any]) -> dict[str, float]:
+    """The JSON result's plottable numbers, transcribed from docs/topics.md."""
+    out = {
+        "frame": float(document["frame"]),
+        "failed": float(document["failed"]),
+        "skipped": float(bool(document["skipped"])),
+        "incomplete": float(bool(document["incomplete"])),
+        "revision": float(document["revision"]),
+    }
+    for key, value in document["metrics"].items():
+        if key in out or isinstance(value, str | list | dict):
+            continue
+        out[key] = math.nan if value is None else float(value)
+    return out

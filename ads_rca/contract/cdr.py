@@ -171,6 +171,31 @@ def encode_odometry(pose: EgoPose, timestamp_ms: int) -> bytes:
     return w.getvalue()
 
 
+def float64_sequence(w: CdrWriter, values: Any) -> None:
+    """A ``float64[]``: its count, then (8-aligned, only when there are any) the values."""
+    array = np.asarray(values, dtype="<f8")
+    w.u32(array.size)
+    if array.size:
+        w.align(8)
+        w.buffer += array.tobytes()
+
+
+def encode_joint_state(
+    timestamp_ms: int, names: list[str], positions: list[float], frame_id: str = ""
+) -> bytes:
+    """sensor_msgs/JointState with ``name`` and ``position`` (velocity, effort empty): the
+    labelled numbers of a monitor result (:mod:`ads_rca.live.numeric`)."""
+    w = CdrWriter()
+    w.header(timestamp_ms, frame_id)
+    w.u32(len(names))
+    for name in names:
+        w.string(name)
+    float64_sequence(w, positions)
+    float64_sequence(w, ())  # velocity
+    float64_sequence(w, ())  # effort
+    return w.getvalue()
+
+
 # --- MarkerArray --------------------------------------------------------------------------
 
 

@@ -186,14 +186,25 @@ def encode_joint_state(
     """sensor_msgs/JointState with ``name`` and ``position`` (velocity, effort empty): the
     labelled numbers of a monitor result (:mod:`ads_rca.live.numeric`)."""
     w = CdrWriter()
-    w.header(timestamp_ms, frame_id)
-    w.u32(len(names))
-    for name in names:
-        w.string(name)
+    w.stamp(*stamp_fields(timestamp_ms))
+    w.buffer += _joint_state_names(frame_id, tuple(names))
     float64_sequence(w, positions)
     float64_sequence(w, ())  # velocity
     float64_sequence(w, ())  # effort
     return w.getvalue()
+
+
+@lru_cache(maxsize=64)
+def _joint_state_names(frame_id: str, names: tuple[str, ...]) -> bytes:
+    """The bytes after the stamp up to the positions: the same for every row of a layout
+    (the stamp is fixed-size, so their alignment is too)."""
+    w = CdrWriter()
+    w.stamp(0, 0)
+    w.string(frame_id)
+    w.u32(len(names))
+    for name in names:
+        w.string(name)
+    return w.getvalue()[HEADER_SIZE + _STAMP.size :]
 
 
 # --- MarkerArray --------------------------------------------------------------------------

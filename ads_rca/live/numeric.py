@@ -62,11 +62,15 @@ class NumericLayout:
         """The result's values, one per label (the layout grows first if need be)."""
         r = live.result
         head = (live.frame, r.failed, bool(r.skipped), bool(live.incomplete), live.revision)
-        found: dict[str, object] = dict(zip(HEAD, head, strict=True))
+        values: dict[str, float] = {k: float(v) for k, v in zip(HEAD, head, strict=True)}
         for key, value in r.metrics.items():
-            if key not in found:
-                found[key] = value
-        values = {
-            self._add(key): x for key, value in found.items() if (x := number(value)) is not None
-        }
-        return [values.get(i, math.nan) for i in range(len(self.labels))]
+            if key not in values and (x := number(value)) is not None:
+                values[key] = x
+        if len(values) > len(self.labels) or not values.keys() <= self._position.keys():
+            for key in values:
+                self._add(key)
+        row = [math.nan] * len(self.labels)
+        position = self._position
+        for key, x in values.items():
+            row[position[key]] = x
+        return row

@@ -11,21 +11,26 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 from cdrlayout import differences
+from rosrun import wait_for
 
-from ads_rca.contract import cdr
+from ads_rca.contract import cdr, topics
+from ads_rca.contract.camera import Intrinsics, camera_intrinsics, camera_mount
 from ads_rca.contract.jsontext import loads_json
+from ads_rca.io.json_log import read_run_log
 from ads_rca.live.numeric import HEAD, NumericLayout
 from ads_rca.live.results import LiveResult
 from ads_rca.oracles.base import MODULES, OracleResult
 from ads_rca.ros import diagnostics as diag
-from ads_rca.ros.launcher import ManagedProcess
+from ads_rca.ros.launcher import ManagedProcess, node_command
 
 pytestmark = pytest.mark.timeout(180)
 
@@ -147,3 +152,136 @@ def _numbers(document: dict[str, Any]) -> dict[str, float]:
             continue
         out[key] = math.nan if value is None else float(value)
     return out
+
+
+EXAMPLE = Path(__file__).parents[1] / "examples" / "cut_in_perception"
+
+
+def _with_camera(tmp_path: Path, **camera: Any) -> Path:
+    """The example log with CARLA's camera attributes added to its metadata."""
+    log_dir = tmp_path / "log"
+    shutil.copytree(EXAMPLE, log_dir)
+    document = json.loads((log_dir / "metadata.json").read_text())
+    document["ego_config"]["camera"].update(camera)
+    (log_dir / "metadata.json").write_text(json.dumps(document))
+    return log_dir
+
+
+def test_the_camera_mount_and_intrinsics_come_from_the_metadata(tmp_path: Path) -> None:
+    metadata = read_run_log(EXAMPLE).metadata  # camera_loc [1.3, 0.0, 1.8], no intrinsics
+    mount = camera_mount(metadata)
+    assert (mount.parent, mount.child) == ("base_link", "camera_image")
+    assert mount.translation == (1.3, -0.0, 1.8)
+    # The optical frame: z along the body's x (forward), x along -y (right), y along -z.
+    x, y, z, w = mount.rotation
+    matrix = np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+    assert np.array_equal(matrix.T, [[0, -1, 0], [0, 0, -1], [1, 0, 0]])  # rows: optical axes
+    assert camera_intrinsics(metadata) is None
+    given = read_run_log(_with_camera(tmp_path, image_size_x="1920", image_size_y=1080, fov=90))
+    focal = 1920 / (2 * math.tan(math.pi / 4))  # 960 (and a last bit: tan(45°) < 1)
+    assert camera_intrinsics(given.metadata) == Intrinsics(1920, 1080, focal, focal, 960.0, 540.0)
+    for bad, field in (({"fov": 180}, "fov"), ({"image_size_x": 19.5}, "image_size_x")):
+        log = read_run_log(
+            _with_camera(
+                tmp_path / field, **{"image_size_x": 1920, "image_size_y": 1080, "fov": 90, **bad}
+            )
+        )
+        with pytest.raises(ValueError, match=f"ego_config.camera.{field}:"):
+            camera_intrinsics(log.metadata)
+
+
+def test_tf_message_bytes_equal_the_reference_serialiser() -> None:
+    """No tf2_msgs wheel, so rclpy cannot serialise a TFMessage here: rosbags' Kilted type
+    store can (its bytes equal rclpy's, environment.md)."""
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_KILTED)
+    types = store.types
+    mount = camera_mount(read_run_log(EXAMPLE).metadata)
+    transform = types["geometry_msgs/msg/TransformStamped"](
+        header=types["std_msgs/msg/Header"](
+            stamp=types["builtin_interfaces/msg/Time"](sec=0, nanosec=50_000_000),
+            frame_id=mount.parent,
+        ),
+        child_frame_id=mount.child,
+        transform=types["geometry_msgs/msg/Transform"](
+            translation=types["geometry_msgs/msg/Vector3"](*mount.translation),
+            rotation=types["geometry_msgs/msg/Quaternion"](*mount.rotation),
+        ),
+    )
+    message = types["tf2_msgs/msg/TFMessage"](transforms=[transform])
+    reference = bytes(store.serialize_cdr(message, "tf2_msgs/msg/TFMessage"))
+    assert cdr.encode_tf_message(50, [mount]) == reference
+
+
+def test_a_late_subscriber_gets_the_camera(ros_env: Any, tmp_path: Path) -> None:
+    """Over DDS: the player sends the camera once at start, latched; a subscriber that
+    joins afterwards still gets CameraInfo (and /tf_static where tf2_msgs is installed)
+    with the metadata's numbers."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from sensor_msgs.msg import CameraInfo
+
+    try:
+        from tf2_msgs.msg import TFMessage
+    except ImportError:
+        TFMessage = None
+    log_dir = _with_camera(tmp_path, image_size_x=800, image_size_y=600, fov=60.0)
+    params = {
+        "log_path": str(log_dir),
+        "topic_namespace": ros_env.namespace,
+        "wait_for_subscribers": 1,  # nobody subscribes to run/frame: the player stays up
+        "wait_timeout_s": 60.0,
+    }
+    player = ManagedProcess("player", node_command("ads_rca.ros.player", params), ros_env.env)
+    context = rclpy.Context()
+    try:
+        # The player logs this line after publishing: the subscriber below joins late.
+        wait_for(lambda: "camera/camera_info: 800x600 px" in player.output, 30, "camera_info")
+        rclpy.init(context=context)
+        node = rclpy.create_node("late_camera_subscriber", context=context)
+        got: dict[str, Any] = {}
+        node.create_subscription(
+            CameraInfo,
+            topics.topic_name(topics.CAMERA_INFO, ros_env.namespace),
+            lambda msg: got.setdefault("info", msg),
+            topics.qos_profile(topics.CAMERA_INFO),
+        )
+        if TFMessage is not None:
+            node.create_subscription(
+                TFMessage,
+                topics.TF_STATIC,
+                lambda msg: got.setdefault("tf", msg),
+                topics.qos_profile(topics.TF_STATIC),
+            )
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+        wanted = {"info"} if TFMessage is None else {"info", "tf"}
+        deadline = time.monotonic() + 20
+        while not wanted <= set(got) and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        assert wanted <= set(got), player.output
+    finally:
+        player.stop()
+        rclpy.try_shutdown(context=context)
+    info = got["info"]
+    focal = 800 / (2 * math.tan(math.radians(60.0) / 2))
+    assert info.header.frame_id == "camera_image" and (info.width, info.height) == (800, 600)
+    assert list(info.k) == [focal, 0.0, 400.0, 0.0, focal, 300.0, 0.0, 0.0, 1.0]
+    assert list(info.p) == [focal, 0.0, 400.0, 0.0, 0.0, focal, 300.0, 0.0, 0.0, 0.0, 1.0, 0.0]
+    assert info.distortion_model == "plumb_bob" and list(info.d) == [0.0] * 5
+    assert info.header.stamp.sec * 1000 + info.header.stamp.nanosec // 10**6 == 50  # frame 1
+    if TFMessage is None:
+        assert "tf2_msgs is not installed: /tf_static not published" in player.output
+        return
+    (transform,) = got["tf"].transforms
+    assert (transform.header.frame_id, transform.child_frame_id) == ("base_link", "camera_image")
+    t, q = transform.transform.translation, transform.transform.rotation
+    assert (t.x, t.y, t.z) == (1.3, -0.0, 1.8)
+    assert (q.x, q.y, q.z, q.w) == (-0.5, 0.5, -0.5, 0.5)

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from ads_rca.contract import topics
+from ads_rca.contract.camera import StaticTransform
 from ads_rca.contract.convert import (
     _COLORS,
     MARKER_NS,
@@ -205,6 +206,22 @@ def _joint_state_names(frame_id: str, names: tuple[str, ...]) -> bytes:
     for name in names:
         w.string(name)
     return w.getvalue()[HEADER_SIZE + _STAMP.size :]
+
+
+#: geometry_msgs/Transform: translation (Vector3) and rotation (Quaternion), 7 float64.
+_TRANSFORM = struct.Struct("<7d")
+
+
+def encode_tf_message(timestamp_ms: int, transforms: list[StaticTransform]) -> bytes:
+    """tf2_msgs/TFMessage (``/tf_static``). Our own encoder: tf2_msgs has no wheel, so
+    rclpy cannot serialise it here (bytes checked against rosbags' serialiser)."""
+    w = CdrWriter()
+    w.u32(len(transforms))
+    for t in transforms:
+        w.header(timestamp_ms, t.parent)
+        w.string(t.child)
+        w.pack(_TRANSFORM, *t.translation, *t.rotation, alignment=8)
+    return w.getvalue()
 
 
 # --- MarkerArray --------------------------------------------------------------------------

@@ -227,7 +227,8 @@ class Recorder(Node):
         if self.explicit:
             return name in self.explicit
         prefix = topics.normalise_namespace(self.namespace) + "/"
-        return self.discover and (name == "/diagnostics" or name.startswith(prefix))
+        outside = name in (live_topics.DIAGNOSTICS, topics.TF_STATIC)
+        return self.discover and (outside or name.startswith(prefix))
 
     def _discover(self) -> None:
         for name, types in self.get_topic_names_and_types():

@@ -1,7 +1,8 @@
 """A test process that writes every ``/diagnostics`` status it receives as a JSON line.
 
 Run as ``python test/diag_probe.py OUT.jsonl [--ros-args ...]``; each line is
-``{"t": monotonic seconds, "name", "level", "message", "hardware_id", "values": {...}}``.
+``{"t": monotonic seconds, "array": n-th array received, "name", "level", "message",
+"hardware_id", "values": {...}}``.
 Separate from the pytest process so the tests keep rclpy out of it.
 """
 
@@ -23,11 +24,14 @@ def main() -> int:
     out = open(sys.argv[1], "w", encoding="utf-8")  # noqa: SIM115
     rclpy.init(args=[sys.argv[0], *sys.argv[2:]])
     node = Node("diag_probe")
+    received = [0]
 
     def on_message(msg: DiagnosticArray) -> None:
+        received[0] += 1
         for s in msg.status:
             row = {
                 "t": time.monotonic(),
+                "array": received[0],
                 "name": s.name,
                 "level": int.from_bytes(s.level, "little")
                 if isinstance(s.level, bytes)

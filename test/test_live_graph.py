@@ -12,6 +12,7 @@
 from __future__ import annotations
 
 import contextlib
+import itertools
 import json
 import sys
 import time
@@ -178,18 +179,24 @@ def test_monitor_killed_and_restarted_goes_stale_recovers_and_a_verdict_comes(
         if r["name"] == "ads_rca/controller" and r["level"] != STALE and r["t"] > first_stale
     ]
     assert recovered, "no controller status after the restart"
-    # One /diagnostics status per judged frame (a batch's statuses share one array).
+    # Diagnostics tools key statuses by name: never two of one name in an array.
+    names = [(r["array"], r["name"]) for r in rows]
+    assert len(names) == len(set(names))
+    # One status per judged batch: its latest frame, and how many were judged since the
+    # previous status, so the statuses account for every judged frame exactly.
     statuses = [
-        int(r["values"]["index"])
+        (int(r["values"]["index"]), int(r["values"]["judged_since_last"]))
         for r in rows
         if r["name"] == "ads_rca/perception" and "index" in r["values"]
     ]
     judged = [r["index"] for r in jsonl(metrics) if r["module"] == "perception"]
+    assert judged == sorted(set(judged))  # reference: each frame judged once, in order
     # /diagnostics is volatile: the probe sees what was sent once discovery matched it to
     # the monitor (up to ~2.5 s, environment.md), which may be after the first frames.
-    assert statuses and judged
-    seen = [i for i in judged if i >= min(statuses)]
-    assert sorted(statuses) == sorted(seen) and len(seen) >= len(judged) // 2
+    assert len(statuses) >= 2
+    positions = [judged.index(index) for index, _count in statuses]
+    assert positions[0] + 1 >= statuses[0][1]
+    assert [b - a for a, b in itertools.pairwise(positions)] == [n for _i, n in statuses[1:]]
     offline = diagnose(read_run_log(log_dir), params).to_json()
     assert document["primary_root_cause"] == offline["primary_root_cause"]
     assert document["live"]["complete"] is False

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from ads_rca.contract import topics
+from ads_rca.contract.camera import StaticTransform
 from ads_rca.contract.convert import (
     _COLORS,
     MARKER_NS,
@@ -168,6 +169,58 @@ def encode_odometry(pose: EgoPose, timestamp_ms: int) -> bytes:
     w.string(topics.EGO_FRAME)
     twist = (float(pose.speed), 0.0, 0.0, 0.0, 0.0, 0.0)
     w.pack(_ODOMETRY_BODY, float(pose.x), -pose.y, float(pose.z), *q, *twist, alignment=8)
+    return w.getvalue()
+
+
+def float64_sequence(w: CdrWriter, values: Any) -> None:
+    """A ``float64[]``: its count, then (8-aligned, only when there are any) the values."""
+    array = np.asarray(values, dtype="<f8")
+    w.u32(array.size)
+    if array.size:
+        w.align(8)
+        w.buffer += array.tobytes()
+
+
+def encode_joint_state(
+    timestamp_ms: int, names: list[str], positions: list[float], frame_id: str = ""
+) -> bytes:
+    """sensor_msgs/JointState with ``name`` and ``position`` (velocity, effort empty): the
+    labelled numbers of a monitor result (:mod:`ads_rca.live.numeric`)."""
+    w = CdrWriter()
+    w.stamp(*stamp_fields(timestamp_ms))
+    w.buffer += _joint_state_names(frame_id, tuple(names))
+    float64_sequence(w, positions)
+    float64_sequence(w, ())  # velocity
+    float64_sequence(w, ())  # effort
+    return w.getvalue()
+
+
+@lru_cache(maxsize=64)
+def _joint_state_names(frame_id: str, names: tuple[str, ...]) -> bytes:
+    """The bytes after the stamp up to the positions: the same for every row of a layout
+    (the stamp is fixed-size, so their alignment is too)."""
+    w = CdrWriter()
+    w.stamp(0, 0)
+    w.string(frame_id)
+    w.u32(len(names))
+    for name in names:
+        w.string(name)
+    return w.getvalue()[HEADER_SIZE + _STAMP.size :]
+
+
+#: geometry_msgs/Transform: translation (Vector3) and rotation (Quaternion), 7 float64.
+_TRANSFORM = struct.Struct("<7d")
+
+
+def encode_tf_message(timestamp_ms: int, transforms: list[StaticTransform]) -> bytes:
+    """tf2_msgs/TFMessage (``/tf_static``). Our own encoder: tf2_msgs has no wheel, so
+    rclpy cannot serialise it here (bytes checked against rosbags' serialiser)."""
+    w = CdrWriter()
+    w.u32(len(transforms))
+    for t in transforms:
+        w.header(timestamp_ms, t.parent)
+        w.string(t.child)
+        w.pack(_TRANSFORM, *t.translation, *t.rotation, alignment=8)
     return w.getvalue()
 
 

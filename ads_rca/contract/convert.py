@@ -27,9 +27,12 @@ if TYPE_CHECKING:
     from builtin_interfaces.msg import Duration, Time
     from geometry_msgs.msg import Point, Quaternion
     from nav_msgs.msg import Odometry
+    from sensor_msgs.msg import CameraInfo
     from std_msgs.msg import ColorRGBA, Header
     from trajectory_msgs.msg import MultiDOFJointTrajectory
     from visualization_msgs.msg import Marker, MarkerArray
+
+    from ads_rca.contract.camera import Intrinsics
 
 INT32_MAX = 2**31 - 1
 _NS_PER_MS = 1_000_000
@@ -418,6 +421,26 @@ def trajectory_to_plan(msg: MultiDOFJointTrajectory, timesteps_per_frame: int) -
         speed[row] = point.velocities[0].linear.x if point.velocities else math.nan
         keys.append(str(from_duration(point.time_from_start) // step))
     return Plan(keys=tuple(keys), xy=xy, speed=speed)
+
+
+# --- the camera -----------------------------------------------------------------------------
+
+
+def camera_info_message(intrinsics: Intrinsics, timestamp_ms: int) -> CameraInfo:
+    """sensor_msgs/CameraInfo of a distortion-free pinhole (``plumb_bob``, D all zero,
+    R identity), in ``camera_image`` (ads_rca/contract/camera.py)."""
+    from sensor_msgs.msg import CameraInfo
+
+    return CameraInfo(
+        header=header(timestamp_ms, topics.IMAGE_FRAME),
+        height=intrinsics.height,
+        width=intrinsics.width,
+        distortion_model="plumb_bob",
+        d=[0.0] * 5,
+        k=list(intrinsics.k),
+        r=[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+        p=list(intrinsics.p),
+    )
 
 
 # --- whole frames ---------------------------------------------------------------------------

@@ -68,6 +68,17 @@ MESSAGE_TYPE_NAMES: dict[str, str] = {
 }
 ALL_TOPICS: tuple[str, ...] = tuple(MESSAGE_TYPE_NAMES)
 
+# The camera for 3D viewers (ads_rca/contract/camera.py): sent once per run, latched, after
+# run/metadata. Kept out of ALL_TOPICS (which every player, recorder and assembler imports
+# the classes of): tf2_msgs has no wheel, so the player sends /tf_static only where it is
+# installed, and CameraInfo only when the log gives the intrinsics.
+TF_STATIC = "/tf_static"
+CAMERA_INFO = "camera/camera_info"
+CAMERA_TYPE_NAMES: dict[str, str] = {
+    TF_STATIC: "tf2_msgs/msg/TFMessage",
+    CAMERA_INFO: "sensor_msgs/msg/CameraInfo",
+}
+
 
 @cache
 def message_types() -> dict[str, type[Any]]:
@@ -106,7 +117,7 @@ LATCHED_READER_DEPTH = 100
 
 QOS: dict[str, QoSSpec] = {
     topic: (LATCHED_QOS if topic in (METADATA, STATUS) else DATA_QOS) for topic in ALL_TOPICS
-}
+} | {topic: LATCHED_QOS for topic in CAMERA_TYPE_NAMES}
 
 
 def normalise_namespace(namespace: str) -> str:

@@ -1,12 +1,18 @@
-"""``diagnostic_msgs`` for the live graph: one status per judged frame, STALE, the verdict.
+"""``diagnostic_msgs`` for the live graph: a module's latest judged frame, STALE, the verdict.
 
 ROS conventions (REP-107 style, as ``diagnostic_updater`` does): status ``name``
 ``ads_rca/<module>``, a ``hardware_id``, level OK / WARN / ERROR / STALE, a short message, and
 every number in ``values`` as key/value strings. Nested metrics are flattened to
 ``parent.child`` keys; lists are JSON text. Pure message building, no node.
 
+Tools that read ``/diagnostics`` (rqt_robot_monitor, diagnostic_aggregator, Foxglove's
+Diagnostics panel) key statuses by name and keep the last one of an array, so an array holds
+at most one status per name: a monitor's batch of judged frames becomes one status, its
+latest frame, with how many were judged and failed since the previous one
+(:func:`batch_status`). The frame-by-frame history is on the ``metrics/<module>`` topics.
+
 Statuses are plain :class:`Status` values; :func:`array` makes the rclpy message (the
-verdict, heartbeats) and :func:`encode_array` its CDR bytes directly, for the per-frame
+verdict, heartbeats) and :func:`encode_array` its CDR bytes directly, for the monitors'
 statuses: a 40-value status as rclpy objects cost the monitor more than judging the frame.
 """
 
@@ -14,8 +20,8 @@ from __future__ import annotations
 
 import math
 import struct
-from collections.abc import Mapping
-from dataclasses import dataclass
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, replace
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -89,6 +95,20 @@ def flatten(values: Mapping[str, Any], prefix: str = "") -> list[tuple[str, str]
         else:
             out.append((name, text(value)))
     return out
+
+
+def batch_status(results: Sequence[LiveResult], semantics: str, hardware_id: str) -> Status:
+    """One module's judged batch as one status: its latest (last judged) frame, as
+    :func:`result_status`, plus ``judged_since_last`` and ``failed_since_last`` (the
+    batch's frames), and the failures in the message when the latest frame passed."""
+    latest = results[-1]
+    failed = sum(r.result.failed for r in results)
+    status = result_status(latest, semantics, hardware_id)
+    message = status.message
+    if failed and not latest.result.failed:
+        message += f" ({failed} of {len(results)} frames since the last status failed)"
+    counts = [("judged_since_last", str(len(results))), ("failed_since_last", str(failed))]
+    return replace(status, message=message, values=counts + status.values)
 
 
 def result_status(live: LiveResult, semantics: str, hardware_id: str) -> Status:

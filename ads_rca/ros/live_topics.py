@@ -5,6 +5,8 @@ analysis, not log data. Relative names live under ``topic_namespace`` like the c
 
 - ``metrics/<module>`` (std_msgs/String; RELIABLE, TRANSIENT_LOCAL, KEEP_LAST 5000): JSON of
   one :class:`~ads_rca.live.results.LiveResult` per judged frame;
+- ``metrics/<module>/values`` (sensor_msgs/JointState, QoS as ``metrics/<module>``): the same
+  results as labelled numbers for plotting tools (:mod:`ads_rca.live.numeric`);
 - ``run/collision`` (std_msgs/String, latched): JSON ``{"frame": N}``, a live stack's
   collision event;
 - ``verdict`` (diagnostic_msgs/DiagnosticArray, latched): the verdict status;
@@ -16,14 +18,16 @@ analysis, not log data. Relative names live under ``topic_namespace`` like the c
   subscribers before playing, not another run's sharing the domain and namespace.
 
 Metrics are TRANSIENT_LOCAL so an aggregator started late (or restarted) still gets every
-result a running monitor published.
+result a running monitor published, and so does a recorder that discovers the topics late.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-from ads_rca.oracles.base import Module
+from ads_rca.contract.topics import topic_name
+from ads_rca.oracles.base import MODULES, Module
 
 if TYPE_CHECKING:
     from rclpy.qos import QoSProfile
@@ -37,6 +41,11 @@ METRICS_DEPTH = 5000
 
 def metrics_key(module: Module | str) -> str:
     return f"metrics/{module}"
+
+
+def values_key(module: Module | str) -> str:
+    """The plottable numeric form of ``metrics/<module>``."""
+    return f"{metrics_key(module)}/values"
 
 
 READY_PREFIX = "run/ready_"
@@ -79,3 +88,20 @@ def diagnostics_qos() -> QoSProfile:
         reliability=ReliabilityPolicy.RELIABLE,
         durability=DurabilityPolicy.VOLATILE,
     )
+
+
+def graph_topics(namespace: str) -> dict[str, tuple[str, Callable[[], QoSProfile]]]:
+    """The graph's own outputs a recorder subscribes to from its start: full name →
+    (type, reader QoS). Found by discovery instead, a monitor's first results (or a short
+    run's every result) could be published and acknowledged before the recorder matched."""
+    out: dict[str, tuple[str, Callable[[], QoSProfile]]] = {}
+    for module in MODULES:
+        for key, msg_type in (
+            (metrics_key(module), "std_msgs/msg/String"),
+            (values_key(module), "sensor_msgs/msg/JointState"),
+        ):
+            out[topic_name(key, namespace)] = (msg_type, lambda: metrics_qos(subscriber=True))
+    out[topic_name(VERDICT, namespace)] = ("diagnostic_msgs/msg/DiagnosticArray", latched_qos)
+    out[topic_name(VERDICT_JSON, namespace)] = ("std_msgs/msg/String", latched_qos)
+    out[DIAGNOSTICS] = ("diagnostic_msgs/msg/DiagnosticArray", diagnostics_qos)
+    return out

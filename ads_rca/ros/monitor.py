@@ -4,10 +4,12 @@
 are this one class with a different module (node name = ``<module>_monitor``). A thin shell over
 :class:`~ads_rca.live.window.MonitorCore`, which decides when a frame can be judged and
 runs the engine's own oracles on it: the shell only decodes messages, calls it, and
-publishes each result on ``/diagnostics`` (status ``ads_rca/<module>``) and, losslessly, on
-``metrics/<module>`` for the aggregator. A heartbeat ``ads_rca/<module>/monitor`` tells the
-aggregator the node is alive; ``ads_rca/<module>`` goes STALE when inputs stop (no message
-for ``stale_timeout_s`` before the player said ``finished``).
+publishes each result losslessly on ``metrics/<module>`` for the aggregator (and as labelled
+numbers on ``metrics/<module>/values`` for plotting tools), and each judged batch's latest
+frame on ``/diagnostics`` (status ``ads_rca/<module>``). A heartbeat
+``ads_rca/<module>/monitor`` tells the aggregator the node is alive; ``ads_rca/<module>``
+goes STALE when inputs stop (no message for ``stale_timeout_s`` before the player said
+``finished``).
 
 Subscriptions use the lossless QoS of the contract (RELIABLE + KEEP_ALL) so a player at rate
 0 waits for us. Data that arrives before the (latched) metadata is queued (at most 64 MiB,
@@ -31,11 +33,12 @@ from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
+from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
 from ads_rca.contract import topics
 from ads_rca.contract.assembler import run_metadata
-from ads_rca.contract.cdr import encode_string
+from ads_rca.contract.cdr import encode_joint_state, encode_string
 from ads_rca.contract.cdr_decode import decode_record, stamp_ms
 from ads_rca.contract.errors import CdrError, MalformedMessage, NoStamp
 from ads_rca.contract.jsontext import dumps_json
@@ -46,10 +49,12 @@ from ads_rca.contract.playback import (
     read_input_problems,
 )
 from ads_rca.errors import InputError
+from ads_rca.live.numeric import NumericLayout
 from ads_rca.live.results import FrameMarker, LiveResult
 from ads_rca.live.window import MonitorCore, WindowSettings
 from ads_rca.model import RunMetadata
 from ads_rca.oracles.base import Module
+from ads_rca.oracles.semantics import semantics_for
 from ads_rca.paramspec import SECONDS, Range
 from ads_rca.ros import diagnostics as diag
 from ads_rca.ros import live_topics
@@ -97,7 +102,11 @@ PARAMETERS: dict[str, NodeParameter] = {
         "Judged frames kept for a late collision (0 = automatic).",
         Range(0, 1_000_000, integer=True, unit="frames"),
     ),
-    "publish_diagnostics": (True, "Publish one /diagnostics status per judged frame."),
+    "publish_diagnostics": (
+        True,
+        "Publish on /diagnostics one status per judged batch: its latest frame, with the "
+        "counts judged and failed since the previous status.",
+    ),
     "run_id": ("", "Judge only this run ('' = the first run heard of); see ads_rca.ros.runid."),
 }
 
@@ -131,6 +140,13 @@ class Monitor(Node):
             topics.topic_name(live_topics.metrics_key(module), self.namespace),
             live_topics.metrics_qos(),
         )
+        self.values_pub = self.create_publisher(
+            JointState,
+            topics.topic_name(live_topics.values_key(module), self.namespace),
+            live_topics.metrics_qos(),
+        )
+        headline = semantics_for(self.params).headline.get(module, ())
+        self.layout = NumericLayout([metric for metric, _threshold in headline])
         self.diag_pub = self.create_publisher(
             DiagnosticArray, live_topics.DIAGNOSTICS, live_topics.diagnostics_qos()
         )
@@ -138,17 +154,20 @@ class Monitor(Node):
         log_in_force(self, p, self.params)
 
     def publish(self, results: list[LiveResult]) -> None:
-        """Each result on the metrics topic; their statuses in one DiagnosticArray.
+        """Each result on the metrics topic (JSON) and its ``values`` topic (numbers); the
+        batch as one status on ``/diagnostics``.
 
         CDR bytes straight from our encoders: rclpy message objects cost more than judging.
-        One array per judged batch (one status per frame in it) rather than per frame.
+        Diagnostics tools key statuses by name, so the batch is one status (its latest
+        frame, :func:`~ads_rca.ros.diagnostics.batch_status`), not one per frame.
         """
         for result in results:
             self.metrics_pub.publish(encode_string(dumps_json(result.to_document())))
+            row = self.layout.row(result)
+            self.values_pub.publish(encode_joint_state(result.stamp_ms, self.layout.labels, row))
         if self.publish_diagnostics and results:
-            semantics = self.params.semantics
-            statuses = [diag.result_status(r, semantics, self.hardware_id) for r in results]
-            self.diag_pub.publish(diag.encode_array(self.get_clock().now().nanoseconds, statuses))
+            status = diag.batch_status(results, self.params.semantics, self.hardware_id)
+            self.diag_pub.publish(diag.encode_array(self.get_clock().now().nanoseconds, [status]))
 
     def _heartbeat(self) -> None:
         core = self.core

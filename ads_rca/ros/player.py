@@ -5,7 +5,8 @@ playback.py. Timing follows log time: a wall timer ticks every tpf/rate and send
 stamp that is due; at rate 0 frames go in batches of ``ack_every``, each batch once every
 subscriber acknowledged the previous one (``wait_for_all_acked``), so nothing is dropped.
 Bad input is one logged line and exit status 2; reader problems are logged one per line
-and counted in the status.
+and counted in the status. The camera (``/tf_static``, ``camera/camera_info``) is sent once,
+latched, at start (:mod:`ads_rca.contract.camera`).
 """
 
 from __future__ import annotations
@@ -20,11 +21,13 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.logging import get_logger
 from rclpy.node import Node
 from rclpy.subscription import RCLError
+from sensor_msgs.msg import CameraInfo
 from std_msgs.msg import String
 
 from ads_rca.contract import topics
-from ads_rca.contract.cdr import encode_clock, encode_string, frame_payloads
-from ads_rca.contract.convert import frame_messages
+from ads_rca.contract.camera import camera_intrinsics, camera_mount
+from ads_rca.contract.cdr import encode_clock, encode_string, encode_tf_message, frame_payloads
+from ads_rca.contract.convert import camera_info_message, frame_messages
 from ads_rca.contract.playback import (
     FINISHED,
     PLAYING,
@@ -178,7 +181,43 @@ class Player(Node):
         )
         self.pubs[topics.METADATA].publish(self.metadata)
         self.get_logger().info(f"run {self.run_id}")
+        self.camera_pubs = self._publish_camera(namespace)
         log_in_force(self, self._values)
+
+    def _publish_camera(self, namespace: str) -> list[Any]:
+        """The camera for 3D viewers, once, latched (docs/topics.md "The camera"):
+        ``/tf_static`` where tf2_msgs is installed, CameraInfo where the log gives the
+        intrinsics. Returns the publishers, which must live for late joiners."""
+        stamp_ms = self.log.frames[0] if self.log.frames else 0
+        logger = self.get_logger()
+        pubs = []
+        try:
+            mount = camera_mount(self.log.metadata)
+            from tf2_msgs.msg import TFMessage
+        except ValueError as error:
+            logger.warning(f"no {topics.TF_STATIC}: {printable(str(error))}")
+        except ImportError:
+            logger.info(f"tf2_msgs is not installed: {topics.TF_STATIC} not published")
+        else:
+            qos = topics.qos_profile(topics.TF_STATIC)
+            pubs.append(self.create_publisher(TFMessage, topics.TF_STATIC, qos))
+            pubs[-1].publish(encode_tf_message(stamp_ms, [mount]))
+            logger.info(f"{topics.TF_STATIC}: {mount.parent} -> {mount.child} {mount.translation}")
+        try:
+            intrinsics = camera_intrinsics(self.log.metadata)
+        except ValueError as error:
+            logger.warning(f"no {topics.CAMERA_INFO}: {printable(str(error))}")
+            return pubs
+        if intrinsics is not None:
+            name = topics.topic_name(topics.CAMERA_INFO, namespace)
+            qos = topics.qos_profile(topics.CAMERA_INFO)
+            pubs.append(self.create_publisher(CameraInfo, name, qos))
+            pubs[-1].publish(camera_info_message(intrinsics, stamp_ms))
+            logger.info(
+                f"{topics.CAMERA_INFO}: {intrinsics.width}x{intrinsics.height} px, "
+                f"focal {intrinsics.fx:.1f} px"
+            )
+        return pubs
 
     def _param(self, name: str) -> Any:
         return self._values[name]

@@ -7,12 +7,14 @@ log time = reception time, publish time = the sender's timestamp), with lossless
 (RELIABLE + KEEP_ALL, latched topics TRANSIENT_LOCAL) so a player at rate 0 waits for us.
 
 Which topics: ``topics`` (names; relative ones are under ``topic_namespace``), or by default
-every contract topic plus ``/diagnostics`` and anything else published under the namespace
-(monitor metrics, verdicts), found by polling the graph. SIGINT/SIGTERM stop the node,
-drain what DDS already delivered and finalise the bag (summary + metadata.yaml); a SIGKILL
-loses at most the chunk being filled (``chunk_size`` bytes or ``flush_period_s`` seconds).
-With ``stop_on_finished`` the node also stops by itself once the player said ``finished``
-and every message its frame markers announced is in the bag.
+every contract topic, the graph's own outputs (monitor metrics, verdicts, ``/diagnostics``:
+subscribed from the start, so a short run's results are not over before discovery finds
+them) and anything else published under the namespace, found by polling the graph.
+SIGINT/SIGTERM stop the node, drain what DDS already delivered and finalise the bag
+(summary + metadata.yaml); a SIGKILL loses at most the chunk being filled (``chunk_size``
+bytes or ``flush_period_s`` seconds). With ``stop_on_finished`` the node also stops by
+itself once the player said ``finished`` and every message its frame markers announced is
+in the bag.
 """
 
 from __future__ import annotations
@@ -210,6 +212,11 @@ class Recorder(Node):
         for key, name in self.names.items():
             if not self.explicit or name in self.explicit:
                 self._subscribe(name, rosmsg.type_name(topics.message_types()[key]))
+        self.graph_qos: dict[str, QoSProfile] = {}
+        for name, (msg_type, qos) in live_topics.graph_topics(self.namespace).items():
+            if name in self.explicit if self.explicit else self.discover:
+                self.graph_qos[name] = qos()
+                self._subscribe(name, msg_type)
         if self.discover or self.explicit - set(self.subs):
             self._discover()
             self.create_timer(0.5, self._discover)
@@ -232,7 +239,8 @@ class Recorder(Node):
         if self.explicit:
             return name in self.explicit
         prefix = topics.normalise_namespace(self.namespace) + "/"
-        return self.discover and (name == "/diagnostics" or name.startswith(prefix))
+        outside = name in (live_topics.DIAGNOSTICS, topics.TF_STATIC)
+        return self.discover and (outside or name.startswith(prefix))
 
     def _discover(self) -> None:
         for name, types in self.get_topic_names_and_types():
@@ -243,6 +251,8 @@ class Recorder(Node):
         key = self.keys.get(name)
         if key is not None:
             return topics.qos_profile(key, keep_all=True)
+        if name in self.graph_qos:
+            return self.graph_qos[name]
         # Like rosbag2: reliable/latched only if every publisher offers it (else no match).
         info = self.get_publishers_info_by_topic(name)
         latched = bool(info) and all(

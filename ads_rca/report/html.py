@@ -117,7 +117,9 @@ def render(result: Diagnosis) -> str:
         _row("td", m, v.collision, v.safe, v.first_failure_frame)
         for m, v in ((m, a.modules[m]) for m in MODULES)
     ]
-    evidence = [join([el("h3", m), _table(a.modules[m].evidence or {})]) for m in a.root_causes]
+    evidence = [
+        join([el("h3", m), value_table(a.modules[m].evidence or {})]) for m in a.root_causes
+    ]
     body = [
         el("h1", "Root-cause analysis"),
         el(
@@ -158,7 +160,7 @@ def render(result: Diagnosis) -> str:
         el("h3", f"Not plotted ({len(unplotted)})"),
         el("ul", *(el("li", line) for line in unplotted)),
         el("h2", "Thresholds"),
-        _table(result.semantics.used(result.params)),
+        value_table(result.semantics.used(result.params)),
         el("h2", f"Input problems ({len(result.problems)})"),
         el("ul", *(el("li", str(p)) for p in result.problems)),
     ]
@@ -175,14 +177,14 @@ def _img(fig: Figure, alt: str) -> Html:
     return el("img", alt=alt, src=f"data:image/png;base64,{png_base64(fig)}")
 
 
-def _table(values: Mapping[Any, Any], depth: int = 0) -> Html:
+def value_table(values: Mapping[Any, Any], depth: int = 0) -> Html:
     """A key / value table; a nested mapping becomes a table in its cell."""
     return el("table", *(el("tr", el("th", k), _cell(v, depth)) for k, v in values.items()))
 
 
 def _cell(value: Any, depth: int) -> Html:
     if isinstance(value, Mapping) and value and depth < TABLE_DEPTH:
-        return el("td", _table(value, depth + 1))
+        return el("td", value_table(value, depth + 1))
     if _is_number(value):
         return el("td", _text(value), class_="num")
     return el("td", _text(value))

@@ -129,7 +129,7 @@ def test_every_axis_says_its_unit(corrected: Diagnosis) -> None:
 def test_the_scene_legend_names_the_plan_and_the_actors(corrected: Diagnosis) -> None:
     scene = scene_figure(corrected, 68, Skipped())
     labels = legend_labels(scene)
-    for entry in (f"ego {EGO}", f"partner {PARTNER}", "plan (waypoints)", "other actors"):
+    for entry in ("ego", "collision partner", "plan (waypoints)", "other actors"):
         assert entry in labels
     assert "predictions with perception" in labels
 
@@ -142,7 +142,7 @@ def label_overlaps(fig: Figure) -> list[tuple[str, str]]:
     boxes = [
         (str(p.get_label()), p.get_window_extent(renderer))
         for p in ax.patches
-        if isinstance(p, Polygon) and str(p.get_label()).startswith(("ego", "partner"))
+        if isinstance(p, Polygon) and p.get_label() in ("ego", "collision partner")
     ]
     assert len(boxes) == 2
     found = []

@@ -48,9 +48,9 @@ PLOT_TEXT_MAX = 40
 NON_FINITE = "non-finite"
 OUT_OF_RANGE = f"beyond ±{PLOT_LIMIT:.0e}"
 
-#: A series ending this many frames before the last or fewer is noted under the figure
-#: only; earlier ends are also marked on the panel.
-ANNOTATE_GAP = 3
+#: A series missing at most this many last frames ends with the log: it is listed under the
+#: figure as such, not marked on the panel (a mark there would hide the end).
+TAIL_FRAMES = 3
 #: Half the side of the square a scene shows at least, around the ego and the partner (m).
 SCENE_HALF_SPAN_M = 20.0
 #: How far back a scene draws the ego's and the partner's paths (frames).
@@ -207,7 +207,7 @@ def _why_absent(
         ]
         if gates:
             reasons.append(" or ".join(gates))
-        elif at_log_end and not skips:
+        elif at_log_end and not skips and len(judged) <= TAIL_FRAMES:
             where = "frame" if len(judged) == 1 else f"{len(judged)} frames"
             reasons.append(f"the log's last {where}, where the oracle reports no {key}")
         else:
@@ -235,7 +235,8 @@ def metrics_figure(result: Diagnosis, skipped: Skipped) -> Figure:
     tpf_s = result.log.tpf / 1000.0
     top = axes[0].secondary_xaxis("top", functions=(lambda f: f * tpf_s, lambda t: t / tpf_s))
     top.set_xlabel("time since the log's start (s)")
-    fig.tight_layout()
+    # fixed margins, room for the legends on the right: one draw (no tight layout pass)
+    fig.subplots_adjust(left=0.08, right=0.76, top=0.93, bottom=0.06, hspace=0.35)
     return fig
 
 
@@ -278,17 +279,18 @@ def _metric_panel(
         end = ends.get((module, key))
         if end is not None and end.last is not None and drawable.any():
             at = int(np.flatnonzero(drawable)[-1])
-            if len(drawable) - at > ANNOTATE_GAP:  # else only listed: a mark would hide the end
+            if len(drawable) - at > TAIL_FRAMES:
                 marks.append((key, color, end, float(frames[at]), float(values[at])))
     _levels(ax, result, module, chosen, frames, frame_ok, skipped)
     low, high = ax.get_ylim()
     for key, color, end, x, y in marks:
-        below = y > (low + high) / 2  # the text goes where there is room
+        high_up = y > (low + high) / 2  # the text goes where there is room: below, or above
         ax.annotate(
             f"no {plot_text(key)} after frame {frame_text(end.last)} (see notes)",
             (x, y),
-            xytext=(10, -16 if below else 12),
+            xytext=(-10, -16) if high_up else (10, 12),
             textcoords="offset points",
+            ha="right" if high_up else "left",
             fontsize=7,
             color=color,
             arrowprops={"arrowstyle": "-", "color": color, "lw": 0.6},
@@ -410,7 +412,8 @@ def scene_figure(
     result: Diagnosis, frame: int | float | None, skipped: Skipped, caption: str = ""
 ) -> Figure:
     """The scene from above at ``frame``: boxes, paths, predictions, the plan; metres."""
-    fig, ax = plt.subplots(figsize=(5.6, 5.6))
+    fig, ax = plt.subplots(figsize=(5.8, 6.5))
+    fig.subplots_adjust(left=0.15, right=0.97, top=0.92, bottom=0.22)  # the legend below
     log = result.log
     stamp = _floats([frame])[0] * log.tpf
     ts = round(float(stamp)) if np.isfinite(stamp) and abs(stamp) <= PLOT_LIMIT else None
@@ -450,7 +453,7 @@ def scene_figure(
     ax.set_aspect("equal", adjustable="box")
     ax.invert_yaxis()  # CARLA's y points right of x: draw it as a map seen from above
     ax.grid(True, lw=0.3, alpha=0.5)
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), fontsize=8, ncols=2)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.09), fontsize=8, ncols=2)
     return fig
 
 
@@ -482,11 +485,15 @@ def _draw_actors(
         centre = corners.mean(axis=0)
         front = corners[[0, 3]].mean(axis=0)
         if actor_id == ego:
-            color, label = EGO_COLOR, f"ego {plot_text(actor_id)}"
+            color, label, name = EGO_COLOR, "ego", f"ego {plot_text(actor_id)}"
         elif actor_id == partner:
-            color, label = PARTNER_COLOR, f"partner {plot_text(actor_id)}"
+            color, label, name = (
+                PARTNER_COLOR,
+                "collision partner",
+                f"partner {plot_text(actor_id)}",
+            )
         else:
-            color, label = OTHER_COLOR, other_label
+            color, label, name = OTHER_COLOR, other_label, ""
             other_label = "_nolegend_"
         ax.add_patch(Polygon(corners, closed=True, fill=True, fc=color, alpha=0.25, ec="none"))
         ax.add_patch(Polygon(corners, closed=True, fill=False, ec=color, lw=1.5, label=label))
@@ -494,7 +501,7 @@ def _draw_actors(
         if actor_id in (ego, partner):
             focus.append(centre)
             radius = float(np.hypot(*(corners[0] - centre)))
-            labelled.append((label, color, centre, radius))
+            labelled.append((name, color, centre, radius))  # the id beside, not in the legend
     for label, color, centre, radius in labelled:
         away = _away_from(centre, [c for _, _, c, _ in labelled if c is not centre])
         at = centre + away * (radius + 4.0)  # beside the box, pointing at it
@@ -589,7 +596,7 @@ def _frame_view(ax: Axes, focus: list[np.ndarray]) -> None:
 def png_base64(fig: Figure) -> str:
     """The figure as base64 PNG (for a data: URL), and closed."""
     buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=90, bbox_inches="tight")  # legends sit outside
+    fig.savefig(buffer, format="png", dpi=90)
     plt.close(fig)
     return base64.b64encode(buffer.getvalue()).decode("ascii")
 

@@ -105,6 +105,11 @@ class CorrectedSemantics(Semantics):
                 gates={"c_plan": (("partner_in_planner_inputs", False),)},
                 partner=True,
             ),
+            Headline(
+                ("plan_realised_error_mean", "plan_realised_error_max"),
+                "plan vs realised position",
+                "m",
+            ),
         ],
         "controller": [
             Headline(

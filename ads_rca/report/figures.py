@@ -51,6 +51,8 @@ OUT_OF_RANGE = f"beyond ±{PLOT_LIMIT:.0e}"
 #: A series missing at most this many last frames ends with the log: it is listed under the
 #: figure as such, not marked on the panel (a mark there would hide the end).
 TAIL_FRAMES = 3
+#: Series of at most this many frames show a dot per frame (more would be a smear).
+MARKED_FRAMES = 200
 #: Half the side of the square a scene shows at least, around the ego and the partner (m).
 SCENE_HALF_SPAN_M = 20.0
 #: How far back a scene draws the ego's and the partner's paths (frames).
@@ -265,6 +267,7 @@ def _metric_panel(
         _band(ax, result, module, chosen.band, frames, frame_ok)
     _collision_window(ax, result, skipped, module)
     marks: list[tuple[str, str, SeriesEnd, float, float]] = []
+    marker = "." if len(frames) <= MARKED_FRAMES else ""
     for key, color in zip(chosen.keys, SERIES_COLORS, strict=False):
         raw = [_metric(f, module, key) for f in result.frames]
         values = _floats(raw)
@@ -272,7 +275,7 @@ def _metric_panel(
         drawable = skipped.keep(f"metrics, {module} ({key})", frames, values, absent=absent)
         label = plot_text(key)
         for run in _runs(drawable):
-            ax.plot(frames[run], values[run], lw=1.3, color=color, label=label, marker=".", ms=3)
+            ax.plot(frames[run], values[run], lw=1.3, color=color, label=label, marker=marker, ms=3)
             label = "_nolegend_"
         if label != "_nolegend_":  # nothing drawable: keep the legend entry
             ax.plot([], [], lw=1.3, color=color, label=f"{label} (no value)")

@@ -10,6 +10,7 @@ overall recall), each series that ends early is explained, and the evidence is a
 
 from __future__ import annotations
 
+import json
 import re
 from html.parser import HTMLParser
 from pathlib import Path
@@ -222,3 +223,25 @@ def test_every_headline_names_its_unit(mode: str) -> None:
             assert choice.keys and choice.unit and choice.quantity
             assert set(choice.gates) <= set(choice.keys)
             assert choice.threshold is None or choice.threshold in semantics.parameters
+
+
+def test_a_hostile_log_with_nan_still_renders_as_text_only(tmp_path: Path) -> None:
+    """Markup in every string and NaN poses: the new sections (scenes, notes, evidence
+    tables) keep log text as text, and the series the NaN cuts short are explained."""
+    from test_report_escaping import assert_only_report_markup, hostile_log
+
+    folder, ids = hostile_log(tmp_path)
+    for frame in range(60, 66):  # before the collision: the partner is still found
+        path = folder / "pose" / f"pose-{frame * 50}.json"
+        document = json.loads(path.read_text())
+        document["x"] = "NaN"
+        path.write_text(json.dumps(document))
+    result = diagnose(open_run(folder), make_params("corrected"))
+    page = render(result)
+    text = assert_only_report_markup(page)
+    partner = result.attribution.partner_id
+    assert partner in ids.values() and partner in text
+    ends = series_ends(result)
+    assert ends and all(end.line() in text for end in ends)
+    # both scenes draw the ego's path through frames 60-65 (within 40 frames of 68 and 81)
+    assert "scene, ego path: 12 points not plotted because non-finite" in text

@@ -208,7 +208,7 @@ def _why_absent(
             if all(r.metrics.get(gate) is value for r in judged)
         ]
         if gates:
-            reasons.append(" or ".join(gates))
+            reasons.append(" and ".join(gates))
         elif at_log_end and not skips and len(judged) <= TAIL_FRAMES:
             where = "frame" if len(judged) == 1 else f"{len(judged)} frames"
             reasons.append(f"the log's last {where}, where the oracle reports no {key}")

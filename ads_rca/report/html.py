@@ -105,7 +105,9 @@ def render(result: Diagnosis) -> str:
         el(
             "figure",
             el("figcaption", caption.capitalize(), ", frame ", frame_text(frame)),
-            _img(scene_figure(result, frame, skipped, caption), f"scene at frame {frame}"),
+            _img(
+                scene_figure(result, frame, skipped, caption), f"scene at frame {frame_text(frame)}"
+            ),
         )
         for caption, frame in scene_frames(result)
     ]

@@ -147,7 +147,7 @@ def test_html_report_is_self_contained(tmp_path: Path) -> None:
     run_cli("diagnose", str(EXAMPLE), "--report", str(report))
     page = report.read_text()
     assert "Verdict: perception" in page
-    assert page.count("data:image/png;base64,") == 2
+    assert page.count("data:image/png;base64,") == 3  # scenes at frames 68 and 81, metrics
     assert "http://" not in page and "https://" not in page
 
 

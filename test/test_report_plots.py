@@ -21,14 +21,14 @@ from ads_rca.engine import Diagnosis, diagnose
 from ads_rca.io import open_run
 from ads_rca.io.json_writer import write_run_log
 from ads_rca.params import make_params
-from ads_rca.report.html import (
+from ads_rca.report.figures import (
     NON_FINITE,
     OUT_OF_RANGE,
     PLOT_LIMIT,
     Skipped,
     metrics_figure,
     scene_figure,
-    scene_frame,
+    scene_frames,
 )
 from ads_rca.synth import synthesise
 
@@ -104,9 +104,11 @@ def test_figures_hold_only_drawable_numbers(tmp_path: Path, kind: str, semantics
     )
     skipped = Skipped()
     metrics = metrics_figure(result, skipped)
-    scene = scene_figure(result, scene_frame(result), skipped)
+    scenes = [scene_figure(result, frame, skipped) for _, frame in scene_frames(result)]
     assert_drawable(metrics)
-    assert_drawable(scene)
+    assert scenes
+    for scene in scenes:
+        assert_drawable(scene)
     series = {name for name, _ in skipped.counts}
     assert "scene, ego pose" in series and "scene, plan" in series
     assert all(n > 0 for n in skipped.counts.values())

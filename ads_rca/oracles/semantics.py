@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import importlib
 from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from ads_rca.model import FOLDERS, RunLog
@@ -39,6 +40,37 @@ MODES: dict[str, str] = {
 EGO_ID_TIMESTAMP_MS = 50
 
 
+@dataclass(frozen=True)
+class Headline:
+    """What a report plots over time for one module: metrics of one quantity, its limit.
+
+    Why on the mode: which of an oracle's metrics tell why the module failed, in which unit,
+    and which of its flags explain a missing value is the mode's knowledge; the report only
+    draws what it is told.
+    """
+
+    #: Metric keys drawn as lines, all in :attr:`unit`; this headline is chosen when the
+    #: first is present in the run.
+    keys: tuple[str, ...]
+    #: The quantity, for the axis label ("clearance to the partner").
+    quantity: str
+    #: Its unit ("m", "m/s"; "1" for a ratio).
+    unit: str
+    #: A parameter drawn as a horizontal level.
+    threshold: str | None = None
+    #: A metric holding the level the oracle applied at each frame (a derived threshold).
+    limit: str | None = None
+    #: The level applies to the magnitude: it is drawn at ± the value.
+    both_signs: bool = False
+    #: Per key, (boolean metric, value) pairs: the metric holding that value explains a
+    #: frame without a value of the key.
+    gates: Mapping[str, tuple[tuple[str, bool], ...]] = field(default_factory=dict)
+    #: A boolean metric shaded where it is true, with its legend text.
+    band: tuple[str, str] | None = None
+    #: The metrics are about the collision partner (the panel names it).
+    partner: bool = False
+
+
 class Semantics:
     """One mode's rules. Subclasses set the class attributes and override what differs."""
 
@@ -51,9 +83,8 @@ class Semantics:
     #: Results depend on the collision partner (the actors at the collision frame): a
     #: later collision re-judges the frames in the window, and the verdict names the partner.
     uses_partner: bool = False
-    #: Per module, the metric a report plots over time (the first one present wins) and
-    #: the threshold parameter drawn with it.
-    headline: Mapping[Module, Sequence[tuple[str, str | None]]]
+    #: Per module, what a report plots over time (the first whose first key is present wins).
+    headline: Mapping[Module, Sequence[Headline]]
     #: See :data:`EGO_ID_TIMESTAMP_MS`.
     ego_stamp_ms: int = EGO_ID_TIMESTAMP_MS
     #: The parameters this mode reads, in the order outputs list them (``thresholds`` of

@@ -1,56 +1,57 @@
-"""A self-contained HTML report of a diagnosis: verdict, metric plots, a top-down scene.
+"""A self-contained HTML report of a diagnosis, for the engineer debugging the crash.
 
-Figures are drawn with matplotlib (Agg, no display needed) and embedded as base64 PNG, so
-the page is one file that opens anywhere, offline, and no text of a log ever becomes SVG
-markup.
+The page: the verdict and per-module counts; the bird's-eye scene at the primary module's
+first failure and at the collision; the evidence of each blamed module as tables; the
+modules' headline metrics over time, with a note for every series that ends early and why;
+the thresholds and the input problems. Figures come from :mod:`ads_rca.report.figures` as
+base64 PNG, so the page is one file that opens anywhere, offline: no script, no link, no
+external URL, and no text of a log ever becomes SVG markup.
 
 Everything in a log is untrusted (ids, keys, file names, metadata, the folder's own path):
-
-- The page is built only with :func:`el`, which escapes every child and attribute value that
-  is not itself :class:`Html` it built, so text from a log can only ever be a text node.
-- Numbers reach matplotlib only when finite and within ±:data:`PLOT_LIMIT`; each series says
-  in the report how many points it could not draw and why.
-- Strings reach matplotlib only through :func:`plot_text` (no mathtext, bounded length).
+the page is built only with :func:`el`, which escapes every child and attribute value that
+is not itself :class:`Html` it built, so text from a log can only ever be a text node.
 """
 
 from __future__ import annotations
 
-import base64
 import html
-import io
+import math
 import re
-from collections import Counter
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
-import numpy as np
-from matplotlib.axes import Axes
 from matplotlib.figure import Figure
-from matplotlib.patches import Polygon
 
 from ads_rca.engine import Diagnosis
-from ads_rca.geometry import box_corners, ego_to_world
-from ads_rca.oracles.base import MODULES, Module
+from ads_rca.oracles.base import MODULES
+from ads_rca.report.figures import (
+    Skipped,
+    frame_text,
+    metrics_figure,
+    png_base64,
+    scene_figure,
+    scene_frames,
+    series_ends,
+)
 from ads_rca.summary import window_text
 
-#: Largest magnitude drawn. Beyond it no log quantity (metres, ms, scores) means anything,
-#: and near float's limit matplotlib's transforms overflow (1.7e308 fails to draw).
-PLOT_LIMIT = 1e15
-#: Longest text drawn in a figure (an id of a million characters would stall the layout).
-PLOT_TEXT_MAX = 40
-
-NON_FINITE = "non-finite"
-OUT_OF_RANGE = f"beyond ±{PLOT_LIMIT:.0e}"
+#: Nested evidence deeper than this is shown as text, not as tables within tables.
+TABLE_DEPTH = 3
+#: Longest list shown item by item in an evidence cell.
+LIST_ITEMS = 20
 
 _CSS = """
-body { font-family: sans-serif; margin: 2em; max-width: 70em; }
-table { border-collapse: collapse; } td, th { border: 1px solid #ccc; padding: 2px 8px; }
+body { font-family: sans-serif; margin: 2em; max-width: 90em; color: #222; }
+table { border-collapse: collapse; margin: 0.3em 0; }
+td, th { border: 1px solid #ccc; padding: 2px 8px; text-align: left; vertical-align: top; }
+td.num { text-align: right; font-variant-numeric: tabular-nums; }
+table table { margin: 0; font-size: 0.95em; }
 .verdict { font-size: 1.4em; font-weight: bold; }
+.scenes { display: flex; flex-wrap: wrap; gap: 1em; }
+figure { margin: 0; } figcaption { font-weight: bold; margin-bottom: 0.3em; }
+img { max-width: 100%; height: auto; }
+.note { color: #555; }
 """
 
 
@@ -92,39 +93,6 @@ def join(children: Iterable[Any]) -> Html:
 # --- the page ------------------------------------------------------------------------------
 
 
-class Skipped:
-    """What the figures could not draw: per series, how many points and why."""
-
-    def __init__(self) -> None:
-        self.counts: Counter[tuple[str, str]] = Counter()
-
-    def keep(self, series: str, *coords: Any, absent: Any = None) -> np.ndarray:
-        """Mask of the points whose every coordinate is drawable; counts the others.
-
-        Each coordinate is an array with one row per point (a 2-D row is one point, e.g. a
-        box's corners). ``absent`` marks points with no value at all (not counted)."""
-        arrays = [_floats(c) for c in coords]
-        rows = arrays[0].shape[0] if arrays[0].ndim else 1
-        flat = [a.reshape(rows, -1) for a in arrays]
-        finite = np.logical_and.reduce([np.isfinite(a).all(axis=1) for a in flat])
-        with np.errstate(invalid="ignore"):
-            bounded = np.logical_and.reduce([(np.abs(a) <= PLOT_LIMIT).all(axis=1) for a in flat])
-        counted = np.ones(rows, bool) if absent is None else ~np.asarray(absent, bool)
-        self.add(series, NON_FINITE, int((~finite & counted).sum()))
-        self.add(series, OUT_OF_RANGE, int((finite & ~bounded & counted).sum()))
-        return np.asarray(finite & bounded)
-
-    def add(self, series: str, reason: str, count: int = 1) -> None:
-        if count:
-            self.counts[(series, reason)] += count
-
-    def lines(self) -> list[str]:
-        return [
-            f"{series}: {n} point{'s' if n != 1 else ''} not plotted because {reason}"
-            for (series, reason), n in self.counts.items()
-        ]
-
-
 def write_report(result: Diagnosis, path: Path) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(render(result))
@@ -134,16 +102,27 @@ def render(result: Diagnosis) -> str:
     a = result.attribution
     meta = result.log.metadata
     skipped = Skipped()
-    metrics_png = _png(metrics_figure(result, skipped))
-    frame = scene_frame(result)
-    scene_png = _png(scene_figure(result, frame, skipped))
+    scenes = [
+        el(
+            "figure",
+            el("figcaption", caption.capitalize(), ", frame ", frame_text(frame)),
+            _img(
+                scene_figure(result, frame, skipped, caption), f"scene at frame {frame_text(frame)}"
+            ),
+        )
+        for caption, frame in scene_frames(result)
+    ]
+    metrics = _img(metrics_figure(result, skipped), "metrics over time")
+    ends = [end.line() for end in series_ends(result)]
+    unplotted = skipped.lines()
     rows = [_row("th", "module", "collision", "safe", "first failure")]
     rows += [
         _row("td", m, v.collision, v.safe, v.first_failure_frame)
         for m, v in ((m, a.modules[m]) for m in MODULES)
     ]
-    evidence = [join([el("h3", m), _table(a.modules[m].evidence or {})]) for m in a.root_causes]
-    unplotted = skipped.lines()
+    evidence = [
+        join([el("h3", m), value_table(a.modules[m].evidence or {})]) for m in a.root_causes
+    ]
     body = [
         el("h1", "Root-cause analysis"),
         el(
@@ -151,8 +130,8 @@ def render(result: Diagnosis) -> str:
             result.log.source,
             " \N{EM DASH} semantics ",
             el("b", result.params.semantics),
-            f", {len(result.frames)} frames judged, collision frame ",
-            meta.collision_frame,
+            f", {len(result.frames)} frames judged ({result.log.tpf} ms each), ",
+            f"collision frame {meta.collision_frame}" if meta.has_collision else "no collision",
             ", ego ",
             result.ctx.ego_id,
             ", partner ",
@@ -162,16 +141,30 @@ def render(result: Diagnosis) -> str:
         el("p", "Attribution basis: ", a.attribution_basis),
         el("p", window_text(result.semantics.effect_window(result.params, result.log.tpf))),
         el("table", *rows),
+        el("h2", "Scene from above"),
+        el(
+            "p",
+            "Boxes are the actors' ground truth; the line from a box's centre marks its front. "
+            "Predictions and the plan are those the stack logged at that frame.",
+            class_="note",
+        ),
+        el("div", *scenes, class_="scenes") if scenes else el("p", "no frame to draw"),
         el("h2", "Evidence"),
         *(evidence or [el("p", "none")]),
         el("h2", "Metrics over time"),
-        el("img", alt="metrics", src=f"data:image/png;base64,{metrics_png}"),
-        el("h2", "Scene at frame ", frame),
-        el("img", alt="scene", src=f"data:image/png;base64,{scene_png}"),
-        el("h2", f"Not plotted ({len(unplotted)})"),
+        el(
+            "p",
+            "Per module, the metrics its oracle judges by (red crosses: failing frames; red "
+            "band: the effect window before the collision).",
+            class_="note",
+        ),
+        metrics,
+        el("h3", f"Series that end early ({len(ends)})"),
+        el("ul", *(el("li", line) for line in ends)),
+        el("h3", f"Not plotted ({len(unplotted)})"),
         el("ul", *(el("li", line) for line in unplotted)),
         el("h2", "Thresholds"),
-        _table(result.semantics.used(result.params)),
+        value_table(result.semantics.used(result.params)),
         el("h2", f"Input problems ({len(result.problems)})"),
         el("ul", *(el("li", str(p)) for p in result.problems)),
     ]
@@ -184,197 +177,47 @@ def render(result: Diagnosis) -> str:
     return f"<!doctype html>\n{el('html', head, el('body', *body))}\n"
 
 
-def _table(values: dict[str, Any]) -> Html:
-    return el("table", *(_row("td", k, v) for k, v in values.items()))
+def _img(fig: Figure, alt: str) -> Html:
+    return el("img", alt=alt, src=f"data:image/png;base64,{png_base64(fig)}")
+
+
+def value_table(values: Mapping[Any, Any], depth: int = 0) -> Html:
+    """A key / value table; a nested mapping becomes a table in its cell."""
+    return el("table", *(el("tr", el("th", k), _cell(v, depth)) for k, v in values.items()))
+
+
+def _cell(value: Any, depth: int) -> Html:
+    if isinstance(value, Mapping) and value and depth < TABLE_DEPTH:
+        return el("td", value_table(value, depth + 1))
+    if _is_number(value):
+        return el("td", _text(value), class_="num")
+    return el("td", _text(value))
 
 
 def _row(cell: str, *values: Any) -> Html:
     return el("tr", *(el(cell, v) for v in values))
 
 
-def _text(value: Any) -> str:
+def _is_number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def _text(value: Any, inner: bool = False) -> str:
+    """A value as a reader wants it: 4 significant digits, a list as its items (an inner
+    list in brackets)."""
     if value is None:
         return "-"
+    if isinstance(value, bool):
+        return "true" if value else "false"
     if isinstance(value, float):
-        return f"{value:.4g}"
+        return f"{value:.4g}" if math.isfinite(value) else str(value)
+    if isinstance(value, Mapping):
+        return "{" + ", ".join(f"{_text(k)}: {_text(v, True)}" for k, v in value.items()) + "}"
+    if isinstance(value, list | tuple):
+        items = [_text(v, inner=True) for v in value[:LIST_ITEMS]]
+        if len(value) > LIST_ITEMS:
+            items.append(f"\N{HORIZONTAL ELLIPSIS} ({len(value) - LIST_ITEMS} more)")
+        if inner:
+            return "[" + ", ".join(items) + "]"
+        return ", ".join(items) if items else "(none)"
     return str(value)
-
-
-# --- figures -------------------------------------------------------------------------------
-
-
-def plot_text(value: Any) -> str:
-    """Text for a figure: at most :data:`PLOT_TEXT_MAX` characters, ``$`` escaped (a log
-    string must not be parsed as mathtext, where ``$\\frac{$`` makes drawing fail)."""
-    text = str(value)
-    if len(text) > PLOT_TEXT_MAX:
-        text = text[: PLOT_TEXT_MAX - 1] + "\N{HORIZONTAL ELLIPSIS}"
-    return text.replace("$", r"\$")  # no unescaped "$" left: never mathtext
-
-
-def metrics_figure(result: Diagnosis, skipped: Skipped) -> Figure:
-    fig, axes = plt.subplots(len(MODULES), 1, figsize=(10, 2.2 * len(MODULES)), sharex=True)
-    frames = _floats([f.frame for f in result.frames])
-    meta = result.log.metadata
-    window = result.window_frames
-    used = result.semantics.used(result.params)
-    for ax, module in zip(axes, MODULES, strict=True):
-        key, threshold = _headline(result, module)
-        raw = [_metric(f.results.get(module), key) for f in result.frames]
-        values = _floats(raw)
-        absent = [not isinstance(v, int | float | np.number) for v in raw]
-        failed = np.array(
-            [bool(f.results[module].failed) for f in result.frames if module in f.results]
-        )
-        series = f"metrics, {module}" + (f" ({key})" if key else "")
-        drawable = skipped.keep(series, frames, values, absent=absent)
-        label = plot_text(key or "no metric")
-        color = None
-        for run in _runs(drawable):
-            (line,) = ax.plot(frames[run], values[run], lw=1, color=color, label=label)
-            color, label = line.get_color(), "_nolegend_"
-        if label != "_nolegend_":  # nothing drawable: keep the legend entry
-            ax.plot([], [], lw=1, label=label)
-        if failed.size == frames.size and failed.any():
-            # a failed frame without a drawable value is marked on 0
-            on = failed & np.isfinite(frames) & (np.abs(frames) <= PLOT_LIMIT)
-            ax.plot(frames[on], np.where(drawable, values, 0.0)[on], "rx", label="failed")
-        if threshold and threshold in used:
-            level = _floats([used[threshold]])
-            if skipped.keep(f"metrics, {module} threshold {threshold}", level)[0]:
-                ax.axhline(float(level[0]), color="orange", ls="--", label=plot_text(threshold))
-        if meta.has_collision:
-            span = _floats([meta.collision_frame - window, meta.collision_frame])
-            if skipped.keep(f"metrics, {module} collision window", *span)[0]:
-                ax.axvline(float(span[1]), color="red", lw=1)
-                ax.axvspan(float(span[0]), float(span[1]), color="red", alpha=0.08)
-        ax.set_ylabel(module)
-        ax.legend(loc="upper left", fontsize=7)
-    axes[-1].set_xlabel("frame")
-    fig.tight_layout()
-    return fig
-
-
-def _headline(result: Diagnosis, module: Module) -> tuple[str | None, str | None]:
-    present = {k for f in result.frames if module in f.results for k in f.results[module].metrics}
-    for key, threshold in result.semantics.headline[module]:
-        if key in present:
-            return key, threshold
-    for frame in result.frames:  # otherwise the first numeric metric the oracle reports
-        metrics = frame.results[module].metrics if module in frame.results else {}
-        for key, value in metrics.items():
-            if isinstance(value, int | float) and not isinstance(value, bool):
-                return key, None
-    return None, None
-
-
-def _metric(result: Any, key: str | None) -> Any:
-    if result is None or key is None:
-        return None
-    return result.metrics.get(key)
-
-
-def scene_frame(result: Diagnosis) -> int | float | None:
-    """The primary module's first failing frame, else the collision frame, else the last."""
-    a = result.attribution
-    if a.primary_root_cause is not None:
-        first = a.modules[a.primary_root_cause].first_failure_frame
-        if first is not None:
-            return first
-    if result.log.metadata.has_collision:
-        return result.log.metadata.collision_frame
-    return result.frames[-1].frame if result.frames else None
-
-
-def scene_figure(result: Diagnosis, frame: int | float | None, skipped: Skipped) -> Figure:
-    fig, ax = plt.subplots(figsize=(8, 8))
-    log = result.log
-    stamp = _floats([frame])[0] * log.tpf
-    ts = round(float(stamp)) if np.isfinite(stamp) else None
-    if ts is None or ts not in log.actors:
-        ax.text(0.5, 0.5, "no actors at this frame", ha="center", transform=ax.transAxes)
-        return fig
-    partner = result.attribution.partner_id
-    ego = result.ctx.ego_id
-    _draw_actors(ax, result, ts, ego, partner, skipped)
-    pose = log.pose.get(ts)
-    centre: np.ndarray | None = None
-    if pose is not None:
-        xy = np.array([pose.x, pose.y], dtype=np.float64)
-        if skipped.keep("scene, ego pose", xy[:1], xy[1:])[0]:
-            centre = xy
-        for name, style in (("predictions_with_perception", "g."), ("predictions", "m+")):
-            for obstacle_id, track in log.folder(name).get(ts, {}).items():
-                if obstacle_id == ego or len(track.keys) == 0:
-                    continue
-                with np.errstate(invalid="ignore", over="ignore"):
-                    world = ego_to_world(track.offsets[:, :2], pose.xy, pose.yaw)
-                ok = skipped.keep(f"scene, {name}", world[:, 0], world[:, 1])
-                ax.plot(world[ok, 0], world[ok, 1], style, ms=3)
-    plan = log.waypoints.get(ts)
-    if plan is not None and len(plan):
-        ok = skipped.keep("scene, plan", plan.xy[:, 0], plan.xy[:, 1])
-        label = "plan"
-        for run in _runs(ok):
-            ax.plot(plan.xy[run, 0], plan.xy[run, 1], "b-", lw=1, label=label)
-            label = "_nolegend_"
-    if centre is not None:
-        ax.set_xlim(centre[0] - 40, centre[0] + 40)
-        ax.set_ylim(centre[1] - 40, centre[1] + 40)
-    ax.set_aspect("equal")
-    ax.invert_yaxis()  # CARLA's y points right of x: draw it as a map seen from above
-    ax.set_title("ego (blue), partner (red), pwp (green), raw predictions (magenta), plan")
-    return fig
-
-
-def _draw_actors(
-    ax: Axes, result: Diagnosis, ts: int, ego: str | None, partner: str | None, skipped: Skipped
-) -> None:
-    actors = result.log.actors[ts]
-    extents = result.log.actor_extents
-    for row, actor_id in enumerate(actors.ids):
-        half = extents.get(actor_id)
-        if half is None:
-            continue
-        with np.errstate(invalid="ignore", over="ignore"):
-            corners = box_corners(actors.location[row, :2], half[:2], actors.rotation[row, 2])[0]
-        if not skipped.keep("scene, actors", corners.reshape(1, -1))[0]:
-            continue
-        color = "tab:blue" if actor_id == ego else "tab:red" if actor_id == partner else "0.6"
-        ax.add_patch(Polygon(corners, closed=True, fill=False, color=color, lw=1.5))
-        if actor_id in (ego, partner):
-            x, y = actors.location[row, :2].tolist()
-            ax.annotate(plot_text(actor_id), (x, y), fontsize=8, color=color)
-
-
-def _floats(values: Any) -> np.ndarray:
-    """float64 array of any values: NaN for what is not a number, ±inf for huge ints."""
-    if isinstance(values, np.ndarray):
-        return values.astype(np.float64, copy=False)
-    if not isinstance(values, list | tuple):  # one value
-        return np.array([_float(values)], dtype=np.float64)
-    return np.array([_float(v) for v in values], dtype=np.float64)
-
-
-def _float(value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float | np.number):
-        return float(value) if isinstance(value, bool) else float("nan")
-    try:
-        return float(value)
-    except OverflowError:
-        return float("inf") if value > 0 else float("-inf")
-
-
-def _runs(mask: np.ndarray) -> list[slice]:
-    """Slices of the consecutive True stretches of a mask (a line is drawn per stretch)."""
-    edges = np.flatnonzero(np.diff(np.concatenate(([0], mask.astype(np.int8), [0]))))
-    return [
-        slice(int(start), int(stop)) for start, stop in zip(edges[::2], edges[1::2], strict=True)
-    ]
-
-
-def _png(fig: Figure) -> str:
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=90)
-    plt.close(fig)
-    return base64.b64encode(buffer.getvalue()).decode("ascii")

@@ -146,7 +146,7 @@ class Monitor(Node):
             live_topics.metrics_qos(),
         )
         headline = semantics_for(self.params).headline.get(module, ())
-        self.layout = NumericLayout([metric for metric, _threshold in headline])
+        self.layout = NumericLayout([key for entry in headline for key in entry.keys])
         self.diag_pub = self.create_publisher(
             DiagnosticArray, live_topics.DIAGNOSTICS, live_topics.diagnostics_qos()
         )

@@ -23,7 +23,7 @@ from ads_rca.oracles.corrected.control import control
 from ads_rca.oracles.corrected.perception import perception
 from ads_rca.oracles.corrected.planning import planning
 from ads_rca.oracles.corrected.prediction import prediction
-from ads_rca.oracles.semantics import Semantics
+from ads_rca.oracles.semantics import Headline, Semantics
 from ads_rca.params import Params
 from ads_rca.verdict import Attribution, FrameResults
 
@@ -80,11 +80,65 @@ class CorrectedSemantics(Semantics):
         "counted: failing frames in persistent runs inside the effect window; "
         "other: the other failing frames (JSON collision / safe)"
     )
-    headline: Mapping[Module, Sequence[tuple[str, str | None]]] = {
-        "perception": [("recall", None), ("mean_iou", "perc_match_iou")],
-        "prediction": [("displacement_error", None), ("ade", None)],
-        "planning": [("c_plan", "safety_margin"), ("c_gt", "safety_margin")],
-        "controller": [("sum_speed_innovation", "control_speed_threshold")],
+    headline: Mapping[Module, Sequence[Headline]] = {
+        # what rule 2 judges: the partner's real clearance while it is unmatched, and what
+        # the planner was told (c_raw), not the overall recall
+        "perception": [
+            Headline(
+                ("c_gt", "c_raw"),
+                "clearance to the partner",
+                "m",
+                threshold="safety_margin",
+                gates={
+                    "c_gt": (("partner_in_view", False), ("partner_matched", True)),
+                    "c_raw": (
+                        ("partner_in_view", False),
+                        ("partner_matched", True),
+                        ("raw_linked", False),
+                    ),
+                },
+                band=("unconditioned", "partner in view but unmatched"),
+                partner=True,
+            ),
+            Headline(("mean_iou",), "mean matched IoU", "1", threshold="perc_match_iou"),
+        ],
+        "prediction": [
+            Headline(
+                ("displacement_error",),
+                "partner's predicted displacement error",
+                "m",
+                limit="displacement_threshold",
+                gates={
+                    "displacement_error": (("partner_in_view", False), ("partner_in_pwp", False))
+                },
+                partner=True,
+            ),
+            Headline(("ade",), "average displacement error", "m"),
+        ],
+        "planning": [
+            Headline(
+                ("c_plan", "c_gt"),
+                "clearance to the partner",
+                "m",
+                threshold="safety_margin",
+                gates={"c_plan": (("partner_in_planner_inputs", False),)},
+                partner=True,
+            ),
+            Headline(
+                ("plan_realised_error_mean", "plan_realised_error_max"),
+                "plan vs realised position",
+                "m",
+            ),
+        ],
+        "controller": [
+            Headline(
+                ("sum_speed_innovation",),
+                "summed speed innovation",
+                "m/s",
+                limit="speed_threshold",
+                both_signs=True,
+            ),
+        ],
     }
 
     def attribute(self, frames: Sequence[FrameResults], ctx: RunContext) -> Attribution:

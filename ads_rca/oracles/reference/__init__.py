@@ -21,7 +21,7 @@ from ads_rca.oracles.reference.oracles import (
     planning,
     prediction,
 )
-from ads_rca.oracles.semantics import Semantics
+from ads_rca.oracles.semantics import Headline, Semantics
 from ads_rca.params import Params
 from ads_rca.verdict import Attribution, FrameResults
 
@@ -63,11 +63,17 @@ class ReferenceSemantics(Semantics):
         "controller": "the ego's step against the planned step per axis: any move fails where "
         "an axis's planned step is under 0.5 m",
     }
-    headline: Mapping[Module, Sequence[tuple[str, str | None]]] = {
-        "perception": [("mean_iou", "perc_score_threshold")],
-        "prediction": [("ratio", "pred_score_threshold")],
-        "planning": [("gap_y", None), ("gap_x", None)],
-        "controller": [("s_x", None)],
+    headline: Mapping[Module, Sequence[Headline]] = {
+        "perception": [
+            Headline(("mean_iou",), "mean IoU of greedy matches", "1", "perc_score_threshold")
+        ],
+        # the reference reports these only at failing frames
+        "prediction": [
+            Headline(("ratio",), "error / distance ratio", "1", "pred_score_threshold"),
+            Headline(("n_steps",), "prediction steps judged", "1"),
+        ],
+        "planning": [Headline(("gap_y", "gap_x"), "gap to the linked obstacle", "m")],
+        "controller": [Headline(("s_x", "s_y"), "control score", "1")],
     }
 
     def attribute(self, frames: Sequence[FrameResults], ctx: RunContext) -> Attribution:

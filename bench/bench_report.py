@@ -1,0 +1,50 @@
+"""Benchmark: how long ``diagnose --report`` spends on the HTML report; print a table.
+
+    python bench/bench_report.py [--log examples/cut_in_perception] [--repeat 5]
+
+Per mode: the diagnosis once (not timed), then ``render`` (every figure drawn and encoded,
+the page built) best of ``--repeat``, wall and CPU time, and the page's size. Run it with
+``PYTHONPATH`` on an older checkout to compare with that version's report.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import ads_rca
+from ads_rca.engine import diagnose
+from ads_rca.io import open_run
+from ads_rca.params import SEMANTICS, make_params
+from ads_rca.report.html import render
+
+EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "cut_in_perception"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--log", type=Path, default=EXAMPLE)
+    parser.add_argument("--repeat", type=int, default=5)
+    args = parser.parse_args()
+    print(f"report of {args.log} ({Path(ads_rca.__file__).parent}), best of {args.repeat}")
+    header = ("semantics", "frames", "wall s", "cpu s", "page KB", "images")
+    print(f"{header[0]:<10} " + " ".join(f"{h:>7}" for h in header[1:]))
+    for mode in SEMANTICS:
+        result = diagnose(open_run(args.log), make_params(mode))
+        render(result)  # warm: fonts and matplotlib caches
+        walls, cpus = [], []
+        page = ""
+        for _ in range(args.repeat):
+            wall, cpu = time.perf_counter(), time.process_time()
+            page = render(result)
+            walls.append(time.perf_counter() - wall)
+            cpus.append(time.process_time() - cpu)
+        print(
+            f"{mode:<10} {len(result.frames):>7} {min(walls):>7.2f} {min(cpus):>7.2f} "
+            f"{len(page.encode()) / 1024:>7.0f} {page.count('<img '):>7}"
+        )
+
+
+if __name__ == "__main__":
+    main()

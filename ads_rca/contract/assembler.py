@@ -13,8 +13,8 @@ from collections import Counter
 from typing import TYPE_CHECKING, Any
 
 from ads_rca.contract import topics
-from ads_rca.contract.cdr_decode import CdrError, NoStamp, decode_record, decode_string, stamp_ms
-from ads_rca.contract.convert import message_stamp_ms, message_to_record
+from ads_rca.contract.cdr_decode import CdrError, NoStamp, decode_string
+from ads_rca.contract.convert import message_stamp_ms
 from ads_rca.contract.playback import (
     FINISHED,
     INPUT_PROBLEMS_KEY,
@@ -107,7 +107,7 @@ class RunLogAssembler:
         self.received[topic] += 1
         if topic in self._data:
             try:
-                stamp = stamp_ms(topic, data)
+                stamp = topics.stamp_ms(topic, data)
             except NoStamp:  # a MarkerArray without markers carries no stamp
                 return
             self._data[topic].setdefault(stamp, bytes(data))
@@ -183,10 +183,10 @@ class RunLogAssembler:
             for stamp in sorted(by_stamp):
                 item = by_stamp[stamp]
                 if not isinstance(item, bytes):
-                    folder[stamp] = message_to_record(topic, item, tpf)
+                    folder[stamp] = topics.message_to_record(topic, item, tpf)
                     continue
                 try:
-                    folder[stamp] = decode_record(topic, item, tpf)
+                    folder[stamp] = topics.decode_record(topic, item, tpf)
                 except CdrError as error:
                     log.problems.add(topic, "", str(error), "message skipped", timestamp_ms=stamp)
         return log

@@ -36,7 +36,7 @@ from std_msgs.msg import String
 from ads_rca.contract import topics
 from ads_rca.contract.assembler import run_metadata
 from ads_rca.contract.cdr import encode_string
-from ads_rca.contract.cdr_decode import CdrError, NoStamp, decode_record, stamp_ms
+from ads_rca.contract.cdr_decode import CdrError, NoStamp
 from ads_rca.contract.jsontext import dumps_json
 from ads_rca.contract.malformed import SkippedMessages
 from ads_rca.contract.playback import (
@@ -343,8 +343,8 @@ class MonitorInputs:
     def _add_data(self, key: str, data: bytes, now: float) -> None:
         assert self._metadata is not None
         try:
-            stamp = stamp_ms(key, data)
-            record = decode_record(key, data, self._metadata.timesteps_per_frame)
+            stamp = topics.stamp_ms(key, data)
+            record = topics.decode_record(key, data, self._metadata.timesteps_per_frame)
         except NoStamp:  # a MarkerArray without markers carries no stamp
             return
         except CdrError as error:

@@ -24,13 +24,12 @@ from rclpy.subscription import RCLError
 from std_msgs.msg import String
 
 from ads_rca.contract import topics
-from ads_rca.contract.cdr import encode_clock, encode_string, frame_payloads
-from ads_rca.contract.convert import frame_messages
+from ads_rca.contract.cdr import encode_clock, encode_string
+from ads_rca.contract.convert import clock_message
 from ads_rca.contract.playback import (
     FINISHED,
     PLAYING,
     Tick,
-    clock_message,
     dropped_plan_keys,
     frame_marker,
     metadata_message,
@@ -268,9 +267,9 @@ class Player(Node):
             self.pubs[topics.CLOCK].publish(encode_clock(stamp) if fast else clock_message(stamp))
         # Same topics, order and bytes either way; the fast path skips rclpy message objects.
         messages: dict[str, Any] = (
-            frame_payloads(self.log, tick.stamp_ms)
+            topics.frame_payloads(self.log, tick.stamp_ms)
             if fast
-            else frame_messages(self.log, tick.stamp_ms)
+            else topics.frame_messages(self.log, tick.stamp_ms)
         )
         for key, msg in messages.items():
             self.pubs[key].publish(msg)

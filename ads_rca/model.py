@@ -45,6 +45,12 @@ FILE_PREFIX = {
 }
 
 
+def frame_number(timestamp_ms: int, tpf: int) -> int | float:
+    """Frame index of a timestamp: an int on the frame grid, else a float (the verdict's
+    frames and the player's frame markers number frames with this one rule)."""
+    return timestamp_ms // tpf if timestamp_ms % tpf == 0 else timestamp_ms / tpf
+
+
 @dataclass(frozen=True, slots=True)
 class RunMetadata:
     """``metadata.json``: frame period, camera mounting, collision frame, length."""

@@ -29,8 +29,9 @@ from ads_rca.contract import cdr, convert, playback, topics
 from ads_rca.contract.assembler import RunLogAssembler
 from ads_rca.contract.cdr_decode import decode_clock, decode_string
 from ads_rca.contract.topics import decode_record, stamp_ms
+from ads_rca.live import diagnostics as diag
 from ads_rca.model import Actors, Boxes, EgoPose, Plan, RunLog, RunMetadata, Track
-from ads_rca.ros import diagnostics as diag
+from ads_rca.ros.diagnostics import array as diagnostic_array
 
 TPF = 50
 
@@ -196,7 +197,7 @@ def test_diagnostic_arrays_encode_byte_for_byte(
         for level, name, msg, kv in statuses
     ]
     sec, nanosec = divmod(stamp_ns, 10**9)
-    msg = diag.array(Time(sec=sec % 2**31, nanosec=nanosec), built)
+    msg = diagnostic_array(Time(sec=sec % 2**31, nanosec=nanosec), built)
     ours = diag.encode_array((sec % 2**31) * 10**9 + nanosec, built)
     assert_bytes_match(ours, msg)
     assert diag.status_names(ours) == [s.name for s in built]

@@ -15,9 +15,8 @@ from typing import TYPE_CHECKING, Any
 from ads_rca.contract import topics
 from ads_rca.contract.convert import carried_plan_rows
 from ads_rca.contract.jsontext import dumps_json, loads_json
-from ads_rca.model import FOLDERS, RunLog
+from ads_rca.model import FOLDERS, RunLog, frame_number
 from ads_rca.problems import Problem, problems_from_list
-from ads_rca.verdict import frame_number
 
 if TYPE_CHECKING:
     from std_msgs.msg import String

@@ -24,7 +24,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from std_msgs.msg import String
 
-from ads_rca.contract import topics
+from ads_rca.contract import live_topics, topics
 from ads_rca.contract.assembler import run_metadata
 from ads_rca.contract.jsontext import loads_json
 from ads_rca.contract.malformed import SkippedMessages
@@ -34,14 +34,14 @@ from ads_rca.contract.playback import (
     read_input_problems,
 )
 from ads_rca.errors import InputError
+from ads_rca.live import diagnostics as diag
 from ads_rca.live.aggregate import AggregatorCore, VerdictOutcome
-from ads_rca.live.results import FrameMarker, LiveResult
+from ads_rca.live.results import FrameMarker, LiveResult, collision_frame
+from ads_rca.live.runid import RUN_KEY, RunFilter, checked_run_id
 from ads_rca.oracles.base import MODULES, Module
-from ads_rca.ros import diagnostics as diag
-from ads_rca.ros import live_topics
-from ads_rca.ros.nodemain import run_node
+from ads_rca.ros.diagnostics import array as diagnostic_array
+from ads_rca.ros.nodemain import run_node, subscribe_ready
 from ads_rca.ros.nodeparams import declare_engine_parameters, declare_node_parameters
-from ads_rca.ros.runid import RUN_KEY, RunFilter, checked_run_id, document_run, subscribe_ready
 
 PARAMETERS: dict[str, tuple[Any, str]] = {
     "topic_namespace": (topics.DEFAULT_NAMESPACE, "Namespace of the contract topics."),
@@ -54,7 +54,10 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     ),
     "stall_timeout_s": (20.0, "Before the horizon, publish anyway after this long without input."),
     "stale_timeout_s": (2.0, "A monitor silent this long is reported STALE."),
-    "run_id": ("", "Attribute only this run ('' = the first run heard of); see ads_rca.ros.runid."),
+    "run_id": (
+        "",
+        "Attribute only this run ('' = the first run heard of); see ads_rca.live.runid.",
+    ),
 }
 _REPORTER = "aggregator"
 
@@ -183,14 +186,11 @@ class Aggregator(Node):
 
     def _on_collision(self, msg: String) -> None:
         try:
-            document = read_document(msg)
+            frame = collision_frame(read_document(msg), self.runs)
         except ValueError as error:  # JsonTextError
             self._skip(live_topics.COLLISION, error, time.monotonic())
             return
-        if document_run(document) is not None and not self.runs.accept(document):
-            return  # another run's event (an event naming no run is a stack's: taken)
-        frame = document.get("frame")
-        if isinstance(frame, int):
+        if frame is not None:
             self.core.set_collision(frame, time.monotonic())
 
     def _on_diagnostics(self, data: bytes) -> None:
@@ -228,7 +228,7 @@ class Aggregator(Node):
                     )
                 )
         if statuses:
-            self.diag_pub.publish(diag.array(self.get_clock().now().to_msg(), statuses))
+            self.diag_pub.publish(diagnostic_array(self.get_clock().now().to_msg(), statuses))
 
     def _poll(self) -> None:
         outcome = self.core.poll(time.monotonic())
@@ -241,10 +241,12 @@ class Aggregator(Node):
         text = json.dumps(document, indent=1, allow_nan=False)
         stamp = self.get_clock().now().to_msg()
         self.verdict_pub.publish(
-            diag.array(stamp, [diag.verdict_status(document, self.hardware_id)])
+            diagnostic_array(stamp, [diag.verdict_status(document, self.hardware_id)])
         )
         self.json_pub.publish(String(data=text))
-        self.diag_pub.publish(diag.array(stamp, [diag.verdict_status(document, self.hardware_id)]))
+        self.diag_pub.publish(
+            diagnostic_array(stamp, [diag.verdict_status(document, self.hardware_id)])
+        )
         if self.verdict_json:
             path = Path(self.verdict_json)
             path.parent.mkdir(parents=True, exist_ok=True)

@@ -23,11 +23,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
 
+from ads_rca.live.runid import new_run_id
 from ads_rca.params import Params
 from ads_rca.ros.launcher import Launcher, ManagedProcess, ParamValue, ros_args
 from ads_rca.ros.monitor import GROUP, MONITORS
 from ads_rca.ros.nodeparams import engine_values
-from ads_rca.ros.runid import new_run_id
 
 PLAYER = "ads_rca.ros.player"
 AGGREGATOR = "ads_rca.ros.aggregator"
@@ -59,7 +59,7 @@ class GraphSpec:
     player_params: dict[str, ParamValue] = field(default_factory=dict)
     monitors: str = MONITORS_SHARED
     #: Every node of the graph is given this run id, so it ignores any other run that
-    #: shares its domain and namespace (see ads_rca.ros.runid).
+    #: shares its domain and namespace (see ads_rca.live.runid).
     run_id: str = field(default_factory=new_run_id)
 
     def __post_init__(self) -> None:

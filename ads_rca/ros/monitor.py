@@ -11,7 +11,7 @@ for ``stale_timeout_s`` before the player said ``finished``).
 
 Subscriptions use the lossless QoS of the contract (RELIABLE + KEEP_ALL) so a player at rate
 0 waits for us. Data that arrives before the (latched) metadata is queued (at most 64 MiB,
-:mod:`ads_rca.ros.early_queue`): converting a trajectory needs the frame period.
+:mod:`ads_rca.live.early_queue`): converting a trajectory needs the frame period.
 
 Three pieces: a :class:`Monitor` node per module (its publishers, heartbeat and STALE
 status), a :class:`MonitorUnit` (one window, ``MonitorCore``, judging one or more modules,
@@ -33,7 +33,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from std_msgs.msg import String
 
-from ads_rca.contract import topics
+from ads_rca.contract import live_topics, topics
 from ads_rca.contract.assembler import run_metadata
 from ads_rca.contract.cdr import encode_string
 from ads_rca.contract.cdr_decode import CdrError, NoStamp
@@ -45,22 +45,16 @@ from ads_rca.contract.playback import (
     read_input_problems,
 )
 from ads_rca.errors import InputError
-from ads_rca.live.results import FrameMarker, LiveResult
+from ads_rca.live import diagnostics as diag
+from ads_rca.live.early_queue import EarlyQueue
+from ads_rca.live.results import FrameMarker, LiveResult, collision_frame
+from ads_rca.live.runid import RUN_KEY, RunFilter, checked_run_id
 from ads_rca.live.window import MonitorCore, WindowSettings
 from ads_rca.model import RunMetadata
 from ads_rca.oracles.base import Module
-from ads_rca.ros import diagnostics as diag
-from ads_rca.ros import live_topics
-from ads_rca.ros.early_queue import EarlyQueue
-from ads_rca.ros.nodemain import run_node
+from ads_rca.ros.diagnostics import array as diagnostic_array
+from ads_rca.ros.nodemain import run_node, subscribe_ready
 from ads_rca.ros.nodeparams import declare_engine_parameters, declare_node_parameters
-from ads_rca.ros.runid import (
-    RUN_KEY,
-    RunFilter,
-    checked_run_id,
-    document_run,
-    subscribe_ready,
-)
 
 #: Node name → module it judges.
 MONITORS: dict[str, Module] = {
@@ -88,7 +82,7 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "max_pending_frames": (1200, "Frames held at most before judging anyway (marked)."),
     "history_frames": (0, "Judged frames kept for a late collision (0 = automatic)."),
     "publish_diagnostics": (True, "Publish one /diagnostics status per judged frame."),
-    "run_id": ("", "Judge only this run ('' = the first run heard of); see ads_rca.ros.runid."),
+    "run_id": ("", "Judge only this run ('' = the first run heard of); see ads_rca.live.runid."),
 }
 
 
@@ -183,7 +177,7 @@ class Monitor(Node):
             self._stale_since_report = True
         else:
             self._stale_since_report = False
-        self.diag_pub.publish(diag.array(self.get_clock().now().to_msg(), statuses))
+        self.diag_pub.publish(diagnostic_array(self.get_clock().now().to_msg(), statuses))
 
 
 class MonitorUnit:
@@ -248,7 +242,7 @@ class MonitorInputs:
     Subscribes (on ``node``) to the topics the unit's modules read and decodes each data
     message once into a model record; markers, metadata, the player's status and a live
     collision are handed over as they come. Messages of another run are dropped
-    (:class:`~ads_rca.ros.runid.RunFilter`: the run field of JSON messages, the writer's
+    (:class:`~ads_rca.live.runid.RunFilter`: the run field of JSON messages, the writer's
     participant for data), so callbacks take the MessageInfo too. A message that cannot be
     read (bytes that are not its type, JSON that is not a document of the contract) is
     skipped and said (:class:`~ads_rca.contract.malformed.SkippedMessages`); a data message is
@@ -361,14 +355,11 @@ class MonitorInputs:
 
     def _on_collision(self, msg: String) -> None:
         try:
-            document = read_document(msg)
+            frame = collision_frame(read_document(msg), self.runs)
         except ValueError as error:  # JsonTextError
             self._skip(live_topics.COLLISION, error, time.monotonic())
             return
-        if document_run(document) is not None and not self.runs.accept(document):
-            return  # another run's event (an event naming no run is a stack's: taken)
-        frame = document.get("frame")
-        if isinstance(frame, int) and self.unit.core.set_collision(frame, time.monotonic()):
+        if frame is not None and self.unit.core.set_collision(frame, time.monotonic()):
             self.unit.logger.info(f"collision at frame {frame}: judging held frames again")
 
 

@@ -23,7 +23,7 @@ from rclpy.node import Node
 from rclpy.subscription import RCLError
 from std_msgs.msg import String
 
-from ads_rca.contract import topics
+from ads_rca.contract import live_topics, topics
 from ads_rca.contract.cdr import encode_clock, encode_string
 from ads_rca.contract.convert import clock_message
 from ads_rca.contract.playback import (
@@ -40,11 +40,10 @@ from ads_rca.contract.playback import (
 )
 from ads_rca.errors import InputError
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB
+from ads_rca.live.runid import checked_run_id, new_run_id
 from ads_rca.model import RunLog
-from ads_rca.ros import live_topics
 from ads_rca.ros.nodemain import make_executor, start_process
 from ads_rca.ros.nodeparams import declare_node_parameters
-from ads_rca.ros.runid import checked_run_id, new_run_id
 from ads_rca.text import printable
 
 #: Every parameter: (default, description); declared by ``nodeparams.declare_node_parameters``.

@@ -33,17 +33,16 @@ from rclpy.serialization import deserialize_message
 from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import String
 
-from ads_rca.contract import rosmsg, topics
+from ads_rca.contract import live_topics, rosmsg, topics
 from ads_rca.contract.assembler import RunLogAssembler
 from ads_rca.contract.jsontext import loads_json
 from ads_rca.errors import InputError
 from ads_rca.io.bag_writer import contract_qos_yaml
 from ads_rca.io.mcap_writer import COMPRESSIONS, DEFAULT_CHUNK_SIZE, McapBagWriter, qos_yaml
-from ads_rca.ros import live_topics
-from ads_rca.ros.diagnostics import status_runs
-from ads_rca.ros.nodemain import start_process
+from ads_rca.live.diagnostics import status_runs
+from ads_rca.live.runid import checked_run_id, document_run, writer_prefix
+from ads_rca.ros.nodemain import start_process, subscribe_ready
 from ads_rca.ros.nodeparams import declare_node_parameters
-from ads_rca.ros.runid import checked_run_id, document_run, subscribe_ready, writer_prefix
 
 PARAMETERS: dict[str, tuple[Any, str]] = {
     "output": ("", "Bag directory to create (required; must be new or empty)."),
@@ -55,7 +54,7 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "flush_period_s": (1.0, "Also end the current chunk this often (0 = only when full)."),
     "stop_on_finished": (False, "Stop once the player finished and all it announced is in."),
     "max_duration_s": (0.0, "Stop after this many seconds (0 = never)."),
-    "run_id": ("", "Record only this run ('' = everything); see ads_rca.ros.runid."),
+    "run_id": ("", "Record only this run ('' = everything); see ads_rca.live.runid."),
 }
 _IGNORED = {"/rosout", "/parameter_events"}
 _STRING_TOPICS = {topics.METADATA, topics.FRAME, topics.STATUS}

@@ -89,6 +89,7 @@ def test_the_maps_derive_from_the_table() -> None:
     assert tuple(topics.FOLDER_TOPICS) == FOLDERS  # data topics in the folders' order
     assert tuple(topics.FOLDER_TOPICS.values()) == topics.DATA_TOPICS
     assert {topics.FOLDER_TOPICS[f]: f for f in FOLDERS} == topics.TOPIC_FOLDERS
+    assert {topics.METADATA, topics.FRAME, topics.STATUS} == topics.TEXT_TOPICS
     for topic in topics.TABLE:
         assert topics.MESSAGE_TYPE_NAMES[topic.key] == topic.codec.type_name
         assert topics.QOS[topic.key] is topic.qos

@@ -101,7 +101,7 @@ class RunLogAssembler:
         """
         from std_msgs.msg import String
 
-        if topic in (topics.METADATA, topics.FRAME, topics.STATUS):
+        if topic in topics.TEXT_TOPICS:
             self.add(topic, String(data=decode_string(data)))
             return
         self.received[topic] += 1

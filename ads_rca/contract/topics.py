@@ -122,6 +122,8 @@ ALL_TOPICS: tuple[str, ...] = tuple(TOPICS)
 #: The per-frame data topics' rows, in :data:`ads_rca.model.FOLDERS` order.
 DATA: tuple[Topic, ...] = tuple(topic for topic in TABLE if topic.folder is not None)
 DATA_TOPICS: tuple[str, ...] = tuple(topic.key for topic in DATA)
+#: The player's JSON topics (metadata, frame markers, status): std_msgs/String text.
+TEXT_TOPICS: frozenset[str] = frozenset(t.key for t in TABLE if t.codec is codec.TEXT)
 #: Log folder → the data topic key that carries it, and back.
 FOLDER_TOPICS: dict[str, str] = {str(topic.folder): topic.key for topic in DATA}
 TOPIC_FOLDERS: dict[str, str] = {topic: folder for folder, topic in FOLDER_TOPICS.items()}

@@ -280,7 +280,7 @@ class MonitorInputs:
 
     def _callback(self, key: str) -> Any:
         core = self.unit.core
-        player = key in (topics.METADATA, topics.FRAME, topics.STATUS)
+        player = key in topics.TEXT_TOPICS
 
         def on_message(msg: Any, info: Any) -> None:
             now = time.monotonic()

@@ -57,7 +57,6 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "run_id": ("", "Record only this run ('' = everything); see ads_rca.live.runid."),
 }
 _IGNORED = {"/rosout", "/parameter_events"}
-_STRING_TOPICS = {topics.METADATA, topics.FRAME, topics.STATUS}
 _STRING_TYPE = "std_msgs/msg/String"
 _DIAGNOSTICS_TYPE = "diagnostic_msgs/msg/DiagnosticArray"
 #: Messages held at most while their sender's run is not known yet (then: not recorded).
@@ -284,7 +283,7 @@ class Recorder(Node):
         key = self.keys.get(name)
         if key is None:
             return
-        if key in _STRING_TOPICS:
+        if key in topics.TEXT_TOPICS:
             self.progress.add(key, deserialize_message(data, String))
         else:
             self.progress.received[key] += 1

@@ -33,6 +33,9 @@ FOLDERS = (
     "waypoint",
 )
 
+#: The :class:`RunLog` field holding each folder's records.
+FOLDER_FIELDS = {folder: "waypoints" if folder == "waypoint" else folder for folder in FOLDERS}
+
 #: The seed format's file-name prefix per folder (any prefix is accepted when reading).
 FILE_PREFIX = {
     "pose": "pose",
@@ -287,17 +290,10 @@ class RunLog:
         return f"{folder}/{name or f'{FILE_PREFIX[folder]}-{timestamp_ms}.json'}"
 
     def folder(self, name: str) -> dict[int, Any]:
-        """The per-timestamp dict of a folder by its name in :data:`FOLDERS`."""
-        folders: dict[str, dict[int, Any]] = {
-            "pose": self.pose,
-            "actors": self.actors,
-            "bboxes": self.bboxes,
-            "bboxes_gt": self.bboxes_gt,
-            "predictions": self.predictions,
-            "predictions_with_perception": self.predictions_with_perception,
-            "waypoint": self.waypoints,
-        }
-        return folders[name]
+        """The per-timestamp dict of a folder by its name in :data:`FOLDERS` (KeyError for
+        another name)."""
+        records: dict[int, Any] = getattr(self, FOLDER_FIELDS[name])
+        return records
 
 
 def _int_or(text: str, default: int) -> int:

@@ -14,12 +14,12 @@ from dataclasses import dataclass
 from typing import Any
 
 from ads_rca import __version__
-from ads_rca.model import RunLog
+from ads_rca.model import RunLog, frame_number
 from ads_rca.oracles.base import MODULES, Module, OracleResult, RunContext
 from ads_rca.oracles.semantics import Oracle, Semantics, semantics_for
 from ads_rca.params import Params
 from ads_rca.problems import CHECK_SKIPPED, Problem, ProblemLog
-from ads_rca.verdict import Attribution, FrameResults, frame_number, json_safe
+from ads_rca.verdict import Attribution, FrameResults, json_safe
 
 
 def evaluate_frame(ctx: RunContext, oracles: Mapping[Module, Oracle], ts: int) -> FrameResults:

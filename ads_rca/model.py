@@ -33,6 +33,9 @@ FOLDERS = (
     "waypoint",
 )
 
+#: The :class:`RunLog` field holding each folder's records.
+FOLDER_FIELDS = {folder: "waypoints" if folder == "waypoint" else folder for folder in FOLDERS}
+
 #: The seed format's file-name prefix per folder (any prefix is accepted when reading).
 FILE_PREFIX = {
     "pose": "pose",
@@ -43,6 +46,12 @@ FILE_PREFIX = {
     "predictions_with_perception": "predictions",
     "waypoint": "waypoints",
 }
+
+
+def frame_number(timestamp_ms: int, tpf: int) -> int | float:
+    """Frame index of a timestamp: an int on the frame grid, else a float (the verdict's
+    frames and the player's frame markers number frames with this one rule)."""
+    return timestamp_ms // tpf if timestamp_ms % tpf == 0 else timestamp_ms / tpf
 
 
 @dataclass(frozen=True, slots=True)
@@ -281,17 +290,10 @@ class RunLog:
         return f"{folder}/{name or f'{FILE_PREFIX[folder]}-{timestamp_ms}.json'}"
 
     def folder(self, name: str) -> dict[int, Any]:
-        """The per-timestamp dict of a folder by its name in :data:`FOLDERS`."""
-        folders: dict[str, dict[int, Any]] = {
-            "pose": self.pose,
-            "actors": self.actors,
-            "bboxes": self.bboxes,
-            "bboxes_gt": self.bboxes_gt,
-            "predictions": self.predictions,
-            "predictions_with_perception": self.predictions_with_perception,
-            "waypoint": self.waypoints,
-        }
-        return folders[name]
+        """The per-timestamp dict of a folder by its name in :data:`FOLDERS` (KeyError for
+        another name)."""
+        records: dict[int, Any] = getattr(self, FOLDER_FIELDS[name])
+        return records
 
 
 def _int_or(text: str, default: int) -> int:

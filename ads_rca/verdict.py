@@ -84,11 +84,6 @@ class FrameResults:
     results: dict[Module, OracleResult] = field(default_factory=dict)
 
 
-def frame_number(timestamp_ms: int, tpf: int) -> int | float:
-    """Frame index of a timestamp: an int on the frame grid, else a float."""
-    return timestamp_ms // tpf if timestamp_ms % tpf == 0 else timestamp_ms / tpf
-
-
 def json_safe(value: Any) -> Any:
     """Strict-JSON-ready data for the contract: :func:`ads_rca.strictjson.to_strict`."""
     return to_strict(value)

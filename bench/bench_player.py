@@ -3,10 +3,11 @@
 Usage: ``python bench/bench_player.py [--frames N] [--actors M] [--object-dds-frames K]``
 (default 10 000 × 50). The log comes from the scenario synthesiser (``cruise``).
 
-Conversion only (no DDS), per frame: the object path (``convert.frame_messages`` building
+Conversion only (no DDS), per frame: the object path (``topics.frame_messages`` building
 rclpy message objects, plus ``serialize_message``, which ``publish`` does internally) and the
-fast path (``cdr.frame_payloads``: the bytes ``publish`` sends as they are); and decoding
-those bytes back into model records (``cdr_decode``, what the monitors do with each frame).
+fast path (``topics.frame_payloads``: the bytes ``publish`` sends as they are); and decoding
+those bytes back into model records (``topics.decode_record``, what the monitors do with
+each frame).
 
 DDS: the log is written to a temp folder and played by the ``player`` node at rate 0 (each
 frame sent once the subscriber acknowledged the previous one) to ``topic_summary`` in another
@@ -26,10 +27,8 @@ import time
 from pathlib import Path
 from typing import Any
 
-from ads_rca.contract.cdr import frame_payloads
-from ads_rca.contract.cdr_decode import decode_record
-from ads_rca.contract.convert import frame_messages
 from ads_rca.contract.playback import timeline
+from ads_rca.contract.topics import decode_record, frame_messages, frame_payloads
 from ads_rca.io.json_writer import write_run_log
 from ads_rca.model import RunLog
 from ads_rca.ros.env import pick_domain_id, ros_environment
@@ -45,8 +44,8 @@ def make_log(frames: int, actors: int, seed: int) -> tuple[RunLog, str]:
 def conversion_rate(log: RunLog, limit: int, path: str) -> tuple[float, float, int]:
     """frames/s and messages/s of one path's per-frame conversion (first ``limit`` ticks).
 
-    ``object``: convert.frame_messages; ``object+cdr``: the same plus serialize_message (what
-    publishing an object costs on top); ``fast``: cdr.frame_payloads (bytes ready to send).
+    ``object``: topics.frame_messages; ``object+cdr``: the same plus serialize_message (what
+    publishing an object costs on top); ``fast``: topics.frame_payloads (bytes ready to send).
     """
     ticks = timeline(log)[:limit]
     serialise: Any = None

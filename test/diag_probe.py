@@ -17,7 +17,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
-from ads_rca.ros import live_topics
+from ads_rca.contract import live_topics
 
 
 def main() -> int:

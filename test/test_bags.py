@@ -14,8 +14,8 @@ from rosrun import run_pair
 
 from ads_rca.cli import main as cli
 from ads_rca.contract import rosmsg, topics
-from ads_rca.contract.convert import frame_messages
 from ads_rca.contract.playback import metadata_message
+from ads_rca.contract.topics import frame_messages
 from ads_rca.io import open_run
 from ads_rca.io.bag_reader import is_bag, iter_mcap_stream, read_bag
 from ads_rca.io.bag_writer import contract_qos_yaml, playback_messages, write_bag

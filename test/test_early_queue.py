@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ads_rca.ros.early_queue import EarlyQueue
+from ads_rca.live.early_queue import EarlyQueue
 
 
 def test_a_flood_before_the_metadata_keeps_the_newest_within_the_bound() -> None:

@@ -28,7 +28,7 @@ from typing import Any
 import pytest
 from test_hostile_bags import convert
 
-from ads_rca.contract import cdr, cdr_decode, playback, rosmsg, topics
+from ads_rca.contract import cdr, cdr_decode, live_topics, playback, rosmsg, topics
 from ads_rca.contract.cdr_decode import CdrError, NoStamp
 from ads_rca.contract.jsontext import JsonTextError, loads_json
 from ads_rca.contract.malformed import SkippedMessages
@@ -36,8 +36,7 @@ from ads_rca.errors import InputError
 from ads_rca.io.bag_reader import iter_mcap_stream, read_bag
 from ads_rca.io.json_log import read_run_log
 from ads_rca.io.mcap_writer import McapBagWriter
-from ads_rca.ros import diagnostics as diag
-from ads_rca.ros import live_topics
+from ads_rca.live import diagnostics as diag
 from ads_rca.ros.launcher import ManagedProcess, ros_args
 from ads_rca.ros.monitor import GROUP, MONITORS
 
@@ -50,7 +49,7 @@ def real_payloads() -> dict[str, list[bytes]]:
     log = read_run_log(EXAMPLE)
     out: dict[str, list[bytes]] = {}
     for stamp in log.frames[::20]:
-        for key, data in cdr.frame_payloads(log, stamp).items():
+        for key, data in topics.frame_payloads(log, stamp).items():
             out.setdefault(key, []).append(data)
     out[topics.CLOCK] = [cdr.encode_clock(log.frames[3])]
     out[topics.METADATA] = [cdr.encode_string(playback.metadata_message(log).data)]
@@ -64,8 +63,8 @@ def decoders(key: str) -> list[Any]:
     if key == topics.METADATA:
         return [cdr_decode.decode_string]
     out = [
-        lambda data: cdr_decode.stamp_ms(key, data),
-        lambda data: cdr_decode.decode_record(key, data, 50),
+        lambda data: topics.stamp_ms(key, data),
+        lambda data: topics.decode_record(key, data, 50),
     ]
     if key not in (topics.ODOMETRY, topics.TRAJECTORY):
         out.append(cdr_decode.read_markers)
@@ -133,7 +132,8 @@ def test_absurd_counts_are_refused_before_allocating(tmp_path: Path) -> None:
         """
         import json, resource, sys
         resource.setrlimit(resource.RLIMIT_AS, (3 << 29, 3 << 29))
-        from ads_rca.contract.cdr_decode import CdrError, decode_record
+        from ads_rca.contract.cdr_decode import CdrError
+        from ads_rca.contract.topics import decode_record
         for key, data in json.load(open(sys.argv[1])):
             try:
                 decode_record(key, bytes.fromhex(data), 50)
@@ -186,11 +186,11 @@ def test_marker_text_that_is_not_a_box_document_is_refused() -> None:
         msg.markers[1].text = text
         data = rosmsg.serialize(msg, "visualization_msgs/msg/MarkerArray")
         with pytest.raises(CdrError):
-            cdr_decode.decode_record(key, data, 50)
+            topics.decode_record(key, data, 50)
     msg = _with_markers(payloads[topics.DETECTIONS])
     msg.markers[1].points = msg.markers[1].points[:2]
     with pytest.raises(CdrError, match="corners need 3"):
-        cdr_decode.decode_record(
+        topics.decode_record(
             topics.DETECTIONS, rosmsg.serialize(msg, "visualization_msgs/msg/MarkerArray"), 50
         )
 
@@ -404,7 +404,7 @@ def test_monitors_skip_and_report_malformed_messages_and_judge_the_rest(ros_env:
         hostile_frame = 10
         ticks = playback.timeline(log)[:30]
         for tick in ticks:
-            payloads = cdr.frame_payloads(log, tick.stamp_ms)
+            payloads = topics.frame_payloads(log, tick.stamp_ms)
             if tick.index == hostile_frame:  # before the real messages of this stamp
                 pubs[topics.ACTORS].publish(_patched_count(topics.ACTORS))
                 pubs[topics.TRAJECTORY].publish(_patched_count(topics.TRAJECTORY))
@@ -456,9 +456,9 @@ def test_the_assembler_leaves_undecodable_bytes_out_as_a_problem() -> None:
     assembler = RunLogAssembler()
     assembler.add_raw(topics.METADATA, cdr.encode_string(playback.metadata_message(log).data))
     stamp = log.frames[5]
-    for key, data in cdr.frame_payloads(log, stamp).items():
+    for key, data in topics.frame_payloads(log, stamp).items():
         assembler.add_raw(key, data[:-40] if key == topics.ACTORS else data)
-    for key, data in cdr.frame_payloads(log, log.frames[6]).items():
+    for key, data in topics.frame_payloads(log, log.frames[6]).items():
         assembler.add_raw(key, data)
     with pytest.raises(CdrError):
         assembler.add_raw(topics.METADATA, b"\x00\x01\x00\x00\xff\xff\xff\x7f")

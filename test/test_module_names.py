@@ -17,10 +17,11 @@ from pathlib import Path
 import pytest
 
 from ads_rca.cli import build_parser
+from ads_rca.contract import live_topics
 from ads_rca.engine import diagnose
 from ads_rca.io import open_run
+from ads_rca.live import diagnostics
 from ads_rca.params import SEMANTICS, make_params
-from ads_rca.ros import diagnostics, live_topics
 from ads_rca.ros.monitor import MONITORS
 from ads_rca.summary import summary_text
 from ads_rca.synth import synthesise

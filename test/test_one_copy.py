@@ -1,8 +1,10 @@
 """Rules that used to be written twice now have one copy (issue #13 item 3).
 
 Problem de-duplication and reading (``problems.py``), the frame number
-(``verdict.frame_number``), the topic → folder table (``contract/topics.py``) and the bounded
-cache (``oracles/cache.LRU``) are each defined once and used by every side.
+(``model.frame_number``), the topic → folder table (``contract/topics.py``), the bounded
+cache (``oracles/cache.LRU``), the collision event's reading
+(``live/results.collision_frame``) and the player's end (``live/results.FollowsRunEnd``)
+are each defined once and used by every side.
 """
 
 from __future__ import annotations
@@ -11,16 +13,20 @@ import re
 from pathlib import Path
 
 import ads_rca
+from ads_rca import verdict
 from ads_rca.contract import topics
 from ads_rca.contract.jsontext import loads_json
 from ads_rca.contract.playback import Tick, frame_marker
-from ads_rca.live.results import FrameMarker, LiveResult
+from ads_rca.live.aggregate import AggregatorCore
+from ads_rca.live.results import FollowsRunEnd, FrameMarker, LiveResult, collision_frame
+from ads_rca.live.runid import RunFilter
+from ads_rca.live.window import MonitorCore
+from ads_rca.model import frame_number
 from ads_rca.oracles.base import RunContext
 from ads_rca.oracles.cache import LRU
 from ads_rca.params import make_params
 from ads_rca.problems import Problem, new_problems, problems_from_list
 from ads_rca.synth import synthesise
-from ads_rca.verdict import frame_number
 
 PACKAGE = Path(ads_rca.__file__).resolve().parent
 
@@ -71,6 +77,28 @@ def test_the_player_numbers_frames_as_the_verdict_does() -> None:
         tick = Tick(stamp, 0, False)
         sent = loads_json(frame_marker(tick, [], tpf).data)["frame"]
         assert sent == (frame_number(stamp, tpf) if tpf > 0 else None)
+    # The rule is the model's (time ↔ frame); the contract no longer reaches up to verdict.
+    assert not hasattr(verdict, "frame_number")
+    assert "ads_rca.verdict" not in (PACKAGE / "contract" / "playback.py").read_text()
+
+
+def test_one_collision_event_rule_for_the_monitors_and_the_aggregator() -> None:
+    runs = RunFilter("one")
+    assert collision_frame({"frame": 7}, runs) == 7  # naming no run: a live stack's event
+    assert collision_frame({"frame": 7, "run": "two"}, runs) is None
+    assert collision_frame({"frame": 8, "run": "one"}, runs) == 8
+    assert collision_frame({"frame": "9", "run": "one"}, runs) is None
+    assert collision_frame({}, runs) is None
+    for node in ("monitor.py", "aggregator.py"):
+        text = (PACKAGE / "ros" / node).read_text()
+        assert "collision_frame(read_document(msg), self.runs)" in text
+        assert 'document.get("frame")' not in text
+
+
+def test_the_live_cores_follow_one_run_end() -> None:
+    for core in (MonitorCore, AggregatorCore):
+        assert issubclass(core, FollowsRunEnd)
+        assert "finished" not in vars(core) and "markers_received" not in vars(core)
 
 
 def test_one_topic_to_folder_table() -> None:

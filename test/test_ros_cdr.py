@@ -27,9 +27,11 @@ from visualization_msgs.msg import MarkerArray
 
 from ads_rca.contract import cdr, convert, playback, topics
 from ads_rca.contract.assembler import RunLogAssembler
-from ads_rca.contract.cdr_decode import decode_clock, decode_record, decode_string, stamp_ms
+from ads_rca.contract.cdr_decode import decode_clock, decode_string
+from ads_rca.contract.topics import decode_record, stamp_ms
+from ads_rca.live import diagnostics as diag
 from ads_rca.model import Actors, Boxes, EgoPose, Plan, RunLog, RunMetadata, Track
-from ads_rca.ros import diagnostics as diag
+from ads_rca.ros.diagnostics import array as diagnostic_array
 
 TPF = 50
 
@@ -70,18 +72,18 @@ def check_log(log: RunLog, every: int = 1) -> int:
     checked = 0
     for tick in playback.timeline(log)[::every]:
         ts = tick.stamp_ms
-        fast = cdr.frame_payloads(log, ts)
-        slow = convert.frame_messages(log, ts)
+        fast = topics.frame_payloads(log, ts)
+        slow = topics.frame_messages(log, ts)
         assert list(fast) == list(slow)
         for key, msg in slow.items():
             assert_bytes_match(fast[key], msg)
-            expected = convert.message_to_record(key, msg, log.tpf)
+            expected = topics.message_to_record(key, msg, log.tpf)
             assert_records_equal(decode_record(key, fast[key], log.tpf), expected)
             rclpy_bytes = serialize_message(msg)
             assert_records_equal(decode_record(key, rclpy_bytes, log.tpf), expected)
             assert stamp_ms(key, fast[key]) == convert.message_stamp_ms(msg)
             checked += 1
-        assert_bytes_match(cdr.encode_clock(ts), playback.clock_message(ts))
+        assert_bytes_match(cdr.encode_clock(ts), convert.clock_message(ts))
     return checked
 
 
@@ -153,13 +155,15 @@ def test_unicode_strings_of_every_length_keep_alignment(
     n = len(ids)
     rng = np.random.default_rng(n)
     actors = Actors(tuple(ids), rng.normal(size=(n, 3)), rng.normal(size=(n, 3)), np.ones((n, 3)))
-    msg = convert.actors_to_markers(actors, stamp)
-    ours = cdr.encode_actors(actors, stamp)
+    actor_codec = topics.TOPICS[topics.ACTORS].codec
+    msg = actor_codec.build(actors, stamp, TPF)
+    ours = actor_codec.encode(actors, stamp, TPF)
     assert_bytes_match(ours, msg)
     assert_records_equal(decode_record(topics.ACTORS, ours, TPF), convert.markers_to_actors(msg))
     boxes = Boxes(tuple(ids), rng.normal(size=(n, 4)), tuple({text: i} for i in ids))
-    box_msg = convert.boxes_to_markers(boxes, stamp, topics.DETECTIONS)
-    assert_bytes_match(cdr.encode_boxes(boxes, stamp, topics.DETECTIONS), box_msg)
+    box_codec = topics.TOPICS[topics.DETECTIONS].codec
+    box_msg = box_codec.build(boxes, stamp, TPF)
+    assert_bytes_match(box_codec.encode(boxes, stamp, TPF), box_msg)
     string = String(data=text)
     assert_bytes_match(cdr.encode_string(text), string)
     assert decode_string(serialize_message(string)) == text
@@ -193,7 +197,7 @@ def test_diagnostic_arrays_encode_byte_for_byte(
         for level, name, msg, kv in statuses
     ]
     sec, nanosec = divmod(stamp_ns, 10**9)
-    msg = diag.array(Time(sec=sec % 2**31, nanosec=nanosec), built)
+    msg = diagnostic_array(Time(sec=sec % 2**31, nanosec=nanosec), built)
     ours = diag.encode_array((sec % 2**31) * 10**9 + nanosec, built)
     assert_bytes_match(ours, msg)
     assert diag.status_names(ours) == [s.name for s in built]
@@ -206,7 +210,7 @@ def test_decoder_walks_every_marker_field() -> None:
     from visualization_msgs.msg import MeshFile, UVCoordinate
 
     boxes = make_log(2, 4, 5).bboxes_gt[TPF]
-    msg = convert.boxes_to_markers(boxes, TPF, topics.GROUND_TRUTH)
+    msg = topics.TOPICS[topics.GROUND_TRUTH].codec.build(boxes, TPF, TPF)
     for i, m in enumerate(msg.markers[1:]):
         m.colors = [ColorRGBA(r=0.5)] * (i + 1)
         m.texture_resource = "embedded://" + "t" * i
@@ -233,9 +237,9 @@ def test_assembler_add_raw_rebuilds_the_log_like_add() -> None:
     ]
     ticks = playback.timeline(log)
     for tick in ticks:
-        fast = cdr.frame_payloads(log, tick.stamp_ms)
-        slow = convert.frame_messages(log, tick.stamp_ms)
-        sent.append((topics.CLOCK, playback.clock_message(tick.stamp_ms), b""))
+        fast = topics.frame_payloads(log, tick.stamp_ms)
+        slow = topics.frame_messages(log, tick.stamp_ms)
+        sent.append((topics.CLOCK, convert.clock_message(tick.stamp_ms), b""))
         sent += [(key, slow[key], fast[key]) for key in slow]
         marker = playback.frame_marker(tick, playback.published_names(fast), TPF)
         sent.append((topics.FRAME, marker, b""))
@@ -306,8 +310,8 @@ def test_subscribers_receive_identical_bytes_over_dds(ros_env: Any) -> None:
         expected = 0
         for tick in playback.timeline(log):
             ts = tick.stamp_ms
-            slow = {topics.CLOCK: playback.clock_message(ts), **convert.frame_messages(log, ts)}
-            fast = {topics.CLOCK: cdr.encode_clock(ts), **cdr.frame_payloads(log, ts)}
+            slow = {topics.CLOCK: convert.clock_message(ts), **topics.frame_messages(log, ts)}
+            fast = {topics.CLOCK: cdr.encode_clock(ts), **topics.frame_payloads(log, ts)}
             for key, msg in slow.items():
                 pubs["objects", key].publish(msg)
                 pubs["bytes", key].publish(fast[key])

@@ -29,8 +29,8 @@ def play_through_assembler(log: RunLog, *, serialise: bool = False) -> RunLogAss
     ticks = playback.timeline(log)
     send(topics.STATUS, playback.status_message(playback.PLAYING, 0))
     for tick in ticks:
-        send(topics.CLOCK, playback.clock_message(tick.stamp_ms))
-        messages = convert.frame_messages(log, tick.stamp_ms)
+        send(topics.CLOCK, convert.clock_message(tick.stamp_ms))
+        messages = topics.frame_messages(log, tick.stamp_ms)
         for key, msg in messages.items():
             send(key, msg)
         send(topics.FRAME, playback.frame_marker(tick, playback.published_names(messages), 50))
@@ -108,7 +108,7 @@ def test_boxes_keep_corners_as_written_and_extras_in_order() -> None:
         corners=np.array([[10.5, 20.0, 5.0, 2.0], [np.nan, 1.0, 2.0, 3.0]]),
         extras=({"score": 0.9, "label": "car"}, {"weird": float("inf"), "n": 2**70}),
     )
-    msg = convert.boxes_to_markers(boxes, 100, topics.DETECTIONS)
+    msg = topics.TOPICS[topics.DETECTIONS].codec.build(boxes, 100, 50)
     assert msg.markers[0].action == msg.markers[0].DELETEALL
     first = msg.markers[1]
     assert first.header.frame_id == "camera_image" and first.ns == "detections"
@@ -126,7 +126,7 @@ def test_boxes_keep_corners_as_written_and_extras_in_order() -> None:
 
 
 def test_empty_predictions_publish_only_deleteall() -> None:
-    msg = convert.predictions_to_markers({}, 50, topics.PREDICTION_RAW)
+    msg = topics.TOPICS[topics.PREDICTION_RAW].codec.build({}, 50, 50)
     assert [m.action for m in msg.markers] == [msg.markers[0].DELETEALL]
     assert convert.markers_to_predictions(msg) == {}
 
@@ -155,7 +155,7 @@ def test_missing_folder_record_is_not_published_and_marker_says_so() -> None:
     log = make_log(8, 3, 0)
     ts = log.frames[4]  # pose is missing on every fifth frame
     assert ts not in log.pose
-    messages = convert.frame_messages(log, ts)
+    messages = topics.frame_messages(log, ts)
     names = playback.published_names(messages)
     assert topics.ODOMETRY not in names and topics.ACTORS in names
     marker = playback.read_document(playback.frame_marker(playback.Tick(ts, 4), names, 50))
@@ -184,7 +184,7 @@ def test_assembler_reports_what_is_missing() -> None:
     log = make_log(3, 2, 0)
     assembler = RunLogAssembler()
     tick = playback.timeline(log)[0]
-    messages = convert.frame_messages(log, tick.stamp_ms)
+    messages = topics.frame_messages(log, tick.stamp_ms)
     assembler.add(topics.FRAME, playback.frame_marker(tick, playback.published_names(messages), 50))
     assembler.add(topics.STATUS, playback.status_message(playback.FINISHED, 2))
     assert not assembler.complete()

@@ -30,12 +30,12 @@ from ads_rca.engine import diagnose
 from ads_rca.io import open_run
 from ads_rca.io.json_log import read_run_log
 from ads_rca.io.json_writer import write_run_log
+from ads_rca.live import diagnostics as diag
+from ads_rca.live.runid import RunFilter, writer_prefix
 from ads_rca.params import make_params
-from ads_rca.ros import diagnostics as diag
 from ads_rca.ros.domains import domains_in_use, free_domain_id
 from ads_rca.ros.graph import Graph, GraphSpec
 from ads_rca.ros.launcher import ManagedProcess, node_command
-from ads_rca.ros.runid import RunFilter, writer_prefix
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "cut_in_perception"
 pytestmark = pytest.mark.timeout(240)

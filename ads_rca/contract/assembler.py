@@ -13,8 +13,8 @@ from collections import Counter
 from typing import TYPE_CHECKING, Any
 
 from ads_rca.contract import topics
-from ads_rca.contract.cdr_decode import decode_record, decode_string, stamp_ms
-from ads_rca.contract.convert import message_stamp_ms, message_to_record
+from ads_rca.contract.cdr_decode import decode_string
+from ads_rca.contract.convert import message_stamp_ms
 from ads_rca.contract.errors import (
     DOCUMENT_ERRORS,
     CdrError,
@@ -114,13 +114,13 @@ class RunLogAssembler:
         """
         from std_msgs.msg import String
 
-        if topic in (topics.METADATA, topics.FRAME, topics.STATUS):
+        if topic in topics.TEXT_TOPICS:
             self.add(topic, String(data=decode_string(data)))
             return
         self.received[topic] += 1
         if topic in self._data:
             try:
-                stamp = stamp_ms(topic, data)
+                stamp = topics.stamp_ms(topic, data)
             except NoStamp:  # a MarkerArray without markers carries no stamp
                 return
             self._data[topic].setdefault(stamp, bytes(data))
@@ -204,10 +204,10 @@ class RunLogAssembler:
             for stamp in sorted(by_stamp):
                 item = by_stamp[stamp]
                 if not isinstance(item, bytes):
-                    folder[stamp] = message_to_record(topic, item, tpf)
+                    folder[stamp] = topics.message_to_record(topic, item, tpf)
                     continue
                 try:
-                    folder[stamp] = decode_record(topic, item, tpf)
+                    folder[stamp] = topics.decode_record(topic, item, tpf)
                 except CdrError as error:
                     log.problems.add(topic, "", str(error), "message skipped", timestamp_ms=stamp)
         return log

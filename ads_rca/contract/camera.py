@@ -25,7 +25,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from ads_rca.contract import topics
+from ads_rca.contract.convert import EGO_FRAME, IMAGE_FRAME
 from ads_rca.model import RunMetadata
 
 #: Rotation base_link → optical frame (x, y, z, w): z along the body's x, x along −y
@@ -77,7 +77,7 @@ def camera_mount(metadata: RunMetadata) -> StaticTransform:
     if not all(math.isfinite(v) for v in (x, y, z)):
         raise ValueError(f"ego_config.camera.camera_loc: {[x, y, z]} is not a finite position")
     return StaticTransform(
-        topics.EGO_FRAME, topics.IMAGE_FRAME, (float(x), -float(y), float(z)), OPTICAL_ROTATION
+        EGO_FRAME, IMAGE_FRAME, (float(x), -float(y), float(z)), OPTICAL_ROTATION
     )
 
 

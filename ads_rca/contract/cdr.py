@@ -12,7 +12,8 @@ Padding bytes are zero, as Fast DDS sends them for message objects; ``serialize_
 leaves them uninitialised, so only non-padding bytes are comparable with it (see the tests).
 
 Pure: numpy, struct and the message-free helpers of convert.py; no rclpy import.
-Decoders live in :mod:`ads_rca.contract.cdr_decode`.
+Decoders live in :mod:`ads_rca.contract.cdr_decode`; which topic uses which encoder, in
+which marker style, is the topic table's (:mod:`ads_rca.contract.topics`).
 """
 
 from __future__ import annotations
@@ -23,18 +24,19 @@ from typing import Any
 
 import numpy as np
 
-from ads_rca.contract import topics
 from ads_rca.contract.camera import StaticTransform
 from ads_rca.contract.convert import (
-    _COLORS,
-    MARKER_NS,
+    EGO_FRAME,
+    IMAGE_FRAME,
+    WORLD_FRAME,
+    MarkerStyle,
     carla_rpy_to_quaternions,
     carried_plan_rows,
     marker_id,
     step_ms,
 )
 from ads_rca.contract.jsontext import dumps_json
-from ads_rca.model import Actors, Boxes, EgoPose, Plan, Predictions, RunLog
+from ads_rca.model import Actors, Boxes, EgoPose, Plan, Predictions
 
 #: Encapsulation header: representation CDR_LE (0x0001), options 0.
 ENCAPSULATION = b"\x00\x01\x00\x00"
@@ -152,7 +154,7 @@ def encode_string(text: str) -> bytes:
 
 
 def encode_clock(timestamp_ms: int) -> bytes:
-    """rosgraph_msgs/Clock of a log time (as :func:`playback.clock_message`)."""
+    """rosgraph_msgs/Clock of a log time (as :func:`convert.clock_message`)."""
     return ENCAPSULATION + _STAMP.pack(*stamp_fields(timestamp_ms))
 
 
@@ -165,8 +167,8 @@ def encode_odometry(pose: EgoPose, timestamp_ms: int) -> bytes:
     """nav_msgs/Odometry as :func:`convert.pose_to_odometry` builds it."""
     q = carla_rpy_to_quaternions(np.array([pose.roll, pose.pitch, pose.yaw]))[0].tolist()
     w = CdrWriter()
-    w.header(timestamp_ms, topics.WORLD_FRAME)
-    w.string(topics.EGO_FRAME)
+    w.header(timestamp_ms, WORLD_FRAME)
+    w.string(EGO_FRAME)
     twist = (float(pose.speed), 0.0, 0.0, 0.0, 0.0, 0.0)
     w.pack(_ODOMETRY_BODY, float(pose.x), -pose.y, float(pose.z), *q, *twist, alignment=8)
     return w.getvalue()
@@ -227,8 +229,8 @@ def encode_tf_message(timestamp_ms: int, transforms: list[StaticTransform]) -> b
 # --- MarkerArray --------------------------------------------------------------------------
 
 
-def _color(topic: str) -> tuple[float, float, float, float]:
-    r, g, b = _COLORS[topic]
+def _color(style: MarkerStyle) -> tuple[float, float, float, float]:
+    r, g, b = style.color
     return (r, g, b, 1.0)
 
 
@@ -289,15 +291,15 @@ def encode_marker_array(
     return b"".join(parts)
 
 
-def marker_rows(n: int, topic: str, marker_type: int) -> np.ndarray:
+def marker_rows(n: int, style: MarkerStyle, marker_type: int) -> np.ndarray:
     """MARKER_FIXED rows: 0 = DELETEALL (default pose, w 1), 1..n = ADD of ``marker_type`` in
-    the topic's colour with identity orientation (callers overwrite what differs)."""
+    the style's colour with identity orientation (callers overwrite what differs)."""
     fixed = np.zeros(n + 1, MARKER_FIXED)
     fixed["ita"][0] = (0, 0, DELETEALL)
     fixed["pose"][:, 6] = 1.0
     fixed["ita"][1:, 1] = marker_type
     fixed["ita"][1:, 2] = ADD
-    fixed["color"][1:] = _color(topic)
+    fixed["color"][1:] = _color(style)
     return fixed
 
 
@@ -307,10 +309,10 @@ def cached_marker_id(actor_id: str) -> int:
     return marker_id(actor_id)
 
 
-def encode_actors(actors: Actors, timestamp_ms: int) -> bytes:
-    """``actors``: as :func:`convert.actors_to_markers` (CUBEs in ``map``, full size)."""
+def encode_actors(actors: Actors, timestamp_ms: int, style: MarkerStyle) -> bytes:
+    """Actors as :func:`convert.actors_to_markers` (CUBEs in ``map``, full size)."""
     n = len(actors.ids)
-    fixed = marker_rows(n, topics.ACTORS, CUBE)
+    fixed = marker_rows(n, style, CUBE)
     fixed["ita"][1:, 0] = [cached_marker_id(a) for a in actors.ids]
     body = fixed["pose"][1:]
     body[:, 0:3] = np.reshape(actors.location * np.array([1.0, -1.0, 1.0]), (-1, 3))
@@ -318,8 +320,8 @@ def encode_actors(actors: Actors, timestamp_ms: int) -> bytes:
     fixed["scale"][1:] = np.reshape(2.0 * actors.extent, (-1, 3))
     return encode_marker_array(
         timestamp_ms,
-        topics.WORLD_FRAME,
-        MARKER_NS[topics.ACTORS],
+        WORLD_FRAME,
+        style.ns,
         fixed,
         np.empty((0, 3)),
         ["", *actors.ids],
@@ -331,10 +333,10 @@ _BOX_X = np.array([0, 2, 2, 0, 0])
 _BOX_Y = np.array([1, 1, 3, 3, 1])
 
 
-def encode_boxes(boxes: Boxes, timestamp_ms: int, topic: str) -> bytes:
-    """``perception/*``: as :func:`convert.boxes_to_markers` (pixels in ``camera_image``)."""
+def encode_boxes(boxes: Boxes, timestamp_ms: int, style: MarkerStyle) -> bytes:
+    """Boxes as :func:`convert.boxes_to_markers` (pixels in ``camera_image``)."""
     n = len(boxes.ids)
-    fixed = marker_rows(n, topic, LINE_STRIP)
+    fixed = marker_rows(n, style, LINE_STRIP)
     fixed["ita"][1:, 0] = np.arange(n)
     fixed["scale"][1:, 0] = 2.0
     fixed["points"][1:] = 5
@@ -348,18 +350,18 @@ def encode_boxes(boxes: Boxes, timestamp_ms: int, topic: str) -> bytes:
     ]
     return encode_marker_array(
         timestamp_ms,
-        topics.IMAGE_FRAME,
-        MARKER_NS[topic],
+        IMAGE_FRAME,
+        style.ns,
         fixed,
         points.reshape(-1, 3),
         ["", *texts],
     )
 
 
-def encode_predictions(predictions: Predictions, timestamp_ms: int, topic: str) -> bytes:
-    """``prediction/*``: as :func:`convert.predictions_to_markers` (offsets in ``base_link``)."""
+def encode_predictions(predictions: Predictions, timestamp_ms: int, style: MarkerStyle) -> bytes:
+    """Predictions as :func:`convert.predictions_to_markers` (offsets in ``base_link``)."""
     n = len(predictions)
-    fixed = marker_rows(n, topic, LINE_STRIP)
+    fixed = marker_rows(n, style, LINE_STRIP)
     fixed["ita"][1:, 0] = np.arange(n)
     fixed["scale"][1:, 0] = 0.2
     offsets = [
@@ -374,8 +376,8 @@ def encode_predictions(predictions: Predictions, timestamp_ms: int, topic: str) 
     ]
     return encode_marker_array(
         timestamp_ms,
-        topics.EGO_FRAME,
-        MARKER_NS[topic],
+        EGO_FRAME,
+        style.ns,
         fixed,
         points * np.array([1.0, -1.0, 1.0]),
         ["", *texts],
@@ -409,11 +411,11 @@ def _carried_rows(keys: tuple[str, ...]) -> tuple[tuple[int, ...], tuple[int, ..
 
 
 def encode_trajectory(plan: Plan, timestamp_ms: int, timesteps_per_frame: int) -> bytes:
-    """``planning/trajectory``: as :func:`convert.plan_to_trajectory`."""
+    """A plan as :func:`convert.plan_to_trajectory`."""
     rows, steps = _carried_rows(tuple(plan.keys))
     step = step_ms(timesteps_per_frame)
     w = CdrWriter()
-    w.header(timestamp_ms, topics.WORLD_FRAME)
+    w.header(timestamp_ms, WORLD_FRAME)
     w.pack(_U32, 1, alignment=4)
     w.string("ego")
     w.pack(_U32, len(rows), alignment=4)
@@ -438,30 +440,3 @@ def encode_trajectory(plan: Plan, timestamp_ms: int, timesteps_per_frame: int) -
         blob = blob[4:]
     w.buffer += blob
     return w.getvalue()
-
-
-# --- whole frames ---------------------------------------------------------------------------
-
-
-def frame_payloads(log: RunLog, timestamp_ms: int) -> dict[str, bytes]:
-    """CDR bytes of every data message of one timestamp, keyed by topic key, FOLDERS order:
-    byte for byte what :func:`convert.frame_messages` gives once serialised."""
-    out: dict[str, bytes] = {}
-    ts = timestamp_ms
-    if (pose := log.pose.get(ts)) is not None:
-        out[topics.ODOMETRY] = encode_odometry(pose, ts)
-    if (actors := log.actors.get(ts)) is not None:
-        out[topics.ACTORS] = encode_actors(actors, ts)
-    if (boxes := log.bboxes.get(ts)) is not None:
-        out[topics.DETECTIONS] = encode_boxes(boxes, ts, topics.DETECTIONS)
-    if (boxes := log.bboxes_gt.get(ts)) is not None:
-        out[topics.GROUND_TRUTH] = encode_boxes(boxes, ts, topics.GROUND_TRUTH)
-    if (preds := log.predictions.get(ts)) is not None:
-        out[topics.PREDICTION_RAW] = encode_predictions(preds, ts, topics.PREDICTION_RAW)
-    if (preds := log.predictions_with_perception.get(ts)) is not None:
-        out[topics.PREDICTION_WITH_PERCEPTION] = encode_predictions(
-            preds, ts, topics.PREDICTION_WITH_PERCEPTION
-        )
-    if (plan := log.waypoints.get(ts)) is not None:
-        out[topics.TRAJECTORY] = encode_trajectory(plan, ts, log.tpf)
-    return out

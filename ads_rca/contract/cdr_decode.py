@@ -16,7 +16,8 @@ decoder either returns a record or raises :class:`~ads_rca.contract.errors.CdrEr
 MalformedMessage), never another exception, and never allocates for a count it has not
 checked against the bytes that remain (``count × smallest element ≤ remaining``): a sequence
 count of 2**32 - 1 is refused, not allocated. A MarkerArray without markers is not
-malformed: :func:`stamp_ms` raises :class:`~ads_rca.contract.errors.NoStamp` for it.
+malformed: :func:`marker_array_stamp_ms` raises :class:`~ads_rca.contract.errors.NoStamp` for
+it. Which topic uses which decoder is the topic table's (:mod:`ads_rca.contract.topics`).
 """
 
 from __future__ import annotations
@@ -30,7 +31,6 @@ from typing import Any, ParamSpec, TypeVar
 
 import numpy as np
 
-from ads_rca.contract import topics
 from ads_rca.contract.cdr import HEADER_SIZE, MESH_WHEN_EMPTY, MIDDLE_WHEN_EMPTY
 from ads_rca.contract.convert import (
     check_box_points,
@@ -39,7 +39,7 @@ from ads_rca.contract.convert import (
     step_ms,
     track_keys,
 )
-from ads_rca.contract.errors import CdrError, MalformedMessage, NoStamp, UnknownTopic
+from ads_rca.contract.errors import CdrError, MalformedMessage, NoStamp
 from ads_rca.model import Actors, Boxes, EgoPose, Plan, Predictions, Track
 
 _P = ParamSpec("_P")
@@ -87,6 +87,8 @@ _LOW_LEVEL = (
 
 def _typed(decoder: Callable[_P, _R]) -> Callable[_P, _R]:
     """``decoder`` raising :class:`CdrError` (or :class:`NoStamp`) for every bad payload."""
+    name = decoder.__name__
+    what = name.removeprefix("decode_") if name.startswith("decode_") else "message"
 
     @functools.wraps(decoder)
     def checked(*args: _P.args, **kwargs: _P.kwargs) -> _R:
@@ -98,7 +100,7 @@ def _typed(decoder: Callable[_P, _R]) -> Callable[_P, _R]:
             detail = str(error)
         except _LOW_LEVEL as error:
             detail = str(error) or type(error).__name__
-        raise CdrError(f"malformed {decoder.__name__[7:] or 'message'}: {detail}") from None
+        raise CdrError(f"malformed {what}: {detail}") from None
 
     return checked
 
@@ -194,12 +196,16 @@ def decode_clock(data: bytes) -> int:
 
 
 @_typed
-def stamp_ms(topic: str, data: bytes) -> int:
-    """Log time of a data message (:func:`convert.message_stamp_ms`): its header stamp, or a
-    MarkerArray's first marker's. Raises NoStamp for a MarkerArray without markers."""
+def header_stamp_ms(data: bytes) -> int:
+    """Log time of a message that starts with a std_msgs/Header (Odometry, trajectory)."""
+    return CdrReader(data).stamp_ms()
+
+
+@_typed
+def marker_array_stamp_ms(data: bytes) -> int:
+    """Log time of a MarkerArray: its first marker's header stamp
+    (:func:`convert.message_stamp_ms`). Raises NoStamp for a MarkerArray without markers."""
     reader = CdrReader(data)
-    if topic in (topics.ODOMETRY, topics.TRAJECTORY):
-        return reader.stamp_ms()
     if reader.u32() == 0:
         raise NoStamp("empty MarkerArray carries no stamp")
     return reader.stamp_ms()
@@ -412,20 +418,3 @@ def decode_trajectory(data: bytes, timesteps_per_frame: int) -> Plan:
         keys.append(str(r.stamp_ms() // step))
     r.check_end("MultiDOFJointTrajectory")
     return Plan(keys=tuple(keys), xy=xy, speed=speed)
-
-
-def decode_record(topic: str, data: bytes, timesteps_per_frame: int) -> Any:
-    """The model record a data message's bytes carry (:func:`convert.message_to_record`).
-
-    Raises :class:`CdrError` for bytes that are not a well-formed message of the topic."""
-    if topic == topics.ODOMETRY:
-        return decode_odometry(data)
-    if topic == topics.ACTORS:
-        return decode_actors(data)
-    if topic in (topics.DETECTIONS, topics.GROUND_TRUTH):
-        return decode_boxes(data)
-    if topic in (topics.PREDICTION_RAW, topics.PREDICTION_WITH_PERCEPTION):
-        return decode_predictions(data)
-    if topic == topics.TRAJECTORY:
-        return decode_trajectory(data, timesteps_per_frame)
-    raise UnknownTopic(f"not a data topic: {topic!r}")

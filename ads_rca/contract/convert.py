@@ -1,12 +1,16 @@
-"""Model records ↔ ROS messages, both ways, for every per-frame topic of the contract.
+"""Model records ↔ ROS message objects, both ways, one pair of functions per kind of record.
 
-Pure functions (message packages, no rclpy) so the conversion can be tested without DDS and
-reused by the player, the assembler and future monitor nodes. Geometry goes from the log's
-CARLA world frame (left-handed, degrees) to ROS REP-103 (right-handed, radians, quaternions)
-exactly as the CARLA ROS bridge does: (x, y, z) → (x, −y, z), roll → roll, pitch → −pitch,
-yaw → −yaw. Positions round-trip exactly (negation is exact); angles come back through the
-quaternion to ~1e-12 degrees, wrapped to (−180, 180]. Quaternion math runs in numpy over a
-whole frame. See docs/topics.md for the contract and its limits.
+Pure functions (message packages, imported where a message is built; no rclpy) so the
+conversion can be tested without DDS and reused by the player, the bag writer and the
+assembler. Which topic carries which kind, in which marker namespace and colour, is the
+topic table's business (:mod:`ads_rca.contract.topics`), not this module's.
+
+Geometry goes from the log's CARLA world frame (left-handed, degrees) to ROS REP-103
+(right-handed, radians, quaternions) exactly as the CARLA ROS bridge does: (x, y, z) →
+(x, −y, z), roll → roll, pitch → −pitch, yaw → −yaw. Positions round-trip exactly (negation
+is exact); angles come back through the quaternion to ~1e-12 degrees, wrapped to
+(−180, 180]. Quaternion math runs in numpy over a whole frame. See docs/topics.md for the
+contract and its limits.
 """
 
 from __future__ import annotations
@@ -14,21 +18,22 @@ from __future__ import annotations
 import math
 import zlib
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ads_rca.contract import topics
-from ads_rca.contract.errors import MalformedMessage, NoStamp, UnknownTopic
+from ads_rca.contract.errors import MalformedMessage, NoStamp
 from ads_rca.contract.jsontext import dumps_json, loads_json
-from ads_rca.model import Actors, Boxes, EgoPose, FloatArray, Plan, Predictions, RunLog, Track
+from ads_rca.model import Actors, Boxes, EgoPose, FloatArray, Plan, Predictions, Track
 
 if TYPE_CHECKING:
     from builtin_interfaces.msg import Duration, Time
     from geometry_msgs.msg import Point, Quaternion
     from nav_msgs.msg import Odometry
+    from rosgraph_msgs.msg import Clock
     from sensor_msgs.msg import CameraInfo
-    from std_msgs.msg import ColorRGBA, Header
+    from std_msgs.msg import ColorRGBA, Header, String
     from trajectory_msgs.msg import MultiDOFJointTrajectory
     from visualization_msgs.msg import Marker, MarkerArray
 
@@ -37,21 +42,21 @@ if TYPE_CHECKING:
 INT32_MAX = 2**31 - 1
 _NS_PER_MS = 1_000_000
 
-#: Marker namespaces of the MarkerArray topics.
-MARKER_NS = {
-    topics.ACTORS: "actors",
-    topics.DETECTIONS: "detections",
-    topics.GROUND_TRUTH: "ground_truth",
-    topics.PREDICTION_RAW: "predictions",
-    topics.PREDICTION_WITH_PERCEPTION: "predictions_with_perception",
-}
-_COLORS = {
-    topics.ACTORS: (0.2, 0.6, 1.0),
-    topics.DETECTIONS: (1.0, 0.5, 0.0),
-    topics.GROUND_TRUTH: (0.0, 1.0, 0.0),
-    topics.PREDICTION_RAW: (1.0, 0.0, 1.0),
-    topics.PREDICTION_WITH_PERCEPTION: (0.0, 1.0, 1.0),
-}
+#: Frame ids: the world (poses, actors, plans), the ego body (prediction offsets), the image
+#: (boxes in pixels).
+WORLD_FRAME = "map"
+EGO_FRAME = "base_link"
+IMAGE_FRAME = "camera_image"
+
+
+@dataclass(frozen=True, slots=True)
+class MarkerStyle:
+    """How a MarkerArray topic draws its records: marker namespace and colour (r, g, b).
+
+    Two topics of one kind (detections and ground truth) differ only in this."""
+
+    ns: str
+    color: tuple[float, float, float]
 
 
 # --- time ---------------------------------------------------------------------------------
@@ -149,7 +154,7 @@ def pose_to_odometry(pose: EgoPose, timestamp_ms: int) -> Odometry:
     from nav_msgs.msg import Odometry
 
     q = carla_rpy_to_quaternions(np.array([pose.roll, pose.pitch, pose.yaw]))[0].tolist()
-    msg = Odometry(header=header(timestamp_ms, topics.WORLD_FRAME), child_frame_id=topics.EGO_FRAME)
+    msg = Odometry(header=header(timestamp_ms, WORLD_FRAME), child_frame_id=EGO_FRAME)
     msg.pose.pose = Pose(position=_point(pose.x, -pose.y, pose.z), orientation=_quaternion(q))
     msg.twist.twist.linear.x = float(pose.speed)
     return msg
@@ -182,25 +187,25 @@ def _delete_all(timestamp_ms: int, frame_id: str, ns: str) -> Marker:
     return Marker(header=header(timestamp_ms, frame_id), ns=ns, action=Marker.DELETEALL)
 
 
-def _color(topic: str) -> ColorRGBA:
+def _color(style: MarkerStyle) -> ColorRGBA:
     from std_msgs.msg import ColorRGBA
 
-    r, g, b = _COLORS[topic]
+    r, g, b = style.color
     return ColorRGBA(r=r, g=g, b=b, a=1.0)
 
 
-def actors_to_markers(actors: Actors, timestamp_ms: int) -> MarkerArray:
+def actors_to_markers(actors: Actors, timestamp_ms: int, style: MarkerStyle) -> MarkerArray:
     """Actors → DELETEALL + one CUBE per actor (file order), full size, pose in ``map``."""
     from geometry_msgs.msg import Pose, Vector3
     from visualization_msgs.msg import Marker, MarkerArray
 
-    ns = MARKER_NS[topics.ACTORS]
-    head = header(timestamp_ms, topics.WORLD_FRAME)
-    color = _color(topics.ACTORS)
+    ns = style.ns
+    head = header(timestamp_ms, WORLD_FRAME)
+    color = _color(style)
     quats = carla_rpy_to_quaternions(actors.rotation).tolist()
     locs = (actors.location * np.array([1.0, -1.0, 1.0])).tolist()
     sizes = (2.0 * actors.extent).tolist()
-    markers = [_delete_all(timestamp_ms, topics.WORLD_FRAME, ns)]
+    markers = [_delete_all(timestamp_ms, WORLD_FRAME, ns)]
     for actor_id, loc, q, size in zip(actors.ids, locs, quats, sizes, strict=True):
         markers.append(
             Marker(
@@ -246,7 +251,7 @@ def markers_to_actors(msg: MarkerArray) -> Actors:
 # --- boxes --------------------------------------------------------------------------------
 
 
-def boxes_to_markers(boxes: Boxes, timestamp_ms: int, topic: str) -> MarkerArray:
+def boxes_to_markers(boxes: Boxes, timestamp_ms: int, style: MarkerStyle) -> MarkerArray:
     """Boxes → DELETEALL + one closed LINE_STRIP per box in pixels (``camera_image``).
 
     points[0] and points[2] are the two corners as written; ``text`` is JSON of the id and
@@ -254,10 +259,10 @@ def boxes_to_markers(boxes: Boxes, timestamp_ms: int, topic: str) -> MarkerArray
     """
     from visualization_msgs.msg import MarkerArray
 
-    ns = MARKER_NS[topic]
-    head = header(timestamp_ms, topics.IMAGE_FRAME)
-    color = _color(topic)
-    markers = [_delete_all(timestamp_ms, topics.IMAGE_FRAME, ns)]
+    ns = style.ns
+    head = header(timestamp_ms, IMAGE_FRAME)
+    color = _color(style)
+    markers = [_delete_all(timestamp_ms, IMAGE_FRAME, ns)]
     for index, (box_id, (x1, y1, x2, y2), extras) in enumerate(
         zip(boxes.ids, boxes.corners.tolist(), boxes.extras, strict=True)
     ):
@@ -332,17 +337,19 @@ def markers_to_boxes(msg: MarkerArray) -> Boxes:
 # --- predictions --------------------------------------------------------------------------
 
 
-def predictions_to_markers(predictions: Predictions, timestamp_ms: int, topic: str) -> MarkerArray:
+def predictions_to_markers(
+    predictions: Predictions, timestamp_ms: int, style: MarkerStyle
+) -> MarkerArray:
     """Predictions → DELETEALL + one LINE_STRIP per obstacle of ego-frame offsets (``base_link``).
 
     ``text`` is JSON {"id", "keys"}: the obstacle id and its step keys as written.
     """
     from visualization_msgs.msg import MarkerArray
 
-    ns = MARKER_NS[topic]
-    head = header(timestamp_ms, topics.EGO_FRAME)
-    color = _color(topic)
-    markers = [_delete_all(timestamp_ms, topics.EGO_FRAME, ns)]
+    ns = style.ns
+    head = header(timestamp_ms, EGO_FRAME)
+    color = _color(style)
+    markers = [_delete_all(timestamp_ms, EGO_FRAME, ns)]
     for index, (obstacle_id, track) in enumerate(predictions.items()):
         offsets = (track.offsets * np.array([1.0, -1.0, 1.0])).tolist()
         text = dumps_json({"id": obstacle_id, "keys": list(track.keys)})
@@ -405,7 +412,7 @@ def plan_to_trajectory(
             )
         )
     return MultiDOFJointTrajectory(
-        header=header(timestamp_ms, topics.WORLD_FRAME), joint_names=["ego"], points=points
+        header=header(timestamp_ms, WORLD_FRAME), joint_names=["ego"], points=points
     )
 
 
@@ -432,7 +439,7 @@ def camera_info_message(intrinsics: Intrinsics, timestamp_ms: int) -> CameraInfo
     from sensor_msgs.msg import CameraInfo
 
     return CameraInfo(
-        header=header(timestamp_ms, topics.IMAGE_FRAME),
+        header=header(timestamp_ms, IMAGE_FRAME),
         height=intrinsics.height,
         width=intrinsics.width,
         distortion_model="plumb_bob",
@@ -443,48 +450,29 @@ def camera_info_message(intrinsics: Intrinsics, timestamp_ms: int) -> CameraInfo
     )
 
 
-# --- whole frames ---------------------------------------------------------------------------
+# --- control messages and stamps ------------------------------------------------------------
 
 
-def frame_messages(log: RunLog, timestamp_ms: int) -> dict[str, Any]:
-    """Every data message of one timestamp, keyed by topic key, in FOLDERS order.
+def string_message(text: str) -> String:
+    """std_msgs/String (the JSON topics: metadata, frame markers, status)."""
+    from std_msgs.msg import String
 
-    A folder with no record at ``timestamp_ms`` contributes no message.
-    """
-    out: dict[str, Any] = {}
-    ts = timestamp_ms
-    if (pose := log.pose.get(ts)) is not None:
-        out[topics.ODOMETRY] = pose_to_odometry(pose, ts)
-    if (actors := log.actors.get(ts)) is not None:
-        out[topics.ACTORS] = actors_to_markers(actors, ts)
-    if (boxes := log.bboxes.get(ts)) is not None:
-        out[topics.DETECTIONS] = boxes_to_markers(boxes, ts, topics.DETECTIONS)
-    if (boxes := log.bboxes_gt.get(ts)) is not None:
-        out[topics.GROUND_TRUTH] = boxes_to_markers(boxes, ts, topics.GROUND_TRUTH)
-    if (preds := log.predictions.get(ts)) is not None:
-        out[topics.PREDICTION_RAW] = predictions_to_markers(preds, ts, topics.PREDICTION_RAW)
-    if (preds := log.predictions_with_perception.get(ts)) is not None:
-        out[topics.PREDICTION_WITH_PERCEPTION] = predictions_to_markers(
-            preds, ts, topics.PREDICTION_WITH_PERCEPTION
-        )
-    if (plan := log.waypoints.get(ts)) is not None:
-        out[topics.TRAJECTORY] = plan_to_trajectory(plan, ts, log.tpf)
-    return out
+    return String(data=text)
 
 
-def message_to_record(topic: str, msg: Any, timesteps_per_frame: int) -> Any:
-    """The model record a data message carries (inverse of :func:`frame_messages`)."""
-    if topic == topics.ODOMETRY:
-        return odometry_to_pose(msg)
-    if topic == topics.ACTORS:
-        return markers_to_actors(msg)
-    if topic in (topics.DETECTIONS, topics.GROUND_TRUTH):
-        return markers_to_boxes(msg)
-    if topic in (topics.PREDICTION_RAW, topics.PREDICTION_WITH_PERCEPTION):
-        return markers_to_predictions(msg)
-    if topic == topics.TRAJECTORY:
-        return trajectory_to_plan(msg, timesteps_per_frame)
-    raise UnknownTopic(f"not a data topic: {topic!r}")
+def string_text(msg: String) -> str:
+    return str(msg.data)
+
+
+def clock_message(timestamp_ms: int) -> Clock:
+    """rosgraph_msgs/Clock of a log time."""
+    from rosgraph_msgs.msg import Clock
+
+    return Clock(clock=to_time(timestamp_ms))
+
+
+def clock_ms(msg: Clock) -> int:
+    return from_time(msg.clock)
 
 
 def message_stamp_ms(msg: Any) -> int:

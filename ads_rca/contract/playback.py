@@ -13,14 +13,12 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from ads_rca.contract import topics
-from ads_rca.contract.convert import carried_plan_rows, to_time
+from ads_rca.contract.convert import carried_plan_rows
 from ads_rca.contract.jsontext import dumps_json, loads_json
-from ads_rca.model import FOLDERS, RunLog
+from ads_rca.model import FOLDERS, RunLog, frame_number
 from ads_rca.problems import Problem, problems_from_list
-from ads_rca.verdict import frame_number
 
 if TYPE_CHECKING:
-    from rosgraph_msgs.msg import Clock
     from std_msgs.msg import String
 
 #: Key in the metadata message holding the exact ``metadata.json`` document.
@@ -136,12 +134,6 @@ def status_message(state: str, frames_published: int, **extra: Any) -> String:
     from std_msgs.msg import String
 
     return String(data=dumps_json({"state": state, "frames_published": frames_published, **extra}))
-
-
-def clock_message(timestamp_ms: int) -> Clock:
-    from rosgraph_msgs.msg import Clock
-
-    return Clock(clock=to_time(timestamp_ms))
 
 
 def read_document(msg: String) -> dict[str, Any]:

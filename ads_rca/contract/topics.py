@@ -1,11 +1,19 @@
-"""The topic contract in one place: names, message types and QoS of everything the player sends.
+"""The topic table: every topic the player sends, in one place, and what derives from it.
 
-Nodes, the assembler, the tests and the docs all take topic names from here so that the
-contract (docs/topics.md) cannot drift between publisher and subscribers. The player
-publishes a folder's records on its topic and lists the keys it sent in each ``run/frame``
-marker; monitors and the assembler map the keys back to folders with :data:`TOPIC_FOLDERS`.
-Topic keys are the names relative to the ``topic_namespace`` parameter; ``/clock`` is
-absolute, as ROS wants it.
+One row per topic (:data:`TABLE`): its key, the kind of record it carries (a
+:class:`~ads_rca.contract.codec.Codec`: message type, object and CDR conversions, marker
+style), its QoS and, for a per-frame data topic, the log folder. The folder ↔ topic maps,
+the type names, the QoS map and the whole-frame conversions on both paths
+(:func:`frame_messages`, :func:`frame_payloads`, :func:`message_to_record`,
+:func:`decode_record`, :func:`stamp_ms`) are computed from it, so adding a topic of an
+existing kind is one row, and no other module names a data topic
+(``test/test_codec_table.py``). Nodes, the assembler, the tests and the docs take topic
+names from here so that the contract (docs/topics.md) cannot drift between publisher and
+subscribers. The player publishes a folder's records on its topic and lists the keys it
+sent in each ``run/frame`` marker; monitors and the assembler map the keys back to folders
+with :data:`TOPIC_FOLDERS`. Topic keys are the names relative to the ``topic_namespace``
+parameter; ``/clock`` is absolute, as ROS wants it.
+
 No ROS import at module level: message types are named here as text and
 :func:`message_types` imports the classes on first use; QoS is described with plain data and
 :func:`qos_profile` builds the rclpy profile where a node needs it.
@@ -17,6 +25,12 @@ import importlib
 from dataclasses import dataclass
 from functools import cache
 from typing import TYPE_CHECKING, Any
+
+from ads_rca.contract import codec
+from ads_rca.contract.codec import Codec
+from ads_rca.contract.convert import MarkerStyle
+from ads_rca.contract.errors import UnknownTopic
+from ads_rca.model import RunLog
 
 if TYPE_CHECKING:
     from rclpy.qos import QoSProfile
@@ -36,40 +50,8 @@ FRAME = "run/frame"
 STATUS = "player/status"
 CLOCK = "/clock"
 
-#: Per-frame data topics, keyed by the log folder they carry (in :data:`ads_rca.model.FOLDERS`
-#: order). Their messages are stamped with the frame's log time.
-FOLDER_TOPICS: dict[str, str] = {
-    "pose": ODOMETRY,
-    "actors": ACTORS,
-    "bboxes": DETECTIONS,
-    "bboxes_gt": GROUND_TRUTH,
-    "predictions": PREDICTION_RAW,
-    "predictions_with_perception": PREDICTION_WITH_PERCEPTION,
-    "waypoint": TRAJECTORY,
-}
-#: Data topic key → the log folder it carries.
-TOPIC_FOLDERS: dict[str, str] = {topic: folder for folder, topic in FOLDER_TOPICS.items()}
-DATA_TOPICS: tuple[str, ...] = tuple(FOLDER_TOPICS.values())
-
-
-#: Message type of every topic key, as its ROS name (``package/msg/Type``).
-MESSAGE_TYPE_NAMES: dict[str, str] = {
-    METADATA: "std_msgs/msg/String",
-    ODOMETRY: "nav_msgs/msg/Odometry",
-    ACTORS: "visualization_msgs/msg/MarkerArray",
-    DETECTIONS: "visualization_msgs/msg/MarkerArray",
-    GROUND_TRUTH: "visualization_msgs/msg/MarkerArray",
-    PREDICTION_RAW: "visualization_msgs/msg/MarkerArray",
-    PREDICTION_WITH_PERCEPTION: "visualization_msgs/msg/MarkerArray",
-    TRAJECTORY: "trajectory_msgs/msg/MultiDOFJointTrajectory",
-    FRAME: "std_msgs/msg/String",
-    STATUS: "std_msgs/msg/String",
-    CLOCK: "rosgraph_msgs/msg/Clock",
-}
-ALL_TOPICS: tuple[str, ...] = tuple(MESSAGE_TYPE_NAMES)
-
 # The camera for 3D viewers (ads_rca/contract/camera.py): sent once per run, latched, after
-# run/metadata. Kept out of ALL_TOPICS (which every player, recorder and assembler imports
+# run/metadata. Kept out of the TABLE (which every player, recorder and assembler imports
 # the classes of): tf2_msgs has no wheel, so the player sends /tf_static only where it is
 # installed, and CameraInfo only when the log gives the intrinsics.
 TF_STATIC = "/tf_static"
@@ -78,22 +60,6 @@ CAMERA_TYPE_NAMES: dict[str, str] = {
     TF_STATIC: "tf2_msgs/msg/TFMessage",
     CAMERA_INFO: "sensor_msgs/msg/CameraInfo",
 }
-
-
-@cache
-def message_types() -> dict[str, type[Any]]:
-    """Message class of every topic key (imported here, on first use, not at module import)."""
-    out: dict[str, type[Any]] = {}
-    for key, name in MESSAGE_TYPE_NAMES.items():
-        package, _, cls = name.split("/")
-        out[key] = getattr(importlib.import_module(f"{package}.msg"), cls)
-    return out
-
-
-# Frame ids.
-WORLD_FRAME = "map"
-EGO_FRAME = "base_link"
-IMAGE_FRAME = "camera_image"
 
 
 @dataclass(frozen=True, slots=True)
@@ -115,9 +81,131 @@ LATCHED_QOS = QoSSpec(depth=1, latched=True)
 #: History depth of a lossless reader of a latched topic (see :func:`qos_profile`).
 LATCHED_READER_DEPTH = 100
 
-QOS: dict[str, QoSSpec] = {
-    topic: (LATCHED_QOS if topic in (METADATA, STATUS) else DATA_QOS) for topic in ALL_TOPICS
-} | {topic: LATCHED_QOS for topic in CAMERA_TYPE_NAMES}
+
+@dataclass(frozen=True, slots=True)
+class Topic:
+    """One row of the table: a topic key, the kind of record it carries and how.
+
+    ``folder``: the log folder (a name in :data:`ads_rca.model.FOLDERS`) whose records a
+    per-frame data topic carries, stamped with their log time; None for the player's own
+    topics."""
+
+    key: str
+    codec: Codec[Any]
+    qos: QoSSpec = DATA_QOS
+    folder: str | None = None
+
+
+#: THE topic table: every topic the player sends, in publishing order (the data topics in
+#: :data:`ads_rca.model.FOLDERS` order). Everything below derives from it.
+TABLE: tuple[Topic, ...] = (
+    Topic(METADATA, codec.TEXT, LATCHED_QOS),
+    Topic(ODOMETRY, codec.POSE, folder="pose"),
+    Topic(ACTORS, codec.actors(MarkerStyle("actors", (0.2, 0.6, 1.0))), folder="actors"),
+    Topic(
+        DETECTIONS,
+        codec.boxes(MarkerStyle("detections", (1.0, 0.5, 0.0))),
+        folder="bboxes",
+    ),
+    Topic(
+        GROUND_TRUTH,
+        codec.boxes(MarkerStyle("ground_truth", (0.0, 1.0, 0.0))),
+        folder="bboxes_gt",
+    ),
+    Topic(
+        PREDICTION_RAW,
+        codec.predictions(MarkerStyle("predictions", (1.0, 0.0, 1.0))),
+        folder="predictions",
+    ),
+    Topic(
+        PREDICTION_WITH_PERCEPTION,
+        codec.predictions(MarkerStyle("predictions_with_perception", (0.0, 1.0, 1.0))),
+        folder="predictions_with_perception",
+    ),
+    Topic(TRAJECTORY, codec.PLAN, folder="waypoint"),
+    Topic(FRAME, codec.TEXT),
+    Topic(STATUS, codec.TEXT, LATCHED_QOS),
+    Topic(CLOCK, codec.CLOCK),
+)
+
+#: Topic key → its row.
+TOPICS: dict[str, Topic] = {topic.key: topic for topic in TABLE}
+ALL_TOPICS: tuple[str, ...] = tuple(TOPICS)
+#: The per-frame data topics' rows, in :data:`ads_rca.model.FOLDERS` order.
+DATA: tuple[Topic, ...] = tuple(topic for topic in TABLE if topic.folder is not None)
+DATA_TOPICS: tuple[str, ...] = tuple(topic.key for topic in DATA)
+#: The player's JSON topics (metadata, frame markers, status): std_msgs/String text.
+TEXT_TOPICS: frozenset[str] = frozenset(t.key for t in TABLE if t.codec is codec.TEXT)
+#: Log folder → the data topic key that carries it, and back.
+FOLDER_TOPICS: dict[str, str] = {str(topic.folder): topic.key for topic in DATA}
+TOPIC_FOLDERS: dict[str, str] = {topic: folder for folder, topic in FOLDER_TOPICS.items()}
+#: Message type of every topic key, as its ROS name (``package/msg/Type``).
+MESSAGE_TYPE_NAMES: dict[str, str] = {topic.key: topic.codec.type_name for topic in TABLE}
+QOS: dict[str, QoSSpec] = {topic.key: topic.qos for topic in TABLE} | {
+    topic: LATCHED_QOS for topic in CAMERA_TYPE_NAMES
+}
+
+
+@cache
+def message_types() -> dict[str, type[Any]]:
+    """Message class of every topic key (imported here, on first use, not at module import)."""
+    out: dict[str, type[Any]] = {}
+    for key, name in MESSAGE_TYPE_NAMES.items():
+        package, _, cls = name.split("/")
+        out[key] = getattr(importlib.import_module(f"{package}.msg"), cls)
+    return out
+
+
+# --- whole frames, both paths ------------------------------------------------------------------
+
+
+def frame_messages(log: RunLog, timestamp_ms: int) -> dict[str, Any]:
+    """Every data message object of one timestamp, keyed by topic key, in FOLDERS order.
+
+    A folder with no record at ``timestamp_ms`` contributes no message."""
+    out: dict[str, Any] = {}
+    for topic in DATA:
+        record = log.folder(str(topic.folder)).get(timestamp_ms)
+        if record is not None:
+            out[topic.key] = topic.codec.build(record, timestamp_ms, log.tpf)
+    return out
+
+
+def frame_payloads(log: RunLog, timestamp_ms: int) -> dict[str, bytes]:
+    """The CDR bytes of :func:`frame_messages` (the fast path), byte for byte what rclpy
+    serialises from the objects."""
+    out: dict[str, bytes] = {}
+    for topic in DATA:
+        record = log.folder(str(topic.folder)).get(timestamp_ms)
+        if record is not None:
+            out[topic.key] = topic.codec.encode(record, timestamp_ms, log.tpf)
+    return out
+
+
+def _data(key: str) -> Topic:
+    topic = TOPICS.get(key)
+    if topic is None or topic.folder is None:
+        raise UnknownTopic(f"not a data topic: {key!r}")
+    return topic
+
+
+def message_to_record(key: str, msg: Any, timesteps_per_frame: int) -> Any:
+    """The model record a data message object carries (inverse of :func:`frame_messages`)."""
+    return _data(key).codec.read(msg, timesteps_per_frame)
+
+
+def decode_record(key: str, data: bytes, timesteps_per_frame: int) -> Any:
+    """The model record a data message's CDR bytes carry; CdrError for bytes that are not a
+    well-formed message of the topic."""
+    return _data(key).codec.decode(data, timesteps_per_frame)
+
+
+def stamp_ms(key: str, data: bytes) -> int:
+    """Log time of a data message's CDR bytes (NoStamp: a MarkerArray without markers)."""
+    stamp = _data(key).codec.stamp
+    if stamp is None:
+        raise UnknownTopic(f"topic {key!r} carries no stamp")
+    return stamp(data)
 
 
 def normalise_namespace(namespace: str) -> str:

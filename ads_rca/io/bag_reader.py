@@ -34,7 +34,6 @@ from rosbags.serde import SerdeError
 
 from ads_rca.contract import rosmsg, topics
 from ads_rca.contract.assembler import RunLogAssembler
-from ads_rca.contract.convert import message_to_record
 from ads_rca.contract.errors import MalformedMessage
 from ads_rca.errors import InputError
 from ads_rca.io.bag_storage import (
@@ -437,7 +436,7 @@ def _add_message(
     try:
         msg = rosmsg.deserialize(message.data, expected)
         if key in topics.DATA_TOPICS:
-            message_to_record(key, msg, 1)
+            topics.message_to_record(key, msg, 1)
         assembler.add(key, msg)
     except _DECODE_ERRORS as error:
         detail = str(error).splitlines()[0] if str(error) else type(error).__name__

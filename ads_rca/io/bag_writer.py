@@ -17,11 +17,10 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from ads_rca.contract import rosmsg, topics
-from ads_rca.contract.convert import frame_messages
+from ads_rca.contract.convert import clock_message
 from ads_rca.contract.playback import (
     FINISHED,
     PLAYING,
-    clock_message,
     dropped_plan_keys,
     frame_marker,
     metadata_message,
@@ -107,7 +106,7 @@ def playback_messages(log: RunLog) -> Iterator[tuple[str, int, Any]]:
     for tick in ticks:
         last = max(last, tick.stamp_ms * _NS_PER_MS)
         yield topics.CLOCK, last, clock_message(tick.stamp_ms)
-        messages = frame_messages(log, tick.stamp_ms)
+        messages = topics.frame_messages(log, tick.stamp_ms)
         for key, msg in messages.items():
             yield key, last, msg
         marker_extra = {}

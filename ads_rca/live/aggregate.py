@@ -29,17 +29,18 @@ import numpy as np
 from ads_rca.engine import Diagnosis
 from ads_rca.live.results import (
     Columns,
+    FollowsRunEnd,
     FrameMarker,
     LiveResult,
     ResultStore,
     RunEnd,
 )
-from ads_rca.model import RunLog, RunMetadata
+from ads_rca.model import RunLog, RunMetadata, frame_number
 from ads_rca.oracles.base import MODULES, Module, RunContext
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import Params
 from ads_rca.problems import Problem, ProblemLog, new_problems
-from ads_rca.verdict import FrameResults, frame_number
+from ads_rca.verdict import FrameResults
 
 
 @dataclass
@@ -59,7 +60,7 @@ class _Expected:
     arrived: float
 
 
-class AggregatorCore:
+class AggregatorCore(FollowsRunEnd):
     """Feed markers, metadata and results; :meth:`poll` returns the verdict once."""
 
     def __init__(
@@ -131,14 +132,6 @@ class AggregatorCore:
         not order the status after the last markers)."""
         self.last_input = now
         self.end.end(frames_published)
-
-    @property
-    def finished(self) -> bool:
-        return self.end.finished
-
-    @property
-    def markers_received(self) -> int:
-        return self.end.markers_received
 
     def add_result(self, result: LiveResult, now: float) -> None:
         self.last_input = now

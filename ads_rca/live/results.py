@@ -19,6 +19,7 @@ import numpy as np
 
 from ads_rca.contract.errors import DOCUMENT_ERRORS, MalformedMessage
 from ads_rca.contract.topics import TOPIC_FOLDERS
+from ads_rca.live.runid import RunFilter, document_run
 from ads_rca.oracles.base import MODULES, Module, OracleResult
 from ads_rca.problems import Problem, problems_from_list
 
@@ -144,6 +145,16 @@ class LiveResult:
         )
 
 
+def collision_frame(document: Mapping[str, Any], runs: RunFilter) -> int | None:
+    """The frame a ``run/collision`` event sets, or None: an event naming another run is
+    ignored, one naming no run (a live stack's own event) is taken; the monitors and the
+    aggregator read the event by this one rule."""
+    if document_run(document) is not None and not runs.accept(document):
+        return None
+    frame = document.get("frame")
+    return frame if isinstance(frame, int) else None
+
+
 @dataclass
 class RunEnd:
     """When the player's end counts, for a node that receives its markers.
@@ -170,6 +181,21 @@ class RunEnd:
     def _update(self) -> None:
         if self._announced is not None and self.markers_received >= self._announced:
             self.finished = True
+
+
+class FollowsRunEnd:
+    """A node core that follows the player's end (monitor window, aggregator): its
+    ``finished`` and ``markers_received`` are its :class:`RunEnd`'s."""
+
+    end: RunEnd
+
+    @property
+    def finished(self) -> bool:
+        return self.end.finished
+
+    @property
+    def markers_received(self) -> int:
+        return self.end.markers_received
 
 
 def plain(value: Any) -> Any:

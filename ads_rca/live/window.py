@@ -43,13 +43,12 @@ from typing import Any
 import numpy as np
 
 from ads_rca.engine import evaluate_frame
-from ads_rca.live.results import FrameMarker, LiveResult, RunEnd
-from ads_rca.model import FloatArray, RunLog, RunMetadata
+from ads_rca.live.results import FollowsRunEnd, FrameMarker, LiveResult, RunEnd
+from ads_rca.model import FloatArray, RunLog, RunMetadata, frame_number
 from ads_rca.oracles.base import MODULES, Module, RunContext
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import Params
 from ads_rca.problems import Problem, ProblemLog, new_problems
-from ads_rca.verdict import frame_number
 
 
 @dataclass
@@ -82,7 +81,7 @@ class _Stats:
     compute_s: list[float] = field(default_factory=list)
 
 
-class MonitorCore:
+class MonitorCore(FollowsRunEnd):
     """The window and scheduler of one module (or several judged together); feed it, then
     :meth:`poll` for new results (one per module and frame, in frame order)."""
 
@@ -182,14 +181,6 @@ class MonitorCore:
         frames when inputs stall, marked incomplete)."""
         self._touch(now)
         self.end.end(frames_published)
-
-    @property
-    def finished(self) -> bool:
-        return self.end.finished
-
-    @property
-    def markers_received(self) -> int:
-        return self.end.markers_received
 
     def _touch(self, now: float) -> None:
         self.last_input = now

@@ -28,7 +28,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from std_msgs.msg import String
 
-from ads_rca.contract import topics
+from ads_rca.contract import live_topics, topics
 from ads_rca.contract.assembler import run_metadata
 from ads_rca.contract.errors import MalformedMessage
 from ads_rca.contract.jsontext import loads_json
@@ -39,21 +39,21 @@ from ads_rca.contract.playback import (
     read_input_problems,
 )
 from ads_rca.errors import AdsRcaError
+from ads_rca.live import diagnostics as diag
 from ads_rca.live.aggregate import AggregatorCore, VerdictOutcome
-from ads_rca.live.results import FrameMarker, LiveResult
+from ads_rca.live.results import FrameMarker, LiveResult, collision_frame
+from ads_rca.live.runid import RUN_KEY, RunFilter, checked_run_id
 from ads_rca.oracles.base import MODULES, Module
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.paramspec import SECONDS
-from ads_rca.ros import diagnostics as diag
-from ads_rca.ros import live_topics
-from ads_rca.ros.nodemain import run_node, wait_for_acks
+from ads_rca.ros.diagnostics import array as diagnostic_array
+from ads_rca.ros.nodemain import run_node, subscribe_ready, wait_for_acks
 from ads_rca.ros.nodeparams import (
     NodeParameter,
     declare_engine_parameters,
     declare_node_parameters,
     log_in_force,
 )
-from ads_rca.ros.runid import RUN_KEY, RunFilter, checked_run_id, document_run, subscribe_ready
 from ads_rca.summary import window_text
 
 PARAMETERS: dict[str, NodeParameter] = {
@@ -72,7 +72,10 @@ PARAMETERS: dict[str, NodeParameter] = {
         SECONDS,
     ),
     "stale_timeout_s": (2.0, "A monitor silent this long is reported STALE.", SECONDS),
-    "run_id": ("", "Attribute only this run ('' = the first run heard of); see ads_rca.ros.runid."),
+    "run_id": (
+        "",
+        "Attribute only this run ('' = the first run heard of); see ads_rca.live.runid.",
+    ),
     "exit_after_verdict": (
         False,
         "Exit (status 0) once every subscriber acknowledged the published verdict.",
@@ -220,14 +223,11 @@ class Aggregator(Node):
 
     def _on_collision(self, msg: String) -> None:
         try:
-            document = read_document(msg)
+            frame = collision_frame(read_document(msg), self.runs)
         except MalformedMessage as error:
             self._skip(live_topics.COLLISION, error, time.monotonic())
             return
-        if document_run(document) is not None and not self.runs.accept(document):
-            return  # another run's event (an event naming no run is a stack's: taken)
-        frame = document.get("frame")
-        if isinstance(frame, int):
+        if frame is not None:
             self.core.set_collision(frame, time.monotonic())
 
     def _on_diagnostics(self, data: bytes) -> None:
@@ -265,7 +265,7 @@ class Aggregator(Node):
                     )
                 )
         if statuses:
-            self.diag_pub.publish(diag.array(self.get_clock().now().to_msg(), statuses))
+            self.diag_pub.publish(diagnostic_array(self.get_clock().now().to_msg(), statuses))
 
     def _poll(self) -> None:
         outcome = self.core.poll(time.monotonic())
@@ -278,10 +278,12 @@ class Aggregator(Node):
         text = json.dumps(document, indent=1, allow_nan=False)
         stamp = self.get_clock().now().to_msg()
         self.verdict_pub.publish(
-            diag.array(stamp, [diag.verdict_status(document, self.hardware_id)])
+            diagnostic_array(stamp, [diag.verdict_status(document, self.hardware_id)])
         )
         self.json_pub.publish(String(data=text))
-        self.diag_pub.publish(diag.array(stamp, [diag.verdict_status(document, self.hardware_id)]))
+        self.diag_pub.publish(
+            diagnostic_array(stamp, [diag.verdict_status(document, self.hardware_id)])
+        )
         if self.verdict_json:
             path = Path(self.verdict_json)
             path.parent.mkdir(parents=True, exist_ok=True)

@@ -1,7 +1,7 @@
 """Which ROS domain ids are in use on this machine, and a free one for a new graph.
 
 Why: a graph that shares its domain with another sees its topics (``replay`` keeps to its
-own run anyway, see :mod:`ads_rca.ros.runid`, but a quiet domain also spares both sides the
+own run anyway, see :mod:`ads_rca.live.runid`, but a quiet domain also spares both sides the
 discovery traffic). Under the loopback-only rule every participant we could meet runs on
 this host, and every RTPS participant (Fast DDS, Cyclone DDS, Connext) binds the unicast
 UDP ports of its domain's block, ``7400 + 250 * domain + 10 ...``: a domain whose block has

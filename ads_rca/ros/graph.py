@@ -31,10 +31,10 @@ from typing import Any, TextIO
 from ads_rca.contract import topics
 from ads_rca.errors import InputError
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB
+from ads_rca.live.runid import new_run_id
 from ads_rca.oracles.base import MODULES, Module
 from ads_rca.params import SEMANTICS, Params, load_config, params_from_sources
 from ads_rca.ros.launcher import Launcher, ManagedProcess, ParamValue, ros_args
-from ads_rca.ros.runid import new_run_id
 
 PLAYER = "ads_rca.ros.player"
 AGGREGATOR = "ads_rca.ros.aggregator"
@@ -91,7 +91,7 @@ class GraphSpec:
     #: The aggregator exits 0 once its verdict is acknowledged (the launch file's end of run).
     exit_after_verdict: bool = False
     #: Every node of the graph is given this run id, so it ignores any other run that
-    #: shares its domain and namespace (see ads_rca.ros.runid).
+    #: shares its domain and namespace (see ads_rca.live.runid).
     run_id: str = field(default_factory=new_run_id)
 
     def __post_init__(self) -> None:

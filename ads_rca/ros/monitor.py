@@ -13,7 +13,7 @@ goes STALE when inputs stop (no message for ``stale_timeout_s`` before the playe
 
 Subscriptions use the lossless QoS of the contract (RELIABLE + KEEP_ALL) so a player at rate
 0 waits for us. Data that arrives before the (latched) metadata is queued (at most 64 MiB,
-:mod:`ads_rca.ros.early_queue`): converting a trajectory needs the frame period.
+:mod:`ads_rca.live.early_queue`): converting a trajectory needs the frame period.
 
 Three pieces: a :class:`Monitor` node per module (its publishers, heartbeat and STALE
 status), a :class:`MonitorUnit` (one window, ``MonitorCore``, judging one or more modules,
@@ -36,10 +36,9 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
-from ads_rca.contract import topics
+from ads_rca.contract import live_topics, topics
 from ads_rca.contract.assembler import run_metadata
 from ads_rca.contract.cdr import encode_joint_state, encode_string
-from ads_rca.contract.cdr_decode import decode_record, stamp_ms
 from ads_rca.contract.errors import CdrError, MalformedMessage, NoStamp
 from ads_rca.contract.jsontext import dumps_json
 from ads_rca.contract.malformed import SkippedMessages
@@ -49,30 +48,24 @@ from ads_rca.contract.playback import (
     read_input_problems,
 )
 from ads_rca.errors import InputError
+from ads_rca.live import diagnostics as diag
+from ads_rca.live.early_queue import EarlyQueue
 from ads_rca.live.numeric import NumericLayout
-from ads_rca.live.results import FrameMarker, LiveResult
+from ads_rca.live.results import FrameMarker, LiveResult, collision_frame
+from ads_rca.live.runid import RUN_KEY, RunFilter, checked_run_id
 from ads_rca.live.window import MonitorCore, WindowSettings
 from ads_rca.model import RunMetadata
 from ads_rca.oracles.base import Module
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.paramspec import SECONDS, Range
-from ads_rca.ros import diagnostics as diag
-from ads_rca.ros import live_topics
-from ads_rca.ros.early_queue import EarlyQueue
+from ads_rca.ros.diagnostics import array as diagnostic_array
 from ads_rca.ros.graph import GROUP, MONITORS
-from ads_rca.ros.nodemain import run_node
+from ads_rca.ros.nodemain import run_node, subscribe_ready
 from ads_rca.ros.nodeparams import (
     NodeParameter,
     declare_engine_parameters,
     declare_node_parameters,
     log_in_force,
-)
-from ads_rca.ros.runid import (
-    RUN_KEY,
-    RunFilter,
-    checked_run_id,
-    document_run,
-    subscribe_ready,
 )
 
 PARAMETERS: dict[str, NodeParameter] = {
@@ -107,7 +100,7 @@ PARAMETERS: dict[str, NodeParameter] = {
         "Publish on /diagnostics one status per judged batch: its latest frame, with the "
         "counts judged and failed since the previous status.",
     ),
-    "run_id": ("", "Judge only this run ('' = the first run heard of); see ads_rca.ros.runid."),
+    "run_id": ("", "Judge only this run ('' = the first run heard of); see ads_rca.live.runid."),
 }
 
 
@@ -213,7 +206,7 @@ class Monitor(Node):
             self._stale_since_report = True
         else:
             self._stale_since_report = False
-        self.diag_pub.publish(diag.array(self.get_clock().now().to_msg(), statuses))
+        self.diag_pub.publish(diagnostic_array(self.get_clock().now().to_msg(), statuses))
 
 
 class MonitorUnit:
@@ -278,7 +271,7 @@ class MonitorInputs:
     Subscribes (on ``node``) to the topics the unit's modules read and decodes each data
     message once into a model record; markers, metadata, the player's status and a live
     collision are handed over as they come. Messages of another run are dropped
-    (:class:`~ads_rca.ros.runid.RunFilter`: the run field of JSON messages, the writer's
+    (:class:`~ads_rca.live.runid.RunFilter`: the run field of JSON messages, the writer's
     participant for data), so callbacks take the MessageInfo too. A message that cannot be
     read (bytes that are not its type, JSON that is not a document of the contract) is
     skipped and said (:class:`~ads_rca.contract.malformed.SkippedMessages`); a data message is
@@ -316,7 +309,7 @@ class MonitorInputs:
 
     def _callback(self, key: str) -> Any:
         core = self.unit.core
-        player = key in (topics.METADATA, topics.FRAME, topics.STATUS)
+        player = key in topics.TEXT_TOPICS
 
         def on_message(msg: Any, info: Any) -> None:
             now = time.monotonic()
@@ -373,8 +366,8 @@ class MonitorInputs:
     def _add_data(self, key: str, data: bytes, now: float) -> None:
         assert self._metadata is not None
         try:
-            stamp = stamp_ms(key, data)
-            record = decode_record(key, data, self._metadata.timesteps_per_frame)
+            stamp = topics.stamp_ms(key, data)
+            record = topics.decode_record(key, data, self._metadata.timesteps_per_frame)
         except NoStamp:  # a MarkerArray without markers carries no stamp
             return
         except CdrError as error:
@@ -391,14 +384,11 @@ class MonitorInputs:
 
     def _on_collision(self, msg: String) -> None:
         try:
-            document = read_document(msg)
+            frame = collision_frame(read_document(msg), self.runs)
         except MalformedMessage as error:
             self._skip(live_topics.COLLISION, error, time.monotonic())
             return
-        if document_run(document) is not None and not self.runs.accept(document):
-            return  # another run's event (an event naming no run is a stack's: taken)
-        frame = document.get("frame")
-        if isinstance(frame, int) and self.unit.core.set_collision(frame, time.monotonic()):
+        if frame is not None and self.unit.core.set_collision(frame, time.monotonic()):
             self.unit.logger.info(f"collision at frame {frame}: judging held frames again")
 
 

@@ -37,6 +37,7 @@ from rclpy.publisher import Publisher
 from rclpy.signals import SignalHandlerOptions
 from rclpy.subscription import RCLError
 
+from ads_rca.contract import live_topics, topics
 from ads_rca.errors import AdsRcaError
 from ads_rca.ros.env import domain_id_problem, node_warnings, use_node_profile
 from ads_rca.ros.lifeline import die_with_parent
@@ -179,3 +180,18 @@ def run_node(
             node.destroy_node()
         rclpy.try_shutdown()
         ignore_stop_signals()
+
+
+def subscribe_ready(node: Node, namespace: str, run_id: str) -> None:
+    """Be counted by the player of run ``run_id`` before it plays (nothing if no run id;
+    see :func:`ads_rca.contract.live_topics.ready_key`)."""
+    if not run_id:
+        return
+    from std_msgs.msg import String
+
+    name = topics.topic_name(live_topics.ready_key(run_id), namespace)
+    node.create_subscription(String, name, _ignore, 1)
+
+
+def _ignore(msg: object) -> None:
+    """Nothing is ever published on the ready topic."""

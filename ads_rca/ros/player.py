@@ -24,15 +24,14 @@ from rclpy.subscription import RCLError
 from sensor_msgs.msg import CameraInfo
 from std_msgs.msg import String
 
-from ads_rca.contract import topics
+from ads_rca.contract import live_topics, topics
 from ads_rca.contract.camera import camera_intrinsics, camera_mount
-from ads_rca.contract.cdr import encode_clock, encode_string, encode_tf_message, frame_payloads
-from ads_rca.contract.convert import camera_info_message, frame_messages
+from ads_rca.contract.cdr import encode_clock, encode_string, encode_tf_message
+from ads_rca.contract.convert import camera_info_message, clock_message
 from ads_rca.contract.playback import (
     FINISHED,
     PLAYING,
     Tick,
-    clock_message,
     dropped_plan_keys,
     frame_marker,
     metadata_message,
@@ -43,9 +42,9 @@ from ads_rca.contract.playback import (
 )
 from ads_rca.errors import AdsRcaError, ConfigError
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB
+from ads_rca.live.runid import checked_run_id, new_run_id
 from ads_rca.model import RunLog
 from ads_rca.paramspec import MAX_FILE_MB, RATE, SECONDS, Range
-from ads_rca.ros import live_topics
 from ads_rca.ros.nodemain import (
     ignore_stop_signals,
     keep_running,
@@ -54,7 +53,6 @@ from ads_rca.ros.nodemain import (
     wait_for_acks,
 )
 from ads_rca.ros.nodeparams import NodeParameter, declare_node_parameters, log_in_force
-from ads_rca.ros.runid import checked_run_id, new_run_id
 from ads_rca.text import printable
 
 #: A tick may carry a few extra stamps; 40 frames stay far below the 100-message history.
@@ -329,9 +327,9 @@ class Player(Node):
             self.pubs[topics.CLOCK].publish(encode_clock(stamp) if fast else clock_message(stamp))
         # Same topics, order and bytes either way; the fast path skips rclpy message objects.
         messages: dict[str, Any] = (
-            frame_payloads(self.log, tick.stamp_ms)
+            topics.frame_payloads(self.log, tick.stamp_ms)
             if fast
-            else frame_messages(self.log, tick.stamp_ms)
+            else topics.frame_messages(self.log, tick.stamp_ms)
         )
         for key, msg in messages.items():
             self.pubs[key].publish(msg)

@@ -32,20 +32,25 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.serialization import deserialize_message
 from std_msgs.msg import String
 
-from ads_rca.contract import rosmsg, topics
+from ads_rca.contract import live_topics, rosmsg, topics
 from ads_rca.contract.assembler import RunLogAssembler
 from ads_rca.contract.errors import UnknownMessageType
 from ads_rca.contract.jsontext import loads_json
 from ads_rca.errors import AdsRcaError, ConfigError
 from ads_rca.io.bag_writer import contract_qos_yaml
 from ads_rca.io.mcap_writer import COMPRESSIONS, DEFAULT_CHUNK_SIZE, McapBagWriter, qos_yaml
+from ads_rca.live.diagnostics import status_runs
+from ads_rca.live.runid import checked_run_id, document_run, writer_prefix
 from ads_rca.paramspec import SECONDS, Range
-from ads_rca.ros import live_topics
-from ads_rca.ros.diagnostics import status_runs
 from ads_rca.ros.env import ros_distro
-from ads_rca.ros.nodemain import ignore_stop_signals, keep_running, start_process, stop_requested
+from ads_rca.ros.nodemain import (
+    ignore_stop_signals,
+    keep_running,
+    start_process,
+    stop_requested,
+    subscribe_ready,
+)
 from ads_rca.ros.nodeparams import NodeParameter, declare_node_parameters, log_in_force
-from ads_rca.ros.runid import checked_run_id, document_run, subscribe_ready, writer_prefix
 
 PARAMETERS: dict[str, NodeParameter] = {
     "output": ("", "Bag directory to create (required; must be new or empty)."),
@@ -69,10 +74,9 @@ PARAMETERS: dict[str, NodeParameter] = {
         "Stop after this many seconds (0 = never).",
         Range(0.0, 604_800.0, unit="s"),
     ),
-    "run_id": ("", "Record only this run ('' = everything); see ads_rca.ros.runid."),
+    "run_id": ("", "Record only this run ('' = everything); see ads_rca.live.runid."),
 }
 _IGNORED = {"/rosout", "/parameter_events"}
-_STRING_TOPICS = {topics.METADATA, topics.FRAME, topics.STATUS}
 _STRING_TYPE = "std_msgs/msg/String"
 _DIAGNOSTICS_TYPE = "diagnostic_msgs/msg/DiagnosticArray"
 #: Messages held at most while their sender's run is not known yet (then: not recorded).
@@ -307,7 +311,7 @@ class Recorder(Node):
         key = self.keys.get(name)
         if key is None:
             return
-        if key in _STRING_TOPICS:
+        if key in topics.TEXT_TOPICS:
             self.progress.add(key, deserialize_message(data, String))
         else:
             self.progress.received[key] += 1

@@ -1,7 +1,8 @@
 """Names and QoS of the live graph's own topics (monitors, aggregator, collision events).
 
 Kept apart from the player's contract (``topics.py``) because these are outputs of the
-analysis, not log data. Relative names live under ``topic_namespace`` like the contract's.
+analysis, not log data. No rclpy import at module level: the QoS functions import it when a
+node calls them. Relative names live under ``topic_namespace`` like the contract's.
 
 - ``metrics/<module>`` (std_msgs/String; RELIABLE, TRANSIENT_LOCAL, KEEP_LAST 5000): JSON of
   one :class:`~ads_rca.live.results.LiveResult` per judged frame;
@@ -27,7 +28,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from ads_rca.contract.topics import topic_name
-from ads_rca.oracles.base import MODULES, Module
+from ads_rca.verdict import MODULES, Module
 
 if TYPE_CHECKING:
     from rclpy.qos import QoSProfile
@@ -39,7 +40,7 @@ DIAGNOSTICS = "/diagnostics"
 METRICS_DEPTH = 5000
 
 
-def metrics_key(module: Module | str) -> str:
+def metrics_key(module: str) -> str:
     return f"metrics/{module}"
 
 

@@ -14,7 +14,8 @@ A node given a ``run_id`` accepts that run only; without one it locks onto the f
 hears of. Messages that carry no run at all (hand-made tools, older players) are accepted
 while no run is known, so a single-run graph behaves as before.
 
-Pure Python: no rclpy import (``MessageInfo`` is a plain dict).
+Pure Python: no rclpy import (``MessageInfo`` is a plain dict); a node subscribes to its
+run's ready topic with :func:`ads_rca.ros.nodemain.subscribe_ready`.
 """
 
 from __future__ import annotations
@@ -123,23 +124,3 @@ class RunFilter:
         ok = prefix is None or prefix == self.player
         self.rejected += not ok
         return ok
-
-
-def subscribe_ready(node: Any, namespace: str, run_id: str) -> None:
-    """Be counted by the player of run ``run_id`` before it plays (nothing if no run id).
-
-    ``node`` is an rclpy Node; see ``live_topics.ready_key``.
-    """
-    if not run_id:
-        return
-    from std_msgs.msg import String
-
-    from ads_rca.contract import topics
-    from ads_rca.ros import live_topics
-
-    name = topics.topic_name(live_topics.ready_key(run_id), namespace)
-    node.create_subscription(String, name, _ignore, 1)
-
-
-def _ignore(msg: Any) -> None:
-    """Nothing is ever published on the ready topic."""

@@ -1,0 +1,218 @@
+"""``diagnostic_msgs`` for the live graph: a module's latest judged frame, STALE, the verdict.
+
+ROS conventions (REP-107 style, as ``diagnostic_updater`` does): status ``name``
+``ads_rca/<module>``, a ``hardware_id``, level OK / WARN / ERROR / STALE, a short message, and
+every number in ``values`` as key/value strings. Nested metrics are flattened to
+``parent.child`` keys; lists are JSON text. Pure: no rclpy, no message package.
+
+Tools that read ``/diagnostics`` (rqt_robot_monitor, diagnostic_aggregator, Foxglove's
+Diagnostics panel) key statuses by name and keep the last one of an array, so an array holds
+at most one status per name: a monitor's batch of judged frames becomes one status, its
+latest frame, with how many were judged and failed since the previous one
+(:func:`batch_status`). The frame-by-frame history is on the ``metrics/<module>`` topics.
+
+Statuses are plain :class:`Status` values; :func:`encode_array` writes a DiagnosticArray's
+CDR bytes directly, for the monitors' statuses (a 40-value status as rclpy objects cost the
+monitor more than judging the frame), and :func:`status_runs` reads the names and runs back
+from bytes. The rclpy message (the verdict, heartbeats) is built by
+:func:`ads_rca.ros.diagnostics.array`.
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, replace
+from typing import Any
+
+from ads_rca.contract.cdr import CdrWriter
+from ads_rca.contract.cdr_decode import CdrReader
+from ads_rca.contract.errors import CdrError
+from ads_rca.contract.jsontext import dumps_json
+from ads_rca.live.results import LiveResult, plain
+from ads_rca.live.runid import RUN_KEY
+
+#: diagnostic_msgs/DiagnosticStatus levels (a ``byte`` field).
+OK = 0
+WARN = 1
+ERROR = 2
+STALE = 3
+
+
+@dataclass(frozen=True)
+class Status:
+    """One DiagnosticStatus as plain data: level, name, message, hardware_id, key/values."""
+
+    level: int
+    name: str
+    message: str
+    hardware_id: str
+    values: list[tuple[str, str]]
+
+
+VERDICT_NAME = "ads_rca/verdict"
+
+
+def status_name(module: str) -> str:
+    return f"ads_rca/{module}"
+
+
+def heartbeat_name(module: str) -> str:
+    """The status a monitor sends periodically to say it is alive."""
+    return f"{status_name(module)}/monitor"
+
+
+def text(value: Any) -> str:
+    """A value as a KeyValue string (floats with repr precision, nan/inf spelled out)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return repr(value) if math.isfinite(value) else str(value)
+    if value is None:
+        return ""
+    if isinstance(value, str):
+        return value
+    return dumps_json(plain(value))
+
+
+def flatten(values: Mapping[str, Any], prefix: str = "") -> list[tuple[str, str]]:
+    """Key/values, dicts flattened to ``a.b`` keys (lists stay JSON text)."""
+    out: list[tuple[str, str]] = []
+    for key, value in values.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, Mapping) and value:
+            out.extend(flatten(value, f"{name}."))
+        else:
+            out.append((name, text(value)))
+    return out
+
+
+def batch_status(results: Sequence[LiveResult], semantics: str, hardware_id: str) -> Status:
+    """One module's judged batch as one status: its latest (last judged) frame, as
+    :func:`result_status`, plus ``judged_since_last`` and ``failed_since_last`` (the
+    batch's frames), and the failures in the message when the latest frame passed."""
+    latest = results[-1]
+    failed = sum(r.result.failed for r in results)
+    status = result_status(latest, semantics, hardware_id)
+    message = status.message
+    if failed and not latest.result.failed:
+        message += f" ({failed} of {len(results)} frames since the last status failed)"
+    counts = [("judged_since_last", str(len(results))), ("failed_since_last", str(failed))]
+    return replace(status, message=message, values=counts + status.values)
+
+
+def result_status(live: LiveResult, semantics: str, hardware_id: str) -> Status:
+    """One judged frame: ERROR failed, WARN skipped or judged with incomplete inputs, else OK."""
+    r = live.result
+    if r.failed:
+        level, message = ERROR, f"frame {live.frame}: {r.module} failed"
+    elif r.skipped or live.incomplete:
+        level = WARN
+        message = f"frame {live.frame}: " + (
+            f"check skipped: {r.skipped}" if r.skipped else "judged with incomplete inputs"
+        )
+    else:
+        level, message = OK, f"frame {live.frame}: ok"
+    head: dict[str, Any] = {
+        "semantics": semantics,
+        "frame": live.frame,
+        "index": live.index,
+        "stamp_ms": r.timestamp_ms,
+        "failed": r.failed,
+        "skipped": r.skipped or "",
+        "incomplete": "; ".join(live.incomplete),
+        "ids": list(r.ids),
+        "revision": live.revision,
+        "compute_s": live.compute_s,
+    }
+    if live.run:
+        head[RUN_KEY] = live.run
+    values = flatten(head) + flatten(r.metrics, "metric.") + flatten(r.thresholds, "threshold.")
+    return Status(level, status_name(r.module), message, hardware_id, values)
+
+
+def simple_status(
+    name: str, level: int, message: str, hardware_id: str, values: Mapping[str, Any]
+) -> Status:
+    return Status(level, name, message, hardware_id, flatten(values))
+
+
+def verdict_status(document: Mapping[str, Any], hardware_id: str) -> Status:
+    """The verdict: ERROR naming the primary root cause (OK when no fault was found)."""
+    primary = document.get("primary_root_cause")
+    level = ERROR if primary else OK
+    message = f"root cause: {document.get('verdict')}" if primary else str(document["verdict"])
+    head = {
+        k: document.get(k)
+        for k in (
+            "semantics",
+            "primary_root_cause",
+            "contributing",
+            "root_causes",
+            "attribution_basis",
+            "reason",
+            "collision_frame",
+            "effect_window",
+            "partner_id",
+            "ego_id",
+            "verdict_latency_s",
+        )
+    }
+    live = document.get("live") or {}
+    head["complete"] = live.get("complete")
+    if live.get(RUN_KEY):
+        head[RUN_KEY] = live[RUN_KEY]
+    modules = {m: dict(v) for m, v in (document.get("modules") or {}).items()}
+    values = flatten(head) + flatten(modules, "modules.")
+    values += flatten(document.get("evidence") or {}, "evidence.")
+    return Status(level, VERDICT_NAME, message, hardware_id, values)
+
+
+def encode_array(stamp_ns: int, statuses: list[Status]) -> bytes:
+    """A DiagnosticArray as CDR bytes (header frame_id "", as
+    :func:`ads_rca.ros.diagnostics.array` builds it)."""
+    w = CdrWriter()
+    w.stamp(*divmod(stamp_ns, 1_000_000_000))
+    w.string("")
+    w.u32(len(statuses))
+    for status in statuses:
+        w.buffer.append(status.level)
+        for field in (status.name, status.message, status.hardware_id):
+            w.string(field)
+        w.u32(len(status.values))
+        for key, value in status.values:
+            w.string(key)
+            w.string(value)
+    return w.getvalue()
+
+
+def status_names(data: bytes) -> list[str]:
+    """The status names of a DiagnosticArray in CDR bytes (what heartbeat watching needs),
+    without building the message; [] for bytes that are not one."""
+    return [name for name, _run in status_runs(data)]
+
+
+def status_runs(data: bytes) -> list[tuple[str, str]]:
+    """(name, value of its ``run`` key or "") per status of a DiagnosticArray in CDR bytes,
+    without building the message; [] for bytes that are not one."""
+    try:
+        reader = CdrReader(data)
+        reader.skip_header()
+        out = []
+        for _ in range(reader.u32()):
+            reader.position += 1  # level
+            name = reader.string()
+            reader.skip_string()  # message
+            reader.skip_string()  # hardware_id
+            run = ""
+            for _ in range(reader.u32()):
+                key = reader.string()
+                if key == RUN_KEY:
+                    run = reader.string()
+                else:
+                    reader.skip_string()
+            out.append((name, run))
+        return out
+    except (CdrError, IndexError, struct.error, UnicodeDecodeError):
+        return []

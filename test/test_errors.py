@@ -90,7 +90,7 @@ def test_every_public_error_is_named_in_the_architecture_doc() -> None:
 
 def test_malformed_cdr_raises_the_codecs_typed_error_with_its_former_text() -> None:
     log = read_run_log(EXAMPLE)
-    payloads = cdr.frame_payloads(log, log.frames[3])
+    payloads = topics.frame_payloads(log, log.frames[3])
     big_endian = b"\x00\x00\x00\x00" + payloads[topics.ODOMETRY][4:]
     with pytest.raises(CdrError) as caught:
         cdr_decode.decode_odometry(big_endian)
@@ -101,17 +101,17 @@ def test_malformed_cdr_raises_the_codecs_typed_error_with_its_former_text() -> N
     assert isinstance(caught.value, ValueError)  # as before it was typed
     for key in topics.DATA_TOPICS:
         with pytest.raises(CdrError):
-            cdr_decode.decode_record(key, payloads[key][: len(payloads[key]) // 2], 50)
+            topics.decode_record(key, payloads[key][: len(payloads[key]) // 2], 50)
     with pytest.raises(CdrError, match=r"^a string claims 2147483647 bytes, 0 remain$"):
         cdr_decode.decode_string(b"\x00\x01\x00\x00\xff\xff\xff\x7f")
     with pytest.raises(NoStamp):  # well-formed: not malformed, only without a stamp
-        cdr_decode.stamp_ms(topics.ACTORS, cdr.ENCAPSULATION + bytes(4))
+        topics.stamp_ms(topics.ACTORS, cdr.ENCAPSULATION + bytes(4))
     assert not issubclass(NoStamp, MalformedMessage)
 
 
 def test_a_callers_mistake_is_not_taken_for_a_malformed_message() -> None:
     with pytest.raises(UnknownTopic) as caught:
-        cdr_decode.decode_record("no/such/topic", b"", 50)
+        topics.decode_record("no/such/topic", b"", 50)
     assert not isinstance(caught.value, MalformedMessage)
     assembler = RunLogAssembler()
     with pytest.raises(AttributeError):  # a bug of the caller: not a String at all

@@ -26,14 +26,21 @@ PACKAGE = Path(ads_rca.__file__).resolve().parent
 #: The layers, bottom first: a module may import its own layer's modules and lower layers'
 #: only. Entries are module names or packages (a package holds all its submodules).
 LAYERS: tuple[tuple[str, ...], ...] = (
-    ("ads_rca", "ads_rca.errors", "ads_rca.text", "ads_rca.strictjson", "ads_rca.geometry"),
-    ("ads_rca.problems", "ads_rca.params"),
+    (
+        "ads_rca",
+        "ads_rca.errors",
+        "ads_rca.text",
+        "ads_rca.strictjson",
+        "ads_rca.geometry",
+        "ads_rca.progress",
+    ),
+    ("ads_rca.problems", "ads_rca.paramspec", "ads_rca.params"),
     ("ads_rca.model",),
     ("ads_rca.verdict",),
     ("ads_rca.contract",),
     ("ads_rca.io", "ads_rca.synth"),
     ("ads_rca.oracles",),
-    ("ads_rca.engine", "ads_rca.summary"),
+    ("ads_rca.engine", "ads_rca.summary", "ads_rca.compare"),
     ("ads_rca.live", "ads_rca.report"),
     ("ads_rca.ros",),
     ("ads_rca.commands", "ads_rca.cli"),

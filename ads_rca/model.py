@@ -156,9 +156,10 @@ class Track:
     def offset(self, key: str) -> FloatArray | None:
         """Offset for a key string (first occurrence), or None."""
         try:
-            return self.offsets[self.keys.index(key)]
+            row: FloatArray = self.offsets[self.keys.index(key)]
         except ValueError:
             return None
+        return row
 
 
 #: ``predictions/`` or ``predictions_with_perception/`` file: obstacle id -> track, file order.

@@ -6,7 +6,7 @@ import argparse
 import json
 import os
 import sys
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
@@ -135,13 +135,16 @@ def write_json(document: dict[str, Any], path: Path) -> None:
         raise InputError(f"{path}: cannot write the verdict JSON ({error.strerror})") from None
 
 
-def _progress_bar(frames: int) -> Any:
+def _progress_bar(frames: int) -> Callable[[Iterable[int]], Iterable[int]] | None:
     if frames < PROGRESS_MIN_FRAMES:
         return None
     from tqdm import tqdm
 
     def wrap(timestamps: Iterable[int]) -> Iterable[int]:
         # disable=None: shown on a terminal only, so logs and pipes stay clean.
-        return tqdm(timestamps, total=frames, unit="frame", file=sys.stderr, disable=None)
+        bar: Iterable[int] = tqdm(
+            timestamps, total=frames, unit="frame", file=sys.stderr, disable=None
+        )
+        return bar
 
     return wrap

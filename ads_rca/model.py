@@ -13,7 +13,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Any
+from typing import Any, TypedDict, Unpack, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -194,6 +194,19 @@ class Plan:
         return len(self.keys)
 
 
+#: What one per-frame file holds; which one is set by its folder (see :meth:`RunLog.folder`).
+Record = EgoPose | Actors | Boxes | Predictions | Plan
+
+
+class LogExtras(TypedDict, total=False):
+    """The fields of a :class:`RunLog` besides metadata, frames and the per-folder dicts."""
+
+    problems: ProblemLog
+    source: str
+    files: dict[str, dict[int, str]]
+    first_extents: dict[str, FloatArray]
+
+
 @dataclass(eq=False)
 class RunLog:
     """A whole run, as loaded from any source.
@@ -225,21 +238,27 @@ class RunLog:
         cls,
         metadata: RunMetadata,
         frames: tuple[int, ...],
-        folders: Mapping[str, dict[int, Any]],
-        **fields: Any,
+        folders: Mapping[str, Mapping[int, Record]],
+        **fields: Unpack[LogExtras],
     ) -> RunLog:
-        """A run from per-folder dicts keyed by the names in :data:`FOLDERS` (any missing)."""
+        """A run from per-folder dicts keyed by the names in :data:`FOLDERS` (any missing).
+
+        A folder holds only its own record type (the readers build them so); the casts say
+        which, without a per-record check on the load path.
+        """
         records = {name: dict(folders.get(name, {})) for name in FOLDERS}
         return cls(
             metadata=metadata,
             frames=frames,
-            pose=records["pose"],
-            actors=records["actors"],
-            bboxes=records["bboxes"],
-            bboxes_gt=records["bboxes_gt"],
-            predictions=records["predictions"],
-            predictions_with_perception=records["predictions_with_perception"],
-            waypoints=records["waypoint"],
+            pose=cast("dict[int, EgoPose]", records["pose"]),
+            actors=cast("dict[int, Actors]", records["actors"]),
+            bboxes=cast("dict[int, Boxes]", records["bboxes"]),
+            bboxes_gt=cast("dict[int, Boxes]", records["bboxes_gt"]),
+            predictions=cast("dict[int, Predictions]", records["predictions"]),
+            predictions_with_perception=cast(
+                "dict[int, Predictions]", records["predictions_with_perception"]
+            ),
+            waypoints=cast("dict[int, Plan]", records["waypoint"]),
             **fields,
         )
 
@@ -281,9 +300,10 @@ class RunLog:
         name = self.files.get(folder, {}).get(timestamp_ms)
         return f"{folder}/{name or f'{FILE_PREFIX[folder]}-{timestamp_ms}.json'}"
 
-    def folder(self, name: str) -> dict[int, Any]:
-        """The per-timestamp dict of a folder by its name in :data:`FOLDERS`."""
-        folders: dict[str, dict[int, Any]] = {
+    def folder(self, name: str) -> dict[int, Record]:
+        """The per-timestamp dict of a folder by its name in :data:`FOLDERS` (the dict itself:
+        writes through it land in the log; callers put only the folder's record type)."""
+        folders: dict[str, object] = {
             "pose": self.pose,
             "actors": self.actors,
             "bboxes": self.bboxes,
@@ -292,7 +312,7 @@ class RunLog:
             "predictions_with_perception": self.predictions_with_perception,
             "waypoint": self.waypoints,
         }
-        return folders[name]
+        return cast("dict[int, Record]", folders[name])
 
 
 def _int_or(text: str, default: int) -> int:

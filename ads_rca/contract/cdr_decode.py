@@ -39,7 +39,7 @@ from ads_rca.contract.convert import (
     step_ms,
     track_keys,
 )
-from ads_rca.model import Actors, Boxes, EgoPose, Plan, Predictions, Track
+from ads_rca.model import Actors, Boxes, EgoPose, Plan, Predictions, Record, Track
 
 _P = ParamSpec("_P")
 _R = TypeVar("_R")
@@ -412,7 +412,7 @@ def decode_trajectory(data: bytes, timesteps_per_frame: int) -> Plan:
     return Plan(keys=tuple(keys), xy=xy, speed=speed)
 
 
-def decode_record(topic: str, data: bytes, timesteps_per_frame: int) -> Any:
+def decode_record(topic: str, data: bytes, timesteps_per_frame: int) -> Record:
     """The model record a data message's bytes carry (:func:`convert.message_to_record`).
 
     Raises :class:`CdrError` for bytes that are not a well-formed message of the topic."""

@@ -20,7 +20,17 @@ import numpy as np
 
 from ads_rca.contract import topics
 from ads_rca.contract.jsontext import dumps_json, loads_json
-from ads_rca.model import Actors, Boxes, EgoPose, FloatArray, Plan, Predictions, RunLog, Track
+from ads_rca.model import (
+    Actors,
+    Boxes,
+    EgoPose,
+    FloatArray,
+    Plan,
+    Predictions,
+    Record,
+    RunLog,
+    Track,
+)
 
 if TYPE_CHECKING:
     from builtin_interfaces.msg import Duration, Time
@@ -449,7 +459,7 @@ def frame_messages(log: RunLog, timestamp_ms: int) -> dict[str, Any]:
     return out
 
 
-def message_to_record(topic: str, msg: Any, timesteps_per_frame: int) -> Any:
+def message_to_record(topic: str, msg: Any, timesteps_per_frame: int) -> Record:
     """The model record a data message carries (inverse of :func:`frame_messages`)."""
     if topic == topics.ODOMETRY:
         return odometry_to_pose(msg)

@@ -17,7 +17,17 @@ from typing import Any
 import numpy as np
 import orjson
 
-from ads_rca.model import FILE_PREFIX, FOLDERS, Actors, Boxes, EgoPose, Plan, Predictions, RunLog
+from ads_rca.model import (
+    FILE_PREFIX,
+    FOLDERS,
+    Actors,
+    Boxes,
+    EgoPose,
+    Plan,
+    Predictions,
+    Record,
+    RunLog,
+)
 from ads_rca.strictjson import all_finite
 
 
@@ -114,7 +124,7 @@ def _dump(path: Path, document: Any, finite: bool = True) -> None:
         path.write_text(json.dumps(document))
 
 
-def record_is_finite(record: Any) -> bool:
+def record_is_finite(record: Record) -> bool:
     """True when no number of a model record is NaN or infinite (checked on its arrays)."""
     if isinstance(record, EgoPose):
         arrays = [np.array([getattr(record, f) for f in EgoPose.__dataclass_fields__])]

@@ -18,7 +18,7 @@ import importlib
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
-from ads_rca.model import FOLDERS, RunLog
+from ads_rca.model import FOLDERS, Record, RunLog
 from ads_rca.params import Params
 from ads_rca.verdict import Attribution, FrameResults, Module, OracleResult
 
@@ -89,7 +89,7 @@ class Semantics:
         self,
         module: Module,
         params: Params,
-        records: Mapping[str, Mapping[int, Any]],
+        records: Mapping[str, Mapping[int, Record]],
         stamp_ms: int,
         cap: int,
     ) -> int:
@@ -132,7 +132,7 @@ class Semantics:
         self,
         modules: Iterable[Module],
         params: Params,
-        records: Mapping[str, Mapping[int, Any]],
+        records: Mapping[str, Mapping[int, Record]],
         stamp_ms: int,
         cap: int,
     ) -> int:

@@ -301,8 +301,12 @@ def scene_figure(result: Diagnosis, frame: int | float | None, skipped: Skipped)
         xy = np.array([pose.x, pose.y], dtype=np.float64)
         if skipped.keep("scene, ego pose", xy[:1], xy[1:])[0]:
             centre = xy
-        for name, style in (("predictions_with_perception", "g."), ("predictions", "m+")):
-            for obstacle_id, track in log.folder(name).get(ts, {}).items():
+        predicted = (
+            ("predictions_with_perception", "g.", log.predictions_with_perception),
+            ("predictions", "m+", log.predictions),
+        )
+        for name, style, folder in predicted:
+            for obstacle_id, track in folder.get(ts, {}).items():
                 if obstacle_id == ego or len(track.keys) == 0:
                     continue
                 with np.errstate(invalid="ignore", over="ignore"):

@@ -13,13 +13,13 @@ They assume the data at ts … ts + horizon is final when an oracle first asks f
 
 from __future__ import annotations
 
-from typing import Any, Generic, TypeVar, cast
+from typing import Generic, TypeVar, cast
 
 import numpy as np
 import numpy.typing as npt
 
 from ads_rca.geometry import FloatArray, box_signed_distance
-from ads_rca.model import FOLDERS, EgoPose, RunLog, Track
+from ads_rca.model import FOLDERS, EgoPose, Record, RunLog, Track
 from ads_rca.oracles.base import RunContext
 from ads_rca.oracles.cache import LRU
 from ads_rca.oracles.corrected.boxes import PlanData, Series, build_plan, build_predicted, key_steps
@@ -62,7 +62,9 @@ class CorrectedContext:
         self.caches: dict[str, LRU[int, object]] = {}
         self.ts_max = max(self.log.frames) if self.log.frames else 0
         #: The log's per-folder dicts by folder name (``RunLog.folder`` builds a dict per call).
-        self.folders: dict[str, dict[int, Any]] = {name: self.log.folder(name) for name in FOLDERS}
+        self.folders: dict[str, dict[int, Record]] = {
+            name: self.log.folder(name) for name in FOLDERS
+        }
         #: A run-wide integer for every actor id seen so far (grows as frames are read).
         self._gid: dict[str, int] = {}
 

@@ -13,7 +13,7 @@ import pytest
 
 from ads_rca.engine import diagnose
 from ads_rca.io.json_writer import write_run_log
-from ads_rca.oracles.base import MODULES
+from ads_rca.oracles.base import MODULES, Module
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import make_params
 from ads_rca.synth import FAULTS, SCENARIOS, synthesise
@@ -22,7 +22,11 @@ from ads_rca.verdict import NO_COLLISION, NO_MODULE_FAILED
 EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "cut_in_perception"
 CRASH_SCENARIOS = [s for s in SCENARIOS if s != "cruise"]
 #: The synthesiser names the control fault "control"; the verdict's module is "controller".
-MODULE_OF = {"perception": "perception", "prediction": "prediction", "planning": "planning"}
+MODULE_OF: dict[str, Module] = {
+    "perception": "perception",
+    "prediction": "prediction",
+    "planning": "planning",
+}
 MODULE_OF["control"] = "controller"
 
 

@@ -6,6 +6,7 @@ import filecmp
 import json
 from functools import cache
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -22,7 +23,7 @@ SEED = 5
 
 
 @cache
-def _run(scenario: str, fault: str) -> tuple[RunLog, dict]:
+def _run(scenario: str, fault: str) -> tuple[RunLog, dict[str, Any]]:
     return synthesise_run(scenario, fault, SEED)
 
 
@@ -92,7 +93,7 @@ def test_faulty_log_ends_at_a_collision_with_the_partner_and_its_twin_does_not(
     assert _ego_partner_gap(log, collision - 1, summary) >= 0.0
 
 
-def _ego_partner_gap(log: RunLog, frame: int, summary: dict) -> float:
+def _ego_partner_gap(log: RunLog, frame: int, summary: dict[str, Any]) -> float:
     ts = frame * 50
     actors, pose = log.actors[ts], log.pose[ts]
     ego = log.actor_extents[summary["ego_id"]]

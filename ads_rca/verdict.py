@@ -89,6 +89,6 @@ def frame_number(timestamp_ms: int, tpf: int) -> int | float:
     return timestamp_ms // tpf if timestamp_ms % tpf == 0 else timestamp_ms / tpf
 
 
-def json_safe(value: Any) -> Any:
+def json_safe(value: object) -> Any:
     """Strict-JSON-ready data for the contract: :func:`ads_rca.strictjson.to_strict`."""
     return to_strict(value)

@@ -72,7 +72,7 @@ def params_from_args(args: argparse.Namespace) -> Params:
     return make_params(str(semantics), values)
 
 
-def register(subparsers: Any) -> None:
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     parser = subparsers.add_parser("diagnose", help="find the root cause of a crash in a run log")
     parser.add_argument("path", help="running-log folder")
     add_engine_arguments(parser)

@@ -7,13 +7,12 @@ A thin shell over :func:`ads_rca.synth.synthesise_run` and
 from __future__ import annotations
 
 import argparse
-from typing import Any
 
 from ads_rca.io.json_writer import write_run_log
 from ads_rca.synth import FAULTS, SCENARIOS, synthesise_run
 
 
-def register(subparsers: Any) -> None:
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     parser = subparsers.add_parser(
         "synth", help="synthesise a closed-loop run log with an injected fault"
     )

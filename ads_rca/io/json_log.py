@@ -102,7 +102,7 @@ def decode_json(data: bytes) -> Any:
         raise ValueError("nested too deep for the parser") from None
 
 
-def kept_too_deep(folder: str, document: Any) -> bool:
+def kept_too_deep(folder: str, document: object) -> bool:
     """True when the raw JSON the reader keeps of ``document`` nests over MAX_KEPT_DEPTH.
 
     ``metadata.json`` is kept whole; of a boxes file, each box's fields but the corners

@@ -116,7 +116,7 @@ def json_id(box_id: str) -> int | str:
     return box_id
 
 
-def _dump(path: Path, document: Any, finite: bool = True) -> None:
+def _dump(path: Path, document: object, finite: bool = True) -> None:
     """Compact JSON; ``finite`` False when the record holds NaN or infinity."""
     if finite:
         path.write_bytes(orjson.dumps(document))

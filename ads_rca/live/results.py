@@ -157,7 +157,7 @@ class RunEnd:
             self.finished = True
 
 
-def plain(value: Any) -> Any:
+def plain(value: object) -> Any:
     """JSON-ready without loss: numpy scalars as Python numbers, tuples as lists (NaN kept)."""
     if isinstance(value, bool | int | float | str) or value is None:
         return value
@@ -293,7 +293,7 @@ class ResultStore:
         self._file.close()
 
 
-def _shared_keys(value: Any) -> Any:
+def _shared_keys(value: object) -> Any:
     """``value`` with every dict key interned (so a thousand results share their keys)."""
     if isinstance(value, dict):
         return {

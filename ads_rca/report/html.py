@@ -20,22 +20,22 @@ import html
 import io
 import re
 from collections import Counter
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from pathlib import Path
-from typing import Any
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+import numpy.typing as npt
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.patches import Polygon
 
 from ads_rca.engine import Diagnosis
-from ads_rca.geometry import box_corners, ego_to_world
-from ads_rca.oracles.base import MODULES, Module
+from ads_rca.geometry import FloatArray, box_corners, ego_to_world
+from ads_rca.oracles.base import MODULES, Metric, Module, OracleResult
 
 #: Largest magnitude drawn. Beyond it no log quantity (metres, ms, scores) means anything,
 #: and near float's limit matplotlib's transforms overflow (1.7e308 fails to draw).
@@ -66,7 +66,7 @@ _VOID = frozenset({"meta", "img", "br"})
 _NAME = re.compile(r"^[a-z][a-z0-9-]*$")
 
 
-def el(tag: str, *children: Any, **attrs: Any) -> Html:
+def el(tag: str, *children: object, **attrs: object) -> Html:
     """An element: ``children`` are escaped text unless :class:`Html`, attribute values always
     escaped (``class_`` → ``class``). Tag and attribute names come from this module only."""
     names = [tag, *(name.rstrip("_") for name in attrs)]
@@ -81,7 +81,7 @@ def el(tag: str, *children: Any, **attrs: Any) -> Html:
     return Html(f"<{tag}{attributes}>{join(children)}</{tag}>")
 
 
-def join(children: Iterable[Any]) -> Html:
+def join(children: Iterable[object]) -> Html:
     """Concatenate nodes: :class:`Html` as is, anything else as escaped text."""
     return Html(
         "".join(c if isinstance(c, Html) else html.escape(_text(c), quote=True) for c in children)
@@ -97,7 +97,9 @@ class Skipped:
     def __init__(self) -> None:
         self.counts: Counter[tuple[str, str]] = Counter()
 
-    def keep(self, series: str, *coords: Any, absent: Any = None) -> np.ndarray:
+    def keep(
+        self, series: str, *coords: object, absent: npt.ArrayLike | None = None
+    ) -> npt.NDArray[np.bool_]:
         """Mask of the points whose every coordinate is drawable; counts the others.
 
         Each coordinate is an array with one row per point (a 2-D row is one point, e.g. a
@@ -182,15 +184,15 @@ def render(result: Diagnosis) -> str:
     return f"<!doctype html>\n{el('html', head, el('body', *body))}\n"
 
 
-def _table(values: dict[str, Any]) -> Html:
+def _table(values: Mapping[str, object]) -> Html:
     return el("table", *(_row("td", k, v) for k, v in values.items()))
 
 
-def _row(cell: str, *values: Any) -> Html:
+def _row(cell: str, *values: object) -> Html:
     return el("tr", *(el(cell, v) for v in values))
 
 
-def _text(value: Any) -> str:
+def _text(value: object) -> str:
     if value is None:
         return "-"
     if isinstance(value, float):
@@ -201,7 +203,7 @@ def _text(value: Any) -> str:
 # --- figures -------------------------------------------------------------------------------
 
 
-def plot_text(value: Any) -> str:
+def plot_text(value: object) -> str:
     """Text for a figure: at most :data:`PLOT_TEXT_MAX` characters, ``$`` escaped (a log
     string must not be parsed as mathtext, where ``$\\frac{$`` makes drawing fail)."""
     text = str(value)
@@ -266,7 +268,7 @@ def _headline(result: Diagnosis, module: Module) -> tuple[str | None, str | None
     return None, None
 
 
-def _metric(result: Any, key: str | None) -> Any:
+def _metric(result: OracleResult | None, key: str | None) -> Metric | None:
     if result is None or key is None:
         return None
     return result.metrics.get(key)
@@ -296,7 +298,7 @@ def scene_figure(result: Diagnosis, frame: int | float | None, skipped: Skipped)
     ego = result.ctx.ego_id
     _draw_actors(ax, result, ts, ego, partner, skipped)
     pose = log.pose.get(ts)
-    centre: np.ndarray | None = None
+    centre: FloatArray | None = None
     if pose is not None:
         xy = np.array([pose.x, pose.y], dtype=np.float64)
         if skipped.keep("scene, ego pose", xy[:1], xy[1:])[0]:
@@ -349,7 +351,7 @@ def _draw_actors(
             ax.annotate(plot_text(actor_id), (x, y), fontsize=8, color=color)
 
 
-def _floats(values: Any) -> np.ndarray:
+def _floats(values: object) -> FloatArray:
     """float64 array of any values: NaN for what is not a number, ±inf for huge ints."""
     if isinstance(values, np.ndarray):
         return values.astype(np.float64, copy=False)
@@ -358,7 +360,7 @@ def _floats(values: Any) -> np.ndarray:
     return np.array([_float(v) for v in values], dtype=np.float64)
 
 
-def _float(value: Any) -> float:
+def _float(value: object) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float | np.number):
         return float(value) if isinstance(value, bool) else float("nan")
     try:
@@ -367,7 +369,7 @@ def _float(value: Any) -> float:
         return float("inf") if value > 0 else float("-inf")
 
 
-def _runs(mask: np.ndarray) -> list[slice]:
+def _runs(mask: npt.NDArray[np.bool_]) -> list[slice]:
     """Slices of the consecutive True stretches of a mask (a line is drawn per stretch)."""
     edges = np.flatnonzero(np.diff(np.concatenate(([0], mask.astype(np.int8), [0]))))
     return [

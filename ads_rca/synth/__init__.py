@@ -10,7 +10,7 @@ same seed always gives the same scene whatever the fault, and ``fault="none"`` i
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ads_rca.errors import InputError
 from ads_rca.model import RunLog
@@ -19,11 +19,15 @@ from ads_rca.synth.scenarios import BUILDERS, DEFAULT_FRAMES, SCENARIOS
 from ads_rca.synth.simulate import SimResult, simulate
 from ads_rca.synth.world import Scene
 
+if TYPE_CHECKING:
+    import numpy as np
+
 __all__ = ["FAULTS", "SCENARIOS", "SynthesisError", "synthesise", "synthesise_run"]
 
 MAX_ATTEMPTS = 25
 DEFAULT_HORIZON = 30
-_ACCEPTED: dict[tuple[Any, ...], bool] = {}
+#: (scenario, seed, attempt, frames, actors, horizon) -> whether every fault hits the partner.
+_ACCEPTED: dict[tuple[str, int, int, int, int, int], bool] = {}
 
 
 class SynthesisError(InputError, ValueError):
@@ -94,7 +98,7 @@ def synthesise_run(
     )
 
 
-def _rng(seed: int, attempt: int) -> Any:
+def _rng(seed: int, attempt: int) -> np.random.Generator:
     import numpy as np
 
     return np.random.default_rng([seed, attempt, 0x5EED])

@@ -36,7 +36,8 @@ def write_run_log(log: RunLog, out_dir: str | os.PathLike[str]) -> Path:
     root = Path(out_dir)
     root.mkdir(parents=True, exist_ok=True)
     _dump(root / "metadata.json", log.metadata.to_dict(), finite=False)
-    encoders: dict[str, Callable[[Any, int], Any]] = {
+    # By folder name: each folder holds its own record type.
+    encoders: dict[str, Callable[[Any, int], object]] = {
         "pose": pose_document,
         "actors": lambda record, _ts: actors_document(record),
         "bboxes": lambda record, _ts: boxes_document(record),
@@ -69,7 +70,7 @@ def pose_document(pose: EgoPose, timestamp_ms: int) -> dict[str, str]:
     }
 
 
-def actors_document(actors: Actors) -> dict[str, Any]:
+def actors_document(actors: Actors) -> dict[str, dict[str, dict[str, float]]]:
     loc, rot, ext = actors.location.tolist(), actors.rotation.tolist(), actors.extent.tolist()
     return {
         actor_id: {
@@ -81,7 +82,7 @@ def actors_document(actors: Actors) -> dict[str, Any]:
     }
 
 
-def boxes_document(boxes: Boxes) -> list[dict[str, Any]]:
+def boxes_document(boxes: Boxes) -> list[dict[str, object]]:
     return [
         {
             "id": json_id(box_id),
@@ -92,7 +93,7 @@ def boxes_document(boxes: Boxes) -> list[dict[str, Any]]:
     ]
 
 
-def predictions_document(predictions: Predictions) -> dict[str, Any]:
+def predictions_document(predictions: Predictions) -> dict[str, dict[str, dict[str, float]]]:
     return {
         obstacle_id: {
             key: {"x": o[0], "y": o[1], "z": o[2]}
@@ -102,7 +103,7 @@ def predictions_document(predictions: Predictions) -> dict[str, Any]:
     }
 
 
-def plan_document(plan: Plan) -> dict[str, Any]:
+def plan_document(plan: Plan) -> dict[str, dict[str, float]]:
     return {
         key: {"x": p[0], "y": p[1], "speed": s}
         for key, p, s in zip(plan.keys, plan.xy.tolist(), plan.speed.tolist(), strict=True)

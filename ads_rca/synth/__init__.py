@@ -10,7 +10,7 @@ same seed always gives the same scene whatever the fault, and ``fault="none"`` i
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, TypedDict
 
 from ads_rca.errors import InputError
 from ads_rca.model import RunLog
@@ -22,12 +22,34 @@ from ads_rca.synth.world import Scene
 if TYPE_CHECKING:
     import numpy as np
 
-__all__ = ["FAULTS", "SCENARIOS", "SynthesisError", "synthesise", "synthesise_run"]
+__all__ = [
+    "FAULTS",
+    "SCENARIOS",
+    "SynthesisError",
+    "SynthesisSummary",
+    "synthesise",
+    "synthesise_run",
+]
 
 MAX_ATTEMPTS = 25
 DEFAULT_HORIZON = 30
 #: (scenario, seed, attempt, frames, actors, horizon) -> whether every fault hits the partner.
 _ACCEPTED: dict[tuple[str, int, int, int, int, int], bool] = {}
+
+
+class SynthesisSummary(TypedDict):
+    """What :func:`synthesise_run` made: metadata ``raw["synthesis"]`` holds the same."""
+
+    scenario: str
+    fault: str
+    seed: int
+    attempt: int
+    partner_id: str | None
+    ego_id: str
+    fault_onset_frame: int  # -1 without a fault
+    twin_reaction_frame: int
+    collision_frame: int
+    total_frames: int
 
 
 class SynthesisError(InputError, ValueError):
@@ -46,7 +68,7 @@ def synthesise(scenario: str, fault: str, seed: int, **options: int) -> RunLog:
 
 def synthesise_run(
     scenario: str, fault: str, seed: int, **options: int
-) -> tuple[RunLog, dict[str, Any]]:
+) -> tuple[RunLog, SynthesisSummary]:
     """:func:`synthesise`, also returning the synthesis summary."""
     if scenario not in BUILDERS:
         raise SynthesisError(f"unknown scenario {scenario!r}; choose from {', '.join(SCENARIOS)}")
@@ -113,9 +135,9 @@ def _finish(
     attempt: int,
     onset: int,
     reaction: int,
-) -> tuple[RunLog, dict[str, Any]]:
+) -> tuple[RunLog, SynthesisSummary]:
     partner = scene.actor_ids[scene.partner] if scene.partner >= 0 else None
-    summary: dict[str, Any] = {
+    summary: SynthesisSummary = {
         "scenario": scenario,
         "fault": fault,
         "seed": seed,

@@ -28,7 +28,7 @@ Module = Literal["perception", "prediction", "planning", "controller"]
 #: Pipeline order, upstream first (the reference's names).
 MODULES: tuple[Module, ...] = ("perception", "prediction", "planning", "controller")
 
-Metric = float | int | str | bool | None | list[Any] | dict[str, Any]
+Metric = float | int | str | bool | None | list["Metric"] | dict[str, "Metric"]
 
 #: ``attribution_basis`` values.
 BASIS_REFERENCE = "reference counts"

@@ -13,12 +13,15 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Any, TypedDict, Unpack, cast
+from typing import TYPE_CHECKING, Any, TypedDict, cast
 
 import numpy as np
 import numpy.typing as npt
 
 from ads_rca.problems import ProblemLog
+
+if TYPE_CHECKING:
+    from typing import Unpack  # Python 3.11; annotations only (the package runs on 3.10)
 
 FloatArray = npt.NDArray[np.float64]
 

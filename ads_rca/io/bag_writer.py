@@ -14,7 +14,7 @@ from __future__ import annotations
 import os
 from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Protocol, TypedDict, Unpack
+from typing import TYPE_CHECKING, Any, Protocol, TypedDict
 
 from ads_rca.contract import rosmsg, topics
 from ads_rca.contract.convert import frame_messages
@@ -33,6 +33,8 @@ from ads_rca.io.mcap_writer import McapBagWriter, qos_dict, qos_yaml
 from ads_rca.model import RunLog
 
 if TYPE_CHECKING:
+    from typing import Unpack  # Python 3.11; annotations only (the package runs on 3.10)
+
     from rosbags.interfaces import Connection
 
 STORAGES = ("mcap", "sqlite3")

@@ -23,7 +23,10 @@ def ego_to_world(offsets_xy: FloatArray, anchor_xy: FloatArray, yaw_deg: float) 
     theta = np.deg2rad(yaw_deg)
     c, s = np.cos(theta), np.sin(theta)
     x, y = offsets_xy[..., 0], offsets_xy[..., 1]
-    return np.asarray(anchor_xy, dtype=np.float64) + np.stack((x * c - y * s, x * s + y * c), -1)
+    world: FloatArray = np.asarray(anchor_xy, dtype=np.float64) + np.stack(
+        (x * c - y * s, x * s + y * c), -1
+    )
+    return world
 
 
 def world_to_ego(points_xy: FloatArray, origin_xy: FloatArray, yaw_deg: float) -> FloatArray:

@@ -13,12 +13,15 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypedDict, cast
 
 import numpy as np
 import numpy.typing as npt
 
 from ads_rca.problems import ProblemLog
+
+if TYPE_CHECKING:
+    from typing import Unpack  # Python 3.11; annotations only (the package runs on 3.10)
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -165,9 +168,10 @@ class Track:
     def offset(self, key: str) -> FloatArray | None:
         """Offset for a key string (first occurrence), or None."""
         try:
-            return self.offsets[self.keys.index(key)]
+            row: FloatArray = self.offsets[self.keys.index(key)]
         except ValueError:
             return None
+        return row
 
 
 #: ``predictions/`` or ``predictions_with_perception/`` file: obstacle id -> track, file order.
@@ -202,6 +206,19 @@ class Plan:
         return len(self.keys)
 
 
+#: What one per-frame file holds; which one is set by its folder (see :meth:`RunLog.folder`).
+Record = EgoPose | Actors | Boxes | Predictions | Plan
+
+
+class LogExtras(TypedDict, total=False):
+    """The fields of a :class:`RunLog` besides metadata, frames and the per-folder dicts."""
+
+    problems: ProblemLog
+    source: str
+    files: dict[str, dict[int, str]]
+    first_extents: dict[str, FloatArray]
+
+
 @dataclass(eq=False)
 class RunLog:
     """A whole run, as loaded from any source.
@@ -233,21 +250,27 @@ class RunLog:
         cls,
         metadata: RunMetadata,
         frames: tuple[int, ...],
-        folders: Mapping[str, dict[int, Any]],
-        **fields: Any,
+        folders: Mapping[str, Mapping[int, Record]],
+        **fields: Unpack[LogExtras],
     ) -> RunLog:
-        """A run from per-folder dicts keyed by the names in :data:`FOLDERS` (any missing)."""
+        """A run from per-folder dicts keyed by the names in :data:`FOLDERS` (any missing).
+
+        A folder holds only its own record type (the readers build them so); the casts say
+        which, without a per-record check on the load path.
+        """
         records = {name: dict(folders.get(name, {})) for name in FOLDERS}
         return cls(
             metadata=metadata,
             frames=frames,
-            pose=records["pose"],
-            actors=records["actors"],
-            bboxes=records["bboxes"],
-            bboxes_gt=records["bboxes_gt"],
-            predictions=records["predictions"],
-            predictions_with_perception=records["predictions_with_perception"],
-            waypoints=records["waypoint"],
+            pose=cast("dict[int, EgoPose]", records["pose"]),
+            actors=cast("dict[int, Actors]", records["actors"]),
+            bboxes=cast("dict[int, Boxes]", records["bboxes"]),
+            bboxes_gt=cast("dict[int, Boxes]", records["bboxes_gt"]),
+            predictions=cast("dict[int, Predictions]", records["predictions"]),
+            predictions_with_perception=cast(
+                "dict[int, Predictions]", records["predictions_with_perception"]
+            ),
+            waypoints=cast("dict[int, Plan]", records["waypoint"]),
             **fields,
         )
 
@@ -289,10 +312,11 @@ class RunLog:
         name = self.files.get(folder, {}).get(timestamp_ms)
         return f"{folder}/{name or f'{FILE_PREFIX[folder]}-{timestamp_ms}.json'}"
 
-    def folder(self, name: str) -> dict[int, Any]:
+    def folder(self, name: str) -> dict[int, Record]:
         """The per-timestamp dict of a folder by its name in :data:`FOLDERS` (KeyError for
-        another name)."""
-        records: dict[int, Any] = getattr(self, FOLDER_FIELDS[name])
+        another name; the dict itself: writes through it land in the log, and callers put
+        only the folder's record type)."""
+        records: dict[int, Record] = getattr(self, FOLDER_FIELDS[name])
         return records
 
 

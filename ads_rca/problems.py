@@ -46,7 +46,7 @@ class Problem:
         return asdict(self)
 
     @classmethod
-    def from_dict(cls, document: Any) -> Problem:
+    def from_dict(cls, document: object) -> Problem:
         """The inverse of :meth:`to_dict` (raises ValueError for anything else)."""
         if not isinstance(document, dict):
             raise ValueError(f"a problem is a JSON object, not {type(document).__name__}")
@@ -66,7 +66,7 @@ class Problem:
         return (self.file, self.field, self.issue)
 
 
-def problems_from_list(entries: Any) -> list[Problem]:
+def problems_from_list(entries: object) -> list[Problem]:
     """The problems a JSON list holds (:meth:`Problem.from_dict`); entries that are not one,
     or a value that is not a list, are skipped."""
     out: list[Problem] = []

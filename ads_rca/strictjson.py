@@ -43,7 +43,7 @@ def nonfinite_kind(value: float) -> str:
     return "nan" if math.isnan(value) else "inf" if value > 0 else "-inf"
 
 
-def all_finite(document: Any) -> bool:
+def all_finite(document: object) -> bool:
     """True when no float anywhere in the document is NaN or infinite."""
     if isinstance(document, float):
         return math.isfinite(document)
@@ -54,7 +54,7 @@ def all_finite(document: Any) -> bool:
     return True
 
 
-def to_strict(document: Any) -> Any:
+def to_strict(document: object) -> Any:
     """The document as strict-JSON-ready data (see the module doc): non-finite floats as
     None plus the annotation; numpy scalars and arrays as Python values, tuples as lists,
     keys as strings. Always a new structure. Apply it once: its output has a top-level
@@ -89,7 +89,7 @@ def from_strict(document: Any) -> Any:
     return {(k[1:] if _ESCAPED.match(k) else k): v for k, v in document.items()}
 
 
-def dumps(document: Any, indent: int | None = None) -> str:
+def dumps(document: object, indent: int | None = None) -> str:
     """Strict JSON text of a document (compact, or indented like ``json.dumps``)."""
     separators = (",", ":") if indent is None else None
     return json.dumps(to_strict(document), indent=indent, separators=separators, allow_nan=False)
@@ -100,7 +100,7 @@ def loads(text: str | bytes) -> Any:
     return from_strict(json.loads(text))
 
 
-def _walk(value: Any, path: list[str], found: list[tuple[list[str], str]]) -> Any:
+def _walk(value: object, path: list[str], found: list[tuple[list[str], str]]) -> Any:
     if isinstance(value, float):
         if math.isfinite(value):
             return value
@@ -141,7 +141,7 @@ def _restore(document: dict[str, Any], pointer: str, value: float) -> None:
     if not pointer.startswith("/"):
         return
     tokens = [t.replace("~1", "/").replace("~0", "~") for t in pointer[1:].split("/")]
-    container: Any = document
+    container: object = document
     for token in tokens[:-1]:
         container = _child(container, token)
     last = tokens[-1]
@@ -153,7 +153,7 @@ def _restore(document: dict[str, Any], pointer: str, value: float) -> None:
             container[index] = value
 
 
-def _child(container: Any, token: str) -> Any:
+def _child(container: object, token: str) -> object:
     if isinstance(container, dict):
         return container.get(token)
     if isinstance(container, list):
@@ -162,7 +162,7 @@ def _child(container: Any, token: str) -> Any:
     return None
 
 
-def _index(items: list[Any], token: str) -> int | None:
+def _index(items: list[object], token: str) -> int | None:
     """A list index token as RFC 6901 spells it (no leading zeros), inside the list."""
     if _INDEX.match(token) and int(token) < len(items):
         return int(token)

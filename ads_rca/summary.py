@@ -83,7 +83,7 @@ def _flat(values: dict[str, Any], prefix: str = "") -> list[str]:
     return items
 
 
-def _short(value: Any) -> str:
+def _short(value: object) -> str:
     if isinstance(value, float):
         return f"{value:.3g}"
     text = str(value)

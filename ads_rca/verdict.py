@@ -28,7 +28,7 @@ Module = Literal["perception", "prediction", "planning", "controller"]
 #: Pipeline order, upstream first (the reference's names).
 MODULES: tuple[Module, ...] = ("perception", "prediction", "planning", "controller")
 
-Metric = float | int | str | bool | None | list[Any] | dict[str, Any]
+Metric = float | int | str | bool | None | list["Metric"] | dict[str, "Metric"]
 
 #: ``attribution_basis`` values.
 BASIS_REFERENCE = "reference counts"
@@ -84,6 +84,6 @@ class FrameResults:
     results: dict[Module, OracleResult] = field(default_factory=dict)
 
 
-def json_safe(value: Any) -> Any:
+def json_safe(value: object) -> Any:
     """Strict-JSON-ready data for the contract: :func:`ads_rca.strictjson.to_strict`."""
     return to_strict(value)

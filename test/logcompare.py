@@ -7,19 +7,24 @@ to NaN); angles may differ by ``angle_tol`` degrees modulo 360 (they go through 
 from __future__ import annotations
 
 import json
+from collections.abc import Callable, Mapping
+from typing import TypeVar
 
 import numpy as np
+import numpy.typing as npt
 
 from ads_rca.model import FOLDERS, Actors, Boxes, EgoPose, Plan, Predictions, RunLog
 
+R = TypeVar("R")
 
-def _exact(a: np.ndarray, b: np.ndarray, where: str) -> None:
+
+def _exact(a: npt.ArrayLike, b: npt.ArrayLike, where: str) -> None:
     a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
     assert a.shape == b.shape, f"{where}: shape {a.shape} != {b.shape}"
     assert np.array_equal(a, b, equal_nan=True), f"{where}: {a} != {b}"
 
 
-def _angles(a: np.ndarray, b: np.ndarray, tol: float, where: str) -> None:
+def _angles(a: npt.ArrayLike, b: npt.ArrayLike, tol: float, where: str) -> None:
     a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
     assert a.shape == b.shape, f"{where}: shape {a.shape} != {b.shape}"
     assert np.array_equal(np.isnan(a), np.isnan(b)), f"{where}: NaN pattern {a} != {b}"
@@ -70,18 +75,21 @@ def assert_logs_equal(
     assert same, "metadata differs"
     if check_frames:
         assert a.frames == b.frames, f"frames {a.frames} != {b.frames}"
-    for name in FOLDERS:
-        fa, fb = a.folder(name), b.folder(name)
-        assert sorted(fa) == sorted(fb), f"{name}: stamps {sorted(fa)} != {sorted(fb)}"
-        for ts in fa:
-            where = f"{name}@{ts}"
-            if name == "pose":
-                _pose(fa[ts], fb[ts], angle_tol, where)
-            elif name == "actors":
-                _actors(fa[ts], fb[ts], angle_tol, where)
-            elif name in ("bboxes", "bboxes_gt"):
-                _boxes(fa[ts], fb[ts], where)
-            elif name == "waypoint":
-                _plan(fa[ts], fb[ts], where)
-            else:
-                _predictions(fa[ts], fb[ts], where)
+    assert FOLDERS[0] == "pose" and FOLDERS[-1] == "waypoint"  # compared in FOLDERS order
+    _folder("pose", a.pose, b.pose, lambda x, y, w: _pose(x, y, angle_tol, w))
+    _folder("actors", a.actors, b.actors, lambda x, y, w: _actors(x, y, angle_tol, w))
+    _folder("bboxes", a.bboxes, b.bboxes, _boxes)
+    _folder("bboxes_gt", a.bboxes_gt, b.bboxes_gt, _boxes)
+    _folder("predictions", a.predictions, b.predictions, _predictions)
+    pwp_a, pwp_b = a.predictions_with_perception, b.predictions_with_perception
+    _folder("predictions_with_perception", pwp_a, pwp_b, _predictions)
+    _folder("waypoint", a.waypoints, b.waypoints, _plan)
+
+
+def _folder(
+    name: str, fa: Mapping[int, R], fb: Mapping[int, R], same: Callable[[R, R, str], None]
+) -> None:
+    """One folder's records: the same timestamps, and ``same`` for each pair."""
+    assert sorted(fa) == sorted(fb), f"{name}: stamps {sorted(fa)} != {sorted(fb)}"
+    for ts in fa:
+        same(fa[ts], fb[ts], f"{name}@{ts}")

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import pytest
 import yaml
@@ -22,6 +23,9 @@ from ads_rca.io.bag_writer import contract_qos_yaml, playback_messages, write_ba
 from ads_rca.io.json_log import read_run_log
 from ads_rca.io.json_writer import write_run_log
 from ads_rca.io.mcap_writer import McapBagWriter
+
+if TYPE_CHECKING:
+    from conftest import RosEnv
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -116,10 +120,10 @@ def test_mcap_layout_is_rosbag2s(log_dir: Path, tmp_path: Path) -> None:
         assert yaml.safe_load(records[0].metadata["serialized_metadata"]) == info
         decoded = sum(1 for _ in reader.iter_decoded_messages())
     assert decoded == sum(counts.values())
-    with AnyReader([bag]) as reader:
-        assert {c.topic: c.msgcount for c in reader.connections} == counts
-        for conn, _ts, raw in reader.messages():
-            reader.deserialize(raw, conn.msgtype)
+    with AnyReader([bag]) as any_reader:
+        assert {c.topic: c.msgcount for c in any_reader.connections} == counts
+        for conn, _ts, raw in any_reader.messages():
+            any_reader.deserialize(raw, conn.msgtype)
 
 
 def test_killed_writer_leaves_complete_chunks_readable(log_dir: Path, tmp_path: Path) -> None:
@@ -147,7 +151,7 @@ def test_killed_writer_leaves_complete_chunks_readable(log_dir: Path, tmp_path: 
 
 
 @pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
-def test_player_plays_a_bag(ros_env, tmp_path: Path, log_dir: Path, storage: str) -> None:
+def test_player_plays_a_bag(ros_env: RosEnv, tmp_path: Path, log_dir: Path, storage: str) -> None:
     bag, out, ns = tmp_path / "bag", tmp_path / "rebuilt", ros_env.namespace
     write_bag(read_run_log(log_dir), bag, storage)
     source = bag if storage == "mcap" else next(bag.glob("*.db3"))  # dir and bare file
@@ -183,7 +187,7 @@ def _stack_bag(log_dir: Path, bag: Path) -> dict[str, object]:
     return {**{their: key for key, their in names.items()}, "metadata": log.metadata.to_dict()}
 
 
-def test_stack_bag_plays_through_a_remapping(ros_env, tmp_path: Path) -> None:
+def test_stack_bag_plays_through_a_remapping(ros_env: RosEnv, tmp_path: Path) -> None:
     log = make_log(12, 5, 9, orphan_stamps=True)  # frames = actors stamps (no duplicates)
     log_dir = write_run_log(log, tmp_path / "log")
     bag, remap = tmp_path / "stack_bag", tmp_path / "remap.yaml"
@@ -204,7 +208,7 @@ def test_stack_bag_plays_through_a_remapping(ros_env, tmp_path: Path) -> None:
     assert_logs_equal(original, read_run_log(out))
 
 
-def test_convert_bad_input_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+def test_convert_bad_input_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert cli(["convert", str(tmp_path / "nope"), str(tmp_path / "out")]) == 2
     broken = tmp_path / "broken.mcap"
     broken.write_bytes(b"not an mcap")

@@ -14,6 +14,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import pytest
 import yaml
@@ -27,6 +28,9 @@ from ads_rca.io.bag_reader import iter_mcap_stream, load_bag, read_bag
 from ads_rca.io.mcap_writer import McapBagWriter
 from ads_rca.model import RunLog
 from ads_rca.ros.launcher import Launcher
+
+if TYPE_CHECKING:
+    from conftest import RosEnv
 
 pytestmark = pytest.mark.timeout(600)
 
@@ -130,8 +134,8 @@ def test_every_cut_of_an_mcap_is_said(
     assert outcomes["error"] and outcomes["partial"] > 20, outcomes
     for cut in (len(data) // 3, len(data) * 2 // 3, len(data) - 8):
         log = read_bag(copy_bag(bag, tmp_path / "cut", data[:cut], with_yaml))
-        (said,) = cut_problems(log)
-        assert f"truncated after {cut} bytes" in said
+        (cut_said,) = cut_problems(log)
+        assert f"truncated after {cut} bytes" in cut_said
 
 
 def test_cut_mcap_through_the_command_line(
@@ -352,7 +356,7 @@ def test_unreadable_metadata_yaml_falls_back_to_the_storage(
 
 
 def test_sigkilled_recording_is_reported_as_cut(
-    ros_env,
+    ros_env: RosEnv,
     tmp_path: Path,
     capsys: pytest.CaptureFixture[str],
 ) -> None:

@@ -18,12 +18,15 @@ import shutil
 import subprocess
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pytest
 
 from ads_rca.io.json_writer import write_run_log
 from ads_rca.synth import synthesise
+
+if TYPE_CHECKING:
+    from conftest import RosEnv
 
 #: Seconds before a CLI run counts as hung.
 TIMEOUT = 120
@@ -268,7 +271,7 @@ def test_convert_refuses_an_unwritable_out_before_reading(
 
 @pytest.mark.parametrize("case", ["directory", "under a file"])
 def test_replay_refuses_an_unwritable_output_before_starting_the_graph(
-    log_dir: Path, tmp_path: Path, ros_env: Any, case: str
+    log_dir: Path, tmp_path: Path, ros_env: RosEnv, case: str
 ) -> None:
     out = _unwritable_outputs(tmp_path)[case]
     args = ["replay", str(log_dir), "--domain-id", str(ros_env.domain_id), "--timeout", "60"]
@@ -401,7 +404,7 @@ def test_printable_escapes_every_control_and_keeps_text() -> None:
 
 
 def test_replay_player_skips_a_fifo_and_honours_max_file_mb(
-    log_dir: Path, tmp_path: Path, ros_env: Any
+    log_dir: Path, tmp_path: Path, ros_env: RosEnv
 ) -> None:
     """The live graph's player reads with the same rules; ``max_file_mb`` reaches it."""
     fifo = _one(log_dir / "pose")

@@ -9,12 +9,15 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pytest
 
 from ads_rca.ros.launcher import ManagedProcess, ros_args
 from ads_rca.ros.monitor import GROUP
+
+if TYPE_CHECKING:
+    from conftest import RosEnv
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "cut_in_perception"
 
@@ -32,7 +35,7 @@ CASES = [
 
 @pytest.mark.parametrize(("node", "name", "value"), CASES)
 def test_a_parameter_of_the_wrong_type_is_one_line_and_exit_2(
-    ros_env: Any, tmp_path: Path, node: str, name: str, value: Any
+    ros_env: RosEnv, tmp_path: Path, node: str, name: str, value: Any
 ) -> None:
     params: dict[str, Any] = {name: value, "topic_namespace": ros_env.namespace}
     if node == "ads_rca.ros.player":

@@ -22,8 +22,9 @@ import subprocess
 import sys
 import textwrap
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pytest
 from test_hostile_bags import convert
@@ -37,8 +38,11 @@ from ads_rca.io.bag_reader import iter_mcap_stream, read_bag
 from ads_rca.io.json_log import read_run_log
 from ads_rca.io.mcap_writer import McapBagWriter
 from ads_rca.live import diagnostics as diag
-from ads_rca.ros.launcher import ManagedProcess, ros_args
+from ads_rca.ros.launcher import ManagedProcess, ParamValue, ros_args
 from ads_rca.ros.monitor import GROUP, MONITORS
+
+if TYPE_CHECKING:
+    from conftest import RosEnv
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "cut_in_perception"
 ABSURD = (2**32 - 1, 2**31, 10**8, 65_537)
@@ -62,7 +66,7 @@ def decoders(key: str) -> list[Any]:
         return [cdr_decode.decode_clock]
     if key == topics.METADATA:
         return [cdr_decode.decode_string]
-    out = [
+    out: list[Callable[[bytes], object]] = [
         lambda data: topics.stamp_ms(key, data),
         lambda data: topics.decode_record(key, data, 50),
     ]
@@ -325,7 +329,7 @@ while time.monotonic() < deadline:
 
 
 @pytest.mark.timeout(300)
-def test_monitors_skip_and_report_malformed_messages_and_judge_the_rest(ros_env: Any) -> None:
+def test_monitors_skip_and_report_malformed_messages_and_judge_the_rest(ros_env: RosEnv) -> None:
     """This process plays the example log to a real ``monitors`` process, with a trajectory
     of 2**31 points, a MarkerArray of 2**31 markers, run/frame texts that are not JSON or
     nest 5000 levels slipped in from the same participant (the run's own player); another
@@ -340,7 +344,11 @@ def test_monitors_skip_and_report_malformed_messages_and_judge_the_rest(ros_env:
 
     ns = ros_env.namespace
     log = read_run_log(EXAMPLE)
-    params = {"topic_namespace": ns, "publish_diagnostics": False, "heartbeat_s": 0.2}
+    params: dict[str, ParamValue] = {
+        "topic_namespace": ns,
+        "publish_diagnostics": False,
+        "heartbeat_s": 0.2,
+    }
     monitors = ManagedProcess(
         "monitors",
         [sys.executable, "-m", "ads_rca.ros.monitor", GROUP, *ros_args(params)],
@@ -468,7 +476,7 @@ def test_the_assembler_leaves_undecodable_bytes_out_as_a_problem() -> None:
     assert problem.file == topics.ACTORS and problem.timestamp_ms == stamp
 
 
-def test_the_aggregator_skips_malformed_results_and_says_so_once(ros_env: Any) -> None:
+def test_the_aggregator_skips_malformed_results_and_says_so_once(ros_env: RosEnv) -> None:
     """A real ``aggregator`` process gets 40 monitor results that are not results (not JSON,
     nested 5000 levels, a list, a document missing its fields) and bad run/frame texts: it
     stays up, logs one rate-limited line per topic, never a traceback, never a line each."""

@@ -16,8 +16,9 @@ import itertools
 import json
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pytest
 from rosrun import wait_for
@@ -35,6 +36,9 @@ from ads_rca.oracles.base import MODULES
 from ads_rca.params import make_params
 from ads_rca.ros.graph import MONITORS_SEPARATE, Graph, GraphSpec
 from ads_rca.ros.launcher import ManagedProcess, ros_args
+
+if TYPE_CHECKING:
+    from conftest import RosEnv
 
 pytestmark = pytest.mark.timeout(180)
 
@@ -54,7 +58,13 @@ def jsonl(path: Path) -> list[dict[str, Any]]:
 
 @pytest.mark.parametrize("semantics", ["reference", "corrected"])
 @pytest.mark.parametrize("case", CASES, ids=["-".join(c) for c in CASES])
-def test_replay_gives_the_diagnose_verdict(ros_env, tmp_path, log_dirs, case, semantics):
+def test_replay_gives_the_diagnose_verdict(
+    ros_env: RosEnv,
+    tmp_path: Path,
+    log_dirs: Callable[[str, str], Path],
+    case: tuple[str, str],
+    semantics: str,
+) -> None:
     log_dir = log_dirs(*case)
     out = tmp_path / "verdict.json"
     argv = [sys.executable, "-m", "ads_rca.cli", "replay", str(log_dir), "--semantics", semantics]
@@ -75,7 +85,9 @@ def test_replay_gives_the_diagnose_verdict(ros_env, tmp_path, log_dirs, case, se
     assert f"verdict: {offline['verdict']}" in replay.output
 
 
-def test_replay_with_one_process_per_monitor_gives_the_same_verdict(ros_env, tmp_path, log_dirs):
+def test_replay_with_one_process_per_monitor_gives_the_same_verdict(
+    ros_env: RosEnv, tmp_path: Path, log_dirs: Callable[[str, str], Path]
+) -> None:
     """``--monitors separate``: the layout a monitor can be restarted in, same verdict."""
     log_dir = log_dirs("cut_in", "planning")
     out = tmp_path / "verdict.json"
@@ -90,7 +102,9 @@ def test_replay_with_one_process_per_monitor_gives_the_same_verdict(ros_env, tmp
     assert_close(verdict_keys(live), verdict_keys(offline))
 
 
-def test_replay_of_a_log_with_unreadable_values_equals_diagnose(ros_env, tmp_path):
+def test_replay_of_a_log_with_unreadable_values_equals_diagnose(
+    ros_env: RosEnv, tmp_path: Path
+) -> None:
     """Reader problems cross DDS in run/metadata: the live judging skips what diagnose skips."""
     log_dir = write_log_with_unreadable_values(tmp_path / "log")
     out = tmp_path / "verdict.json"
@@ -105,7 +119,7 @@ def test_replay_of_a_log_with_unreadable_values_equals_diagnose(ros_env, tmp_pat
     assert any(p["action"] == "read as NaN" for p in live["input_problems"])
 
 
-def test_replay_stops_at_once_when_a_node_fails(ros_env, tmp_path):
+def test_replay_stops_at_once_when_a_node_fails(ros_env: RosEnv, tmp_path: Path) -> None:
     """A player that cannot start ends the replay with its error, not after --timeout."""
     not_a_log = tmp_path / "not_a_log"
     not_a_log.mkdir()
@@ -117,15 +131,16 @@ def test_replay_stops_at_once_when_a_node_fails(ros_env, tmp_path):
     assert f"{not_a_log}: not an ADS running log" in line
 
 
-def start_probe(ros_env, path: Path) -> ManagedProcess:
+def start_probe(ros_env: RosEnv, path: Path) -> ManagedProcess:
     probe = ManagedProcess("probe", [sys.executable, str(PROBE), str(path)], ros_env.env)
     wait_for(lambda: "probe ready" in probe.output, 20, "the probe")
     return probe
 
 
 def test_monitor_killed_and_restarted_goes_stale_recovers_and_a_verdict_comes(
-    ros_env, tmp_path, log_dirs
-):
+    ros_env: RosEnv, tmp_path: Path, log_dirs: Callable[[str, str], Path]
+) -> None:
+
     log_dir = log_dirs("pedestrian_crossing", "planning")
     params = make_params("reference")
     metrics = tmp_path / "metrics.jsonl"
@@ -205,7 +220,9 @@ def test_monitor_killed_and_restarted_goes_stale_recovers_and_a_verdict_comes(
     assert len(sessions) == 2  # results from before and after the restart
 
 
-def test_stalled_input_is_reported_and_not_waited_on_forever(ros_env, tmp_path, log_dirs):
+def test_stalled_input_is_reported_and_not_waited_on_forever(
+    ros_env: RosEnv, tmp_path: Path, log_dirs: Callable[[str, str], Path]
+) -> None:
     log_dir = log_dirs("lead_braking", "prediction")
     spec = GraphSpec(
         log_dir,
@@ -256,7 +273,9 @@ def _stream(path: Path) -> dict[str, list[dict[str, Any]]]:
     return out
 
 
-def test_three_replays_give_identical_metric_streams_and_verdicts(ros_env, tmp_path, log_dirs):
+def test_three_replays_give_identical_metric_streams_and_verdicts(
+    ros_env: RosEnv, tmp_path: Path, log_dirs: Callable[[str, str], Path]
+) -> None:
     log_dir = log_dirs("lead_braking", "prediction")
     streams, verdicts = [], []
     for run in range(3):
@@ -281,7 +300,7 @@ def test_three_replays_give_identical_metric_streams_and_verdicts(ros_env, tmp_p
     assert verdicts[0] == verdicts[1] == verdicts[2]
 
 
-def test_monitor_accepts_a_params_file(ros_env, tmp_path):
+def test_monitor_accepts_a_params_file(ros_env: RosEnv, tmp_path: Path) -> None:
     """``--params-file config/rca_reference.yaml`` sets the mode, like ``diagnose --config``."""
     config = Path(__file__).parents[1] / "config" / "rca_reference.yaml"
     argv = [sys.executable, "-m", "ads_rca.ros.monitor", "planning_monitor"]
@@ -293,7 +312,7 @@ def test_monitor_accepts_a_params_file(ros_env, tmp_path):
         assert node.stop() == 0
 
 
-def test_monitors_process_refuses_nodes_with_different_parameters(ros_env):
+def test_monitors_process_refuses_nodes_with_different_parameters(ros_env: RosEnv) -> None:
     """The four nodes of ``monitors`` share one window: per-node engine values are refused."""
     argv = [sys.executable, "-m", "ads_rca.ros.monitor", "monitors", "--ros-args"]
     argv += ["-p", "perception_monitor:effect_time_window:=7"]

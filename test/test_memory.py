@@ -12,6 +12,7 @@ import sys
 import tracemalloc
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -62,7 +63,7 @@ def write_log(folder: Path, boxes: int) -> int:
     return ts
 
 
-def diagnose_limited(folder: Path, semantics: str, limit: int | None) -> tuple[dict, int]:
+def diagnose_limited(folder: Path, semantics: str, limit: int | None) -> tuple[dict[str, Any], int]:
     """``diagnose --json`` in a child, with an address-space limit; (JSON, its VmPeak)."""
     out = folder.with_suffix(f".{semantics}.json")
     script = (

@@ -17,6 +17,7 @@ import sys
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import pytest
 
@@ -28,7 +29,10 @@ from ads_rca.ros.env import (
 )
 from ads_rca.ros.fastdds_profile import PROFILES_VARIABLE, private_parent, profile_file
 from ads_rca.ros.graph import Graph, GraphSpec
-from ads_rca.ros.launcher import Launcher, ManagedProcess, node_command
+from ads_rca.ros.launcher import Launcher, ManagedProcess, ParamValue, node_command
+
+if TYPE_CHECKING:
+    from conftest import RosEnv
 
 EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "cut_in_perception"
 CLI = [sys.executable, "-m", "ads_rca.cli"]
@@ -43,7 +47,7 @@ def _lines(text: str) -> list[str]:
 
 
 @pytest.mark.parametrize("value", ["233", "999", "-1", "abc", "", "010", "1e2"])
-def test_bad_domain_id_flag_is_one_line_exit_2(ros_env, value):
+def test_bad_domain_id_flag_is_one_line_exit_2(ros_env: RosEnv, value: str) -> None:
     command = ManagedProcess("replay", [*CLI, "replay", str(EXAMPLE), "--domain-id", value])
     assert command.wait(60) == 2, command.output
     lines = _lines(command.output)
@@ -51,7 +55,7 @@ def test_bad_domain_id_flag_is_one_line_exit_2(ros_env, value):
     assert len(lines) == 1 and "--domain-id" in lines[0] and "0..232" in lines[0], lines
 
 
-def test_domain_ids_above_101_are_accepted(ros_env, tmp_path: Path):
+def test_domain_ids_above_101_are_accepted(ros_env: RosEnv, tmp_path: Path) -> None:
     """232 is Fast DDS's last domain: a real demo on it plays the whole log."""
     argv = [*CLI, "demo", str(EXAMPLE), "--domain-id", "232", "--out", str(tmp_path / "out")]
     demo = ManagedProcess("demo", argv, ros_env.env)
@@ -60,7 +64,7 @@ def test_domain_ids_above_101_are_accepted(ros_env, tmp_path: Path):
 
 
 @pytest.mark.parametrize("value", ["abc", "-1", "999", "07"])
-def test_hostile_ros_domain_id_in_the_environment(ros_env, value):
+def test_hostile_ros_domain_id_in_the_environment(ros_env: RosEnv, value: str) -> None:
     """Commands refuse it in one line; a node logs one error and exits 2 (rcl would raise
     an RCLError traceback for "abc" and silently use domain 0 for "-1")."""
     env = {**ros_env.env, "ROS_DOMAIN_ID": value}
@@ -76,7 +80,7 @@ def test_hostile_ros_domain_id_in_the_environment(ros_env, value):
         assert len(lines) == 1 and "ERROR" in lines[0] and "ROS_DOMAIN_ID" in lines[0], lines
 
 
-def test_empty_ros_domain_id_means_unset_as_in_rcl(ros_env):
+def test_empty_ros_domain_id_means_unset_as_in_rcl(ros_env: RosEnv) -> None:
     env = ros_environment(log_dir=ros_env.log_dir, base={**ros_env.env, "ROS_DOMAIN_ID": ""})
     assert 1 <= int(env["ROS_DOMAIN_ID"]) <= 101
 
@@ -108,7 +112,9 @@ def _child_environment(env: dict[str, str]) -> dict[str, str]:
     return document
 
 
-def test_launcher_children_never_inherit_redirecting_variables(ros_env, tmp_path: Path):
+def test_launcher_children_never_inherit_redirecting_variables(
+    ros_env: RosEnv, tmp_path: Path
+) -> None:
     user_profile = tmp_path / "mine.xml"
     user_profile.write_text("<dds/>")
     base = {**ros_env.env, **HOSTILE, PROFILES_VARIABLE: str(user_profile)}
@@ -159,8 +165,8 @@ def _datagrams(sock: socket.socket) -> int:
 
 
 def test_replay_sends_nothing_to_a_discovery_server_from_the_environment(
-    ros_env, tmp_path: Path, fake_discovery_server: socket.socket
-):
+    ros_env: RosEnv, tmp_path: Path, fake_discovery_server: socket.socket
+) -> None:
     host, port = fake_discovery_server.getsockname()
     env = {**ros_env.env, "ROS_DISCOVERY_SERVER": f"{host}:{port}"}
     out = tmp_path / "verdict.json"
@@ -174,8 +180,8 @@ def test_replay_sends_nothing_to_a_discovery_server_from_the_environment(
 
 
 def test_allow_external_discovery_flag_keeps_the_server(
-    ros_env, fake_discovery_server: socket.socket
-):
+    ros_env: RosEnv, fake_discovery_server: socket.socket
+) -> None:
     """Opted in on the command line, the children do use the server (so the test above
     can see packets when they are sent)."""
     host, port = fake_discovery_server.getsockname()
@@ -188,8 +194,8 @@ def test_allow_external_discovery_flag_keeps_the_server(
 
 
 def test_node_started_by_hand_warns_and_the_variable_really_applies(
-    ros_env, fake_discovery_server: socket.socket
-):
+    ros_env: RosEnv, fake_discovery_server: socket.socket
+) -> None:
     """The positive control of the test above: a node started by hand keeps the variable
     (its user chose it), says so in one line naming it, and Fast DDS does send there."""
     host, port = fake_discovery_server.getsockname()
@@ -197,7 +203,11 @@ def test_node_started_by_hand_warns_and_the_variable_really_applies(
         k: v for k, v in ros_env.env.items() if k not in (PROFILES_VARIABLE, OWN_PROFILE_VARIABLE)
     }
     env["ROS_DISCOVERY_SERVER"] = f"{host}:{port}"
-    params = {"log_path": str(EXAMPLE), "wait_for_subscribers": 1, "wait_timeout_s": 30.0}
+    params: dict[str, ParamValue] = {
+        "log_path": str(EXAMPLE),
+        "wait_for_subscribers": 1,
+        "wait_timeout_s": 30.0,
+    }
     node = ManagedProcess("player", node_command(PLAYER, params), env)
     try:
         deadline = time.monotonic() + 30
@@ -216,7 +226,9 @@ def test_node_started_by_hand_warns_and_the_variable_really_applies(
 # --- item 17: the profile file -----------------------------------------------------------
 
 
-def test_profile_is_private_and_never_follows_a_planted_symlink(ros_env, tmp_path: Path):
+def test_profile_is_private_and_never_follows_a_planted_symlink(
+    ros_env: RosEnv, tmp_path: Path
+) -> None:
     """Another user owns the shared temp folder's names: plant a symlink at the old fixed
     name and at every name the old code could derive from the next pids. The player still
     starts, nothing is written through a link, and it leaves no folder behind."""
@@ -238,7 +250,7 @@ def test_profile_is_private_and_never_follows_a_planted_symlink(ros_env, tmp_pat
     }
     env.update(TMPDIR=str(shared), TMP=str(shared), TEMP=str(shared))
     env.pop("XDG_RUNTIME_DIR", None)
-    params = {"log_path": str(EXAMPLE), "rate": 0.0}
+    params: dict[str, ParamValue] = {"log_path": str(EXAMPLE), "rate": 0.0}
     player = ManagedProcess("player", node_command(PLAYER, params), env)
     assert player.wait(60) == 0, player.output
     assert "finished" in player.output
@@ -247,7 +259,7 @@ def test_profile_is_private_and_never_follows_a_planted_symlink(ros_env, tmp_pat
     assert all((shared / name).is_symlink() for name in planted)
 
 
-def test_profile_directory_is_0700_and_file_0600(tmp_path: Path):
+def test_profile_directory_is_0700_and_file_0600(tmp_path: Path) -> None:
     path = Path(profile_file(loopback_only=True))
     folder = path.parent
     assert stat.S_IMODE(folder.lstat().st_mode) == 0o700 and not folder.is_symlink()
@@ -305,7 +317,9 @@ def _ports_of_domain(domain_id: int) -> range:
     return range(base, base + 250)
 
 
-def test_every_port_a_node_receives_on_is_bound_to_loopback(ros_env, tmp_path: Path):
+def test_every_port_a_node_receives_on_is_bound_to_loopback(
+    ros_env: RosEnv, tmp_path: Path
+) -> None:
     """The whole graph (recorder, aggregator, monitors, player) with the player held
     waiting for subscribers, so every participant is up while its sockets are read."""
     spec = GraphSpec(

@@ -11,8 +11,9 @@ import signal
 import sys
 import time
 from collections import Counter
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pytest
@@ -25,6 +26,9 @@ from ads_rca.io.bag_reader import is_bag, iter_mcap_stream, read_bag
 from ads_rca.io.json_log import read_run_log
 from ads_rca.io.json_writer import write_run_log
 from ads_rca.ros.launcher import Launcher, ManagedProcess, ParamValue, node_command
+
+if TYPE_CHECKING:
+    from conftest import RosEnv
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -74,7 +78,8 @@ def recorded_counts(bag: Path, ns: str) -> Counter[str]:
 
 def same_fields(a: Any, b: Any, name: str) -> None:
     """A rosbags message and an mcap-ros2-support one hold the same values."""
-    _consts, fields = rosmsg.typestore().fielddefs[name]
+    # rosbags' field definitions are a union of nested tuples, walked here by node type
+    fields: Sequence[tuple[str, tuple[int, Any]]] = rosmsg.typestore().fielddefs[name][1]
     for field, (nodetype, spec) in fields:
         x, y = getattr(a, field), getattr(b, field)
         base = spec if nodetype == 1 else spec[0] if nodetype == 2 else spec[0][1]
@@ -92,7 +97,9 @@ def same_fields(a: Any, b: Any, name: str) -> None:
             assert np.array_equal(u, v, equal_nan=True), field
 
 
-def test_every_published_message_is_recorded(ros_env, tmp_path: Path, log_dir: Path) -> None:
+def test_every_published_message_is_recorded(
+    ros_env: RosEnv, tmp_path: Path, log_dir: Path
+) -> None:
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
     from rosbags.highlevel import AnyReader
@@ -115,8 +122,10 @@ def test_every_published_message_is_recorded(ros_env, tmp_path: Path, log_dir: P
     with AnyReader([bag]) as reader:
         ours = [(c.topic, reader.deserialize(raw, c.msgtype)) for c, _t, raw in reader.messages()]
     with next(bag.glob("*.mcap")).open("rb") as stream:
-        reader = make_reader(stream, decoder_factories=[DecoderFactory()])
-        theirs = [(c.topic, s.name, m) for s, c, _r, m in reader.iter_decoded_messages()]
+        mcap_reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+        theirs = [
+            (c.topic, s.name if s else "", m) for s, c, _r, m in mcap_reader.iter_decoded_messages()
+        ]
     assert len(theirs) == len(ours) == sum(counts.values())
     by_topic: dict[str, list[Any]] = {}
     for topic, msg in ours:
@@ -129,7 +138,7 @@ def test_every_published_message_is_recorded(ros_env, tmp_path: Path, log_dir: P
     assert_logs_equal(original, read_bag(bag))
 
 
-def test_sigterm_finalises_the_bag(ros_env, tmp_path: Path, log_dir: Path) -> None:
+def test_sigterm_finalises_the_bag(ros_env: RosEnv, tmp_path: Path, log_dir: Path) -> None:
     from mcap.reader import make_reader
 
     bag, ns = tmp_path / "bag", ros_env.namespace
@@ -151,7 +160,7 @@ def test_sigterm_finalises_the_bag(ros_env, tmp_path: Path, log_dir: Path) -> No
     assert_logs_equal(read_run_log(log_dir), read_bag(bag))
 
 
-def test_sigkill_keeps_every_complete_chunk(ros_env, tmp_path: Path, log_dir: Path) -> None:
+def test_sigkill_keeps_every_complete_chunk(ros_env: RosEnv, tmp_path: Path, log_dir: Path) -> None:
     bag, ns = tmp_path / "bag", ros_env.namespace
     with Launcher(ros_env.env, echo=sys.stderr) as launcher:
         recorder = start_recorder(
@@ -178,7 +187,7 @@ def test_sigkill_keeps_every_complete_chunk(ros_env, tmp_path: Path, log_dir: Pa
     assert len(rebuilt.frames) > 0
 
 
-def test_recorder_needs_an_output(ros_env) -> None:
+def test_recorder_needs_an_output(ros_env: RosEnv) -> None:
     recorder = ManagedProcess("recorder", node_command("ads_rca.ros.recorder", {}), ros_env.env)
     assert recorder.wait(30) == 2
     assert "Traceback" not in recorder.output and "output" in recorder.output

@@ -141,8 +141,9 @@ def assert_only_report_markup(page: str) -> str:
         assert names <= REPORT_ATTRIBUTES, (tag, attrs)
         assert not any(name.startswith("on") for name in names)
         if tag == "img":
-            assert dict(attrs)["src"].startswith("data:image/png;base64,")  # type: ignore[union-attr]
-            assert set(dict(attrs)["src"][22:]) <= set(  # type: ignore[index]
+            src = dict(attrs)["src"]
+            assert src is not None and src.startswith("data:image/png;base64,")
+            assert set(src[22:]) <= set(
                 "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/="
             )
     assert [tag for tag, _ in structure.tags].count("img") in (2, 3)  # metrics, 1 or 2 scenes
@@ -154,8 +155,10 @@ def assert_only_report_markup(page: str) -> str:
 def test_markup_in_every_log_string_stays_text(tmp_path: Path, semantics: str) -> None:
     folder, ids = hostile_log(tmp_path)
     result = diagnose(open_run(folder), make_params(semantics))
+    assert result.ctx.ego_id is not None
     shown = [str(folder), result.ctx.ego_id]
     if semantics == "corrected":  # the reference names no partner
+        assert result.attribution.partner_id is not None
         shown.append(result.attribution.partner_id)
     assert all(actor in ids.values() for actor in shown[1:])  # the payloads reach the report
     page = render(result)

@@ -12,7 +12,7 @@ from __future__ import annotations
 import subprocess
 import sys
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pytest
@@ -32,6 +32,9 @@ from ads_rca.contract.topics import decode_record, stamp_ms
 from ads_rca.live import diagnostics as diag
 from ads_rca.model import Actors, Boxes, EgoPose, Plan, RunLog, RunMetadata, Track
 from ads_rca.ros.diagnostics import array as diagnostic_array
+
+if TYPE_CHECKING:
+    from conftest import RosEnv
 
 TPF = 50
 
@@ -282,7 +285,7 @@ def test_encoder_modules_do_not_import_rclpy() -> None:
 
 
 @pytest.mark.timeout(60)
-def test_subscribers_receive_identical_bytes_over_dds(ros_env: Any) -> None:
+def test_subscribers_receive_identical_bytes_over_dds(ros_env: RosEnv) -> None:
     """Object publisher vs bytes publisher, raw subscribers: the very same bytes arrive."""
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
@@ -328,7 +331,7 @@ def test_subscribers_receive_identical_bytes_over_dds(ros_env: Any) -> None:
 @pytest.mark.timeout(120)
 @pytest.mark.parametrize(("fast_publish", "fast_decode"), [(False, True), (True, False)])
 def test_fast_and_object_paths_interoperate_across_processes(
-    ros_env: Any, tmp_path: Any, fast_publish: bool, fast_decode: bool
+    ros_env: RosEnv, tmp_path: Any, fast_publish: bool, fast_decode: bool
 ) -> None:
     from rosrun import run_pair
 

@@ -11,6 +11,7 @@ import os
 import subprocess
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import pytest
 from logfactory import make_log
@@ -18,6 +19,9 @@ from rosrun import run_pair
 
 from ads_rca.contract import topics
 from ads_rca.io.json_writer import write_run_log
+
+if TYPE_CHECKING:
+    from conftest import RosEnv
 
 REPO = Path(__file__).resolve().parent.parent
 COLCON = Path(sys.executable).parent / "colcon"
@@ -82,7 +86,7 @@ def test_installed_layout_is_what_ros2_run_expects(install: Path) -> None:
 
 
 def test_installed_player_found_via_ament_index_publishes(
-    install: Path, ros_env, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    install: Path, ros_env: RosEnv, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     from ament_index_python.packages import get_package_prefix
 

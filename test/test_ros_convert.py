@@ -81,7 +81,7 @@ def test_angles_round_trip_within_1e_9_degrees() -> None:
     rpy = np.column_stack(
         (rng.uniform(-180, 180, 5000), rng.uniform(-89.9, 89.9, 5000), rng.uniform(-180, 180, 5000))
     )
-    rpy[:4] = [[0, 0, 180], [0, 0, -179.999999], [179.9, 0, 0], [0, -89.999, 45]]
+    rpy[:4] = np.array([[0, 0, 180], [0, 0, -179.999999], [179.9, 0, 0], [0, -89.999, 45]])
     back = convert.quaternions_to_carla_rpy(convert.carla_rpy_to_quaternions(rpy))
     diff = np.abs((back - rpy + 180.0) % 360.0 - 180.0)
     assert diff.max() < 1e-9

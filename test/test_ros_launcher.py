@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 from ads_rca.ros.env import pick_domain_id, ros_environment
 from ads_rca.ros.launcher import ManagedProcess, format_param, node_command, ros_args
 
 
-def test_environment_always_local_only_with_domain_and_log_dir(tmp_path):
+def test_environment_always_local_only_with_domain_and_log_dir(tmp_path: Path) -> None:
     base = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET", "ROS_STATIC_PEERS": "10.0.0.1"}
     env = ros_environment(domain_id=17, log_dir=tmp_path, base=base)
     assert env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
@@ -19,7 +20,7 @@ def test_environment_always_local_only_with_domain_and_log_dir(tmp_path):
     assert all(1 <= pick_domain_id(t) <= 101 for t in range(300))
 
 
-def test_parameters_are_formatted_for_ros_args():
+def test_parameters_are_formatted_for_ros_args() -> None:
     assert format_param(True) == "true"
     assert format_param(3) == "3"
     assert format_param(0.0) == "0.0"
@@ -34,7 +35,7 @@ def test_parameters_are_formatted_for_ros_args():
     assert node_command("m")[1:] == ["-m", "m"]
 
 
-def test_stop_escalates_to_sigterm_when_sigint_is_ignored(tmp_path):
+def test_stop_escalates_to_sigterm_when_sigint_is_ignored(tmp_path: Path) -> None:
     script = (
         "import signal, sys, time\n"
         "signal.signal(signal.SIGINT, signal.SIG_IGN)\n"
@@ -52,7 +53,7 @@ def test_stop_escalates_to_sigterm_when_sigint_is_ignored(tmp_path):
     assert process.output == "ready"
 
 
-def test_config_player_yaml_lists_every_parameter_with_its_default():
+def test_config_player_yaml_lists_every_parameter_with_its_default() -> None:
     from pathlib import Path
 
     import yaml

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import pytest
 from logcompare import assert_logs_equal
@@ -18,7 +19,10 @@ from rosrun import run_pair
 from ads_rca.contract import topics
 from ads_rca.io.json_log import read_run_log
 from ads_rca.io.json_writer import write_run_log
-from ads_rca.ros.launcher import ManagedProcess, node_command
+from ads_rca.ros.launcher import ManagedProcess, ParamValue, node_command
+
+if TYPE_CHECKING:
+    from conftest import RosEnv
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -28,12 +32,14 @@ def log_dir(tmp_path: Path) -> Path:
     return write_run_log(make_log(24, 10, 11), tmp_path / "log")
 
 
-def received(summary: dict, namespace: str, key: str) -> int:
+def received(summary: dict[str, Any], namespace: str, key: str) -> int:
     return int(summary["topics"][topics.topic_name(key, namespace)]["received"])
 
 
 @pytest.mark.parametrize("rate", [0.0, 20.0])
-def test_whole_log_crosses_dds_unchanged(ros_env, tmp_path: Path, log_dir: Path, rate: float):
+def test_whole_log_crosses_dds_unchanged(
+    ros_env: RosEnv, tmp_path: Path, log_dir: Path, rate: float
+) -> None:
     out = tmp_path / "rebuilt"
     ns = ros_env.namespace
     result = run_pair(
@@ -52,7 +58,9 @@ def test_whole_log_crosses_dds_unchanged(ros_env, tmp_path: Path, log_dir: Path,
     assert result.summary["status"]["state"] == "finished"
 
 
-def test_parameters_on_the_command_line_select_frames(ros_env, tmp_path: Path, log_dir: Path):
+def test_parameters_on_the_command_line_select_frames(
+    ros_env: RosEnv, tmp_path: Path, log_dir: Path
+) -> None:
     ns = ros_env.namespace
     result = run_pair(
         ros_env.env,
@@ -75,7 +83,9 @@ def test_parameters_on_the_command_line_select_frames(ros_env, tmp_path: Path, l
     assert result.summary["status"]["frames_published"] == 5
 
 
-def test_params_file_sets_namespace_range_and_rate(ros_env, tmp_path: Path, log_dir: Path):
+def test_params_file_sets_namespace_range_and_rate(
+    ros_env: RosEnv, tmp_path: Path, log_dir: Path
+) -> None:
     ns = ros_env.namespace + "_from_file"
     params = tmp_path / "player.yaml"
     params.write_text(
@@ -106,7 +116,9 @@ def test_params_file_sets_namespace_range_and_rate(ros_env, tmp_path: Path, log_
     [{"log_path": "/nonexistent/ads_rca_log"}, {}, {"log_path": "/tmp", "rate": -1.0}],
     ids=["missing-folder", "no-log-path", "negative-rate"],
 )
-def test_bad_input_is_one_line_and_exit_status_2(ros_env, params):
+def test_bad_input_is_one_line_and_exit_status_2(
+    ros_env: RosEnv, params: dict[str, ParamValue]
+) -> None:
     player = ManagedProcess("player", node_command("ads_rca.ros.player", params), ros_env.env)
     assert player.wait(30) == 2
     lines = [line for line in player.output.splitlines() if line.strip()]
@@ -114,7 +126,9 @@ def test_bad_input_is_one_line_and_exit_status_2(ros_env, params):
     assert len(lines) == 1 and "ERROR" in lines[0] and "player" in lines[0], player.output
 
 
-def test_demo_command_plays_a_log_and_rebuilds_it(ros_env, tmp_path: Path, log_dir: Path):
+def test_demo_command_plays_a_log_and_rebuilds_it(
+    ros_env: RosEnv, tmp_path: Path, log_dir: Path
+) -> None:
     out = tmp_path / "demo_out"
     argv = [sys.executable, "-m", "ads_rca.cli", "demo", str(log_dir), "--out", str(out)]
     argv += ["--domain-id", str(ros_env.domain_id)]

@@ -18,8 +18,9 @@ import json
 import os
 import signal
 import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import pytest
 from rosrun import wait_for
@@ -36,6 +37,9 @@ from ads_rca.params import make_params
 from ads_rca.ros.domains import domains_in_use, free_domain_id
 from ads_rca.ros.graph import Graph, GraphSpec
 from ads_rca.ros.launcher import ManagedProcess, node_command
+
+if TYPE_CHECKING:
+    from conftest import RosEnv
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "cut_in_perception"
 pytestmark = pytest.mark.timeout(240)
@@ -77,8 +81,8 @@ def matches_diagnose(document: dict[str, Any], log_dir: Path, output: str = "") 
 
 
 def test_two_replays_on_one_domain_and_namespace_give_their_own_verdicts(
-    ros_env, tmp_path, log_dirs
-):
+    ros_env: RosEnv, tmp_path: Path, log_dirs: Callable[[str, str], Path]
+) -> None:
     logs = [log_dirs("cut_in", "perception"), log_dirs("lead_braking", "prediction")]
     replays = []
     for n, log_dir in enumerate(logs):
@@ -100,7 +104,9 @@ def test_two_replays_on_one_domain_and_namespace_give_their_own_verdicts(
     assert verdicts[0]["live"]["run"] != verdicts[1]["live"]["run"]
 
 
-def test_graph_ignores_a_foreign_player_on_its_namespace(ros_env, tmp_path, log_dirs):
+def test_graph_ignores_a_foreign_player_on_its_namespace(
+    ros_env: RosEnv, tmp_path: Path, log_dirs: Callable[[str, str], Path]
+) -> None:
     """Aggregator, monitors and recorder of one run next to a player of another log."""
     ours, theirs = log_dirs("pedestrian_crossing", "planning"), log_dirs("left_turn", "controller")
     ns = ros_env.namespace
@@ -137,14 +143,15 @@ def test_graph_ignores_a_foreign_player_on_its_namespace(ros_env, tmp_path, log_
 
     with AnyReader([bag]) as reader:
         metadata = [
-            json.loads(reader.deserialize(raw, c.msgtype).data)
+            # rosbags types a message as object; this topic's is a std_msgs/String
+            json.loads(cast(Any, reader.deserialize(raw, c.msgtype)).data)
             for c, _t, raw in reader.messages()
             if c.topic == topics.topic_name(topics.METADATA, ns)
         ]
     assert metadata and {m["run"] for m in metadata} == {spec.run_id}
 
 
-def test_run_filter_locks_onto_one_run_and_its_player(tmp_path):
+def test_run_filter_locks_onto_one_run_and_its_player(tmp_path: Path) -> None:
     def info(prefix: bytes, entity: bytes = b"\0\0\x13\x03") -> dict[str, Any]:
         gid = {"implementation_identifier": "rmw_fastrtps_cpp", "data": prefix + entity}
         return {"publisher_gid": gid}
@@ -172,7 +179,7 @@ def test_run_filter_locks_onto_one_run_and_its_player(tmp_path):
     ]
 
 
-def test_a_free_domain_has_no_participant(ros_env, tmp_path):
+def test_a_free_domain_has_no_participant(ros_env: RosEnv, tmp_path: Path) -> None:
     """A domain with a participant on it (a waiting player) is never picked."""
     waiting = ManagedProcess(
         "holder",
@@ -200,7 +207,9 @@ def test_a_free_domain_has_no_participant(ros_env, tmp_path):
 
 
 @pytest.mark.parametrize("sig", ["SIGTERM", "SIGINT", "SIGHUP", "SIGKILL"])
-def test_a_stopped_replay_leaves_no_process_and_no_folder(ros_env, tmp_path, log_dirs, sig):
+def test_a_stopped_replay_leaves_no_process_and_no_folder(
+    ros_env: RosEnv, tmp_path: Path, log_dirs: Callable[[str, str], Path], sig: str
+) -> None:
     private = tmp_path / "tmp"
     private.mkdir()
     env = {**ros_env.env, "TMPDIR": str(private)}
@@ -226,7 +235,7 @@ def test_a_stopped_replay_leaves_no_process_and_no_folder(ros_env, tmp_path, log
         kill_leftovers(domain)
 
 
-def test_nodes_die_with_a_killed_launcher(ros_env, tmp_path):
+def test_nodes_die_with_a_killed_launcher(ros_env: RosEnv, tmp_path: Path) -> None:
     """No reaper here: the parent-death signal alone stops the node."""
     script = (
         "import sys, time\n"
@@ -260,7 +269,7 @@ def _cmdline(pid: int) -> bytes:
 
 
 @pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM"])
-def test_a_stop_signal_ends_a_player_cleanly(ros_env, tmp_path, sig):
+def test_a_stop_signal_ends_a_player_cleanly(ros_env: RosEnv, tmp_path: Path, sig: str) -> None:
     """SIGTERM (what replay's escalation and the parent-death signal send) shuts rclpy's
     context down under the player's feet: it used to end in an RCLError traceback."""
     log_dir = write_run_log(synth("cut_in", "perception"), tmp_path / "log")
@@ -289,7 +298,7 @@ def test_a_stop_signal_ends_a_player_cleanly(ros_env, tmp_path, sig):
     "node", ["ads_rca.ros.player", "ads_rca.ros.aggregator", "ads_rca.ros.recorder", "monitors"]
 )
 def test_a_hostile_run_id_is_one_line_and_exit_2(
-    ros_env: Any, tmp_path: Path, node: str, run_id: str, said: str
+    ros_env: RosEnv, tmp_path: Path, node: str, run_id: str, said: str
 ) -> None:
     """``run_id`` becomes part of a topic name (``run/ready_<id>``): a hostile one is refused
     at start in one line (escaped), never an rclpy traceback."""

@@ -121,6 +121,7 @@ def test_a_third_mode_is_one_module_and_one_registry_entry(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     module = types.ModuleType("third_mode")
+    # a module made at run time: its attributes are unknown to the checker
     module.SEMANTICS = _ThirdSemantics()  # type: ignore[attr-defined]
     monkeypatch.setitem(sys.modules, "third_mode", module)
     monkeypatch.setitem(registry.MODES, "third", "third_mode")

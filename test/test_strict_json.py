@@ -18,7 +18,7 @@ import subprocess
 import sys
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import orjson
 import pytest
@@ -43,6 +43,9 @@ from ads_rca.params import make_params
 from ads_rca.ros.launcher import ManagedProcess
 from ads_rca.strictjson import NONFINITE_KEY, VALUE_KEY, dumps, from_strict, loads, to_strict
 from ads_rca.synth import synthesise
+
+if TYPE_CHECKING:
+    from conftest import RosEnv
 
 pytestmark = pytest.mark.timeout(240)
 
@@ -225,7 +228,7 @@ def test_the_log_really_is_full_of_non_finite_values(nonfinite_log: Path) -> Non
     assert sum("1e400" in p.issue for p in log.problems) == 2
     assert math.isnan(log.metadata.raw["ego_config"]["camera"]["fov"])
     scores = [e.get("score") for boxes in log.bboxes.values() for e in boxes.extras]
-    assert any(math.isnan(s) for s in scores) and INF in scores
+    assert any(isinstance(s, float) and math.isnan(s) for s in scores) and INF in scores
 
 
 @pytest.mark.parametrize("semantics", ["corrected", "reference"])
@@ -270,7 +273,7 @@ def test_convert_writes_strict_json_and_reads_it_back_exactly(
 
 
 def test_live_graph_emits_strict_json_and_the_same_verdict(
-    ros_env: Any, tmp_path: Path, nonfinite_log: Path
+    ros_env: RosEnv, tmp_path: Path, nonfinite_log: Path
 ) -> None:
     """replay with the recorder: every JSON the player, monitors and aggregator sent, as a
     real subscriber received it, is strict; the verdict equals diagnose; the recorded bag
@@ -306,7 +309,7 @@ def test_live_graph_emits_strict_json_and_the_same_verdict(
 
 
 def test_topic_summary_rebuilds_the_log_and_writes_strict_json(
-    ros_env: Any, tmp_path: Path, nonfinite_log: Path
+    ros_env: RosEnv, tmp_path: Path, nonfinite_log: Path
 ) -> None:
     """The assembler across DDS: the rebuilt log equals the original, metadata included."""
     rebuilt, ns = tmp_path / "rebuilt", ros_env.namespace

@@ -12,7 +12,14 @@ import pytest
 
 from ads_rca.io.json_writer import write_run_log
 from ads_rca.model import FOLDERS, RunLog
-from ads_rca.synth import FAULTS, SCENARIOS, SynthesisError, synthesise, synthesise_run
+from ads_rca.synth import (
+    FAULTS,
+    SCENARIOS,
+    SynthesisError,
+    SynthesisSummary,
+    synthesise,
+    synthesise_run,
+)
 from ads_rca.synth.camera import CX, project_boxes
 from ads_rca.synth.geometry import sat_gap
 from ads_rca.synth.scenarios import BUILDERS
@@ -22,7 +29,7 @@ SEED = 5
 
 
 @cache
-def _run(scenario: str, fault: str) -> tuple[RunLog, dict]:
+def _run(scenario: str, fault: str) -> tuple[RunLog, SynthesisSummary]:
     return synthesise_run(scenario, fault, SEED)
 
 
@@ -92,11 +99,13 @@ def test_faulty_log_ends_at_a_collision_with_the_partner_and_its_twin_does_not(
     assert _ego_partner_gap(log, collision - 1, summary) >= 0.0
 
 
-def _ego_partner_gap(log: RunLog, frame: int, summary: dict) -> float:
+def _ego_partner_gap(log: RunLog, frame: int, summary: SynthesisSummary) -> float:
     ts = frame * 50
     actors, pose = log.actors[ts], log.pose[ts]
     ego = log.actor_extents[summary["ego_id"]]
-    row = actors.index[summary["partner_id"]]
+    partner = summary["partner_id"]
+    assert partner is not None  # every crash scenario has one
+    row = actors.index[partner]
     return float(
         sat_gap(
             pose.xy,
@@ -156,6 +165,7 @@ def test_a_prediction_fault_changes_the_partner_in_both_prediction_files() -> No
     twin, _ = _run("lead_braking", "none")
     ts = (summary["fault_onset_frame"] + 2) * 50
     partner = summary["partner_id"]
+    assert partner is not None
     assert _same_boxes(log, twin, ts)
     assert not np.allclose(
         log.predictions_with_perception[ts][partner].offsets,

@@ -15,7 +15,7 @@ import shutil
 import subprocess
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pytest
 from golden_outputs import SEED, cases
@@ -27,6 +27,9 @@ from ads_rca.io.json_writer import write_run_log
 from ads_rca.params import SEMANTICS, make_params
 from ads_rca.ros.launcher import ManagedProcess
 from ads_rca.synth import synthesise
+
+if TYPE_CHECKING:
+    from conftest import RosEnv
 
 #: One live case per mode (a crash with a partner, so the partner label could matter).
 LIVE_CASES = [("reference", "cut_in", "perception"), ("corrected", "lead_braking", "prediction")]
@@ -50,7 +53,9 @@ def verdict(log_dir: Path, semantics: str) -> dict[str, Any]:
 
 
 @pytest.mark.parametrize(("scenario", "fault"), cases(), ids=["-".join(c) for c in cases()])
-def test_synthesised_metadata_names_the_fault_and_partner(tmp_path, scenario, fault):
+def test_synthesised_metadata_names_the_fault_and_partner(
+    tmp_path: Path, scenario: str, fault: str
+) -> None:
     log_dir = write_run_log(synthesise(scenario, fault, SEED), tmp_path / "log")
     label = json.loads((log_dir / "metadata.json").read_text())["synthesis"]
     assert (label["scenario"], label["fault"], label["seed"]) == (scenario, fault, SEED)
@@ -63,13 +68,15 @@ def test_synthesised_metadata_names_the_fault_and_partner(tmp_path, scenario, fa
 
 
 @pytest.mark.parametrize(("scenario", "fault"), cases(), ids=["-".join(c) for c in cases()])
-def test_removing_synthesis_leaves_every_offline_verdict_unchanged(tmp_path, scenario, fault):
+def test_removing_synthesis_leaves_every_offline_verdict_unchanged(
+    tmp_path: Path, scenario: str, fault: str
+) -> None:
     labelled, bare = write_pair(scenario, fault, tmp_path)
     for semantics in SEMANTICS:
         assert verdict(labelled, semantics) == verdict(bare, semantics), semantics
 
 
-def replay(ros_env: Any, log_dir: Path, semantics: str, tmp: Path) -> dict[str, Any]:
+def replay(ros_env: RosEnv, log_dir: Path, semantics: str, tmp: Path) -> dict[str, Any]:
     """The live verdict of a real replay (every node its own process), recorded to a bag."""
     out, bag = tmp / "verdict.json", tmp / "bag"
     argv = [sys.executable, "-m", "ads_rca.cli", "replay", str(log_dir), "--semantics", semantics]
@@ -93,8 +100,8 @@ def recorded_metadata(bag: Path, tmp: Path) -> dict[str, Any]:
 @pytest.mark.timeout(300)
 @pytest.mark.parametrize(("semantics", "scenario", "fault"), LIVE_CASES)
 def test_removing_synthesis_leaves_the_live_verdict_unchanged(
-    ros_env, tmp_path, semantics, scenario, fault
-):
+    ros_env: RosEnv, tmp_path: Path, semantics: str, scenario: str, fault: str
+) -> None:
     labelled, bare = write_pair(scenario, fault, tmp_path)
     runs = {}
     for name, log_dir in (("labelled", labelled), ("bare", bare)):

@@ -11,21 +11,20 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import Any
 
 from ads_rca.commands.input_args import add_reader_arguments, max_file_mb_from_args
 from ads_rca.commands.outputs import check_output_dir
 from ads_rca.contract import topics
 from ads_rca.errors import InputError
 from ads_rca.io.bag_reader import is_bag, read_bag
-from ads_rca.io.bag_writer import STORAGES, write_bag
+from ads_rca.io.bag_writer import STORAGES, McapOptions, write_bag
 from ads_rca.io.json_log import read_run_log
 from ads_rca.io.json_writer import write_run_log
 from ads_rca.io.mcap_writer import COMPRESSIONS, DEFAULT_CHUNK_SIZE
 from ads_rca.text import printable
 
 
-def register(subparsers: Any) -> None:
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     parser = subparsers.add_parser(
         "convert",
         help="convert a running-log folder to a rosbag2 bag, or a bag to a log folder",
@@ -65,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
                 print(f"  {line}", file=sys.stderr)
         return 0
     log = read_run_log(source, max_file_mb)
-    options: dict[str, Any] = {}
+    options: McapOptions = {}
     if args.storage == "mcap":
         options = {"compression": args.compression, "chunk_size": args.chunk_size}
     counts = write_bag(

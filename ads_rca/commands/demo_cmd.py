@@ -11,7 +11,6 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import Any
 
 from ads_rca.commands.outputs import check_output_dir
 from ads_rca.commands.playback_args import (
@@ -25,7 +24,7 @@ from ads_rca.ros.env import discovery_note, ros_environment
 from ads_rca.ros.launcher import Launcher, ParamValue, node_command
 
 
-def register(subparsers: Any) -> None:
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     parser = subparsers.add_parser(
         "demo", help="play a log on ROS 2 topics to a subscriber process (local-only DDS)"
     )

@@ -103,7 +103,7 @@ def graph_parameter_names() -> set[str]:
     return {name for module in tables for name in module.PARAMETERS} | set(ROS_NODE_PARAMETERS)
 
 
-def register(subparsers: Any) -> None:
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     parser = subparsers.add_parser("diagnose", help="find the root cause of a crash in a run log")
     parser.add_argument("path", help="log folder or bag")
     add_engine_arguments(parser, both=True)

@@ -13,7 +13,7 @@ from ads_rca.strictjson import dumps
 from ads_rca.text import printable
 
 
-def register(subparsers: Any) -> None:
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     parser = subparsers.add_parser(
         "inspect", help="summarise a run log and list the problems found in it"
     )

@@ -45,7 +45,7 @@ if TYPE_CHECKING:
     from ads_rca.ros.graph import Graph, GraphSpec
 
 
-def register(subparsers: Any) -> None:
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     parser = subparsers.add_parser(
         "replay", help="replay a run through the live node graph (monitors + aggregator)"
     )

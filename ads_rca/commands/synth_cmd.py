@@ -7,14 +7,13 @@ A thin shell over :func:`ads_rca.synth.synthesise_run` and
 from __future__ import annotations
 
 import argparse
-from typing import Any
 
 from ads_rca.io.json_writer import write_run_log
-from ads_rca.synth import FAULTS, SCENARIOS, canonical_fault, synthesise_run
+from ads_rca.synth import FAULTS, SCENARIOS, SynthesisSummary, canonical_fault, synthesise_run
 from ads_rca.text import printable
 
 
-def register(subparsers: Any) -> None:
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     parser = subparsers.add_parser(
         "synth", help="synthesise a closed-loop run log with an injected fault"
     )
@@ -45,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def describe(summary: dict[str, Any]) -> str:
+def describe(summary: SynthesisSummary) -> str:
     """The synthesis label in words: what happened, never a -1 or None placeholder."""
     head = f"{summary['scenario']}/{summary['fault']} seed {summary['seed']}"
     partner = summary["partner_id"]

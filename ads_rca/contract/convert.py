@@ -130,7 +130,8 @@ def quaternions_to_carla_rpy(quaternions: FloatArray) -> FloatArray:
     roll = np.arctan2(sin_r_cos_p, cos_r_cos_p)
     pitch = np.arctan2(2.0 * (w * y - z * x), np.hypot(sin_r_cos_p, cos_r_cos_p))
     yaw = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-    return np.degrees(np.stack((roll, -pitch, -yaw), axis=1))
+    degrees: FloatArray = np.degrees(np.stack((roll, -pitch, -yaw), axis=1))
+    return degrees
 
 
 def _quaternion(q: Sequence[float]) -> Quaternion:

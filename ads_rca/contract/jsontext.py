@@ -29,7 +29,7 @@ from ads_rca.strictjson import NONFINITE_KEY, all_finite, from_strict, to_strict
 _LONG_DIGITS = re.compile(r"[0-9]{19}")
 
 
-def dumps_json(document: Any) -> str:
+def dumps_json(document: object) -> str:
     """Compact strict JSON; unchanged text for documents with only finite numbers."""
     try:
         text = orjson.dumps(document).decode()
@@ -62,5 +62,5 @@ def loads_json(text: str) -> Any:
     return from_strict(document)
 
 
-def _has_annotation_key(document: Any) -> bool:
+def _has_annotation_key(document: object) -> bool:
     return isinstance(document, Mapping) and NONFINITE_KEY in document

@@ -9,6 +9,7 @@ those too is what makes the topic stream carry the whole log, losslessly.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -76,7 +77,7 @@ def select(ticks: list[Tick], start_frame: int = 0, stop_frame: int = -1) -> lis
 
 
 def frame_marker(
-    tick: Tick, published: list[str], timesteps_per_frame: int, **extra: Any
+    tick: Tick, published: list[str], timesteps_per_frame: int, **extra: object
 ) -> String:
     """The ``run/frame`` message sent after a tick's data: what was published for it."""
     from std_msgs.msg import String
@@ -100,7 +101,7 @@ def dropped_plan_keys(log: RunLog, timestamp_ms: int) -> int:
     return 0 if plan is None else len(plan) - len(carried_plan_rows(plan))
 
 
-def metadata_message(log: RunLog, **extra: Any) -> String:
+def metadata_message(log: RunLog, **extra: object) -> String:
     """``run/metadata``: the metadata.json document's keys, plus what the run adds.
 
     Added keys: ``source``, ``frames`` (number of analysed frames), ``problems`` (number of
@@ -129,7 +130,7 @@ def read_input_problems(document: dict[str, Any]) -> list[Problem]:
     return problems_from_list(document.get(INPUT_PROBLEMS_KEY))
 
 
-def status_message(state: str, frames_published: int, **extra: Any) -> String:
+def status_message(state: str, frames_published: int, **extra: object) -> String:
     """``player/status``: ``frames_published`` counts the ``run/frame`` markers sent."""
     from std_msgs.msg import String
 
@@ -142,6 +143,6 @@ def read_document(msg: String) -> dict[str, Any]:
     return document if isinstance(document, dict) else {}
 
 
-def published_names(messages: dict[str, Any]) -> list[str]:
+def published_names(messages: Mapping[str, object]) -> list[str]:
     """Topic keys (relative names) of the data messages sent for a tick, in send order."""
     return [key for key in topics.DATA_TOPICS if key in messages]

@@ -68,7 +68,8 @@ def normalise_type(name: str) -> str:
 def message_class(name: str) -> type[Any]:
     """The message package's Python class of ``pkg/msg/Type`` (imports the package)."""
     package, _, short = normalise_type(name).split("/")
-    return getattr(importlib.import_module(f"{package}.msg"), short)
+    found: type[Any] = getattr(importlib.import_module(f"{package}.msg"), short)
+    return found
 
 
 def _share_dirs() -> list[Path]:

@@ -38,7 +38,7 @@ import zlib
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, BinaryIO
+from typing import BinaryIO, Protocol
 
 from ads_rca.errors import InputError
 from ads_rca.io.errors import CorruptRecord
@@ -330,7 +330,13 @@ def _decompress(compression: str, data: bytes, size: int, complete: bool = True)
     return out
 
 
-def _read_bounded(reader: Any, size: int) -> bytes:
+class _Reader(Protocol):
+    """A decompressing stream (zstandard's reader)."""
+
+    def read(self, size: int = -1, /) -> bytes: ...
+
+
+def _read_bounded(reader: _Reader, size: int) -> bytes:
     """At most ``size + 1`` bytes, read in pieces (memory follows the real data)."""
     parts: list[bytes] = []
     total = 0

@@ -14,7 +14,7 @@ from __future__ import annotations
 import os
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol, TypedDict
 
 from ads_rca.contract import rosmsg, topics
 from ads_rca.contract.convert import clock_message
@@ -31,6 +31,11 @@ from ads_rca.contract.playback import (
 from ads_rca.errors import ConfigError
 from ads_rca.io.mcap_writer import McapBagWriter, qos_dict, qos_yaml
 from ads_rca.model import RunLog
+
+if TYPE_CHECKING:
+    from typing import Unpack  # Python 3.11; annotations only (the package runs on 3.10)
+
+    from rosbags.interfaces import Connection
 
 STORAGES = ("mcap", "sqlite3")
 _NS_PER_MS = 1_000_000
@@ -54,7 +59,7 @@ class Sqlite3BagWriter:
 
         self._writer = Writer(Path(out_dir), version=9, storage_plugin=StoragePlugin.SQLITE3)
         self._writer.open()
-        self._connections: dict[str, Any] = {}
+        self._connections: dict[str, Connection] = {}
 
     def add_topic(self, name: str, msg_type: str, qos_profiles: str = "") -> None:
         from rosbags.rosbag2.metadata import parse_qos
@@ -76,8 +81,16 @@ class Sqlite3BagWriter:
         self._writer.close()
 
 
+class McapOptions(TypedDict, total=False):
+    """The keyword options of :class:`McapBagWriter` (ignored by sqlite3)."""
+
+    chunk_size: int
+    compression: str
+    fsync: bool
+
+
 def open_bag_writer(
-    out_dir: str | os.PathLike[str], storage: str = "mcap", **options: Any
+    out_dir: str | os.PathLike[str], storage: str = "mcap", **options: Unpack[McapOptions]
 ) -> BagSink:
     """A writer for a new bag directory in ``storage`` (``mcap`` options: chunk_size,
     compression, fsync)."""
@@ -122,7 +135,7 @@ def write_bag(
     out_dir: str | os.PathLike[str],
     storage: str = "mcap",
     namespace: str = topics.DEFAULT_NAMESPACE,
-    **options: Any,
+    **options: Unpack[McapOptions],
 ) -> dict[str, int]:
     """Write ``log`` as a bag directory; return the message count per topic name."""
     sink = open_bag_writer(out_dir, storage, **options)

@@ -42,7 +42,7 @@ from ads_rca.io.records import (
     show_value,
 )
 from ads_rca.io.validate import validate_run_log
-from ads_rca.model import FOLDERS, RunLog, RunMetadata
+from ads_rca.model import FOLDERS, Record, RunLog, RunMetadata
 from ads_rca.problems import IGNORED, KEPT_VALUE, SKIPPED_FILE, USED_DEFAULT, Problem, ProblemLog
 from ads_rca.progress import Progress, tracked
 
@@ -56,7 +56,8 @@ MAX_KEPT_DEPTH = 200
 _BOX_KEYS = frozenset(("bounding_box",))
 Job = tuple[str, int, str]  # folder, timestamp, file name
 
-Parser = Callable[[Any, str, ProblemLog, int], Any]
+#: A folder's parser: decoded JSON document, file, problems, timestamp -> record or None.
+Parser = Callable[[Any, str, ProblemLog, int], Record | None]
 PARSERS: dict[str, Parser] = {
     "pose": parse_pose,
     "actors": parse_actors,
@@ -105,7 +106,7 @@ def decode_json(data: bytes) -> Any:
         raise InvalidJson(str(error)) from None
 
 
-def kept_too_deep(folder: str, document: Any) -> bool:
+def kept_too_deep(folder: str, document: object) -> bool:
     """True when the raw JSON the reader keeps of ``document`` nests over MAX_KEPT_DEPTH.
 
     ``metadata.json`` is kept whole; of a boxes file, each box's fields but the corners
@@ -168,7 +169,7 @@ def read_run_log(
     # Only the winning file of each timestamp is read (the others are reported by validate).
     files = {folder: {ts: name for ts, name in listings[folder]} for folder in FOLDERS}
     jobs = [(folder, ts, name) for folder in FOLDERS for ts, name in files[folder].items()]
-    records: dict[str, dict[int, Any]] = {folder: {} for folder in FOLDERS}
+    records: dict[str, dict[int, Record]] = {folder: {} for folder in FOLDERS}
     parsed, found = _parse_files(str(root), jobs, limit, progress)
     problems.extend(found)
     for folder, ts, record in parsed:
@@ -224,11 +225,11 @@ def _list_folder(root: Path, folder: str, problems: ProblemLog) -> list[tuple[in
 
 def _parse_files(
     root: str, jobs: list[Job], limit: int, progress: Progress | None = None
-) -> tuple[list[tuple[str, int, Any]], list[Problem]]:
+) -> tuple[list[tuple[str, int, Record]], list[Problem]]:
     """Read (at most ``limit`` bytes a file), decode and parse files in ``jobs`` order; the
     problems found on the way."""
     problems = ProblemLog()
-    parsed: list[tuple[str, int, Any]] = []
+    parsed: list[tuple[str, int, Record]] = []
     base = Path(root)
     for folder, ts, name in tracked(jobs, progress):
         file = f"{folder}/{name}"

@@ -17,7 +17,17 @@ from typing import Any
 import numpy as np
 import orjson
 
-from ads_rca.model import FILE_PREFIX, FOLDERS, Actors, Boxes, EgoPose, Plan, Predictions, RunLog
+from ads_rca.model import (
+    FILE_PREFIX,
+    FOLDERS,
+    Actors,
+    Boxes,
+    EgoPose,
+    Plan,
+    Predictions,
+    Record,
+    RunLog,
+)
 from ads_rca.strictjson import all_finite
 
 
@@ -26,7 +36,8 @@ def write_run_log(log: RunLog, out_dir: str | os.PathLike[str]) -> Path:
     root = Path(out_dir)
     root.mkdir(parents=True, exist_ok=True)
     _dump(root / "metadata.json", log.metadata.to_dict(), finite=False)
-    encoders: dict[str, Callable[[Any, int], Any]] = {
+    # By folder name: each folder holds its own record type.
+    encoders: dict[str, Callable[[Any, int], object]] = {
         "pose": pose_document,
         "actors": lambda record, _ts: actors_document(record),
         "bboxes": lambda record, _ts: boxes_document(record),
@@ -59,7 +70,7 @@ def pose_document(pose: EgoPose, timestamp_ms: int) -> dict[str, str]:
     }
 
 
-def actors_document(actors: Actors) -> dict[str, Any]:
+def actors_document(actors: Actors) -> dict[str, dict[str, dict[str, float]]]:
     loc, rot, ext = actors.location.tolist(), actors.rotation.tolist(), actors.extent.tolist()
     return {
         actor_id: {
@@ -71,7 +82,7 @@ def actors_document(actors: Actors) -> dict[str, Any]:
     }
 
 
-def boxes_document(boxes: Boxes) -> list[dict[str, Any]]:
+def boxes_document(boxes: Boxes) -> list[dict[str, object]]:
     return [
         {
             "id": json_id(box_id),
@@ -82,7 +93,7 @@ def boxes_document(boxes: Boxes) -> list[dict[str, Any]]:
     ]
 
 
-def predictions_document(predictions: Predictions) -> dict[str, Any]:
+def predictions_document(predictions: Predictions) -> dict[str, dict[str, dict[str, float]]]:
     return {
         obstacle_id: {
             key: {"x": o[0], "y": o[1], "z": o[2]}
@@ -92,7 +103,7 @@ def predictions_document(predictions: Predictions) -> dict[str, Any]:
     }
 
 
-def plan_document(plan: Plan) -> dict[str, Any]:
+def plan_document(plan: Plan) -> dict[str, dict[str, float]]:
     return {
         key: {"x": p[0], "y": p[1], "speed": s}
         for key, p, s in zip(plan.keys, plan.xy.tolist(), plan.speed.tolist(), strict=True)
@@ -106,7 +117,7 @@ def json_id(box_id: str) -> int | str:
     return box_id
 
 
-def _dump(path: Path, document: Any, finite: bool = True) -> None:
+def _dump(path: Path, document: object, finite: bool = True) -> None:
     """Compact JSON; ``finite`` False when the record holds NaN or infinity."""
     if finite:
         path.write_bytes(orjson.dumps(document))
@@ -114,7 +125,7 @@ def _dump(path: Path, document: Any, finite: bool = True) -> None:
         path.write_text(json.dumps(document))
 
 
-def record_is_finite(record: Any) -> bool:
+def record_is_finite(record: Record) -> bool:
     """True when no number of a model record is NaN or infinite (checked on its arrays)."""
     if isinstance(record, EgoPose):
         arrays = [np.array([getattr(record, f) for f in EgoPose.__dataclass_fields__])]

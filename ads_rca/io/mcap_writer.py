@@ -71,7 +71,8 @@ def qos_yaml(profiles: list[dict[str, Any]]) -> str:
     """The ``offered_qos_profiles`` YAML text rosbag2 stores per channel."""
     if not profiles:
         return ""
-    return yaml.safe_dump(profiles, default_flow_style=False, sort_keys=False).strip()
+    text: str = yaml.safe_dump(profiles, default_flow_style=False, sort_keys=False)
+    return text.strip()
 
 
 def bag_file_name(out_dir: str | os.PathLike[str], extension: str = "mcap") -> Path:
@@ -180,7 +181,7 @@ class McapBagWriter:
         """End the current chunk (if it holds messages) and hand it to the OS."""
         if self._pending == 0:
             return
-        self._mcap.flush()
+        self._mcap.flush()  # type: ignore[no-untyped-call]  # mcap's Writer.flush is unannotated
         if self.fsync:
             os.fsync(self._stream.fileno())
         self._pending = 0
@@ -250,7 +251,7 @@ class McapBagWriter:
         self._mcap.add_metadata(
             "rosbag2", {"serialized_metadata": serialized, "ROS_DISTRO": self.ros_distro}
         )
-        self._mcap.finish()
+        self._mcap.finish()  # type: ignore[no-untyped-call]  # mcap's Writer.finish is unannotated
         self._stream.flush()
         os.fsync(self._stream.fileno())
         self._stream.close()

@@ -290,14 +290,14 @@ def _clean(array: np.ndarray, width: int) -> bool:
     return bool(np.isfinite(array).all())
 
 
-def _box_id(value: Any) -> str:
+def _box_id(value: object) -> str:
     """Box ids compare with actor ids (strings): integers and integral floats as digits."""
     if isinstance(value, float) and value.is_integer():
         return str(int(value))
     return str(value)
 
 
-def show_value(value: Any) -> str:
+def show_value(value: object) -> str:
     """A short repr of a value for a problem message (at most 40 characters)."""
     try:
         text = repr(value)
@@ -306,6 +306,6 @@ def show_value(value: Any) -> str:
     return text if len(text) <= 40 else text[:37] + "..."
 
 
-def _type(value: Any) -> str:
+def _type(value: object) -> str:
     names: dict[type, str] = {dict: "an object", list: "a list", str: "a string"}
     return names.get(type(value), type(value).__name__)

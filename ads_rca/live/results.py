@@ -198,7 +198,7 @@ class FollowsRunEnd:
         return self.end.markers_received
 
 
-def plain(value: Any) -> Any:
+def plain(value: object) -> Any:
     """JSON-ready without loss: numpy scalars as Python numbers, tuples as lists (NaN kept)."""
     if isinstance(value, bool | int | float | str) or value is None:
         return value
@@ -334,7 +334,7 @@ class ResultStore:
         self._file.close()
 
 
-def _shared_keys(value: Any) -> Any:
+def _shared_keys(value: object) -> Any:
     """``value`` with every dict key interned (so a thousand results share their keys)."""
     if isinstance(value, dict):
         return {

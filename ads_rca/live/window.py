@@ -38,13 +38,12 @@ import uuid
 from collections import deque
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any
 
 import numpy as np
 
 from ads_rca.engine import evaluate_frame
 from ads_rca.live.results import FollowsRunEnd, FrameMarker, LiveResult, RunEnd
-from ads_rca.model import FloatArray, RunLog, RunMetadata, frame_number
+from ads_rca.model import Actors, FloatArray, Record, RunLog, RunMetadata, frame_number
 from ads_rca.oracles.base import MODULES, Module, RunContext
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import Params
@@ -104,7 +103,7 @@ class MonitorCore(FollowsRunEnd):
         self.metadata: RunMetadata | None = None
         self.input_problems: tuple[Problem, ...] = ()
         self.collision_frame = -1
-        self.records: dict[str, dict[int, Any]] = {f: {} for f in self.folders}
+        self.records: dict[str, dict[int, Record]] = {f: {} for f in self.folders}
         self.first_extents: dict[str, FloatArray] = {}
         self.analysed: dict[int, int] = {}  # index -> stamp, for the frames held
         self._markers: deque[_Entry] = deque()  # not yet settled, timeline order
@@ -152,12 +151,12 @@ class MonitorCore(FollowsRunEnd):
             self.pending.appendleft(entry)
         return True
 
-    def add_record(self, folder: str, stamp_ms: int, record: Any, now: float) -> None:
+    def add_record(self, folder: str, stamp_ms: int, record: Record, now: float) -> None:
         self._touch(now)
         if folder not in self.records:
             return
         self.records[folder].setdefault(stamp_ms, record)
-        if folder == "actors":
+        if folder == "actors" and isinstance(record, Actors):
             extent = record.extent
             for row, actor_id in enumerate(record.ids):
                 if actor_id not in self.first_extents and not np.isnan(extent[row]).any():

@@ -19,7 +19,7 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from ads_rca.model import FOLDERS, RunLog
+from ads_rca.model import FOLDERS, Record, RunLog
 from ads_rca.params import Params
 from ads_rca.verdict import Attribution, FrameResults, Module, OracleResult
 
@@ -139,7 +139,7 @@ class Semantics:
         self,
         module: Module,
         params: Params,
-        records: Mapping[str, Mapping[int, Any]],
+        records: Mapping[str, Mapping[int, Record]],
         stamp_ms: int,
         cap: int,
     ) -> int:
@@ -195,7 +195,7 @@ class Semantics:
         self,
         modules: Iterable[Module],
         params: Params,
-        records: Mapping[str, Mapping[int, Any]],
+        records: Mapping[str, Mapping[int, Record]],
         stamp_ms: int,
         cap: int,
     ) -> int:

@@ -68,7 +68,7 @@ _VOID = frozenset({"meta", "img", "br"})
 _NAME = re.compile(r"^[a-z][a-z0-9-]*$")
 
 
-def el(tag: str, *children: Any, **attrs: Any) -> Html:
+def el(tag: str, *children: object, **attrs: object) -> Html:
     """An element: ``children`` are escaped text unless :class:`Html`, attribute values always
     escaped (``class_`` → ``class``). Tag and attribute names come from this module only."""
     names = [tag, *(name.rstrip("_") for name in attrs)]
@@ -83,7 +83,7 @@ def el(tag: str, *children: Any, **attrs: Any) -> Html:
     return Html(f"<{tag}{attributes}>{join(children)}</{tag}>")
 
 
-def join(children: Iterable[Any]) -> Html:
+def join(children: Iterable[object]) -> Html:
     """Concatenate nodes: :class:`Html` as is, anything else as escaped text."""
     return Html(
         "".join(c if isinstance(c, Html) else html.escape(_text(c), quote=True) for c in children)
@@ -194,7 +194,7 @@ def _cell(value: Any, depth: int) -> Html:
     return el("td", _text(value))
 
 
-def _row(cell: str, *values: Any) -> Html:
+def _row(cell: str, *values: object) -> Html:
     return el("tr", *(el(cell, v) for v in values))
 
 

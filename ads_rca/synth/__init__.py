@@ -10,7 +10,7 @@ same seed always gives the same scene whatever the fault, and ``fault="none"`` i
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, TypedDict
 
 from ads_rca.model import RunLog
 from ads_rca.synth.errors import SynthesisError
@@ -19,10 +19,14 @@ from ads_rca.synth.scenarios import BUILDERS, DEFAULT_FRAMES, SCENARIOS
 from ads_rca.synth.simulate import SimResult, simulate
 from ads_rca.synth.world import Scene
 
+if TYPE_CHECKING:
+    import numpy as np
+
 __all__ = [
     "FAULTS",
     "SCENARIOS",
     "SynthesisError",
+    "SynthesisSummary",
     "canonical_fault",
     "synthesise",
     "synthesise_run",
@@ -30,7 +34,23 @@ __all__ = [
 
 MAX_ATTEMPTS = 25
 DEFAULT_HORIZON = 30
-_ACCEPTED: dict[tuple[Any, ...], bool] = {}
+#: (scenario, seed, attempt, frames, actors, horizon) -> whether every fault hits the partner.
+_ACCEPTED: dict[tuple[str, int, int, int, int, int], bool] = {}
+
+
+class SynthesisSummary(TypedDict):
+    """What :func:`synthesise_run` made: metadata ``raw["synthesis"]`` holds the same."""
+
+    scenario: str
+    fault: str
+    seed: int
+    attempt: int
+    partner_id: str | None
+    ego_id: str
+    fault_onset_frame: int  # -1 without a fault
+    twin_reaction_frame: int
+    collision_frame: int
+    total_frames: int
 
 
 def synthesise(scenario: str, fault: str, seed: int, **options: int) -> RunLog:
@@ -45,7 +65,7 @@ def synthesise(scenario: str, fault: str, seed: int, **options: int) -> RunLog:
 
 def synthesise_run(
     scenario: str, fault: str, seed: int, **options: int
-) -> tuple[RunLog, dict[str, Any]]:
+) -> tuple[RunLog, SynthesisSummary]:
     """:func:`synthesise`, also returning the synthesis summary."""
     fault = canonical_fault(fault)
     if scenario not in BUILDERS:
@@ -98,7 +118,7 @@ def synthesise_run(
     )
 
 
-def _rng(seed: int, attempt: int) -> Any:
+def _rng(seed: int, attempt: int) -> np.random.Generator:
     import numpy as np
 
     return np.random.default_rng([seed, attempt, 0x5EED])
@@ -113,9 +133,9 @@ def _finish(
     attempt: int,
     onset: int,
     reaction: int,
-) -> tuple[RunLog, dict[str, Any]]:
+) -> tuple[RunLog, SynthesisSummary]:
     partner = scene.actor_ids[scene.partner] if scene.partner >= 0 else None
-    summary: dict[str, Any] = {
+    summary: SynthesisSummary = {
         "scenario": scenario,
         "fault": fault,
         "seed": seed,

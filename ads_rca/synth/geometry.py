@@ -102,7 +102,8 @@ def _points_to_polygon(points: FloatArray, polygon: FloatArray) -> FloatArray:
     t = np.clip(_dot(rel, edge) / np.maximum(_dot(edge, edge), 1e-12), 0.0, 1.0)
     diff = rel - t[..., None] * edge
     dist: FloatArray = np.sqrt(_dot(diff, diff))
-    return dist.min(axis=(-1, -2))
+    nearest: FloatArray = dist.min(axis=(-1, -2))
+    return nearest
 
 
 def _dot(a: FloatArray, b: FloatArray) -> FloatArray:

@@ -29,11 +29,12 @@ def predict_positions(pos: FloatArray, vel: FloatArray, acc: FloatArray, steps: 
     braking = (av < 0.0) & (vv > 1e-6)
     t_stop = np.where(braking, -vv / np.where(braking, av, -1.0), np.inf)
     te = np.minimum(t[None, :], t_stop[:, None])  # (M, K)
-    return (
+    positions: FloatArray = (
         pos[:, None, :]
         + vel[:, None, :] * te[..., None]
         + 0.5 * acc[:, None, :] * (te**2)[..., None]
     )
+    return positions
 
 
 def state_from_history(history: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:

@@ -59,7 +59,8 @@ class _Builder:
         self.yaw0: list[float] = []
 
     def car(self) -> FloatArray:
-        return CAR_EXTENTS[self.rng.integers(0, len(CAR_EXTENTS))]
+        extents: FloatArray = CAR_EXTENTS[self.rng.integers(0, len(CAR_EXTENTS))]
+        return extents
 
     def add(self, xy: FloatArray, kind: str, extent: FloatArray, yaw0: float) -> int:
         self.xy.append(xy)

@@ -9,8 +9,8 @@ the per-frame results into the verdict (rules 6–7 of docs/semantics-corrected.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any
 
+from ads_rca.model import Record
 from ads_rca.oracles.base import Module, OracleResult, RunContext
 from ads_rca.oracles.corrected.attribution import (
     attribute_corrected,
@@ -161,7 +161,7 @@ class CorrectedSemantics(Semantics):
         self,
         module: Module,
         params: Params,
-        records: Mapping[str, Mapping[int, Any]],
+        records: Mapping[str, Mapping[int, Record]],
         stamp_ms: int,
         cap: int,
     ) -> int:

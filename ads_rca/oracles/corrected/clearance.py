@@ -21,7 +21,7 @@ import numpy as np
 from ads_rca.geometry import FloatArray, box_signed_distance
 from ads_rca.model import Predictions
 from ads_rca.oracles.corrected.boxes import PlanData, Series, braking_boxes
-from ads_rca.oracles.corrected.context import CorrectedContext
+from ads_rca.oracles.corrected.context import CacheName, CorrectedContext
 
 NAN = float("nan")
 #: The reference's linking rule only considers step-"0" offsets closer than this.
@@ -141,9 +141,12 @@ class PartnerView:
     real_conflict: bool
 
 
+PARTNER_VIEW: CacheName[PartnerView] = CacheName("partner_view")
+
+
 def partner_view(cc: CorrectedContext, ts: int) -> PartnerView:
     """The partner's view at ts (cached per timestamp)."""
-    return cc.cache("partner_view").get(ts, lambda: _build_view(cc, ts))
+    return cc.cache(PARTNER_VIEW).get(ts, lambda: _build_view(cc, ts))
 
 
 def _build_view(cc: CorrectedContext, ts: int) -> PartnerView:

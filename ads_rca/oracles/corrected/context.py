@@ -13,17 +13,31 @@ They assume the data at ts … ts + horizon is final when an oracle first asks f
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Generic, TypeVar, cast
 
 import numpy as np
 import numpy.typing as npt
 
 from ads_rca.geometry import FloatArray, box_signed_distance
-from ads_rca.model import FOLDERS, EgoPose, RunLog, Track
+from ads_rca.model import FOLDERS, EgoPose, Record, RunLog, Track
 from ads_rca.oracles.base import RunContext
 from ads_rca.oracles.cache import LRU
 from ads_rca.oracles.corrected.boxes import PlanData, Series, build_plan, build_predicted, key_steps
 from ads_rca.params import Params
+
+V = TypeVar("V")
+
+
+class CacheName(Generic[V]):
+    """A per-timestamp cache's name, typed by what it holds, so each oracle module's cache is
+    typed where it is used although all of them live in one dict."""
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+
+
+#: World location tables (max gid + 1, 2) by timestamp, NaN where an actor is absent.
+LOCATIONS: CacheName[FloatArray | None] = CacheName("locations")
 
 
 class CorrectedContext:
@@ -45,10 +59,12 @@ class CorrectedContext:
         self._partner: tuple[int, str | None] | None = None
         self.plans: LRU[int, PlanData | None] = LRU()
         #: Per-timestamp caches of the oracle modules, by name.
-        self.caches: dict[str, LRU[int, Any]] = {}
+        self.caches: dict[str, LRU[int, object]] = {}
         self.ts_max = max(self.log.frames) if self.log.frames else 0
         #: The log's per-folder dicts by folder name (``RunLog.folder`` builds a dict per call).
-        self.folders: dict[str, dict[int, Any]] = {name: self.log.folder(name) for name in FOLDERS}
+        self.folders: dict[str, dict[int, Record]] = {
+            name: self.log.folder(name) for name in FOLDERS
+        }
         #: A run-wide integer for every actor id seen so far (grows as frames are read).
         self._gid: dict[str, int] = {}
 
@@ -61,13 +77,14 @@ class CorrectedContext:
             self._partner = (cf, find_partner(self) if cf >= 0 else None)
         return self._partner[1]
 
-    def cache(self, name: str) -> LRU[int, Any]:
+    def cache(self, name: CacheName[V]) -> LRU[int, V]:
         """A named per-timestamp cache (created on first use)."""
-        if name not in self.caches:
-            self.caches[name] = LRU()
-        return self.caches[name]
+        if name.name not in self.caches:
+            self.caches[name.name] = LRU()
+        # The name's type parameter is the one promise about what its cache holds.
+        return cast("LRU[int, V]", self.caches[name.name])
 
-    def seconds(self, index: int | npt.NDArray[Any]) -> FloatArray:
+    def seconds(self, index: int | npt.NDArray[np.int64]) -> FloatArray:
         """Time of horizon index i in seconds (frames × tpf / 1000)."""
         return np.asarray(index, dtype=np.float64) * (self.tpf / 1000.0)
 
@@ -125,7 +142,7 @@ class CorrectedContext:
         absent)."""
         out = np.full((len(gids), len(times), 2), np.nan)
         top = int(gids.max()) if len(gids) else -1
-        cache = self.cache("locations")
+        cache = self.cache(LOCATIONS)
         for j, t in enumerate(times):
             table = cache.lookup(t)
             if table is None and t in self.log.actors:

@@ -21,7 +21,7 @@ import numpy as np
 from ads_rca.geometry import world_to_ego
 from ads_rca.oracles.base import Metric, OracleResult, RunContext
 from ads_rca.oracles.corrected.common import REPORTED, skipped
-from ads_rca.oracles.corrected.context import CorrectedContext, corrected_context
+from ads_rca.oracles.corrected.context import CacheName, CorrectedContext, corrected_context
 
 
 @dataclass(frozen=True)
@@ -33,12 +33,16 @@ class Step:
     decel: float  # commanded deceleration (step-0 − step-1 speed) / dt; NaN without step 0
 
 
+#: A step, or the first missing (folder, timestamp) it needs.
+CONTROL_STEP: CacheName[Step | tuple[str, int]] = CacheName("control_step")
+
+
 def control_step(cc: CorrectedContext, t: int) -> Step | tuple[str, int]:
     """The step at t (cached: overlapping horizons share it), or the first missing input.
 
     Each frame's horizon adds one new step, so steps are computed one at a time.
     """
-    cache = cc.cache("control_step")
+    cache = cc.cache(CONTROL_STEP)
     found = cache.lookup(t)
     if found is not None:
         return found

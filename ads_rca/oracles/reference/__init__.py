@@ -8,8 +8,8 @@ Semantics`); the oracles are in :mod:`.oracles`, the attribution in :mod:`.attri
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Any
 
+from ads_rca.model import Record
 from ads_rca.oracles.base import EGO_ID_TIMESTAMP_MS, Module, RunContext, earliest_ego, ego_at
 from ads_rca.oracles.reference.attribution import attribute_reference
 from ads_rca.oracles.reference.oracles import (
@@ -114,7 +114,7 @@ class ReferenceSemantics(Semantics):
         self,
         module: Module,
         params: Params,
-        records: Mapping[str, Mapping[int, Any]],
+        records: Mapping[str, Mapping[int, Record]],
         stamp_ms: int,
         cap: int,
     ) -> int:
@@ -125,7 +125,8 @@ class ReferenceSemantics(Semantics):
         if module != "prediction":
             return 0
         longest = 0
-        for track in (records["predictions_with_perception"].get(stamp_ms) or {}).values():
+        tracks = records["predictions_with_perception"].get(stamp_ms)
+        for track in (tracks if isinstance(tracks, dict) else {}).values():
             steps = track.steps
             if steps.size:
                 longest = max(longest, int(steps.max()))

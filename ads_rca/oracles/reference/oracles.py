@@ -250,7 +250,8 @@ class _Tables:
         return _search(self.pose_times, tk, n_pose), _search(self.actor_times, tk, n_times)
 
     def pose_present(self, row: IntArray) -> BoolArray:
-        return row != len(self.pose_times)
+        present: BoolArray = row != len(self.pose_times)
+        return present
 
 
 def _search(times: IntArray, query: IntArray, sentinel: int) -> IntArray:
@@ -390,7 +391,8 @@ def _match_scores(a: FloatArray, b: FloatArray) -> FloatArray:
     union -= iw
     with np.errstate(invalid="ignore", divide="ignore"):
         np.divide(iw, union, out=union)
-    return np.fmax(union, 0.0, out=union)  # NaN (and 0) never match
+    iou: FloatArray = np.fmax(union, 0.0, out=union)  # NaN (and 0) never match
+    return iou
 
 
 def greedy_match(

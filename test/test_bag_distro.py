@@ -15,14 +15,17 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import yaml
 from mcap.reader import make_reader
 
 from ads_rca.io.mcap_writer import BAG_VERSION, TYPES_DISTRO, McapBagWriter
 from ads_rca.ros.env import ros_distro
-from ads_rca.ros.launcher import Launcher, node_command
+from ads_rca.ros.launcher import Launcher, ParamValue, node_command
+
+if TYPE_CHECKING:
+    from conftest import RosEnv
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -80,7 +83,10 @@ def write_bag(bag: Path, **options: Any) -> dict[str, Any]:
     with McapBagWriter(bag, **options) as writer:
         writer.add_topic("/chatter", "std_msgs/msg/String", "- depth: 10\n  history: keep_last")
         writer.write("/chatter", 1, b"\x00\x01\x00\x00\x01\x00\x00\x00\x00\x00\x00\x00")
-    return yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    information: dict[str, Any] = yaml.safe_load((bag / "metadata.yaml").read_text())[
+        "rosbag2_bagfile_information"
+    ]
+    return information
 
 
 def mcap_distro(bag: Path) -> str:
@@ -100,9 +106,9 @@ def test_the_writer_records_the_distribution_it_is_given(tmp_path: Path) -> None
     assert write_bag(tmp_path / "b")["ros_distro"] == TYPES_DISTRO == "kilted"
 
 
-def test_the_recorder_writes_the_distribution_it_runs_on(ros_env, tmp_path: Path) -> None:
+def test_the_recorder_writes_the_distribution_it_runs_on(ros_env: RosEnv, tmp_path: Path) -> None:
     env = dict(ros_env.env, ROS_DISTRO="jazzy")
-    params = {"output": str(tmp_path / "bag"), "max_duration_s": 0.5}
+    params: dict[str, ParamValue] = {"output": str(tmp_path / "bag"), "max_duration_s": 0.5}
     with Launcher(env, echo=sys.stderr) as launcher:
         recorder = launcher.start("recorder", node_command("ads_rca.ros.recorder", params))
         assert recorder.wait(60) == 0, recorder.output

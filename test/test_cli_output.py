@@ -7,6 +7,7 @@ Real processes: the ``ads-rca`` console script with its stderr on a pseudo-termi
 
 from __future__ import annotations
 
+import argparse
 import fcntl
 import os
 import pty
@@ -15,6 +16,7 @@ import subprocess
 import sys
 import termios
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import pytest
 
@@ -22,6 +24,9 @@ from ads_rca.cli import EXIT_BROKEN_PIPE, build_parser
 from ads_rca.commands.progress_bar import MIN_ITEMS
 from ads_rca.commands.synth_cmd import describe
 from ads_rca.synth import synthesise_run
+
+if TYPE_CHECKING:
+    from conftest import RosEnv
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = ROOT / "examples" / "cut_in_perception"
@@ -145,13 +150,17 @@ def test_synth_prints_what_happened(tmp_path: Path) -> None:
     ],
 )
 def test_help_says_log_folder_or_bag_where_both_are_read(command: str, dest: str) -> None:
-    subparsers = next(a for a in build_parser()._actions if a.dest == "command")
+    subparsers = next(
+        a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction)
+    )
     parser = subparsers.choices[command]
     action = next(a for a in parser._actions if a.dest == dest)
     assert action.help == "log folder or bag"
 
 
-def test_demo_piped_to_head_ends_quietly_and_its_nodes_with_it(ros_env, tmp_path: Path) -> None:
+def test_demo_piped_to_head_ends_quietly_and_its_nodes_with_it(
+    ros_env: RosEnv, tmp_path: Path
+) -> None:
     """The echo of the nodes' lines meets the closed pipe in a reader thread: it stops
     echoing (no thread traceback) and keeps draining the nodes, and the command ends."""
     script = (

@@ -13,8 +13,8 @@ from typing import TYPE_CHECKING, Any
 
 import pytest
 
+from ads_rca.ros.graph import GROUP
 from ads_rca.ros.launcher import ManagedProcess, ros_args
-from ads_rca.ros.monitor import GROUP
 
 if TYPE_CHECKING:
     from conftest import RosEnv

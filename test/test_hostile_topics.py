@@ -30,16 +30,16 @@ import pytest
 from test_hostile_bags import convert
 
 from ads_rca.contract import cdr, cdr_decode, live_topics, playback, rosmsg, topics
-from ads_rca.contract.cdr_decode import CdrError, NoStamp
-from ads_rca.contract.jsontext import JsonTextError, loads_json
+from ads_rca.contract.errors import CdrError, JsonTextError, NoStamp
+from ads_rca.contract.jsontext import loads_json
 from ads_rca.contract.malformed import SkippedMessages
 from ads_rca.errors import InputError
 from ads_rca.io.bag_reader import iter_mcap_stream, read_bag
 from ads_rca.io.json_log import read_run_log
 from ads_rca.io.mcap_writer import McapBagWriter
 from ads_rca.live import diagnostics as diag
+from ads_rca.ros.graph import GROUP, MONITORS
 from ads_rca.ros.launcher import ManagedProcess, ParamValue, ros_args
-from ads_rca.ros.monitor import GROUP, MONITORS
 
 if TYPE_CHECKING:
     from conftest import RosEnv

@@ -20,6 +20,7 @@ import shutil
 import subprocess
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import pytest
 import yaml
@@ -34,6 +35,9 @@ from ads_rca.ros.graph import (
     exit_outcome,
     spec_from_arguments,
 )
+
+if TYPE_CHECKING:
+    from conftest import RosEnv
 
 REPO = Path(__file__).resolve().parents[1]
 EXAMPLE = REPO / "examples" / "cut_in_perception"
@@ -156,7 +160,9 @@ def test_graph_description_loads_no_ros() -> None:
     assert out.strip() == "[]"
 
 
-def test_a_launched_graph_ends_when_the_verdict_is_recorded(ros_env, tmp_path: Path) -> None:
+def test_a_launched_graph_ends_when_the_verdict_is_recorded(
+    ros_env: RosEnv, tmp_path: Path
+) -> None:
     """The launch file's graph, run by our launcher under the same rule: the aggregator exits
     0 by itself once every subscriber (the recorder) has the verdict; stopping the rest then
     gives status 0 everywhere and a bag holding the verdict."""
@@ -259,7 +265,7 @@ def launch_env(tmp_path_factory: pytest.TempPathFactory) -> dict[str, str]:
 
 
 def ros2_launch(
-    launch_env: dict[str, str], ros_env, *arguments: str
+    launch_env: dict[str, str], ros_env: RosEnv, *arguments: str
 ) -> subprocess.CompletedProcess[str]:
     env = {**ros_env.env, **launch_env}
     return subprocess.run(
@@ -273,7 +279,7 @@ def ros2_launch(
 
 
 def test_ros2_launch_ends_with_status_0_when_the_run_is_over(
-    launch_env: dict[str, str], ros_env, tmp_path: Path
+    launch_env: dict[str, str], ros_env: RosEnv, tmp_path: Path
 ) -> None:
     bag = tmp_path / "bag"
     result = ros2_launch(
@@ -297,7 +303,7 @@ def test_ros2_launch_ends_with_status_0_when_the_run_is_over(
 
 
 def test_ros2_launch_fails_with_the_failing_node_named(
-    launch_env: dict[str, str], ros_env, tmp_path: Path
+    launch_env: dict[str, str], ros_env: RosEnv, tmp_path: Path
 ) -> None:
     empty = tmp_path / "empty"
     empty.mkdir()
@@ -311,7 +317,7 @@ def test_ros2_launch_fails_with_the_failing_node_named(
 
 
 def test_ros2_launch_without_log_path_is_one_line_and_starts_nothing(
-    launch_env: dict[str, str], ros_env
+    launch_env: dict[str, str], ros_env: RosEnv
 ) -> None:
     result = ros2_launch(launch_env, ros_env)
     output = result.stdout + result.stderr

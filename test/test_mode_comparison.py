@@ -26,6 +26,8 @@ from ads_rca.verdict import MODULES
 
 EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "cut_in_perception"
 CLI = [sys.executable, "-m", "ads_rca.cli"]
+#: Each mode's verdict document (``Diagnosis.to_json``), by mode name.
+Documents = dict[str, dict[str, Any]]
 #: The example in both modes (counts known from the JSON: reference blames the
 #: controller, 9 frames in its window; corrected perception, 13 counted frames).
 WHY = (
@@ -38,12 +40,12 @@ WHY = (
 
 
 @pytest.fixture(scope="module")
-def documents() -> dict[str, dict[str, Any]]:
+def documents() -> Documents:
     log = open_run(EXAMPLE)
     return {m: diagnose(log, make_params(m)).to_json() for m in ("reference", "corrected")}
 
 
-def test_each_mode_heads_the_counts_with_its_own_names(documents) -> None:
+def test_each_mode_heads_the_counts_with_its_own_names(documents: Documents) -> None:
     reference = summary_text(documents["reference"]).splitlines()
     corrected = summary_text(documents["corrected"]).splitlines()
     assert reference[2].startswith("effect window: 10 frames (500 ms)")
@@ -57,7 +59,9 @@ def test_each_mode_heads_the_counts_with_its_own_names(documents) -> None:
     assert reference[8].startswith("verdict: controller")
 
 
-def test_the_line_names_each_module_one_mode_blames_and_what_the_other_saw(documents) -> None:
+def test_the_line_names_each_module_one_mode_blames_and_what_the_other_saw(
+    documents: Documents,
+) -> None:
     assert why_modes_differ([documents["reference"], documents["corrected"]]) == WHY
 
 
@@ -68,12 +72,12 @@ def test_every_mode_states_each_modules_rule(mode: str) -> None:
     assert all(rule and "\n" not in rule for rule in rules.values())
 
 
-def test_the_modes_agreeing_is_said_too(documents) -> None:
+def test_the_modes_agreeing_is_said_too(documents: Documents) -> None:
     same = documents["corrected"]
     assert why_modes_differ([same, same]) == "the modes agree: perception"
 
 
-def test_uncounted_failures_and_a_different_ranking_are_explained(documents) -> None:
+def test_uncounted_failures_and_a_different_ranking_are_explained(documents: Documents) -> None:
     reference, corrected = copy.deepcopy(documents["reference"]), documents["corrected"]
     reference["modules"]["perception"]["safe"] = 4  # failed, outside its window
     assert why_modes_differ([reference, corrected]).startswith(

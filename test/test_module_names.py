@@ -10,6 +10,7 @@ table's rows. Parameter names are prefixes (``perc_``, ``pred_``, ``planning_``,
 
 from __future__ import annotations
 
+import argparse
 import ast
 import re
 from pathlib import Path
@@ -22,7 +23,7 @@ from ads_rca.engine import diagnose
 from ads_rca.io import open_run
 from ads_rca.live import diagnostics
 from ads_rca.params import SEMANTICS, make_params
-from ads_rca.ros.monitor import MONITORS
+from ads_rca.ros.graph import MONITORS
 from ads_rca.summary import summary_text
 from ads_rca.synth import synthesise
 from ads_rca.verdict import MODULES
@@ -32,15 +33,16 @@ EXAMPLE = ROOT / "examples" / "cut_in_perception"
 MONITOR_NODE = re.compile(r"\b([a-z]+_monitor)\b")
 
 
-def synth_fault_action():
+def synth_fault_action() -> tuple[argparse.ArgumentParser, argparse.Action]:
     parser = build_parser()
-    subparsers = next(a for a in parser._actions if a.dest == "command")
+    subparsers = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     synth = subparsers.choices["synth"]
     return synth, next(a for a in synth._actions if a.dest == "fault")
 
 
 def test_synth_fault_choices_are_the_module_names() -> None:
     _, action = synth_fault_action()
+    assert action.choices is not None
     assert tuple(action.choices) == ("none", *MODULES)
 
 
@@ -67,7 +69,9 @@ def test_every_monitor_executable_and_mention_is_a_monitor_node() -> None:
         if isinstance(node, ast.Assign) and getattr(node.targets[0], "id", "") == "NODES"
     )
     assert isinstance(nodes, ast.Dict)
-    executables = {k.value for k in nodes.keys if isinstance(k, ast.Constant)}
+    executables = {
+        k.value for k in nodes.keys if isinstance(k, ast.Constant) and isinstance(k.value, str)
+    }
     assert {e for e in executables if e.endswith("_monitor")} == set(MONITORS)
     texts = [*ROOT.glob("launch_scripts/*.py"), ROOT / "README.md", *ROOT.glob("docs/*.md")]
     for path in texts:

@@ -17,12 +17,16 @@ import signal
 import subprocess
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import pytest
 from rosrun import wait_for
 
 from ads_rca.params import make_params
 from ads_rca.ros.graph import MONITORS_SEPARATE, MONITORS_SHARED, GraphSpec
+
+if TYPE_CHECKING:
+    from conftest import RosEnv
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "cut_in_perception"
 LEADER = Path(__file__).resolve().parent / "pgroup.py"
@@ -39,7 +43,7 @@ def lines_in(path: Path) -> int:
 @pytest.mark.parametrize("layout", [MONITORS_SHARED, MONITORS_SEPARATE])
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_group_signal_stops_every_node_cleanly(
-    layout: str, sig: signal.Signals, ros_env, tmp_path: Path
+    layout: str, sig: signal.Signals, ros_env: RosEnv, tmp_path: Path
 ) -> None:
     metrics = tmp_path / "metrics.jsonl"
     spec = GraphSpec(

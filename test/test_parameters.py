@@ -183,7 +183,7 @@ def test_reference_window_is_effect_time_window_with_no_upper_bound(example_log:
 def test_summary_report_and_verdict_status_name_the_effective_window(
     example_log: Any, tmp_path: Path
 ) -> None:
-    from ads_rca.ros.diagnostics import verdict_status
+    from ads_rca.live.diagnostics import verdict_status
 
     result = diagnose(example_log, make_params("corrected", {"window_s": 2.0}))
     line = (

@@ -240,6 +240,7 @@ def test_a_hostile_log_with_nan_still_renders_as_text_only(tmp_path: Path) -> No
     page = render(result)
     text = assert_only_report_markup(page)
     partner = result.attribution.partner_id
+    assert partner is not None
     assert partner in ids.values() and partner in text
     ends = series_ends(result)
     assert ends and all(end.line() in text for end in ends)

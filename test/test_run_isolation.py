@@ -302,8 +302,8 @@ def test_a_hostile_run_id_is_one_line_and_exit_2(
 ) -> None:
     """``run_id`` becomes part of a topic name (``run/ready_<id>``): a hostile one is refused
     at start in one line (escaped), never an rclpy traceback."""
+    from ads_rca.ros.graph import GROUP
     from ads_rca.ros.launcher import ros_args
-    from ads_rca.ros.monitor import GROUP
 
     params: dict[str, Any] = {"run_id": run_id, "topic_namespace": ros_env.namespace}
     if node == "ads_rca.ros.player":

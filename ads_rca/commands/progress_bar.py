@@ -32,6 +32,7 @@ def terminal_bar(step: str) -> Progress | None:
 
         # leave=False: the bar is cleared when the step ends, so the terminal keeps only
         # the results.
-        return tqdm(items, desc=step, unit=UNITS[step], file=sys.stderr, leave=False)
+        bar: Iterable[T] = tqdm(items, desc=step, unit=UNITS[step], file=sys.stderr, leave=False)
+        return bar
 
     return wrap

@@ -566,12 +566,18 @@ def _draw_predictions(
         return
     xy = np.array([pose.x, pose.y], dtype=np.float64)
     skipped.keep("scene, ego pose", xy[:1], xy[1:])
-    for name, color, marker, text in (
-        ("predictions_with_perception", PWP_COLOR, ".", "predictions with perception"),
-        ("predictions", RAW_COLOR, "+", "raw predictions"),
+    for name, folder, color, marker, text in (
+        (
+            "predictions_with_perception",
+            log.predictions_with_perception,
+            PWP_COLOR,
+            ".",
+            "predictions with perception",
+        ),
+        ("predictions", log.predictions, RAW_COLOR, "+", "raw predictions"),
     ):
         label = text
-        for obstacle_id, track in log.folder(name).get(ts, {}).items():
+        for obstacle_id, track in folder.get(ts, {}).items():
             if obstacle_id == ego or len(track.keys) == 0:
                 continue
             with np.errstate(invalid="ignore", over="ignore"):

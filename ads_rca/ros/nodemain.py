@@ -27,6 +27,7 @@ import signal
 import time
 from collections.abc import Callable, Iterable
 from types import FrameType
+from typing import Any
 
 import rclpy
 from rclpy.duration import Duration
@@ -76,7 +77,7 @@ def keep_running() -> bool:
     return not _SIGNALS and rclpy.ok()
 
 
-def wait_for_acks(publishers: Iterable[Publisher], timeout_s: float) -> bool:
+def wait_for_acks(publishers: Iterable[Publisher[Any]], timeout_s: float) -> bool:
     """Every subscriber of ``publishers`` acknowledged every message; False after
     ``timeout_s`` or on a stop signal (checked every 0.1 s: the wait is in C++)."""
     deadline = time.monotonic() + timeout_s

@@ -129,7 +129,7 @@ def main() -> int:
     now = outputs()
     if args.write:
         STORED.parent.mkdir(exist_ok=True)
-        text = json.dumps(now, sort_keys=True, separators=(",", ":"))
+        text = json.dumps(now, separators=(",", ":"))  # key order is part of the output
         STORED.write_bytes(gzip.compress(text.encode(), compresslevel=9, mtime=0))
     hashes = {key: value["sha256"] for key, value in now.items()}
     sys.stdout.write(json.dumps(hashes, indent=1, sort_keys=True) + "\n")

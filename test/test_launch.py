@@ -242,19 +242,9 @@ def launch_env(tmp_path_factory: pytest.TempPathFactory) -> dict[str, str]:
         pytest.skip(
             "ros2 launch is not installed (not on the package registries; a ROS install has it)"
         )
-    from test_ros_colcon import colcon
+    from test_ros_colcon import build_workspace
 
-    workspace = tmp_path_factory.mktemp("launch_ws")
-    colcon(
-        workspace,
-        "build",
-        "--base-paths", str(REPO),
-        "--packages-select", "ads_rca",
-        "--build-base", str(workspace / "build"),
-        "--install-base", str(workspace / "install"),
-        "--executor", "sequential",
-    )  # fmt: skip
-    prefix = workspace / "install" / "ads_rca"
+    prefix = build_workspace(tmp_path_factory.mktemp("launch_ws")) / "ads_rca"
     site = next((prefix / "lib").glob("python3*/site-packages"))
     return {
         "AMENT_PREFIX_PATH": str(prefix),

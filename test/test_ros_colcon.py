@@ -45,9 +45,8 @@ def colcon(workspace: Path, *args: str) -> str:
     return result.stdout
 
 
-@pytest.fixture(scope="module")
-def install(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    workspace = tmp_path_factory.mktemp("colcon_ws")
+def build_workspace(workspace: Path) -> Path:
+    """``colcon build`` of this package in ``workspace``, as a user does; the install base."""
     colcon(
         workspace,
         "build",
@@ -58,6 +57,11 @@ def install(tmp_path_factory: pytest.TempPathFactory) -> Path:
         "--executor", "sequential",
     )  # fmt: skip
     return workspace / "install"
+
+
+@pytest.fixture(scope="module")
+def install(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return build_workspace(tmp_path_factory.mktemp("colcon_ws"))
 
 
 def test_colcon_sees_an_ament_python_package(tmp_path: Path) -> None:

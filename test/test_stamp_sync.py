@@ -116,6 +116,24 @@ def test_two_percent_dropped_frames_are_released_incomplete_after_the_timeout(
     assert sync.counts.incomplete == 2
 
 
+def test_a_dropped_reference_loses_its_frame_and_its_inputs_count_unmatched(
+    log: RunLog,
+) -> None:
+    messages = stack_messages(log, 7)
+    frames = list(log.unique_frames)
+    lost = {frames[40], frames[70]}
+    kept = [m for m in messages if not (m[0] == ODOMETRY and m[1] in lost)]
+    sync = new_sync(50.0)
+    released = [frame for frame, _ in run(sync, kept)]
+    assert [f.stamp_ms for f in released] == [f for f in frames if f not in lost]
+    for frame in released:
+        assert_associated(frame)
+        assert frame.complete
+        after_gap = frame.stamp_ms - 50 in lost
+        assert frame.reason == ("timeout" if after_gap else "complete")
+    assert sync.counts.unmatched == len(INPUTS) * len(lost)
+
+
 def test_duplicates_keep_the_first_and_are_counted(log: RunLog) -> None:
     messages = stack_messages(log, 6)
     doubled: list[Message] = []

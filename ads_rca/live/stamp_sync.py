@@ -16,9 +16,10 @@ frames:
   the others are counted ``unmatched``.
 - **Release**, in stamp order: a frame is released complete when every expected input is
   in; or, ``input_timeout_s`` of monotonic time after its reference arrived, with what
-  arrived, its missing topics named. A frame more than 1.5 periods after the last released
-  one (a gap: the frame between may still come, reordered) and every frame before
-  ``measure_stamps`` reference stamps were seen wait for their timeout unless the gap fills.
+  arrived, its missing topics named. Nothing is released early before ``measure_stamps``
+  reference stamps were seen (the start settles, the period is measured); a frame more than
+  1.5 periods after the last released one (a gap: the frame between may still come,
+  reordered) waits for it until its own timeout.
 - **Late, duplicate**: a message whose nearest frame was already released (the newest
   released frame, or older) is dropped and counted ``late``; a second message with a stamp
   already held on its topic is dropped (the first kept) and counted ``duplicates``.
@@ -157,7 +158,6 @@ class StampSync(Generic[P]):
 
     def __init__(self, settings: SyncSettings) -> None:
         self.settings = settings
-        self.topics = (settings.reference, *settings.inputs)
         self.period_ms = settings.period_ms
         self.counts = SyncCounts()
         self.released_ms: int | None = None  #: the newest released frame's stamp

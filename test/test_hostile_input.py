@@ -157,7 +157,8 @@ def test_a_file_over_max_file_mb_is_skipped_with_the_cap_named(log_dir: Path) ->
 def test_max_file_mb_must_be_positive(log_dir: Path) -> None:
     done = run_cli("inspect", str(log_dir), "--max-file-mb", "0")
     assert_clean(done, 2)
-    assert done.stderr.strip().endswith("max_file_mb must be a positive number of MB, not 0.0")
+    message = "parameter max_file_mb: 0 is out of range [0.001, 1048576] MB"
+    assert done.stderr.strip().endswith(message)
 
 
 # --- 2. JSON nested too deep ------------------------------------------------------------

@@ -34,6 +34,7 @@ from ads_rca.io.files import DEFAULT_MAX_FILE_MB
 from ads_rca.live.runid import new_run_id
 from ads_rca.oracles.base import MODULES, Module
 from ads_rca.params import SEMANTICS, Params, load_config, params_from_sources
+from ads_rca.paramspec import MAX_FILE_MB, RATE, check_number
 from ads_rca.ros.launcher import Launcher, ManagedProcess, ParamValue, ros_args
 
 PLAYER = "ads_rca.ros.player"
@@ -228,14 +229,13 @@ def spec_from_arguments(values: Mapping[str, str]) -> GraphSpec:
     monitors = value("monitors")
     if monitors not in MONITOR_LAYOUTS:
         raise InputError(f"monitors must be {' or '.join(MONITOR_LAYOUTS)}, not {monitors!r}")
-    rate = _number("rate", value("rate"))
-    if rate < 0:
-        raise InputError(f"rate must be >= 0, got {value('rate')}")
+    rate = float(check_number("rate", value("rate"), RATE))
     params_file = value("params_file")
     params = params_from_sources(
         value("semantics") or None, load_config(params_file) if params_file else {}, {}
     )
-    player: dict[str, ParamValue] = {"max_file_mb": _number("max_file_mb", value("max_file_mb"))}
+    max_file_mb = float(check_number("max_file_mb", value("max_file_mb"), MAX_FILE_MB))
+    player: dict[str, ParamValue] = {"max_file_mb": max_file_mb}
     if value("bag_remap"):
         player["bag_remap"] = str(Path(value("bag_remap")).resolve())
     record, verdict_json = value("record"), value("verdict_json")
@@ -250,13 +250,6 @@ def spec_from_arguments(values: Mapping[str, str]) -> GraphSpec:
         monitors=monitors,
         exit_after_verdict=True,
     )
-
-
-def _number(name: str, text: str) -> float:
-    try:
-        return float(text)
-    except ValueError:
-        raise InputError(f"{name}: {text!r} is not a number") from None
 
 
 def exit_status(code: int) -> str:

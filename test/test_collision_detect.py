@@ -15,9 +15,11 @@ import numpy as np
 import pytest
 
 from ads_rca.errors import ConfigError
+from ads_rca.geometry import box_signed_distance
 from ads_rca.live.collision_detect import Collision, CollisionDetector, detect_collisions
 from ads_rca.model import Actors, EgoPose
 from ads_rca.synth import FAULTS, SCENARIOS, synthesise_run
+from ads_rca.synth.geometry import sat_gap
 
 CRASH_SCENARIOS = [s for s in SCENARIOS if s != "cruise"]
 SEEDS = (1, 2)
@@ -47,6 +49,22 @@ def test_synthesised_runs(scenario: str, fault: str, seed: int) -> None:
     )
     assert first.timestamp_ms == log.metadata.collision_frame * log.tpf
     assert first.depth_m > 0.0
+
+
+def test_same_rule_as_the_synthesiser() -> None:
+    """The detector's distance is the synthesiser's separating-axis gap where they overlap
+    (so "below zero" is one rule), on 20,000 random box pairs of which many overlap."""
+    rng = np.random.default_rng(15)
+    n = 20_000
+    ca, cb = rng.uniform(-4, 4, (n, 2)), rng.uniform(-4, 4, (n, 2))
+    ha, hb = rng.uniform(0.2, 3, (n, 2)), rng.uniform(0.2, 3, (n, 2))
+    ya, yb = rng.uniform(-180, 180, n), rng.uniform(-180, 180, n)
+    ours = box_signed_distance(ca, ha, ya, cb, hb, yb)
+    theirs = sat_gap(ca, np.deg2rad(ya), ha, cb, np.deg2rad(yb), hb)
+    overlap = theirs < 0
+    assert 0.3 * n < overlap.sum() < 0.9 * n
+    np.testing.assert_array_equal(ours < 0, overlap)
+    np.testing.assert_allclose(ours[overlap], theirs[overlap], rtol=0, atol=1e-9)
 
 
 @pytest.mark.parametrize("seed", SEEDS)

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ads_rca.model import RunLog
+from ads_rca.model import Actors, EgoPose, RunLog
 from ads_rca.oracles.semantics import EGO_ID_TIMESTAMP_MS, semantics_for
 from ads_rca.params import Params
 from ads_rca.problems import CHECK_SKIPPED, Problem, ProblemLog, new_problems
@@ -30,6 +30,7 @@ __all__ = [
     "RunContext",
     "earliest_ego",
     "ego_at",
+    "ego_row",
 ]
 
 
@@ -83,10 +84,18 @@ def earliest_ego(ctx: RunContext) -> str | None:
 def ego_at(log: RunLog, ts: int) -> str | None:
     """The first actor (file order) within 0.5 m of the ego pose at ``ts``, per axis."""
     actors, pose = log.actors.get(ts), log.pose.get(ts)
-    if actors is None or pose is None or len(actors) == 0:
+    if actors is None or pose is None:
+        return None
+    row = ego_row(actors, pose)
+    return actors.ids[row] if row is not None else None
+
+
+def ego_row(actors: Actors, pose: EgoPose) -> int | None:
+    """The row of :func:`ego_at`'s match in one actors record (the live detector's too)."""
+    if len(actors) == 0:
         return None
     close = (np.abs(actors.location[:, 0] - pose.x) < EGO_MATCH_DISTANCE_M) & (
         np.abs(actors.location[:, 1] - pose.y) < EGO_MATCH_DISTANCE_M
     )
     rows = np.flatnonzero(close)
-    return actors.ids[int(rows[0])] if rows.size else None
+    return int(rows[0]) if rows.size else None

@@ -41,10 +41,13 @@ from typing import Generic, Literal, TypeVar
 
 import numpy as np
 
-from ads_rca.contract.topics import ODOMETRY
+from ads_rca.contract.topics import FOLDER_TOPICS
 from ads_rca.errors import ConfigError
 
 P = TypeVar("P")
+
+#: The default reference: the topic that carries the ego pose (the ego odometry).
+EGO_POSE_TOPIC = FOLDER_TOPICS["pose"]
 
 #: Why a frame was released.
 Reason = Literal["complete", "timeout", "overflow", "flush"]
@@ -58,7 +61,7 @@ class SyncSettings:
     """The parameters of stamp synchronisation (node parameters in stack mode)."""
 
     inputs: tuple[str, ...]  #: every expected topic but the reference
-    reference: str = ODOMETRY
+    reference: str = EGO_POSE_TOPIC
     period_ms: float | None = None  #: None: measured from the reference stamps
     sync_slop_ms: float | None = None  #: None: half a period
     input_timeout_s: float = 5.0

@@ -170,8 +170,3 @@ def _freeze(node: Node, name: str, descriptor: ParameterDescriptor) -> None:
     descriptor.read_only = True
     descriptor.type = node.describe_parameter(name).type  # a dynamic one follows the value
     node.set_descriptor(name, descriptor)
-
-
-def engine_values(params: Params) -> dict[str, bool | int | float | str]:
-    """Every engine parameter as ``-p`` values for a node (semantics included)."""
-    return dict(asdict(params).items())

@@ -106,6 +106,16 @@ def test_the_writer_records_the_distribution_it_is_given(tmp_path: Path) -> None
     assert write_bag(tmp_path / "b")["ros_distro"] == TYPES_DISTRO == "kilted"
 
 
+def test_a_hostile_ros_distro_stays_data_in_the_bag(tmp_path: Path) -> None:
+    """ROS_DISTRO comes from the environment: a line break or YAML syntax in it cannot add
+    keys to metadata.yaml or the MCAP metadata; it reads back as the same text."""
+    hostile = ros_distro({"ROS_DISTRO": "x\nros_distro: forged\n  - {a: [1"})
+    assert hostile == "x\nros_distro: forged\n  - {a: [1"
+    information = write_bag(tmp_path / "bag", ros_distro=hostile)
+    assert information["ros_distro"] == hostile
+    assert mcap_distro(tmp_path / "bag") == hostile
+
+
 def test_the_recorder_writes_the_distribution_it_runs_on(ros_env: RosEnv, tmp_path: Path) -> None:
     env = dict(ros_env.env, ROS_DISTRO="jazzy")
     params: dict[str, ParamValue] = {"output": str(tmp_path / "bag"), "max_duration_s": 0.5}

@@ -16,10 +16,17 @@ it, it is published marked incomplete with the lost frames listed. It also does 
 forever: once the horizon is reached, after ``verdict_timeout_s`` without any new result;
 before, after ``stall_timeout_s`` without any input once the run started; what is there is
 then attributed and the verdict says why it is incomplete.
+
+Stack mode (``stack=True``, docs/live-graph.md): there are no frame markers. The frames are
+the ones the monitors judged (re-indexed here by stamp, so monitor processes started at
+different times agree), and a module is complete for collision N once its result marked
+``closes_collision`` N arrived. A run can collide several times: the collisions are taken
+in order, a verdict each, numbered.
 """
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -35,6 +42,7 @@ from ads_rca.live.results import (
     ResultStore,
     RunEnd,
 )
+from ads_rca.live.stack_config import StackConfig
 from ads_rca.model import RunLog, RunMetadata, frame_number
 from ads_rca.oracles.base import MODULES, Module, RunContext
 from ads_rca.oracles.semantics import semantics_for
@@ -64,7 +72,11 @@ class AggregatorCore(FollowsRunEnd):
     """Feed markers, metadata and results; :meth:`poll` returns the verdict once."""
 
     def __init__(
-        self, params: Params, verdict_timeout_s: float = 10.0, stall_timeout_s: float = 20.0
+        self,
+        params: Params,
+        verdict_timeout_s: float = 10.0,
+        stall_timeout_s: float = 20.0,
+        stack: StackConfig | None = None,
     ) -> None:
         self.params = params
         # The mode's modules are imported now, not while the verdict is due.
@@ -93,6 +105,22 @@ class AggregatorCore(FollowsRunEnd):
         self.received: dict[Module, int] = {m: 0 for m in MODULES}
         #: (horizon, number of expected frames) -> index of the last required frame.
         self._last_required: tuple[int | None, int, int] = (None, -1, -1)
+        #: Stack mode's run facts (None: a player's run).
+        self.stack_config = stack
+        self.stack = stack is not None
+        if stack is not None and stack.timesteps_per_frame:
+            self.set_metadata(stack.metadata(stack.timesteps_per_frame), "stack", 0.0)
+        #: Stack mode: the number of the collision being decided (1, 2, ...), when it was
+        #: heard, whether it was derived from ground truth, the later ones waiting.
+        self.collision_number = 0
+        self.collision_at: float | None = None
+        self.collision_derived = False
+        self._queued: deque[tuple[int, str, bool, float]] = deque()
+        #: Stack mode: per module, the collision its last ``closes_collision`` result closed.
+        self.closed: dict[Module, int] = {}
+        self._origin_ms: int | None = None  # stack mode: the stamp of index STACK_MARGIN
+        #: Every verdict given, in order (stack mode can give several).
+        self.verdicts: list[VerdictOutcome] = []
 
     # --- feeding ---------------------------------------------------------------------
 
@@ -111,10 +139,26 @@ class AggregatorCore(FollowsRunEnd):
             self.collision_frame, self.collision_source = metadata.collision_frame, "metadata"
         self.last_input = now
 
-    def set_collision(self, frame: int, now: float) -> None:
-        """A live collision event (wins over the metadata)."""
-        self.collision_frame, self.collision_source = frame, "event"
+    def set_collision(self, frame: int, now: float, derived: bool = False) -> None:
+        """A live collision event (wins over the metadata). In stack mode a collision after
+        the one being decided waits for its verdict, then is decided in turn."""
         self.last_input = now
+        if not self.stack:
+            self.collision_frame, self.collision_source = frame, "event"
+            return
+        known = [self.collision_frame, *(q[0] for q in self._queued)]
+        if frame in known or frame < self.collision_frame:
+            return
+        if self.collision_frame >= 0 and self.outcome is None:
+            self._queued.append((frame, "event", derived, now))
+            return
+        self._start_collision(frame, "event", derived, now)
+
+    def _start_collision(self, frame: int, source: str, derived: bool, now: float) -> None:
+        self.collision_frame, self.collision_source = frame, source
+        self.collision_derived, self.collision_at = derived, now
+        self.collision_number += 1
+        self.outcome, self.horizon_reached_at = None, None
 
     def add_marker(self, marker: FrameMarker, now: float) -> None:
         self.last_input = now
@@ -135,6 +179,10 @@ class AggregatorCore(FollowsRunEnd):
 
     def add_result(self, result: LiveResult, now: float) -> None:
         self.last_input = now
+        if self.stack:
+            result = self._stack_frame(result, now)
+            if result.index < 0:
+                return
         module = result.module
         self.received[module] += 1
         # put() keeps the highest revision; an absurd index is dropped and moves nothing.
@@ -145,6 +193,26 @@ class AggregatorCore(FollowsRunEnd):
             self.ego_id = result.ego_id
         if result.partner_id is not None and result.collision_frame == self.collision_frame:
             self.partner_id = result.partner_id
+        if result.closes_collision >= 0:
+            self.closed[module] = result.closes_collision
+
+    def _stack_frame(self, result: LiveResult, now: float) -> LiveResult:
+        """Stack mode: the result re-indexed by its stamp, its frame registered as expected
+        (index -1: a stamp too far before the first one heard)."""
+        if self.metadata is None and self.stack_config is not None and result.tpf_ms > 0:
+            self.set_metadata(self.stack_config.metadata(result.tpf_ms), "stack", now)
+        if self.metadata is None:
+            return replace(result, index=-1)
+        tpf = self.metadata.timesteps_per_frame
+        if self._origin_ms is None:
+            self._origin_ms = result.stamp_ms - STACK_MARGIN * tpf
+        index = round((result.stamp_ms - self._origin_ms) / tpf)
+        if index < 0:
+            return replace(result, index=-1)
+        if self.expected.accepts(index) and not self.expected.has(index):
+            self.expected.set(index, stamp_ms=result.stamp_ms, arrived=now)
+        self.last_stamp = max(self.last_stamp or result.stamp_ms, result.stamp_ms)
+        return replace(result, index=index)
 
     # --- deciding --------------------------------------------------------------------
 
@@ -156,6 +224,10 @@ class AggregatorCore(FollowsRunEnd):
 
     def horizon_reached(self) -> bool:
         horizon = self.horizon_ms()
+        if self.stack:
+            return horizon is not None and all(
+                self.closed.get(m, -1) == self.collision_frame for m in MODULES
+            )
         if self.finished:
             return True
         return horizon is not None and self.last_stamp is not None and self.last_stamp >= horizon
@@ -222,6 +294,15 @@ class AggregatorCore(FollowsRunEnd):
         if self.outcome is not None or self.metadata is None:
             return None
         why: list[str] = []
+        if self.stack and not self.horizon_reached():
+            if self.collision_at is None or now - self.collision_at < self.verdict_timeout_s:
+                return None
+            open_modules = [m for m in MODULES if self.closed.get(m, -1) != self.collision_frame]
+            why.append(
+                f"timed out after {self.verdict_timeout_s:g} s waiting for "
+                f"{', '.join(open_modules)} to judge up to the collision"
+            )
+            return self._decide(now, why)
         if self.horizon_reached():
             if self.horizon_reached_at is None:
                 self.horizon_reached_at = now
@@ -242,8 +323,15 @@ class AggregatorCore(FollowsRunEnd):
             if self.last_input is None or now - self.last_input < self.stall_timeout_s:
                 return None
             why.append(f"inputs stalled for {self.stall_timeout_s:g} s before the horizon")
-        self.outcome = self._verdict(now, why)
-        return self.outcome
+        return self._decide(now, why)
+
+    def _decide(self, now: float, why: list[str]) -> VerdictOutcome:
+        """The verdict (kept); in stack mode, the next queued collision starts."""
+        outcome = self.outcome = self._verdict(now, why)
+        self.verdicts.append(outcome)
+        if self._queued:
+            self._start_collision(*self._queued.popleft())
+        return outcome
 
     def _verdict(self, now: float, why: list[str]) -> VerdictOutcome:
         assert self.metadata is not None
@@ -280,11 +368,20 @@ class AggregatorCore(FollowsRunEnd):
             "why_incomplete": why
             + ([f"{len(incomplete)} results judged with incomplete inputs"] if incomplete else []),
             "collision_source": self.collision_source,
+            **(
+                {"collision_number": self.collision_number, "derived": self.collision_derived}
+                if self.stack
+                else {}
+            ),
             "frames_expected": len(required),
             "results_received": dict(self.received),
             "incomplete_results": [[m, i] for m, i in incomplete[:50]],
         }
         return VerdictOutcome(diagnosis, document, not why and not incomplete, why)
+
+
+#: Stack mode: results this many frames before the first one heard are still placed.
+STACK_MARGIN = 4096
 
 
 def _frames_text(by_module: Mapping[Module, list[int]]) -> str:

@@ -70,6 +70,11 @@ class LiveResult:
     wait_s: float = 0.0  # from the frame's marker arriving to the result
     session: str = ""  # the monitor process's start token
     run: str = ""  # the run judged (the player's run id; "" = none known)
+    #: Stack mode: this module's last frame at or before collision frame N (-1: not one):
+    #: the module is complete for that collision's verdict.
+    closes_collision: int = -1
+    #: Stack mode: the frame period the monitor used (measured or given; 0: a player's run).
+    tpf_ms: int = 0
     extra: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -102,6 +107,8 @@ class LiveResult:
             "wait_s": self.wait_s,
             "session": self.session,
             **({"run": self.run} if self.run else {}),
+            **({"closes_collision": self.closes_collision} if self.closes_collision >= 0 else {}),
+            **({"tpf_ms": self.tpf_ms} if self.tpf_ms > 0 else {}),
             **self.extra,
         }
 
@@ -142,6 +149,8 @@ class LiveResult:
             wait_s=float(d.get("wait_s", 0.0)),
             session=str(d.get("session", "")),
             run=str(d.get("run") or ""),
+            closes_collision=int(d.get("closes_collision", -1)),
+            tpf_ms=int(d.get("tpf_ms", 0)),
         )
 
 
@@ -152,7 +161,8 @@ def collision_frame(document: Mapping[str, Any], runs: RunFilter) -> int | None:
     if document_run(document) is not None and not runs.accept(document):
         return None
     frame = document.get("frame")
-    return frame if isinstance(frame, int) else None
+    usable = isinstance(frame, int) and not isinstance(frame, bool) and frame >= 0
+    return frame if usable else None
 
 
 @dataclass

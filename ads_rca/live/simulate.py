@@ -11,6 +11,9 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
+
+import numpy as np
 
 from ads_rca.live.aggregate import AggregatorCore, VerdictOutcome
 from ads_rca.live.results import FrameMarker, LiveResult
@@ -18,6 +21,10 @@ from ads_rca.live.window import MonitorCore, WindowSettings
 from ads_rca.model import FOLDERS, RunLog
 from ads_rca.oracles.base import MODULES, Module
 from ads_rca.params import Params
+
+if TYPE_CHECKING:
+    from ads_rca.live.stack_config import StackConfig
+    from ads_rca.live.stack_feed import StackFeed
 
 #: (folder, stamp_ms) -> deliver this record? (to simulate a topic that stops)
 Filter = Callable[[str, int], bool]
@@ -31,6 +38,9 @@ class LiveRun:
     outcome: VerdictOutcome | None = None
     monitors: dict[Module, MonitorCore] = field(default_factory=dict)
     max_held_records: dict[Module, int] = field(default_factory=dict)
+    #: Stack mode: every verdict, in order, and the feed (its sync's counts).
+    verdicts: list[VerdictOutcome] = field(default_factory=list)
+    feed: StackFeed | None = None
 
 
 def run_live(
@@ -130,3 +140,127 @@ def announce(cores: list[MonitorCore], aggregator: AggregatorCore, frame: int, a
     for core in cores:
         core.set_collision(frame, at)
     aggregator.set_collision(frame, at)
+
+
+# --- stack mode ------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class StackMessage:
+    """One message as a stack sends it: its arrival time, input and CDR bytes."""
+
+    arrival_s: float
+    folder: str
+    stamp_ms: int
+    payload: bytes
+
+
+@dataclass
+class StackStream:
+    """A log as a stack publishes it, in arrival order, and what was left out."""
+
+    messages: list[StackMessage]
+    offsets_ms: dict[str, int]
+    dropped: dict[str, list[int]]  # folder -> log stamps of the dropped messages
+    collision_s: float | None  # arrival of the collision announcement (None: no crash)
+
+
+def stack_stream(
+    log: RunLog,
+    seed: int = 0,
+    max_offset_ms: int = 20,
+    jitter_ms: float = 30.0,
+    drop: dict[str, float] | None = None,
+    reference: str = "pose",
+) -> StackStream:
+    """The contract messages of ``log`` stamped and delivered as a stack does (issue #15):
+    each input but the reference stamped at its frame's time plus a fixed per-input offset in
+    [-max_offset_ms, max_offset_ms], each message arriving up to ``jitter_ms`` after its
+    frame's time (so inputs and frames reorder), ``drop`` {folder: fraction} of an input's
+    messages left out (deterministic from ``seed``), the collision announced after the last
+    message of the collision frame."""
+    from ads_rca.contract import topics
+
+    rng = np.random.default_rng(seed)
+    offsets = {
+        f: 0 if f == reference else int(rng.integers(-max_offset_ms, max_offset_ms + 1))
+        for f in topics.FOLDER_TOPICS
+    }
+    dropped: dict[str, list[int]] = {}
+    messages: list[StackMessage] = []
+    for topic in topics.DATA:
+        folder = str(topic.folder)
+        stamps = sorted(log.folder(folder))
+        fraction = (drop or {}).get(folder, 0.0)
+        count = round(fraction * len(stamps))
+        gone = set(rng.choice(stamps, size=count, replace=False).tolist()) if count else set()
+        dropped[folder] = sorted(gone)
+        for stamp in stamps:
+            if stamp in gone:
+                continue
+            record = log.folder(folder)[stamp]
+            payload = topic.codec.encode(record, stamp + offsets[folder], log.tpf)
+            arrival = (stamp + float(rng.uniform(0.0, jitter_ms))) / 1000.0
+            messages.append(StackMessage(arrival, folder, stamp + offsets[folder], payload))
+    messages.sort(key=lambda m: m.arrival_s)
+    collision_s = None
+    if log.metadata.collision_frame >= 0:
+        cf_ms = log.metadata.collision_frame * log.tpf
+        collision_s = (
+            max((m.arrival_s for m in messages if m.stamp_ms <= cf_ms + max_offset_ms), default=0.0)
+            + 0.001
+        )
+    return StackStream(messages, offsets, dropped, collision_s)
+
+
+def run_stack(
+    log: RunLog,
+    params: Params,
+    stream: StackStream,
+    config: StackConfig,
+    settings: WindowSettings | None = None,
+    drain_s: float = 60.0,
+) -> LiveRun:
+    """Play ``stream`` through stack mode's cores: one :class:`MonitorCore` for the four
+    modules fed by a :class:`StackFeed`, and the aggregator, on simulated time (the
+    messages' arrival times); the collision is announced as the stream says."""
+    from ads_rca.live.stack_feed import StackFeed
+
+    core = MonitorCore(MODULES, params, settings, stack=True)
+    feed = StackFeed(config, core, lambda folder, error: None)
+    aggregator = AggregatorCore(params, stack=config)
+    run = LiveRun(results={m: [] for m in MODULES}, monitors={m: core for m in MODULES})
+    run.feed = feed
+
+    def pump(now: float) -> None:
+        feed.poll(now)
+        for result in core.poll(now):
+            run.results[result.module].append(result)
+            aggregator.add_result(result, now)
+        for module in core.modules:
+            run.max_held_records[module] = max(
+                run.max_held_records.get(module, 0), core.held_records()
+            )
+        outcome = aggregator.poll(now)
+        if outcome is not None:
+            run.verdicts.append(outcome)
+            run.outcome = run.outcome or outcome
+
+    announced = stream.collision_s is None
+    now = 0.0
+    for message in stream.messages:
+        now = message.arrival_s
+        if not announced and stream.collision_s is not None and now >= stream.collision_s:
+            announce([core], aggregator, log.metadata.collision_frame, stream.collision_s)
+            announced = True
+        if message.folder in feed.decoders:
+            feed.add(message.folder, message.payload, now)
+        pump(now)
+    if not announced:
+        now = max(now, stream.collision_s or now)
+        announce([core], aggregator, log.metadata.collision_frame, now)
+    deadline = now + drain_s
+    while now < deadline and (run.outcome is None or core.pending):
+        now += 0.05
+        pump(now)
+    return run

@@ -29,7 +29,7 @@ frames:
 
 Per message the work is a binary search over the held stamps (no pass over the data);
 messages are held per topic in two parallel sorted lists, so what a release makes stale is
-cut with one slice. Pure: no rclpy. The nodes do not use it yet (docs/live-graph.md).
+cut with one slice. Pure: no rclpy; :mod:`ads_rca.live.stack_feed` feeds the monitors through it.
 """
 
 from __future__ import annotations
@@ -162,6 +162,9 @@ class StampSync(Generic[P]):
     def __init__(self, settings: SyncSettings) -> None:
         self.settings = settings
         self.period_ms = settings.period_ms
+        #: The period measured from the first ``measure_stamps`` reference stamps (also when
+        #: one is given: a stack's user checks it against the parameter).
+        self.measured_ms: float | None = None
         self.counts = SyncCounts()
         self.released_ms: int | None = None  #: the newest released frame's stamp
         self._frames = _Held[tuple[P, float]]()  # reference stamp -> (payload, arrival)
@@ -189,8 +192,10 @@ class StampSync(Generic[P]):
             return
         if len(self._seen) < self.settings.measure_stamps:
             self._seen.append(stamp)
-            if self.period_ms is None and len(self._seen) == self.settings.measure_stamps:
-                self.period_ms = measure_period(self._seen)
+            if len(self._seen) == self.settings.measure_stamps:
+                self.measured_ms = measure_period(self._seen)
+                if self.period_ms is None:
+                    self.period_ms = self.measured_ms
 
     def _add_input(self, topic: str, stamp: int, payload: P) -> None:
         if self._is_late(stamp):

@@ -89,6 +89,7 @@ class MonitorCore(FollowsRunEnd):
         modules: Module | Sequence[Module],
         params: Params,
         settings: WindowSettings | None = None,
+        stack: bool = False,
     ) -> None:
         chosen: tuple[Module, ...] = (modules,) if isinstance(modules, str) else tuple(modules)
         self.modules = tuple(m for m in MODULES if m in chosen)  # pipeline order
@@ -118,6 +119,14 @@ class MonitorCore(FollowsRunEnd):
         self.session = uuid.uuid4().hex[:8]
         self.run = ""  # the run being judged, stamped on every result (set by the shell)
         self.stats = _Stats()
+        #: Stack mode (docs/live-graph.md): frames come whole from the stamp sync, a
+        #: collision closes the frames up to it (look-ahead and view cut at the collision).
+        self.stack = stack
+        #: Stack mode: no frame at or before the collision frame is still to come.
+        self.horizon_closed = False
+        self.collision_at: float | None = None
+        #: What the stack's layouts derive rather than carry (said on every result).
+        self.derived: tuple[str, ...] = ()
 
     # --- feeding ---------------------------------------------------------------------
 
@@ -142,14 +151,38 @@ class MonitorCore(FollowsRunEnd):
         if frame == self.collision_frame:
             return False
         self.collision_frame = frame
-        if not self.semantics.uses_partner or not self._judged:
+        self.collision_at, self.horizon_closed = now, False
+        if self.semantics.uses_partner:
+            again = list(self._judged)
+            self._judged.clear()
+        elif self.stack and self._judged and not self._pending_through(frame):
+            # The aggregator hears a module is complete for this collision from the result
+            # of its last frame before it (closes_collision): that frame is published again.
+            again = [self._judged.pop()]
+        else:
             return False
-        again = list(self._judged)
-        self._judged.clear()
         for entry in reversed(again):
             entry.revision += 1
             self.pending.appendleft(entry)
-        return True
+        return bool(again)
+
+    def _pending_through(self, frame: int) -> bool:
+        """A frame at or before collision ``frame`` is still to be judged."""
+        assert self.metadata is not None
+        cf_ms = frame * self.metadata.timesteps_per_frame
+        return bool(self.pending) and self.pending[0].marker.stamp_ms <= cf_ms
+
+    def close_horizon(self) -> None:
+        """Stack mode: every frame at or before the collision frame has been fed."""
+        self.horizon_closed = True
+
+    def _cut_ms(self, stamp_ms: int) -> int | None:
+        """Stack mode: a frame at or before the collision is judged on the data up to it
+        (as a crash log ends there), so its look-ahead and view stop there."""
+        if not self.stack or self.collision_frame < 0 or self.metadata is None:
+            return None
+        cf_ms = self.collision_frame * self.metadata.timesteps_per_frame
+        return cf_ms if stamp_ms <= cf_ms else None
 
     def add_record(self, folder: str, stamp_ms: int, record: Record, now: float) -> None:
         self._touch(now)
@@ -195,7 +228,7 @@ class MonitorCore(FollowsRunEnd):
             stamp = entry.marker.stamp_ms
             wanted = [f for f in self.folders if f in entry.marker.folders]
             missing = tuple(f for f in wanted if stamp not in self.records[f])
-            if missing and not stalled and now - entry.arrived < timeout:
+            if missing and not stalled and now - entry.arrived < timeout and not self.stack:
                 break
             entry.settled, entry.missing = True, missing
             self.complete_through = stamp
@@ -220,6 +253,9 @@ class MonitorCore(FollowsRunEnd):
         """Every marker up to ``stamp_ms`` has settled (or the run is over and all did)."""
         if self.finished and not self._markers:
             return True
+        cut = self._cut_ms(stamp_ms)
+        if cut is not None and self.horizon_closed:
+            return True
         return self.complete_through is not None and self.complete_through >= stamp_ms
 
     def _blockers(self, entry: _Entry) -> list[str]:
@@ -231,6 +267,9 @@ class MonitorCore(FollowsRunEnd):
         if not entry.settled:
             out.append("inputs not complete")
         ahead = stamp + self._lookahead_frames(entry) * tpf
+        cut = self._cut_ms(stamp)
+        if cut is not None:
+            ahead = min(ahead, cut)
         if not self._through(ahead):
             out.append(f"look-ahead to {ahead} ms not received")
         if not self.ego_resolved and not self._through(self.semantics.ego_stamp_ms):
@@ -269,15 +308,24 @@ class MonitorCore(FollowsRunEnd):
 
     # --- judging ---------------------------------------------------------------------
 
-    def view(self) -> RunLog:
-        """The window as a RunLog (records shared, dicts copied: tables are per view)."""
+    def view(self, cut_ms: int | None = None) -> RunLog:
+        """The window as a RunLog (records shared, dicts copied: tables are per view);
+        ``cut_ms``: nothing stamped after it (stack mode, a frame before the collision)."""
         assert self.metadata is not None
         metadata = replace(self.metadata, collision_frame=self.collision_frame)
         frames = tuple(self.analysed[i] for i in sorted(self.analysed))
+        records = self.records
+        if cut_ms is not None:  # the run's data ends at the collision, as a crash log's
+            metadata = replace(metadata, total_frames=cut_ms // metadata.timesteps_per_frame)
+            frames = tuple(s for s in frames if s <= cut_ms)
+            records = {
+                folder: {s: r for s, r in by_stamp.items() if s <= cut_ms}
+                for folder, by_stamp in records.items()
+            }
         return RunLog.from_folders(
             metadata,
             frames,
-            self.records,
+            records,
             source="live",
             first_extents=dict(self.first_extents),
             problems=ProblemLog(self.input_problems),
@@ -291,9 +339,34 @@ class MonitorCore(FollowsRunEnd):
         return ctx
 
     def _judge(self, ready: list[tuple[_Entry, tuple[str, ...]]], now: float) -> list[LiveResult]:
-        log = self.view()
+        """Judge ``ready`` in order, on one view per cut (stack mode: frames up to the
+        collision see no data after it)."""
+        out: list[LiveResult] = []
+        groups: dict[int | None, list[tuple[_Entry, tuple[str, ...]]]] = {}
+        for item in ready:
+            groups.setdefault(self._cut_ms(item[0].marker.stamp_ms), []).append(item)
+        for cut, group in groups.items():
+            out.extend(self._judge_on(self.view(cut), group, now))
+        del self.stats.compute_s[:-10000]
+        return out
+
+    def _closing_stamp(self) -> int | None:
+        """Stack mode: the frame whose result tells the aggregator this monitor is complete
+        for the current collision (its last frame at or before it), once it is known."""
+        if not self.stack or self.collision_frame < 0 or self.metadata is None:
+            return None
+        cf_ms = self.collision_frame * self.metadata.timesteps_per_frame
+        if not self._through(cf_ms):
+            return None
+        before = [s for s in self.analysed.values() if s <= cf_ms]
+        return max(before) if before else None
+
+    def _judge_on(
+        self, log: RunLog, ready: list[tuple[_Entry, tuple[str, ...]]], now: float
+    ) -> list[LiveResult]:
         ctx = self._context(log)
         partner = self._partner(ctx)
+        closing = self._closing_stamp()
         out = []
         for entry, incomplete in ready:
             stamp = entry.marker.stamp_ms
@@ -319,9 +392,11 @@ class MonitorCore(FollowsRunEnd):
                         wait_s=max(0.0, now - entry.arrived),
                         session=self.session,
                         run=self.run,
+                        closes_collision=self.collision_frame if stamp == closing else -1,
+                        tpf_ms=log.tpf if self.stack else 0,
+                        extra={"derived": list(self.derived)} if self.derived else {},
                     )
                 )
-        del self.stats.compute_s[:-10000]
         return out
 
     def _partner(self, ctx: RunContext) -> str | None:
@@ -335,7 +410,7 @@ class MonitorCore(FollowsRunEnd):
         """Judged frames kept for a re-evaluation (none where results do not depend on the
         partner; else the setting, or the mode's own count)."""
         if not self.semantics.uses_partner or self.metadata is None:
-            return 0
+            return 1 if self.stack else 0  # stack mode: the frame published again on a collision
         if self.settings.history_frames > 0:
             return self.settings.history_frames
         return self.semantics.rejudge_history(self.params, self.metadata.timesteps_per_frame)

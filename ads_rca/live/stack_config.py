@@ -24,8 +24,10 @@ from ads_rca.model import FOLDERS, RunMetadata
 from ads_rca.paramspec import Range
 from ads_rca.text import printable
 
-#: ``stack_mode`` values: ``auto`` is on when nobody publishes ``run/metadata``.
-STACK_MODES = ("auto", "on", "off")
+#: ``stack_mode`` values: ``stack`` (a stack's topics), ``player`` (the player's contract) or
+#: ``auto`` (stack when nobody publishes ``run/metadata``). Not on/off: YAML reads those as
+#: booleans.
+STACK_MODES = ("auto", "stack", "player")
 
 #: Folders a stack can provide, in the model's order.
 INPUT_FOLDERS: tuple[str, ...] = tuple(f for f in FOLDERS if f in topics.FOLDER_TOPICS)
@@ -36,13 +38,16 @@ UNBOUNDED_FRAMES = 1 << 40
 _MS = Range(0.0, 3_600_000.0, unit="ms")
 _METRES = Range(-1000.0, 1000.0, unit="m")
 
+#: ``inputs.<folder>.layout`` value for an input the stack does not provide.
+NOT_PROVIDED = "none"
+
 #: The stack parameters of the monitors and the aggregator: name → (default, description
-#: [, range]). Topic defaults are filled in per namespace by :func:`stack_parameters`.
+#: [, range]), and ``inputs.<folder>.topic`` / ``.layout`` for every input (below).
 STACK_PARAMETERS: dict[str, tuple[Any, str] | tuple[Any, str, Range]] = {
     "stack_mode": (
         "auto",
-        "Judge a stack's own topics (no player): on, off, or auto (on when nobody "
-        "publishes run/metadata).",
+        "Inputs: stack (a running stack's own topics, no player), player, or auto (stack "
+        "when nobody publishes run/metadata).",
     ),
     "reference_input": ("pose", "The input whose header stamps define the frames."),
     "timesteps_per_frame": (
@@ -60,24 +65,22 @@ STACK_PARAMETERS: dict[str, tuple[Any, str] | tuple[Any, str, Range]] = {
     "camera_loc.x": (0.0, "Stack mode: camera location x on the ego (m).", _METRES),
     "camera_loc.y": (0.0, "Stack mode: camera location y on the ego (m).", _METRES),
     "camera_loc.z": (0.0, "Stack mode: camera location z on the ego (m).", _METRES),
+    "inputs_best_effort": (
+        False,
+        "Stack mode: subscribe BEST_EFFORT (a stack publishing best effort; reliable "
+        "publishers match too, but losses are not repaired).",
+    ),
 }
-
-
-def stack_parameters(namespace: str) -> dict[str, tuple[Any, str] | tuple[Any, str, Range]]:
-    """:data:`STACK_PARAMETERS` plus ``inputs.<folder>.topic`` / ``.layout`` for every input
-    (default: the contract's topic under ``namespace``, layout ``contract``)."""
-    out = dict(STACK_PARAMETERS)
-    for folder in INPUT_FOLDERS:
-        default = topics.topic_name(topics.FOLDER_TOPICS[folder], namespace)
-        out[f"inputs.{folder}.topic"] = (
-            default,
-            f"Stack mode: the topic carrying {folder} ('' = the stack does not provide it).",
-        )
-        out[f"inputs.{folder}.layout"] = (
-            CONTRACT,
-            f"Stack mode: how the topic carries {folder} (see docs/live-graph.md).",
-        )
-    return out
+for _folder in INPUT_FOLDERS:
+    STACK_PARAMETERS[f"inputs.{_folder}.topic"] = (
+        "",
+        f"Stack mode: the topic carrying {_folder} ('' = the contract's, under topic_namespace).",
+    )
+    STACK_PARAMETERS[f"inputs.{_folder}.layout"] = (
+        CONTRACT,
+        f"Stack mode: how that topic carries {_folder} ('{NOT_PROVIDED}': the stack does "
+        "not provide it; see docs/live-graph.md).",
+    )
 
 
 @dataclass(frozen=True, slots=True)
@@ -102,6 +105,7 @@ class StackConfig:
     ego_id: str = ""
     camera_loc: tuple[float, float, float] = (0.0, 0.0, 0.0)
     mode: str = "auto"
+    best_effort: bool = False
     not_provided: tuple[str, ...] = field(default=())
 
     def __post_init__(self) -> None:
@@ -121,25 +125,29 @@ class StackConfig:
     def from_values(
         cls,
         values: Mapping[str, Any],
+        namespace: str = topics.DEFAULT_NAMESPACE,
         input_timeout_s: float = 5.0,
         max_pending_frames: int = 1200,
     ) -> StackConfig:
-        """From node parameter values (names of :func:`stack_parameters`; ConfigError
-        naming the parameter for a layout, topic or reference that cannot be used)."""
+        """From node parameter values (names of :data:`STACK_PARAMETERS`; a topic left ''
+        is the contract's under ``namespace``); ConfigError naming the parameter for a
+        layout, topic or reference that cannot be used."""
         inputs: dict[str, StackInput] = {}
         absent: list[str] = []
         for folder in INPUT_FOLDERS:
-            topic = str(values.get(f"inputs.{folder}.topic", ""))
-            if not topic:
+            name = str(values.get(f"inputs.{folder}.layout", CONTRACT))
+            if name == NOT_PROVIDED:
                 absent.append(folder)
                 continue
+            topic = str(values.get(f"inputs.{folder}.topic", "")) or topics.topic_name(
+                topics.FOLDER_TOPICS[folder], namespace
+            )
             if not topic.startswith("/") or any(c.isspace() for c in topic):
                 raise ConfigError(
                     printable(
                         f"parameter inputs.{folder}.topic: {topic!r} is not an absolute topic name"
                     )
                 )
-            name = str(values.get(f"inputs.{folder}.layout", CONTRACT))
             inputs[folder] = StackInput(folder, topic, layout(folder, name))
         loc = tuple(float(values.get(f"camera_loc.{axis}", 0.0)) for axis in "xyz")
         return cls(
@@ -152,6 +160,7 @@ class StackConfig:
             ego_id=str(values.get("ego_id", "")),
             camera_loc=(loc[0], loc[1], loc[2]),
             mode=str(values.get("stack_mode", "auto")),
+            best_effort=bool(values.get("inputs_best_effort", False)),
             not_provided=tuple(absent),
         )
 

@@ -41,8 +41,10 @@ from ads_rca.contract.playback import (
 from ads_rca.errors import AdsRcaError
 from ads_rca.live import diagnostics as diag
 from ads_rca.live.aggregate import AggregatorCore, VerdictOutcome
+from ads_rca.live.collision_feed import CollisionFeed, collision_document
 from ads_rca.live.results import FrameMarker, LiveResult, collision_frame
 from ads_rca.live.runid import RUN_KEY, RunFilter, checked_run_id
+from ads_rca.live.stack_config import STACK_PARAMETERS, StackConfig
 from ads_rca.oracles.base import MODULES, Module
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.paramspec import SECONDS
@@ -85,6 +87,16 @@ PARAMETERS: dict[str, NodeParameter] = {
         "With exit_after_verdict: longest wait for those acknowledgements.",
         SECONDS,
     ),
+    "collision_topic": (
+        "",
+        "Stack mode: a topic announcing collisions (std_msgs/String, the run/collision "
+        "document); '' = run/collision only. Forwarded to run/collision for the monitors.",
+    ),
+    "detect_collisions": (
+        False,
+        "Stack mode: detect collisions from ground truth (ego and actor boxes overlapping), "
+        "published on run/collision flagged derived.",
+    ),
 }
 _REPORTER = "aggregator"
 
@@ -95,7 +107,7 @@ class Aggregator(Node):
     def __init__(self) -> None:
         super().__init__("aggregator")
         self.params = declare_engine_parameters(self)
-        p = declare_node_parameters(self, PARAMETERS, self.params)
+        p = declare_node_parameters(self, {**PARAMETERS, **STACK_PARAMETERS}, self.params)
         self.hardware_id = str(p["hardware_id"])
         self.verdict_json = str(p["verdict_json"])
         self.exit_after_verdict = bool(p["exit_after_verdict"])
@@ -105,15 +117,17 @@ class Aggregator(Node):
         self.stale_timeout = float(p["stale_timeout_s"])
         self.runs = RunFilter(checked_run_id(str(p["run_id"])))
         self.skipped = SkippedMessages()
-        self.core = AggregatorCore(
-            self.params, float(p["verdict_timeout_s"]), float(p["stall_timeout_s"])
-        )
+        ns = self.namespace = str(p["topic_namespace"])
+        self.stack_config = StackConfig.from_values(p, ns)
+        self.timeouts = (float(p["verdict_timeout_s"]), float(p["stall_timeout_s"]))
+        stack = self.stack_config if self.stack_config.mode == "stack" else None
+        self.core = AggregatorCore(self.params, *self.timeouts, stack=stack)
+        self.verdicts_published = 0
         self._metrics_log: TextIO | None = None
         if p["metrics_log"]:
             path = Path(str(p["metrics_log"]))
             path.parent.mkdir(parents=True, exist_ok=True)
             self._metrics_log = path.open("w", encoding="utf-8")
-        ns = self.namespace = str(p["topic_namespace"])
         self.heard: dict[Module, float] = {}
         self.run_started: float | None = None
         for module in MODULES:
@@ -130,12 +144,22 @@ class Aggregator(Node):
                 self._callback(key),
                 topics.qos_profile(key, keep_all=True),
             )
+        collision_topic = topics.topic_name(live_topics.COLLISION, ns)
         self.create_subscription(
-            String,
-            topics.topic_name(live_topics.COLLISION, ns),
-            self._on_collision,
-            live_topics.latched_qos(),
+            String, collision_topic, self._on_collision, live_topics.latched_qos()
         )
+        #: Collisions from elsewhere (a mapped topic, detection) go on run/collision too.
+        self.collision_pub = self.create_publisher(
+            String, collision_topic, live_topics.latched_qos()
+        )
+        mapped = str(p["collision_topic"])
+        if mapped and mapped != collision_topic:
+            self.create_subscription(
+                String, mapped, self._on_mapped_collision, live_topics.latched_qos()
+            )
+        self.detection: CollisionFeed | None = None
+        if bool(p["detect_collisions"]):
+            self._subscribe_detection()
         subscribe_ready(self, ns, str(p["run_id"]))
         # Raw: only the status names are read (heartbeats), not 4 full statuses a frame.
         self.create_subscription(
@@ -198,6 +222,43 @@ class Aggregator(Node):
 
         return on_message
 
+    def _subscribe_detection(self) -> None:
+        from ads_rca.ros.stack_subscriber import message_class, stack_qos
+
+        feed = self.detection = CollisionFeed(self.stack_config)
+        for folder, topic in feed.topics.items():
+            layout = self.stack_config.inputs[folder].layout
+
+            def on_message(msg: Any, folder: str = folder) -> None:
+                self._detected(feed.add(folder, msg, time.monotonic()))
+
+            self.create_subscription(
+                message_class(layout.type_name),
+                topic,
+                on_message,
+                stack_qos(self.stack_config.best_effort),
+                raw=layout.raw,
+            )
+
+    def _detected(self, collisions: list[Any]) -> None:
+        for collision in collisions:
+            document = collision_document(collision)
+            self.get_logger().info(
+                f"collision {collision.number} detected at frame {document['frame']} "
+                f"(ego box overlaps actor {document['actor_id']!r} by {collision.depth_m:.2f} m)"
+            )
+            self._stack_mode()
+            self.core.set_collision(int(document["frame"]), time.monotonic(), derived=True)
+            self.collision_pub.publish(String(data=json.dumps(document)))
+
+    def _stack_mode(self) -> None:
+        """``stack_mode`` auto: results judged on a stack's frames (they carry the frame
+        period) or a stack's collision, with no player heard: the aggregator follows."""
+        if self.core.stack or self.core.metadata is not None or self.stack_config.mode == "player":
+            return
+        self.get_logger().info("no player on the graph: stack mode")
+        self.core = AggregatorCore(self.params, *self.timeouts, stack=self.stack_config)
+
     def _on_result(self, msg: String) -> None:
         now = time.monotonic()
         try:
@@ -210,6 +271,8 @@ class Aggregator(Node):
         if not self.runs.accept(document):
             return  # a monitor judging another run
         self.heard[result.module] = now
+        if result.tpf_ms > 0:
+            self._stack_mode()
         self.core.add_result(result, now)
         if self._metrics_log is not None:
             self._metrics_log.write(msg.data + "\n")
@@ -228,7 +291,20 @@ class Aggregator(Node):
             self._skip(live_topics.COLLISION, error, time.monotonic())
             return
         if frame is not None:
+            self._stack_mode()  # a collision and no player heard: a stack's run
             self.core.set_collision(frame, time.monotonic())
+
+    def _on_mapped_collision(self, msg: String) -> None:
+        """A stack's own collision topic: taken, and forwarded to run/collision."""
+        try:
+            frame = collision_frame(read_document(msg), self.runs)
+        except MalformedMessage as error:
+            self._skip(live_topics.COLLISION, error, time.monotonic())
+            return
+        if frame is not None:
+            self._stack_mode()
+            self.core.set_collision(frame, time.monotonic())
+            self.collision_pub.publish(String(data=json.dumps({"frame": frame})))
 
     def _on_diagnostics(self, data: bytes) -> None:
         now = time.monotonic()
@@ -268,7 +344,10 @@ class Aggregator(Node):
             self.diag_pub.publish(diagnostic_array(self.get_clock().now().to_msg(), statuses))
 
     def _poll(self) -> None:
-        outcome = self.core.poll(time.monotonic())
+        now = time.monotonic()
+        if self.detection is not None:
+            self._detected(self.detection.poll(now))
+        outcome = self.core.poll(now)
         if outcome is not None:
             self._publish(outcome)
 
@@ -284,8 +363,9 @@ class Aggregator(Node):
         self.diag_pub.publish(
             diagnostic_array(stamp, [diag.verdict_status(document, self.hardware_id)])
         )
+        self.verdicts_published += 1
         if self.verdict_json:
-            path = Path(self.verdict_json)
+            path = numbered(Path(self.verdict_json), self.verdicts_published)
             path.parent.mkdir(parents=True, exist_ok=True)
             partial = path.with_name(path.name + ".partial")
             partial.write_text(text + "\n")
@@ -313,6 +393,11 @@ class Aggregator(Node):
         if self._metrics_log is not None:
             self._metrics_log.close()
             self._metrics_log = None
+
+
+def numbered(path: Path, number: int) -> Path:
+    """Verdict N's file: the path for the first, ``name.N.json`` for the later ones."""
+    return path if number == 1 else path.with_name(f"{path.stem}.{number}{path.suffix}")
 
 
 def main(args: list[str] | None = None) -> int:

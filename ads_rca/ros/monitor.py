@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import sys
 import time
+from dataclasses import replace
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -53,6 +54,7 @@ from ads_rca.live.early_queue import EarlyQueue
 from ads_rca.live.numeric import NumericLayout
 from ads_rca.live.results import FrameMarker, LiveResult, collision_frame
 from ads_rca.live.runid import RUN_KEY, RunFilter, checked_run_id
+from ads_rca.live.stack_config import STACK_PARAMETERS, StackConfig
 from ads_rca.live.window import MonitorCore, WindowSettings
 from ads_rca.model import RunMetadata
 from ads_rca.oracles.base import Module
@@ -66,6 +68,12 @@ from ads_rca.ros.nodeparams import (
     declare_engine_parameters,
     declare_node_parameters,
     log_in_force,
+)
+from ads_rca.ros.stack_subscriber import (
+    StackSubscriber,
+    message_class,
+    missing_inputs,
+    stack_qos,
 )
 
 PARAMETERS: dict[str, NodeParameter] = {
@@ -111,7 +119,7 @@ class Monitor(Node):
         super().__init__(node_name)
         self.module = module
         self.params = declare_engine_parameters(self)
-        p = declare_node_parameters(self, PARAMETERS, self.params)
+        p = declare_node_parameters(self, {**PARAMETERS, **STACK_PARAMETERS}, self.params)
         self.hardware_id = str(p["hardware_id"])
         self.stale_timeout = float(p["stale_timeout_s"])
         self.publish_diagnostics = bool(p["publish_diagnostics"])
@@ -123,6 +131,18 @@ class Monitor(Node):
             input_timeout_s=float(p["input_timeout_s"]),
             max_pending_frames=int(p["max_pending_frames"]),
             history_frames=int(p["history_frames"]),
+        )
+        self.stack_config = StackConfig.from_values(
+            p,
+            self.namespace,
+            self.settings.input_timeout_s,
+            self.settings.max_pending_frames,
+        )
+        #: Stack mode's inputs the stack does not provide that this module reads.
+        self.unprovided = tuple(
+            f
+            for f in semantics_for(self.params).folders(module)
+            if f in self.stack_config.not_provided
         )
         self.core: MonitorCore | None = None  # set by the unit that judges this module
         self.skipped = SkippedMessages()  # shared with the unit's inputs
@@ -160,7 +180,21 @@ class Monitor(Node):
             self.values_pub.publish(encode_joint_state(result.stamp_ms, self.layout.labels, row))
         if self.publish_diagnostics and results:
             status = diag.batch_status(results, self.params.semantics, self.hardware_id)
+            status = self._stale_if_inputs_missing(status, results[-1])
             self.diag_pub.publish(diag.encode_array(self.get_clock().now().nanoseconds, [status]))
+
+    def _stale_if_inputs_missing(self, status: diag.Status, latest: LiveResult) -> diag.Status:
+        """Stack mode: a frame judged without an input this module reads is STALE, with the
+        inputs named (a stack that stopped publishing one is never OK)."""
+        core = self.core
+        if core is None or not core.stack:
+            return status
+        reads = set(semantics_for(self.params).folders(self.module))
+        missing = [f for f in missing_inputs(latest.incomplete) if f in reads]
+        if not missing:
+            return status
+        text = f"frame {latest.frame}: not judged on full inputs: no {', '.join(missing)} input"
+        return replace(status, level=diag.STALE, message=text)
 
     def _heartbeat(self) -> None:
         core = self.core
@@ -187,7 +221,18 @@ class Monitor(Node):
                 },
             )
         ]
-        if silent >= self.stale_timeout and not core.finished:
+        if core.stack and self.unprovided:
+            statuses.append(
+                diag.simple_status(
+                    diag.status_name(self.module),
+                    diag.STALE,
+                    "not judged on full inputs: the stack provides no "
+                    + ", ".join(self.unprovided),
+                    self.hardware_id,
+                    {"not_provided": ", ".join(self.unprovided)},
+                )
+            )
+        elif silent >= self.stale_timeout and not core.finished:
             statuses.append(
                 diag.simple_status(
                     diag.status_name(self.module),
@@ -217,12 +262,12 @@ class MonitorUnit:
     the ``poll_period_s`` timer judges everything that became ready in one batch.
     """
 
-    def __init__(self, nodes: list[Monitor]) -> None:
+    def __init__(self, nodes: list[Monitor], stack: bool = False) -> None:
         first = nodes[0]
         for node in nodes[1:]:
             _check_same_settings(first, node)
         self.nodes = {node.module: node for node in nodes}
-        self.core = MonitorCore(tuple(self.nodes), first.params, first.settings)
+        self.core = MonitorCore(tuple(self.nodes), first.params, first.settings, stack=stack)
         self.skipped = SkippedMessages()
         for node in nodes:
             node.core = self.core
@@ -254,7 +299,7 @@ def _check_same_settings(first: Monitor, other: Monitor) -> None:
     """Nodes judged on one window must agree on every engine and window parameter."""
     differ = [
         name
-        for name in ("params", "settings", "namespace", "poll_period", "run_id")
+        for name in ("params", "settings", "namespace", "poll_period", "run_id", "stack_config")
         if getattr(first, name) != getattr(other, name)
     ]
     if differ:
@@ -291,21 +336,36 @@ class MonitorInputs:
         namespace = self.node_namespace = first.namespace
         # Data topics arrive as CDR bytes and are decoded straight into model records
         # (ads_rca.contract.cdr_decode): building rclpy message objects costs ~10 ms a frame.
+        self.subscriptions: list[Any] = []
         for key in (*lossless, topics.FRAME, topics.METADATA, topics.STATUS):
-            node.create_subscription(
+            sub = node.create_subscription(
                 topics.message_types()[key],
                 topics.topic_name(key, namespace),
                 self._callback(key),
                 topics.qos_profile(key, keep_all=True),
                 raw=key in lossless,
             )
-        node.create_subscription(
-            String,
-            topics.topic_name(live_topics.COLLISION, namespace),
-            self._on_collision,
-            live_topics.latched_qos(),
+            self.subscriptions.append(sub)
+        self.subscriptions.append(
+            node.create_subscription(
+                String,
+                topics.topic_name(live_topics.COLLISION, namespace),
+                self._on_collision,
+                live_topics.latched_qos(),
+            )
         )
         subscribe_ready(node, namespace, first.run_id)
+
+    @property
+    def has_metadata(self) -> bool:
+        return self._metadata is not None
+
+    def stop(self) -> None:
+        """Unsubscribe (stack mode took over) and drop what was queued."""
+        for sub in self.subscriptions:
+            self.node.destroy_subscription(sub)
+        self.subscriptions.clear()
+        self._queued.drain()
 
     def _callback(self, key: str) -> Any:
         core = self.unit.core
@@ -392,10 +452,57 @@ class MonitorInputs:
             self.unit.logger.info(f"collision at frame {frame}: judging held frames again")
 
 
+class AutoStack:
+    """``stack_mode`` auto: the player's inputs until a frame-defining message of the stack
+    arrives while nobody publishes ``run/metadata``; then stack mode, for good.
+
+    Why a message and not a delay: a player's metadata writer is discovered with its data
+    writers (one participant), so a reference message with no metadata publisher known is a
+    stack's, however slow discovery is.
+    """
+
+    def __init__(self, node: Node, unit: MonitorUnit, inputs: MonitorInputs) -> None:
+        self.node, self.unit, self.inputs = node, unit, inputs
+        first = next(iter(unit.nodes.values()))
+        self.config = first.stack_config
+        reference = self.config.inputs[self.config.reference]
+        self.metadata_topic = topics.topic_name(topics.METADATA, first.namespace)
+        self.subscriber: StackSubscriber | None = None
+        self.watch = node.create_subscription(
+            message_class(reference.layout.type_name),
+            reference.topic,
+            self._on_reference,
+            stack_qos(self.config.best_effort),
+            raw=reference.layout.raw,
+        )
+
+    def _on_reference(self, msg: Any) -> None:
+        if self.subscriber is not None or self.inputs.has_metadata:
+            return
+        if self.node.count_publishers(self.metadata_topic) > 0:
+            return
+        self.node.get_logger().info(
+            f"no player on the graph (nobody publishes {self.metadata_topic}): stack mode"
+        )
+        self.inputs.stop()
+        self.node.destroy_subscription(self.watch)
+        self.unit.core.stack = True
+        self.subscriber = StackSubscriber(self.node, self.unit, self.config)
+        self.subscriber.feed.add(self.config.reference, msg, time.monotonic())
+
+
 def build_monitors(names: list[str]) -> list[Node]:
-    """The monitor nodes ``names`` on one window, with the inputs of this process."""
+    """The monitor nodes ``names`` on one window, with the inputs of this process: the
+    player's, the stack's (``stack_mode`` on) or the player's until a stack shows (auto)."""
     nodes = [Monitor(name, MONITORS[name]) for name in names]
-    MonitorInputs(nodes[0], MonitorUnit(nodes))
+    mode = nodes[0].stack_config.mode
+    unit = MonitorUnit(nodes, stack=mode == "stack")
+    if mode == "stack":
+        StackSubscriber(nodes[0], unit, nodes[0].stack_config)
+        return list(nodes)
+    inputs = MonitorInputs(nodes[0], unit)
+    if mode == "auto":
+        AutoStack(nodes[0], unit, inputs)
     return list(nodes)
 
 

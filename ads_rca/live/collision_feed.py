@@ -1,0 +1,105 @@
+"""Stack mode's collisions from ground truth, on a stack's own topics.
+
+When ``detect_collisions`` is on, the aggregator finds the collisions itself: the ego pose
+and the actors' boxes, framed by their header stamps as the monitors frame them
+(:class:`~ads_rca.live.stamp_sync.StampSync`, the same inputs' layouts and decoders), go
+through :class:`~ads_rca.live.collision_detect.CollisionDetector` frame by frame. Each
+collision found is numbered and said as the ``run/collision`` document, flagged
+``derived``. Pure: no rclpy.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from ads_rca.contract.errors import MalformedMessage, NoStamp
+from ads_rca.contract.stack_layouts import Decoder
+from ads_rca.errors import ConfigError
+from ads_rca.live.collision_detect import Collision, CollisionDetector
+from ads_rca.live.stack_config import StackConfig, period_to_tpf
+from ads_rca.live.stamp_sync import StampSync, SyncedFrame, SyncSettings
+from ads_rca.model import Actors, EgoPose
+
+_INPUTS = ("pose", "actors")
+
+
+class CollisionFeed:
+    """Feed the ego pose and actor messages; collisions come out as frames are released."""
+
+    def __init__(self, config: StackConfig) -> None:
+        missing = [f for f in _INPUTS if f not in config.inputs]
+        if missing:
+            raise ConfigError(
+                "detect_collisions needs the ego pose and the actors; the stack provides no "
+                + ", ".join(missing)
+            )
+        self.config = config
+        self.sync: StampSync[Any] = StampSync(
+            SyncSettings(
+                inputs=("actors",),
+                reference="pose",
+                period_ms=float(config.timesteps_per_frame) or None,
+                sync_slop_ms=config.sync_slop_ms or None,
+                input_timeout_s=config.input_timeout_s,
+                max_pending_frames=config.max_pending_frames,
+            )
+        )
+        self.decoders = {f: Decoder(f, config.inputs[f].layout.name) for f in _INPUTS}
+        self.detector: CollisionDetector | None = None
+        self.skipped: list[str] = []  # one line per unreadable message (bounded)
+
+    @property
+    def topics(self) -> dict[str, str]:
+        return {f: self.config.inputs[f].topic for f in _INPUTS}
+
+    def add(self, folder: str, payload: Any, now: float) -> list[Collision]:
+        try:
+            stamp = self.decoders[folder].stamp_ms(payload)
+        except NoStamp:
+            return []
+        except MalformedMessage as error:
+            self._skip(folder, error)
+            return []
+        return self._detect(self.sync.add(folder, stamp, payload, now))
+
+    def poll(self, now: float) -> list[Collision]:
+        return self._detect(self.sync.poll(now))
+
+    def _detect(self, frames: list[SyncedFrame[Any]]) -> list[Collision]:
+        if not frames:
+            return []
+        if self.detector is None:
+            assert self.sync.period_ms is not None  # nothing is released before it is known
+            tpf = self.config.timesteps_per_frame or period_to_tpf(self.sync.period_ms)
+            self.detector = CollisionDetector(tpf, self.config.ego_id or None)
+        found: list[Collision] = []
+        for frame in frames:
+            records: dict[str, Any] = {}
+            for folder, payload in frame.inputs.items():
+                try:
+                    records[folder] = self.decoders[folder].record(payload, self.detector.tpf_ms)
+                except MalformedMessage as error:
+                    self._skip(folder, error)
+            pose, actors = records.get("pose"), records.get("actors")
+            found += self.detector.update(
+                frame.stamp_ms,
+                pose if isinstance(pose, EgoPose) else None,
+                actors if isinstance(actors, Actors) else None,
+            )
+        return found
+
+    def _skip(self, folder: str, error: Exception) -> None:
+        self.skipped.append(f"{self.config.inputs[folder].topic}: {error}")
+        del self.skipped[:-100]
+
+
+def collision_document(collision: Collision) -> dict[str, Any]:
+    """The ``run/collision`` document of a detected collision (frame rounded to a frame)."""
+    return {
+        "frame": round(collision.frame),
+        "stamp_ms": collision.timestamp_ms,
+        "number": collision.number,
+        "actor_id": collision.actor_id,
+        "depth_m": round(collision.depth_m, 6),
+        "derived": True,
+    }

@@ -1,0 +1,148 @@
+"""Stack mode's subscriptions: a running stack's own topics into a monitor unit.
+
+The thin rclpy shell of :class:`~ads_rca.live.stack_feed.StackFeed`: one subscription per
+input the stack provides, of the type its layout names (CDR bytes for our contract's types,
+message objects for the others), the collision topic, and a timer that releases what timed
+out and judges what became ready. On ``/diagnostics`` it says what the stack does not give:
+a module whose inputs the stack does not provide, or stopped providing, is STALE with the
+reason (never OK), and a run fact found wrong (an ``ego_id`` never among the actors) is a
+WARN status ``ads_rca/run_facts``.
+"""
+
+from __future__ import annotations
+
+import importlib
+import time
+from typing import TYPE_CHECKING, Any
+
+from std_msgs.msg import String
+
+from ads_rca.contract import live_topics, topics
+from ads_rca.contract.errors import MalformedMessage
+from ads_rca.contract.playback import read_document
+from ads_rca.live import diagnostics as diag
+from ads_rca.live.results import collision_frame
+from ads_rca.live.runid import RunFilter
+from ads_rca.live.stack_config import StackConfig
+from ads_rca.live.stack_feed import StackFeed
+from ads_rca.ros.diagnostics import array as diagnostic_array
+
+if TYPE_CHECKING:
+    from rclpy.node import Node
+    from rclpy.qos import QoSProfile
+
+    from ads_rca.ros.monitor import MonitorUnit
+
+#: Status name of the run facts checked live.
+FACTS_STATUS = "ads_rca/run_facts"
+
+
+def message_class(type_name: str) -> type[Any]:
+    """``package/msg/Type`` → the class (imported on first use)."""
+    package, _, name = type_name.split("/")
+    cls: type[Any] = getattr(importlib.import_module(f"{package}.msg"), name)
+    return cls
+
+
+def stack_qos(best_effort: bool) -> QoSProfile:
+    """A stack's topics: KEEP_LAST 100, reliable unless its publishers are best effort."""
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=100,
+        reliability=ReliabilityPolicy.BEST_EFFORT if best_effort else ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.VOLATILE,
+    )
+
+
+class StackSubscriber:
+    """Subscribes ``node`` to the stack's inputs for ``unit`` (see the module docstring)."""
+
+    def __init__(self, node: Node, unit: MonitorUnit, config: StackConfig) -> None:
+        self.node = node
+        self.unit = unit
+        self.config = config
+        self.feed = StackFeed(config, unit.core, self._skip)
+        self.runs = RunFilter("")
+        qos = stack_qos(config.best_effort)
+        for folder, topic in self.feed.topics.items():
+            layout = config.inputs[folder].layout
+            node.create_subscription(
+                message_class(layout.type_name),
+                topic,
+                self._callback(folder),
+                qos,
+                raw=layout.raw,
+            )
+        namespace = next(iter(unit.nodes.values())).namespace
+        node.create_subscription(
+            String,
+            topics.topic_name(live_topics.COLLISION, namespace),
+            self._on_collision,
+            live_topics.latched_qos(),
+        )
+        node.create_timer(unit.poll_period, self._poll)
+        self._facts_said = 0
+        self._facts_at = 0.0
+        node.get_logger().info(
+            "stack mode: frames from "
+            f"{self.feed.topics[config.reference]} stamps; inputs "
+            + ", ".join(f"{f}={t}" for f, t in self.feed.topics.items())
+            + (f"; not provided: {', '.join(self.feed.unprovided)}" if self.feed.unprovided else "")
+        )
+
+    def _callback(self, folder: str) -> Any:
+        def on_message(msg: Any) -> None:
+            self.feed.add(folder, msg, time.monotonic())
+
+        return on_message
+
+    def _poll(self) -> None:
+        self.feed.poll(time.monotonic())
+        self.unit.poll()
+        self._say_facts()
+
+    def _skip(self, folder: str, error: str) -> None:
+        topic = self.config.inputs[folder].topic if folder in self.config.inputs else folder
+        line = self.unit.skipped.note(topic, error, time.monotonic())
+        if line is not None:
+            self.node.get_logger().warning(line)
+
+    def _on_collision(self, msg: String) -> None:
+        try:
+            frame = collision_frame(read_document(msg), self.runs)
+        except MalformedMessage as error:
+            self._skip(live_topics.COLLISION, str(error))
+            return
+        if frame is not None and self.unit.core.set_collision(frame, time.monotonic()):
+            self.unit.logger.info(f"collision at frame {frame}: judging held frames again")
+
+    def _say_facts(self) -> None:
+        """Each run fact found wrong: a warning once, a WARN status every second after."""
+        problems = self.feed.fact_problems
+        now = time.monotonic()
+        if not problems or (len(problems) == self._facts_said and now - self._facts_at < 1.0):
+            return
+        self._facts_at = now
+        for line in problems[self._facts_said :]:
+            self.node.get_logger().warning(f"run fact: {line}")
+        self._facts_said = len(problems)
+        first = next(iter(self.unit.nodes.values()))
+        status = diag.simple_status(
+            FACTS_STATUS, diag.WARN, "; ".join(problems), first.hardware_id, {}
+        )
+        pub = first.diag_pub
+        pub.publish(diagnostic_array(self.node.get_clock().now().to_msg(), [status]))
+
+
+def missing_inputs(results_incomplete: tuple[str, ...]) -> list[str]:
+    """The input folders a result was judged without ("no <folder> record")."""
+    return [
+        reason[3 : -len(" record")]
+        for reason in results_incomplete
+        if reason.startswith("no ") and reason.endswith(" record")
+    ]
+
+
+__all__ = ["FACTS_STATUS", "StackSubscriber", "missing_inputs"]

@@ -1,0 +1,98 @@
+"""ROS 2 launch file: stack mode, beside a running stack (monitors, aggregator, recorder).
+
+``ros2 launch ads_rca stack_graph.launch.py [stack_params:=config/stack_carla.yaml]
+[semantics:=reference] [record:=BAG] [detect_collisions:=true]``; ``--show-args`` describes
+every argument. No player: the monitors judge the stack's own topics (docs/live-graph.md,
+"Stack mode"), framed by the header stamps of the input ``reference_input`` names, and the
+aggregator gives a verdict at each collision (``run/collision``, the stack's
+``collision_topic``, or detected from ground truth). The stack file (``config/stack_*.yaml``)
+says which topic carries each input and how, and the run facts (frame period, ego id,
+camera location). The run has no end of its own: stop it with Ctrl-C (every node exits 0 and
+the recorder finalises its bag), or ``exit_after_verdict:=true`` to end after the first
+verdict.
+
+``launch``/``launch_ros`` are imported inside the functions, so the module can be linted and
+type-checked where they are not installed.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+#: Every node discovers on this machine only, whatever the caller's environment says.
+LOCAL_DISCOVERY = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+
+#: name -> (default, description); "" for stack_params = the package's stack_contract.yaml.
+ARGUMENTS: dict[str, tuple[str, str]] = {
+    "stack_params": ("", "Stack file: inputs, layouts, run facts ('' = stack_contract.yaml)."),
+    "semantics": ("corrected", "Oracle semantics: reference or corrected."),
+    "namespace": ("/ads_rca", "Namespace of the graph's own topics."),
+    "record": ("", "Record every topic to this new bag directory ('' = no recording)."),
+    "verdict_json": ("", "Write each verdict's JSON here (verdict N > 1: name.N.json)."),
+    "detect_collisions": ("false", "Detect collisions from ground truth (flagged derived)."),
+    "exit_after_verdict": ("false", "End the launch once the first verdict is out."),
+}
+
+
+def generate_launch_description() -> Any:
+    from launch import LaunchDescription
+    from launch.actions import DeclareLaunchArgument, OpaqueFunction
+
+    arguments = [
+        DeclareLaunchArgument(name, default_value=default, description=text)
+        for name, (default, text) in ARGUMENTS.items()
+    ]
+    return LaunchDescription([*arguments, OpaqueFunction(function=stack_actions)])
+
+
+def stack_actions(context: Any) -> list[Any]:
+    """The recorder (if asked), the aggregator and the monitors, with the stack file."""
+    from ament_index_python.packages import get_package_share_directory
+    from launch.actions import EmitEvent, RegisterEventHandler
+    from launch.event_handlers import OnProcessExit
+    from launch.events import Shutdown
+    from launch.substitutions import LaunchConfiguration
+    from launch_ros.actions import Node
+
+    values = {name: LaunchConfiguration(name).perform(context) for name in ARGUMENTS}
+    stack_file = values["stack_params"] or (
+        f"{get_package_share_directory('ads_rca')}/config/stack_contract.yaml"
+    )
+    common = {
+        "semantics": values["semantics"],
+        "topic_namespace": values["namespace"],
+        "stack_mode": "stack",
+    }
+    aggregator = {
+        **common,
+        "detect_collisions": values["detect_collisions"].lower() == "true",
+        "exit_after_verdict": values["exit_after_verdict"].lower() == "true",
+        **({"verdict_json": values["verdict_json"]} if values["verdict_json"] else {}),
+    }
+    actions: list[Any] = []
+    if values["record"]:
+        actions.append(
+            Node(
+                package="ads_rca",
+                executable="recorder",
+                output="screen",
+                parameters=[{"output": values["record"], "topic_namespace": values["namespace"]}],
+                additional_env=LOCAL_DISCOVERY,
+            )
+        )
+    agg = Node(
+        package="ads_rca",
+        executable="aggregator",
+        output="screen",
+        parameters=[stack_file, aggregator],
+        additional_env=LOCAL_DISCOVERY,
+    )
+    monitors = Node(
+        package="ads_rca",
+        executable="monitors",
+        output="screen",
+        parameters=[stack_file, common],
+        additional_env=LOCAL_DISCOVERY,
+    )
+    end = OnProcessExit(target_action=agg, on_exit=[EmitEvent(event=Shutdown())])
+    return [*actions, agg, monitors, RegisterEventHandler(end)]

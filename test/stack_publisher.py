@@ -291,14 +291,13 @@ def make_schedule(log: RunLog, settings: Settings) -> Schedule:
     keyed: list[tuple[float, int, int, Outgoing]] = []
     for stamp in frames:
         frame_ms = float(stamp - first)
+        clock = clock_message(stamp)
         keyed.append(
             (
                 frame_ms,
                 0,
                 len(keyed),
-                Outgoing(
-                    frame_ms, topics.CLOCK, CLOCK_TYPE, clock_message(stamp), None, stamp, stamp
-                ),
+                Outgoing(frame_ms, topics.CLOCK, CLOCK_TYPE, clock, None, stamp, stamp),
             )
         )
         for folder in FOLDERS:

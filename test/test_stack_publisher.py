@@ -24,6 +24,8 @@ from rosrun import wait_for
 from stack_publisher import (
     CARLA_TOPICS,
     REFERENCE,
+    Schedule,
+    load_run,
     make_schedule,
     parse_args,
     topic_offsets,
@@ -31,6 +33,7 @@ from stack_publisher import (
 
 from ads_rca.contract import live_topics, topics
 from ads_rca.contract.jsontext import loads_json
+from ads_rca.io.json_writer import write_run_log
 from ads_rca.live.results import collision_frame
 from ads_rca.live.runid import RunFilter
 from ads_rca.model import FOLDERS
@@ -112,6 +115,43 @@ def test_a_synthesised_crash_arrives_as_a_stack_sends_it(
     assert not graph & {topics.topic_name(k, ros_env.namespace) for k in PLAYER_ONLY}
     arrival = [r["stamps"][0] for r in messages if r["topic"] == names[REFERENCE]]
     assert arrival != sorted(arrival)  # jitter above the period reorders frames
+
+
+def sent(schedule: Schedule) -> list[tuple[float, str, int]]:
+    return [(out.due_ms, out.topic, out.header_stamp_ms) for out in schedule.messages]
+
+
+def test_the_schedule_follows_the_seed_and_the_jitter_stays_within_its_frame() -> None:
+    log = synthesise(*SYNTH)
+    settings = parse_args(["--synth", "cut_in:perception:1", "--seed", "2"])
+    schedule = make_schedule(log, settings)
+    assert sent(schedule) == sent(make_schedule(log, settings))
+    other = parse_args(["--synth", "cut_in:perception:1", "--seed", "3"])
+    assert schedule.offsets_ms != make_schedule(log, other).offsets_ms
+    first = log.frames[0]
+    data = [out for out in schedule.messages if out.folder is not None]
+    delays = [out.due_ms - (out.log_stamp_ms - first) for out in data]
+    assert min(delays) >= 0 and max(delays) <= 30
+    # A 30 ms jitter under a 50 ms period: frames keep their order, topics within one do not.
+    assert [out.log_stamp_ms for out in data] == sorted(out.log_stamp_ms for out in data)
+    order = [out.folder for out in data if out.log_stamp_ms == first]
+    assert sorted(order, key=FOLDERS.index) == list(FOLDERS) != order
+    clocks = [i for i, out in enumerate(schedule.messages) if out.topic == topics.CLOCK]
+    assert [schedule.messages[i + 1].log_stamp_ms for i in clocks] == list(log.frames)
+    assert schedule.messages[-1].topic == topics.topic_name(live_topics.COLLISION)
+
+
+def test_a_log_folder_is_sent_as_the_synthesised_run_it_was_written_from(
+    tmp_path: Path,
+) -> None:
+    folder = write_run_log(synthesise(*SYNTH), tmp_path / "log")
+    options = ["--layout", "carla", "--seed", "5", "--drop", "waypoint:0.1"]
+    synthesised = parse_args(["--synth", "cut_in:perception:1", *options])
+    logged = parse_args(["--log", str(folder), *options])
+    expected = make_schedule(synthesise(*SYNTH), synthesised)
+    schedule = make_schedule(load_run(logged), logged)
+    assert sent(schedule) == sent(expected)
+    assert schedule.dropped == expected.dropped and len(schedule.dropped["waypoint"]) == 10
 
 
 def run_publisher(ros_env: RosEnv, *options: str) -> subprocess.CompletedProcess[str]:

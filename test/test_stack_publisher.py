@@ -139,6 +139,8 @@ def test_the_schedule_follows_the_seed_and_the_jitter_stays_within_its_frame() -
     clocks = [i for i, out in enumerate(schedule.messages) if out.topic == topics.CLOCK]
     assert [schedule.messages[i + 1].log_stamp_ms for i in clocks] == list(log.frames)
     assert schedule.messages[-1].topic == topics.topic_name(live_topics.COLLISION)
+    elsewhere = parse_args(["--synth", "cut_in:perception:1", "--collision-topic", "/crash"])
+    assert make_schedule(log, elsewhere).messages[-1].topic == "/crash"
 
 
 def test_a_log_folder_is_sent_as_the_synthesised_run_it_was_written_from(

@@ -36,7 +36,9 @@ from ads_rca.contract.jsontext import loads_json
 from ads_rca.io.json_writer import write_run_log
 from ads_rca.live.results import collision_frame
 from ads_rca.live.runid import RunFilter
+from ads_rca.live.stack_config import STACK_PARAMETERS
 from ads_rca.model import FOLDERS
+from ads_rca.ros.aggregator import PARAMETERS as AGGREGATOR_PARAMETERS
 from ads_rca.ros.launcher import Launcher
 from ads_rca.synth import synthesise
 
@@ -201,19 +203,9 @@ def test_bad_options_are_one_line_and_exit_2(
     assert (done.returncode, done.stdout, done.stderr) == (2, "", message + "\n")
 
 
-#: The stack parameters of the design (docs/live-graph.md "Stack mode").
-STACK_PARAMETERS = {
-    "stack_mode",
-    "topic_namespace",
-    "reference_input",
-    "timesteps_per_frame",
-    "sync_slop_ms",
-    "input_timeout_s",
-    "ego_id",
-    "camera_loc",
-    "collision_topic",
-    "detect_collisions",
-} | {f"inputs.{folder}.{key}" for folder in FOLDERS for key in ("topic", "layout")}
+#: What the stack files set for every node, and for the aggregator only.
+SHARED_KEYS = set(STACK_PARAMETERS) - {"inputs_best_effort"} | {"topic_namespace"}
+AGGREGATOR_KEYS = {"collision_topic", "detect_collisions"}
 LAYOUT_OF = {"contract": {}, "carla": {"actors": "carla_markers", "waypoint": "path"}}
 
 
@@ -231,8 +223,12 @@ def flatten(values: dict[str, Any], prefix: str = "") -> dict[str, Any]:
 @pytest.mark.parametrize("layout", ["contract", "carla"])
 def test_the_stack_config_file_describes_the_test_stacks_layout(layout: str) -> None:
     path = CONFIG / f"stack_{layout}.yaml"
-    values = flatten(yaml.safe_load(path.read_text())["/**"]["ros__parameters"])
-    assert set(values) == STACK_PARAMETERS
+    document = yaml.safe_load(path.read_text())
+    values = flatten(document["/**"]["ros__parameters"])
+    assert set(values) == SHARED_KEYS
+    aggregator = document["/**/aggregator"]["ros__parameters"]
+    assert set(aggregator) == AGGREGATOR_KEYS
+    assert set(aggregator) <= set(AGGREGATOR_PARAMETERS)
     if layout == "contract":
         names = {f: topics.topic_name(topics.FOLDER_TOPICS[f]) for f in FOLDERS}
     else:
@@ -241,12 +237,18 @@ def test_the_stack_config_file_describes_the_test_stacks_layout(layout: str) -> 
     layouts = {f: LAYOUT_OF[layout].get(f, "contract") for f in FOLDERS}
     assert {f: values[f"inputs.{f}.layout"] for f in FOLDERS} == layouts
     metadata = synthesise(*SYNTH).metadata
-    assert values["camera_loc"] == list(metadata.camera_loc) == [1.3, 0.0, 1.8]
+    camera = tuple(values[f"camera_loc.{axis}"] for axis in "xyz")
+    assert camera == metadata.camera_loc == (1.3, 0.0, 1.8)
     assert values["timesteps_per_frame"] == metadata.timesteps_per_frame == 50
-    assert values["collision_topic"] == topics.topic_name(live_topics.COLLISION)
+    assert aggregator["collision_topic"] == topics.topic_name(live_topics.COLLISION)
     lines = path.read_text().splitlines()
     for before, line in itertools.pairwise(lines):
-        if line.strip() and not line.lstrip().startswith("#") and line.startswith("    "):
+        if (
+            line.strip()
+            and not line.lstrip().startswith("#")
+            and line.startswith("    ")
+            and (line.strip() != "ros__parameters:")
+        ):
             assert before.lstrip().startswith("#"), f"{path.name}: {line.strip()} has no comment"
 
 

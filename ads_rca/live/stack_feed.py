@@ -60,6 +60,7 @@ class StackFeed:
             core.ego_id, core.ego_resolved = config.ego_id, True
         if config.timesteps_per_frame:
             core.set_metadata(config.metadata(config.timesteps_per_frame), 0.0)
+            core.last_input = None  # no input yet: the stack may start much later
 
     @property
     def topics(self) -> dict[str, str]:

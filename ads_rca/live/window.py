@@ -155,10 +155,18 @@ class MonitorCore(FollowsRunEnd):
         if self.semantics.uses_partner:
             again = list(self._judged)
             self._judged.clear()
-        elif self.stack and self._judged and not self._pending_through(frame):
-            # The aggregator hears a module is complete for this collision from the result
-            # of its last frame before it (closes_collision): that frame is published again.
-            again = [self._judged.pop()]
+        elif self.stack and self._judged:
+            # Judged before the run's end was known, a frame whose look-ahead may reach past
+            # the collision read as if the run went on: judged again, the data ending there.
+            assert self.metadata is not None
+            tpf = self.metadata.timesteps_per_frame
+            reach = (frame - self.settings.max_lookahead_frames) * tpf
+            again = [e for e in self._judged if e.marker.stamp_ms > reach]
+            self._judged = deque(e for e in self._judged if e.marker.stamp_ms <= reach)
+            if not again and not self._pending_through(frame):
+                # The aggregator hears a module is complete for this collision from the
+                # result of its last frame before it (closes_collision): published again.
+                again = [self._judged.pop()]
         else:
             return False
         for entry in reversed(again):
@@ -410,7 +418,8 @@ class MonitorCore(FollowsRunEnd):
         """Judged frames kept for a re-evaluation (none where results do not depend on the
         partner; else the setting, or the mode's own count)."""
         if not self.semantics.uses_partner or self.metadata is None:
-            return 1 if self.stack else 0  # stack mode: the frame published again on a collision
+            # Stack mode: the frames a collision may make judged again (their look-ahead).
+            return self.settings.max_lookahead_frames + 1 if self.stack else 0
         if self.settings.history_frames > 0:
             return self.settings.history_frames
         return self.semantics.rejudge_history(self.params, self.metadata.timesteps_per_frame)

@@ -87,6 +87,12 @@ PARAMETERS: dict[str, NodeParameter] = {
         "With exit_after_verdict: longest wait for those acknowledgements.",
         SECONDS,
     ),
+    "input_timeout_s": (
+        5.0,
+        "Stack mode, detect_collisions: a frame missing its pose or actors is given up on "
+        "after this long.",
+        SECONDS,
+    ),
     "collision_topic": (
         "",
         "Stack mode: a topic announcing collisions (std_msgs/String, the run/collision "
@@ -118,7 +124,7 @@ class Aggregator(Node):
         self.runs = RunFilter(checked_run_id(str(p["run_id"])))
         self.skipped = SkippedMessages()
         ns = self.namespace = str(p["topic_namespace"])
-        self.stack_config = StackConfig.from_values(p, ns)
+        self.stack_config = StackConfig.from_values(p, ns, float(p["input_timeout_s"]))
         self.timeouts = (float(p["verdict_timeout_s"]), float(p["stall_timeout_s"]))
         stack = self.stack_config if self.stack_config.mode == "stack" else None
         self.core = AggregatorCore(self.params, *self.timeouts, stack=stack)

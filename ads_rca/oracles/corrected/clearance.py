@@ -145,13 +145,19 @@ PARTNER_VIEW: CacheName[PartnerView] = CacheName("partner_view")
 
 
 def partner_view(cc: CorrectedContext, ts: int) -> PartnerView:
-    """The partner's view at ts (cached per timestamp)."""
-    return cc.cache(PARTNER_VIEW).get(ts, lambda: _build_view(cc, ts))
+    """The partner's view at ts (cached per timestamp, rebuilt should the partner at ts
+    change: a collision announced after a provisional partner was judged)."""
+    cache = cc.cache(PARTNER_VIEW)
+    view = cache.lookup(ts)
+    if view is None or view.partner_id != cc.partner_at(ts):
+        view = _build_view(cc, ts)
+        cache.put(ts, view)
+    return view
 
 
 def _build_view(cc: CorrectedContext, ts: int) -> PartnerView:
     log, w = cc.log, cc.window
-    partner = cc.partner_id
+    partner = cc.partner_at(ts)
     plan = cc.plan(ts)
     pose = log.pose.get(ts)
     gt = log.bboxes_gt.get(ts)

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from ads_rca.oracles.corrected.boxes import Series
-from ads_rca.oracles.corrected.clearance import clearances
+from ads_rca.oracles.corrected.clearance import index_distances, lowest
 from ads_rca.oracles.corrected.context import (
     CacheName,
     CorrectedContext,
@@ -48,16 +48,22 @@ def _choose(cc: CorrectedContext, ts: int) -> str | None:
 
 def least_clearance(cc: CorrectedContext, ts: int, ego: Series, ids: list[str]) -> str | None:
     """Of ``ids``, the one with the least clearance c_gt to the ego's plan boxes (None when
-    no clearance is defined); every actor's real boxes in one table, one distance call."""
-    w = cc.window
+    no clearance is defined): every actor's real boxes from one table, one distance call."""
+    w, n = cc.window, len(ids)
+    if w < 1:
+        return None
     states = cc.states_over(cc.gids(ids), [ts + i * cc.tpf for i in range(w + 1)])
     extents = cc.log.actor_extents
-    real = [
-        Series(states[n, :, :2], states[n, :, 2], np.asarray(extents[a][:2], dtype=np.float64))
-        for n, a in enumerate(ids)
-    ]
-    values = np.array([c.value for c in clearances(ego, real, w)])
-    values = np.where(np.isnan(values), np.inf, values)
-    if not np.isfinite(values).any():
+    half = np.array([extents[a][:2] for a in ids], dtype=np.float64)
+    dist = index_distances(
+        np.broadcast_to(ego.center, (n, w + 1, 2)),
+        np.broadcast_to(ego.half, (n, 2)),
+        np.broadcast_to(ego.yaw, (n, w + 1)),
+        states[:, :, :2],
+        half,
+        states[:, :, 2],
+    )
+    low, _ = lowest(dist)
+    if not np.isfinite(low).any():
         return None
-    return ids[int(np.argmin(values))]
+    return ids[int(np.argmin(low))]

@@ -10,6 +10,8 @@ Diagnostics panel) key statuses by name and keep the last one of an array, so an
 at most one status per name: a monitor's batch of judged frames becomes one status, its
 latest frame, with how many were judged and failed since the previous one
 (:func:`batch_status`). The frame-by-frame history is on the ``metrics/<module>`` topics.
+Before any collision a planning batch whose plan came closer to its partner (the most
+threatening actor) than ``safety_margin`` is a near miss, level WARN (:func:`near_miss`).
 
 Statuses are plain :class:`Status` values; :func:`encode_array` writes a DiagnosticArray's
 CDR bytes directly, for the monitors' statuses (a 40-value status as rclpy objects cost the
@@ -32,12 +34,17 @@ from ads_rca.contract.errors import CdrError
 from ads_rca.contract.jsontext import dumps_json
 from ads_rca.live.results import LiveResult, plain
 from ads_rca.live.runid import RUN_KEY
+from ads_rca.params import make_params
+from ads_rca.text import printable
 
 #: diagnostic_msgs/DiagnosticStatus levels (a ``byte`` field).
 OK = 0
 WARN = 1
 ERROR = 2
 STALE = 3
+
+#: Characters of an actor id a status message shows (ids come from the log: untrusted).
+ID_CHARS = 64
 
 
 @dataclass(frozen=True)
@@ -98,8 +105,45 @@ def batch_status(results: Sequence[LiveResult], semantics: str, hardware_id: str
     message = status.message
     if failed and not latest.result.failed:
         message += f" ({failed} of {len(results)} frames since the last status failed)"
+    level = status.level
+    close = near_miss(results, semantics)
+    if close:
+        message = close if level == OK else f"{message}; {close}"
+        level = max(level, WARN)
     counts = [("judged_since_last", str(len(results))), ("failed_since_last", str(failed))]
-    return replace(status, message=message, values=counts + status.values)
+    return replace(status, level=level, message=message, values=counts + status.values)
+
+
+def near_miss(results: Sequence[LiveResult], semantics: str) -> str:
+    """The batch's closest near miss as a message ("" if none): a planning result judged
+    without a known collision whose real clearance ``c_gt`` to its partner is finite and
+    below ``safety_margin`` (the result's own threshold, else the mode's default)."""
+    found: tuple[float, float, LiveResult] | None = None
+    for live in results:
+        r = live.result
+        c_gt = r.metrics.get("c_gt")
+        if r.module != "planning" or live.collision_frame >= 0 or not isinstance(c_gt, float):
+            continue
+        margin = r.thresholds.get("safety_margin")
+        if not isinstance(margin, float):
+            margin = make_params(semantics).safety_margin
+        if math.isfinite(c_gt) and c_gt < margin and (found is None or c_gt < found[0]):
+            found = (c_gt, margin, live)
+    if found is None:
+        return ""
+    c_gt, margin, live = found
+    partner = live.partner_id or (live.result.ids[0] if live.result.ids else "")
+    return (
+        f"near miss at frame {live.frame}: clearance {c_gt:.2f} m to actor "
+        f"{shown_id(partner)} below safety_margin {margin} m"
+    )
+
+
+def shown_id(actor_id: str) -> str:
+    """An actor id for a message: control characters escaped, at most :data:`ID_CHARS`."""
+    if len(actor_id) > ID_CHARS:
+        actor_id = actor_id[:ID_CHARS] + "…"
+    return printable(actor_id)
 
 
 def result_status(live: LiveResult, semantics: str, hardware_id: str) -> Status:

@@ -53,6 +53,7 @@ def run_live(
     clock_step_s: float = 0.001,
     drain_s: float = 60.0,
     shared: bool = False,
+    judge_without_collision: bool = False,
 ) -> LiveRun:
     """Play ``log`` (its timeline, as the player does) through the live cores.
 
@@ -61,6 +62,8 @@ def run_live(
     the end). After the last frame the clock advances until the verdict (at most ``drain_s``
     seconds of simulated time), so timeouts fire as they would. ``shared``: one core judges
     the four modules (the ``monitors`` process) instead of one core each.
+    ``judge_without_collision``: the cores judge frames before the collision against the
+    mode's provisional partner (stack mode).
     """
     from ads_rca.contract.playback import timeline
 
@@ -74,10 +77,10 @@ def run_live(
     if not metadata_collision:
         metadata = replace(metadata, collision_frame=-1)
     if shared:
-        one = MonitorCore(MODULES, params, settings)
+        one = MonitorCore(MODULES, params, settings, judge_without_collision)
         monitors = {m: one for m in MODULES}
     else:
-        monitors = {m: MonitorCore(m, params, settings) for m in MODULES}
+        monitors = {m: MonitorCore(m, params, settings, judge_without_collision) for m in MODULES}
     cores = list({id(core): core for core in monitors.values()}.values())
     aggregator = AggregatorCore(params)
     run = LiveRun(results={m: [] for m in MODULES}, monitors=monitors)

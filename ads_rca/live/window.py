@@ -90,12 +90,16 @@ class MonitorCore(FollowsRunEnd):
         params: Params,
         settings: WindowSettings | None = None,
         stack: bool = False,
+        judge_without_collision: bool = False,
     ) -> None:
+        """``judge_without_collision`` (stack mode): before any collision, judge each frame
+        against the mode's provisional partner (`corrected`: the most threatening actor)."""
         chosen: tuple[Module, ...] = (modules,) if isinstance(modules, str) else tuple(modules)
         self.modules = tuple(m for m in MODULES if m in chosen)  # pipeline order
         if not self.modules:
             raise ValueError("a monitor judges at least one module")
         self.params = params
+        self.judge_without_collision = judge_without_collision or stack
         self.settings = settings or WindowSettings()
         self.semantics = semantics_for(params)
         self.oracles = {m: self.semantics.oracles[m] for m in self.modules}
@@ -341,9 +345,12 @@ class MonitorCore(FollowsRunEnd):
 
     def _context(self, log: RunLog) -> RunContext:
         if self.ego_resolved:
-            return RunContext(log, self.params, ego_id=self.ego_id)
-        ctx = RunContext.create(log, self.params)
-        self.ego_id, self.ego_resolved = ctx.ego_id, True
+            ctx = RunContext(log, self.params, ego_id=self.ego_id)
+        else:
+            ctx = RunContext.create(log, self.params)
+            self.ego_id, self.ego_resolved = ctx.ego_id, True
+        if self.judge_without_collision and self.collision_frame < 0:
+            self.semantics.judge_without_collision(ctx)
         return ctx
 
     def _judge(self, ready: list[tuple[_Entry, tuple[str, ...]]], now: float) -> list[LiveResult]:
@@ -373,11 +380,11 @@ class MonitorCore(FollowsRunEnd):
         self, log: RunLog, ready: list[tuple[_Entry, tuple[str, ...]]], now: float
     ) -> list[LiveResult]:
         ctx = self._context(log)
-        partner = self._partner(ctx)
         closing = self._closing_stamp()
         out = []
         for entry, incomplete in ready:
             stamp = entry.marker.stamp_ms
+            partner = self._partner(ctx, stamp)
             self.stats.evaluated += 1
             self.stats.incomplete += bool(incomplete)
             for module, oracle in self.oracles.items():
@@ -407,10 +414,9 @@ class MonitorCore(FollowsRunEnd):
                 )
         return out
 
-    def _partner(self, ctx: RunContext) -> str | None:
-        if not self.semantics.uses_partner or self.collision_frame < 0:
-            return None
-        return self.semantics.partner_id(ctx)
+    def _partner(self, ctx: RunContext, stamp_ms: int) -> str | None:
+        """The partner the frame was judged against (None where the mode has none)."""
+        return self.semantics.partner_at(ctx, stamp_ms)
 
     # --- forgetting ------------------------------------------------------------------
 

@@ -158,6 +158,15 @@ class Semantics:
         """The collision partner the results were judged against (None: not used)."""
         return None
 
+    def judge_without_collision(self, ctx: RunContext) -> None:
+        """Judge ``ctx``'s frames before any collision against a provisional partner (a
+        live stack, where the collision may never come); modes without a partner ignore it."""
+
+    def partner_at(self, ctx: RunContext, ts: int) -> str | None:
+        """The partner frame ts was judged against: the collision partner, or before a
+        collision the provisional one (None: not used, or no collision and none asked)."""
+        return None
+
     # --- derived: the same for every mode --------------------------------------------
 
     def effect_window(self, params: Params, tpf_ms: int) -> dict[str, Any]:

@@ -486,7 +486,7 @@ class AutoStack:
         )
         self.inputs.stop()
         self.node.destroy_subscription(self.watch)
-        self.unit.core.stack = True
+        self.unit.core.stack = self.unit.core.judge_without_collision = True
         self.subscriber = StackSubscriber(self.node, self.unit, self.config)
         self.subscriber.feed.add(self.config.reference, msg, time.monotonic())
 

@@ -23,6 +23,7 @@ from ads_rca.oracles.corrected.control import control
 from ads_rca.oracles.corrected.perception import perception
 from ads_rca.oracles.corrected.planning import planning
 from ads_rca.oracles.corrected.prediction import prediction
+from ads_rca.oracles.corrected.threat import most_threatening
 from ads_rca.oracles.semantics import Headline, Semantics
 from ads_rca.params import Params
 from ads_rca.verdict import Attribution, FrameResults
@@ -175,6 +176,13 @@ class CorrectedSemantics(Semantics):
 
     def partner_id(self, ctx: RunContext) -> str | None:
         return corrected_context(ctx).partner_id
+
+    def judge_without_collision(self, ctx: RunContext) -> None:
+        """Before a collision, the most threatening actor is the partner (:mod:`.threat`)."""
+        corrected_context(ctx).judge_without_collision(most_threatening)
+
+    def partner_at(self, ctx: RunContext, ts: int) -> str | None:
+        return corrected_context(ctx).partner_at(ts)
 
 
 SEMANTICS = CorrectedSemantics()

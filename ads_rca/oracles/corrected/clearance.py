@@ -17,6 +17,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from ads_rca.geometry import FloatArray, box_signed_distance
 from ads_rca.model import Predictions
@@ -65,24 +66,51 @@ def pair_clearances(
     given = [(n, a, b) for n, (a, b) in enumerate(pairs) if a is not None and b is not None]
     if not given or window < 1:
         return out
-    count = len(given)
-    dist = box_signed_distance(
-        np.concatenate([a.center[1:] for _, a, _ in given]),
-        np.repeat(np.array([a.half for _, a, _ in given]), window, axis=0),
-        np.concatenate([a.yaw[1:] for _, a, _ in given]),
-        np.concatenate([b.center[1:] for _, _, b in given]),
-        np.repeat(np.array([b.half for _, _, b in given]), window, axis=0),
-        np.concatenate([b.yaw[1:] for _, _, b in given]),
-    ).reshape(count, window)
-    masked = np.where(np.isnan(dist), np.inf, dist)
-    low = masked.min(axis=1)
-    first = np.argmax(masked <= (low + TIE_TOLERANCE)[:, None], axis=1)  # earliest minimum
-    per = np.full((count, window + 1), np.nan)
+    dist = index_distances(
+        np.stack([a.center for _, a, _ in given]),
+        np.array([a.half for _, a, _ in given]),
+        np.stack([a.yaw for _, a, _ in given]),
+        np.stack([b.center for _, _, b in given]),
+        np.array([b.half for _, _, b in given]),
+        np.stack([b.yaw for _, _, b in given]),
+    )
+    low, first = lowest(dist)
+    per = np.full((len(given), window + 1), np.nan)
     per[:, 1:] = dist
     for row, (n, _, _) in enumerate(given):
         if np.isfinite(low[row]):
             out[n] = Clearance(float(low[row]), int(first[row]) + 1, per[row])
     return out
+
+
+def index_distances(
+    a_center: FloatArray,
+    a_half: FloatArray,
+    a_yaw: FloatArray,
+    b_center: FloatArray,
+    b_half: FloatArray,
+    b_yaw: FloatArray,
+) -> FloatArray:
+    """Signed distances (N, W) between N pairs of box series at indices 1..W: centres
+    (N, W + 1, 2), half extents (N, 2), yaws (N, W + 1); NaN where a box is missing."""
+    count, window = a_center.shape[0], a_center.shape[1] - 1
+    return box_signed_distance(
+        a_center[:, 1:].reshape(-1, 2),
+        np.repeat(a_half, window, axis=0),
+        a_yaw[:, 1:].reshape(-1),
+        b_center[:, 1:].reshape(-1, 2),
+        np.repeat(b_half, window, axis=0),
+        b_yaw[:, 1:].reshape(-1),
+    ).reshape(count, window)
+
+
+def lowest(dist: FloatArray) -> tuple[FloatArray, npt.NDArray[np.int64]]:
+    """Per row of ``dist`` (N, W), the minimum over defined indices (inf if none) and the
+    earliest column reaching it (within :data:`TIE_TOLERANCE`)."""
+    masked = np.where(np.isnan(dist), np.inf, dist)
+    low = masked.min(axis=1)
+    first = np.argmax(masked <= (low + TIE_TOLERANCE)[:, None], axis=1)
+    return low, first
 
 
 def displacement(a: Series | None, b: Series | None) -> float:
@@ -145,13 +173,19 @@ PARTNER_VIEW: CacheName[PartnerView] = CacheName("partner_view")
 
 
 def partner_view(cc: CorrectedContext, ts: int) -> PartnerView:
-    """The partner's view at ts (cached per timestamp)."""
-    return cc.cache(PARTNER_VIEW).get(ts, lambda: _build_view(cc, ts))
+    """The partner's view at ts (cached per timestamp, rebuilt should the partner at ts
+    change: a collision announced after a provisional partner was judged)."""
+    cache = cc.cache(PARTNER_VIEW)
+    view = cache.lookup(ts)
+    if view is None or view.partner_id != cc.partner_at(ts):
+        view = _build_view(cc, ts)
+        cache.put(ts, view)
+    return view
 
 
 def _build_view(cc: CorrectedContext, ts: int) -> PartnerView:
     log, w = cc.log, cc.window
-    partner = cc.partner_id
+    partner = cc.partner_at(ts)
     plan = cc.plan(ts)
     pose = log.pose.get(ts)
     gt = log.bboxes_gt.get(ts)

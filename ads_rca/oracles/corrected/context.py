@@ -2,7 +2,9 @@
 
 The oracles are per-frame functions ``(ctx, ts)`` that will also run in live monitors on a
 bounded window of frames, so nothing here scans the whole log up front: the one per-run
-fact is the collision partner (read at ``collision_frame``); everything else is derived
+fact is the collision partner (read at ``collision_frame``); before any collision a live
+stack can ask for a provisional partner per timestamp instead (:meth:`CorrectedContext.
+judge_without_collision`, the rule in :mod:`.threat`); everything else is derived
 per timestamp from ts and the frames the rules look ahead to, and kept in small LRU caches
 so the four oracles (and the control horizon's overlapping plans) build each thing once.
 
@@ -13,6 +15,7 @@ They assume the data at ts … ts + horizon is final when an oracle first asks f
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Generic, TypeVar, cast
 
 import numpy as np
@@ -36,8 +39,17 @@ class CacheName(Generic[V]):
         self.name = name
 
 
-#: World location tables (max gid + 1, 2) by timestamp, NaN where an actor is absent.
+#: World state tables (max gid + 1, 3): x, y, yaw (deg) by timestamp, NaN where an actor is
+#: absent.
 LOCATIONS: CacheName[FloatArray | None] = CacheName("locations")
+
+#: A partner rule for frames judged without a known collision: (context, ts) -> actor id.
+PartnerRule = Callable[["CorrectedContext", int], "str | None"]
+
+
+def no_partner(cc: CorrectedContext, ts: int) -> None:
+    """Without a collision nobody is the partner (``ads-rca diagnose``, and live by default)."""
+    return None
 
 
 class CorrectedContext:
@@ -57,6 +69,7 @@ class CorrectedContext:
         else:
             self.ego_half = np.asarray(extent[:2], dtype=np.float64)
         self._partner: tuple[int, str | None] | None = None
+        self._provisional: PartnerRule = no_partner
         self.plans: LRU[int, PlanData | None] = LRU()
         #: Per-timestamp caches of the oracle modules, by name.
         self.caches: dict[str, LRU[int, object]] = {}
@@ -76,6 +89,19 @@ class CorrectedContext:
         if self._partner is None or self._partner[0] != cf:
             self._partner = (cf, find_partner(self) if cf >= 0 else None)
         return self._partner[1]
+
+    def judge_without_collision(self, rule: PartnerRule) -> None:
+        """Judge frames before any collision against ``rule``'s actor at each timestamp
+        (a live stack, where the collision may never come): see :meth:`partner_at`."""
+        self._provisional = rule
+
+    def partner_at(self, ts: int) -> str | None:
+        """The partner the oracles judge ts against: the collision partner once there is a
+        collision, else the provisional rule's actor (None unless
+        :meth:`judge_without_collision` set one)."""
+        if self.log.metadata.collision_frame >= 0:
+            return self.partner_id
+        return self._provisional(self, ts)
 
     def cache(self, name: CacheName[V]) -> LRU[int, V]:
         """A named per-timestamp cache (created on first use)."""
@@ -128,19 +154,25 @@ class CorrectedContext:
         return np.array([table.setdefault(a, len(table)) for a in ids], dtype=np.int64)
 
     def _location_table(self, ts: int) -> FloatArray | None:
-        """Locations (G, 2) at ts indexed by run-wide id (NaN for ids absent at ts)."""
+        """States (G, 3): x, y, yaw at ts indexed by run-wide id (NaN for ids absent at ts)."""
         actors = self.log.actors.get(ts)
         if actors is None:
             return None
         gids = self.gids(actors.ids)
-        table = np.full((len(self._gid), 2), np.nan)
-        table[gids[::-1]] = actors.location[::-1, :2]  # the first row of a repeated id
+        table = np.full((len(self._gid), 3), np.nan)
+        table[gids[::-1], :2] = actors.location[::-1, :2]  # the first row of a repeated id
+        table[gids[::-1], 2] = actors.rotation[::-1, 2]
         return table
 
     def locations_over(self, gids: npt.NDArray[np.int64], times: list[int]) -> FloatArray:
         """World locations (N, T, 2) of the actors ``gids`` at each of ``times`` (NaN where
         absent)."""
-        out = np.full((len(gids), len(times), 2), np.nan)
+        return self.states_over(gids, times)[:, :, :2]
+
+    def states_over(self, gids: npt.NDArray[np.int64], times: list[int]) -> FloatArray:
+        """World locations and yaws (N, T, 3) of the actors ``gids`` at each of ``times``
+        (NaN where absent): every actor's boxes over a horizon without a loop over actors."""
+        out = np.full((len(gids), len(times), 3), np.nan)
         top = int(gids.max()) if len(gids) else -1
         cache = self.cache(LOCATIONS)
         for j, t in enumerate(times):
@@ -210,27 +242,48 @@ def find_partner(cc: CorrectedContext) -> str | None:
         if not earlier:
             return None
         ts = earlier[-1]
-    actors = log.actors[ts]
-    ego_state = cc.actor_state(cc.ego_id, ts) if cc.ego_id is not None else None
-    if ego_state is None:
-        pose = log.pose.get(ts)
-        if pose is None:
-            cc.ctx.report(log.file_of("actors", ts), "collision partner", "no ego box", ts)
-            return None
-        ego_state = (np.array([pose.x, pose.y]), pose.yaw)
-    extents = log.actor_extents
-    rows = [
+    ego = ego_box(cc, ts)
+    if ego is None:
+        cc.ctx.report(log.file_of("actors", ts), "collision partner", "no ego box", ts)
+        return None
+    return nearest_actor(cc, ts, ego)
+
+
+def ego_box(cc: CorrectedContext, ts: int) -> tuple[FloatArray, float] | None:
+    """The ego's box centre (2,) and yaw at ts: its actor entry, else its pose."""
+    state = cc.actor_state(cc.ego_id, ts) if cc.ego_id is not None else None
+    if state is not None:
+        return state
+    pose = cc.log.pose.get(ts)
+    return None if pose is None else (np.array([pose.x, pose.y]), pose.yaw)
+
+
+def other_rows(cc: CorrectedContext, ts: int) -> list[int]:
+    """Rows of the actors file at ts the partner is chosen from: non-ego actors with an
+    extent, each id's first row, in file order (ties go to the earlier one)."""
+    actors = cc.log.actors.get(ts)
+    if actors is None:
+        return []
+    extents = cc.log.actor_extents
+    return [
         r
         for r, actor_id in enumerate(actors.ids)
         if actor_id != cc.ego_id and actor_id in extents and actors.index[actor_id] == r
     ]
+
+
+def nearest_actor(cc: CorrectedContext, ts: int, ego: tuple[FloatArray, float]) -> str | None:
+    """The non-ego actor with the smallest signed box distance to the ego box at ts."""
+    rows = other_rows(cc, ts)
     if not rows:
         return None
+    actors = cc.log.actors[ts]
+    extents = cc.log.actor_extents
     half = np.array([extents[actors.ids[r]][:2] for r in rows])
     dist = box_signed_distance(
-        ego_state[0],
+        ego[0],
         cc.ego_half,
-        np.asarray(ego_state[1]),
+        np.asarray(ego[1]),
         actors.location[rows, :2],
         half,
         actors.rotation[rows, 2],

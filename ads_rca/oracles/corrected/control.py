@@ -109,7 +109,7 @@ def control(ctx: RunContext, ts: int) -> OracleResult:
         "first_step_speed_error": steps[0].speed,
         "first_step_lateral_error": steps[0].lateral,
     }
-    partner = cc.partner_id
+    partner = cc.partner_at(ts)
     state = cc.actor_state(partner, ts) if partner is not None else None
     if partner is None or state is None:
         metrics["toward_partner"] = None

@@ -165,7 +165,7 @@ def perception(ctx: RunContext, ts: int) -> OracleResult:
         return skipped("perception", ts, f"missing {', '.join(absent)}", thresholds=thresholds)
     det, gt = cc.log.bboxes[ts], cc.log.bboxes_gt[ts]
     metrics, matched_gt = detection_metrics(det, gt, p.perc_match_iou)
-    partner = cc.partner_id
+    partner = cc.partner_at(ts)
     in_view = partner is not None and partner in gt.ids
     unmatched = partner is not None and in_view and partner not in matched_gt
     best = metrics["missed"]

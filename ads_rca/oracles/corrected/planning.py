@@ -68,7 +68,7 @@ def planning(ctx: RunContext, ts: int) -> OracleResult:
             cc.ctx.report(cc.log.file_of("waypoint", ts), "", "plan has no usable point", ts)
         return skipped("planning", ts, reason, thresholds=thresholds)
     metrics: dict[str, Metric] = realised_error(cc, ts, plan)
-    partner = cc.partner_id
+    partner = cc.partner_at(ts)
     if partner is None:
         return OracleResult("planning", ts, False, metrics, thresholds)
     absent = missing_inputs(

@@ -94,7 +94,7 @@ def prediction(ctx: RunContext, ts: int) -> OracleResult:
         return skipped("prediction", ts, f"missing {', '.join(absent)}", thresholds=thresholds)
     pwp, pose = cc.log.predictions_with_perception[ts], cc.log.pose[ts]
     metrics = displacement_metrics(cc, ts, pwp, pose)
-    partner = cc.partner_id
+    partner = cc.partner_at(ts)
     if partner is None:
         metrics["unconditioned"] = False
         return OracleResult("prediction", ts, False, metrics, thresholds)

@@ -91,7 +91,10 @@ class StackFeed:
         waited = core.collision_at is not None and now - core.collision_at >= (
             self.config.input_timeout_s
         )
-        if (released is not None and released >= cf_ms - slop) or waited:
+        first_held = self.sync.first_held_ms
+        held_before = first_held is not None and first_held <= cf_ms + slop
+        # Waited long enough, but a frame before the collision still held is still to come.
+        if (released is not None and released >= cf_ms - slop) or (waited and not held_before):
             core.close_horizon()
 
     def flush(self, now: float) -> None:

@@ -297,6 +297,11 @@ class StampSync(Generic[P]):
     # --- state -----------------------------------------------------------------------
 
     @property
+    def first_held_ms(self) -> int | None:
+        """The oldest held frame's stamp (None: none held)."""
+        return self._frames.stamps[0] if self._frames.stamps else None
+
+    @property
     def held_frames(self) -> int:
         return len(self._frames.stamps)
 

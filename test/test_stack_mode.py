@@ -1,0 +1,185 @@
+"""Stack mode's cores in-process, over the whole grid (issue #15), on simulated time.
+
+The same classes the nodes run (:class:`StackFeed` into one :class:`MonitorCore`, the
+stack-mode :class:`AggregatorCore`) fed a synthesised crash as a stack sends it
+(``simulate.stack_stream``: per-input stamp offsets up to 20 ms, arrival jitter, no markers,
+no metadata, the collision announced after its frame). Over DDS: test_stack_graph.py.
+"""
+
+from __future__ import annotations
+
+from functools import cache
+from typing import Any
+
+import pytest
+from golden_outputs import first_difference
+from stackgraph import metrics_difference
+
+from ads_rca.engine import Diagnosis, diagnose
+from ads_rca.errors import ConfigError
+from ads_rca.live.simulate import LiveRun, run_stack, stack_stream
+from ads_rca.live.stack_config import STACK_PARAMETERS, StackConfig
+from ads_rca.live.window import WindowSettings
+from ads_rca.model import RunLog
+from ads_rca.params import make_params
+from ads_rca.synth import synthesise
+
+CRASHES = [
+    (scenario, fault)
+    for scenario in ("cut_in", "lead_braking", "pedestrian_crossing", "left_turn")
+    for fault in ("perception", "prediction", "planning", "controller")
+]
+MODES = ("reference", "corrected")
+VERDICT_KEYS = (
+    "primary_root_cause",
+    "root_causes",
+    "contributing",
+    "partner_id",
+    "attribution_basis",
+    "modules",
+    "evidence",
+)
+ATTRIBUTION_KEYS = ("primary_root_cause", "root_causes", "contributing", "partner_id")
+
+
+def config(**values: Any) -> StackConfig:
+    defaults = {name: entry[0] for name, entry in STACK_PARAMETERS.items()}
+    facts = {"timesteps_per_frame": 50, "camera_loc.x": 1.3, "camera_loc.z": 1.8}
+    return StackConfig.from_values({**defaults, **facts, **values}, input_timeout_s=1.0)
+
+
+@cache
+def crash(scenario: str, fault: str) -> RunLog:
+    return synthesise(scenario, fault, 1)
+
+
+@cache
+def offline(scenario: str, fault: str, mode: str) -> Diagnosis:
+    return diagnose(crash(scenario, fault), make_params(mode))
+
+
+def live(log: RunLog, mode: str, history: int = 400, **stream: Any) -> LiveRun:
+    settings = WindowSettings(input_timeout_s=1.0, history_frames=history)
+    return run_stack(log, make_params(mode), stack_stream(log, **stream), config(), settings)
+
+
+def same_verdict(verdict: dict[str, Any], want: dict[str, Any]) -> bool:
+    """Equal verdicts: exact, but the evidence's metrics to 1e-9 (a live view holds fewer
+    frames than the whole log, so numpy may sum in another order)."""
+    exact = [k for k in VERDICT_KEYS if k != "evidence"]
+    return {k: verdict[k] for k in exact} == {k: want[k] for k in exact} and (
+        first_difference(want["evidence"], verdict["evidence"]) is None
+    )
+
+
+def verdict_of(run: LiveRun) -> dict[str, Any]:
+    assert run.outcome is not None
+    return run.outcome.document
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_every_crash_judged_live_equals_diagnose(mode: str) -> None:
+    for scenario, fault in CRASHES:
+        log, expected = crash(scenario, fault), offline(scenario, fault, mode)
+        run = live(log, mode, seed=3)
+        verdict, want = verdict_of(run), expected.to_json()
+        assert same_verdict(verdict, want), (scenario, fault)
+        assert verdict["live"]["complete"], (scenario, fault)
+        latest = {(r.module, r.stamp_ms): r for rs in run.results.values() for r in rs}
+        for frame in expected.frames:
+            for module, result in frame.results.items():
+                got = latest[(module, frame.timestamp_ms)].result
+                assert (got.failed, got.skipped) == (result.failed, result.skipped)
+                assert metrics_difference(result.metrics, got.metrics) is None
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_the_default_history_keeps_the_attribution_exact(mode: str) -> None:
+    """Frames older than the re-judged history keep their pre-collision judgement (against
+    the most threatening actor, in corrected): only the counts outside the window can move."""
+    for scenario, fault in CRASHES[::3]:
+        verdict = verdict_of(live(crash(scenario, fault), mode, history=0, seed=4))
+        want = offline(scenario, fault, mode).to_json()
+        assert {k: verdict[k] for k in ATTRIBUTION_KEYS} == {k: want[k] for k in ATTRIBUTION_KEYS}
+        assert first_difference(want["evidence"], verdict["evidence"]) is None
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_two_percent_of_an_input_dropped(mode: str) -> None:
+    same = 0
+    folders = ("bboxes", "predictions", "waypoint")
+    for n, (scenario, fault) in enumerate(CRASHES):
+        folder = folders[n % len(folders)]
+        log = crash(scenario, fault)
+        stream = stack_stream(log, seed=n, drop={folder: 0.02})
+        settings = WindowSettings(input_timeout_s=1.0, history_frames=400)
+        run = run_stack(log, make_params(mode), stream, config(), settings)
+        dropped = set(stream.dropped[folder])
+        assert len(dropped) == round(0.02 * len(log.folder(folder))) > 0
+        flagged = {
+            r.stamp_ms
+            for results in run.results.values()
+            for r in results
+            if f"no {folder} record" in r.incomplete
+        }
+        assert flagged == dropped
+        verdict, want = verdict_of(run), offline(scenario, fault, mode).to_json()
+        same += all(verdict[k] == want[k] for k in ATTRIBUTION_KEYS)
+    # Measured: every crash keeps its verdict with 2 % of one input gone (16 of 16).
+    assert same == len(CRASHES)
+
+
+def test_a_measured_period_gives_the_same_verdict() -> None:
+    log = crash("cut_in", "planning")
+    settings = WindowSettings(input_timeout_s=1.0, history_frames=400)
+    run = run_stack(
+        log,
+        make_params("corrected"),
+        stack_stream(log, seed=1),
+        config(timesteps_per_frame=0),
+        settings,
+    )
+    want = offline("cut_in", "planning", "corrected").to_json()
+    assert same_verdict(verdict_of(run), want)
+
+
+def test_run_facts_found_wrong_are_said() -> None:
+    log = crash("cut_in", "planning")
+    settings = WindowSettings(input_timeout_s=1.0)
+    wrong = config(ego_id="no-such-actor", timesteps_per_frame=40)
+    run = run_stack(log, make_params("reference"), stack_stream(log), wrong, settings)
+    assert run.feed is not None
+    assert run.feed.fact_problems == [
+        "timesteps_per_frame is 40 ms but the reference input's stamps are 50 ms apart",
+        "ego_id 'no-such-actor' is not among the actors of the first 20 frames",
+    ]
+
+
+def test_an_unreadable_message_is_skipped_and_said() -> None:
+    from ads_rca.live.stack_feed import StackFeed
+    from ads_rca.live.window import MonitorCore
+    from ads_rca.oracles.base import MODULES
+
+    said: list[tuple[str, str]] = []
+    core = MonitorCore(MODULES, make_params("reference"), stack=True)
+    feed = StackFeed(config(), core, lambda folder, error: said.append((folder, error)))
+    feed.add("bboxes", b"\x00\x01garbage", 0.0)
+    [(folder, error)] = said
+    assert folder == "bboxes" and "\n" not in error
+
+
+@pytest.mark.parametrize(
+    ("values", "message"),
+    [
+        ({"inputs.actors.layout": "cubes"}, "inputs.actors.layout: 'cubes' is not a layout"),
+        ({"inputs.pose.topic": "odom"}, "inputs.pose.topic: 'odom' is not an absolute"),
+        ({"inputs.pose.layout": "none"}, "reference_input: 'pose' is not a provided input"),
+        ({"stack_mode": "on"}, "stack_mode: 'on' is not one of"),
+    ],
+)
+def test_bad_stack_parameters_are_one_line_naming_the_parameter(
+    values: dict[str, Any], message: str
+) -> None:
+    with pytest.raises(ConfigError) as error:
+        config(**values)
+    assert message in str(error.value) and "\n" not in str(error.value)

@@ -1,0 +1,136 @@
+"""Benchmark: stack mode's cores at log rate (issue #15), in one process on simulated time.
+
+    python bench/bench_stack.py [--actors 50] [--frames 400] [--long 1000 5000 20000]
+
+The classes the ``monitors`` and ``aggregator`` nodes run in stack mode (the stamp sync into
+one monitor core judging the four modules, the stack-mode aggregator), fed a synthesised
+run as a stack sends it (per-input stamp offsets, arrival jitter). Wall and CPU times are
+this process's own (no DDS: the nodes add decoding and publishing on top).
+
+* per frame: the monitor's work from a frame's release to its four results, p50/p99 (the
+  target at 20 Hz is p99 < 10 ms) and CPU per frame, on a ``lead_braking`` crash with
+  ``--actors`` background actors, both modes;
+* verdict: wall time from the collision announcement to the verdict (re-judging the held
+  history and attributing), default history and a whole-run history;
+* memory: records held and Python heap (tracemalloc) after N frames of ``cruise`` judged
+  live: flat in N (bounded windows), the figure the issue asks for at 20,000 frames.
+"""
+
+from __future__ import annotations
+
+import argparse
+import resource
+import time
+import tracemalloc
+
+import numpy as np
+
+from ads_rca.live.aggregate import AggregatorCore
+from ads_rca.live.simulate import stack_stream
+from ads_rca.live.stack_config import STACK_PARAMETERS, StackConfig
+from ads_rca.live.stack_feed import StackFeed
+from ads_rca.live.window import MonitorCore, WindowSettings
+from ads_rca.model import RunLog
+from ads_rca.oracles.base import MODULES
+from ads_rca.params import make_params
+from ads_rca.synth import synthesise
+
+
+def config() -> StackConfig:
+    values = {name: entry[0] for name, entry in STACK_PARAMETERS.items()}
+    values |= {"timesteps_per_frame": 50, "camera_loc.x": 1.3, "camera_loc.z": 1.8}
+    return StackConfig.from_values(values, input_timeout_s=1.0)
+
+
+def cpu() -> float:
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    return usage.ru_utime + usage.ru_stime
+
+
+def play(log: RunLog, mode: str, history: int) -> dict[str, float]:
+    """Stream ``log``; per-frame wall times, CPU per frame, verdict latency, heap."""
+    params = make_params(mode)
+    core = MonitorCore(MODULES, params, WindowSettings(history_frames=history), stack=True)
+    feed = StackFeed(config(), core, lambda folder, error: None)
+    aggregator = AggregatorCore(params, stack=config())
+    stream = stack_stream(log, seed=1)
+    frame_s: list[float] = []
+    cpu0 = cpu()
+    for message in stream.messages:
+        now = message.arrival_s
+        started = time.perf_counter()
+        feed.add(message.folder, message.payload, now)
+        feed.poll(now)
+        results = core.poll(now)
+        for result in results:
+            aggregator.add_result(result, now)
+        if results:
+            frame_s.append((time.perf_counter() - started) / (len(results) / len(MODULES)))
+    cpu_per_frame = (cpu() - cpu0) / max(1, len(log.unique_frames))
+    verdict_s = float("nan")
+    if log.metadata.collision_frame >= 0:
+        started = time.perf_counter()
+        now = stream.messages[-1].arrival_s + 0.001
+        core.set_collision(log.metadata.collision_frame, now)
+        aggregator.set_collision(log.metadata.collision_frame, now)
+        outcome = None
+        while outcome is None and time.perf_counter() - started < 60:
+            feed.poll(now)
+            for result in core.poll(now):
+                aggregator.add_result(result, now)
+            outcome = aggregator.poll(now)
+            now += 0.001
+        verdict_s = time.perf_counter() - started
+    times = np.array(frame_s) * 1000
+    return {
+        "p50_ms": float(np.percentile(times, 50)) if times.size else float("nan"),
+        "p99_ms": float(np.percentile(times, 99)) if times.size else float("nan"),
+        "cpu_ms": cpu_per_frame * 1000,
+        "verdict_ms": verdict_s * 1000,
+        "held": float(core.held_records()),
+    }
+
+
+def memory(frames: int, actors: int) -> tuple[int, float]:
+    log = synthesise("cruise", "none", 1, frames=frames, actors=actors)
+    tracemalloc.start()
+    params = make_params("corrected")
+    core = MonitorCore(MODULES, params, stack=True)
+    feed = StackFeed(config(), core, lambda folder, error: None)
+    for message in stack_stream(log, seed=1).messages:
+        feed.add(message.folder, message.payload, message.arrival_s)
+        feed.poll(message.arrival_s)
+        core.poll(message.arrival_s)
+    current, _peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    return core.held_records(), current / 1e6
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--actors", type=int, default=50)
+    parser.add_argument("--frames", type=int, default=400)
+    parser.add_argument("--long", type=int, nargs="+", default=[1000, 5000, 20000])
+    args = parser.parse_args()
+    crash = synthesise("lead_braking", "perception", 1, actors=args.actors)
+    print(f"lead_braking crash, {len(crash.unique_frames)} frames, {args.actors} background actors")
+    print(
+        f"{'mode':10} {'history':>8} {'p50 ms':>8} {'p99 ms':>8} {'CPU ms/fr':>10} "
+        f"{'verdict ms':>11}"
+    )
+    for mode in ("reference", "corrected"):
+        for history in (0, 400):
+            row = play(crash, mode, history)
+            print(
+                f"{mode:10} {history or 'auto':>8} {row['p50_ms']:8.2f} {row['p99_ms']:8.2f} "
+                f"{row['cpu_ms']:10.2f} {row['verdict_ms']:11.1f}"
+            )
+    print(f"\ncruise judged live in stack mode (corrected, {args.actors} actors)")
+    print(f"{'frames':>8} {'records held':>13} {'heap MB':>8}")
+    for frames in args.long:
+        held, heap = memory(frames, args.actors)
+        print(f"{frames:8d} {held:13d} {heap:8.1f}")
+
+
+if __name__ == "__main__":
+    main()

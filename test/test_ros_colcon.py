@@ -113,3 +113,38 @@ def test_installed_player_found_via_ament_index_publishes(
     assert result.summary_code == 0 and result.summary["complete"], result.summary_output
     frames = result.summary["topics"][topics.topic_name(topics.FRAME, ns)]["received"]
     assert frames == 6
+
+
+def test_installed_stack_mode_with_the_stack_file_gives_the_verdict(
+    install: Path, ros_env: RosEnv, tmp_path: Path
+) -> None:
+    """``ros2 run ads_rca monitors`` / ``aggregator`` from the workspace with the installed
+    ``config/stack_contract.yaml``, beside a stack: the verdict is ``diagnose``'s."""
+    from stackgraph import run_stack_graph
+
+    from ads_rca.engine import diagnose
+    from ads_rca.params import make_params
+    from ads_rca.synth import synthesise
+
+    prefix = install / "ads_rca"
+    site = next((prefix / "lib").glob("python3*/site-packages"))
+    env = dict(ros_env.env, AMENT_PREFIX_PATH=str(prefix), PYTHONPATH=str(site))
+    stack_file = prefix / "share/ads_rca/config/stack_contract.yaml"
+    run = run_stack_graph(
+        env,
+        tmp_path,
+        "lead_braking:planning:1",
+        {"semantics": "corrected"},
+        ["--namespace", "/ads_rca", "--seed", "2"],  # the stack file's topics
+        params_file=stack_file,
+        executables={
+            name: [str(prefix / "lib/ads_rca" / name)] for name in ("monitors", "aggregator")
+        },
+    )
+    [verdict] = run.verdicts
+    expected = diagnose(synthesise("lead_braking", "planning", 1), make_params("corrected"))
+    want = expected.to_json()
+    for key in ("primary_root_cause", "root_causes", "contributing", "partner_id"):
+        assert verdict[key] == want[key]
+    assert verdict["live"]["complete"] is True
+    assert "stack mode: frames from /ads_rca/ego/odometry stamps" in run.outputs["monitors"]

@@ -69,30 +69,19 @@ def stack_actions(context: Any) -> list[Any]:
         "exit_after_verdict": values["exit_after_verdict"].lower() == "true",
         **({"verdict_json": values["verdict_json"]} if values["verdict_json"] else {}),
     }
-    actions: list[Any] = []
-    if values["record"]:
-        actions.append(
-            Node(
-                package="ads_rca",
-                executable="recorder",
-                output="screen",
-                parameters=[{"output": values["record"], "topic_namespace": values["namespace"]}],
-                additional_env=LOCAL_DISCOVERY,
-            )
+
+    def node(executable: str, parameters: list[Any]) -> Any:
+        return Node(
+            package="ads_rca",
+            executable=executable,
+            output="screen",
+            parameters=parameters,
+            additional_env=LOCAL_DISCOVERY,
         )
-    agg = Node(
-        package="ads_rca",
-        executable="aggregator",
-        output="screen",
-        parameters=[stack_file, aggregator],
-        additional_env=LOCAL_DISCOVERY,
-    )
-    monitors = Node(
-        package="ads_rca",
-        executable="monitors",
-        output="screen",
-        parameters=[stack_file, common],
-        additional_env=LOCAL_DISCOVERY,
-    )
+
+    recorder = {"output": values["record"], "topic_namespace": values["namespace"]}
+    actions = [node("recorder", [recorder])] if values["record"] else []
+    agg = node("aggregator", [stack_file, aggregator])
+    monitors = node("monitors", [stack_file, common])
     end = OnProcessExit(target_action=agg, on_exit=[EmitEvent(event=Shutdown())])
     return [*actions, agg, monitors, RegisterEventHandler(end)]

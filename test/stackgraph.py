@@ -11,6 +11,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from golden_outputs import first_difference as _first_difference
+
 from ads_rca.contract.jsontext import dumps_json, loads_json
 from ads_rca.live.results import LiveResult, plain
 from ads_rca.ros.graph import AGGREGATOR, GROUP, MONITOR
@@ -85,17 +87,37 @@ def run_stack_graph(
     return StackRun(verdicts, results, summary, statuses, outputs)
 
 
+#: The verdict fields a live verdict shares with ``diagnose --json``.
+VERDICT_KEYS = (
+    "primary_root_cause",
+    "root_causes",
+    "contributing",
+    "partner_id",
+    "attribution_basis",
+    "modules",
+    "evidence",
+)
+
+
+def same_verdict(verdict: dict[str, Any], want: dict[str, Any]) -> bool:
+    """Equal verdicts: exact, but the evidence's metrics to 1e-9 (a live view holds fewer
+    frames than the whole log, so numpy may sum in another order)."""
+    exact = [k for k in VERDICT_KEYS if k != "evidence"]
+    return {k: verdict[k] for k in exact} == {k: want[k] for k in exact} and (
+        _first_difference(want["evidence"], verdict["evidence"]) is None
+    )
+
+
 def metrics_difference(offline: Mapping[str, Any], live: Mapping[str, Any]) -> str | None:
     """Where a live result's metrics differ from the offline ones (floats to 1e-9, NaN
     equal to NaN; both as they travel: the JSON form), or None."""
-    from golden_outputs import first_difference
 
     def plain_nan(value: Any) -> Any:
         return "NaN" if isinstance(value, float) and math.isnan(value) else value
 
     old = json.loads(dumps_json(plain(offline)), parse_constant=lambda c: c)
     new = json.loads(dumps_json(plain(live)), parse_constant=lambda c: c)
-    return first_difference(_map(old, plain_nan), _map(new, plain_nan))
+    return _first_difference(_map(old, plain_nan), _map(new, plain_nan))
 
 
 def _map(value: Any, leaf: Any) -> Any:

@@ -13,7 +13,7 @@ from typing import Any
 
 import pytest
 from golden_outputs import first_difference
-from stackgraph import metrics_difference
+from stackgraph import metrics_difference, same_verdict
 
 from ads_rca.engine import Diagnosis, diagnose
 from ads_rca.errors import ConfigError
@@ -30,15 +30,6 @@ CRASHES = [
     for fault in ("perception", "prediction", "planning", "controller")
 ]
 MODES = ("reference", "corrected")
-VERDICT_KEYS = (
-    "primary_root_cause",
-    "root_causes",
-    "contributing",
-    "partner_id",
-    "attribution_basis",
-    "modules",
-    "evidence",
-)
 ATTRIBUTION_KEYS = ("primary_root_cause", "root_causes", "contributing", "partner_id")
 
 
@@ -61,15 +52,6 @@ def offline(scenario: str, fault: str, mode: str) -> Diagnosis:
 def live(log: RunLog, mode: str, history: int = 400, **stream: Any) -> LiveRun:
     settings = WindowSettings(input_timeout_s=1.0, history_frames=history)
     return run_stack(log, make_params(mode), stack_stream(log, **stream), config(), settings)
-
-
-def same_verdict(verdict: dict[str, Any], want: dict[str, Any]) -> bool:
-    """Equal verdicts: exact, but the evidence's metrics to 1e-9 (a live view holds fewer
-    frames than the whole log, so numpy may sum in another order)."""
-    exact = [k for k in VERDICT_KEYS if k != "evidence"]
-    return {k: verdict[k] for k in exact} == {k: want[k] for k in exact} and (
-        first_difference(want["evidence"], verdict["evidence"]) is None
-    )
 
 
 def verdict_of(run: LiveRun) -> dict[str, Any]:

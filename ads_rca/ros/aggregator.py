@@ -290,27 +290,23 @@ class Aggregator(Node):
         if line is not None:
             self.get_logger().warning(line)
 
-    def _on_collision(self, msg: String) -> None:
+    def _on_collision(self, msg: String, forward: bool = False) -> None:
+        """``run/collision`` or, ``forward``, a stack's own collision topic (then forwarded
+        to run/collision for the monitors)."""
         try:
             frame = collision_frame(read_document(msg), self.runs)
         except MalformedMessage as error:
             self._skip(live_topics.COLLISION, error, time.monotonic())
             return
-        if frame is not None:
-            self._stack_mode()  # a collision and no player heard: a stack's run
-            self.core.set_collision(frame, time.monotonic())
+        if frame is None:
+            return
+        self._stack_mode()  # a collision and no player heard: a stack's run
+        self.core.set_collision(frame, time.monotonic())
+        if forward:
+            self.collision_pub.publish(String(data=json.dumps({"frame": frame})))
 
     def _on_mapped_collision(self, msg: String) -> None:
-        """A stack's own collision topic: taken, and forwarded to run/collision."""
-        try:
-            frame = collision_frame(read_document(msg), self.runs)
-        except MalformedMessage as error:
-            self._skip(live_topics.COLLISION, error, time.monotonic())
-            return
-        if frame is not None:
-            self._stack_mode()
-            self.core.set_collision(frame, time.monotonic())
-            self.collision_pub.publish(String(data=json.dumps({"frame": frame})))
+        self._on_collision(msg, forward=True)
 
     def _on_diagnostics(self, data: bytes) -> None:
         now = time.monotonic()

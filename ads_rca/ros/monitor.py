@@ -52,7 +52,7 @@ from ads_rca.errors import InputError
 from ads_rca.live import diagnostics as diag
 from ads_rca.live.early_queue import EarlyQueue
 from ads_rca.live.numeric import NumericLayout
-from ads_rca.live.results import FrameMarker, LiveResult, collision_frame
+from ads_rca.live.results import FrameMarker, LiveResult
 from ads_rca.live.runid import RUN_KEY, RunFilter, checked_run_id
 from ads_rca.live.stack_config import STACK_PARAMETERS, StackConfig
 from ads_rca.live.window import MonitorCore, WindowSettings
@@ -71,6 +71,7 @@ from ads_rca.ros.nodeparams import (
 )
 from ads_rca.ros.stack_subscriber import (
     StackSubscriber,
+    listen_for_collisions,
     message_class,
     missing_inputs,
     stack_qos,
@@ -347,11 +348,12 @@ class MonitorInputs:
             )
             self.subscriptions.append(sub)
         self.subscriptions.append(
-            node.create_subscription(
-                String,
-                topics.topic_name(live_topics.COLLISION, namespace),
-                self._on_collision,
-                live_topics.latched_qos(),
+            listen_for_collisions(
+                node,
+                unit,
+                namespace,
+                self.runs,
+                lambda key, error: self._skip(key, error, time.monotonic()),
             )
         )
         subscribe_ready(node, namespace, first.run_id)
@@ -441,15 +443,6 @@ class MonitorInputs:
         line = self.unit.skipped.note(name, error, now)
         if line is not None:
             self.node.get_logger().warning(line)
-
-    def _on_collision(self, msg: String) -> None:
-        try:
-            frame = collision_frame(read_document(msg), self.runs)
-        except MalformedMessage as error:
-            self._skip(live_topics.COLLISION, error, time.monotonic())
-            return
-        if frame is not None and self.unit.core.set_collision(frame, time.monotonic()):
-            self.unit.logger.info(f"collision at frame {frame}: judging held frames again")
 
 
 class AutoStack:

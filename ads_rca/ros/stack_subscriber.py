@@ -28,8 +28,11 @@ from ads_rca.live.stack_feed import StackFeed
 from ads_rca.ros.diagnostics import array as diagnostic_array
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from rclpy.node import Node
     from rclpy.qos import QoSProfile
+    from rclpy.subscription import Subscription
 
     from ads_rca.ros.monitor import MonitorUnit
 
@@ -76,12 +79,7 @@ class StackSubscriber:
                 raw=layout.raw,
             )
         namespace = next(iter(unit.nodes.values())).namespace
-        node.create_subscription(
-            String,
-            topics.topic_name(live_topics.COLLISION, namespace),
-            self._on_collision,
-            live_topics.latched_qos(),
-        )
+        listen_for_collisions(node, unit, namespace, self.runs, self._skip)
         node.create_timer(unit.poll_period, self._poll)
         self._facts_said = 0
         self._facts_at = 0.0
@@ -109,15 +107,6 @@ class StackSubscriber:
         if line is not None:
             self.node.get_logger().warning(line)
 
-    def _on_collision(self, msg: String) -> None:
-        try:
-            frame = collision_frame(read_document(msg), self.runs)
-        except MalformedMessage as error:
-            self._skip(live_topics.COLLISION, str(error))
-            return
-        if frame is not None and self.unit.core.set_collision(frame, time.monotonic()):
-            self.unit.logger.info(f"collision at frame {frame}: judging held frames again")
-
     def _say_facts(self) -> None:
         """Each run fact found wrong: a warning once, a WARN status every second after."""
         problems = self.feed.fact_problems
@@ -136,6 +125,29 @@ class StackSubscriber:
         pub.publish(diagnostic_array(self.node.get_clock().now().to_msg(), [status]))
 
 
+def listen_for_collisions(
+    node: Node,
+    unit: MonitorUnit,
+    namespace: str,
+    runs: RunFilter,
+    skip: Callable[[str, str], None],
+) -> Subscription[String]:
+    """Subscribe to ``run/collision``: each collision goes to the unit's core (which judges
+    the held frames again, said once); an unreadable document is skipped and said."""
+
+    def on_collision(msg: String) -> None:
+        try:
+            frame = collision_frame(read_document(msg), runs)
+        except MalformedMessage as error:
+            skip(live_topics.COLLISION, str(error))
+            return
+        if frame is not None and unit.core.set_collision(frame, time.monotonic()):
+            unit.logger.info(f"collision at frame {frame}: judging held frames again")
+
+    name = topics.topic_name(live_topics.COLLISION, namespace)
+    return node.create_subscription(String, name, on_collision, live_topics.latched_qos())
+
+
 def missing_inputs(results_incomplete: tuple[str, ...]) -> list[str]:
     """The input folders a result was judged without ("no <folder> record")."""
     return [
@@ -145,4 +157,4 @@ def missing_inputs(results_incomplete: tuple[str, ...]) -> list[str]:
     ]
 
 
-__all__ = ["FACTS_STATUS", "StackSubscriber", "missing_inputs"]
+__all__ = ["FACTS_STATUS", "StackSubscriber", "listen_for_collisions", "missing_inputs"]

@@ -125,3 +125,28 @@ def test_an_input_the_stack_never_publishes_makes_its_modules_stale(
         statuses = [s for s in run.diagnostics if s["name"] == f"ads_rca/{module}"]
         assert any(s["message"].startswith("frame ") for s in statuses)
         assert not any("predictions_with_perception" in s["message"] for s in statuses)
+
+
+def test_auto_mode_finds_the_stack_with_no_player_on_the_graph(
+    ros_env: RosEnv, tmp_path: Path
+) -> None:
+    """``stack_mode`` auto (the default): no player publishes run/metadata, so the first
+    ego odometry message turns both nodes to stack mode; the verdict is diagnose's."""
+    log = synthesise("left_turn", "perception", 1)
+    run = run_stack_graph(
+        ros_env.env,
+        tmp_path,
+        "left_turn:perception:1",
+        {
+            "semantics": "reference",
+            "topic_namespace": ros_env.namespace,
+            "stack_mode": "auto",
+            **RUN_FACTS,
+        },
+        ["--namespace", ros_env.namespace, "--seed", "4"],
+    )
+    [verdict] = run.verdicts
+    assert same_verdict(verdict, diagnose(log, make_params("reference")).to_json())
+    assert verdict["live"]["complete"] is True  # nothing lost while deciding
+    assert "no player on the graph" in run.outputs["monitors"]
+    assert "no player on the graph: stack mode" in run.outputs["aggregator"]

@@ -177,6 +177,12 @@ class StackConfig:
             max_pending_frames=self.max_pending_frames,
         )
 
+    def input_topics(self, folders: Iterable[str]) -> dict[str, str]:
+        """Folder → topic of the inputs read for ``folders``: the reference first, then the
+        provided ones among them (what the stamp sync expects)."""
+        settings = self.sync_settings(folders)
+        return {f: self.inputs[f].topic for f in (settings.reference, *settings.inputs)}
+
     def metadata(self, timesteps_per_frame: int) -> RunMetadata:
         """The run metadata these facts give (no collision known, no end known)."""
         return RunMetadata(

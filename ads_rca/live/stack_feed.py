@@ -62,11 +62,6 @@ class StackFeed:
             core.set_metadata(config.metadata(config.timesteps_per_frame), 0.0)
             core.last_input = None  # no input yet: the stack may start much later
 
-    @property
-    def topics(self) -> dict[str, str]:
-        """Folder → topic of every input this feed subscribes to."""
-        return {f: self.config.inputs[f].topic for f in self.expected}
-
     def add(self, folder: str, payload: Any, now: float) -> None:
         """One received message of ``folder``'s topic (``now``: monotonic seconds)."""
         try:

@@ -72,9 +72,7 @@ from ads_rca.ros.nodeparams import (
 from ads_rca.ros.stack_subscriber import (
     StackSubscriber,
     listen_for_collisions,
-    message_class,
     missing_inputs,
-    stack_qos,
 )
 
 PARAMETERS: dict[str, NodeParameter] = {
@@ -363,7 +361,7 @@ class MonitorInputs:
         return self._metadata is not None
 
     def stop(self) -> None:
-        """Unsubscribe (stack mode took over) and drop what was queued."""
+        """Unsubscribe and forget what was queued (stack mode took over)."""
         for sub in self.subscriptions:
             self.node.destroy_subscription(sub)
         self.subscriptions.clear()
@@ -446,8 +444,10 @@ class MonitorInputs:
 
 
 class AutoStack:
-    """``stack_mode`` auto: the player's inputs until a frame-defining message of the stack
-    arrives while nobody publishes ``run/metadata``; then stack mode, for good.
+    """``stack_mode`` auto: the player's inputs and, kept aside, the stack's, until a message
+    of the frame-defining input arrives: while nobody publishes ``run/metadata`` it makes
+    this a stack's run (stack mode for good, with what was kept); once the player's
+    metadata is in, the stack's subscriptions go.
 
     Why a message and not a delay: a player's metadata writer is discovered with its data
     writers (one participant), so a reference message with no metadata publisher known is a
@@ -457,31 +457,21 @@ class AutoStack:
     def __init__(self, node: Node, unit: MonitorUnit, inputs: MonitorInputs) -> None:
         self.node, self.unit, self.inputs = node, unit, inputs
         first = next(iter(unit.nodes.values()))
-        self.config = first.stack_config
-        reference = self.config.inputs[self.config.reference]
         self.metadata_topic = topics.topic_name(topics.METADATA, first.namespace)
-        self.subscriber: StackSubscriber | None = None
-        self.watch = node.create_subscription(
-            message_class(reference.layout.type_name),
-            reference.topic,
-            self._on_reference,
-            stack_qos(self.config.best_effort),
-            raw=reference.layout.raw,
-        )
+        self.stack = StackSubscriber(node, unit, first.stack_config, decide=self._decide)
 
-    def _on_reference(self, msg: Any) -> None:
-        if self.subscriber is not None or self.inputs.has_metadata:
-            return
+    def _decide(self) -> bool:
+        if self.inputs.has_metadata:  # a player's run
+            self.stack.close()
+            return False
         if self.node.count_publishers(self.metadata_topic) > 0:
-            return
+            return False
         self.node.get_logger().info(
             f"no player on the graph (nobody publishes {self.metadata_topic}): stack mode"
         )
         self.inputs.stop()
-        self.node.destroy_subscription(self.watch)
         self.unit.core.stack = self.unit.core.judge_without_collision = True
-        self.subscriber = StackSubscriber(self.node, self.unit, self.config)
-        self.subscriber.feed.add(self.config.reference, msg, time.monotonic())
+        return True
 
 
 def build_monitors(names: list[str]) -> list[Node]:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import importlib
 import time
+from collections import deque
 from typing import TYPE_CHECKING, Any
 
 from std_msgs.msg import String
@@ -59,44 +60,91 @@ def stack_qos(best_effort: bool) -> QoSProfile:
     )
 
 
-class StackSubscriber:
-    """Subscribes ``node`` to the stack's inputs for ``unit`` (see the module docstring)."""
+#: Stack mode auto: messages kept while deciding (the first frames of a stack's run).
+MAX_WAITING = 10_000
 
-    def __init__(self, node: Node, unit: MonitorUnit, config: StackConfig) -> None:
+
+class StackSubscriber:
+    """Subscribes ``node`` to the stack's inputs for ``unit`` (see the module docstring).
+
+    ``decide`` (``stack_mode`` auto): until it returns True, asked on each message of the
+    frame-defining input, messages are only kept (at most :data:`MAX_WAITING`); then stack
+    mode starts with them. Subscribing from the start means no message is lost to the
+    discovery of new subscriptions when a stack is found. :meth:`close` if it never is.
+    """
+
+    def __init__(
+        self,
+        node: Node,
+        unit: MonitorUnit,
+        config: StackConfig,
+        decide: Callable[[], bool] | None = None,
+    ) -> None:
         self.node = node
         self.unit = unit
         self.config = config
-        self.feed = StackFeed(config, unit.core, self._skip)
+        self.decide = decide
+        self.feed: StackFeed | None = None
         self.runs = RunFilter("")
+        self.waiting: deque[tuple[str, Any, float]] = deque(maxlen=MAX_WAITING)
+        self._facts_said = 0
+        self._facts_at = 0.0
         qos = stack_qos(config.best_effort)
-        for folder, topic in self.feed.topics.items():
-            layout = config.inputs[folder].layout
+        folders = {*unit.core.folders, config.reference}
+        self.topics = config.input_topics(folders)
+        self.subscriptions = [
             node.create_subscription(
-                message_class(layout.type_name),
+                message_class(config.inputs[folder].layout.type_name),
                 topic,
                 self._callback(folder),
                 qos,
-                raw=layout.raw,
+                raw=config.inputs[folder].layout.raw,
             )
+            for folder, topic in self.topics.items()
+        ]
+        if decide is None:
+            self._start()
+
+    def _start(self) -> None:
+        """Stack mode from now on: the feed, the collision topic, the poll timer."""
+        config, unit = self.config, self.unit
+        feed = self.feed = StackFeed(config, unit.core, self._skip)
         namespace = next(iter(unit.nodes.values())).namespace
-        listen_for_collisions(node, unit, namespace, self.runs, self._skip)
-        node.create_timer(unit.poll_period, self._poll)
-        self._facts_said = 0
-        self._facts_at = 0.0
-        node.get_logger().info(
-            "stack mode: frames from "
-            f"{self.feed.topics[config.reference]} stamps; inputs "
-            + ", ".join(f"{f}={t}" for f, t in self.feed.topics.items())
-            + (f"; not provided: {', '.join(self.feed.unprovided)}" if self.feed.unprovided else "")
+        self.subscriptions.append(
+            listen_for_collisions(self.node, unit, namespace, self.runs, self._skip)
         )
+        self.node.create_timer(unit.poll_period, self._poll)
+        self.node.get_logger().info(
+            "stack mode: frames from "
+            f"{self.topics[config.reference]} stamps; inputs "
+            + ", ".join(f"{f}={t}" for f, t in self.topics.items())
+            + (f"; not provided: {', '.join(feed.unprovided)}" if feed.unprovided else "")
+        )
+        while self.waiting:
+            feed.add(*self.waiting.popleft())
+
+    def close(self) -> None:
+        """Not a stack's run after all: unsubscribe, forget what was kept."""
+        for sub in self.subscriptions:
+            self.node.destroy_subscription(sub)
+        self.subscriptions.clear()
+        self.waiting.clear()
+        self.decide = None
 
     def _callback(self, folder: str) -> Any:
         def on_message(msg: Any) -> None:
-            self.feed.add(folder, msg, time.monotonic())
+            now = time.monotonic()
+            if self.feed is not None:
+                self.feed.add(folder, msg, now)
+                return
+            self.waiting.append((folder, msg, now))
+            if folder == self.config.reference and self.decide is not None and self.decide():
+                self._start()
 
         return on_message
 
     def _poll(self) -> None:
+        assert self.feed is not None
         self.feed.poll(time.monotonic())
         self.unit.poll()
         self._say_facts()
@@ -109,7 +157,7 @@ class StackSubscriber:
 
     def _say_facts(self) -> None:
         """Each run fact found wrong: a warning once, a WARN status every second after."""
-        problems = self.feed.fact_problems
+        problems = self.feed.fact_problems if self.feed is not None else []
         now = time.monotonic()
         if not problems or (len(problems) == self._facts_said and now - self._facts_at < 1.0):
             return

@@ -90,10 +90,15 @@ def test_one_collision_event_rule_for_the_monitors_and_the_aggregator() -> None:
     assert collision_frame({"frame": 8, "run": "one"}, runs) == 8
     assert collision_frame({"frame": "9", "run": "one"}, runs) is None
     assert collision_frame({}, runs) is None
-    for node in ("monitor.py", "aggregator.py"):
+    assert collision_frame({"frame": True}, runs) is None  # a boolean is no frame
+    assert collision_frame({"frame": -3}, runs) is None
+    # The monitors' one listener (both input paths) and the aggregator read it by this rule.
+    for node in ("stack_subscriber.py", "aggregator.py"):
         text = (PACKAGE / "ros" / node).read_text()
-        assert "collision_frame(read_document(msg), self.runs)" in text
-        assert 'document.get("frame")' not in text
+        assert "collision_frame(read_document(msg), " in text
+    for node in ("monitor.py", "stack_subscriber.py", "aggregator.py"):
+        assert 'document.get("frame")' not in (PACKAGE / "ros" / node).read_text()
+    assert "listen_for_collisions(" in (PACKAGE / "ros" / "monitor.py").read_text()
 
 
 def test_the_live_cores_follow_one_run_end() -> None:

@@ -37,7 +37,11 @@ from ads_rca.synth import synthesise
 
 SCENARIOS = ("cut_in", "lead_braking", "pedestrian_crossing", "left_turn")
 FAULTS = ("perception", "prediction", "planning", "controller")
-RUN_FACTS = {"timesteps_per_frame": 50, "camera_loc.x": 1.3, "camera_loc.z": 1.8}
+RUN_FACTS: dict[str, ParamValue] = {
+    "timesteps_per_frame": 50,
+    "camera_loc.x": 1.3,
+    "camera_loc.z": 1.8,
+}
 ATTRIBUTION = ("primary_root_cause", "root_causes", "contributing", "partner_id")
 
 
@@ -48,7 +52,7 @@ def one(work: Path, scenario: str, fault: str, mode: str, drop: str | None) -> t
     env = ros_environment(domain_id=pick_domain_id(), log_dir=work / "ros_log")
     namespace = f"/bench_{scenario}_{fault}"
     options = ["--namespace", namespace, "--seed", "3"]
-    params = {"semantics": mode, "topic_namespace": namespace, **RUN_FACTS}
+    params: dict[str, ParamValue] = {"semantics": mode, "topic_namespace": namespace, **RUN_FACTS}
     if drop:
         options += ["--drop", f"{drop}:0.02"]
         params["input_timeout_s"] = 1.0

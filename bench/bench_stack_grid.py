@@ -33,6 +33,7 @@ from stackgraph import (
 from ads_rca.engine import diagnose
 from ads_rca.params import make_params
 from ads_rca.ros.env import pick_domain_id, ros_environment
+from ads_rca.ros.launcher import ParamValue
 from ads_rca.synth import synthesise
 
 SCENARIOS = ("cut_in", "lead_braking", "pedestrian_crossing", "left_turn")
@@ -52,7 +53,8 @@ def one(work: Path, scenario: str, fault: str, mode: str, drop: str | None) -> t
     env = ros_environment(domain_id=pick_domain_id(), log_dir=work / "ros_log")
     namespace = f"/bench_{scenario}_{fault}"
     options = ["--namespace", namespace, "--seed", "3"]
-    params: dict[str, ParamValue] = {"semantics": mode, "topic_namespace": namespace, **RUN_FACTS}
+    params: dict[str, ParamValue] = {"semantics": mode, "topic_namespace": namespace}
+    params |= RUN_FACTS
     if drop:
         options += ["--drop", f"{drop}:0.02"]
         params["input_timeout_s"] = 1.0

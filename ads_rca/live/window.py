@@ -164,9 +164,9 @@ class MonitorCore(FollowsRunEnd):
             # the collision read as if the run went on: judged again, the data ending there.
             assert self.metadata is not None
             tpf = self.metadata.timesteps_per_frame
-            reach = (frame - self.settings.max_lookahead_frames) * tpf
-            again = [e for e in self._judged if e.marker.stamp_ms > reach]
-            self._judged = deque(e for e in self._judged if e.marker.stamp_ms <= reach)
+            cf_ms = frame * tpf
+            again = [e for e in self._judged if self._reaches(e, cf_ms, tpf)]
+            self._judged = deque(e for e in self._judged if not self._reaches(e, cf_ms, tpf))
             if not again and not self._pending_through(frame):
                 # The aggregator hears a module is complete for this collision from the
                 # result of its last frame before it (closes_collision): published again.
@@ -177,6 +177,12 @@ class MonitorCore(FollowsRunEnd):
             entry.revision += 1
             self.pending.appendleft(entry)
         return bool(again)
+
+    def _reaches(self, entry: _Entry, cf_ms: int, tpf: int) -> bool:
+        """Whether a judged frame's look-ahead reaches the collision (it read the run as
+        going on past it)."""
+        stamp = entry.marker.stamp_ms
+        return stamp + self._lookahead_frames(entry) * tpf >= cf_ms
 
     def _pending_through(self, frame: int) -> bool:
         """A frame at or before collision ``frame`` is still to be judged."""

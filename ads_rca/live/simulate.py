@@ -9,9 +9,10 @@ message conversion is tested separately (docs/topics.md).
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections import deque
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -24,7 +25,7 @@ from ads_rca.params import Params
 
 if TYPE_CHECKING:
     from ads_rca.live.stack_config import StackConfig
-    from ads_rca.live.stack_feed import StackFeed
+    from ads_rca.live.stack_feed import SkipReport, StackFeed
 
 #: (folder, stamp_ms) -> deliver this record? (to simulate a topic that stops)
 Filter = Callable[[str, int], bool]
@@ -150,12 +151,13 @@ def announce(cores: list[MonitorCore], aggregator: AggregatorCore, frame: int, a
 
 @dataclass(frozen=True, slots=True)
 class StackMessage:
-    """One message as a stack sends it: its arrival time, input and CDR bytes."""
+    """One message as a stack sends it: its arrival time, input and payload (CDR bytes, or
+    the message object for a layout read as objects, as :class:`StackFeed` takes it)."""
 
     arrival_s: float
     folder: str
     stamp_ms: int
-    payload: bytes
+    payload: Any
 
 
 @dataclass
@@ -223,14 +225,18 @@ def run_stack(
     config: StackConfig,
     settings: WindowSettings | None = None,
     drain_s: float = 60.0,
+    collisions: Sequence[tuple[float, int]] | None = None,
+    skipped: SkipReport | None = None,
 ) -> LiveRun:
     """Play ``stream`` through stack mode's cores: one :class:`MonitorCore` for the four
     modules fed by a :class:`StackFeed`, and the aggregator, on simulated time (the
-    messages' arrival times); the collision is announced as the stream says."""
+    messages' arrival times). ``collisions``: the announcements, (arrival s, frame), by
+    default the log's collision when the stream says (a run can collide several times);
+    ``skipped`` hears of every message that could not be read."""
     from ads_rca.live.stack_feed import StackFeed
 
     core = MonitorCore(MODULES, params, settings, stack=True)
-    feed = StackFeed(config, core, lambda folder, error: None)
+    feed = StackFeed(config, core, skipped or (lambda folder, error: None))
     aggregator = AggregatorCore(params, stack=config)
     run = LiveRun(results={m: [] for m in MODULES}, monitors={m: core for m in MODULES})
     run.feed = feed
@@ -249,21 +255,25 @@ def run_stack(
             run.verdicts.append(outcome)
             run.outcome = run.outcome or outcome
 
-    announced = stream.collision_s is None
+    if collisions is None:
+        collisions = []
+        if stream.collision_s is not None:
+            collisions = [(stream.collision_s, log.metadata.collision_frame)]
+    due = deque(sorted(collisions))
     now = 0.0
     for message in stream.messages:
         now = message.arrival_s
-        if not announced and stream.collision_s is not None and now >= stream.collision_s:
-            announce([core], aggregator, log.metadata.collision_frame, stream.collision_s)
-            announced = True
+        while due and now >= due[0][0]:
+            at, frame = due.popleft()
+            announce([core], aggregator, frame, at)
         if message.folder in feed.decoders:
             feed.add(message.folder, message.payload, now)
         pump(now)
-    if not announced:
-        now = max(now, stream.collision_s or now)
-        announce([core], aggregator, log.metadata.collision_frame, now)
+    for at, frame in due:
+        now = max(now, at)
+        announce([core], aggregator, frame, now)
     deadline = now + drain_s
-    while now < deadline and (run.outcome is None or core.pending):
+    while now < deadline and (len(run.verdicts) < len(collisions) or core.pending):
         now += 0.05
         pump(now)
     return run

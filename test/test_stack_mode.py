@@ -153,7 +153,10 @@ def test_an_unreadable_message_is_skipped_and_said() -> None:
 @pytest.mark.parametrize(
     ("values", "message"),
     [
-        ({"inputs.actors.layout": "cubes"}, "inputs.actors.layout: 'cubes' is not a layout"),
+        (
+            {"inputs.actors.layout": "cubes"},
+            "parameter inputs.actors.layout: 'cubes' is not a layout",
+        ),
         ({"inputs.pose.topic": "odom"}, "inputs.pose.topic: 'odom' is not an absolute"),
         ({"inputs.pose.layout": "none"}, "reference_input: 'pose' is not a provided input"),
         ({"stack_mode": "on"}, "stack_mode: 'on' is not one of"),

@@ -84,11 +84,14 @@ def layouts(folder: str) -> dict[str, Layout]:
 def layout(folder: str, name: str) -> Layout:
     """The layout ``name`` of ``folder``; ConfigError naming the known ones."""
     if folder not in topics.FOLDER_TOPICS:
-        raise ConfigError(f"inputs.{folder}: not a model input ({', '.join(topics.FOLDER_TOPICS)})")
+        raise ConfigError(
+            f"parameter inputs.{folder}: not a model input ({', '.join(topics.FOLDER_TOPICS)})"
+        )
     known = layouts(folder)
     if name not in known:
         raise ConfigError(
-            f"inputs.{folder}.layout: {name!r} is not a layout of {folder} ({', '.join(known)})"
+            f"parameter inputs.{folder}.layout: {name!r} is not a layout of {folder} "
+            f"({', '.join(known)})"
         )
     return known[name]
 

@@ -154,7 +154,7 @@ class MonitorCore(FollowsRunEnd):
         self._touch(now)
         if frame == self.collision_frame:
             return False
-        self.collision_frame = frame
+        previous, self.collision_frame = self.collision_frame, frame
         self.collision_at, self.horizon_closed = now, False
         if self.semantics.uses_partner:
             again = list(self._judged)
@@ -164,9 +164,11 @@ class MonitorCore(FollowsRunEnd):
             # the collision read as if the run went on: judged again, the data ending there.
             assert self.metadata is not None
             tpf = self.metadata.timesteps_per_frame
-            cf_ms = frame * tpf
-            again = [e for e in self._judged if self._reaches(e, cf_ms, tpf)]
-            self._judged = deque(e for e in self._judged if not self._reaches(e, cf_ms, tpf))
+            # So was one judged on the data up to the previous collision: the run went on.
+            cuts = [c * tpf for c in (frame, previous) if c >= 0]
+            again = [e for e in self._judged if any(self._reaches(e, c, tpf) for c in cuts)]
+            taken = {id(e) for e in again}
+            self._judged = deque(e for e in self._judged if id(e) not in taken)
             if not again and not self._pending_through(frame):
                 # The aggregator hears a module is complete for this collision from the
                 # result of its last frame before it (closes_collision): published again.

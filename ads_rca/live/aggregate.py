@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from ads_rca.engine import Diagnosis
+from ads_rca.engine import Diagnosis, frame_json
 from ads_rca.live.results import (
     Columns,
     FollowsRunEnd,
@@ -44,11 +44,11 @@ from ads_rca.live.results import (
 )
 from ads_rca.live.stack_config import StackConfig
 from ads_rca.model import RunLog, RunMetadata, frame_number
-from ads_rca.oracles.base import MODULES, Module, RunContext
+from ads_rca.oracles.base import MODULES, Module, OracleResult, RunContext
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import Params
 from ads_rca.problems import Problem, ProblemLog, new_problems
-from ads_rca.verdict import FrameResults
+from ads_rca.verdict import FrameResults, json_safe
 
 
 @dataclass
@@ -247,6 +247,29 @@ class AggregatorCore(FollowsRunEnd):
             for i in self._required_indices().tolist()
         ]
 
+    def _failures_before(self, start_ms: int) -> list[FrameResults]:
+        """Stack mode: the frames before the effect window as the attribution reads them,
+        failures only (found in the stored columns, nothing read back), so a long run's
+        verdict costs its failures, not its length. Their full results stay on the metrics
+        topics; passing frames outside the window count for nothing in either mode."""
+        assert self.metadata is not None
+        tpf = self.metadata.timesteps_per_frame
+        indices = self._required_indices()
+        stamps = self.expected.columns["stamp_ms"][indices]
+        before = indices[stamps < start_ms]
+        failing: dict[int, dict[Module, OracleResult]] = {}
+        for module in MODULES:
+            for index in self.results.failed_among(module, before).tolist():
+                stamp = int(self.expected.columns["stamp_ms"][index])
+                failing.setdefault(index, {})[module] = OracleResult(
+                    module, stamp, True, {}, {}, (), None
+                )
+        out = []
+        for index in sorted(failing):
+            stamp = int(self.expected.columns["stamp_ms"][index])
+            out.append(FrameResults(stamp, frame_number(stamp, tpf), failing[index]))
+        return out
+
     def _window_start_ms(self) -> int | None:
         horizon = self.horizon_ms()
         if horizon is None or self.metadata is None:
@@ -338,8 +361,14 @@ class AggregatorCore(FollowsRunEnd):
         metadata = replace(self.metadata, collision_frame=self.collision_frame)
         tpf = metadata.timesteps_per_frame
         required = self.required()
+        window_start = self._window_start_ms() if self.stack else None
         frames: list[FrameResults] = []
-        for e in required:
+        if window_start is not None:
+            frames = self._failures_before(window_start)
+            required_full = [e for e in required if e.stamp_ms >= window_start]
+        else:
+            required_full = required
+        for e in required_full:
             results = {
                 m: self.results.result(m, e.index) for m in MODULES if self.results.has(m, e.index)
             }
@@ -359,7 +388,11 @@ class AggregatorCore(FollowsRunEnd):
         diagnosis = Diagnosis(
             log, RunContext(log, self.params, ego_id=self.ego_id), frames, attribution
         )
-        document = diagnosis.to_json()
+        document = diagnosis.to_json(include_frames=window_start is None)
+        if window_start is not None:  # the frames that decide: the effect window's
+            document["frames"] = [
+                json_safe(frame_json(f)) for f in frames if f.timestamp_ms >= window_start
+            ]
         last = max((e.arrived for e in required), default=now)
         incomplete = self.results.incomplete()
         document["verdict_latency_s"] = round(max(0.0, now - last), 6)

@@ -287,6 +287,7 @@ class ResultStore:
                 revision=np.int64,
                 collision=np.int64,
                 incomplete=np.bool_,
+                failed=np.bool_,
                 offset=np.int64,
                 length=np.int64,
             )
@@ -309,6 +310,7 @@ class ResultStore:
             revision=result.revision,
             collision=result.collision_frame,
             incomplete=bool(result.incomplete),
+            failed=result.result.failed,
             offset=self._end,
             length=len(data),
         )
@@ -330,6 +332,14 @@ class ResultStore:
         # Unpickled keys are new strings each time: share them, as the wire's decoder does.
         metrics = _shared_keys(result.metrics)
         return replace(result, metrics=metrics, thresholds=_shared_keys(result.thresholds))
+
+    def failed_among(self, module: Module, indices: np.ndarray) -> np.ndarray:
+        """Those of ``indices`` where ``module``'s held result failed (from the columns)."""
+        columns = self._modules[module]
+        inside = indices[indices < len(columns.present)]
+        held = inside[columns.present[inside]]
+        failed: np.ndarray = held[columns.columns["failed"][held]]
+        return failed
 
     def incomplete(self) -> list[tuple[Module, int]]:
         """(module, index) of the held results judged with incomplete inputs."""

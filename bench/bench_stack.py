@@ -50,6 +50,24 @@ def cpu() -> float:
     return usage.ru_utime + usage.ru_stime
 
 
+def time_to_verdict(
+    core: MonitorCore, feed: StackFeed, aggregator: AggregatorCore, frame: int, now: float
+) -> float:
+    """Wall seconds from announcing a collision at ``frame`` to the aggregator's verdict
+    (re-judging, closing the horizon, attributing), on simulated time from ``now``."""
+    started = time.perf_counter()
+    core.set_collision(frame, now)
+    aggregator.set_collision(frame, now)
+    outcome = None
+    while outcome is None and time.perf_counter() - started < 120:
+        feed.poll(now)
+        for result in core.poll(now):
+            aggregator.add_result(result, now)
+        outcome = aggregator.poll(now)
+        now += 0.001
+    return time.perf_counter() - started
+
+
 def play(log: RunLog, mode: str, history: int) -> dict[str, float]:
     """Stream ``log``; per-frame wall times, CPU per frame, verdict latency, heap."""
     params = make_params(mode)
@@ -72,18 +90,8 @@ def play(log: RunLog, mode: str, history: int) -> dict[str, float]:
     cpu_per_frame = (cpu() - cpu0) / max(1, len(log.unique_frames))
     verdict_s = float("nan")
     if log.metadata.collision_frame >= 0:
-        started = time.perf_counter()
         now = stream.messages[-1].arrival_s + 0.001
-        core.set_collision(log.metadata.collision_frame, now)
-        aggregator.set_collision(log.metadata.collision_frame, now)
-        outcome = None
-        while outcome is None and time.perf_counter() - started < 60:
-            feed.poll(now)
-            for result in core.poll(now):
-                aggregator.add_result(result, now)
-            outcome = aggregator.poll(now)
-            now += 0.001
-        verdict_s = time.perf_counter() - started
+        verdict_s = time_to_verdict(core, feed, aggregator, log.metadata.collision_frame, now)
     times = np.array(frame_s) * 1000
     return {
         "p50_ms": float(np.percentile(times, 50)) if times.size else float("nan"),
@@ -112,18 +120,8 @@ def long_run(frames: int, actors: int) -> tuple[int, float, float]:
     current, _peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
     now = messages[-1].arrival_s + 0.001
-    started = time.perf_counter()
-    last = log.frames[-1] // log.tpf
-    core.set_collision(last, now)
-    aggregator.set_collision(last, now)
-    outcome = None
-    while outcome is None and time.perf_counter() - started < 120:
-        feed.poll(now)
-        for result in core.poll(now):
-            aggregator.add_result(result, now)
-        outcome = aggregator.poll(now)
-        now += 0.001
-    return core.held_records(), current / 1e6, (time.perf_counter() - started) * 1000
+    verdict_s = time_to_verdict(core, feed, aggregator, log.frames[-1] // log.tpf, now)
+    return core.held_records(), current / 1e6, verdict_s * 1000
 
 
 def main() -> None:

@@ -8,15 +8,20 @@ import math
 import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from functools import cache
 from pathlib import Path
 from typing import Any
 
 from golden_outputs import first_difference as _first_difference
 
 from ads_rca.contract.jsontext import dumps_json, loads_json
+from ads_rca.engine import Diagnosis, diagnose
 from ads_rca.live.results import LiveResult, plain
+from ads_rca.model import RunLog
+from ads_rca.params import make_params
 from ads_rca.ros.graph import AGGREGATOR, GROUP, MONITOR
 from ads_rca.ros.launcher import Launcher, ParamValue, ros_args
+from ads_rca.synth import synthesise
 
 PUBLISHER = Path(__file__).resolve().parent / "stack_publisher.py"
 PROBE = Path(__file__).resolve().parent / "diag_probe.py"
@@ -126,6 +131,18 @@ def _map(value: Any, leaf: Any) -> Any:
     if isinstance(value, list):
         return [_map(v, leaf) for v in value]
     return leaf(value)
+
+
+@cache
+def crash(scenario: str, fault: str) -> RunLog:
+    """A synthesised crash of the grid (seed 1), built once per test process."""
+    return synthesise(scenario, fault, 1)
+
+
+@cache
+def offline(scenario: str, fault: str, mode: str) -> Diagnosis:
+    """``diagnose`` of :func:`crash` in ``mode``, once."""
+    return diagnose(crash(scenario, fault), make_params(mode))
 
 
 def latest_results(results: list[LiveResult]) -> dict[tuple[str, int], LiveResult]:

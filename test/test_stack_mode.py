@@ -8,21 +8,18 @@ no metadata, the collision announced after its frame). Over DDS: test_stack_grap
 
 from __future__ import annotations
 
-from functools import cache
 from typing import Any
 
 import pytest
 from golden_outputs import first_difference
-from stackgraph import metrics_difference, same_verdict
+from stackgraph import crash, metrics_difference, offline, same_verdict
 
-from ads_rca.engine import Diagnosis, diagnose
 from ads_rca.errors import ConfigError
 from ads_rca.live.simulate import LiveRun, run_stack, stack_stream
 from ads_rca.live.stack_config import STACK_PARAMETERS, StackConfig
 from ads_rca.live.window import WindowSettings
 from ads_rca.model import RunLog
 from ads_rca.params import make_params
-from ads_rca.synth import synthesise
 
 CRASHES = [
     (scenario, fault)
@@ -37,16 +34,6 @@ def config(**values: Any) -> StackConfig:
     defaults = {name: entry[0] for name, entry in STACK_PARAMETERS.items()}
     facts = {"timesteps_per_frame": 50, "camera_loc.x": 1.3, "camera_loc.z": 1.8}
     return StackConfig.from_values({**defaults, **facts, **values}, input_timeout_s=1.0)
-
-
-@cache
-def crash(scenario: str, fault: str) -> RunLog:
-    return synthesise(scenario, fault, 1)
-
-
-@cache
-def offline(scenario: str, fault: str, mode: str) -> Diagnosis:
-    return diagnose(crash(scenario, fault), make_params(mode))
 
 
 def live(log: RunLog, mode: str, history: int = 400, **stream: Any) -> LiveRun:

@@ -16,6 +16,7 @@ from functools import cache
 from typing import Any
 
 import pytest
+from stackgraph import crash, offline
 
 from ads_rca.contract import stack_inputs
 from ads_rca.engine import Diagnosis, diagnose
@@ -26,7 +27,7 @@ from ads_rca.live.window import WindowSettings
 from ads_rca.model import FOLDERS, RunLog
 from ads_rca.oracles.base import MODULES, Module
 from ads_rca.params import make_params
-from ads_rca.synth import FAULTS, SCENARIOS, synthesise
+from ads_rca.synth import FAULTS, SCENARIOS
 from ads_rca.verdict import OracleResult
 
 #: Every crash of the grid: 4 crash scenarios x 4 faults, seed 1.
@@ -45,16 +46,6 @@ VERDICT = (*ATTRIBUTION, "modules", "evidence")
 TIMEOUT_S = 1.0
 #: Judged frames kept for a re-evaluation: more than any crash of the grid has.
 WHOLE_HISTORY = WindowSettings(input_timeout_s=TIMEOUT_S, history_frames=400)
-
-
-@cache
-def crash(scenario: str, fault: str) -> RunLog:
-    return synthesise(scenario, fault, 1)
-
-
-@cache
-def offline(scenario: str, fault: str, mode: str) -> Diagnosis:
-    return diagnose(crash(scenario, fault), make_params(mode))
 
 
 @cache

@@ -134,7 +134,7 @@ def test_installed_stack_mode_with_the_stack_file_gives_the_verdict(
         env,
         tmp_path,
         "lead_braking:planning:1",
-        {"semantics": "corrected"},
+        {"semantics": "corrected", "input_timeout_s": 30.0},  # no loss: never waited on
         ["--namespace", "/ads_rca", "--seed", "2"],  # the stack file's topics
         params_file=stack_file,
         executables={

@@ -160,3 +160,28 @@ def test_bad_stack_parameters_are_one_line_naming_the_parameter(
     with pytest.raises(ConfigError) as error:
         config(**values)
     assert message in str(error.value) and "\n" not in str(error.value)
+
+
+def test_collisions_detected_on_a_stacks_topics_are_the_logged_ones() -> None:
+    """``detect_collisions``: the aggregator's feed of ego pose and actors, framed by their
+    stamps, finds each crash at its logged frame; a garbage message is skipped and said."""
+    from ads_rca.live.collision_feed import CollisionFeed, collision_document
+
+    for scenario, fault in CRASHES[::4]:
+        log = crash(scenario, fault)
+        said: list[tuple[str, str]] = []
+
+        def say(folder: str, error: str, said: list[tuple[str, str]] = said) -> None:
+            said.append((folder, error))
+
+        feed = CollisionFeed(config(), say)
+        feed.add("actors", b"\x00garbage", 0.0)
+        found = []
+        for message in stack_stream(log, seed=2).messages:
+            if message.folder in feed.decoders:
+                found += feed.add(message.folder, message.payload, message.arrival_s)
+        found += feed.poll(1e9)
+        document = collision_document(found[0])
+        assert document["frame"] == log.metadata.collision_frame, (scenario, fault)
+        assert document["derived"] is True
+        assert [folder for folder, _ in said] == ["actors"]

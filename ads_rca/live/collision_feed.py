@@ -17,7 +17,8 @@ from ads_rca.contract.stack_layouts import Decoder
 from ads_rca.errors import ConfigError
 from ads_rca.live.collision_detect import Collision, CollisionDetector
 from ads_rca.live.stack_config import StackConfig, period_to_tpf
-from ads_rca.live.stamp_sync import StampSync, SyncedFrame, SyncSettings
+from ads_rca.live.stack_feed import SkipReport
+from ads_rca.live.stamp_sync import StampSync, SyncedFrame
 from ads_rca.model import Actors, EgoPose
 
 _INPUTS = ("pose", "actors")
@@ -26,7 +27,7 @@ _INPUTS = ("pose", "actors")
 class CollisionFeed:
     """Feed the ego pose and actor messages; collisions come out as frames are released."""
 
-    def __init__(self, config: StackConfig) -> None:
+    def __init__(self, config: StackConfig, skipped: SkipReport) -> None:
         missing = [f for f in _INPUTS if f not in config.inputs]
         if missing:
             raise ConfigError(
@@ -34,19 +35,10 @@ class CollisionFeed:
                 + ", ".join(missing)
             )
         self.config = config
-        self.sync: StampSync[Any] = StampSync(
-            SyncSettings(
-                inputs=("actors",),
-                reference="pose",
-                period_ms=float(config.timesteps_per_frame) or None,
-                sync_slop_ms=config.sync_slop_ms or None,
-                input_timeout_s=config.input_timeout_s,
-                max_pending_frames=config.max_pending_frames,
-            )
-        )
+        self.sync: StampSync[Any] = StampSync(config.sync_settings(_INPUTS, reference="pose"))
         self.decoders = {f: Decoder(f, config.inputs[f].layout.name) for f in _INPUTS}
         self.detector: CollisionDetector | None = None
-        self.skipped: list[str] = []  # one line per unreadable message (bounded)
+        self.skipped = skipped  # (folder, error text) of a message that cannot be read
 
     @property
     def topics(self) -> dict[str, str]:
@@ -58,7 +50,7 @@ class CollisionFeed:
         except NoStamp:
             return []
         except MalformedMessage as error:
-            self._skip(folder, error)
+            self.skipped(folder, str(error))
             return []
         return self._detect(self.sync.add(folder, stamp, payload, now))
 
@@ -79,7 +71,7 @@ class CollisionFeed:
                 try:
                     records[folder] = self.decoders[folder].record(payload, self.detector.tpf_ms)
                 except MalformedMessage as error:
-                    self._skip(folder, error)
+                    self.skipped(folder, str(error))
             pose, actors = records.get("pose"), records.get("actors")
             found += self.detector.update(
                 frame.stamp_ms,
@@ -87,10 +79,6 @@ class CollisionFeed:
                 actors if isinstance(actors, Actors) else None,
             )
         return found
-
-    def _skip(self, folder: str, error: Exception) -> None:
-        self.skipped.append(f"{self.config.inputs[folder].topic}: {error}")
-        del self.skipped[:-100]
 
 
 def collision_document(collision: Collision) -> dict[str, Any]:

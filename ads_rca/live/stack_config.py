@@ -164,13 +164,15 @@ class StackConfig:
             not_provided=tuple(absent),
         )
 
-    def sync_settings(self, folders: Iterable[str]) -> SyncSettings:
+    def sync_settings(self, folders: Iterable[str], reference: str = "") -> SyncSettings:
         """Stamp synchronisation over the provided inputs among ``folders`` (the ones the
-        judged modules read), keyed by folder."""
+        judged modules read), keyed by folder; frames from ``reference`` ('' = the
+        ``reference_input``)."""
+        reference = reference or self.reference
         wanted = [f for f in INPUT_FOLDERS if f in set(folders) and f in self.inputs]
         return SyncSettings(
-            inputs=tuple(f for f in wanted if f != self.reference),
-            reference=self.reference,
+            inputs=tuple(f for f in wanted if f != reference),
+            reference=reference,
             period_ms=float(self.timesteps_per_frame) or None,
             sync_slop_ms=self.sync_slop_ms or None,
             input_timeout_s=self.input_timeout_s,

@@ -231,7 +231,11 @@ class Aggregator(Node):
     def _subscribe_detection(self) -> None:
         from ads_rca.ros.stack_subscriber import message_class, stack_qos
 
-        feed = self.detection = CollisionFeed(self.stack_config)
+        def skip(folder: str, error: str) -> None:
+            topic = self.stack_config.inputs[folder].topic
+            self._skip(topic, f"collision detection: {error}", time.monotonic())
+
+        feed = self.detection = CollisionFeed(self.stack_config, skip)
         for folder, topic in feed.topics.items():
             layout = self.stack_config.inputs[folder].layout
 

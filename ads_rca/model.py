@@ -210,6 +210,41 @@ class Plan:
 Record = EgoPose | Actors | Boxes | Predictions | Plan
 
 
+@dataclass(frozen=True, eq=False)
+class Objects3D:
+    """One frame of 3-D objects a stack perceived (detections or tracks), in the log's world
+    frame like :class:`Actors` (CARLA: left-handed, metres, degrees).
+
+    Real stacks detect in 3-D, not as image boxes; recordings of them (issue #16) carry these
+    instead of ``bboxes/``. ``extent`` holds HALF sizes; ``velocity`` is world m/s (NaN where
+    the message gives none); ``score`` is the existence probability or confidence (NaN where
+    none); ``labels`` the class names as text (never trusted for output without escaping).
+    Detections without ids of their own get ``d<row>``.
+    """
+
+    ids: tuple[str, ...]
+    location: FloatArray  # (N, 3)
+    yaw: FloatArray  # (N,) degrees
+    extent: FloatArray  # (N, 3) half sizes
+    velocity: FloatArray  # (N, 3)
+    score: FloatArray  # (N,)
+    labels: tuple[str, ...]
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+
+@dataclass(frozen=True, slots=True)
+class ControlCommand:
+    """One control command of the stack (NaN where the message gives none): steering tire
+    angle in degrees (CARLA sign: positive turns right), longitudinal acceleration m/s²,
+    target speed m/s."""
+
+    steer: float
+    acceleration: float
+    speed: float
+
+
 class LogExtras(TypedDict, total=False):
     """The fields of a :class:`RunLog` besides metadata, frames and the per-folder dicts."""
 
@@ -217,6 +252,26 @@ class LogExtras(TypedDict, total=False):
     source: str
     files: dict[str, dict[int, str]]
     first_extents: dict[str, FloatArray]
+    detections_3d: dict[int, Objects3D]
+    tracks_3d: dict[int, Objects3D]
+    controls: dict[int, ControlCommand]
+    inputs: dict[str, InputStatus]
+
+
+#: How a model input is present in a run: ``real`` (read from the source as is), ``derived``
+#: (computed from other data: a speed from poses), ``assumed`` (a default stood in) or
+#: ``absent``.
+INPUT_STATES = ("real", "derived", "assumed", "absent")
+
+
+@dataclass(frozen=True, slots=True)
+class InputStatus:
+    """One model input's presence in a run: its state, where it came from (a topic and type,
+    a file) and, unless real, why."""
+
+    state: str
+    source: str = ""
+    reason: str = ""
 
 
 @dataclass(eq=False)
@@ -244,6 +299,15 @@ class RunLog:
     #: Half extents at first appearance seen BEFORE the frames held here (a live monitor's
     #: bounded window of a longer run); they win over the extents in ``actors``.
     first_extents: dict[str, FloatArray] = field(default_factory=dict)
+    #: 3-D perception (recordings of real stacks; empty for running logs): detections and
+    #: tracked objects per timestamp.
+    detections_3d: dict[int, Objects3D] = field(default_factory=dict)
+    tracks_3d: dict[int, Objects3D] = field(default_factory=dict)
+    #: The stack's control commands per timestamp (recordings of real stacks).
+    controls: dict[int, ControlCommand] = field(default_factory=dict)
+    #: Where each model input came from and how (``ads_rca.capabilities``); empty means a
+    #: running log, whose folders are all real.
+    inputs: dict[str, InputStatus] = field(default_factory=dict)
 
     @classmethod
     def from_folders(

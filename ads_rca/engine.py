@@ -85,6 +85,7 @@ class Diagnosis:
             "window_frames": self.window_frames,
             "effect_window": self.semantics.effect_window(self.params, self.log.tpf),
             "ego_id": self.ctx.ego_id,
+            "modules_judged": self.semantics.judged(self.log),
             "partner_id": a.partner_id,
             "modules": {
                 m: {
@@ -139,7 +140,7 @@ def diagnose(
     """
     semantics = semantics_for(params)
     ctx = RunContext.create(log, params)
-    oracles = semantics.oracles
+    oracles = semantics.judging_oracles(log)
     timestamps = semantics.analysed_frames(log)
     if workers > 1 and len(timestamps) >= PARALLEL_MIN_FRAMES and _can_fork():
         frames = _judge_in_workers(ctx, oracles, timestamps, workers, progress)

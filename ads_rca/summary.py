@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from ads_rca.capabilities import JUDGED
 from ads_rca.oracles.base import MODULES
 from ads_rca.oracles.semantics import MODES, Semantics, semantics_for
 from ads_rca.problems import Problem, ProblemLog
@@ -34,14 +35,21 @@ def summary_text(document: dict[str, Any], max_problems: int = 10, how: str = "j
     lines.append(window_text(document.get("effect_window")))
     (counted, other), legend = count_columns(document.get("semantics"))
     lines.append(f"{'module':<12}{counted:>10}{other:>7}  first failure")
+    judged = document.get("modules_judged") or {}
     for module in MODULES:
         counts = document["modules"][module]
         first = counts.get("first_failure_frame")
         shown = "-" if first is None else f"frame {first}"
+        status = judged.get(module, JUDGED)
+        if status != JUDGED:
+            shown = str(status)
         lines.append(f"{module:<12}{counts['collision']:>10}{counts['safe']:>7}  {shown}")
     if legend:
         lines.append(legend)
     lines.append(f"verdict: {document.get('verdict')}  [{document.get('attribution_basis')}]")
+    unjudged = [f"{m} {judged[m]}" for m in MODULES if judged.get(m, JUDGED) != JUDGED]
+    if unjudged:
+        lines.append("  only the judged modules could be blamed; " + "; ".join(unjudged))
     evidence = document.get("evidence") or {}
     lines.extend(
         f"  {module}: " + ", ".join(_flat(evidence[module])[:10])

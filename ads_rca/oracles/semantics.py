@@ -17,6 +17,7 @@ from __future__ import annotations
 import importlib
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 from typing import TYPE_CHECKING, Any
 
 from ads_rca.model import FOLDERS, Record, RunLog
@@ -101,6 +102,31 @@ class Semantics:
     #: Per module, what makes a frame fail, in a few words: the mode comparison quotes it
     #: when this mode finds no failure where another does.
     rules: Mapping[Module, str] = {}
+    #: Per module, the model inputs its rule reads (``ads_rca.capabilities.MODEL_INPUTS``),
+    #: as alternatives: any one set present lets the module be judged.
+    requires: Mapping[Module, tuple[tuple[str, ...], ...]] = {}
+
+    def judged(self, log: RunLog) -> dict[Module, str]:
+        """Per module: ``judged``, or ``not judged (no <input>)`` for this run's inputs."""
+        from ads_rca.capabilities import input_status, judged_modules
+
+        return judged_modules(self.requires, input_status(log))
+
+    def judging_oracles(self, log: RunLog) -> Mapping[Module, Oracle]:
+        """The oracles to run on ``log``: for a recording that lacks a module's inputs, an
+        oracle that says "not judged" at every frame instead of reporting each frame's
+        missing input (a running log's folders run every oracle, as the reference does)."""
+        from ads_rca.capabilities import JUDGED, recorded
+
+        if not recorded(log):
+            return self.oracles
+        verdicts = self.judged(log)
+        return {
+            module: oracle
+            if verdicts.get(module, JUDGED) == JUDGED
+            else partial(not_judged, module, verdicts[module])
+            for module, oracle in self.oracles.items()
+        }
 
     def attribute(self, frames: Sequence[FrameResults], ctx: RunContext) -> Attribution:
         """The verdict from the analysed frames' oracle results."""
@@ -213,6 +239,12 @@ class Semantics:
             (self.lookahead_frames(m, params, records, stamp_ms, cap) for m in modules),
             default=0,
         )
+
+
+def not_judged(module: Module, why: str, _ctx: RunContext, ts: int) -> OracleResult:
+    """The result of a module the run's inputs do not let be judged (see
+    :meth:`Semantics.judging_oracles`)."""
+    return OracleResult(module, ts, failed=False, skipped=why)
 
 
 def semantics_for(mode: str | Params) -> Semantics:

@@ -66,6 +66,20 @@ class CorrectedSemantics(Semantics):
         "heading_min_step",
     )
     reported = REPORTED
+    requires: Mapping[Module, tuple[tuple[str, ...], ...]] = {
+        "perception": (
+            ("actors", "ego", "detections_2d", "ground_truth_2d"),
+            ("actors", "ego", "tracked_objects"),
+            ("actors", "ego", "detections_3d"),
+        ),
+        "prediction": (
+            ("actors", "ego", "predictions_gt"),
+            ("actors", "ego", "predictions", "tracked_objects"),
+            ("actors", "ego", "predictions", "detections_3d"),
+        ),
+        "planning": (("actors", "ego", "plan", "predictions"),),
+        "controller": (("actors", "ego", "plan"),),
+    }
     rules: Mapping[Module, str] = {
         "perception": "the partner unmatched in a real conflict while the planner's view of "
         "it is degraded",

@@ -53,6 +53,12 @@ class ReferenceSemantics(Semantics):
     )
     reported = REPORTED
     window_counts = "frames after collision_frame - {w}, with no upper bound"
+    requires: Mapping[Module, tuple[tuple[str, ...], ...]] = {
+        "perception": (("detections_2d", "ground_truth_2d"),),
+        "prediction": (("ego", "actors", "predictions_gt"),),
+        "planning": (("ego", "plan", "predictions", "predictions_gt"),),
+        "controller": (("ego", "plan"),),
+    }
     rules: Mapping[Module, str] = {
         "perception": "mean IoU of the matched detections below perc_score_threshold; missed "
         "objects never count",

@@ -12,10 +12,16 @@ import argparse
 import sys
 from pathlib import Path
 
-from ads_rca.commands.input_args import add_reader_arguments, max_file_mb_from_args
+from ads_rca.commands.input_args import (
+    add_bag_arguments,
+    add_reader_arguments,
+    bag_options_from_args,
+    max_file_mb_from_args,
+)
 from ads_rca.commands.outputs import check_output_dir
 from ads_rca.contract import topics
 from ads_rca.errors import InputError
+from ads_rca.io import open_run
 from ads_rca.io.bag_reader import is_bag, read_bag
 from ads_rca.io.bag_writer import STORAGES, McapOptions, write_bag
 from ads_rca.io.json_log import read_run_log
@@ -43,8 +49,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help="topic namespace (bag: written / read; default: "
         f"{topics.DEFAULT_NAMESPACE} when writing, detected when reading)",
     )
-    parser.add_argument("--remap", help="topic remapping YAML for a stack's bag (reading)")
     add_reader_arguments(parser)
+    add_bag_arguments(parser)
     parser.set_defaults(run=run)
 
 
@@ -54,8 +60,12 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"{source}: no such log folder or bag")
     check_output_dir(out, "OUT")
     max_file_mb = max_file_mb_from_args(args)
-    if is_bag(source) or args.remap:
-        log = read_bag(source, remap=args.remap, namespace=args.namespace)
+    bag = bag_options_from_args(args)
+    if is_bag(source) or bag.remap:
+        if bag.contract:
+            log = read_bag(source, remap=bag.remap, namespace=args.namespace)
+        else:
+            log = open_run(source, bag=bag)
         write_run_log(log, out)
         print(printable(f"{source} → {out}: log folder, {len(log.frames)} analysed frames"))
         if log.problems:  # a cut or damaged bag must not become a clean-looking folder

@@ -11,7 +11,9 @@ from typing import Any
 
 from ads_rca.commands.input_args import (
     READER_PARAMS,
+    add_bag_arguments,
     add_reader_arguments,
+    bag_options_from_args,
     max_file_mb_from_args,
 )
 from ads_rca.commands.outputs import check_output_file
@@ -108,6 +110,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     parser.add_argument("path", help="log folder or bag")
     add_engine_arguments(parser, both=True)
     add_reader_arguments(parser)
+    add_bag_arguments(parser)
     parser.add_argument("--json", dest="json_out", help="write the verdict JSON here")
     parser.add_argument("--report", help="write a self-contained HTML report here")
     parser.add_argument(
@@ -130,11 +133,12 @@ def run(args: argparse.Namespace) -> int:
         )
     all_params = [params_from_args(args, mode) for mode in (SEMANTICS if both else (None,))]
     max_file_mb = max_file_mb_from_args(args)
+    bag = bag_options_from_args(args)
     if args.json_out:
         check_output_file(args.json_out, "--json")
     if args.report:
         check_output_file(args.report, "--report")
-    log = open_run(args.path, max_file_mb=max_file_mb, progress=terminal_bar("loading"))
+    log = open_run(args.path, max_file_mb=max_file_mb, progress=terminal_bar("loading"), bag=bag)
     documents: list[dict[str, Any]] = []
     for params in all_params:
         if not semantics_for(params).analysed_frames(log):

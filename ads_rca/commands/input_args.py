@@ -8,11 +8,15 @@ The reader's settings are not engine thresholds, but keep one name everywhere: t
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 from typing import Any
 
+from ads_rca.errors import InputError
+from ads_rca.io.bag_options import BagOptions
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB
 from ads_rca.params import load_config, parse_assignments
 from ads_rca.paramspec import MAX_FILE_MB, check_number
+from ads_rca.profiles import BUILTIN_PROFILES, DEFAULT_PROFILE
 
 #: The reader's parameter names (popped from ``-p`` / config before the engine sees them).
 READER_PARAMS = ("max_file_mb",)
@@ -38,3 +42,46 @@ def max_file_mb_from_args(args: argparse.Namespace) -> float:
     config: dict[str, Any] = load_config(config_path) if config_path else {}
     value = overrides.get("max_file_mb", config.get("max_file_mb", DEFAULT_MAX_FILE_MB))
     return float(check_number("max_file_mb", value, MAX_FILE_MB))
+
+
+def add_bag_arguments(
+    parser: argparse.ArgumentParser,
+    remap_flags: tuple[str, ...] = ("--remap",),
+    remap_dest: str = "remap",
+) -> None:
+    """--profile, --remap and --msg-path: shared by every command that reads a bag."""
+    parser.add_argument(
+        "--profile",
+        default=DEFAULT_PROFILE,
+        metavar="NAME|FILE",
+        help=f"which topics and types carry the model's inputs: a built-in profile "
+        f"({', '.join(BUILTIN_PROFILES)}) or a profile YAML (default {DEFAULT_PROFILE}: "
+        "this project's own topics)",
+    )
+    parser.add_argument(
+        *remap_flags,
+        dest=remap_dest,
+        metavar="YAML",
+        help="topic remapping YAML (profile ads_rca): their topic name -> contract topic key",
+    )
+    parser.add_argument(
+        "--msg-path",
+        action="append",
+        default=[],
+        metavar="DIR",
+        help="directory of .msg files (DIR/<package>/msg/<Type>.msg) for message types the "
+        "bag carries no definition of (repeatable)",
+    )
+
+
+def bag_options_from_args(args: argparse.Namespace) -> BagOptions:
+    """The bag options given on the command line, each checked before any work."""
+    remap = getattr(args, "remap", None) or getattr(args, "bag_remap", None)
+    if remap and not Path(remap).is_file():
+        raise InputError(f"--remap {remap}: no such file")
+    msg_path = tuple(getattr(args, "msg_path", None) or ())
+    for directory in msg_path:
+        if not Path(directory).is_dir():
+            raise InputError(f"--msg-path {directory}: no such directory")
+    profile = str(getattr(args, "profile", None) or DEFAULT_PROFILE)
+    return BagOptions(profile, remap or None, msg_path)

@@ -1,34 +1,51 @@
-"""``ads-rca inspect PATH``: what a log holds, and every problem found while reading it."""
+"""``ads-rca inspect PATH``: what a log or bag holds, which model inputs it gives, which
+modules each semantics mode can therefore judge, and every problem found while reading it."""
 
 from __future__ import annotations
 
 import argparse
+from collections import Counter
+from pathlib import Path
 from typing import Any
 
-from ads_rca.commands.input_args import add_reader_arguments, max_file_mb_from_args
+from ads_rca.capabilities import input_status, statuses_to_document
+from ads_rca.commands.input_args import (
+    add_bag_arguments,
+    add_reader_arguments,
+    bag_options_from_args,
+    max_file_mb_from_args,
+)
 from ads_rca.commands.progress_bar import terminal_bar
 from ads_rca.io import open_run
+from ads_rca.io.bag_options import BagOptions
+from ads_rca.io.bag_reader import BagContents, is_bag, load_bag, read_bag
 from ads_rca.model import FOLDERS, RunLog
+from ads_rca.oracles.semantics import MODES, semantics_for
 from ads_rca.strictjson import dumps
 from ads_rca.text import printable
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     parser = subparsers.add_parser(
-        "inspect", help="summarise a run log and list the problems found in it"
+        "inspect",
+        help="summarise a run log or bag: topics, model inputs found and missing, which "
+        "modules can be judged, and the problems found in it",
     )
     parser.add_argument("path", help="log folder or bag")
     parser.add_argument("--json", action="store_true", help="print the summary as JSON")
     add_reader_arguments(parser)
+    add_bag_arguments(parser)
     parser.add_argument(
         "--max-problems", type=int, default=20, help="problem lines to print (default 20)"
     )
     parser.set_defaults(run=run)
 
 
-def summary(log: RunLog) -> dict[str, Any]:
+def summary(log: RunLog, contents: BagContents | None = None) -> dict[str, Any]:
+    """What ``inspect --json`` prints (``contents``: the bag's topics, when a bag)."""
     meta = log.metadata
-    return {
+    statuses = input_status(log)
+    out: dict[str, Any] = {
         "source": log.source,
         "timesteps_per_frame": meta.timesteps_per_frame,
         "collision_frame": meta.collision_frame,
@@ -37,27 +54,81 @@ def summary(log: RunLog) -> dict[str, Any]:
         "unique_frames": len(log.unique_frames),
         "files": {folder: len(log.folder(folder)) for folder in FOLDERS},
         "actors": len({a for frame in log.actors.values() for a in frame.ids}),
+        "inputs": statuses_to_document(statuses),
+        "modules_judged": {mode: semantics_for(mode).judged(log) for mode in MODES},
         "problems": [p.to_dict() for p in log.problems],
     }
+    if contents is not None:
+        counts = Counter(m.topic for m in contents.messages)
+        out["topics"] = [
+            {"name": name, "type": msg_type, "count": counts[name]}
+            for name, msg_type in sorted(contents.topics.items())
+        ]
+    return out
 
 
-def run(args: argparse.Namespace) -> int:
-    log = open_run(
-        args.path, max_file_mb=max_file_mb_from_args(args), progress=terminal_bar("loading")
-    )
-    if args.json:
-        print(dumps(summary(log), indent=2))  # strict JSON: NaN/inf as null + "$nonfinite"
-        return 0
-    info = summary(log)
+def _load(path: str, args: argparse.Namespace) -> tuple[RunLog, BagContents | None]:
+    bag = bag_options_from_args(args)
+    progress = terminal_bar("loading")
+    if not is_bag(path):
+        return open_run(
+            path, max_file_mb=max_file_mb_from_args(args), progress=progress, bag=bag
+        ), None
+    contents = load_bag(path)
+    if bag.contract:
+        return read_bag(path, remap=bag.remap, progress=progress, contents=contents), contents
+    if bag.remap is not None:
+        open_run(path, bag=bag)  # refuses --remap with another profile, in its words
+    from ads_rca.profiles.recording import read_recording
+
+    log = read_recording(path, bag.profile, bag.msg_path, progress, contents=contents)
+    return log, contents
+
+
+def text_lines(info: dict[str, Any]) -> list[str]:
+    """The human summary: one item per line (every line is escaped by the caller)."""
     lines = [
         f"{info['source']}: {info['analysed_frames']} analysed frames "
         f"({info['unique_frames']} timestamps) at {info['timesteps_per_frame']} ms, "
         f"{info['actors']} actors, collision frame {info['collision_frame']}, "
         f"total_frames {info['total_frames']}",
-        "files: " + ", ".join(f"{k} {v}" for k, v in info["files"].items()),
+    ]
+    if "topics" in info:
+        lines.append(f"topics: {len(info['topics'])}")
+        lines.extend(f"  {t['name']}  {t['type']}  {t['count']}" for t in info["topics"])
+    else:
+        lines.append("files: " + ", ".join(f"{k} {v}" for k, v in info["files"].items()))
+    found = [n for n, s in info["inputs"].items() if s["state"] != "absent"]
+    missing = [n for n, s in info["inputs"].items() if s["state"] == "absent"]
+    lines.append("inputs found: " + (", ".join(found) or "none"))
+    for name in found:
+        status = info["inputs"][name]
+        detail = ", ".join(x for x in (status["source"], status["reason"]) if x)
+        if status["state"] != "real" or detail:
+            lines.append(f"  {name}: {status['state']}" + (f" ({detail})" if detail else ""))
+    lines.append("inputs missing: " + (", ".join(missing) or "none"))
+    for name in missing:
+        reason = info["inputs"][name]["reason"]
+        if reason:
+            lines.append(f"  {name}: {reason}")
+    for mode, judged in info["modules_judged"].items():
+        lines.append(f"{mode}: " + "; ".join(f"{m} {v}" for m, v in judged.items()))
+    return lines
+
+
+def run(args: argparse.Namespace) -> int:
+    if not Path(args.path).exists():
+        open_run(args.path, bag=BagOptions())  # the one-line "no such log folder or bag"
+    log, contents = _load(args.path, args)
+    info = summary(log, contents)
+    if args.json:
+        print(dumps(info, indent=2))  # strict JSON: NaN/inf as null + "$nonfinite"
+        return 0
+    lines = [
+        *text_lines(info),
         f"problems: {len(log.problems)}",
         *(f"  {line}" for line in log.problems.summary_lines(args.max_problems)),
     ]
-    for line in lines:  # the source and problems come from the log: one line each, escaped
+    for line in lines:  # names, sources and problems come from the log: one line each, escaped
         print(printable(line))
     return 0

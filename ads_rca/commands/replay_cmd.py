@@ -24,7 +24,12 @@ from types import FrameType
 from typing import TYPE_CHECKING, Any
 
 from ads_rca.commands.diagnose_cmd import add_engine_arguments, params_from_args, write_json
-from ads_rca.commands.input_args import add_reader_arguments, max_file_mb_from_args
+from ads_rca.commands.input_args import (
+    add_bag_arguments,
+    add_reader_arguments,
+    bag_options_from_args,
+    max_file_mb_from_args,
+)
 from ads_rca.commands.outputs import check_output_dir, check_output_file
 from ads_rca.commands.playback_args import (
     add_playback_arguments,
@@ -34,6 +39,7 @@ from ads_rca.commands.playback_args import (
 )
 from ads_rca.errors import AdsRcaError, InputError
 from ads_rca.params import Params
+from ads_rca.profiles import BUILTIN_PROFILES
 from ads_rca.ros.env import discovery_note, ros_environment
 from ads_rca.ros.graph import LAUNCH_ARGUMENTS, exit_status
 from ads_rca.ros.launcher import ParamValue
@@ -51,15 +57,13 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     )
     parser.add_argument("path", help="log folder or bag")
     parser.add_argument(
-        "--bag-remap", metavar="YAML", help=LAUNCH_ARGUMENTS["bag_remap"].description
-    )
-    parser.add_argument(
         "--namespace",
         default=LAUNCH_ARGUMENTS["namespace"].default,
         help=LAUNCH_ARGUMENTS["namespace"].description,
     )
     add_engine_arguments(parser)
     add_reader_arguments(parser)
+    add_bag_arguments(parser, remap_flags=("--bag-remap", "--remap"), remap_dest="bag_remap")
     add_playback_arguments(parser)
     parser.add_argument("--record", metavar="OUT", help="record every topic to this MCAP bag")
     parser.add_argument("--json", dest="json_out", help="write the verdict JSON here")
@@ -73,6 +77,12 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     parser.set_defaults(run=run)
 
 
+def _resolved_profile(profile: str) -> str:
+    """A built-in profile's name as given; a profile file's absolute path (the player runs
+    in another working directory)."""
+    return profile if profile in BUILTIN_PROFILES else str(Path(profile).resolve())
+
+
 def run(args: argparse.Namespace) -> int:
     from ads_rca.ros.graph import recorder_available
 
@@ -82,11 +92,12 @@ def run(args: argparse.Namespace) -> int:
     check_playback_arguments(args)
     params = params_from_args(args)
     player_params: dict[str, ParamValue] = {"max_file_mb": float(max_file_mb_from_args(args))}
-    if args.bag_remap:
-        remap = Path(args.bag_remap)
-        if not remap.is_file():
-            raise InputError(f"--bag-remap {remap}: no such file")
-        player_params["bag_remap"] = str(remap.resolve())
+    bag = bag_options_from_args(args)
+    if bag.remap:
+        player_params["bag_remap"] = str(Path(bag.remap).resolve())
+    player_params["profile"] = _resolved_profile(bag.profile)
+    if bag.msg_path:
+        player_params["msg_path"] = os.pathsep.join(str(Path(d).resolve()) for d in bag.msg_path)
     if args.json_out:
         check_output_file(args.json_out, "--json")
     record = Path(args.record) if args.record else None

@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 
 from ads_rca.errors import InputError
+from ads_rca.io.bag_options import BagOptions
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB
 from ads_rca.model import RunLog
 from ads_rca.progress import Progress
@@ -15,15 +16,30 @@ def open_run(
     remap: str | os.PathLike[str] | None = None,
     max_file_mb: float = DEFAULT_MAX_FILE_MB,
     progress: Progress | None = None,
+    bag: BagOptions | None = None,
 ) -> RunLog:
     """Load a run from any supported source: an ADS running-log folder, or a rosbag2 bag
-    (directory, ``.mcap`` or ``.db3``; ``remap`` = topic remapping YAML for a stack's bag).
+    (directory, ``.mcap`` or ``.db3``) read through ``bag``'s profile (default: this
+    project's topics; ``remap`` = topic remapping YAML for them, also ``bag.remap``).
     ``max_file_mb`` caps each file of a log folder (larger ones are reported and skipped);
     ``progress`` sees the files read, or the bag messages decoded."""
     from ads_rca.io.bag_reader import is_bag
 
+    bag = bag or BagOptions()
+    remap = remap if remap is not None else bag.remap
     if not os.path.lexists(path):
         raise InputError(f"{os.fspath(path)}: no such log folder or bag")
+    if not bag.contract:
+        if remap is not None:
+            raise InputError(
+                f"--remap applies to the {BagOptions().profile} profile; profile "
+                f"{bag.profile!r} names its topics itself (copy it and edit the topics)"
+            )
+        if not is_bag(path):
+            raise InputError(f"{os.fspath(path)}: profile {bag.profile!r} reads bags; not a bag")
+        from ads_rca.profiles.recording import read_recording
+
+        return read_recording(path, bag.profile, bag.msg_path, progress)
     if remap is not None or is_bag(path):
         from ads_rca.io.bag_reader import read_bag
 

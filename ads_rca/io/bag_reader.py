@@ -348,16 +348,18 @@ def read_bag(
     remap: Remap | str | os.PathLike[str] | None = None,
     namespace: str | None = None,
     progress: Progress | None = None,
+    contents: BagContents | None = None,
 ) -> RunLog:
     """Rebuild the RunLog a bag carries (see the module docstring for accepted paths);
-    ``progress`` sees each message as it is decoded.
+    ``progress`` sees each message as it is decoded; ``contents``: the bag already read by
+    :func:`load_bag` (``inspect`` lists its topics too).
 
     Every defect of the bag (a cut file, an undecodable message, a metadata.yaml that
     disagrees with the storage) is a Problem in the log; InputError only when nothing
     usable is left (no storage file readable, or no run/metadata)."""
     if remap is not None and not isinstance(remap, Remap):
         remap = load_remap(remap)
-    contents = load_bag(path)
+    contents = contents if contents is not None else load_bag(path)
     problems = list(contents.problems)
     keys = topic_keys(sorted(contents.topics), remap, namespace)
     usable = _usable_topics(keys, contents.topics, problems)

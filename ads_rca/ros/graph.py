@@ -35,6 +35,7 @@ from ads_rca.live.runid import new_run_id
 from ads_rca.oracles.base import MODULES, Module
 from ads_rca.params import SEMANTICS, Params, load_config, params_from_sources
 from ads_rca.paramspec import MAX_FILE_MB, RATE, check_number
+from ads_rca.profiles import BUILTIN_PROFILES
 from ads_rca.ros.launcher import Launcher, ManagedProcess, ParamValue, ros_args
 
 PLAYER = "ads_rca.ros.player"
@@ -163,6 +164,15 @@ LAUNCH_ARGUMENTS: dict[str, LaunchArgument] = {
     "bag_remap": LaunchArgument(
         "", "Topic remapping YAML for a bag whose topic names differ ('' = none).", "bag_remap"
     ),
+    "profile": LaunchArgument(
+        "ads_rca",
+        "Profile of a bag: which topics and types carry the model's inputs (a built-in name "
+        "or a YAML path).",
+        "profile",
+    ),
+    "msg_path": LaunchArgument(
+        "", "Directory of .msg files for types a bag does not define ('' = none).", "msg_path"
+    ),
     "semantics": LaunchArgument(
         "",
         f"Oracle semantics, {' or '.join(SEMANTICS)} ('' = the params file's, else corrected).",
@@ -238,6 +248,11 @@ def spec_from_arguments(values: Mapping[str, str]) -> GraphSpec:
     player: dict[str, ParamValue] = {"max_file_mb": max_file_mb}
     if value("bag_remap"):
         player["bag_remap"] = str(Path(value("bag_remap")).resolve())
+    if value("profile"):
+        profile = value("profile")
+        player["profile"] = profile if profile in BUILTIN_PROFILES else str(Path(profile).resolve())
+    if value("msg_path"):
+        player["msg_path"] = str(Path(value("msg_path")).resolve())
     record, verdict_json = value("record"), value("verdict_json")
     return GraphSpec(
         log_path=Path(log_path).resolve(),

@@ -11,6 +11,7 @@ latched, at start (:mod:`ads_rca.contract.camera`).
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 from pathlib import Path
@@ -41,10 +42,12 @@ from ads_rca.contract.playback import (
     timeline,
 )
 from ads_rca.errors import AdsRcaError, ConfigError
+from ads_rca.io.bag_options import BagOptions
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB
 from ads_rca.live.runid import checked_run_id, new_run_id
 from ads_rca.model import RunLog
 from ads_rca.paramspec import MAX_FILE_MB, RATE, SECONDS, Range
+from ads_rca.profiles import BUILTIN_PROFILES, DEFAULT_PROFILE
 from ads_rca.ros.nodemain import (
     ignore_stop_signals,
     keep_running,
@@ -65,6 +68,16 @@ MAX_FRAME = 2**31 - 1
 PARAMETERS: dict[str, NodeParameter] = {
     "log_path": ("", "Running-log folder or rosbag2 bag (dir, .mcap, .db3) to play (required)."),
     "bag_remap": ("", "Topic remapping YAML for a bag whose topic names differ ('' = none)."),
+    "profile": (
+        DEFAULT_PROFILE,
+        "Which topics and types of a bag carry the model's inputs: a built-in profile "
+        f"({', '.join(BUILTIN_PROFILES)}) or a profile YAML path (docs/recordings.md).",
+    ),
+    "msg_path": (
+        "",
+        "Directories of .msg files for message types a bag does not define, separated by "
+        f"{os.pathsep!r} ('' = none).",
+    ),
     "rate": (
         1.0,
         "Playback speed vs log time; 0 = as fast as subscribers acknowledge.",
@@ -138,7 +151,7 @@ class Player(Node):
         given_run = checked_run_id(str(self._param("run_id")))
         self.run_id = given_run or new_run_id()
         self.max_file_mb = float(self._param("max_file_mb"))
-        self.log = self._load(str(self._param("log_path")), str(self._param("bag_remap")))
+        self.log = self._load(str(self._param("log_path")), self._bag_options())
         self.ticks = select(timeline(self.log), self.start_frame, self.stop_frame)
         if not self.ticks:
             self.get_logger().warning(
@@ -220,16 +233,26 @@ class Player(Node):
     def _param(self, name: str) -> Any:
         return self._values[name]
 
-    def _load(self, log_path: str, remap: str = "") -> RunLog:
+    def _bag_options(self) -> BagOptions:
+        """``profile``, ``bag_remap`` and ``msg_path``, each checked (one line naming it)."""
+        remap = str(self._param("bag_remap"))
+        if remap and not Path(remap).is_file():
+            raise ConfigError(f"parameter bag_remap: {remap}: no such remapping file")
+        dirs = tuple(d for d in str(self._param("msg_path")).split(os.pathsep) if d)
+        for directory in dirs:
+            if not Path(directory).is_dir():
+                raise ConfigError(f"parameter msg_path: {directory}: no such directory")
+        profile = str(self._param("profile")) or DEFAULT_PROFILE
+        return BagOptions(profile, remap or None, dirs)
+
+    def _load(self, log_path: str, bag: BagOptions) -> RunLog:
         from ads_rca.io import open_run
 
         if not log_path:
             raise ConfigError("parameter log_path is required (a running-log folder)")
         if not Path(log_path).exists():
             raise ConfigError(f"{log_path}: no such log folder")
-        if remap and not Path(remap).is_file():
-            raise ConfigError(f"{remap}: no such remapping file")
-        log = open_run(log_path, remap=remap or None, max_file_mb=self.max_file_mb)
+        log = open_run(log_path, max_file_mb=self.max_file_mb, bag=bag)
         for problem in log.problems:
             self.get_logger().warning(str(problem))
         self.get_logger().info(

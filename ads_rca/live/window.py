@@ -41,9 +41,19 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ads_rca.capabilities import METADATA_KEY as INPUTS_KEY
+from ads_rca.capabilities import MODEL_INPUTS, statuses_from_document
 from ads_rca.engine import evaluate_frame
 from ads_rca.live.results import FollowsRunEnd, FrameMarker, LiveResult, RunEnd
-from ads_rca.model import Actors, FloatArray, Record, RunLog, RunMetadata, frame_number
+from ads_rca.model import (
+    Actors,
+    FloatArray,
+    InputStatus,
+    Record,
+    RunLog,
+    RunMetadata,
+    frame_number,
+)
 from ads_rca.oracles.base import MODULES, Module, RunContext
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import Params
@@ -140,6 +150,12 @@ class MonitorCore(FollowsRunEnd):
         """The run's metadata, and the problems the player's reader found (oracles read
         them as ``RunLog.problems``, e.g. reference skips a value read as NaN)."""
         self.input_problems = tuple(input_problems)
+        statuses = statuses_from_document(metadata.raw.get(INPUTS_KEY))
+        if statuses:  # a recording: a module its inputs do not allow is "not judged"
+            chosen = self.semantics.oracles_for_inputs(
+                {name: statuses.get(name, InputStatus("absent")) for name in MODEL_INPUTS}
+            )
+            self.oracles = {m: chosen[m] for m in self.modules}
         changed = self.metadata is None or metadata.collision_frame != self.metadata.collision_frame
         if changed and metadata.collision_frame >= 0:
             self.set_collision(metadata.collision_frame, now)

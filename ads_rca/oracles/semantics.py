@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from functools import partial
 from typing import TYPE_CHECKING, Any
 
-from ads_rca.model import FOLDERS, Record, RunLog
+from ads_rca.model import FOLDERS, InputStatus, Record, RunLog
 from ads_rca.params import Params
 from ads_rca.verdict import Attribution, FrameResults, Module, OracleResult
 
@@ -116,11 +116,20 @@ class Semantics:
         """The oracles to run on ``log``: for a recording that lacks a module's inputs, an
         oracle that says "not judged" at every frame instead of reporting each frame's
         missing input (a running log's folders run every oracle, as the reference does)."""
-        from ads_rca.capabilities import JUDGED, recorded
+        from ads_rca.capabilities import input_status, recorded
 
-        if not recorded(log):
-            return self.oracles
-        verdicts = self.judged(log)
+        return self.oracles_for_inputs(input_status(log) if recorded(log) else None)
+
+    def oracles_for_inputs(
+        self, statuses: Mapping[str, InputStatus] | None
+    ) -> dict[Module, Oracle]:
+        """The oracles given a recording's input statuses (None: a running log, every
+        oracle); the live monitors ask it with the statuses the run metadata carries."""
+        from ads_rca.capabilities import JUDGED, judged_modules
+
+        if statuses is None:
+            return dict(self.oracles)
+        verdicts = judged_modules(self.requires, statuses)
         return {
             module: oracle
             if verdicts.get(module, JUDGED) == JUDGED

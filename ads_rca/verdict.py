@@ -12,9 +12,11 @@ The contract (stable; later tools parse it)::
      "input_problems", ...}
 
 plus, additively, ``contributing``, ``attribution_basis``, ``reason`` (why no fault was
-found), ``evidence`` per blamed module, ``partner_id`` and ``ego_id``. NaN and infinity are
-written as null, each named in the top-level ``"$nonfinite"`` map (JSON Pointer → "nan",
-"inf" or "-inf"; :mod:`ads_rca.strictjson`), so the document is strict JSON.
+found), ``evidence`` per blamed module, ``partner_id``, ``ego_id`` and ``modules_judged``
+(per module ``judged`` or ``not judged (no <input>)``: :mod:`ads_rca.capabilities`).
+NaN and infinity are written as null, each named in the top-level ``"$nonfinite"`` map
+(JSON Pointer → "nan", "inf" or "-inf"; :mod:`ads_rca.strictjson`), so the document is
+strict JSON.
 """
 
 from __future__ import annotations

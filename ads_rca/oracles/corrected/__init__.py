@@ -67,15 +67,16 @@ class CorrectedSemantics(Semantics):
     )
     reported = REPORTED
     requires: Mapping[Module, tuple[tuple[str, ...], ...]] = {
+        # Every rule measures clearances against the ego's plan boxes.
         "perception": (
-            ("actors", "ego", "detections_2d", "ground_truth_2d"),
-            ("actors", "ego", "tracked_objects"),
-            ("actors", "ego", "detections_3d"),
+            ("actors", "ego", "plan", "detections_2d", "ground_truth_2d"),
+            ("actors", "ego", "plan", "tracked_objects"),
+            ("actors", "ego", "plan", "detections_3d"),
         ),
         "prediction": (
-            ("actors", "ego", "predictions_gt"),
-            ("actors", "ego", "predictions", "tracked_objects"),
-            ("actors", "ego", "predictions", "detections_3d"),
+            ("actors", "ego", "plan", "predictions_gt"),
+            ("actors", "ego", "plan", "predictions", "tracked_objects"),
+            ("actors", "ego", "plan", "predictions", "detections_3d"),
         ),
         "planning": (("actors", "ego", "plan", "predictions"),),
         "controller": (("actors", "ego", "plan"),),

@@ -836,3 +836,46 @@ def test_the_contract_profile_is_not_read_here(tmp_path: Path, store: Typestore)
     )
     with pytest.raises(ConfigError, match="read by the contract reader"):
         read_profiled(load_bag(bag), load_profile("ads_rca"), decoder(store), str(bag))
+
+
+def test_a_reference_whose_messages_are_all_unusable_is_refused(
+    tmp_path: Path, store: Typestore
+) -> None:
+    unusable = {"header": header(T0), "objects": [{"id": 1}]}  # a zero quaternion
+    bag = write_bag(
+        tmp_path / "bad_actors",
+        store,
+        [
+            (
+                "/carla/objects",
+                "derived_object_msgs/msg/ObjectArray",
+                T0,
+                build(store, "derived_object_msgs/msg/ObjectArray", unusable),
+            )
+        ],
+    )
+    with pytest.raises(InputError) as caught:
+        read_profiled(load_bag(bag), load_profile("carla-autoware"), decoder(store), str(bag))
+    assert str(caught.value) == (
+        f"{bag}: no usable message on the reference input actors (/carla/objects): none of "
+        "its 1 messages could be used (see the problems)"
+    )
+
+
+def test_a_list_where_a_number_belongs_is_named() -> None:
+    hostile = typestore(
+        {
+            "autoware_perception_msgs/msg/DetectedObject": "float32[] existence_probability\n"
+            "ObjectClassification[] classification\nDetectedObjectKinematics kinematics\n"
+            "Shape shape\n"
+        }
+    )
+    objects = [
+        {**_autoware_object(0, 0, 0), "existence_probability": [0.5]},
+        {**_autoware_object(0, 0, 0), "existence_probability": [0.5, 0.1]},
+    ]
+    msg = _round_trip(hostile, "autoware_perception_msgs/msg/DetectedObjects", {"objects": objects})
+    with pytest.raises(
+        MalformedMessage, match=r"^objects\[0\]\.existence_probability: ndarray .*not a number"
+    ):
+        decoders.decode_detected_objects(msg, "map")

@@ -149,9 +149,12 @@ def column(items: Sequence[Any], where: str, path: str) -> FloatArray:
     except AttributeError:
         row = next(i for i, item in enumerate(items) if not _has(item, path))
         raise MalformedMessage(f"{where}[{row}].{path}: missing") from None
-    array = np.array(values) if values else np.zeros(0)
+    try:
+        array = np.array(values) if values else np.zeros(0)
+    except (ValueError, OverflowError):  # ragged sequences, integers past 64 bits
+        array = np.zeros((0, 0))
     if array.dtype.kind not in "fiu" or array.ndim != 1:
-        row = next((i for i, v in enumerate(values) if isinstance(v, bool) or not _is_number(v)), 0)
+        row = next((i for i, v in enumerate(values) if not _is_number(v)), 0)
         bad = values[row] if values else None
         raise MalformedMessage(
             f"{where}[{row}].{path}: {type(bad).__name__} {bad!r:.40}, not a number"
@@ -240,8 +243,20 @@ def decode_object_array(msg: Any, frame: str) -> Actors:
     objects = sequence(msg, "objects")
     ids = column(objects, "objects", "id")
     xyz, rpy = poses(objects, "objects", "pose", frame)
-    extent = np.array([_half_extent(obj, row) for row, obj in enumerate(objects)]).reshape(-1, 3)
-    return Actors(tuple(str(int(i)) for i in ids), xyz, rpy, extent)
+    return Actors(tuple(str(int(i)) for i in ids), xyz, rpy, _half_extents(objects))
+
+
+def _half_extents(objects: Sequence[Any]) -> FloatArray:
+    """Half sizes (N, 3) of every object's shape: all at once when every shape is a box of
+    three finite sizes (the usual case), else object by object."""
+    try:
+        dims = np.array(list(map(attrgetter("shape.dimensions"), objects)))
+    except (AttributeError, ValueError, OverflowError):  # said object by object below
+        dims = np.zeros((0, 0))
+    if dims.shape == (len(objects), 3) and dims.dtype.kind in "fiu" and np.isfinite(dims).all():
+        half: FloatArray = dims.astype(np.float64) / 2.0
+        return half
+    return np.array([_half_extent(obj, row) for row, obj in enumerate(objects)]).reshape(-1, 3)
 
 
 def _half_extent(obj: Any, row: int) -> FloatArray:
@@ -342,36 +357,59 @@ def decode_tracked_objects(msg: Any, frame: str) -> Objects3D:
     return _autoware_objects(objects, frame, ids, np.ones(len(objects), dtype=bool))
 
 
+def _best_path(obj: Any, row: int) -> tuple[Any, str] | None:
+    """An object's predicted path of highest confidence and its field name (None: none)."""
+    where = f"objects[{row}].kinematics.predicted_paths"
+    paths = sequence(obj, "kinematics.predicted_paths")
+    if not len(paths):
+        return None
+    if len(paths) == 1:
+        try:
+            number(paths[0], "confidence")
+        except MalformedMessage as error:
+            raise MalformedMessage(f"{where}[0].{error}") from None
+        return paths[0], f"{where}[0]"
+    best = int(np.argmax(column(paths, where, "confidence")))
+    return paths[best], f"{where}[{best}]"
+
+
 def decode_predicted_objects(msg: Any, frame: str) -> PredictedPaths:
-    """autoware PredictedObjects → each object's most confident path in the world."""
+    """autoware PredictedObjects → each object's most confident path in the world (the
+    points of all paths read as one column)."""
     objects = sequence(msg, "objects")
     ids = _uuid_hex(objects)
-    points: list[FloatArray] = []
+    chosen = [_best_path(obj, row) for row, obj in enumerate(objects)]
     steps: list[float] = []
-    for row, obj in enumerate(objects):
-        where = f"objects[{row}].kinematics.predicted_paths"
-        paths = sequence(obj, "kinematics.predicted_paths")
-        if not len(paths):
-            points.append(np.zeros((0, 3)))
+    point_lists: list[Sequence[Any]] = []
+    for found in chosen:
+        if found is None:
             steps.append(0.0)
+            point_lists.append(())
             continue
-        confidence = column(paths, where, "confidence")
-        best = int(np.argmax(confidence))
-        path = paths[best]
-        here = f"{where}[{best}]"
+        path, here = found
         try:
             step = duration_s(path, "time_step")
+            points = sequence(path, "path")
         except MalformedMessage as error:
             raise MalformedMessage(f"{here}.{error}") from None
-        poses_ = sequence(path, "path")
-        xyz = vectors(poses_, f"{here}.path", "position") if len(poses_) else np.zeros((0, 3))
-        if frame != "carla":
-            xyz = frames.map_to_carla_xyz(xyz)
-        if step <= 0 and len(poses_) > 1:
+        if step <= 0 and len(points) > 1:
             raise MalformedMessage(f"{here}.time_step: {step} s is not positive")
-        points.append(xyz)
         steps.append(step)
-    return PredictedPaths(ids, tuple(points), tuple(steps))
+        point_lists.append(points)
+    flat = [point for points in point_lists for point in points]
+    try:
+        xyz = vectors(flat, "path", "position") if flat else np.zeros((0, 3))
+    except MalformedMessage:  # name the object's own field
+        for found, points in zip(chosen, point_lists, strict=True):
+            if found is not None and len(points):
+                vectors(points, f"{found[1]}.path", "position")
+        raise
+    if frame != "carla":
+        xyz = frames.map_to_carla_xyz(xyz)
+    if not objects:
+        return PredictedPaths((), (), ())
+    bounds = np.cumsum([len(points) for points in point_lists], dtype=np.int64)[:-1]
+    return PredictedPaths(ids, tuple(np.split(xyz, bounds)), tuple(steps))
 
 
 def decode_trajectory(msg: Any, frame: str) -> Plan:

@@ -125,24 +125,21 @@ def read_profiled(
     decoded = _decode_all(contents.messages, usable, decode, problems)
     reference = profile.inputs[profile.reference]
     if not decoded.get(profile.reference):
-        why = inputs[profile.reference].reason or "no message could be decoded"
+        why = inputs[profile.reference].reason
+        if profile.reference in usable:
+            count = sum(m.topic == reference.topic for m in contents.messages)
+            why = f"none of its {count} messages could be used (see the problems)"
         raise InputError(
             f"{source}: no usable message on the reference input {profile.reference} "
             f"({reference.topic}): {why}"
         )
     grid = _grid(decoded[profile.reference], reference, problems)
-    tpf = grid.period_ms
     framed = {
         name: _to_frames(stamped, usable[name], grid, problems)
         for name, stamped in decoded.items()
         if name not in ("collision", "clock")
     }
-    for name, spec in usable.items():
-        has_data = bool(framed.get(name)) or (name == "clock" and bool(decoded["clock"]))
-        if has_data or name == "collision":  # a collision topic without events: none happened
-            inputs[name] = InputStatus("real", spec.source)
-        else:
-            inputs[name] = InputStatus("absent", spec.source, f"no usable message on {spec.topic}")
+    _mark_read(inputs, usable, framed, decoded)
     folders: dict[str, dict[int, Any]] = {
         folder: {ts: s.record for ts, s in framed.get(name, {}).items()}
         for folder, name in _FOLDERS.items()
@@ -150,9 +147,41 @@ def read_profiled(
     poses = cast("dict[int, EgoPose]", folders["pose"])
     for name, folder in _PREDICTION_FOLDERS.items():
         if name in framed:
-            spec = usable[name]
-            folders[folder] = _predictions(framed[name], spec, poses, grid, problems)
-    collision_frame, partner = _collision(decoded.get("collision", []), grid, source, problems)
+            folders[folder] = _predictions(framed[name], usable[name], poses, grid, problems)
+    return RunLog.from_folders(
+        _metadata(profile, grid, decoded.get("collision", []), problems),
+        tuple(sorted(folders["actors"])),
+        folders,
+        problems=ProblemLog(problems),
+        source=source,
+        detections_3d=_records(framed.get("detections_3d", {}), Objects3D),
+        tracks_3d=_records(framed.get("tracked_objects", {}), Objects3D),
+        controls=_records(framed.get("control", {}), ControlCommand),
+        inputs=inputs,
+    )
+
+
+def _mark_read(
+    inputs: dict[str, InputStatus],
+    usable: dict[str, InputSpec],
+    framed: dict[str, dict[int, Stamped]],
+    decoded: dict[str, list[Stamped]],
+) -> None:
+    """Each usable input real when a message of it was placed on a frame (the clock: when
+    one was decoded; the collision always: a topic without events means none happened)."""
+    for name, spec in usable.items():
+        placed = framed.get(name) or (name == "clock" and decoded["clock"])
+        if placed or name == "collision":
+            inputs[name] = InputStatus("real", spec.source)
+        else:
+            inputs[name] = InputStatus("absent", spec.source, f"no usable message on {spec.topic}")
+
+
+def _metadata(
+    profile: Profile, grid: Grid, collisions: list[Stamped], problems: list[Problem]
+) -> RunMetadata:
+    """The run facts: the grid's period and length, the collision, the profile's camera."""
+    collision_frame, partner = _collision(collisions, grid, problems)
     raw: dict[str, Any] = {"source_profile": profile.name, "ego_role": profile.ego_role}
     if partner is not None:
         raw["collision_partner"] = partner
@@ -168,18 +197,7 @@ def read_profiled(
                 "warning",
             )
         )
-    metadata = RunMetadata(tpf, camera_loc, collision_frame, grid.last + 1, raw=raw)
-    return RunLog.from_folders(
-        metadata,
-        tuple(sorted(folders["actors"])),
-        folders,
-        problems=ProblemLog(problems),
-        source=source,
-        detections_3d=_records(framed.get("detections_3d", {}), Objects3D),
-        tracks_3d=_records(framed.get("tracked_objects", {}), Objects3D),
-        controls=_records(framed.get("control", {}), ControlCommand),
-        inputs=inputs,
-    )
+    return RunMetadata(grid.period_ms, camera_loc, collision_frame, grid.last + 1, raw=raw)
 
 
 def _records(framed: dict[int, Stamped], kind: type[R]) -> dict[int, R]:
@@ -384,7 +402,7 @@ def track_offsets(
 
 
 def _collision(
-    events: list[Stamped], grid: Grid, source: str, problems: list[Problem]
+    events: list[Stamped], grid: Grid, problems: list[Problem]
 ) -> tuple[int, str | None]:
     """The frame of the first collision event and the other actor's id (-1, None: none)."""
     if not events:

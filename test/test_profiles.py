@@ -879,3 +879,43 @@ def test_a_list_where_a_number_belongs_is_named() -> None:
         MalformedMessage, match=r"^objects\[0\]\.existence_probability: ndarray .*not a number"
     ):
         decoders.decode_detected_objects(msg, "map")
+
+
+def test_a_user_profile_in_the_carla_frame_timed_by_the_ego(
+    tmp_path: Path, store: Typestore
+) -> None:
+    profile_file = tmp_path / "mine.yaml"
+    profile_file.write_text(
+        "profile: mine\nreference: ego\ninputs:\n"
+        "  ego: {topic: /ego, type: nav_msgs/msg/Odometry, frame: carla}\n"
+        "  actors: {topic: /gt, type: derived_object_msgs/msg/ObjectArray, frame: carla}\n"
+    )
+    messages = []
+    for f in range(5):
+        t = T0 + f * 50 * MS
+        ego = {"header": header(t), "pose": {"pose": _pose(f, 2.0, 0.0, math.radians(30))}}
+        messages.append(
+            ("/ego", "nav_msgs/msg/Odometry", t, build(store, "nav_msgs/msg/Odometry", ego))
+        )
+        if f % 2 == 0:  # ground truth at half the rate
+            gt = {"header": header(t), "objects": [{"id": 3, "pose": _pose(5.0, 2.0)}]}
+            messages.append(
+                (
+                    "/gt",
+                    "derived_object_msgs/msg/ObjectArray",
+                    t,
+                    build(store, "derived_object_msgs/msg/ObjectArray", gt),
+                )
+            )
+    bag = write_bag(tmp_path / "mine", store, messages)
+    log = read_profiled(load_bag(bag), load_profile(profile_file), decoder(store), str(bag))
+    assert log.tpf == 50 and log.metadata.total_frames == 5
+    assert log.frames == (0, 100, 200)  # the analysed frames are those with ground truth
+    assert sorted(log.pose) == [0, 50, 100, 150, 200]
+    assert (log.pose[50].y, log.pose[50].yaw) == (2.0, pytest.approx(30.0))  # as given
+    assert log.actors[100].location.tolist() == [[5.0, 2.0, 0.0]]
+    assert np.isnan(log.actors[100].extent).all()  # no shape dimensions: unknown
+    assert log.metadata.camera_loc == (0.0, 0.0, 0.0)
+    assert [str(p) for p in log.problems] == [
+        f"warning: {profile_file}: metadata.camera_loc: not given (default used: [0, 0, 0])"
+    ]

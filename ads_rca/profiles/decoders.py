@@ -262,7 +262,7 @@ def _half_extents(objects: Sequence[Any]) -> FloatArray:
 def _half_extent(obj: Any, row: int) -> FloatArray:
     """Half sizes (x, y, z) of a shape_msgs/SolidPrimitive's ``dimensions``: a BOX's three
     full sizes halved; a CYLINDER's or CONE's (height, radius) and a SPHERE's (radius)
-    taken as the box around them."""
+    taken as the box around them; none given: NaN (unknown)."""
     dims = np.asarray(sequence(obj, "shape.dimensions"))
     if dims.dtype.kind in "fiu" and np.isfinite(dims).all():
         values = dims.astype(np.float64)
@@ -273,6 +273,8 @@ def _half_extent(obj: Any, row: int) -> FloatArray:
             return np.array([values[1], values[1], values[0] / 2.0])
         if values.shape == (1,):
             return np.repeat(values, 3)
+        if values.shape == (0,):  # no size given: unknown, as a log's missing extent
+            return np.full(3, np.nan)
     raise MalformedMessage(f"objects[{row}].shape.dimensions: {dims.tolist()!r:.60}")
 
 

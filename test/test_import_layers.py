@@ -76,7 +76,7 @@ print(json.dumps({{"imported": names, "loaded": sorted(sys.modules)}}))
 
 def _pure_files() -> list[Path]:
     files = [PACKAGE / "engine.py"]
-    for sub in ("contract", "io", "live", "oracles"):
+    for sub in ("contract", "io", "live", "oracles", "profiles"):
         files.extend(sorted((PACKAGE / sub).rglob("*.py")))
     return files
 

@@ -17,6 +17,7 @@ import pytest
 from profilebags import build, decoder, header, stamp, typestore, write_bag
 from rosbags.typesys.store import Typestore
 
+from ads_rca.capabilities import MODEL_INPUTS
 from ads_rca.contract import topics
 from ads_rca.contract.errors import MalformedMessage
 from ads_rca.errors import ConfigError, InputError
@@ -26,7 +27,6 @@ from ads_rca.profiles import decoders, frames
 from ads_rca.profiles.decoders import PredictedPaths
 from ads_rca.profiles.profile import (
     BUILTIN_NAMES,
-    MODEL_INPUTS,
     builtin_path,
     contract_type,
     load_profile,

@@ -22,33 +22,18 @@ from typing import Any
 
 import yaml
 
+from ads_rca.capabilities import MODEL_INPUTS
 from ads_rca.contract import topics
 from ads_rca.errors import ConfigError
 from ads_rca.io.files import Unreadable, read_regular
+from ads_rca.profiles import BUILTIN_PROFILES
 from ads_rca.profiles.decoders import DECODERS, FRAMES
 
-#: The model inputs, in the order they are listed (docs/recordings.md), and the RunLog
-#: field each fills ("" for the clock, which only times the frames; the collision fills
-#: ``metadata.collision_frame``).
-MODEL_INPUTS: dict[str, str] = {
-    "ego": "pose",
-    "actors": "actors",
-    "detections_2d": "bboxes",
-    "ground_truth_2d": "bboxes_gt",
-    "detections_3d": "detections_3d",
-    "tracked_objects": "tracks_3d",
-    "predictions": "predictions",
-    "predictions_gt": "predictions_with_perception",
-    "plan": "waypoints",
-    "control": "controls",
-    "collision": "metadata.collision_frame",
-    "clock": "",
-}
 #: The inputs that can time the frames, in the order a profile without ``reference`` tries.
 REFERENCE_INPUTS = ("actors", "ego", "clock")
 #: Which predicted path a prediction input takes.
 PATHS = ("most_probable",)
-BUILTIN_NAMES = ("ads_rca", "carla-autoware", "vision_msgs")
+BUILTIN_NAMES = BUILTIN_PROFILES
 #: A profile is a few KiB; anything this large is not one.
 MAX_PROFILE_BYTES = 1 << 20
 

@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any, TypeVar, cast
 
 import numpy as np
 
+from ads_rca.capabilities import MODEL_INPUTS
 from ads_rca.contract.errors import MalformedMessage
 from ads_rca.contract.rosmsg import normalise_type
 from ads_rca.errors import ConfigError, InputError
@@ -42,7 +43,7 @@ from ads_rca.model import (
 )
 from ads_rca.problems import DROPPED_RECORD, USED_DEFAULT, Problem, ProblemLog
 from ads_rca.profiles.decoders import CollisionEvent, PredictedPaths, decoder_for
-from ads_rca.profiles.profile import MODEL_INPUTS, InputSpec, Profile
+from ads_rca.profiles.profile import InputSpec, Profile
 
 if TYPE_CHECKING:
     from ads_rca.io.bag_reader import BagContents

@@ -794,8 +794,10 @@ def write_recording(
     if not definitions and storage != "sqlite3":
         raise ConfigError("a bag without message definitions can only be sqlite3")
     root = Path(path)
-    if root.exists():
-        raise OutputExists(f"{root} exists; a recording is written into a new folder")
+    if root.is_dir() and not any(root.iterdir()):
+        root.rmdir()  # rosbags creates the folder itself
+    if os.path.lexists(root):
+        raise OutputExists(f"{root} exists and is not an empty folder")
     writer = _Writer(log, profile)
     store = typestore()
     plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3

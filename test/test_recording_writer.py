@@ -59,9 +59,21 @@ def _objects(actors: Actors, prefix: str, ego: str) -> Objects3D:
     )
 
 
+def _tracks(actors: Actors, ego: str, predicted: list[str]) -> Objects3D:
+    """The non-ego actors as tracks, the first ones under predicted ids, so that some
+    predicted objects are tracked and (at least one) are not."""
+    objects = _objects(actors, "", ego)
+    ids = list(objects.ids)
+    n = max(0, min(len(ids), len(predicted)) - 1)
+    ids[:n] = predicted[:n]
+    return replace(objects, ids=tuple(ids))
+
+
 def _with_3d(log: RunLog, ego: str) -> RunLog:
     """``log`` plus 3-D detections and tracks of its actors and control commands."""
-    tracks = {ts: _objects(a, "", ego) for ts, a in log.actors.items()}
+    tracks = {
+        ts: _tracks(a, ego, list(log.predictions.get(ts, {}))) for ts, a in log.actors.items()
+    }
     return replace(
         log,
         detections_3d={ts: _objects(a, "d", ego) for ts, a in log.actors.items()},
@@ -235,7 +247,7 @@ def test_predicted_paths_start_at_the_object_and_hold_each_key_in_the_map_frame(
 ) -> None:
     log, _ = run
     _, messages, _ = bags["carla-autoware", "sqlite3"]
-    checked = 0
+    checked = {"tracked": 0, "untracked": 0}
     for log_time, msg in messages["/perception/object_recognition/objects"]:
         ts = _ms(log_time)
         pose, predictions = log.pose[ts], log.predictions[ts]
@@ -259,13 +271,15 @@ def test_predicted_paths_start_at_the_object_and_hold_each_key_in_the_map_frame(
             )
             assert offsets == pytest.approx(track.offsets[:, :2], abs=1e-9)
             if object_id in tracks.ids:  # path[0]: the tracked position
-                assert (
-                    points[0].tolist() == tracks.location[tracks.ids.index(object_id), :2].tolist()
-                )
+                row = tracks.ids.index(object_id)
+                assert points[0].tolist() == tracks.location[row, :2].tolist()
+                assert obj.shape.dimensions.x == 2.0 * tracks.extent[row, 0]
+                checked["tracked"] += 1
             else:  # key "0" minus one step
                 assert points[0] == pytest.approx(2 * points[1] - points[2], abs=1e-9)
-            checked += 1
-    assert checked > 100
+                checked["untracked"] += 1
+    assert sum(checked.values()) == sum(len(p) for p in log.predictions.values())
+    assert min(checked.values()) > 50  # both kinds of path[0], many times
 
 
 def test_trajectory_and_control_points_are_timed_by_the_frame_period(bags: Any, run: Any) -> None:

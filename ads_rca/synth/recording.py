@@ -24,6 +24,7 @@ import os
 import sqlite3
 import uuid
 from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -33,7 +34,7 @@ import numpy as np
 from ads_rca.contract.rosmsg import referenced_types
 from ads_rca.errors import ConfigError
 from ads_rca.io.errors import OutputExists
-from ads_rca.model import Boxes, ControlCommand, EgoPose, Objects3D, Plan, RunLog
+from ads_rca.model import Boxes, ControlCommand, EgoPose, Objects3D, Plan, RunLog, Track
 from ads_rca.profiles.frames import (
     carla_rpy_to_quaternion,
     carla_to_map_xyz,
@@ -326,6 +327,36 @@ class _MapObjects:
         self.body_velocity = world_to_body(world, self.yaw)
 
 
+@dataclass(frozen=True)
+class _Tracked:
+    """What a predicted object takes from its track of the same frame."""
+
+    location: FloatArray  # CARLA world
+    yaw_map: float
+    body_velocity: FloatArray
+    extent: FloatArray
+    label: str
+    score: float
+
+
+def _tracked(tracks: Objects3D | None) -> dict[str, _Tracked]:
+    """Each track id's state (the first row of a repeated id)."""
+    if tracks is None:
+        return {}
+    frame = _MapObjects(tracks)
+    return {
+        object_id: _Tracked(
+            tracks.location[row],
+            float(frame.yaw[row]),
+            frame.body_velocity[row],
+            tracks.extent[row],
+            tracks.labels[row],
+            float(tracks.score[row]),
+        )
+        for row, object_id in reversed(list(enumerate(tracks.ids)))
+    }
+
+
 def _yaw_quaternion(yaw_map: FloatArray) -> FloatArray:
     zeros = np.zeros_like(yaw_map)
     return rpy_to_quaternion(zeros, zeros, yaw_map)
@@ -497,8 +528,10 @@ class _Writer:
             raise SynthesisError(
                 f"predictions at {ts} ms cannot be written in the map frame: no ego pose then"
             )
+        tracked = _tracked(self.log.tracks_3d.get(ts))
         objects = [
-            self._predicted(ts, pose, object_id, track) for object_id, track in predictions.items()
+            self._predicted(ts, pose, object_id, track, tracked.get(object_id))
+            for object_id, track in predictions.items()
         ]
         return self.m.new(
             _AUTOWARE_PERCEPTION + "PredictedObjects",
@@ -506,55 +539,47 @@ class _Writer:
             objects=objects,
         )
 
-    def _predicted(self, ts: int, pose: EgoPose, object_id: str, track: Any) -> Any:
+    def _predicted(
+        self, ts: int, pose: EgoPose, object_id: str, track: Track, known: _Tracked | None
+    ) -> Any:
         m = self.m
-        tracks = self.log.tracks_3d.get(ts)
-        row = tracks.ids.index(object_id) if tracks is not None and object_id in tracks.ids else -1
         points = predicted_points(track.keys, track.offsets, pose)
-        if row >= 0:
-            assert tracks is not None
-            start = tracks.location[row]
+        if known is not None:
+            start = known.location
         elif len(points) >= 2:
             start = 2.0 * points[0] - points[1]  # key "0" minus one step
         else:
             start = points[0] if len(points) else np.array([pose.x, pose.y, pose.z])
         path_map = carla_to_map_xyz(np.vstack([start[None, :], points]))
-        initial = float(-np.radians(tracks.yaw[row])) if row >= 0 and tracks is not None else 0.0
-        headings = _headings(path_map, initial)
-        quaternions = _yaw_quaternion(headings)
+        if known is None:  # untracked: moving along the path's first step
+            step = float(np.linalg.norm(path_map[1, :2] - path_map[0, :2])) if len(points) else 0.0
+            velocity = np.array([step / (self.tpf_ns / 1e9), 0.0, 0.0])
+            extent = self._actor_extent(ts, object_id)
+            known = _Tracked(start, 0.0, velocity, extent, "", math.nan)
+        quaternions = _yaw_quaternion(_headings(path_map, known.yaw_map))
         poses = [m.pose(path_map[j], quaternions[j]) for j in range(len(path_map))]
-        paths = []
-        if len(points):
-            paths.append(
-                m.new(
-                    _AUTOWARE_PERCEPTION + "PredictedPath",
-                    path=poses,
-                    time_step=m.duration(self.tpf_ns),
-                    confidence=1.0,
-                )
+        paths = [
+            m.new(
+                _AUTOWARE_PERCEPTION + "PredictedPath",
+                path=poses,
+                time_step=m.duration(self.tpf_ns),
+                confidence=1.0,
             )
-        if row >= 0 and tracks is not None:
-            frame = _MapObjects(tracks)
-            velocity = frame.body_velocity[row]
-            half, label, score = tracks.extent[row], tracks.labels[row], tracks.score[row]
-        else:
-            speed = float(np.linalg.norm(path_map[1, :2] - path_map[0, :2])) if len(points) else 0.0
-            velocity = np.array([speed / (self.tpf_ns / 1e9), 0.0, 0.0])
-            half, label, score = self._actor_extent(ts, object_id), "", math.nan
+        ]
         kinematics = m.new(
             _AUTOWARE_PERCEPTION + "PredictedObjectKinematics",
             initial_pose_with_covariance=m.pose_cov(poses[0]),
-            initial_twist_with_covariance=m.twist_cov(velocity),
+            initial_twist_with_covariance=m.twist_cov(known.body_velocity),
             initial_acceleration_with_covariance=m.accel_cov(),
-            predicted_paths=paths,
+            predicted_paths=paths if len(points) else [],
         )
         return m.new(
             _AUTOWARE_PERCEPTION + "PredictedObject",
             object_id=m.uuid(object_id),
-            existence_probability=_probability(score),
-            classification=m.classification(label),
+            existence_probability=_probability(known.score),
+            classification=m.classification(known.label),
             kinematics=kinematics,
-            shape=m.shape(half),
+            shape=m.shape(known.extent),
         )
 
     def _actor_extent(self, ts: int, object_id: str) -> FloatArray:

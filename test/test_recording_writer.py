@@ -33,6 +33,7 @@ from ads_rca.synth.recording import (
     TOPICS,
     actor_numbers,
     object_uuid,
+    path_headings,
     write_recording,
 )
 
@@ -430,3 +431,29 @@ def test_synth_profile_writes_a_bag_and_storage_alone_is_refused(
         "ads-rca synth: error: --storage: only with --profile (a log folder has no storage)\n"
     )
     assert not (tmp_path / "log").exists()
+
+
+def _headings_by_loop(points: np.ndarray, initial: float) -> np.ndarray:
+    """The obviously-correct transcription: walk the points, face the next one."""
+    out, heading = np.empty(len(points)), initial
+    for i in range(len(points)):
+        j = min(i + 1, len(points) - 1)
+        dx, dy = points[j, :2] - points[j - 1, :2] if j > 0 else (0.0, 0.0)
+        if math.hypot(dx, dy) > 1e-9:
+            heading = math.atan2(dy, dx)
+        out[i] = heading
+    return out
+
+
+def test_path_headings_face_the_next_point_and_hold_through_stops() -> None:
+    rng = np.random.default_rng(16)
+    for n in range(7):
+        for _ in range(100):
+            points = rng.normal(size=(n, 3))
+            points[rng.random(n) < 0.4] = 0.0  # repeated points: a stop
+            got = path_headings(points, 0.7)
+            assert np.array_equal(got, _headings_by_loop(points, 0.7))
+    assert (
+        path_headings(np.array([[0.0, 0, 0], [0, 1, 0], [0, 1, 0]]), 0.0).tolist()
+        == [math.pi / 2] * 3
+    )

@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ads_rca.contract.rosmsg import referenced_types
 from ads_rca.errors import ConfigError
@@ -253,15 +254,19 @@ class _Messages:
     def vector3(self, v: FloatArray) -> Any:
         return self.new("geometry_msgs/msg/Vector3", x=float(v[0]), y=float(v[1]), z=float(v[2]))
 
-    def pose(self, xyz: FloatArray, quaternion: FloatArray) -> Any:
-        x, y, z, w = (float(q) for q in quaternion)
-        return self.new(
-            "geometry_msgs/msg/Pose",
-            position=self.new(
-                "geometry_msgs/msg/Point", x=float(xyz[0]), y=float(xyz[1]), z=float(xyz[2])
-            ),
-            orientation=self.new("geometry_msgs/msg/Quaternion", x=x, y=y, z=z, w=w),
-        )
+    def poses(self, xyz: FloatArray, quaternions: FloatArray) -> list[Any]:
+        """One Pose per row of positions (N, 3) and quaternions (N, 4): the hot path of
+        predicted paths and trajectories, so the rows become Python floats at once."""
+        point = self.types["geometry_msgs/msg/Point"]
+        quaternion = self.types["geometry_msgs/msg/Quaternion"]
+        pose = self.types["geometry_msgs/msg/Pose"]
+        return [
+            pose(position=point(*p), orientation=quaternion(*q))
+            for p, q in zip(xyz.tolist(), quaternions.tolist(), strict=True)
+        ]
+
+    def pose(self, xyz: npt.ArrayLike, quaternion: npt.ArrayLike) -> Any:
+        return self.poses(np.reshape(xyz, (1, 3)), np.reshape(quaternion, (1, 4)))[0]
 
     def pose_cov(self, pose: Any) -> Any:
         return self.new("geometry_msgs/msg/PoseWithCovariance", pose=pose, covariance=np.zeros(36))
@@ -362,17 +367,20 @@ def _yaw_quaternion(yaw_map: FloatArray) -> FloatArray:
     return rpy_to_quaternion(zeros, zeros, yaw_map)
 
 
-def _headings(points_map: FloatArray, initial: float) -> FloatArray:
+def path_headings(points_map: FloatArray, initial: float) -> FloatArray:
     """Map yaw along a polyline: each point faces the next (the last keeps the previous
     heading); a point that does not move keeps the heading before it, ``initial`` first."""
-    out = np.empty(len(points_map))
-    heading = initial
-    for i in range(len(points_map)):
-        j = i + 1 if i + 1 < len(points_map) else i
-        step = points_map[j, :2] - points_map[j - 1, :2] if j > 0 else np.zeros(2)
-        if np.hypot(step[0], step[1]) > 1e-9:
-            heading = float(np.arctan2(step[1], step[0]))
-        out[i] = heading
+    n = len(points_map)
+    if n < 2:
+        return np.full(n, initial)
+    step = np.diff(points_map[:, :2], axis=0)  # segment i: point i → i + 1
+    moved = np.hypot(step[:, 0], step[:, 1]) > 1e-9
+    # Each segment's last moving segment at or before it (-1: none yet).
+    last_moved = np.maximum.accumulate(np.where(moved, np.arange(n - 1), -1))
+    segment = last_moved[np.minimum(np.arange(n), n - 2)]
+    out: FloatArray = np.where(
+        segment >= 0, np.arctan2(step[:, 1], step[:, 0])[np.maximum(segment, 0)], initial
+    )
     return out
 
 
@@ -415,7 +423,7 @@ class _Writer:
         m = self.m
         stamp = stamp_ns(ts)
         xyz = carla_to_map_xyz(actors.location)
-        quaternions = carla_rpy_to_quaternion(actors.rotation)
+        poses = m.poses(xyz, carla_rpy_to_quaternion(actors.rotation))
         dimensions = 2.0 * np.nan_to_num(actors.extent)
         zero = m.vector3(np.zeros(3))
         objects = [
@@ -425,7 +433,7 @@ class _Writer:
                 id=self.numbers[actor_id],
                 detection_level=1,  # OBJECT_TRACKED: the simulator's ground truth
                 object_classified=False,
-                pose=m.pose(xyz[row], quaternions[row]),
+                pose=poses[row],
                 twist=m.twist(np.zeros(3)),
                 accel=m.new("geometry_msgs/msg/Accel", linear=zero, angular=zero),
                 polygon=m.polygon(),
@@ -556,8 +564,8 @@ class _Writer:
             velocity = np.array([step / (self.tpf_ns / 1e9), 0.0, 0.0])
             extent = self._actor_extent(ts, object_id)
             known = _Tracked(start, 0.0, velocity, extent, "", math.nan)
-        quaternions = _yaw_quaternion(_headings(path_map, known.yaw_map))
-        poses = [m.pose(path_map[j], quaternions[j]) for j in range(len(path_map))]
+        quaternions = _yaw_quaternion(path_headings(path_map, known.yaw_map))
+        poses = m.poses(path_map, quaternions)
         paths = [
             m.new(
                 _AUTOWARE_PERCEPTION + "PredictedPath",
@@ -601,12 +609,12 @@ class _Writer:
         carla = np.column_stack([plan.xy, np.full(len(plan), z)])
         xyz = carla_to_map_xyz(carla)
         initial = float(-np.radians(pose.yaw)) if pose is not None else 0.0
-        quaternions = _yaw_quaternion(_headings(xyz, initial))
+        poses = m.poses(xyz, _yaw_quaternion(path_headings(xyz, initial)))
         points = [
             m.new(
                 "autoware_planning_msgs/msg/TrajectoryPoint",
                 time_from_start=m.duration(i * self.tpf_ns),
-                pose=m.pose(xyz[i], quaternions[i]),
+                pose=poses[i],
                 longitudinal_velocity_mps=float(plan.speed[i]),
                 lateral_velocity_mps=0.0,
                 acceleration_mps2=0.0,
@@ -744,6 +752,8 @@ class _Writer:
         stamps = set(log.frames)
         for records in _held(log).values():
             stamps.update(records)
+        if log.metadata.has_collision:
+            stamps.add(log.metadata.collision_frame * log.tpf)
         for ts in sorted(stamps):
             for name, build in builders.items():
                 message = build(ts)

@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
+from ads_rca.contract import topics
 from ads_rca.contract.rosmsg import referenced_types
 from ads_rca.errors import ConfigError
 from ads_rca.io.errors import OutputExists
@@ -68,7 +69,7 @@ _NS_PER_MS = 1_000_000
 
 # The CARLA bridge's topics, shared by both profiles.
 _BRIDGE = {
-    "clock": ("/clock", "rosgraph_msgs/msg/Clock"),
+    "clock": (topics.CLOCK, "rosgraph_msgs/msg/Clock"),  # the one simulated clock of ROS
     "ego": (f"/carla/{EGO_ROLE}/odometry", "nav_msgs/msg/Odometry"),
     "actors": ("/carla/objects", "derived_object_msgs/msg/ObjectArray"),
     "collision": (f"/carla/{EGO_ROLE}/collision", "carla_msgs/msg/CarlaCollisionEvent"),

@@ -13,11 +13,11 @@ import argparse
 
 from ads_rca.commands.outputs import check_output_dir
 from ads_rca.errors import ConfigError
-from ads_rca.io.bag_writer import write_bag
+from ads_rca.io.bag_writer import STORAGES, write_bag
 from ads_rca.io.json_writer import write_run_log
 from ads_rca.model import RunLog
 from ads_rca.synth import FAULTS, SCENARIOS, SynthesisSummary, canonical_fault, synthesise_run
-from ads_rca.synth.recording import PROFILES, STORAGES, write_recording
+from ads_rca.synth.recording import PROFILES, write_recording
 from ads_rca.text import printable
 
 #: ``--profile`` values: this project's contract and the real stacks' recordings.

@@ -35,6 +35,7 @@ import numpy.typing as npt
 from ads_rca.contract import topics
 from ads_rca.contract.rosmsg import referenced_types
 from ads_rca.errors import ConfigError
+from ads_rca.io.bag_writer import STORAGES
 from ads_rca.io.errors import OutputExists
 from ads_rca.model import Boxes, ControlCommand, EgoPose, Objects3D, Plan, RunLog, Track
 from ads_rca.profiles.frames import (
@@ -52,7 +53,6 @@ if TYPE_CHECKING:
 #: The profiles a synthesised run can be written in (``ads_rca``, this project's own
 #: contract, is :func:`ads_rca.io.bag_writer.write_bag`).
 PROFILES = ("carla-autoware", "vision_msgs")
-STORAGES = ("mcap", "sqlite3")
 #: Header stamp of timestamp 0 ms: 2023-11-14, a realistic wall-clock epoch.
 EPOCH_NS = 1_700_000_000 * 1_000_000_000
 #: Where the stacks' ``.msg`` files live: ``<package>/msg/<Type>.msg``.
@@ -89,7 +89,7 @@ TOPICS: dict[str, dict[str, tuple[str, str]]] = {
         ),
         "predictions": (
             "/perception/object_recognition/objects",
-            "autoware_perception_msgs/msg/PredictedObjects",
+            _AUTOWARE_PERCEPTION + "PredictedObjects",
         ),
         "plan": ("/planning/scenario_planning/trajectory", "autoware_planning_msgs/msg/Trajectory"),
         "control": ("/control/command/control_cmd", "autoware_control_msgs/msg/Control"),
@@ -122,6 +122,7 @@ _UUID_NAMESPACE = uuid.UUID("5d0f7e4c-1b9a-4c55-9d6e-ad5ca0000016")
 # --- types and definitions -----------------------------------------------------------------
 
 
+@cache
 def _msg_files() -> dict[str, Path]:
     """``pkg/msg/Type`` → its shipped ``.msg`` file."""
     return {
@@ -889,7 +890,6 @@ def _drop_definitions(root: Path) -> None:
 __all__ = [
     "EPOCH_NS",
     "PROFILES",
-    "STORAGES",
     "TOPICS",
     "actor_numbers",
     "message_definition",

@@ -23,7 +23,17 @@ setup(
     name=PACKAGE,
     version="0.1.0",
     packages=find_packages(include=[PACKAGE, f"{PACKAGE}.*"]),
-    package_data={PACKAGE: ["py.typed"], f"{PACKAGE}.profiles": ["builtin/*.yaml"]},
+    # The built-in profiles, and the stacks' .msg files (with their licences) that
+    # synthesised recordings are typed by.
+    package_data={
+        PACKAGE: [
+            "py.typed",
+            "profiles/builtin/*.yaml",
+            "synth/msgs/README.md",
+            "synth/msgs/*/LICENSE",
+            "synth/msgs/*/msg/*.msg",
+        ]
+    },
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),

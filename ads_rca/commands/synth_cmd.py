@@ -1,16 +1,27 @@
-"""``ads-rca synth OUT_DIR``: write a synthesised crash (or near-miss) log in the seed format.
+"""``ads-rca synth OUT_DIR``: write a synthesised crash (or near-miss) log in the seed format,
+or with ``--profile`` as a rosbag2 recording of a stack publishing that profile's topics.
 
 A thin shell over :func:`ads_rca.synth.synthesise_run` and
-:func:`ads_rca.io.json_writer.write_run_log`.
+:func:`ads_rca.io.json_writer.write_run_log` (a log folder),
+:func:`ads_rca.synth.recording.write_recording` (a real stack's recording) or
+:func:`ads_rca.io.bag_writer.write_bag` (``--profile ads_rca``: this project's contract).
 """
 
 from __future__ import annotations
 
 import argparse
 
+from ads_rca.commands.outputs import check_output_dir
+from ads_rca.errors import ConfigError
+from ads_rca.io.bag_writer import STORAGES, write_bag
 from ads_rca.io.json_writer import write_run_log
+from ads_rca.model import RunLog
 from ads_rca.synth import FAULTS, SCENARIOS, SynthesisSummary, canonical_fault, synthesise_run
+from ads_rca.synth.recording import PROFILES, write_recording
 from ads_rca.text import printable
+
+#: ``--profile`` values: this project's contract and the real stacks' recordings.
+BAG_PROFILES = ("ads_rca", *PROFILES)
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -29,19 +40,41 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--frames", type=int, help="log length when nothing crashes")
     parser.add_argument("--actors", type=int, help="number of background actors")
+    parser.add_argument(
+        "--profile",
+        choices=BAG_PROFILES,
+        help="write a rosbag2 bag into OUT_DIR, recorded as from a stack publishing this "
+        "profile's topics and types, instead of a log folder",
+    )
+    parser.add_argument("--storage", choices=STORAGES, help="bag storage (--profile; default mcap)")
     parser.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.storage is not None and args.profile is None:
+        raise ConfigError("--storage: only with --profile (a log folder has no storage)")
     options = {
         name: value
         for name, value in (("frames", args.frames), ("actors", args.actors))
         if value is not None
     }
     log, summary = synthesise_run(args.scenario, args.fault, args.seed, **options)
-    write_run_log(log, args.out_dir)
-    print(printable(f"{args.out_dir}: {describe(summary)}"))
+    if args.profile is None:
+        write_run_log(log, args.out_dir)
+        print(printable(f"{args.out_dir}: {describe(summary)}"))
+        return 0
+    storage = args.storage or "mcap"
+    counts = _write_bag(log, args.out_dir, args.profile, storage)
+    bag = f"{args.profile} {storage} bag, {sum(counts.values())} messages on {len(counts)} topics"
+    print(printable(f"{args.out_dir}: {describe(summary)} ({bag})"))
     return 0
+
+
+def _write_bag(log: RunLog, out_dir: str, profile: str, storage: str) -> dict[str, int]:
+    check_output_dir(out_dir, "OUT_DIR")
+    if profile == "ads_rca":
+        return write_bag(log, out_dir, storage)
+    return write_recording(log, out_dir, profile, storage)
 
 
 def describe(summary: SynthesisSummary) -> str:

@@ -98,14 +98,15 @@ def ensure_type(name: str) -> str:
                 types = get_types_from_msg(path.read_text(encoding="utf-8"), current)
                 store.register(types)
                 for _consts, fields in types.values():
-                    pending.extend(_referenced(fields))
+                    pending.extend(referenced_types(fields))
                 break
         else:
             raise UnknownMessageType(f"unknown message type {current!r} (no .msg file installed)")
     return name
 
 
-def _referenced(fields: Any) -> list[str]:
+def referenced_types(fields: Any) -> list[str]:
+    """The message types a type's field definitions name (rosbags ``fielddefs[name][1]``)."""
     out: list[str] = []
     for _name, (nodetype, spec) in fields:
         if nodetype == Nodetype.NAME:

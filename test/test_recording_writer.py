@@ -30,10 +30,11 @@ from ads_rca.synth import synthesise_run
 from ads_rca.synth.recording import (
     EPOCH_NS,
     MSG_DIR,
-    TOPICS,
+    PROFILES,
     actor_numbers,
     object_uuid,
     path_headings,
+    profile_topics,
     write_recording,
 )
 
@@ -112,7 +113,7 @@ def bags(
 ) -> dict[tuple[str, str], tuple[dict[str, int], Read, dict[str, Any]]]:
     log, _ = run
     out = {}
-    for profile in TOPICS:
+    for profile in PROFILES:
         for storage in ("mcap", "sqlite3"):
             bag = tmp_path_factory.mktemp("bags") / f"{profile}_{storage}"
             counts = write_recording(log, bag, profile, storage)
@@ -120,7 +121,7 @@ def bags(
     return out
 
 
-CASES = [(p, s) for p in TOPICS for s in ("mcap", "sqlite3")]
+CASES = [(p, s) for p in PROFILES for s in ("mcap", "sqlite3")]
 
 
 def _stamp(header_or_time: Any) -> int:
@@ -161,7 +162,7 @@ def test_every_input_of_the_run_is_one_topic_with_one_message_per_record(
         "detections_2d": len(log.bboxes),
         "ground_truth_2d": len(log.bboxes_gt),
     }
-    want = {topic: expected[name] for name, (topic, _type) in TOPICS[profile].items()}
+    want = {topic: expected[name] for name, (topic, _type) in profile_topics(profile).items()}
     assert counts == want
     assert {topic: len(found) for topic, found in messages.items()} == want
     assert min(want.values()) == 1 and len(log.unique_frames) == 99
@@ -346,7 +347,7 @@ def test_each_topic_stores_the_stacks_own_definition_text(
     seen = 0
     for topic, (fmt, text) in definitions.items():
         assert fmt == MessageDefinitionFormat.MSG
-        msgtype = next(t for n, (tp, t) in TOPICS[profile].items() if tp == topic)
+        msgtype = next(t for n, (tp, t) in profile_topics(profile).items() if tp == topic)
         package, _, short = msgtype.split("/")
         first, *rest = text.split(SEPARATOR)
         sections = {f"{package}/{short}": first}

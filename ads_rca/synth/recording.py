@@ -32,7 +32,6 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from ads_rca.contract import topics
 from ads_rca.contract.rosmsg import referenced_types
 from ads_rca.errors import ConfigError
 from ads_rca.io.bag_writer import STORAGES
@@ -44,6 +43,7 @@ from ads_rca.profiles.frames import (
     rpy_to_quaternion,
     world_to_body,
 )
+from ads_rca.profiles.profile import load_profile
 from ads_rca.synth.errors import SynthesisError
 from ads_rca.synth.geometry import FloatArray, to_world
 
@@ -59,6 +59,7 @@ EPOCH_NS = 1_700_000_000 * 1_000_000_000
 MSG_DIR = Path(__file__).resolve().parent / "msgs"
 #: The CARLA bridge's role name of the ego vehicle (its topics' namespace, odometry child).
 EGO_ROLE = "ego_vehicle"
+_AUTOWARE_PERCEPTION = "autoware_perception_msgs/msg/"
 #: Keys of the bag's ``metadata.yaml`` ``custom_data``.
 CUSTOM_SYNTHESIS = "ads_rca.synthesis"
 CUSTOM_ACTOR_IDS = "ads_rca.actor_ids"
@@ -67,40 +68,12 @@ CUSTOM_CAMERA = "ads_rca.camera_loc"
 _SEPARATOR = "=" * 80 + "\n"
 _NS_PER_MS = 1_000_000
 
-# The CARLA bridge's topics, shared by both profiles.
-_BRIDGE = {
-    "clock": (topics.CLOCK, "rosgraph_msgs/msg/Clock"),  # the one simulated clock of ROS
-    "ego": (f"/carla/{EGO_ROLE}/odometry", "nav_msgs/msg/Odometry"),
-    "actors": ("/carla/objects", "derived_object_msgs/msg/ObjectArray"),
-    "collision": (f"/carla/{EGO_ROLE}/collision", "carla_msgs/msg/CarlaCollisionEvent"),
-}
-_AUTOWARE_PERCEPTION = "autoware_perception_msgs/msg/"
-#: Per profile: model input → (topic, type), as the built-in profiles of the same names.
-TOPICS: dict[str, dict[str, tuple[str, str]]] = {
-    "carla-autoware": {
-        **_BRIDGE,
-        "detections_3d": (
-            "/perception/object_recognition/detection/objects",
-            _AUTOWARE_PERCEPTION + "DetectedObjects",
-        ),
-        "tracked_objects": (
-            "/perception/object_recognition/tracking/objects",
-            _AUTOWARE_PERCEPTION + "TrackedObjects",
-        ),
-        "predictions": (
-            "/perception/object_recognition/objects",
-            _AUTOWARE_PERCEPTION + "PredictedObjects",
-        ),
-        "plan": ("/planning/scenario_planning/trajectory", "autoware_planning_msgs/msg/Trajectory"),
-        "control": ("/control/command/control_cmd", "autoware_control_msgs/msg/Control"),
-    },
-    "vision_msgs": {
-        **_BRIDGE,
-        "detections_2d": ("/perception/detections_2d", "vision_msgs/msg/Detection2DArray"),
-        "ground_truth_2d": ("/perception/ground_truth_2d", "vision_msgs/msg/Detection2DArray"),
-        "detections_3d": ("/perception/detections_3d", "vision_msgs/msg/Detection3DArray"),
-    },
-}
+
+def profile_topics(profile: str) -> dict[str, tuple[str, str]]:
+    """Model input → (topic, type) of a built-in profile: what the reader expects is what
+    the writer writes (one table, ``ads_rca/profiles/builtin/<profile>.yaml``)."""
+    return {name: (spec.topic, spec.type) for name, spec in load_profile(profile).inputs.items()}
+
 
 #: Autoware's ObjectClassification labels by constant name; other names (CARLA's
 #: ``vehicle``, ``walker``) through :data:`_LABEL_ALIASES`, anything else is UNKNOWN.
@@ -745,7 +718,7 @@ class _Writer:
 
     def builders(self) -> dict[str, Callable[[int], Any]]:
         """Input name → its builder, for the inputs of this profile."""
-        return {name: getattr(self, name) for name in TOPICS[self.profile]}
+        return {name: getattr(self, name) for name in profile_topics(self.profile)}
 
     def messages(self) -> Iterator[tuple[str, int, Any]]:
         """(input, log time ns, message) per frame, ascending; inputs in profile order."""
@@ -787,7 +760,7 @@ def topics_written(log: RunLog, profile: str) -> dict[str, tuple[str, str]]:
     held = _held(log)
     return {
         name: spec
-        for name, spec in TOPICS[profile].items()
+        for name, spec in profile_topics(profile).items()
         if name in ("clock", "collision") or held[name]
     }
 
@@ -890,10 +863,10 @@ def _drop_definitions(root: Path) -> None:
 __all__ = [
     "EPOCH_NS",
     "PROFILES",
-    "TOPICS",
     "actor_numbers",
     "message_definition",
     "object_uuid",
+    "profile_topics",
     "stamp_ns",
     "write_recording",
 ]

@@ -153,12 +153,12 @@ def _polygon_area(poly: FloatArray, count: npt.NDArray[np.intp]) -> FloatArray:
 
 
 def bev_iou(
-    center_a: FloatArray,
-    half_a: FloatArray,
-    yaw_a: FloatArray,
-    center_b: FloatArray,
-    half_b: FloatArray,
-    yaw_b: FloatArray,
+    center_a: npt.ArrayLike,
+    half_a: npt.ArrayLike,
+    yaw_a: npt.ArrayLike,
+    center_b: npt.ArrayLike,
+    half_b: npt.ArrayLike,
+    yaw_b: npt.ArrayLike,
 ) -> FloatArray:
     """IoU matrix (N, M) of oriented rectangles seen from above (bird's eye view).
 
@@ -171,6 +171,8 @@ def bev_iou(
     cb = np.asarray(center_b, dtype=np.float64).reshape(-1, 2)
     ha = np.asarray(half_a, dtype=np.float64).reshape(-1, 2)
     hb = np.asarray(half_b, dtype=np.float64).reshape(-1, 2)
+    ya = np.asarray(yaw_a, dtype=np.float64).reshape(-1)
+    yb = np.asarray(yaw_b, dtype=np.float64).reshape(-1)
     n, m = len(ca), len(cb)
     iou = np.zeros((n, m))
     if n == 0 or m == 0:
@@ -181,13 +183,12 @@ def bev_iou(
     with np.errstate(invalid="ignore"):
         near = gap < radius_a[:, None] + radius_b[None, :]  # NaN compares false
         near &= (area_a[:, None] > 0) & (area_b[None, :] > 0)
-    near &= np.isfinite(np.asarray(yaw_a, dtype=np.float64).reshape(-1))[:, None]
-    near &= np.isfinite(np.asarray(yaw_b, dtype=np.float64).reshape(-1))[None, :]
+    near &= np.isfinite(ya)[:, None] & np.isfinite(yb)[None, :]
     rows, cols = np.nonzero(near)
     if rows.size == 0:
         return iou
-    corners_a = box_corners(ca, ha, yaw_a)  # counter-clockwise
-    corners_b = box_corners(cb, hb, yaw_b)
+    corners_a = box_corners(ca, ha, ya)  # counter-clockwise
+    corners_b = box_corners(cb, hb, yb)
     poly = np.zeros((rows.size, 8, 2))
     poly[:, :4] = corners_a[rows]
     count = np.full(rows.size, 4, dtype=np.intp)

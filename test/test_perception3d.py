@@ -163,6 +163,8 @@ def test_a_pedestrian_is_matched_by_distance_when_iou_cannot() -> None:
     car = (np.array([[10.0, 0.0]]), np.array([[2.0, 1.0]]), np.zeros(1))
     car_seen = (np.array([[13.9, 0.0]]), np.array([[2.0, 1.0]]), np.zeros(1))
     assert match_objects(car_seen, car, params)[0].size == 0  # IoU 0.1/7.9 < 0.3
+    no_yaw = (seen[0], seen[1], np.array([np.nan]))
+    assert match_objects(no_yaw, ped, params)[0].size == 0  # NaN never matches
 
 
 def test_an_iou_match_is_preferred_to_a_distance_match() -> None:

@@ -78,8 +78,9 @@ def match_objects(
     half = actors[1]
     small = 4.0 * half[:, 0] * half[:, 1] < params.perc3d_small_area
     by_iou = iou >= params.perc3d_match_iou
+    whole = np.isfinite(np.column_stack(objects)).all(axis=1)  # a NaN never matches
     with np.errstate(invalid="ignore"):
-        by_distance = small[None, :] & (distance <= limit) & ~by_iou
+        by_distance = small[None, :] & (distance <= limit) & ~by_iou & whole[:, None]
     near = 1.0 - distance / (2.0 * limit) if limit > 0 else np.ones_like(distance)
     score = np.where(by_iou, iou, np.where(by_distance, params.perc3d_match_iou * near, 0.0))
     eligible = by_iou | by_distance

@@ -78,7 +78,7 @@ def match_objects(
     half = actors[1]
     small = 4.0 * half[:, 0] * half[:, 1] < params.perc3d_small_area
     by_iou = iou >= params.perc3d_match_iou
-    whole = np.isfinite(np.column_stack(objects)).all(axis=1)  # a NaN never matches
+    whole = np.asarray(np.isfinite(np.column_stack(objects)).all(axis=1))  # NaN: no match
     with np.errstate(invalid="ignore"):
         by_distance = small[None, :] & (distance <= limit) & ~by_iou & whole[:, None]
     near = 1.0 - distance / (2.0 * limit) if limit > 0 else np.ones_like(distance)

@@ -18,7 +18,7 @@ import shapely
 from ads_rca.engine import diagnose
 from ads_rca.errors import ConfigError
 from ads_rca.geometry import FloatArray, bev_iou, box_corners, world_to_ego
-from ads_rca.model import Actors, EgoPose, Objects3D, Plan, RunLog, RunMetadata, Track
+from ads_rca.model import Actors, Boxes, EgoPose, Objects3D, Plan, RunLog, RunMetadata, Track
 from ads_rca.oracles.base import Module, OracleResult, RunContext
 from ads_rca.oracles.corrected import ORACLES
 from ads_rca.oracles.corrected.match3d import match_objects
@@ -326,6 +326,12 @@ def test_perception_check_chooses_the_rule() -> None:
     assert detected.skipped == "missing detections_3d"
     with pytest.raises(ConfigError, match=r"perception_check: '4d' is not one of auto \| 2d"):
         make_params("corrected", {"perception_check": "4d"})
+    # With image boxes and their ground truth too, auto keeps rule 2 (2-D logs unchanged).
+    box = Boxes((PARTNER,), np.array([[100.0, 100.0, 200.0, 200.0]]), ({},))
+    log.bboxes[CONFLICT], log.bboxes_gt[CONFLICT] = box, box
+    both = run(log, "perception", CONFLICT)
+    assert "check" not in both.metrics and both.metrics["partner_matched"] is True
+    assert run(log, "perception", CONFLICT, perception_check="3d").metrics["check"] == "3d"
 
 
 # --------------------------------------------------------------------------- no pwp

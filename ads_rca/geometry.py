@@ -115,6 +115,94 @@ def box_corners(
     return center[:, None, :] + np.stack((x, y), -1)
 
 
+def _clip_half_plane(
+    poly: FloatArray, count: npt.NDArray[np.intp], start: FloatArray, edge: FloatArray
+) -> tuple[FloatArray, npt.NDArray[np.intp]]:
+    """One Sutherland–Hodgman step for K convex polygons at once: each polygon (K, V, 2)
+    with ``count`` (K,) vertices, clipped to the left of its own directed edge ``start`` +
+    t·``edge`` (K, 2); the kept vertices come first (at most V + 1 of 2·V slots)."""
+    k, v = poly.shape[0], poly.shape[1]
+    slot = np.arange(v)
+    live = slot[None, :] < count[:, None]
+    nxt = np.where(slot[None, :] + 1 < count[:, None], slot[None, :] + 1, 0)
+    rel = poly - start[:, None, :]
+    side = edge[:, None, 0] * rel[..., 1] - edge[:, None, 1] * rel[..., 0]  # (K, V) ≥ 0 inside
+    side_next = np.take_along_axis(side, nxt, axis=1)
+    poly_next = np.take_along_axis(poly, nxt[..., None], axis=1)
+    inside, inside_next = side >= 0, side_next >= 0
+    cross = live & (inside != inside_next)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = np.where(cross, side / np.where(cross, side - side_next, 1.0), 0.0)
+    meet = poly + t[..., None] * (poly_next - poly)
+    out = np.stack((poly, meet), axis=2).reshape(k, 2 * v, 2)  # vertex i, then its crossing
+    keep = np.stack((live & inside, cross), axis=2).reshape(k, 2 * v)
+    order = np.argsort(~keep, axis=1, kind="stable")
+    return np.take_along_axis(out, order[..., None], axis=1), keep.sum(axis=1)
+
+
+def _polygon_area(poly: FloatArray, count: npt.NDArray[np.intp]) -> FloatArray:
+    """Shoelace area (K,) of polygons (K, V, 2) with ``count`` leading vertices each."""
+    v = poly.shape[1]
+    slot = np.arange(v)
+    nxt = np.where(slot[None, :] + 1 < count[:, None], slot[None, :] + 1, 0)
+    poly_next = np.take_along_axis(poly, nxt[..., None], axis=1)
+    term = poly[..., 0] * poly_next[..., 1] - poly_next[..., 0] * poly[..., 1]
+    term = np.where(slot[None, :] < count[:, None], term, 0.0)
+    area: FloatArray = 0.5 * np.abs(term.sum(axis=1))
+    return area
+
+
+def bev_iou(
+    center_a: npt.ArrayLike,
+    half_a: npt.ArrayLike,
+    yaw_a: npt.ArrayLike,
+    center_b: npt.ArrayLike,
+    half_b: npt.ArrayLike,
+    yaw_b: npt.ArrayLike,
+) -> FloatArray:
+    """IoU matrix (N, M) of oriented rectangles seen from above (bird's eye view).
+
+    Centres (N, 2) / (M, 2), half extents (N, 2) / (M, 2), yaws in degrees. Exact: each
+    pair's intersection is the first rectangle clipped by the second's four edges
+    (Sutherland–Hodgman, every pair at once); pairs whose circumscribed circles do not meet
+    are 0 without clipping. Zero-area boxes and NaN give 0 (they never match).
+    """
+    ca = np.asarray(center_a, dtype=np.float64).reshape(-1, 2)
+    cb = np.asarray(center_b, dtype=np.float64).reshape(-1, 2)
+    ha = np.asarray(half_a, dtype=np.float64).reshape(-1, 2)
+    hb = np.asarray(half_b, dtype=np.float64).reshape(-1, 2)
+    ya = np.asarray(yaw_a, dtype=np.float64).reshape(-1)
+    yb = np.asarray(yaw_b, dtype=np.float64).reshape(-1)
+    n, m = len(ca), len(cb)
+    iou = np.zeros((n, m))
+    if n == 0 or m == 0:
+        return iou
+    area_a, area_b = 4.0 * ha[:, 0] * ha[:, 1], 4.0 * hb[:, 0] * hb[:, 1]
+    radius_a, radius_b = np.hypot(ha[:, 0], ha[:, 1]), np.hypot(hb[:, 0], hb[:, 1])
+    gap = np.hypot(ca[:, None, 0] - cb[None, :, 0], ca[:, None, 1] - cb[None, :, 1])
+    with np.errstate(invalid="ignore"):
+        near = gap < radius_a[:, None] + radius_b[None, :]  # NaN compares false
+        near &= (area_a[:, None] > 0) & (area_b[None, :] > 0)
+    near &= np.isfinite(ya)[:, None] & np.isfinite(yb)[None, :]
+    rows, cols = np.nonzero(near)
+    if rows.size == 0:
+        return iou
+    corners_a = box_corners(ca, ha, ya)  # counter-clockwise
+    corners_b = box_corners(cb, hb, yb)
+    poly = np.zeros((rows.size, 8, 2))
+    poly[:, :4] = corners_a[rows]
+    count = np.full(rows.size, 4, dtype=np.intp)
+    clip = corners_b[cols]
+    for e in range(4):
+        start = clip[:, e]
+        poly, count = _clip_half_plane(poly, count, start, clip[:, (e + 1) % 4] - start)
+        poly, count = poly[:, :8], np.minimum(count, 8)  # a convex 4-gon clipped 4 times
+    inter = _polygon_area(poly, count)
+    union = area_a[rows] + area_b[cols] - inter
+    iou[rows, cols] = np.where(union > 0, inter / np.where(union > 0, union, 1.0), 0.0)
+    return iou
+
+
 _SX = np.array([[1.0], [-1.0], [-1.0], [1.0]])
 _SY = np.array([[1.0], [1.0], [-1.0], [-1.0]])
 

@@ -16,7 +16,7 @@ from typing import Any, Literal
 import yaml
 
 from ads_rca.errors import ConfigError
-from ads_rca.paramspec import SPECS, check_number
+from ads_rca.paramspec import SPECS, check_value
 
 Semantics = Literal["reference", "corrected"]
 SEMANTICS: tuple[Semantics, ...] = ("reference", "corrected")
@@ -53,6 +53,12 @@ class Params:
     control_min_persistence: int = 3
     planning_min_persistence: int = 1
     heading_min_step: float = 0.1  # m
+    perception_check: str = "auto"  # auto | 2d | 3d
+    perception_3d_source: str = "auto"  # auto | tracked | detected
+    perc3d_match_iou: float = 0.3
+    perc3d_match_distance: float = 1.0  # m
+    perc3d_small_area: float = 2.0  # m²
+    perc3d_range: float = 80.0  # m
 
     def values(self, names: Iterable[str]) -> dict[str, Any]:
         """``{name: value}`` of the parameters ``names``, in that order (for outputs: a
@@ -148,7 +154,7 @@ def _convert(name: str, value: Any) -> Any:
         raise ConfigError(f"unknown parameter {name!r} (known: {known})")
     if name == "semantics":
         return value
-    return check_number(name, value, SPECS[name].range)
+    return check_value(name, value, SPECS[name].range)
 
 
 def defaults_text(name: str) -> str:

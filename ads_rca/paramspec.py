@@ -40,6 +40,23 @@ class Range:
             )
 
 
+@dataclass(frozen=True)
+class Choice:
+    """The values a text parameter may take (the first is its usual default)."""
+
+    options: tuple[str, ...]
+    integer: bool = False  # the interface of :class:`Range`: never a whole number
+
+    def text(self) -> str:
+        """``one of auto | 2d | 3d``: as the refusal and the docs show it."""
+        return "one of " + " | ".join(self.options)
+
+    def check(self, name: str, value: object) -> None:
+        """Raise ConfigError unless ``value`` is one of the options."""
+        if value not in self.options:
+            raise ConfigError(f"parameter {name}: {value!r} is not {self.text()}")
+
+
 def _number_text(value: float) -> str:
     if isinstance(value, float) and value.is_integer() and abs(value) < 1e15:
         return str(int(value))
@@ -51,7 +68,7 @@ class ParamSpec:
     """One engine parameter: its range, and per mode what it does (a mode absent from
     ``effect`` does not read it)."""
 
-    range: Range
+    range: Range | Choice
     effect: Mapping[str, str] = field(default_factory=dict)
 
     def effect_in(self, mode: str) -> str:
@@ -186,6 +203,43 @@ SPECS: dict[str, ParamSpec] = {
         Range(0.0, 100.0, unit="m"),
         {"corrected": "predicted motion shorter than this keeps the previous heading"},
     ),
+    "perception_check": ParamSpec(
+        Choice(("auto", "2d", "3d")),
+        {
+            "corrected": "which perception rule: 2d (image boxes), 3d (bird's-eye boxes) or "
+            "auto (2d when the log has 2-D detections and ground truth, else 3d when it has "
+            "tracked objects or 3-D detections)"
+        },
+    ),
+    "perception_3d_source": ParamSpec(
+        Choice(("auto", "tracked", "detected")),
+        {
+            "corrected": "the 3-D rule judges tracked objects or 3-D detections; auto: tracked "
+            "objects when the log has any"
+        },
+    ),
+    "perc3d_match_iou": ParamSpec(
+        Range(0.0, 1.0),
+        {"corrected": "a perceived 3-D object matches an actor only at bird's-eye IoU >= this"},
+    ),
+    "perc3d_match_distance": ParamSpec(
+        Range(0.0, 100.0, unit="m"),
+        {
+            "corrected": "a small actor (perc3d_small_area) also matches a perceived object "
+            "whose centre is at most this far"
+        },
+    ),
+    "perc3d_small_area": ParamSpec(
+        Range(0.0, 1000.0, unit="m²"),
+        {"corrected": "actors with a smaller bird's-eye area are matched by distance too"},
+    ),
+    "perc3d_range": ParamSpec(
+        Range(0.0, 100_000.0, unit="m"),
+        {
+            "corrected": "sensing range: the 3-D rule counts actors and perceived objects "
+            "within this distance of the ego"
+        },
+    ),
 }
 
 #: The log reader's parameter (not an engine threshold; ``commands/input_args.py``).
@@ -194,6 +248,14 @@ MAX_FILE_MB = Range(0.001, 1_048_576.0, unit="MB")
 SECONDS = Range(0.0, 3600.0, unit="s")
 #: Playback speed relative to log time (the player's ``rate``, ``--rate``; 0 = no clock).
 RATE = Range(0.0, 1000.0)
+
+
+def check_value(name: str, value: Any, bounds: Range | Choice) -> int | float | str:
+    """``value`` checked against a parameter's range or choices (see :func:`check_number`)."""
+    if isinstance(bounds, Choice):
+        bounds.check(name, value)
+        return str(value)
+    return check_number(name, value, bounds)
 
 
 def check_number(name: str, value: Any, bounds: Range) -> int | float:

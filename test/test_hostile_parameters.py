@@ -72,6 +72,11 @@ RANGE_CASES = [
     ("monitors", "safety_margin:=-1.0", "parameter safety_margin: -1 is out of range [0, 100] m"),
     ("monitors", "window_s:=.nan", "parameter window_s: nan is out of range [0, 3600] s"),
     (
+        "monitors",
+        "perception_check:=4d",
+        "parameter perception_check: '4d' is not one of auto | 2d | 3d",
+    ),
+    (
         "ads_rca.ros.aggregator",
         "window_s:=-3",
         "parameter window_s: -3 is out of range [0, 3600] s",

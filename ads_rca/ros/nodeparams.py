@@ -32,7 +32,7 @@ from rclpy.node import Node
 from ads_rca.errors import ConfigError
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import DEFAULT_SEMANTICS, SEMANTICS, Params, make_params
-from ads_rca.paramspec import SPECS, Range, check_number
+from ads_rca.paramspec import SPECS, Choice, Range, check_number
 from ads_rca.text import printable
 
 ENGINE_NAMES: tuple[str, ...] = tuple(f.name for f in fields(Params) if f.name != "semantics")
@@ -62,7 +62,11 @@ def declare_engine_parameters(node: Node) -> Params:
         values[name] = _declare(node, name, defaults[name], _descriptor(texts[name], True))
     params = make_params(semantics, values)
     for name in ENGINE_NAMES:
-        _freeze(node, name, _descriptor(texts[name], True, SPECS[name].range))
+        bounds = SPECS[name].range
+        if isinstance(bounds, Choice):
+            _freeze(node, name, _descriptor(texts[name], True, constraints=bounds.text()))
+        else:
+            _freeze(node, name, _descriptor(texts[name], True, bounds))
     return params
 
 

@@ -64,6 +64,12 @@ class CorrectedSemantics(Semantics):
         "control_min_persistence",
         "planning_min_persistence",
         "heading_min_step",
+        "perception_check",
+        "perception_3d_source",
+        "perc3d_match_iou",
+        "perc3d_match_distance",
+        "perc3d_small_area",
+        "perc3d_range",
     )
     reported = REPORTED
     requires: Mapping[Module, tuple[tuple[str, ...], ...]] = {

@@ -7,8 +7,9 @@ every comparison with it is false, which is exactly the spec's reading.
 
 :class:`PartnerView` gathers, once per timestamp, everything perception, prediction and
 planning ask about the partner: its real, pwp (``predictions_with_perception``) and raw
-(planner's ``predictions``, linked by the reference's rule) boxes, the three clearances,
-displacement errors and the displacement threshold.
+(planner's ``predictions``, linked by the reference's rule; without any pwp in the log, the
+track rule 2b matched to the partner) boxes, the three clearances, displacement errors and
+the displacement threshold.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from ads_rca.geometry import FloatArray, box_signed_distance
 from ads_rca.model import Predictions
 from ads_rca.oracles.corrected.boxes import PlanData, Series, braking_boxes
 from ads_rca.oracles.corrected.context import CacheName, CorrectedContext
+from ads_rca.oracles.corrected.match3d import linked_track, raw_without_pwp
 
 NAN = float("nan")
 #: The reference's linking rule only considers step-"0" offsets closer than this.
@@ -203,6 +205,12 @@ def _build_view(cc: CorrectedContext, ts: int) -> PartnerView:
                 raw_id = link_raw(cc, ts, raw_file, pwp_file, partner)
                 if raw_id is not None:
                     raw = cc.predicted_series(raw_file[raw_id], pose, partner, ts)
+        elif pose is not None and raw_file is not None and raw_without_pwp(cc):
+            raw_id = linked_track(cc, ts, partner)  # rule 2b's match stands in for pwp
+            if raw_id is not None and raw_id in raw_file:
+                raw = cc.predicted_series(raw_file[raw_id], pose, partner, ts)
+            else:
+                raw_id = None
     ref = _reference(pwp, real)
     ego = plan.boxes if plan else None
     brake = None

@@ -32,6 +32,8 @@ from ads_rca.oracles.corrected.common import (
     skipped,
 )
 from ads_rca.oracles.corrected.context import CorrectedContext, corrected_context
+from ads_rca.oracles.corrected.match3d import uses_3d
+from ads_rca.oracles.corrected.perception3d import perception3d
 
 #: Frames with at most this many detection x gt pairs are matched on the whole IoU matrix.
 DENSE_PAIRS = 1 << 18
@@ -156,8 +158,10 @@ def degraded(cc: CorrectedContext, view: PartnerView) -> bool:
 
 
 def perception(ctx: RunContext, ts: int) -> OracleResult:
-    """Rule 2 at ts, with the standard detection metrics."""
+    """Rule 2 at ts, with the standard detection metrics (rule 2b for 3-D perception)."""
     cc = corrected_context(ctx)
+    if uses_3d(cc):
+        return perception3d(ctx, ts)
     p = cc.params
     thresholds = p.values(REPORTED["perception"])
     absent = missing_inputs(cc, ts, ("bboxes", "bboxes_gt"), "perception check")

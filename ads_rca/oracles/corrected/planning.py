@@ -28,6 +28,11 @@ from ads_rca.oracles.corrected.common import (
     skipped,
 )
 from ads_rca.oracles.corrected.context import CorrectedContext, corrected_context
+from ads_rca.oracles.corrected.match3d import raw_without_pwp
+
+#: The folders rule 4 needs to link the planner's inputs to the partner (pwp: the link;
+#: without pwp in the log, rule 2b's match links them and only the predictions are needed).
+PLANNER_INPUTS = ("predictions", "predictions_with_perception")
 
 
 def time_to_collision(cc: CorrectedContext, c: Clearance) -> float:
@@ -71,9 +76,8 @@ def planning(ctx: RunContext, ts: int) -> OracleResult:
     partner = cc.partner_at(ts)
     if partner is None:
         return OracleResult("planning", ts, False, metrics, thresholds)
-    absent = missing_inputs(
-        cc, ts, ("predictions", "predictions_with_perception"), "planning check (planner inputs)"
-    )
+    needed = ("predictions",) if raw_without_pwp(cc) else PLANNER_INPUTS
+    absent = missing_inputs(cc, ts, needed, "planning check (planner inputs)")
     if absent:
         return skipped("planning", ts, f"missing {', '.join(absent)}", metrics, thresholds)
     view = partner_view(cc, ts)

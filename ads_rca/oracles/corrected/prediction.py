@@ -21,7 +21,7 @@ from ads_rca.geometry import ego_to_world
 from ads_rca.model import EgoPose, Predictions
 from ads_rca.oracles.base import Metric, OracleResult, RunContext
 from ads_rca.oracles.corrected.boxes import step_order
-from ads_rca.oracles.corrected.clearance import partner_view
+from ads_rca.oracles.corrected.clearance import Clearance, PartnerView, partner_view
 from ads_rca.oracles.corrected.common import (
     REPORTED,
     clearance_metrics,
@@ -30,6 +30,8 @@ from ads_rca.oracles.corrected.common import (
     skipped,
 )
 from ads_rca.oracles.corrected.context import CorrectedContext, corrected_context
+from ads_rca.oracles.corrected.match3d import frame_match, raw_without_pwp
+from ads_rca.oracles.corrected.perception3d import partner_perception
 
 #: A final displacement error above this is a miss (the usual motion-forecasting metric).
 MISS_DISTANCE = 2.0
@@ -84,11 +86,37 @@ def displacement_metrics(
     return out
 
 
+def judge(
+    cc: CorrectedContext, c_pred: Clearance, c_gt: Clearance, e: float, view: PartnerView
+) -> tuple[bool, bool, bool, bool]:
+    """Rule 3's tests on a predicted clearance and displacement error: (e over the
+    threshold, understated by more than understate_min, conflict hidden, judged failing)."""
+    p = cc.params
+    e_over = e > view.threshold
+    understated = c_pred.value - c_gt.value > p.understate_min
+    hidden = c_pred.value >= p.safety_margin
+    return e_over, understated, hidden, understated and (e_over or hidden)
+
+
+def by_actor(cc: CorrectedContext, ts: int, raw: Predictions) -> Predictions:
+    """The raw tracks rule 2b matched to an actor at ts, keyed by that actor (file order)."""
+    match = frame_match(cc, ts)
+    if match is None:
+        return {}
+    actor_of = {
+        match.objects.ids[r]: match.actor_ids[c]
+        for r, c in zip(match.rows.tolist(), match.cols.tolist(), strict=True)
+    }
+    return {actor_of[i]: track for i, track in raw.items() if i in actor_of}
+
+
 def prediction(ctx: RunContext, ts: int) -> OracleResult:
     """Rule 3 at ts, with ADE/FDE/miss rate."""
     cc = corrected_context(ctx)
     p = cc.params
     thresholds = {**p.values(REPORTED["prediction"]), "miss_distance": MISS_DISTANCE}
+    if raw_without_pwp(cc):
+        return raw_prediction(cc, ts, thresholds)
     absent = missing_inputs(cc, ts, ("pose", "predictions_with_perception"), "prediction check")
     if absent:
         return skipped("prediction", ts, f"missing {', '.join(absent)}", thresholds=thresholds)
@@ -101,10 +129,7 @@ def prediction(ctx: RunContext, ts: int) -> OracleResult:
     view = partner_view(cc, ts)
     thresholds["displacement_threshold"] = view.threshold
     absent_from_pwp = bool(view.in_view) and view.in_pwp is False
-    e_over = view.e_pwp > view.threshold
-    understated = view.c_pwp.value - view.c_gt.value > p.understate_min
-    hidden = view.c_pwp.value >= p.safety_margin
-    judged = understated and (e_over or hidden)
+    e_over, understated, hidden, judged = judge(cc, view.c_pwp, view.c_gt, view.e_pwp, view)
     metrics.update(
         partner_in_view=view.in_view,
         partner_in_pwp=view.in_pwp,
@@ -125,3 +150,50 @@ def prediction(ctx: RunContext, ts: int) -> OracleResult:
         cc.missing("waypoint", ts, "prediction check needs the plan for clearances")
         reason = "missing waypoint"
     return OracleResult("prediction", ts, failed, metrics, thresholds, (partner,), reason)
+
+
+def raw_prediction(cc: CorrectedContext, ts: int, thresholds: dict[str, float]) -> OracleResult:
+    """Rule 3 without predictions on ground truth (rule 2b's reading): the partner's raw
+    track, linked by the 3-D match, judged only where the partner was perceived correctly
+    at ts, so that the prediction started from a correct perception as pwp would."""
+    absent = missing_inputs(cc, ts, ("pose", "predictions"), "prediction check (raw)")
+    if absent:
+        return skipped("prediction", ts, f"missing {', '.join(absent)}", thresholds=thresholds)
+    pose = cc.log.pose[ts]
+    metrics = displacement_metrics(cc, ts, by_actor(cc, ts, cc.log.predictions[ts]), pose)
+    metrics["basis"] = "raw"
+    if cc.partner_at(ts) is None:
+        metrics["unconditioned"] = False
+        return OracleResult("prediction", ts, False, metrics, thresholds)
+    seen = partner_perception(cc, ts)
+    if seen is None or not seen.correct:
+        why = "perception of the partner not correct at ts"
+        return skipped("prediction", ts, why, metrics, thresholds)
+    view = partner_view(cc, ts)
+    if view.raw is None:
+        return skipped("prediction", ts, "no raw prediction of the partner", metrics, thresholds)
+    thresholds["displacement_threshold"] = view.threshold
+    e = view.raw_displacement  # against the real boxes: without pwp they are the reference
+    e_over, understated, hidden, judged = judge(cc, view.c_raw, view.c_gt, e, view)
+    metrics.update(
+        partner_in_view=seen.in_range,
+        partner_in_raw=True,
+        raw_id=view.raw_id,
+        displacement_error=num(e),
+        displacement_threshold=view.threshold,
+        partner_travelled=num(view.travelled),
+        real_conflict=view.real_conflict,
+        understated=bool(understated),
+        conflict_hidden=bool(hidden),
+        pessimistic=bool(view.c_raw.value < view.c_gt.value),
+        unconditioned=bool(e_over),
+        **clearance_metrics("c_gt", view.c_gt),
+        **clearance_metrics("c_raw", view.c_raw),
+    )
+    failed = bool(view.real_conflict and judged)
+    reason = None
+    if ts not in cc.log.waypoints:
+        cc.missing("waypoint", ts, "prediction check needs the plan for clearances")
+        reason = "missing waypoint"
+    ids = (seen.partner_id,) if view.raw_id is None else (seen.partner_id, view.raw_id)
+    return OracleResult("prediction", ts, failed, metrics, thresholds, ids, reason)

@@ -73,18 +73,29 @@ class CorrectedSemantics(Semantics):
     )
     reported = REPORTED
     requires: Mapping[Module, tuple[tuple[str, ...], ...]] = {
-        # Every rule measures clearances against the ego's plan boxes.
+        # Every rule measures clearances against the ego's plan boxes; without predictions
+        # on ground truth, the 3-D match links the stack's predictions to the partner.
         "perception": (
-            ("actors", "ego", "plan", "detections_2d", "ground_truth_2d"),
+            (
+                "actors",
+                "ego",
+                "plan",
+                "detections_2d",
+                "ground_truth_2d",
+                "predictions",
+                "predictions_gt",
+            ),
             ("actors", "ego", "plan", "tracked_objects"),
             ("actors", "ego", "plan", "detections_3d"),
         ),
         "prediction": (
             ("actors", "ego", "plan", "predictions_gt"),
             ("actors", "ego", "plan", "predictions", "tracked_objects"),
-            ("actors", "ego", "plan", "predictions", "detections_3d"),
         ),
-        "planning": (("actors", "ego", "plan", "predictions"),),
+        "planning": (
+            ("actors", "ego", "plan", "predictions", "predictions_gt"),
+            ("actors", "ego", "plan", "predictions", "tracked_objects"),
+        ),
         "controller": (("actors", "ego", "plan"),),
     }
     rules: Mapping[Module, str] = {

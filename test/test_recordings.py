@@ -1,0 +1,236 @@
+"""Recordings of real stacks diagnosed with one command (issue #16): a synthesised run written
+as a CARLA ROS bridge + Autoware (or vision_msgs) stack would have recorded it, read back with
+``--profile``, its types from the bag itself.
+
+Real processes (the ``ads-rca`` console script) and real bags (rosbags' writer, MCAP and
+sqlite3); hostile cases: a bag without type definitions, a profile naming a topic the bag
+lacks, a profile whose type differs from the stored one, and bad options.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from ads_rca.engine import diagnose
+from ads_rca.io import open_run
+from ads_rca.io.bag_options import BagOptions
+from ads_rca.params import Params
+from ads_rca.synth import synthesise
+from ads_rca.synth.recording import MSG_DIR, write_recording
+
+ADS_RCA = str(Path(sys.executable).with_name("ads-rca"))
+CARLA = "carla-autoware"
+
+
+def run(*argv: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [ADS_RCA, *argv], capture_output=True, text=True, timeout=300, check=False
+    )
+
+
+@pytest.fixture(scope="module")
+def crash() -> object:
+    return synthesise("lead_braking", "planning", 1)
+
+
+@pytest.fixture(scope="module")
+def bags(crash: object, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    out: dict[str, Path] = {}
+    for profile in (CARLA, "vision_msgs"):
+        for storage in ("mcap", "sqlite3"):
+            path = tmp_path_factory.mktemp("bags") / f"{profile}_{storage}"
+            write_recording(crash, path, profile, storage)  # type: ignore[arg-type]
+            out[f"{profile}/{storage}"] = path
+    old = tmp_path_factory.mktemp("bags") / "old_sqlite3"
+    write_recording(crash, old, CARLA, "sqlite3", definitions=False)  # type: ignore[arg-type]
+    out["old"] = old
+    return out
+
+
+@pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
+def test_a_carla_autoware_recording_is_diagnosed_with_one_command(
+    bags: dict[str, Path], storage: str, tmp_path: Path
+) -> None:
+    verdict = tmp_path / "verdict.json"
+    done = run(
+        "diagnose", str(bags[f"{CARLA}/{storage}"]), "--profile", CARLA, "--json", str(verdict)
+    )
+    assert done.returncode == 0, done.stderr
+    document = json.loads(verdict.read_text())
+    assert document["primary_root_cause"] == "planning"
+    assert document["modules_judged"] == dict.fromkeys(
+        ("perception", "prediction", "planning", "controller"), "judged"
+    )
+    # The same run read in-process gives the same verdict: one reader, whatever the storage.
+    log = open_run(bags[f"{CARLA}/{storage}"], bag=BagOptions(CARLA))
+    assert diagnose(log, Params(semantics="corrected")).to_json()["verdict"] == document["verdict"]
+
+
+def test_reference_mode_says_what_it_cannot_judge_on_a_3d_stack(bags: dict[str, Path]) -> None:
+    done = run(
+        "diagnose", str(bags[f"{CARLA}/mcap"]), "--profile", CARLA, "--semantics", "reference"
+    )
+    assert done.returncode == 0, done.stderr
+    assert (
+        "perception           0      0  not judged (no detections_2d, ground_truth_2d)"
+        in done.stdout
+    )
+    assert "prediction           0      0  not judged (no predictions_gt)" in done.stdout
+    assert "only the judged modules could be blamed; perception not judged" in done.stdout
+
+
+def test_inspect_lists_topics_inputs_and_the_modules_each_mode_can_judge(
+    bags: dict[str, Path],
+) -> None:
+    done = run("inspect", str(bags[f"{CARLA}/sqlite3"]), "--profile", CARLA)
+    assert done.returncode == 0, done.stderr
+    lines = done.stdout.splitlines()
+    frames = len(synthesise("lead_braking", "planning", 1).frames)
+    assert f"  /carla/objects  derived_object_msgs/msg/ObjectArray  {frames}" in lines
+    assert any(
+        line.startswith(
+            "  /perception/object_recognition/objects  "
+            "autoware_perception_msgs/msg/PredictedObjects  "
+        )
+        for line in lines
+    )
+    assert "inputs missing: detections_2d, ground_truth_2d, predictions_gt" in lines
+    assert (
+        "reference: perception not judged (no detections_2d, ground_truth_2d); prediction not "
+        "judged (no predictions_gt); planning not judged (no predictions_gt); controller judged"
+    ) in lines
+    assert (
+        "corrected: perception judged; prediction judged; planning judged; controller judged"
+        in lines
+    )
+    info = json.loads(
+        run("inspect", str(bags[f"{CARLA}/sqlite3"]), "--profile", CARLA, "--json").stdout
+    )
+    assert info["inputs"]["tracked_objects"]["source"].startswith(
+        "/perception/object_recognition/tracking/objects"
+    )
+
+
+def test_a_vision_msgs_recording_is_judged_on_its_2d_boxes(bags: dict[str, Path]) -> None:
+    log = open_run(bags["vision_msgs/mcap"], bag=BagOptions("vision_msgs"))
+    judged = diagnose(log, Params(semantics="reference")).to_json()["modules_judged"]
+    assert judged["perception"] == "judged"
+    assert judged["planning"] == "not judged (no predictions, predictions_gt)"
+
+
+def test_a_bag_without_type_definitions_names_them_and_msg_path_supplies_them(
+    bags: dict[str, Path],
+) -> None:
+    done = run("diagnose", str(bags["old"]), "--profile", CARLA)
+    assert done.returncode == 2
+    error = done.stderr.strip()
+    assert "\n" not in error and "Traceback" not in error
+    for missing in (
+        "autoware_perception_msgs/msg/TrackedObjects",
+        "derived_object_msgs/msg/ObjectArray",
+    ):
+        assert missing in error
+    assert "--msg-path" in error
+    fixed = run("diagnose", str(bags["old"]), "--profile", CARLA, "--msg-path", str(MSG_DIR))
+    assert fixed.returncode == 0, fixed.stderr
+    assert "verdict: planning" in fixed.stdout
+
+
+def test_a_profile_naming_a_topic_the_bag_lacks_leaves_that_input_absent(
+    bags: dict[str, Path], tmp_path: Path
+) -> None:
+    builtin = (
+        Path(__file__).resolve().parent.parent
+        / "ads_rca"
+        / "profiles"
+        / "builtin"
+        / f"{CARLA}.yaml"
+    )
+    text = builtin.read_text().replace(
+        "/planning/scenario_planning/trajectory", "/planning/nowhere"
+    )
+    profile = tmp_path / "mine.yaml"
+    profile.write_text(text)
+    done = run("diagnose", str(bags[f"{CARLA}/mcap"]), "--profile", str(profile))
+    assert done.returncode == 0, done.stderr
+    assert "planning             0      0  not judged (no plan)" in done.stdout
+    assert "/planning/nowhere" in done.stdout  # the problem names the topic
+
+
+def test_a_profile_whose_type_differs_from_the_stored_one_is_said_once(
+    bags: dict[str, Path], tmp_path: Path
+) -> None:
+    builtin = (
+        Path(__file__).resolve().parent.parent
+        / "ads_rca"
+        / "profiles"
+        / "builtin"
+        / f"{CARLA}.yaml"
+    )
+    text = builtin.read_text().replace(
+        "autoware_perception_msgs/msg/TrackedObjects",
+        "autoware_perception_msgs/msg/DetectedObjects",
+        1,
+    )
+    profile = tmp_path / "typo.yaml"
+    profile.write_text(text)
+    done = run("inspect", str(bags[f"{CARLA}/mcap"]), "--profile", str(profile))
+    assert done.returncode == 0, done.stderr
+    wrong = [
+        line
+        for line in done.stdout.splitlines()
+        if "/perception/object_recognition/tracking/objects" in line
+        and "TrackedObjects" in line
+        and "DetectedObjects" in line
+    ]
+    assert len(wrong) == 1
+
+
+@pytest.mark.parametrize(
+    ("argv", "said"),
+    [
+        (["--profile", "autoware-nope"], "autoware-nope: no such profile"),
+        (["--profile", CARLA, "--remap", "{remap}"], "--remap applies to the ads_rca profile"),
+        (
+            ["--profile", CARLA, "--msg-path", "/nonexistent/msgs"],
+            "--msg-path /nonexistent/msgs: no such directory",
+        ),
+    ],
+)
+def test_bad_bag_options_are_one_line(
+    bags: dict[str, Path], tmp_path: Path, argv: list[str], said: str
+) -> None:
+    remap = tmp_path / "remap.yaml"
+    remap.write_text("/x: actors\n")
+    argv = [a.replace("{remap}", str(remap)) for a in argv]
+    for command in ("diagnose", "inspect", "convert"):
+        extra = [str(tmp_path / f"out_{command}")] if command == "convert" else []
+        done = run(command, str(bags[f"{CARLA}/mcap"]), *extra, *argv)
+        assert done.returncode == 2, (command, done.stdout)
+        assert said in done.stderr and done.stderr.count("\n") == 1, (command, done.stderr)
+
+
+def test_convert_writes_a_log_folder_as_a_stacks_recording(tmp_path: Path) -> None:
+    folder, bag = tmp_path / "run", tmp_path / "bag"
+    made = run(
+        "synth", str(folder), "--scenario", "lead_braking", "--fault", "planning", "--seed", "1"
+    )
+    assert made.returncode == 0, made.stderr
+    done = run("convert", str(folder), str(bag), "--profile", CARLA, "--storage", "sqlite3")
+    assert done.returncode == 0, done.stderr
+    assert "as a carla-autoware stack records it" in done.stdout
+    diagnosed = run("diagnose", str(bag), "--profile", CARLA)
+    assert diagnosed.returncode == 0, diagnosed.stderr
+    assert "controller           0      0" in diagnosed.stdout  # judged: ego, plan, actors
+    refused = run(
+        "convert", str(folder), str(tmp_path / "x"), "--profile", str(tmp_path / "p.yaml")
+    )
+    assert (
+        refused.returncode == 2
+        and "can be written as carla-autoware, vision_msgs" in refused.stderr
+    )

@@ -193,6 +193,8 @@ class _McapWalk:
             self.header = True
         elif opcode == _SCHEMA:
             schema_id, name, encoding, data = _schema(body)
+            if self.schemas.get(schema_id) == name:
+                return  # the summary repeats the data section's schemas
             self.schemas[schema_id] = name
             where = f"schema {schema_id}"
             if data is None:

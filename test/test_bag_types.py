@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 import pytest
 from rosbags.rosbag2 import StoragePlugin, Writer
-from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+from rosbags.typesys import Stores, get_types_from_idl, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
 from ads_rca.contract.errors import MalformedMessage
@@ -278,6 +278,56 @@ def test_the_bags_own_text_wins_over_the_standard_types(
     assert (decoded.data, decoded.extra, types.source(STRING)) == ("hello", 7, "bag")
 
 
+READING_IDL = """module demo_msgs {
+  module msg {
+    struct Reading {
+      std_msgs::msg::Header header;
+      sequence<double> values;
+      string label;
+    };
+  };
+};
+"""
+
+
+@pytest.mark.parametrize("storage", STORAGES, ids=lambda s: s.name.lower())
+def test_an_idl_definition_is_read_too(tmp_path: Path, storage: StoragePlugin) -> None:
+    """rosbag2 stores ``ros2idl`` text for types defined in IDL (the writer's own format
+    detection: a separator line, then ``IDL: pkg/msg/Type``)."""
+    reading = "demo_msgs/msg/Reading"
+    store = get_typestore(Stores.ROS2_KILTED)
+    store.register(get_types_from_idl(READING_IDL))
+    msg = store.types[reading](header=header(store, 5), values=np.array([1.5, -2.0]), label="a")
+    text = f"{SEP}IDL: {reading}\n{READING_IDL}"
+    bag = write_bag(tmp_path / "bag", storage, [("/r", reading, msg)], store, {reading: text})
+    contents = load_bag(bag)
+    assert contents.definitions == {reading: ("ros2idl", text)}
+    types = contents.types()
+    assert plain(types.decode(contents.messages[0].data, reading)) == plain(msg)
+    assert (types.source(reading), types.problems) == ("bag", [])
+
+
+def test_a_type_embedding_another_layout_of_a_bag_type_is_refused() -> None:
+    """Wrap's bytes hold the String its text embeds; the bag's own String has another
+    layout, so Wrap cannot be decoded with it (String itself still can)."""
+    wrap = "demo_msgs/msg/Wrap"
+    types = BagTypes(
+        "bag",
+        {
+            STRING: ("ros2msg", "string data\nuint32 extra\n"),
+            wrap: ("ros2msg", f"std_msgs/String s\n{SEP}MSG: std_msgs/String\nstring data\n"),
+        },
+    )
+    with pytest.raises(InputError) as error:
+        types.require([wrap])
+    assert str(error.value) == (
+        f"bag: unusable definition of {wrap}: {wrap} embeds a definition of {STRING} other "
+        "than the one used"
+    )
+    decoded = types.decode(b"\x00\x01\x00\x00\x02\x00\x00\x00a\x00\x00\x00\x09\x00\x00\x00", STRING)
+    assert (decoded.data, decoded.extra) == ("a", 9)
+
+
 def test_damaged_bytes_are_a_malformed_message(tmp_path: Path) -> None:
     contents = load_bag(write_bag(tmp_path / "bag", StoragePlugin.MCAP))
     types = contents.types()
@@ -354,14 +404,15 @@ def test_a_hostile_definition_is_one_line_and_spoils_nothing_else(
     contents = load_bag(bag)
     assert contents.definitions[evil] == ("ros2msg", text)
     types = contents.types()
-    expected = [] if problem is None else [(str(bag), evil, problem)]
-    assert [(p.file, p.field, p.issue) for p in types.problems] == expected
+    # the bag's other types are untouched, and a text nobody needs is never parsed
+    decoded = [types.decode(m.data, m.msg_type) for m in contents.messages[:2]]
+    assert [plain(d) for d in decoded] == [plain(msg) for _t, _n, msg in MESSAGES[:2]]
+    assert types.problems == []
     with pytest.raises(InputError) as error:
         types.decode(contents.messages[2].data, evil)
     assert str(error.value) == f"{bag}: {unusable}"
-    # the bag's other types are untouched
-    decoded = [types.decode(m.data, m.msg_type) for m in contents.messages[:2]]
-    assert [plain(d) for d in decoded] == [plain(msg) for _t, _n, msg in MESSAGES[:2]]
+    expected = [] if problem is None else [(str(bag), evil, problem)]
+    assert [(p.file, p.field, p.issue) for p in types.problems] == expected
 
 
 @pytest.mark.parametrize("storage", STORAGES, ids=lambda s: s.name.lower())

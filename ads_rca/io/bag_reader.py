@@ -15,6 +15,11 @@ chunk), a message that cannot be decoded is skipped, and the storage's own topic
 are trusted over ``metadata.yaml``; each of these is a Problem in the log, so ``inspect``,
 ``diagnose`` and the JSON list it.
 
+:func:`load_bag` also keeps the type definitions the storage carries;
+:meth:`BagContents.types` makes them a type store of the bag's own
+(:mod:`ads_rca.io.bag_types`), for a stack's messages read without their packages. The
+contract's topics are decoded as always, through :mod:`ads_rca.contract.rosmsg`.
+
 Only regular files are read (:mod:`ads_rca.io.files`): a FIFO or a device named like a
 storage file or ``metadata.yaml`` is found (by name and ``stat``, which never blocks) and
 reported, never opened: a Problem when other storage files can be read, else InputError.

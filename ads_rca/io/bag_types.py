@@ -2,17 +2,20 @@
 
 A stack's recording carries its own layouts (MCAP schemas, rosbag2's sqlite3
 ``message_definitions``, read by :mod:`ads_rca.io.bag_storage`). :class:`BagTypes` turns them
-into a rosbags type store for that bag alone, in three layers, the first that defines a type
-winning: the bag's own text (what the bytes were written with, also for the dependencies
-each text embeds), then ``.msg`` files under ``--msg-path`` (for an older sqlite3 bag that
-stores none), then Kilted's standard types.
+into a rosbags type store for that bag alone, the first layer that defines a type winning:
+the bag's own text for it (what the bytes were written with), what the bag's other texts
+embed for it, ``.msg`` files under ``--msg-path`` (for an older sqlite3 bag that stores
+none), Kilted's standard types. A text is parsed when a type first needs it: a recording of
+a whole stack carries hundreds of types, a diagnosis reads a few.
 
 A definition is untrusted text, and rosbags turns a registered type into Python source that
 it executes. So before anything is registered, every name in it (types, fields, constants)
 must be a plain ROS name, and every type must be usable: each type it needs defined, no type
 that contains itself (it would recurse for ever), nesting at most :data:`MAX_NESTING` deep,
-no fixed array of length 0 (a zero-size element would let a sequence count run unbounded
-over no bytes). A definition that fails is a Problem naming the bag and the type; a type
+at most :data:`MAX_UNROLLED` elements of fixed arrays of strings or messages (rosbags writes
+a line of code per element), no fixed array of length 0 (a zero-size element would let a
+sequence count run unbounded over no bytes), no ``inf``/``nan`` constant (rosbags would write
+Python that does not run). A definition that fails is a Problem naming the bag and the type; a type
 asked for that cannot be used is one :class:`~ads_rca.errors.InputError` line.
 Pure: no rclpy, and the process-wide store of the contract path (``contract.rosmsg``) is not
 touched.
@@ -105,46 +108,43 @@ class BagTypes:
         msg_path: str | os.PathLike[str] | Sequence[str | os.PathLike[str]] | None = None,
     ) -> None:
         self.bag = bag
-        #: Definitions that could not be used (hostile or damaged text, unreadable files).
+        #: Definitions that could not be used (hostile or damaged text, unreadable files),
+        #: said as each is first needed.
         self.problems: list[Problem] = []
         #: type → why its definition is refused (said by ``require``)
         self._refused: dict[str, str] = {}
+        #: the bag's texts not parsed yet (parsed when a type needs them)
+        self._texts: dict[str, tuple[str, str]] = {}
+        for raw, definition in definitions.items():
+            self._texts.setdefault(normalise(raw), definition)
+        self._own: dict[str, TypeDef] = {}
+        #: what each parsed text defines besides its own type, by the type it came with
+        self._embeds: dict[str, Typesdict] = {}
+        self._embedded: dict[str, TypeDef] = {}
         self._from_msg_path: dict[str, TypeDef] = {}
-        self._from_bag: dict[str, TypeDef] = {}
         for directory in _directories(msg_path):
             self._read_msg_path(directory)
-        self._read_bag(definitions)
-        #: type → (its closure, what it lacks, why it is unusable) once checked
-        self._checked: dict[str, tuple[list[str], list[str], str | None]] = {}
         self._store = get_typestore(Stores.EMPTY)
 
     # --- the layers ------------------------------------------------------------------------
 
-    def _read_bag(self, definitions: Mapping[str, tuple[str, str]]) -> None:
-        """Every definition the bag carries: each type's own text first, then what the
-        texts embed for their dependencies (a dependency two texts define differently
-        refuses the later type: its bytes would be read with the other layout)."""
-        embedded: list[tuple[str, Typesdict]] = []
-        for raw, (encoding, text) in definitions.items():
-            name = normalise(raw)
-            parsed = self._parse(name, encoding, text, self.bag)
-            if parsed is not None:
-                self._from_bag[name] = parsed[name]
-                embedded.append((name, parsed))
-        for name, parsed in embedded:
-            clash = next(
-                (
-                    dep
-                    for dep, typedef in parsed.items()
-                    if dep != name and self._from_bag.get(dep, typedef)[1] != typedef[1]
-                ),
-                None,
-            )
-            if clash is not None:
-                self._refuse(name, f"it embeds a definition of {clash} other than the bag's")
-                continue
-            for dep, typedef in parsed.items():
-                self._from_bag.setdefault(dep, typedef)
+    def _bag_text(self, name: str) -> TypeDef | None:
+        """``name`` as the bag's own text for it defines it (parsed on first use: a
+        recording of a whole stack carries hundreds of types, a diagnosis needs a few);
+        the dependencies the text embeds are kept too."""
+        if name in self._own:
+            return self._own[name]
+        pending = self._texts.pop(name, None)
+        if pending is None:
+            return None
+        parsed = self._parse(name, *pending, self.bag)
+        if parsed is None:
+            return None
+        self._own[name] = parsed.pop(name)
+        self._embeds[name] = parsed
+        for dep, typedef in parsed.items():
+            self._embedded.setdefault(dep, typedef)
+        return self._own[name]
 
     def _read_msg_path(self, directory: Path) -> None:
         """``.msg`` files under ``directory``: ``DIR/<pkg>/msg/<Type>.msg``,
@@ -205,31 +205,33 @@ class BagTypes:
         self.problems.append(Problem(where or self.bag, name, reason, _NOT_DEFINED))
 
     def _lookup(self, name: str) -> TypeDef | None:
+        """The definition that decodes ``name``: the one registered already, else the
+        bag's own text for it, what another of its texts embeds, ``--msg-path``, Kilted."""
         if name in self._refused:
             return None
-        found = self._from_bag.get(name) or self._from_msg_path.get(name)
-        return found if found is not None else _kilted().get(name)
+        found = self._store.fielddefs.get(name) or self._bag_text(name)
+        for layer in (self._embedded, self._from_msg_path, _kilted()):
+            if found is None:
+                found = layer.get(name)
+        return found
 
     def source(self, msg_type: str) -> str | None:
         """Where ``msg_type``'s definition comes from: "bag", "msg-path", "standard" (Kilted's
-        types), or None when it has none."""
+        types), or None when it has none (or an unusable one)."""
         name = normalise(msg_type)
-        if name in self._refused:
+        if self._lookup(name) is None:
             return None
-        if name in self._from_bag:
+        if name in self._own or name in self._embedded:
             return "bag"
-        if name in self._from_msg_path:
-            return "msg-path"
-        return "standard" if name in _kilted() else None
+        return "msg-path" if name in self._from_msg_path else "standard"
 
     # --- checking and registering ----------------------------------------------------------
 
     def _check(self, root: str) -> tuple[list[str], list[str], str | None]:
-        """``root``'s closure (root last), the types it lacks ("U (needed by T)"), and why
-        it is unusable (a refused definition, a cycle, too deep): iterative, so a hostile
-        chain of 1,000 types costs no recursion."""
-        if root in self._checked:
-            return self._checked[root]
+        """``root``'s closure (dependencies first), the types it lacks ("U (needed by
+        T)"), and why it is unusable (a refused definition, a cycle, too deep, a text whose
+        embedded dependency is not the one used): iterative, so a hostile chain of 1,000
+        types costs no recursion."""
         order: list[str] = []
         missing: list[str] = []
         broken: str | None = self._refused.get(root)
@@ -255,8 +257,9 @@ class BagTypes:
                 break
             typedef = self._lookup(name)
             if typedef is None:
-                if name in self._refused and name != root:
-                    broken = f"{name}: {self._refused[name]}"
+                if name in self._refused:
+                    why = self._refused[name]
+                    broken = why if name == root else f"{name}: {why}"
                 elif name != root:
                     parent = on_path[-1] if on_path else root
                     missing.append(f"{name} (needed by {parent})")
@@ -273,9 +276,12 @@ class BagTypes:
                 f"its fixed arrays of strings or messages hold {unrolled} elements "
                 f"(limit {MAX_UNROLLED})"
             )
-        result = (order, sorted(set(missing)), broken)
-        self._checked[root] = result
-        return result
+        for name in order if broken is None else []:
+            for dep, typedef in self._embeds.get(name, {}).items():
+                used = self._lookup(dep)
+                if used is not None and used[1] != typedef[1]:
+                    broken = f"{name} embeds a definition of {dep} other than the one used"
+        return order, sorted(set(missing)), broken
 
     def lacking(self, types: Iterable[str]) -> tuple[list[str], list[str]]:
         """What keeps ``types`` from being decoded: the types without a definition ("T",
@@ -319,7 +325,6 @@ class BagTypes:
         except TypesysError as error:
             reason = str(error).splitlines()[0]
             self._refuse(name, reason)
-            self._checked.pop(name, None)
             raise InputError(
                 printable(f"{self.bag}: unusable definition of {name}: {reason}")
             ) from None

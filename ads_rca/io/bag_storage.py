@@ -52,8 +52,8 @@ MCAP_MAGIC = b"\x89MCAP0\r\n"
 #: Largest uncompressed chunk accepted (rosbag2 writes 768 KiB, our recorder 1 MiB): a
 #: damaged size field must not make the reader allocate gigabytes.
 MAX_CHUNK_BYTES = 1 << 30
-#: Largest message definition kept (Autoware's PredictedObjects with every dependency is
-#: ~20 KiB): parsing text costs time, and a definition this large is not a real one.
+#: Largest message definition kept (Autoware's PredictedObjects with every dependency is a
+#: few KiB): parsing text costs time, and a definition this large is not a real one.
 MAX_DEFINITION_BYTES = 1 << 20
 
 # MCAP opcodes (https://mcap.dev/spec).

@@ -15,6 +15,11 @@ chunk), a message that cannot be decoded is skipped, and the storage's own topic
 are trusted over ``metadata.yaml``; each of these is a Problem in the log, so ``inspect``,
 ``diagnose`` and the JSON list it.
 
+:func:`load_bag` also keeps the type definitions the storage carries;
+:meth:`BagContents.types` makes them a type store of the bag's own
+(:mod:`ads_rca.io.bag_types`), for a stack's messages read without their packages. The
+contract's topics are decoded as always, through :mod:`ads_rca.contract.rosmsg`.
+
 Only regular files are read (:mod:`ads_rca.io.files`): a FIFO or a device named like a
 storage file or ``metadata.yaml`` is found (by name and ``stat``, which never blocks) and
 reported, never opened: a Problem when other storage files can be read, else InputError.
@@ -27,7 +32,7 @@ from collections import Counter
 from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import yaml
 from rosbags.serde import SerdeError
@@ -47,6 +52,9 @@ from ads_rca.io.files import Unreadable, read_regular
 from ads_rca.model import RunLog
 from ads_rca.problems import IGNORED, SKIPPED_FILE, USED_DEFAULT, Problem
 from ads_rca.progress import Progress, tracked
+
+if TYPE_CHECKING:
+    from ads_rca.io.bag_types import BagTypes
 
 BAG_SUFFIXES = (".mcap", ".db3")
 METADATA_YAML = "metadata.yaml"
@@ -89,12 +97,23 @@ def load_remap(path: str | os.PathLike[str]) -> Remap:
 
 @dataclass
 class BagContents:
-    """Every message of a bag (log-time order), the storage's own topics, and the defects
-    found in its files and in ``metadata.yaml``."""
+    """Every message of a bag (log-time order), the storage's own topics and type
+    definitions, and the defects found in its files and in ``metadata.yaml``."""
 
     messages: list[BagMessage]
     topics: dict[str, str]
     problems: list[Problem]
+    #: type → (encoding, text) the storage files carry (see :class:`StorageRead`).
+    definitions: dict[str, tuple[str, str]] = field(default_factory=dict)
+    #: the bag as given (names it in errors)
+    path: str = ""
+
+    def types(self, msg_path: str | os.PathLike[str] | None = None) -> BagTypes:
+        """The bag's message types: its own definitions, Kilted's standard types and the
+        ``.msg`` files under ``msg_path`` (see :mod:`ads_rca.io.bag_types`)."""
+        from ads_rca.io.bag_types import BagTypes
+
+        return BagTypes(self.path, self.definitions, msg_path)
 
 
 def _present(path: Path) -> bool:
@@ -134,13 +153,18 @@ def load_bag(path: str | os.PathLike[str]) -> BagContents:
         (m for read in reads for m in read.messages), key=lambda m: m.log_time_ns
     )  # stable: file order within a log time
     storage_topics: dict[str, str] = {}
+    definitions: dict[str, tuple[str, str]] = {}
     for read in reads:
         problems.extend(read.problems)
         for name, msg_type in read.topics.items():
             storage_topics.setdefault(name, msg_type)
+        for msg_type, definition in read.definitions.items():
+            if definitions.setdefault(msg_type, definition) != definition:
+                issue = f"a definition of {msg_type} other than the first file's"
+                problems.append(Problem(read.file.name, msg_type, issue, "the first one is used"))
     if info is not None:
         problems.extend(_disagreements(info, storage_topics, messages, reads))
-    return BagContents(messages, storage_topics, problems)
+    return BagContents(messages, storage_topics, problems, definitions, os.fspath(path))
 
 
 def _read_files(

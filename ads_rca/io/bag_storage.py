@@ -23,8 +23,11 @@ name, so it is given ``/proc/self/fd/N`` of the checked descriptor: a name swapp
 FIFO after the check is never opened.
 
 Topics and types come from the storage itself (MCAP channels and schemas, the sqlite3
-``topics`` table), never from ``metadata.yaml``. Pure Python, no rclpy. Nothing raises but
-:class:`~ads_rca.errors.InputError`, when the file holds nothing readable at all.
+``topics`` table), never from ``metadata.yaml``. So do the types' definitions (MCAP schema
+data, the sqlite3 ``message_definitions`` table of rosbag2 >= Iron), kept as text for
+:mod:`ads_rca.io.bag_types`: a recording carries the layouts of its own messages. A definition
+over :data:`MAX_DEFINITION_BYTES` is reported and ignored. Pure Python, no rclpy. Nothing
+raises but :class:`~ads_rca.errors.InputError`, when the file holds nothing readable at all.
 """
 
 from __future__ import annotations
@@ -49,6 +52,9 @@ MCAP_MAGIC = b"\x89MCAP0\r\n"
 #: Largest uncompressed chunk accepted (rosbag2 writes 768 KiB, our recorder 1 MiB): a
 #: damaged size field must not make the reader allocate gigabytes.
 MAX_CHUNK_BYTES = 1 << 30
+#: Largest message definition kept (Autoware's PredictedObjects with every dependency is a
+#: few KiB): parsing text costs time, and a definition this large is not a real one.
+MAX_DEFINITION_BYTES = 1 << 20
 
 # MCAP opcodes (https://mcap.dev/spec).
 _HEADER, _FOOTER, _SCHEMA, _CHANNEL, _MESSAGE, _CHUNK, _DATA_END = 1, 2, 3, 4, 5, 6, 15
@@ -58,6 +64,7 @@ _MESSAGE_HEAD = 2 + 4 + 8 + 8  # channel, sequence, log time, publish time
 
 KEPT_BEFORE_CUT = "the messages before the cut are used; the rest of the recording is lost"
 SKIPPED_MESSAGES = "its messages skipped"
+IGNORED_DEFINITION = "definition ignored"
 
 
 @dataclass(frozen=True)
@@ -78,12 +85,40 @@ class StorageRead:
     messages: list[BagMessage] = field(default_factory=list)
     #: topic name → type, from the storage's channels/schemas or ``topics`` table.
     topics: dict[str, str] = field(default_factory=dict)
+    #: type → (encoding, definition text), e.g. ``("ros2msg", "float64 x\n...")``: the
+    #: MCAP schemas' data or the ``message_definitions`` table (empty ones left out).
+    definitions: dict[str, tuple[str, str]] = field(default_factory=dict)
     problems: list[Problem] = field(default_factory=list)
     #: The file ends before its end (the recording was cut): said in ``problems``.
     truncated: bool = False
 
     def problem(self, where: str, issue: str, action: str, severity: Severity = "error") -> None:
         self.problems.append(Problem(self.file.name, where, issue, action, severity))
+
+    def definition(self, msg_type: str, encoding: str, data: bytes | str, where: str) -> None:
+        """Keep a type's definition (the first one; an empty one is no definition), or
+        say why not."""
+        size = len(data.encode("utf-8")) if isinstance(data, str) else len(data)
+        if size == 0 or self.oversized(msg_type, size, where):
+            return
+        try:
+            text = data if isinstance(data, str) else data.decode("utf-8")
+        except UnicodeDecodeError as error:
+            issue = f"definition of {msg_type} is not UTF-8: {error}"
+            self.problem(where, issue, IGNORED_DEFINITION)
+            return
+        kept = self.definitions.setdefault(msg_type, (encoding, text))
+        if kept != (encoding, text):
+            issue = f"a second, different definition of {msg_type}"
+            self.problem(where, issue, "the first one is used")
+
+    def oversized(self, msg_type: str, size: int, where: str) -> bool:
+        """A definition over :data:`MAX_DEFINITION_BYTES` is said and ignored."""
+        if size <= MAX_DEFINITION_BYTES:
+            return False
+        issue = f"definition of {msg_type} has {size} bytes (limit {MAX_DEFINITION_BYTES})"
+        self.problem(where, issue, IGNORED_DEFINITION)
+        return True
 
 
 def read_storage(path: Path, expected_messages: int | None = None) -> StorageRead:
@@ -157,8 +192,15 @@ class _McapWalk:
         if opcode == _HEADER:
             self.header = True
         elif opcode == _SCHEMA:
-            schema_id, name = _schema(body)
+            schema_id, name, encoding, data = _schema(body)
+            if self.schemas.get(schema_id) == name:
+                return  # the summary repeats the data section's schemas
             self.schemas[schema_id] = name
+            where = f"schema {schema_id}"
+            if data is None:
+                self.out.problem(where, f"damaged data field ({name})", IGNORED_DEFINITION)
+            elif schema_id != 0:
+                self.out.definition(name, encoding, data, where)
         elif opcode == _CHANNEL:
             channel_id, topic, schema_id, encoding = _channel(body)
             self.channels.setdefault(channel_id, (topic, schema_id, encoding))
@@ -265,10 +307,19 @@ def truncation_issue(at: int, recovered: int, expected: int | None) -> str:
     return f"truncated after {at} bytes: {recovered}{of} messages recovered"
 
 
-def _schema(body: bytes) -> tuple[int, str]:
+def _schema(body: bytes) -> tuple[int, str, str, bytes | None]:
+    """Id, name, encoding and data of a schema record (data None when the record's
+    encoding or data field is damaged: the name is still usable)."""
     (schema_id,) = struct.unpack_from("<H", body)
-    name, _ = _string(body, 2)
-    return schema_id, name
+    name, pos = _string(body, 2)
+    try:
+        encoding, pos = _string(body, pos)
+        (length,) = struct.unpack_from("<I", body, pos)
+    except (CorruptRecord, struct.error, UnicodeDecodeError):
+        return schema_id, name, "", None
+    if pos + 4 + length > len(body):
+        return schema_id, name, encoding, None
+    return schema_id, name, encoding, body[pos + 4 : pos + 4 + length]
 
 
 def _channel(body: bytes) -> tuple[int, str, int, str]:
@@ -441,6 +492,7 @@ def _sqlite_rows(database: Path, path: Path, out: StorageRead) -> str | None:
             out.topics.setdefault(str(name), str(msg_type))
             if encoding != "cdr":
                 foreign[str(name)] = 0
+        _sqlite_definitions(connection, out)
         try:
             cursor = connection.execute("SELECT topic_id, timestamp, data FROM messages")
             for topic_id, timestamp, data in cursor:
@@ -462,6 +514,27 @@ def _sqlite_rows(database: Path, path: Path, out: StorageRead) -> str | None:
     for topic, n in sorted(foreign.items()):
         out.problem(topic, f"{n} messages not in CDR encoding", SKIPPED_MESSAGES)
     return damage
+
+
+def _sqlite_definitions(connection: sqlite3.Connection, out: StorageRead) -> None:
+    """The ``message_definitions`` table (rosbag2 >= Iron) into ``out``; an older bag has
+    none. A definition over the limit is measured by sqlite, never fetched."""
+    size = "length(CAST(encoded_message_definition AS BLOB))"
+    query = (
+        f"SELECT topic_type, encoding, CASE WHEN {size} <= ? THEN encoded_message_definition"
+        f" END, {size} FROM message_definitions ORDER BY id"
+    )
+    try:
+        rows = connection.execute(query, (MAX_DEFINITION_BYTES,)).fetchall()
+    except sqlite3.Error as error:
+        if "no such table" not in str(error):
+            out.problem("message_definitions", f"unreadable: {error}", "no definition read")
+        return
+    for msg_type, encoding, text, length in rows:
+        if isinstance(length, int) and out.oversized(str(msg_type), length, "message_definitions"):
+            continue
+        data = text if isinstance(text, (str, bytes)) else ""
+        out.definition(str(msg_type), str(encoding), data, "message_definitions")
 
 
 def _descriptor_path(stream: BinaryIO, path: Path) -> Path:

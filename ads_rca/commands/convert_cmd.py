@@ -27,6 +27,7 @@ from ads_rca.io.bag_writer import STORAGES, McapOptions, write_bag
 from ads_rca.io.json_log import read_run_log
 from ads_rca.io.json_writer import write_run_log
 from ads_rca.io.mcap_writer import COMPRESSIONS, DEFAULT_CHUNK_SIZE
+from ads_rca.model import RunLog
 from ads_rca.text import printable
 
 
@@ -74,6 +75,8 @@ def run(args: argparse.Namespace) -> int:
                 print(f"  {line}", file=sys.stderr)
         return 0
     log = read_run_log(source, max_file_mb)
+    if not bag.contract:
+        return _write_recording(log, source, out, bag.profile, args.storage)
     options: McapOptions = {}
     if args.storage == "mcap":
         options = {"compression": args.compression, "chunk_size": args.chunk_size}
@@ -84,6 +87,25 @@ def run(args: argparse.Namespace) -> int:
         printable(
             f"{source} → {out}: {args.storage} bag, {sum(counts.values())} messages on "
             f"{len(counts)} topics, {len(log.frames)} analysed frames"
+        )
+    )
+    return 0
+
+
+def _write_recording(log: RunLog, source: Path, out: Path, profile: str, storage: str) -> int:
+    """A log folder written as a stack publishing ``profile``'s topics would record it."""
+    from ads_rca.synth.recording import PROFILES, write_recording
+
+    if profile not in PROFILES:
+        raise InputError(
+            f"--profile {profile}: a log folder can be written as {', '.join(PROFILES)} "
+            "(or the ads_rca contract, the default)"
+        )
+    counts = write_recording(log, out, profile, storage)
+    print(
+        printable(
+            f"{source} → {out}: {storage} bag as a {profile} stack records it, "
+            f"{sum(counts.values())} messages on {len(counts)} topics"
         )
     )
     return 0

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import os
 from collections import Counter
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -108,7 +108,10 @@ class BagContents:
     #: the bag as given (names it in errors)
     path: str = ""
 
-    def types(self, msg_path: str | os.PathLike[str] | None = None) -> BagTypes:
+    def types(
+        self,
+        msg_path: str | os.PathLike[str] | Sequence[str | os.PathLike[str]] | None = None,
+    ) -> BagTypes:
         """The bag's message types: its own definitions, Kilted's standard types and the
         ``.msg`` files under ``msg_path`` (see :mod:`ads_rca.io.bag_types`)."""
         from ads_rca.io.bag_types import BagTypes

@@ -44,6 +44,7 @@ from ads_rca.model import (
 from ads_rca.problems import DROPPED_RECORD, USED_DEFAULT, Problem, ProblemLog
 from ads_rca.profiles.decoders import CollisionEvent, PredictedPaths, decoder_for
 from ads_rca.profiles.profile import InputSpec, Profile
+from ads_rca.progress import Progress, tracked
 
 if TYPE_CHECKING:
     from ads_rca.io.bag_reader import BagContents
@@ -108,11 +109,13 @@ def read_profiled(
     profile: Profile,
     decode: Callable[[BagMessage, str], Any],
     source: str,
+    progress: Progress | None = None,
 ) -> RunLog:
     """The run a bag carries in ``profile``'s layout (see the module docstring).
 
     ``decode`` gives the rosbags object of a message as the named type (MalformedMessage
-    when it cannot); ``source`` names the bag in problems, errors and ``RunLog.source``."""
+    when it cannot; ``progress`` sees every message); ``source`` names the bag in problems,
+    errors and ``RunLog.source``."""
     if profile.contract:
         raise ConfigError(
             f"{profile.file}: the {profile.name} profile is read by the contract reader"
@@ -123,7 +126,7 @@ def read_profiled(
         for name in MODEL_INPUTS
     }
     usable = _usable_inputs(contents.topics, profile, inputs, source, problems)
-    decoded = _decode_all(contents.messages, usable, decode, problems)
+    decoded = _decode_all(contents.messages, usable, decode, problems, progress)
     reference = profile.inputs[profile.reference]
     if not decoded.get(profile.reference):
         why = inputs[profile.reference].reason
@@ -235,11 +238,12 @@ def _decode_all(
     usable: dict[str, InputSpec],
     decode: Callable[[BagMessage, str], Any],
     problems: list[Problem],
+    progress: Progress | None = None,
 ) -> dict[str, list[Stamped]]:
     """Input → its decoded messages (log-time order); each unusable one is a Problem."""
     by_topic = {spec.topic: spec for spec in usable.values()}
     out: dict[str, list[Stamped]] = {name: [] for name in usable}
-    for message in messages:
+    for message in tracked(messages, progress):
         spec = by_topic.get(message.topic)
         if spec is None:
             continue

@@ -30,7 +30,7 @@ from ads_rca.io.bag_reader import iter_bag, read_bag
 from ads_rca.io.bag_writer import write_bag
 from ads_rca.io.json_log import read_run_log
 from ads_rca.io.json_writer import write_run_log
-from ads_rca.model import OPTIONAL_FOLDERS, ControlCommand, Objects3D, RunLog
+from ads_rca.model import ALL_FOLDERS, OPTIONAL_FOLDERS, ControlCommand, Objects3D, RunLog
 
 if TYPE_CHECKING:
     from conftest import RosEnv
@@ -201,10 +201,7 @@ def test_bags_carry_them_and_declare_them_only_when_there(tmp_path: Path, storag
 def test_log_folder_round_trip_is_exact(tmp_path: Path) -> None:
     log = log_3d(5)
     root = write_run_log(log, tmp_path / "log")
-    assert sorted(p.name for p in root.iterdir() if p.is_dir()) == sorted(
-        ("pose", "actors", "bboxes", "bboxes_gt", "predictions", "predictions_with_perception")
-        + ("waypoint", *OPTIONAL_FOLDERS)
-    )
+    assert sorted(p.name for p in root.iterdir() if p.is_dir()) == sorted(ALL_FOLDERS)
     first = json.loads((root / "detections_3d" / "detections_3d-50.json").read_bytes())
     assert set(first["d0"]) == {"location", "rotation", "extent", "velocity", "score", "label"}
     back = read_run_log(root)

@@ -31,11 +31,11 @@ from ads_rca.contract.cdr_decode import decode_clock, decode_string
 from ads_rca.contract.topics import decode_record, stamp_ms
 from ads_rca.live import diagnostics as diag
 from ads_rca.model import (
+    OPTIONAL_FOLDERS,
     Actors,
     Boxes,
     ControlCommand,
     EgoPose,
-    OPTIONAL_FOLDERS,
     Objects3D,
     Plan,
     RunLog,

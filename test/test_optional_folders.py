@@ -194,6 +194,51 @@ def test_bags_carry_them_and_declare_them_only_when_there(tmp_path: Path, storag
     assert "/ads_rca/perception/detections" in text and "3d" not in text and "control" not in text
 
 
+def test_a_monitor_whose_oracle_reads_them_holds_them(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The live window keeps an optional folder an oracle names (the 3-D rule will), waits
+    for it where a frame marker lists it, and hands it to the oracle in its view."""
+    from ads_rca.live.results import FrameMarker
+    from ads_rca.live.window import MonitorCore
+    from ads_rca.oracles.semantics import Semantics, semantics_for
+    from ads_rca.params import make_params
+
+    params = make_params("corrected")
+    semantics = semantics_for(params)
+    monkeypatch.setattr(
+        type(semantics),
+        "folders",
+        lambda _self, _module: ("actors", "tracks_3d", "pose"),
+    )
+    assert isinstance(semantics, Semantics)
+    core = MonitorCore("perception", params)
+    assert core.folders == ("pose", "actors", "tracks_3d")  # in ALL_FOLDERS order
+    log = log_3d(9)
+    core.set_metadata(log.metadata, 0.0)
+    late = log.frames[4]  # its tracks arrive after its marker: the frame waits for them
+    assert late in log.tracks_3d
+    for index, ts in enumerate(log.frames[:6]):
+        for folder in ALL_FOLDERS:  # what the player sends; the core keeps its own folders
+            record = log.folder(folder).get(ts)
+            if record is not None and (ts, folder) != (late, "tracks_3d"):
+                core.add_record(folder, ts, record, 0.1)
+        folders = frozenset(f for f in ALL_FOLDERS if ts in log.folder(f))
+        core.add_marker(FrameMarker(index, ts, folders), 0.1)
+        if ts == late:
+            assert core.complete_through == log.frames[3]
+            core.add_record("tracks_3d", ts, log.tracks_3d[ts], 0.2)
+            assert core.complete_through == late
+    view = core.view()
+    assert sorted(view.tracks_3d) == [ts for ts in log.frames[:6] if ts in log.tracks_3d]
+    assert not view.detections_3d and not view.controls
+    expected = only_optional(log)
+    expected.detections_3d.clear()
+    expected.controls.clear()
+    for ts in list(expected.tracks_3d):
+        if ts not in view.tracks_3d:
+            del expected.tracks_3d[ts]
+    assert_logs_equal(expected, only_optional(view), check_frames=False)
+
+
 # --- log folders ----------------------------------------------------------------------------
 
 

@@ -287,6 +287,42 @@ class InputStatus:
     source: str = ""
     reason: str = ""
 
+    def to_dict(self) -> dict[str, str]:
+        return {"state": self.state, "source": self.source, "reason": self.reason}
+
+
+#: Key of ``metadata.json`` (hence of ``run/metadata``) holding :attr:`RunLog.inputs`, so a
+#: log folder written from a recording, or its replay, says where each input came from as
+#: the recording did (absent for a running log, whose inputs are all real).
+INPUTS_KEY = "model_inputs"
+
+
+def read_inputs(
+    document: Mapping[str, Any],
+) -> tuple[dict[str, InputStatus], list[tuple[str, str]]]:
+    """The inputs a metadata document lists under :data:`INPUTS_KEY`, and the (field, issue)
+    of every entry that is not one (left out)."""
+    listed = document.get(INPUTS_KEY)
+    if listed is None:
+        return {}, []
+    if not isinstance(listed, Mapping):
+        return {}, [(INPUTS_KEY, f"expected an object, found {type(listed).__name__}")]
+    inputs: dict[str, InputStatus] = {}
+    issues: list[tuple[str, str]] = []
+    for name, entry in listed.items():
+        field = f"{INPUTS_KEY}.{name}"
+        if not isinstance(entry, Mapping) or entry.get("state") not in INPUT_STATES:
+            issues.append(
+                (field, f"expected {{state: {' | '.join(INPUT_STATES)}, source, reason}}")
+            )
+            continue
+        source, reason = entry.get("source", ""), entry.get("reason", "")
+        if not isinstance(source, str) or not isinstance(reason, str):
+            issues.append((field, "source and reason must be text"))
+            continue
+        inputs[str(name)] = InputStatus(str(entry["state"]), source, reason)
+    return inputs, issues
+
 
 @dataclass(eq=False)
 class RunLog:
@@ -354,6 +390,14 @@ class RunLog:
         for name in OPTIONAL_FOLDERS:
             log.folder(name).update(folders.get(name, {}))
         return log
+
+    def metadata_document(self) -> dict[str, Any]:
+        """``metadata.json`` of this run: the metadata's document plus, for a recording of a
+        real stack, its inputs (:data:`INPUTS_KEY`)."""
+        document = self.metadata.to_dict()
+        if self.inputs:
+            document[INPUTS_KEY] = {name: s.to_dict() for name, s in self.inputs.items()}
+        return document
 
     @property
     def tpf(self) -> int:

@@ -30,7 +30,14 @@ from ads_rca.io.bag_reader import iter_bag, read_bag
 from ads_rca.io.bag_writer import write_bag
 from ads_rca.io.json_log import read_run_log
 from ads_rca.io.json_writer import write_run_log
-from ads_rca.model import ALL_FOLDERS, OPTIONAL_FOLDERS, ControlCommand, Objects3D, RunLog
+from ads_rca.model import (
+    ALL_FOLDERS,
+    OPTIONAL_FOLDERS,
+    ControlCommand,
+    InputStatus,
+    Objects3D,
+    RunLog,
+)
 
 if TYPE_CHECKING:
     from conftest import RosEnv
@@ -197,6 +204,7 @@ def test_bags_carry_them_and_declare_them_only_when_there(tmp_path: Path, storag
 def test_a_monitor_whose_oracle_reads_them_holds_them(monkeypatch: pytest.MonkeyPatch) -> None:
     """The live window keeps an optional folder an oracle names (the 3-D rule will), waits
     for it where a frame marker lists it, and hands it to the oracle in its view."""
+    from ads_rca.contract.assembler import run_metadata
     from ads_rca.live.results import FrameMarker
     from ads_rca.live.window import MonitorCore
     from ads_rca.oracles.semantics import Semantics, semantics_for
@@ -213,7 +221,8 @@ def test_a_monitor_whose_oracle_reads_them_holds_them(monkeypatch: pytest.Monkey
     core = MonitorCore("perception", params)
     assert core.folders == ("pose", "actors", "tracks_3d")  # in ALL_FOLDERS order
     log = log_3d(9)
-    core.set_metadata(log.metadata, 0.0)
+    log.inputs = {"tracked_objects": InputStatus("real", "/perception/tracks")}
+    core.set_metadata(run_metadata(json.loads(playback.metadata_message(log).data)), 0.0)
     late = log.frames[4]  # its tracks arrive after its marker: the frame waits for them
     assert late in log.tracks_3d
     for index, ts in enumerate(log.frames[:6]):
@@ -228,9 +237,11 @@ def test_a_monitor_whose_oracle_reads_them_holds_them(monkeypatch: pytest.Monkey
             core.add_record("tracks_3d", ts, log.tracks_3d[ts], 0.2)
             assert core.complete_through == late
     view = core.view()
+    assert view.inputs == log.inputs  # from run/metadata, as the player sends it
     assert sorted(view.tracks_3d) == [ts for ts in log.frames[:6] if ts in log.tracks_3d]
     assert not view.detections_3d and not view.controls
     expected = only_optional(log)
+    expected.metadata = view.metadata  # the document's, with model_inputs
     expected.detections_3d.clear()
     expected.controls.clear()
     for ts in list(expected.tracks_3d):
@@ -335,6 +346,35 @@ def test_control_files_are_strict_too(tmp_path: Path) -> None:
     assert 50 not in back.controls
     got = back.controls[100]
     assert math.isnan(got.steer) and math.isnan(got.acceleration) and math.isnan(got.speed)
+
+
+def test_where_the_inputs_came_from_survives_folders_bags_and_messages(tmp_path: Path) -> None:
+    """A recording's ``inputs`` (real / derived / assumed / absent) ride in metadata.json's
+    ``model_inputs``, hence in run/metadata: a folder or replay of it says the same."""
+    log = log_3d(10)
+    log.inputs = {
+        "ego": InputStatus("real", "/carla/ego_vehicle/odometry (nav_msgs/msg/Odometry)"),
+        "predictions_gt": InputStatus("absent", "", "not in the carla-autoware profile"),
+        "ground_truth_2d": InputStatus("assumed", "x", "é"),
+    }
+    folder = read_run_log(write_run_log(log, tmp_path / "log"))
+    assert folder.inputs == log.inputs
+    assert play_through_assembler(folder, serialise=True).build().inputs == log.inputs
+    write_bag(folder, tmp_path / "bag")
+    assert read_bag(tmp_path / "bag").inputs == log.inputs
+    plain = read_run_log(write_run_log(make_log(3, 2, 0), tmp_path / "plain"))
+    assert plain.inputs == {}
+    assert "model_inputs" not in (tmp_path / "plain" / "metadata.json").read_text()
+    document = json.loads((tmp_path / "log" / "metadata.json").read_text())
+    document["model_inputs"]["ego"] = {"state": "guessed"}
+    document["model_inputs"]["plan"] = {"state": "real", "source": 3}
+    (tmp_path / "log" / "metadata.json").write_text(json.dumps(document))
+    hostile = read_run_log(tmp_path / "log")
+    assert [(p.file, p.field, p.action) for p in hostile.problems if "inputs" in p.field] == [
+        ("metadata.json", "model_inputs.ego", "ignored"),
+        ("metadata.json", "model_inputs.plan", "ignored"),
+    ]
+    assert set(hostile.inputs) == {"predictions_gt", "ground_truth_2d"}
 
 
 # --- over DDS -------------------------------------------------------------------------------

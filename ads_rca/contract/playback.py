@@ -112,7 +112,7 @@ def metadata_message(log: RunLog, **extra: object) -> String:
     """
     from std_msgs.msg import String
 
-    document = log.metadata.to_dict()
+    document = log.metadata_document()
     out: dict[str, Any] = dict(document)
     out.update(
         source=log.source,

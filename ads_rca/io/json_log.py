@@ -44,7 +44,15 @@ from ads_rca.io.records import (
     show_value,
 )
 from ads_rca.io.validate import validate_run_log
-from ads_rca.model import ALL_FOLDERS, FOLDERS, OPTIONAL_FOLDERS, Record, RunLog, RunMetadata
+from ads_rca.model import (
+    ALL_FOLDERS,
+    FOLDERS,
+    OPTIONAL_FOLDERS,
+    Record,
+    RunLog,
+    RunMetadata,
+    read_inputs,
+)
 from ads_rca.problems import IGNORED, KEPT_VALUE, SKIPPED_FILE, USED_DEFAULT, Problem, ProblemLog
 from ads_rca.progress import Progress, tracked
 
@@ -187,6 +195,9 @@ def read_run_log(
     records = {folder: dict(sorted(r.items())) for folder, r in records.items()}
     actors_listing = [ts for ts, _ in listings["actors"]]
     metadata = read_metadata(root / "metadata.json", actors_listing, problems, limit)
+    inputs, issues = read_inputs(metadata.raw)
+    for name, issue in issues:
+        problems.add("metadata.json", name, issue, IGNORED, "warning")
     log = RunLog.from_folders(
         metadata,
         tuple(sorted(actors_listing)),
@@ -194,6 +205,7 @@ def read_run_log(
         problems=problems,
         source=str(root),
         files=files,
+        inputs=inputs,
     )
     validate_run_log(log, listings, missing_folders=[f for f in FOLDERS if not (root / f).is_dir()])
     return log

@@ -38,7 +38,7 @@ def write_run_log(log: RunLog, out_dir: str | os.PathLike[str]) -> Path:
     """Write every folder of ``log`` under ``out_dir`` (created); return the folder path."""
     root = Path(out_dir)
     root.mkdir(parents=True, exist_ok=True)
-    _dump(root / "metadata.json", log.metadata.to_dict(), finite=False)
+    _dump(root / "metadata.json", log.metadata_document(), finite=False)
     # By folder name: each folder holds its own record type.
     encoders: dict[str, Callable[[Any, int], object]] = {
         "pose": pose_document,

@@ -75,6 +75,8 @@ def run_live(
         return clock[0]
 
     metadata = log.metadata
+    if log.inputs:  # a recording's inputs reach the monitors in run/metadata's document
+        metadata = replace(metadata, raw=log.metadata_document())
     if not metadata_collision:
         metadata = replace(metadata, collision_frame=-1)
     if shared:

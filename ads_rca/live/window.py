@@ -43,7 +43,16 @@ import numpy as np
 
 from ads_rca.engine import evaluate_frame
 from ads_rca.live.results import FollowsRunEnd, FrameMarker, LiveResult, RunEnd
-from ads_rca.model import Actors, FloatArray, Record, RunLog, RunMetadata, frame_number
+from ads_rca.model import (
+    Actors,
+    FloatArray,
+    InputStatus,
+    Record,
+    RunLog,
+    RunMetadata,
+    frame_number,
+    read_inputs,
+)
 from ads_rca.oracles.base import MODULES, Module, RunContext
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import Params
@@ -107,6 +116,7 @@ class MonitorCore(FollowsRunEnd):
         self.needs_ego = any(self.semantics.reads_ego(m) for m in self.modules)
         self.metadata: RunMetadata | None = None
         self.input_problems: tuple[Problem, ...] = ()
+        self.inputs: dict[str, InputStatus] = {}
         self.collision_frame = -1
         self.records: dict[str, dict[int, Record]] = {f: {} for f in self.folders}
         self.first_extents: dict[str, FloatArray] = {}
@@ -140,6 +150,9 @@ class MonitorCore(FollowsRunEnd):
         """The run's metadata, and the problems the player's reader found (oracles read
         them as ``RunLog.problems``, e.g. reference skips a value read as NaN)."""
         self.input_problems = tuple(input_problems)
+        # A recording's inputs ride in its metadata document (model.INPUTS_KEY); unreadable
+        # entries were said by the reader that wrote the document.
+        self.inputs = read_inputs(metadata.raw)[0]
         changed = self.metadata is None or metadata.collision_frame != self.metadata.collision_frame
         if changed and metadata.collision_frame >= 0:
             self.set_collision(metadata.collision_frame, now)
@@ -349,6 +362,7 @@ class MonitorCore(FollowsRunEnd):
             source="live",
             first_extents=dict(self.first_extents),
             problems=ProblemLog(self.input_problems),
+            inputs=dict(self.inputs),
         )
 
     def _context(self, log: RunLog) -> RunContext:

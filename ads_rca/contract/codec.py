@@ -1,9 +1,9 @@
 """How each kind of record travels: its message type and its conversions on both paths.
 
 One :class:`Codec` per kind (ego pose, actors, boxes, predictions, plan, 3-D objects, control
-command, JSON text, clock)
-holds the four conversions a topic needs, so the topic table (:mod:`ads_rca.contract.topics`)
-gives a topic its kind in one row and everything else follows from it:
+command, JSON text, clock) holds the four conversions a topic needs, so the topic table
+(:mod:`ads_rca.contract.topics`) gives a topic its kind in one row and everything else
+follows from it:
 
 - ``build`` / ``read``: record ↔ rclpy message object (:mod:`~ads_rca.contract.convert`:
   what publishing objects, bags and the tests use);

@@ -261,7 +261,7 @@ def markers_to_actors(msg: MarkerArray) -> Actors:
 
 # --- 3-D objects ----------------------------------------------------------------------------
 
-#: The ROS convention of each velocity axis and of the yaw (CARLA y and yaw are negated).
+#: CARLA ↔ ROS for positions and velocities, both ways: y is negated.
 FLIP_Y = np.array([1.0, -1.0, 1.0])
 
 

@@ -12,9 +12,9 @@ what its folders hold.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Any, TypeVar
+from typing import TypeVar
 
-from ads_rca.model import INPUT_STATES, InputStatus, RunLog
+from ads_rca.model import InputStatus, RunLog
 
 #: Every model input, in pipeline order (docs/recordings.md "Model inputs").
 MODEL_INPUTS = (
@@ -48,22 +48,25 @@ INPUT_FIELDS = {
 
 JUDGED = "judged"
 Key = TypeVar("Key", bound=str)
-#: The key of the run metadata document that carries the input status to the live graph.
-METADATA_KEY = "inputs"
 
 
 def recorded(log: RunLog) -> bool:
     """The run says which inputs it has (a recording), rather than its folders showing it."""
-    return bool(log.inputs or statuses_from_document(log.metadata.raw.get(METADATA_KEY)))
+    return bool(log.inputs)
+
+
+def complete(inputs: Mapping[str, InputStatus]) -> dict[str, InputStatus]:
+    """A recording's statuses for every model input (one it does not list is absent)."""
+    return {name: inputs.get(name, InputStatus("absent")) for name in MODEL_INPUTS}
 
 
 def input_status(log: RunLog) -> dict[str, InputStatus]:
-    """Every model input's status: the reader's record (``log.inputs``, else the run
-    metadata's ``inputs``), else what the log's records show (a running log: a folder with
-    records is real, an empty one absent; the collision comes from metadata.json)."""
-    recorded = log.inputs or statuses_from_document(log.metadata.raw.get(METADATA_KEY))
-    if recorded:
-        return {name: recorded.get(name, InputStatus("absent")) for name in MODEL_INPUTS}
+    """Every model input's status: the reader's record (``log.inputs``; a log folder or the
+    run metadata carries it as ``model_inputs``), else what the log's records show (a
+    running log: a folder with records is real, an empty one absent; the collision comes
+    from metadata.json)."""
+    if log.inputs:
+        return complete(log.inputs)
     out: dict[str, InputStatus] = {}
     for name in MODEL_INPUTS:
         field = INPUT_FIELDS.get(name)
@@ -76,31 +79,8 @@ def input_status(log: RunLog) -> dict[str, InputStatus]:
 
 
 def statuses_to_document(statuses: Mapping[str, InputStatus]) -> dict[str, dict[str, str]]:
-    """The JSON form (run metadata, verdict JSON, inspect)."""
-    return {
-        name: {"state": s.state, "source": s.source, "reason": s.reason}
-        for name, s in statuses.items()
-    }
-
-
-def statuses_from_document(document: Any) -> dict[str, InputStatus]:
-    """Read back :func:`statuses_to_document`'s form; anything malformed is ignored (the
-    statuses are then computed from the records), unknown inputs and states dropped."""
-    if not isinstance(document, Mapping):
-        return {}
-    out: dict[str, InputStatus] = {}
-    for name, entry in document.items():
-        if name not in MODEL_INPUTS or not isinstance(entry, Mapping):
-            continue
-        state = entry.get("state")
-        if state in INPUT_STATES:
-            source, reason = entry.get("source", ""), entry.get("reason", "")
-            out[name] = InputStatus(
-                state,
-                source if isinstance(source, str) else "",
-                reason if isinstance(reason, str) else "",
-            )
-    return out
+    """The JSON form (verdict JSON, inspect)."""
+    return {name: status.to_dict() for name, status in statuses.items()}
 
 
 def present(status: InputStatus) -> bool:
@@ -129,11 +109,10 @@ def judged_modules(
 __all__ = [
     "INPUT_FIELDS",
     "JUDGED",
-    "METADATA_KEY",
     "MODEL_INPUTS",
+    "complete",
     "input_status",
     "judged_modules",
     "recorded",
-    "statuses_from_document",
     "statuses_to_document",
 ]

@@ -36,8 +36,19 @@ FOLDERS = (
     "waypoint",
 )
 
+#: Optional per-frame folders, our extension of the seed format for what recordings of real
+#: stacks carry (3-D detections, tracked objects, control commands). A running log has none:
+#: then nothing is read, written, sent or checked for them, and every output stays as it was.
+OPTIONAL_FOLDERS = ("detections_3d", "tracks_3d", "control")
+
+#: Every per-frame folder, the optional ones last.
+ALL_FOLDERS = FOLDERS + OPTIONAL_FOLDERS
+
 #: The :class:`RunLog` field holding each folder's records.
-FOLDER_FIELDS = {folder: "waypoints" if folder == "waypoint" else folder for folder in FOLDERS}
+FOLDER_FIELDS = {folder: folder for folder in ALL_FOLDERS} | {
+    "waypoint": "waypoints",
+    "control": "controls",
+}
 
 #: The seed format's file-name prefix per folder (any prefix is accepted when reading).
 FILE_PREFIX = {
@@ -48,6 +59,9 @@ FILE_PREFIX = {
     "predictions": "predictions",
     "predictions_with_perception": "predictions",
     "waypoint": "waypoints",
+    "detections_3d": "detections_3d",
+    "tracks_3d": "tracks_3d",
+    "control": "control",
 }
 
 
@@ -206,10 +220,6 @@ class Plan:
         return len(self.keys)
 
 
-#: What one per-frame file holds; which one is set by its folder (see :meth:`RunLog.folder`).
-Record = EgoPose | Actors | Boxes | Predictions | Plan
-
-
 @dataclass(frozen=True, eq=False)
 class Objects3D:
     """One frame of 3-D objects a stack perceived (detections or tracks), in the log's world
@@ -245,6 +255,10 @@ class ControlCommand:
     speed: float
 
 
+#: What one per-frame file holds; which one is set by its folder (see :meth:`RunLog.folder`).
+Record = EgoPose | Actors | Boxes | Predictions | Plan | Objects3D | ControlCommand
+
+
 class LogExtras(TypedDict, total=False):
     """The fields of a :class:`RunLog` besides metadata, frames and the per-folder dicts."""
 
@@ -272,6 +286,42 @@ class InputStatus:
     state: str
     source: str = ""
     reason: str = ""
+
+    def to_dict(self) -> dict[str, str]:
+        return {"state": self.state, "source": self.source, "reason": self.reason}
+
+
+#: Key of ``metadata.json`` (hence of ``run/metadata``) holding :attr:`RunLog.inputs`, so a
+#: log folder written from a recording, or its replay, says where each input came from as
+#: the recording did (absent for a running log, whose inputs are all real).
+INPUTS_KEY = "model_inputs"
+
+
+def read_inputs(
+    document: Mapping[str, Any],
+) -> tuple[dict[str, InputStatus], list[tuple[str, str]]]:
+    """The inputs a metadata document lists under :data:`INPUTS_KEY`, and the (field, issue)
+    of every entry that is not one (left out)."""
+    listed = document.get(INPUTS_KEY)
+    if listed is None:
+        return {}, []
+    if not isinstance(listed, Mapping):
+        return {}, [(INPUTS_KEY, f"expected an object, found {type(listed).__name__}")]
+    inputs: dict[str, InputStatus] = {}
+    issues: list[tuple[str, str]] = []
+    for name, entry in listed.items():
+        field = f"{INPUTS_KEY}.{name}"
+        if not isinstance(entry, Mapping) or entry.get("state") not in INPUT_STATES:
+            issues.append(
+                (field, f"expected {{state: {' | '.join(INPUT_STATES)}, source, reason}}")
+            )
+            continue
+        source, reason = entry.get("source", ""), entry.get("reason", "")
+        if not isinstance(source, str) or not isinstance(reason, str):
+            issues.append((field, "source and reason must be text"))
+            continue
+        inputs[str(name)] = InputStatus(str(entry["state"]), source, reason)
+    return inputs, issues
 
 
 @dataclass(eq=False)
@@ -317,13 +367,13 @@ class RunLog:
         folders: Mapping[str, Mapping[int, Record]],
         **fields: Unpack[LogExtras],
     ) -> RunLog:
-        """A run from per-folder dicts keyed by the names in :data:`FOLDERS` (any missing).
+        """A run from per-folder dicts keyed by the names in :data:`ALL_FOLDERS` (any missing).
 
         A folder holds only its own record type (the readers build them so); the casts say
         which, without a per-record check on the load path.
         """
         records = {name: dict(folders.get(name, {})) for name in FOLDERS}
-        return cls(
+        log = cls(
             metadata=metadata,
             frames=frames,
             pose=cast("dict[int, EgoPose]", records["pose"]),
@@ -337,6 +387,17 @@ class RunLog:
             waypoints=cast("dict[int, Plan]", records["waypoint"]),
             **fields,
         )
+        for name in OPTIONAL_FOLDERS:
+            log.folder(name).update(folders.get(name, {}))
+        return log
+
+    def metadata_document(self) -> dict[str, Any]:
+        """``metadata.json`` of this run: the metadata's document plus, for a recording of a
+        real stack, its inputs (:data:`INPUTS_KEY`)."""
+        document = self.metadata.to_dict()
+        if self.inputs:
+            document[INPUTS_KEY] = {name: s.to_dict() for name, s in self.inputs.items()}
+        return document
 
     @property
     def tpf(self) -> int:
@@ -377,7 +438,7 @@ class RunLog:
         return f"{folder}/{name or f'{FILE_PREFIX[folder]}-{timestamp_ms}.json'}"
 
     def folder(self, name: str) -> dict[int, Record]:
-        """The per-timestamp dict of a folder by its name in :data:`FOLDERS` (KeyError for
+        """The per-timestamp dict of a folder by its name in :data:`ALL_FOLDERS` (KeyError for
         another name; the dict itself: writes through it land in the log, and callers put
         only the folder's record type)."""
         records: dict[int, Record] = getattr(self, FOLDER_FIELDS[name])

@@ -1,7 +1,8 @@
 """Field-by-field comparison of two RunLogs, with a tolerance for angles only.
 
 Positions, sizes, speeds, ids, keys, extras and file order must be equal exactly (NaN equal
-to NaN); angles may differ by ``angle_tol`` degrees modulo 360 (they go through quaternions).
+to NaN); angles may differ by ``angle_tol`` degrees modulo 360 (they go through quaternions),
+except the yaw of 3-D objects, which the contract carries exactly.
 """
 
 from __future__ import annotations
@@ -13,7 +14,17 @@ from typing import TypeVar
 import numpy as np
 import numpy.typing as npt
 
-from ads_rca.model import FOLDERS, Actors, Boxes, EgoPose, Plan, Predictions, RunLog
+from ads_rca.model import (
+    ALL_FOLDERS,
+    Actors,
+    Boxes,
+    ControlCommand,
+    EgoPose,
+    Objects3D,
+    Plan,
+    Predictions,
+    RunLog,
+)
 
 R = TypeVar("R")
 
@@ -65,6 +76,17 @@ def _plan(a: Plan, b: Plan, where: str) -> None:
     _exact(a.speed, b.speed, f"{where} speed")
 
 
+def _objects(a: Objects3D, b: Objects3D, where: str) -> None:
+    assert a.ids == b.ids, f"{where}: ids {a.ids} != {b.ids}"
+    assert a.labels == b.labels, f"{where}: labels {a.labels} != {b.labels}"
+    for name in ("location", "yaw", "extent", "velocity", "score"):
+        _exact(getattr(a, name), getattr(b, name), f"{where} {name}")
+
+
+def _control(a: ControlCommand, b: ControlCommand, where: str) -> None:
+    _exact([a.steer, a.acceleration, a.speed], [b.steer, b.acceleration, b.speed], where)
+
+
 def assert_logs_equal(
     a: RunLog, b: RunLog, angle_tol: float = 1e-9, *, check_frames: bool = True
 ) -> None:
@@ -75,7 +97,7 @@ def assert_logs_equal(
     assert same, "metadata differs"
     if check_frames:
         assert a.frames == b.frames, f"frames {a.frames} != {b.frames}"
-    assert FOLDERS[0] == "pose" and FOLDERS[-1] == "waypoint"  # compared in FOLDERS order
+    assert ALL_FOLDERS[0] == "pose" and ALL_FOLDERS[-1] == "control"  # compared in this order
     _folder("pose", a.pose, b.pose, lambda x, y, w: _pose(x, y, angle_tol, w))
     _folder("actors", a.actors, b.actors, lambda x, y, w: _actors(x, y, angle_tol, w))
     _folder("bboxes", a.bboxes, b.bboxes, _boxes)
@@ -84,6 +106,9 @@ def assert_logs_equal(
     pwp_a, pwp_b = a.predictions_with_perception, b.predictions_with_perception
     _folder("predictions_with_perception", pwp_a, pwp_b, _predictions)
     _folder("waypoint", a.waypoints, b.waypoints, _plan)
+    _folder("detections_3d", a.detections_3d, b.detections_3d, _objects)
+    _folder("tracks_3d", a.tracks_3d, b.tracks_3d, _objects)
+    _folder("control", a.controls, b.controls, _control)
 
 
 def _folder(

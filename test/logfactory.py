@@ -3,13 +3,26 @@
 Built in code (no reader needed): all seven folders, numeric and non-numeric ids, extras on
 boxes, step keys out of order, an empty predictions record, missing files, and optionally
 a duplicated analysed frame and records-only stamps (a pose with no actors file).
+:func:`add_3d` adds the optional folders (3-D detections, tracks, control commands).
 """
 
 from __future__ import annotations
 
+import zlib
+
 import numpy as np
 
-from ads_rca.model import Actors, Boxes, EgoPose, Plan, RunLog, RunMetadata, Track
+from ads_rca.model import (
+    Actors,
+    Boxes,
+    ControlCommand,
+    EgoPose,
+    Objects3D,
+    Plan,
+    RunLog,
+    RunMetadata,
+    Track,
+)
 
 TPF = 50
 
@@ -125,3 +138,54 @@ def _plan(rng: np.random.Generator, *, shuffled: bool) -> Plan:
     if shuffled:
         keys = keys[5:] + keys[:5]
     return Plan(keys=tuple(keys), xy=rng.normal(0, 100, (10, 2)), speed=rng.uniform(0, 20, 10))
+
+
+def objects_3d(rng: np.random.Generator, ids: tuple[str, ...]) -> Objects3D:
+    """3-D objects for ``ids``: unknown (NaN) velocity components and scores on some rows,
+    labels of every kind (unicode and empty included), yaw over the whole circle."""
+    n = len(ids)
+    velocity = rng.normal(0, 8, (n, 3))
+    velocity[::3, 2] = np.nan
+    velocity[1::4] = np.nan
+    score = rng.uniform(0, 1, n)
+    score[2::5] = np.nan
+    labels = ("CAR", "PEDESTRIAN", "", 'vélo "x"', "BUS")
+    return Objects3D(
+        ids=ids,
+        location=rng.normal(0, 60, (n, 3)),
+        yaw=rng.uniform(-180.0, 180.0, n),
+        extent=rng.uniform(0.2, 3.0, (n, 3)),
+        velocity=velocity,
+        score=score,
+        labels=tuple(labels[i % len(labels)] for i in range(n)),
+    )
+
+
+def add_3d(log: RunLog, seed: int = 0) -> RunLog:
+    """``log`` with 3-D detections, tracks and control commands added (in place; returned),
+    from a generator of its own so the other folders are unchanged.
+
+    Detections (ids ``d<row>``) on every analysed frame but every sixth, one frame with none
+    at all (an empty record); tracks (ids of the actors, uuid-like hex for some) on every
+    other frame; a command on every frame but the third, with unknown (NaN) values on some;
+    and one control command at a records-only stamp (none of the other folders has it)."""
+    rng = np.random.default_rng(10_000 + seed)
+    for f, ts in enumerate(dict.fromkeys(log.frames)):
+        actors = log.actors.get(ts)
+        ids = actors.ids if actors is not None else ()
+        if f % 6 != 5:
+            count = 0 if f == 2 else int(rng.integers(1, 9))
+            log.detections_3d[ts] = objects_3d(rng, tuple(f"d{row}" for row in range(count)))
+        if f % 2 == 0:
+            track_ids = tuple(
+                i if k % 2 else f"{zlib.crc32(i.encode()):08x}" * 4 for k, i in enumerate(ids)
+            )
+            log.tracks_3d[ts] = objects_3d(rng, track_ids)
+        if f % 3 != 2:
+            steer, acceleration, speed = rng.normal(0, 5, 3).tolist()
+            if f % 5 == 4:
+                acceleration = float("nan")
+            log.controls[ts] = ControlCommand(steer=steer, acceleration=acceleration, speed=speed)
+    if log.frames:
+        log.controls[log.frames[-1] + 7] = ControlCommand(-0.0, float("nan"), 1e-300)
+    return log

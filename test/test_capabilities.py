@@ -3,18 +3,15 @@ because an input was absent."""
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 from ads_rca.capabilities import (
     MODEL_INPUTS,
     input_status,
     judged_modules,
     recorded,
-    statuses_from_document,
     statuses_to_document,
 )
 from ads_rca.engine import diagnose
-from ads_rca.model import InputStatus
+from ads_rca.model import InputStatus, read_inputs
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import Params
 from ads_rca.summary import summary_text
@@ -73,25 +70,30 @@ def test_a_carla_autoware_recording_without_2d_and_pwp() -> None:
     assert no_plan["perception"] == "not judged (no plan, detections_2d)"
 
 
-def test_statuses_survive_the_run_metadata_and_hostile_documents_are_ignored() -> None:
+def test_statuses_survive_the_run_metadata_and_hostile_documents_are_left_out() -> None:
     statuses = _absent("plan")
-    assert statuses_from_document(statuses_to_document(statuses)) == statuses
+    document = {"model_inputs": statuses_to_document(statuses)}
+    assert read_inputs(document) == (statuses, [])
     hostile = {
         "plan": {"state": "sure", "source": "/p"},  # unknown state
-        "ego": {"state": "real", "source": ["/x"], "reason": 3},  # wrong types -> ""
-        "../../etc": {"state": "real"},  # unknown input
+        "ego": {"state": "real", "source": ["/x"], "reason": 3},  # wrong types
         "actors": "real",  # not a mapping
+        "clock": {"state": "absent"},
     }
-    assert statuses_from_document(hostile) == {"ego": InputStatus("real", "", "")}
-    assert statuses_from_document([1, 2]) == {}
-    assert statuses_from_document(None) == {}
+    inputs, issues = read_inputs({"model_inputs": hostile})
+    assert inputs == {"clock": InputStatus("absent")}
+    assert [field for field, _issue in issues] == [
+        "model_inputs.plan",
+        "model_inputs.ego",
+        "model_inputs.actors",
+    ]
+    assert read_inputs({"model_inputs": [1, 2]})[0] == {}
 
 
 def test_a_recording_without_a_plan_says_no_module_was_judged_at_any_frame() -> None:
     log = synthesise("lead_braking", "planning", 1)
     log.waypoints.clear()
-    statuses = statuses_to_document(_absent("plan", "detections_3d", "tracked_objects"))
-    log.metadata = replace(log.metadata, raw={**log.metadata.raw, "inputs": statuses})
+    log.inputs = _absent("plan", "detections_3d", "tracked_objects")
     assert recorded(log)
     document = diagnose(log, Params(semantics="corrected")).to_json()
     why = "not judged (no plan)"

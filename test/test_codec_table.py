@@ -17,12 +17,13 @@ from typing import Any
 import pytest
 from cdrlayout import differences
 from logcompare import assert_logs_equal
+from logfactory import add_3d
 from rclpy.serialization import serialize_message
 
 import ads_rca
 from ads_rca.contract import codec, rosmsg, topics
 from ads_rca.contract.convert import message_stamp_ms
-from ads_rca.model import FOLDERS, RunLog
+from ads_rca.model import ALL_FOLDERS, OPTIONAL_FOLDERS, RunLog
 from ads_rca.synth import synthesise
 
 PACKAGE = Path(ads_rca.__file__).resolve().parent
@@ -33,7 +34,7 @@ CODEC_MODULES = ("convert.py", "cdr.py", "cdr_decode.py", "codec.py")
 
 @pytest.fixture(scope="module")
 def log() -> RunLog:
-    return synthesise("cut_in", "perception", 3)
+    return add_3d(synthesise("cut_in", "perception", 3))
 
 
 def _one(log: RunLog, folder: str, stamp: int, record: Any) -> RunLog:
@@ -86,9 +87,10 @@ def test_the_player_topics_round_trip_their_text_and_time() -> None:
 def test_the_maps_derive_from_the_table() -> None:
     assert tuple(topic.key for topic in topics.TABLE) == topics.ALL_TOPICS
     assert len(set(topics.ALL_TOPICS)) == len(topics.TABLE)
-    assert tuple(topics.FOLDER_TOPICS) == FOLDERS  # data topics in the folders' order
+    assert tuple(topics.FOLDER_TOPICS) == ALL_FOLDERS  # data topics in the folders' order
     assert tuple(topics.FOLDER_TOPICS.values()) == topics.DATA_TOPICS
-    assert {topics.FOLDER_TOPICS[f]: f for f in FOLDERS} == topics.TOPIC_FOLDERS
+    assert {topics.FOLDER_TOPICS[f]: f for f in ALL_FOLDERS} == topics.TOPIC_FOLDERS
+    assert tuple(str(t.folder) for t in topics.TABLE if t.optional) == OPTIONAL_FOLDERS
     assert {topics.METADATA, topics.FRAME, topics.STATUS} == topics.TEXT_TOPICS
     for topic in topics.TABLE:
         assert topics.MESSAGE_TYPE_NAMES[topic.key] == topic.codec.type_name
@@ -106,7 +108,7 @@ def test_no_other_module_names_a_topic() -> None:
     there (the nodes may name the player's own topics: they treat those specially)."""
     table = PACKAGE / "contract" / "topics.py"
     # "actors" is also a folder's name: its spelling elsewhere is the folder.
-    spelled = set(topics.ALL_TOPICS) - set(FOLDERS)
+    spelled = set(topics.ALL_TOPICS) - set(ALL_FOLDERS)
     data_names = {
         name
         for name, value in vars(topics).items()

@@ -20,7 +20,7 @@ from cdrlayout import differences
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from logcompare import assert_logs_equal
-from logfactory import make_log
+from logfactory import add_3d, make_log
 from rclpy.serialization import deserialize_message, serialize_message
 from std_msgs.msg import String
 from visualization_msgs.msg import MarkerArray
@@ -30,7 +30,18 @@ from ads_rca.contract.assembler import RunLogAssembler
 from ads_rca.contract.cdr_decode import decode_clock, decode_string
 from ads_rca.contract.topics import decode_record, stamp_ms
 from ads_rca.live import diagnostics as diag
-from ads_rca.model import Actors, Boxes, EgoPose, Plan, RunLog, RunMetadata, Track
+from ads_rca.model import (
+    OPTIONAL_FOLDERS,
+    Actors,
+    Boxes,
+    ControlCommand,
+    EgoPose,
+    Objects3D,
+    Plan,
+    RunLog,
+    RunMetadata,
+    Track,
+)
 from ads_rca.ros.diagnostics import array as diagnostic_array
 
 if TYPE_CHECKING:
@@ -52,7 +63,7 @@ def assert_records_equal(a: Any, b: Any) -> None:
         for key in a:
             assert_records_equal(a[key], b[key])
         return
-    if isinstance(a, EgoPose):
+    if isinstance(a, EgoPose | ControlCommand):  # floats only: compared by their bits
         assert np.array(list(_fields(a))).tobytes() == np.array(list(_fields(b))).tobytes()
         return
     for name in a.__dataclass_fields__:
@@ -65,8 +76,8 @@ def assert_records_equal(a: Any, b: Any) -> None:
             assert x == y, (name, x, y)
 
 
-def _fields(pose: EgoPose) -> tuple[float, ...]:
-    return (pose.x, pose.y, pose.z, pose.roll, pose.pitch, pose.yaw, pose.speed)
+def _fields(record: EgoPose | ControlCommand) -> tuple[float, ...]:
+    return tuple(getattr(record, name) for name in record.__dataclass_fields__)
 
 
 def check_log(log: RunLog, every: int = 1) -> int:
@@ -108,6 +119,18 @@ def test_factory_logs_encode_byte_for_byte(seed: int) -> None:
     assert check_log(log) > 50
 
 
+def test_3d_objects_and_control_commands_encode_byte_for_byte_and_decode_exactly() -> None:
+    log = add_3d(make_log(14, 11, 4, duplicate_frame=True, orphan_stamps=True), 4)
+    optional = {t.key for t in topics.DATA if t.optional}
+    sent = [key for t in playback.timeline(log) for key in topics.frame_payloads(log, t.stamp_ms)]
+    assert {key: sent.count(key) for key in optional} == {
+        topics.OBJECTS_3D: 13,
+        topics.TRACKS_3D: 7,
+        topics.CONTROL_COMMAND: 12,  # the duplicated frame's again, and a records-only one
+    }
+    assert check_log(log) > 120
+
+
 def awkward_log() -> RunLog:
     """NaN everywhere, empty records, odd keys, negative and huge stamps, JSON extremes."""
     meta = RunMetadata(TPF, (0.0, 0.0, 0.0), -1, 4, raw={"timesteps_per_frame": TPF})
@@ -137,6 +160,21 @@ def awkward_log() -> RunLog:
     log.waypoints[0] = Plan(("0", "01", "x", "-3", "5"), np.full((5, 2), nan), np.full(5, nan))
     log.waypoints[-50] = Plan((), np.empty((0, 2)), np.empty(0))
     log.waypoints[2_000_000_050] = Plan(("01",), np.zeros((1, 2)), np.zeros(1))
+    inf = float("inf")
+    log.detections_3d[0] = Objects3D(
+        ("é", "", "ユニコード", "0" * 40),
+        np.array([[nan, -0.0, 1e308], [1e-300, 0.0, -5.0], [2.0, 3.0, 4.0], [0.0, 0.0, 0.0]]),
+        np.array([nan, -0.0, 540.0, -180.0]),
+        np.array([[nan, 1.0, 0.5], [0.0, 0.0, 0.0], [1e-320, 2.0, 3.0], [1.0, 1.0, 1.0]]),
+        np.array([[inf, -inf, nan], [nan, nan, nan], [-0.0, 0.0, 1.5], [1.0, 2.0, 3.0]]),
+        np.array([nan, inf, -0.0, 2.5]),
+        ("", "\u202e", 'q"uote', "\\"),
+    )
+    log.tracks_3d[-50] = Objects3D(
+        (), np.empty((0, 3)), np.empty(0), np.empty((0, 3)), np.empty((0, 3)), np.empty(0), ()
+    )
+    log.controls[0] = ControlCommand(nan, -inf, -0.0)
+    log.controls[2_000_000_050] = ControlCommand(1e-300, 0.0, 1e308)
     return log
 
 
@@ -232,7 +270,7 @@ def test_decoder_walks_every_marker_field() -> None:
 
 
 def test_assembler_add_raw_rebuilds_the_log_like_add() -> None:
-    log = make_log(12, 6, 2, duplicate_frame=True, orphan_stamps=True)
+    log = add_3d(make_log(12, 6, 2, duplicate_frame=True, orphan_stamps=True), 2)
     by_bytes, by_objects, mixed = RunLogAssembler(), RunLogAssembler(), RunLogAssembler()
     sent: list[tuple[str, Any, bytes]] = [
         (topics.METADATA, playback.metadata_message(log), b""),
@@ -261,7 +299,7 @@ def test_assembler_add_raw_rebuilds_the_log_like_add() -> None:
         rebuilt = assembler.build()
         assert_logs_equal(log, rebuilt)
         reference = by_objects.build()
-        for folder in ("pose", "actors", "bboxes", "predictions", "waypoint"):
+        for folder in ("pose", "actors", "bboxes", "predictions", "waypoint", *OPTIONAL_FOLDERS):
             for ts, record in reference.folder(folder).items():
                 assert_records_equal(rebuilt.folder(folder)[ts], record)
 

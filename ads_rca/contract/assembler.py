@@ -29,8 +29,8 @@ from ads_rca.contract.playback import (
     read_document,
     read_input_problems,
 )
-from ads_rca.model import RunLog, RunMetadata
-from ads_rca.problems import Problem, ProblemLog
+from ads_rca.model import RunLog, RunMetadata, read_inputs
+from ads_rca.problems import IGNORED, Problem, ProblemLog
 
 if TYPE_CHECKING:
     from std_msgs.msg import String
@@ -192,12 +192,16 @@ class RunLogAssembler:
             )
         except DOCUMENT_ERRORS as error:
             raise MalformedMessage(str(error)) from error
+        inputs, issues = read_inputs(self.metadata_document)
         log = RunLog(
             metadata=metadata,
             frames=frames,
             source=self.source,
             problems=ProblemLog(self.input_problems),
+            inputs=inputs,
         )
+        for name, issue in issues:
+            log.problems.add(topics.METADATA, name, issue, IGNORED, "warning")
         tpf = metadata.timesteps_per_frame
         for topic, by_stamp in self._data.items():
             folder = log.folder(topics.TOPIC_FOLDERS[topic])

@@ -26,17 +26,22 @@ import numpy as np
 
 from ads_rca.contract.camera import StaticTransform
 from ads_rca.contract.convert import (
+    CONTROL_NAMES,
     EGO_FRAME,
+    FLIP_Y,
     IMAGE_FRAME,
     WORLD_FRAME,
     MarkerStyle,
     carla_rpy_to_quaternions,
     carried_plan_rows,
+    control_positions,
     marker_id,
+    object_texts,
+    objects_rpy,
     step_ms,
 )
 from ads_rca.contract.jsontext import dumps_json
-from ads_rca.model import Actors, Boxes, EgoPose, Plan, Predictions
+from ads_rca.model import Actors, Boxes, ControlCommand, EgoPose, Objects3D, Plan, Predictions
 
 #: Encapsulation header: representation CDR_LE (0x0001), options 0.
 ENCAPSULATION = b"\x00\x01\x00\x00"
@@ -326,6 +331,30 @@ def encode_actors(actors: Actors, timestamp_ms: int, style: MarkerStyle) -> byte
         np.empty((0, 3)),
         ["", *actors.ids],
     )
+
+
+def encode_objects(objects: Objects3D, timestamp_ms: int, style: MarkerStyle) -> bytes:
+    """3-D objects as :func:`convert.objects_to_markers` (CUBEs in ``map``, full size)."""
+    n = len(objects.ids)
+    fixed = marker_rows(n, style, CUBE)
+    fixed["ita"][1:, 0] = np.arange(n)
+    body = fixed["pose"][1:]
+    body[:, 0:3] = np.reshape(objects.location, (-1, 3)) * FLIP_Y
+    body[:, 3:7] = carla_rpy_to_quaternions(objects_rpy(objects))
+    fixed["scale"][1:] = 2.0 * np.reshape(objects.extent, (-1, 3))
+    return encode_marker_array(
+        timestamp_ms,
+        WORLD_FRAME,
+        style.ns,
+        fixed,
+        np.empty((0, 3)),
+        ["", *object_texts(objects)],
+    )
+
+
+def encode_control(command: ControlCommand, timestamp_ms: int) -> bytes:
+    """A control command as :func:`convert.control_to_joint_state`."""
+    return encode_joint_state(timestamp_ms, list(CONTROL_NAMES), control_positions(command))
 
 
 #: Corner columns (x1, y1, x2, y2) of the five points of a box's closed LINE_STRIP.

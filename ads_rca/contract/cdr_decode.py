@@ -34,13 +34,24 @@ import numpy as np
 from ads_rca.contract.cdr import HEADER_SIZE, MESH_WHEN_EMPTY, MIDDLE_WHEN_EMPTY
 from ads_rca.contract.convert import (
     check_box_points,
+    control_from_fields,
     marker_document,
+    objects_from_fields,
     quaternions_to_carla_rpy,
     step_ms,
     track_keys,
 )
 from ads_rca.contract.errors import CdrError, MalformedMessage, NoStamp
-from ads_rca.model import Actors, Boxes, EgoPose, Plan, Predictions, Track
+from ads_rca.model import (
+    Actors,
+    Boxes,
+    ControlCommand,
+    EgoPose,
+    Objects3D,
+    Plan,
+    Predictions,
+    Track,
+)
 
 _P = ParamSpec("_P")
 _R = TypeVar("_R")
@@ -354,6 +365,14 @@ def decode_actors(data: bytes) -> Actors:
 
 
 @_typed
+def decode_objects(data: bytes) -> Objects3D:
+    """``perception/objects_3d`` or ``tracks_3d`` MarkerArray → Objects3D
+    (:func:`convert.markers_to_objects`)."""
+    m = read_markers(data)
+    return objects_from_fields(m.ids, m.poses, m.scales, m.texts)
+
+
+@_typed
 def decode_boxes(data: bytes) -> Boxes:
     """``perception/*`` MarkerArray → Boxes (:func:`convert.markers_to_boxes`)."""
     m = read_markers(data)
@@ -418,3 +437,23 @@ def decode_trajectory(data: bytes, timesteps_per_frame: int) -> Plan:
         keys.append(str(r.stamp_ms() // step))
     r.check_end("MultiDOFJointTrajectory")
     return Plan(keys=tuple(keys), xy=xy, speed=speed)
+
+
+@_typed
+def decode_control(data: bytes) -> ControlCommand:
+    """``control/command`` sensor_msgs/JointState → ControlCommand
+    (:func:`convert.joint_state_to_control`): names and positions; velocity, effort unread."""
+    r = CdrReader(data)
+    r.skip_header()
+    count = r.u32()
+    check_count(count, 4, r.remaining(), "joint state names")
+    names = [r.string() for _ in range(count)]
+    positions = r.u32()
+    check_count(positions, 8, r.remaining(), "joint state positions")
+    values: list[float] = []
+    if positions:
+        r.align(8)
+        values = np.frombuffer(r.data, "<f8", positions, r.position).tolist()
+        r.position += 8 * positions
+    r.check_end("JointState")
+    return control_from_fields(names, values)

@@ -1,8 +1,9 @@
 """How each kind of record travels: its message type and its conversions on both paths.
 
-One :class:`Codec` per kind (ego pose, actors, boxes, predictions, plan, JSON text, clock)
-holds the four conversions a topic needs, so the topic table (:mod:`ads_rca.contract.topics`)
-gives a topic its kind in one row and everything else follows from it:
+One :class:`Codec` per kind (ego pose, actors, boxes, predictions, plan, 3-D objects, control
+command, JSON text, clock) holds the four conversions a topic needs, so the topic table
+(:mod:`ads_rca.contract.topics`) gives a topic its kind in one row and everything else
+follows from it:
 
 - ``build`` / ``read``: record ↔ rclpy message object (:mod:`~ads_rca.contract.convert`:
   what publishing objects, bags and the tests use);
@@ -26,7 +27,7 @@ from typing import Any, Generic, TypeVar
 
 from ads_rca.contract import cdr, cdr_decode, convert
 from ads_rca.contract.convert import MarkerStyle
-from ads_rca.model import Actors, Boxes, EgoPose, Plan, Predictions
+from ads_rca.model import Actors, Boxes, ControlCommand, EgoPose, Objects3D, Plan, Predictions
 
 R = TypeVar("R")
 
@@ -98,6 +99,29 @@ def predictions(style: MarkerStyle) -> Codec[Predictions]:
         decode=lambda data, _tpf: cdr_decode.decode_predictions(data),
         stamp=cdr_decode.marker_array_stamp_ms,
     )
+
+
+def objects(style: MarkerStyle) -> Codec[Objects3D]:
+    """3-D objects (detections, tracks) as CUBE markers in ``style``."""
+    return Codec(
+        _MARKER_ARRAY,
+        build=lambda record, stamp, _tpf: convert.objects_to_markers(record, stamp, style),
+        read=lambda msg, _tpf: convert.markers_to_objects(msg),
+        encode=lambda record, stamp, _tpf: cdr.encode_objects(record, stamp, style),
+        decode=lambda data, _tpf: cdr_decode.decode_objects(data),
+        stamp=cdr_decode.marker_array_stamp_ms,
+    )
+
+
+#: A control command as labelled numbers (no common_interfaces type holds one).
+CONTROL: Codec[ControlCommand] = Codec(
+    "sensor_msgs/msg/JointState",
+    build=lambda command, stamp, _tpf: convert.control_to_joint_state(command, stamp),
+    read=lambda msg, _tpf: convert.joint_state_to_control(msg),
+    encode=lambda command, stamp, _tpf: cdr.encode_control(command, stamp),
+    decode=lambda data, _tpf: cdr_decode.decode_control(data),
+    stamp=cdr_decode.header_stamp_ms,
+)
 
 
 #: JSON text on a std_msgs/String (metadata, frame markers, status); no stamp.

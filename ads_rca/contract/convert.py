@@ -25,14 +25,24 @@ import numpy as np
 
 from ads_rca.contract.errors import MalformedMessage, NoStamp
 from ads_rca.contract.jsontext import dumps_json, loads_json
-from ads_rca.model import Actors, Boxes, EgoPose, FloatArray, Plan, Predictions, Track
+from ads_rca.model import (
+    Actors,
+    Boxes,
+    ControlCommand,
+    EgoPose,
+    FloatArray,
+    Objects3D,
+    Plan,
+    Predictions,
+    Track,
+)
 
 if TYPE_CHECKING:
     from builtin_interfaces.msg import Duration, Time
     from geometry_msgs.msg import Point, Quaternion
     from nav_msgs.msg import Odometry
     from rosgraph_msgs.msg import Clock
-    from sensor_msgs.msg import CameraInfo
+    from sensor_msgs.msg import CameraInfo, JointState
     from std_msgs.msg import ColorRGBA, Header, String
     from trajectory_msgs.msg import MultiDOFJointTrajectory
     from visualization_msgs.msg import Marker, MarkerArray
@@ -247,6 +257,171 @@ def markers_to_actors(msg: MarkerArray) -> Actors:
         rotation=quaternions_to_carla_rpy(quats),
         extent=extent / 2.0,
     )
+
+
+# --- 3-D objects ----------------------------------------------------------------------------
+
+#: CARLA ↔ ROS for positions and velocities, both ways: y is negated.
+FLIP_Y = np.array([1.0, -1.0, 1.0])
+
+
+def objects_rpy(objects: Objects3D) -> FloatArray:
+    """(N, 3) roll, pitch, yaw of 3-D objects (roll and pitch 0: a stack's boxes are upright)."""
+    rpy = np.zeros((len(objects.ids), 3))
+    rpy[:, 2] = np.reshape(objects.yaw, -1)
+    return rpy
+
+
+def object_text(object_id: str, label: str, score: float, yaw: float, velocity: list[float]) -> str:
+    """A 3-D object marker's ``text``: what a CUBE cannot carry, in ``map`` convention (the
+    yaw in degrees, so it comes back exactly)."""
+    return dumps_json(
+        {"id": object_id, "label": label, "score": score, "yaw_deg": -yaw, "velocity": velocity}
+    )
+
+
+def object_texts(objects: Objects3D) -> list[str]:
+    """Every object's marker ``text`` (row order)."""
+    velocity = (np.reshape(objects.velocity, (-1, 3)) * FLIP_Y).tolist()
+    return [
+        object_text(*fields)
+        for fields in zip(
+            objects.ids,
+            objects.labels,
+            np.reshape(objects.score, -1).tolist(),
+            np.reshape(objects.yaw, -1).tolist(),
+            velocity,
+            strict=True,
+        )
+    ]
+
+
+def objects_to_markers(objects: Objects3D, timestamp_ms: int, style: MarkerStyle) -> MarkerArray:
+    """3-D objects → DELETEALL + one CUBE per object (row order, id = row), full size, in
+    ``map``; id, label, score, exact yaw and velocity in ``text`` (docs/topics.md)."""
+    from geometry_msgs.msg import Pose, Vector3
+    from visualization_msgs.msg import Marker, MarkerArray
+
+    ns = style.ns
+    head = header(timestamp_ms, WORLD_FRAME)
+    color = _color(style)
+    quats = carla_rpy_to_quaternions(objects_rpy(objects)).tolist()
+    locs = (np.reshape(objects.location, (-1, 3)) * FLIP_Y).tolist()
+    sizes = (2.0 * np.reshape(objects.extent, (-1, 3))).tolist()
+    markers = [_delete_all(timestamp_ms, WORLD_FRAME, ns)]
+    for index, (loc, q, size, text) in enumerate(
+        zip(locs, quats, sizes, object_texts(objects), strict=True)
+    ):
+        markers.append(
+            Marker(
+                header=head,
+                ns=ns,
+                id=index,
+                type=Marker.CUBE,
+                action=Marker.ADD,
+                pose=Pose(position=_point(*loc), orientation=_quaternion(q)),
+                scale=Vector3(x=size[0], y=size[1], z=size[2]),
+                color=color,
+                text=text,
+            )
+        )
+    return MarkerArray(markers=markers)
+
+
+def objects_from_fields(
+    marker_ids: Sequence[int], poses: FloatArray, scales: FloatArray, texts: Sequence[str]
+) -> Objects3D:
+    """Objects3D from its markers' ids, poses (N, 7: position, quaternion), scales (N, 3)
+    and texts: the reading both paths share. MalformedMessage for a text that is not the
+    object's (a velocity that is not 3 numbers, a label or id that is not text ...)."""
+    n = len(texts)
+    yaw = quaternions_to_carla_rpy(np.reshape(poses[:, 3:7], (-1, 4)))[:, 2]
+    velocity = np.full((n, 3), math.nan)
+    score = np.full(n, math.nan)
+    ids: list[str] = []
+    labels: list[str] = []
+    for row, (marker, text) in enumerate(zip(marker_ids, texts, strict=True)):
+        document = marker_document(text)
+        object_id = document.get("id", str(marker))
+        label = document.get("label", "")
+        if not isinstance(object_id, str) or not isinstance(label, str):
+            raise MalformedMessage(f"3-D object marker {row}: id and label must be text")
+        ids.append(object_id)
+        labels.append(label)
+        if "yaw_deg" in document:
+            yaw[row] = -_number(document["yaw_deg"], row, "yaw_deg")
+        if document.get("score") is not None:
+            score[row] = _number(document["score"], row, "score")
+        listed = document.get("velocity")
+        if listed is not None:
+            if not isinstance(listed, list) or len(listed) != 3:
+                raise MalformedMessage(f"3-D object marker {row}: velocity is not [vx, vy, vz]")
+            velocity[row] = [math.nan if v is None else _number(v, row, "velocity") for v in listed]
+    location = np.array(poses[:, 0:3], dtype=np.float64).reshape(-1, 3) * FLIP_Y
+    return Objects3D(
+        ids=tuple(ids),
+        location=location,
+        yaw=yaw,
+        extent=np.array(scales, dtype=np.float64).reshape(-1, 3) / 2.0,
+        velocity=velocity * FLIP_Y,
+        score=score,
+        labels=tuple(labels),
+    )
+
+
+def _number(value: object, row: int, key: str) -> float:
+    """A JSON number of a marker text (bool is not one)."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise MalformedMessage(f"3-D object marker {row}: {key} is not a number")
+    return float(value)
+
+
+def markers_to_objects(msg: MarkerArray) -> Objects3D:
+    markers = _added(msg)
+    poses = np.empty((len(markers), 7))
+    scales = np.empty((len(markers), 3))
+    for row, m in enumerate(markers):
+        p, o, s = m.pose.position, m.pose.orientation, m.scale
+        poses[row] = (p.x, p.y, p.z, o.x, o.y, o.z, o.w)
+        scales[row] = (s.x, s.y, s.z)
+    return objects_from_fields([m.id for m in markers], poses, scales, [m.text for m in markers])
+
+
+# --- control commands -------------------------------------------------------------------------
+
+#: ``control/command``'s JointState names, in order.
+CONTROL_NAMES = ("steering_tire_angle_deg", "acceleration", "speed")
+
+
+def control_positions(command: ControlCommand) -> list[float]:
+    """The JointState positions of a command: steering in degrees with the ROS sign (+ left,
+    the negated CARLA sign: exact), acceleration and target speed as they are."""
+    return [-float(command.steer), float(command.acceleration), float(command.speed)]
+
+
+def control_to_joint_state(command: ControlCommand, timestamp_ms: int) -> JointState:
+    from sensor_msgs.msg import JointState
+
+    return JointState(
+        header=header(timestamp_ms, ""),
+        name=list(CONTROL_NAMES),
+        position=control_positions(command),
+    )
+
+
+def control_from_fields(names: Sequence[str], positions: Sequence[float]) -> ControlCommand:
+    """A command from JointState names and positions (values by name; a name absent: NaN)."""
+    if len(positions) < len(names):
+        raise MalformedMessage(f"joint state has {len(names)} names, {len(positions)} positions")
+    value: dict[str, float] = {}
+    for name, position in zip(names, positions, strict=False):
+        value.setdefault(name, float(position))
+    steer, acceleration, speed = (value.get(name, math.nan) for name in CONTROL_NAMES)
+    return ControlCommand(steer=-steer, acceleration=acceleration, speed=speed)
+
+
+def joint_state_to_control(msg: JointState) -> ControlCommand:
+    return control_from_fields(list(msg.name), list(msg.position))
 
 
 # --- boxes --------------------------------------------------------------------------------

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 from ads_rca.contract import topics
 from ads_rca.contract.convert import carried_plan_rows
 from ads_rca.contract.jsontext import dumps_json, loads_json
-from ads_rca.model import FOLDERS, RunLog, frame_number
+from ads_rca.model import ALL_FOLDERS, RunLog, frame_number
 from ads_rca.problems import Problem, problems_from_list
 
 if TYPE_CHECKING:
@@ -44,7 +44,7 @@ def timeline(log: RunLog) -> list[Tick]:
     """Analysed frames in order, with records-only stamps merged in by time (ascending)."""
     analysed = set(log.frames)
     stamps: set[int] = set()
-    for folder in FOLDERS:
+    for folder in ALL_FOLDERS:
         stamps.update(log.folder(folder))
     extras = sorted(stamps - analysed)
     ticks: list[Tick] = []
@@ -112,7 +112,7 @@ def metadata_message(log: RunLog, **extra: object) -> String:
     """
     from std_msgs.msg import String
 
-    document = log.metadata.to_dict()
+    document = log.metadata_document()
     out: dict[str, Any] = dict(document)
     out.update(
         source=log.source,

@@ -46,6 +46,9 @@ GROUND_TRUTH = "perception/ground_truth"
 PREDICTION_RAW = "prediction/raw"
 PREDICTION_WITH_PERCEPTION = "prediction/with_perception"
 TRAJECTORY = "planning/trajectory"
+OBJECTS_3D = "perception/objects_3d"
+TRACKS_3D = "perception/tracks_3d"
+CONTROL_COMMAND = "control/command"
 FRAME = "run/frame"
 STATUS = "player/status"
 CLOCK = "/clock"
@@ -86,18 +89,21 @@ LATCHED_READER_DEPTH = 100
 class Topic:
     """One row of the table: a topic key, the kind of record it carries and how.
 
-    ``folder``: the log folder (a name in :data:`ads_rca.model.FOLDERS`) whose records a
+    ``folder``: the log folder (a name in :data:`ads_rca.model.ALL_FOLDERS`) whose records a
     per-frame data topic carries, stamped with their log time; None for the player's own
-    topics."""
+    topics. ``optional``: the folder is one of :data:`ads_rca.model.OPTIONAL_FOLDERS`, and
+    the topic is advertised only for a log that has its records (:func:`advertised`), so
+    a running log without them sends and records exactly what it did before they existed."""
 
     key: str
     codec: Codec[Any]
     qos: QoSSpec = DATA_QOS
     folder: str | None = None
+    optional: bool = False
 
 
 #: THE topic table: every topic the player sends, in publishing order (the data topics in
-#: :data:`ads_rca.model.FOLDERS` order). Everything below derives from it.
+#: :data:`ads_rca.model.ALL_FOLDERS` order). Everything below derives from it.
 TABLE: tuple[Topic, ...] = (
     Topic(METADATA, codec.TEXT, LATCHED_QOS),
     Topic(ODOMETRY, codec.POSE, folder="pose"),
@@ -123,6 +129,19 @@ TABLE: tuple[Topic, ...] = (
         folder="predictions_with_perception",
     ),
     Topic(TRAJECTORY, codec.PLAN, folder="waypoint"),
+    Topic(
+        OBJECTS_3D,
+        codec.objects(MarkerStyle("objects_3d", (1.0, 0.8, 0.0))),
+        folder="detections_3d",
+        optional=True,
+    ),
+    Topic(
+        TRACKS_3D,
+        codec.objects(MarkerStyle("tracks_3d", (0.6, 0.2, 1.0))),
+        folder="tracks_3d",
+        optional=True,
+    ),
+    Topic(CONTROL_COMMAND, codec.CONTROL, folder="control", optional=True),
     Topic(FRAME, codec.TEXT),
     Topic(STATUS, codec.TEXT, LATCHED_QOS),
     Topic(CLOCK, codec.CLOCK),
@@ -131,7 +150,7 @@ TABLE: tuple[Topic, ...] = (
 #: Topic key → its row.
 TOPICS: dict[str, Topic] = {topic.key: topic for topic in TABLE}
 ALL_TOPICS: tuple[str, ...] = tuple(TOPICS)
-#: The per-frame data topics' rows, in :data:`ads_rca.model.FOLDERS` order.
+#: The per-frame data topics' rows, in :data:`ads_rca.model.ALL_FOLDERS` order.
 DATA: tuple[Topic, ...] = tuple(topic for topic in TABLE if topic.folder is not None)
 DATA_TOPICS: tuple[str, ...] = tuple(topic.key for topic in DATA)
 #: The player's JSON topics (metadata, frame markers, status): std_msgs/String text.
@@ -144,6 +163,14 @@ MESSAGE_TYPE_NAMES: dict[str, str] = {topic.key: topic.codec.type_name for topic
 QOS: dict[str, QoSSpec] = {topic.key: topic.qos for topic in TABLE} | {
     topic: LATCHED_QOS for topic in CAMERA_TYPE_NAMES
 }
+
+
+def advertised(log: RunLog) -> tuple[str, ...]:
+    """The topic keys a player of ``log`` advertises (and a bag of it declares): every key
+    but the optional data topics whose folder the log has no record in."""
+    return tuple(
+        topic.key for topic in TABLE if not topic.optional or log.folder(str(topic.folder))
+    )
 
 
 @cache
@@ -160,7 +187,7 @@ def message_types() -> dict[str, type[Any]]:
 
 
 def frame_messages(log: RunLog, timestamp_ms: int) -> dict[str, Any]:
-    """Every data message object of one timestamp, keyed by topic key, in FOLDERS order.
+    """Every data message object of one timestamp, keyed by topic key, in ALL_FOLDERS order.
 
     A folder with no record at ``timestamp_ms`` contributes no message."""
     out: dict[str, Any] = {}

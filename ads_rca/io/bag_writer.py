@@ -142,7 +142,7 @@ def write_bag(
     names = topics.topic_names(namespace)
     counts: dict[str, int] = {}
     try:
-        for key in topics.ALL_TOPICS:
+        for key in topics.advertised(log):
             sink.add_topic(
                 names[key], rosmsg.type_name(topics.message_types()[key]), contract_qos_yaml(key)
             )

@@ -36,13 +36,23 @@ from ads_rca.io.files import DEFAULT_MAX_FILE_MB, Unreadable, max_bytes, read_re
 from ads_rca.io.records import (
     parse_actors,
     parse_boxes,
+    parse_control,
+    parse_objects_3d,
     parse_plan,
     parse_pose,
     parse_predictions,
     show_value,
 )
 from ads_rca.io.validate import validate_run_log
-from ads_rca.model import FOLDERS, Record, RunLog, RunMetadata
+from ads_rca.model import (
+    ALL_FOLDERS,
+    FOLDERS,
+    OPTIONAL_FOLDERS,
+    Record,
+    RunLog,
+    RunMetadata,
+    read_inputs,
+)
 from ads_rca.problems import IGNORED, KEPT_VALUE, SKIPPED_FILE, USED_DEFAULT, Problem, ProblemLog
 from ads_rca.progress import Progress, tracked
 
@@ -66,6 +76,9 @@ PARSERS: dict[str, Parser] = {
     "predictions": parse_predictions,
     "predictions_with_perception": parse_predictions,
     "waypoint": parse_plan,
+    "detections_3d": parse_objects_3d,
+    "tracks_3d": parse_objects_3d,
+    "control": parse_control,
 }
 
 
@@ -165,11 +178,16 @@ def read_run_log(
     listings = {folder: _list_folder(root, folder, problems) for folder in FOLDERS}
     if not (root / "metadata.json").exists() and not listings["actors"]:
         raise InputError(f"{root}: not an ADS running log (no metadata.json, no actors/ files)")
+    for folder in OPTIONAL_FOLDERS:  # our extension: absent means none, and says nothing
+        if (root / folder).is_dir():
+            listings[folder] = _list_folder(root, folder, problems)
 
     # Only the winning file of each timestamp is read (the others are reported by validate).
-    files = {folder: {ts: name for ts, name in listings[folder]} for folder in FOLDERS}
-    jobs = [(folder, ts, name) for folder in FOLDERS for ts, name in files[folder].items()]
-    records: dict[str, dict[int, Record]] = {folder: {} for folder in FOLDERS}
+    files = {folder: {ts: name for ts, name in listing} for folder, listing in listings.items()}
+    jobs = [
+        (folder, ts, name) for folder in ALL_FOLDERS for ts, name in files.get(folder, {}).items()
+    ]
+    records: dict[str, dict[int, Record]] = {folder: {} for folder in ALL_FOLDERS}
     parsed, found = _parse_files(str(root), jobs, limit, progress)
     problems.extend(found)
     for folder, ts, record in parsed:
@@ -177,6 +195,9 @@ def read_run_log(
     records = {folder: dict(sorted(r.items())) for folder, r in records.items()}
     actors_listing = [ts for ts, _ in listings["actors"]]
     metadata = read_metadata(root / "metadata.json", actors_listing, problems, limit)
+    inputs, issues = read_inputs(metadata.raw)
+    for name, issue in issues:
+        problems.add("metadata.json", name, issue, IGNORED, "warning")
     log = RunLog.from_folders(
         metadata,
         tuple(sorted(actors_listing)),
@@ -184,6 +205,7 @@ def read_run_log(
         problems=problems,
         source=str(root),
         files=files,
+        inputs=inputs,
     )
     validate_run_log(log, listings, missing_folders=[f for f in FOLDERS if not (root / f).is_dir()])
     return log

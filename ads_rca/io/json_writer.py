@@ -18,11 +18,14 @@ import numpy as np
 import orjson
 
 from ads_rca.model import (
+    ALL_FOLDERS,
     FILE_PREFIX,
     FOLDERS,
     Actors,
     Boxes,
+    ControlCommand,
     EgoPose,
+    Objects3D,
     Plan,
     Predictions,
     Record,
@@ -35,7 +38,7 @@ def write_run_log(log: RunLog, out_dir: str | os.PathLike[str]) -> Path:
     """Write every folder of ``log`` under ``out_dir`` (created); return the folder path."""
     root = Path(out_dir)
     root.mkdir(parents=True, exist_ok=True)
-    _dump(root / "metadata.json", log.metadata.to_dict(), finite=False)
+    _dump(root / "metadata.json", log.metadata_document(), finite=False)
     # By folder name: each folder holds its own record type.
     encoders: dict[str, Callable[[Any, int], object]] = {
         "pose": pose_document,
@@ -45,8 +48,13 @@ def write_run_log(log: RunLog, out_dir: str | os.PathLike[str]) -> Path:
         "predictions": lambda record, _ts: predictions_document(record),
         "predictions_with_perception": lambda record, _ts: predictions_document(record),
         "waypoint": lambda record, _ts: plan_document(record),
+        "detections_3d": lambda record, _ts: objects_document(record),
+        "tracks_3d": lambda record, _ts: objects_document(record),
+        "control": lambda record, _ts: control_document(record),
     }
-    for folder in FOLDERS:
+    for folder in ALL_FOLDERS:
+        if folder not in FOLDERS and not log.folder(folder):
+            continue  # an optional folder is written only when the log has its records
         directory = root / folder
         directory.mkdir(exist_ok=True)
         prefix = FILE_PREFIX[folder]
@@ -110,6 +118,40 @@ def plan_document(plan: Plan) -> dict[str, dict[str, float]]:
     }
 
 
+def objects_document(objects: Objects3D) -> dict[str, dict[str, object]]:
+    """A ``detections_3d/`` or ``tracks_3d/`` file (strict JSON: NaN is written as null,
+    which reads back as an unknown velocity or score, and is refused elsewhere)."""
+    loc, ext, vel = (
+        np.reshape(a, (-1, 3)).tolist()
+        for a in (objects.location, objects.extent, objects.velocity)
+    )
+    return {
+        object_id: {
+            "location": {"x": p[0], "y": p[1], "z": p[2]},
+            "rotation": {"yaw": yaw},
+            "extent": {"x": e[0], "y": e[1], "z": e[2]},
+            "velocity": {"x": v[0], "y": v[1], "z": v[2]},
+            "score": score,
+            "label": label,
+        }
+        for object_id, p, yaw, e, v, score, label in zip(
+            objects.ids,
+            loc,
+            np.reshape(objects.yaw, -1).tolist(),
+            ext,
+            vel,
+            np.reshape(objects.score, -1).tolist(),
+            objects.labels,
+            strict=True,
+        )
+    }
+
+
+def control_document(command: ControlCommand) -> dict[str, float]:
+    """A ``control/`` file (NaN written as null: unknown)."""
+    return {"steer": command.steer, "acceleration": command.acceleration, "speed": command.speed}
+
+
 def json_id(box_id: str) -> int | str:
     """Box ids are written as JSON integers when they are canonical integers (as the seed)."""
     if box_id.isdigit() and str(int(box_id)) == box_id:
@@ -126,7 +168,8 @@ def _dump(path: Path, document: object, finite: bool = True) -> None:
 
 
 def record_is_finite(record: Record) -> bool:
-    """True when no number of a model record is NaN or infinite (checked on its arrays)."""
+    """True when no number of a model record is NaN or infinite (checked on its arrays);
+    always for the optional folders' records, whose files are strict JSON."""
     if isinstance(record, EgoPose):
         arrays = [np.array([getattr(record, f) for f in EgoPose.__dataclass_fields__])]
     elif isinstance(record, Actors):
@@ -137,6 +180,8 @@ def record_is_finite(record: Record) -> bool:
             return False
     elif isinstance(record, Plan):
         arrays = [record.xy, record.speed]
+    elif isinstance(record, Objects3D | ControlCommand):
+        return True  # strict JSON: orjson writes NaN as the null these formats read back
     else:  # Predictions
         arrays = [track.offsets for track in record.values()]
     return all(bool(np.isfinite(a).all()) for a in arrays)

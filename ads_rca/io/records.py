@@ -6,22 +6,36 @@ Each tries a fast path that converts a whole file with numpy in one go; only whe
 fails (a missing key, a string that is not a number, NaN) does it walk the document value
 by value to say exactly which field was wrong.
 
-Rules (the same for every folder): a number may be given as a string (pose values always
-are); a value that is not a number, or is missing, is read as NaN and reported, so the
-checks that use it pass; a record without the structure it needs (a box without an id or
-without exactly two points, an actor without a location) is dropped and reported.
+Rules (the same for every folder of the seed format): a number may be given as a string
+(pose values always are); a value that is not a number, or is missing, is read as NaN and
+reported, so the checks that use it pass; a record without the structure it needs (a box
+without an id or without exactly two points, an actor without a location) is dropped and
+reported. The optional folders (``detections_3d/``, ``tracks_3d/``, ``control/``: our own
+extension, docs/topics.md) are strict instead: JSON numbers only, ``null`` where a value
+may be unknown; anything else is reported and the file skipped.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
-from typing import Any
+from collections.abc import Callable, Mapping
+from typing import Any, TypeVar
 
 import numpy as np
 
-from ads_rca.model import Actors, Boxes, EgoPose, Plan, Predictions, Track
+from ads_rca.model import (
+    Actors,
+    Boxes,
+    ControlCommand,
+    EgoPose,
+    Objects3D,
+    Plan,
+    Predictions,
+    Track,
+)
 from ads_rca.problems import DROPPED_RECORD, KEPT_VALUE, SKIPPED_FILE, USED_DEFAULT, ProblemLog
+
+_R = TypeVar("_R")
 
 POSE_FIELDS = ("x", "y", "z", "roll", "pitch", "yaw", "speed")
 _NUMERIC_KINDS = "fiub"
@@ -279,6 +293,106 @@ def parse_plan(document: Any, file: str, problems: ProblemLog, ts: int) -> Plan 
     ]
     table = np.array(rows, dtype=np.float64).reshape(-1, 3)
     return Plan(keys, table[:, :2].copy(), table[:, 2].copy())
+
+
+class StrictFileError(Exception):
+    """A value of an optional folder's file that is not what the format says: the file
+    is skipped (raised with the field's path and the issue)."""
+
+    def __init__(self, field: str, issue: str) -> None:
+        super().__init__(f"{field}: {issue}")
+        self.field = field
+        self.issue = issue
+
+
+def _strict_number(container: Any, key: str, where: str, unknown: bool = False) -> float:
+    """``container[key]``, a finite JSON number (``null`` or absent → NaN when ``unknown``
+    values are allowed); StrictFileError otherwise."""
+    field = f"{where}.{key}" if where else key
+    if not isinstance(container, Mapping):
+        raise StrictFileError(where, f"expected an object, found {_type(container)}")
+    value = container.get(key)
+    if value is None:
+        if unknown:
+            return math.nan
+        raise StrictFileError(field, "missing" if key not in container else "null is not a number")
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise StrictFileError(field, f"{show_value(value)} is not a number")
+    number = float(value)
+    if not math.isfinite(number):
+        raise StrictFileError(field, f"{show_value(value)} is not a finite number")
+    return number
+
+
+def _strict_file(
+    parse: Callable[[Any], _R],
+) -> Callable[[Any, str, ProblemLog, int], _R | None]:
+    """A strict parser reporting its StrictFileError as one problem, the file skipped."""
+
+    def checked(document: Any, file: str, problems: ProblemLog, ts: int) -> _R | None:
+        try:
+            return parse(document)
+        except StrictFileError as error:
+            _Reader(file, problems, ts).report(error.field, error.issue, SKIPPED_FILE)
+            return None
+
+    checked.__name__ = parse.__name__
+    checked.__doc__ = parse.__doc__
+    return checked
+
+
+def _objects_3d(document: Any) -> Objects3D:
+    if not isinstance(document, Mapping):
+        raise StrictFileError("", f"expected an object, found {_type(document)}")
+    rows: list[list[float]] = []
+    labels: list[str] = []
+    for object_id, entry in document.items():
+        where = str(object_id)
+        if not isinstance(entry, Mapping):
+            raise StrictFileError(where, f"expected an object, found {_type(entry)}")
+        location = entry.get("location")
+        extent = entry.get("extent")
+        velocity = entry.get("velocity")
+        row = [_strict_number(location, a, f"{where}.location") for a in "xyz"]
+        row.append(_strict_number(entry.get("rotation"), "yaw", f"{where}.rotation"))
+        row += [_strict_number(extent, a, f"{where}.extent") for a in "xyz"]
+        if velocity is None:
+            row += [math.nan] * 3
+        else:
+            row += [_strict_number(velocity, a, f"{where}.velocity", unknown=True) for a in "xyz"]
+        row.append(_strict_number(entry, "score", where, unknown=True))
+        label = entry.get("label", "")
+        if not isinstance(label, str):
+            raise StrictFileError(f"{where}.label", f"{show_value(label)} is not text")
+        rows.append(row)
+        labels.append(label)
+    table = np.array(rows, dtype=np.float64).reshape(-1, 11)
+    return Objects3D(
+        ids=tuple(str(k) for k in document),
+        location=table[:, 0:3].copy(),
+        yaw=table[:, 3].copy(),
+        extent=table[:, 4:7].copy(),
+        velocity=table[:, 7:10].copy(),
+        score=table[:, 10].copy(),
+        labels=tuple(labels),
+    )
+
+
+def _control(document: Any) -> ControlCommand:
+    if not isinstance(document, Mapping):
+        raise StrictFileError("", f"expected an object, found {_type(document)}")
+    steer, acceleration, speed = (
+        _strict_number(document, key, "", unknown=True)
+        for key in ("steer", "acceleration", "speed")
+    )
+    return ControlCommand(steer=steer, acceleration=acceleration, speed=speed)
+
+
+#: ``detections_3d/`` and ``tracks_3d/`` files: id → location, rotation.yaw, extent (finite
+#: numbers), velocity, score (numbers or null), label (text).
+parse_objects_3d = _strict_file(_objects_3d)
+#: ``control/`` files: steer, acceleration, speed (numbers or null).
+parse_control = _strict_file(_control)
 
 
 def _clean(array: np.ndarray, width: int) -> bool:

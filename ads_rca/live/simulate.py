@@ -19,7 +19,7 @@ import numpy as np
 from ads_rca.live.aggregate import AggregatorCore, VerdictOutcome
 from ads_rca.live.results import FrameMarker, LiveResult
 from ads_rca.live.window import MonitorCore, WindowSettings
-from ads_rca.model import FOLDERS, RunLog
+from ads_rca.model import ALL_FOLDERS, FOLDERS, RunLog
 from ads_rca.oracles.base import MODULES, Module
 from ads_rca.params import Params
 
@@ -75,6 +75,8 @@ def run_live(
         return clock[0]
 
     metadata = log.metadata
+    if log.inputs:  # a recording's inputs reach the monitors in run/metadata's document
+        metadata = replace(metadata, raw=log.metadata_document())
     if not metadata_collision:
         metadata = replace(metadata, collision_frame=-1)
     if shared:
@@ -104,7 +106,7 @@ def run_live(
     announced = False
     for tick in timeline(log):
         folders = set()
-        for folder in FOLDERS:
+        for folder in ALL_FOLDERS:
             record = log.folder(folder).get(tick.stamp_ms)
             if record is None:
                 continue
@@ -189,11 +191,13 @@ def stack_stream(
     rng = np.random.default_rng(seed)
     offsets = {
         f: 0 if f == reference else int(rng.integers(-max_offset_ms, max_offset_ms + 1))
-        for f in topics.FOLDER_TOPICS
+        for f in FOLDERS
     }
     dropped: dict[str, list[int]] = {}
     messages: list[StackMessage] = []
     for topic in topics.DATA:
+        if topic.optional:  # a stack's inputs are the running log's folders (stack_config)
+            continue
         folder = str(topic.folder)
         stamps = sorted(log.folder(folder))
         fraction = (drop or {}).get(folder, 0.0)

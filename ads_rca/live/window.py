@@ -41,8 +41,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ads_rca.capabilities import METADATA_KEY as INPUTS_KEY
-from ads_rca.capabilities import MODEL_INPUTS, statuses_from_document
+from ads_rca.capabilities import complete
 from ads_rca.engine import evaluate_frame
 from ads_rca.live.results import FollowsRunEnd, FrameMarker, LiveResult, RunEnd
 from ads_rca.model import (
@@ -53,6 +52,7 @@ from ads_rca.model import (
     RunLog,
     RunMetadata,
     frame_number,
+    read_inputs,
 )
 from ads_rca.oracles.base import MODULES, Module, RunContext
 from ads_rca.oracles.semantics import semantics_for
@@ -117,6 +117,7 @@ class MonitorCore(FollowsRunEnd):
         self.needs_ego = any(self.semantics.reads_ego(m) for m in self.modules)
         self.metadata: RunMetadata | None = None
         self.input_problems: tuple[Problem, ...] = ()
+        self.inputs: dict[str, InputStatus] = {}
         self.collision_frame = -1
         self.records: dict[str, dict[int, Record]] = {f: {} for f in self.folders}
         self.first_extents: dict[str, FloatArray] = {}
@@ -150,11 +151,12 @@ class MonitorCore(FollowsRunEnd):
         """The run's metadata, and the problems the player's reader found (oracles read
         them as ``RunLog.problems``, e.g. reference skips a value read as NaN)."""
         self.input_problems = tuple(input_problems)
-        statuses = statuses_from_document(metadata.raw.get(INPUTS_KEY))
-        if statuses:  # a recording: a module its inputs do not allow is "not judged"
-            chosen = self.semantics.oracles_for_inputs(
-                {name: statuses.get(name, InputStatus("absent")) for name in MODEL_INPUTS}
-            )
+        # A recording's inputs ride in its metadata document (model.INPUTS_KEY); unreadable
+        # entries were said by the reader that wrote the document. A module they do not
+        # allow is "not judged", as diagnose says.
+        self.inputs = read_inputs(metadata.raw)[0]
+        if self.inputs:
+            chosen = self.semantics.oracles_for_inputs(complete(self.inputs))
             self.oracles = {m: chosen[m] for m in self.modules}
         changed = self.metadata is None or metadata.collision_frame != self.metadata.collision_frame
         if changed and metadata.collision_frame >= 0:
@@ -365,6 +367,7 @@ class MonitorCore(FollowsRunEnd):
             source="live",
             first_extents=dict(self.first_extents),
             problems=ProblemLog(self.input_problems),
+            inputs=dict(self.inputs),
         )
 
     def _context(self, log: RunLog) -> RunContext:

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from functools import partial
 from typing import TYPE_CHECKING, Any
 
-from ads_rca.model import FOLDERS, InputStatus, Record, RunLog
+from ads_rca.model import ALL_FOLDERS, FOLDERS, InputStatus, Record, RunLog
 from ads_rca.params import Params
 from ads_rca.verdict import Attribution, FrameResults, Module, OracleResult
 
@@ -163,7 +163,8 @@ class Semantics:
         return {"effect_time_window": params.effect_time_window}
 
     def folders(self, module: Module) -> tuple[str, ...]:
-        """The log folders (hence topics) ``module``'s oracle reads (default: every one)."""
+        """The log folders (hence topics) ``module``'s oracle reads (default: every one of the
+        seed format; an oracle that reads an optional folder, e.g. ``tracks_3d``, names it)."""
         return FOLDERS
 
     def reads_ego(self, module: Module) -> bool:
@@ -231,9 +232,9 @@ class Semantics:
         return log.frames if self.analyses_duplicates else log.unique_frames
 
     def module_folders(self, modules: Iterable[Module]) -> tuple[str, ...]:
-        """The folders any of ``modules`` reads, in :data:`~ads_rca.model.FOLDERS` order."""
+        """The folders any of ``modules`` reads, in :data:`~ads_rca.model.ALL_FOLDERS` order."""
         wanted = {f for m in modules for f in self.folders(m)}
-        return tuple(f for f in FOLDERS if f in wanted)
+        return tuple(f for f in ALL_FOLDERS if f in wanted)
 
     def modules_lookahead(
         self,

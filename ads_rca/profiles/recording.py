@@ -4,18 +4,16 @@ command and the player).
 The bag's storage files are read once (:func:`ads_rca.io.bag_reader.load_bag`), its message
 types come from the bag itself (:mod:`ads_rca.io.bag_types`, plus ``--msg-path``), the
 profile says which topic and type carries each model input (:mod:`ads_rca.profiles.profile`),
-and the reader turns messages into model records (:mod:`ads_rca.profiles.reader`). The input
-statuses go into the run metadata (``inputs``), so the live graph, which rebuilds the run
-from the player's topics, judges exactly the modules ``diagnose`` judges.
+and the reader turns messages into model records (:mod:`ads_rca.profiles.reader`). The
+input statuses (``RunLog.inputs``) travel in the run metadata (``model_inputs``), so the live
+graph, which rebuilds the run from the player's topics, judges what ``diagnose`` judges.
 """
 
 from __future__ import annotations
 
 import os
 from collections.abc import Sequence
-from dataclasses import replace
 
-from ads_rca.capabilities import METADATA_KEY, statuses_to_document
 from ads_rca.io.bag_reader import BagContents, BagMessage, load_bag
 from ads_rca.model import RunLog
 from ads_rca.profiles.profile import Profile, load_profile
@@ -45,10 +43,7 @@ def read_recording(
     def decode(message: BagMessage, type_name: str) -> object:
         return types.decode(message.data, type_name)
 
-    log = read_profiled(contents, chosen, decode, os.fspath(path), progress)
-    raw = {**log.metadata.raw, METADATA_KEY: statuses_to_document(log.inputs)}
-    log.metadata = replace(log.metadata, raw=raw)
-    return log
+    return read_profiled(contents, chosen, decode, os.fspath(path), progress)
 
 
 __all__ = ["read_recording"]

@@ -164,7 +164,7 @@ class Player(Node):
                 topics.topic_name(key, namespace),
                 topics.qos_profile(key),
             )
-            for key in topics.ALL_TOPICS
+            for key in topics.advertised(self.log)
             if key != topics.CLOCK or self.publish_clock
         }
         # Nodes given our run id subscribe here: counted before playing, they are ours

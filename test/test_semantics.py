@@ -21,7 +21,7 @@ import pytest
 import ads_rca
 from ads_rca.engine import diagnose
 from ads_rca.live.window import MonitorCore
-from ads_rca.model import FOLDERS
+from ads_rca.model import ALL_FOLDERS, FOLDERS
 from ads_rca.oracles import semantics as registry
 from ads_rca.oracles.base import MODULES
 from ads_rca.oracles.corrected import CorrectedSemantics
@@ -81,7 +81,7 @@ def test_every_mode_has_one_registered_semantics_with_its_four_oracles() -> None
         assert tuple(sem.oracles) == MODULES
         assert set(sem.headline) == set(MODULES)
         for module in MODULES:
-            assert set(sem.folders(module)) <= set(FOLDERS)
+            assert set(sem.folders(module)) <= set(ALL_FOLDERS)
 
 
 def test_the_modes_rules() -> None:
@@ -96,7 +96,8 @@ def test_the_modes_rules() -> None:
     assert corrected.window_frames(corrected_params, 25) == 40
     # folders read and the look-ahead needed at a frame.
     assert reference.module_folders(["perception"]) == ("bboxes", "bboxes_gt")
-    assert corrected.module_folders(["perception"]) == FOLDERS
+    assert corrected.module_folders(["perception"]) == (*FOLDERS, "detections_3d", "tracks_3d")
+    assert corrected.module_folders(["controller"]) == FOLDERS
     none: dict[str, dict[int, Any]] = {"predictions_with_perception": {}}
     assert [reference.lookahead_frames(m, reference_params, none, 0, 100) for m in MODULES] == [
         0,
@@ -134,7 +135,8 @@ def test_a_third_mode_is_one_module_and_one_registry_entry(
     assert len(diagnose(log, make_params("corrected")).frames) == len(log.frames) - 1
     assert third.attribution.primary_root_cause == "perception"
     core = MonitorCore(MODULES, params)
-    assert core.semantics is module.SEMANTICS and core.folders == FOLDERS
+    assert core.semantics is module.SEMANTICS
+    assert core.folders == module.SEMANTICS.module_folders(MODULES)
 
 
 def test_the_verdict_types_do_not_import_the_oracles() -> None:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 
-from ads_rca.model import Record
+from ads_rca.model import FOLDERS, Record
 from ads_rca.oracles.base import Module, OracleResult, RunContext
 from ads_rca.oracles.corrected.attribution import (
     attribute_corrected,
@@ -173,6 +173,11 @@ class CorrectedSemantics(Semantics):
             ),
         ],
     }
+
+    def folders(self, module: Module) -> tuple[str, ...]:
+        """Every folder of the seed format, and for the partner-reading rules the 3-D
+        objects of a recording (rule 2b, and the 3-D link of prediction and planning)."""
+        return FOLDERS if module == "controller" else (*FOLDERS, "detections_3d", "tracks_3d")
 
     def attribute(self, frames: Sequence[FrameResults], ctx: RunContext) -> Attribution:
         return attribute_corrected(frames, ctx)

@@ -11,7 +11,7 @@ what its folders hold.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from typing import TypeVar
 
 from ads_rca.model import InputStatus, RunLog
@@ -62,17 +62,24 @@ def complete(inputs: Mapping[str, InputStatus]) -> dict[str, InputStatus]:
 
 def input_status(log: RunLog) -> dict[str, InputStatus]:
     """Every model input's status: the reader's record (``log.inputs``; a log folder or the
-    run metadata carries it as ``model_inputs``), else what the log's records show (a
-    running log: a folder with records is real, an empty one absent; the collision comes
-    from metadata.json)."""
+    run metadata carries it as ``model_inputs``), else what the log's records show
+    (:func:`held_status`)."""
     if log.inputs:
         return complete(log.inputs)
+    return held_status({field for field in INPUT_FIELDS.values() if getattr(log, field)})
+
+
+def held_status(fields: Collection[str]) -> dict[str, InputStatus]:
+    """The statuses of a running log whose RunLog ``fields`` hold records: those real, the
+    others absent; the collision comes from metadata.json. The live aggregator, which holds
+    no records, asks it with the folders the player's frame markers listed."""
     out: dict[str, InputStatus] = {}
     for name in MODEL_INPUTS:
         field = INPUT_FIELDS.get(name)
         if field is not None:
-            held = bool(getattr(log, field))
-            out[name] = InputStatus("real") if held else InputStatus("absent", "", "no records")
+            out[name] = (
+                InputStatus("real") if field in fields else InputStatus("absent", "", "no records")
+            )
     out["collision"] = InputStatus("real", "metadata.json", "")
     out["clock"] = InputStatus("absent", "", "a log folder has no clock")
     return {name: out[name] for name in MODEL_INPUTS}
@@ -111,6 +118,7 @@ __all__ = [
     "JUDGED",
     "MODEL_INPUTS",
     "complete",
+    "held_status",
     "input_status",
     "judged_modules",
     "recorded",

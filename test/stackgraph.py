@@ -100,6 +100,7 @@ VERDICT_KEYS = (
     "partner_id",
     "attribution_basis",
     "modules",
+    "modules_judged",
     "evidence",
 )
 

@@ -57,6 +57,7 @@ def verdict_keys(document: dict[str, Any]) -> dict[str, Any]:
         "contributing",
         "attribution_basis",
         "reason",
+        "modules_judged",
         "verdict",
         "partner_id",
         "ego_id",

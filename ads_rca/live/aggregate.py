@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from ads_rca.capabilities import held_status
 from ads_rca.engine import Diagnosis, frame_json
 from ads_rca.live.results import (
     Columns,
@@ -43,7 +44,7 @@ from ads_rca.live.results import (
     RunEnd,
 )
 from ads_rca.live.stack_config import StackConfig
-from ads_rca.model import RunLog, RunMetadata, frame_number
+from ads_rca.model import FOLDER_FIELDS, InputStatus, RunLog, RunMetadata, frame_number, read_inputs
 from ads_rca.oracles.base import MODULES, Module, OracleResult, RunContext
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import Params
@@ -108,6 +109,10 @@ class AggregatorCore(FollowsRunEnd):
         #: Stack mode's run facts (None: a player's run).
         self.stack_config = stack
         self.stack = stack is not None
+        #: What the run gives: a recording's input statuses (run metadata), else the
+        #: folders the player's markers listed (a stack's: the inputs it provides).
+        self.recorded_inputs: dict[str, InputStatus] = {}
+        self.folders_sent: set[str] = set(stack.inputs) if stack is not None else set()
         if stack is not None and stack.timesteps_per_frame:
             self.set_metadata(stack.metadata(stack.timesteps_per_frame), "stack", 0.0)
         #: Stack mode: the number of the collision being decided (1, 2, ...), when it was
@@ -135,6 +140,7 @@ class AggregatorCore(FollowsRunEnd):
         ``diagnose`` lists them)."""
         self.metadata, self.source = metadata, source
         self.input_problems = list(input_problems)
+        self.recorded_inputs = read_inputs(metadata.raw)[0]
         if metadata.collision_frame >= 0 and self.collision_source != "event":
             self.collision_frame, self.collision_source = metadata.collision_frame, "metadata"
         self.last_input = now
@@ -163,6 +169,7 @@ class AggregatorCore(FollowsRunEnd):
     def add_marker(self, marker: FrameMarker, now: float) -> None:
         self.last_input = now
         self.last_stamp = marker.stamp_ms
+        self.folders_sent |= marker.folders
         self.end.marker()
         if marker.index is None:
             return
@@ -378,6 +385,8 @@ class AggregatorCore(FollowsRunEnd):
             frames=tuple(e.stamp_ms for e in required),
             source=self.source,
             problems=ProblemLog([*self.input_problems, *self.problems]),
+            inputs=self.recorded_inputs
+            or held_status({FOLDER_FIELDS[f] for f in self.folders_sent if f in FOLDER_FIELDS}),
         )
         # The engine's attribution; its context reports nothing we keep (no records here).
         attribution = self.semantics.attribute(

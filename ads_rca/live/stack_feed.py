@@ -25,7 +25,7 @@ from ads_rca.live.results import FrameMarker
 from ads_rca.live.stack_config import StackConfig, period_to_tpf
 from ads_rca.live.stamp_sync import StampSync, SyncedFrame
 from ads_rca.live.window import MonitorCore
-from ads_rca.model import Actors, Record
+from ads_rca.model import OPTIONAL_FOLDERS, Actors, Record
 
 #: Frames with actors after which an ``ego_id`` never seen among them is reported.
 EGO_CHECK_FRAMES = 20
@@ -48,7 +48,11 @@ class StackFeed:
         self.expected = (config.reference, *self.sync.settings.inputs)
         self.decoders = {f: Decoder(f, config.inputs[f].layout.name) for f in self.expected}
         #: The judged modules' inputs the stack does not provide (their results say so).
-        self.unprovided = tuple(f for f in core.folders if f not in config.inputs)
+        #: A stack's inputs are the seed format's folders; the optional ones of recordings
+        #: (3-D objects, control) are not stack inputs, so never awaited.
+        self.unprovided = tuple(
+            f for f in core.folders if f not in config.inputs and f not in OPTIONAL_FOLDERS
+        )
         #: Run facts found wrong while running (one line each), for /diagnostics.
         self.fact_problems: list[str] = []
         self._frames_with_actors = 0

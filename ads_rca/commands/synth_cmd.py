@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 
 from ads_rca.io.json_writer import write_run_log
-from ads_rca.synth import FAULTS, SCENARIOS, SynthesisSummary, canonical_fault, synthesise_run
+from ads_rca.synth import ALL_FAULTS, SCENARIOS, SynthesisSummary, canonical_fault, synthesise_run
 from ads_rca.text import printable
 
 
@@ -23,8 +23,9 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "--fault",
         default="none",
         type=canonical_fault,  # the old spelling "control" is accepted for "controller"
-        choices=FAULTS,
-        help="the module whose fault is injected (default none)",
+        choices=ALL_FAULTS,
+        help="the module whose fault is injected (default none); perception:shifted, "
+        "perception:shrunk, perception:velocity misperceive the partner in 3-D",
     )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--frames", type=int, help="log length when nothing crashes")

@@ -48,9 +48,7 @@ def quaternion_to_rpy(
     return out
 
 
-def rpy_to_quaternion(
-    roll: npt.ArrayLike, pitch: npt.ArrayLike, yaw: npt.ArrayLike
-) -> FloatArray:
+def rpy_to_quaternion(roll: npt.ArrayLike, pitch: npt.ArrayLike, yaw: npt.ArrayLike) -> FloatArray:
     """(qx, qy, qz, qw) of ZYX angles in radians, shape (..., 4)."""
     r, p, y = (np.asarray(a, dtype=np.float64) / 2.0 for a in (roll, pitch, yaw))
     cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)

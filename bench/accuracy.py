@@ -126,12 +126,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             row = "".join(str(confusion[injected, g]).rjust(width) for g in labels)
             print(injected.ljust(20) + row)
     print()
-    print("scenario × fault".ljust(40) + "correct")
+    print("scenario × fault".ljust(46) + "correct")
     for scenario in scenarios:
         for fault in faults:
             ok, bad = per_cell[scenario, fault, True], per_cell[scenario, fault, False]
             if ok + bad:
-                cell = f"{scenario} × {fault}".ljust(40)
+                cell = f"{scenario} × {fault}".ljust(46)
                 print(f"{cell}{ok}/{ok + bad} = {100 * ok / (ok + bad):.1f} %")
     print()
     for scenario in scenarios:

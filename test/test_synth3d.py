@@ -230,17 +230,23 @@ def _moves_back_out(log: RunLog, partner: str, onset: int, collision: int) -> bo
     return best > 0.5 and np.sign(seen_side) == -np.sign(true_side)
 
 
-@pytest.mark.parametrize("scenario", CRASH_SCENARIOS)
-@pytest.mark.parametrize("fault", VARIANT_FAULTS)
+@pytest.mark.parametrize(
+    ("scenario", "fault"),
+    [(s, f) for s in CRASH_SCENARIOS for f in VARIANT_FAULTS if (s, f) not in INAPPLICABLE],
+)
 def test_a_3d_variant_leaves_the_2d_boxes_as_the_camera_sees_them(
     scenario: str, fault: str
 ) -> None:
-    if (scenario, fault) in INAPPLICABLE:
-        return
-    log, summary = _run(scenario, fault)
-    twin = synthesise(scenario, "none", SEED, **{})
-    if summary["attempt"] != _run(scenario, "none")[1]["attempt"]:
-        pytest.skip("this variant took a later scene than the twin's for this seed")
+    # The first seed whose variant runs on the twin's scene (a variant that cannot crash
+    # there takes a later scene, which has another twin).
+    seed = next(
+        seed
+        for seed in range(5)
+        if synthesise_run(scenario, fault, seed)[1]["attempt"]
+        == synthesise_run(scenario, "none", seed)[1]["attempt"]
+    )
+    log, summary = synthesise_run(scenario, fault, seed)
+    twin = synthesise(scenario, "none", seed)
     onset = summary["fault_onset_frame"] * 50
     assert log.bboxes[onset].ids == twin.bboxes[onset].ids
     assert np.array_equal(log.bboxes[onset].corners, twin.bboxes[onset].corners)

@@ -2,12 +2,20 @@
 
 For every scenario × fault over N seeds: synthesise a log, diagnose it with
 :func:`ads_rca.engine.diagnose` (corrected mode, exactly what ``ads-rca diagnose`` runs), and
-compare the primary root cause with the injected fault its ``metadata.json["synthesis"]``
-label names ("none" expects "no fault found"). Prints the confusion table, the
-accuracy per scenario and overall, and the misattributed cases (scenario, fault, seed).
+compare the primary root cause with the module of the injected fault its
+``metadata.json["synthesis"]`` label names ("none" expects "no fault found"; a perception
+variant such as ``perception:shifted`` expects ``perception``). Prints the confusion table,
+the accuracy per scenario × fault, per scenario and overall, and the misattributed cases
+(scenario, fault, seed).
 
-Usage: ``python bench/accuracy.py [N] [--scenarios a,b] [--faults x,y] [--first SEED]
-[--actors K] [--horizon H]`` (the last two are passed to the synthesiser).
+``--faults`` takes the variants (``perception:shifted``, ``perception:shrunk``,
+``perception:velocity``; ``variants`` stands for all three). ``--drop-2d`` removes
+``bboxes``, ``bboxes_gt`` and ``predictions_with_perception`` from each log before diagnosing:
+what a recording of a stack that perceives in 3-D (carla-autoware) carries, so perception and
+prediction are judged from the 3-D objects alone.
+
+Usage: ``python bench/accuracy.py [N] [--scenarios a,b] [--faults x,y] [--drop-2d]
+[--first SEED] [--actors K] [--horizon H]`` (the last two are passed to the synthesiser).
 """
 
 from __future__ import annotations
@@ -20,7 +28,16 @@ from collections.abc import Sequence
 from ads_rca.engine import diagnose as diagnose_log
 from ads_rca.model import RunLog
 from ads_rca.params import make_params
-from ads_rca.synth import FAULTS, SCENARIOS, SynthesisError, canonical_fault, synthesise
+from ads_rca.synth import (
+    ALL_FAULTS,
+    FAULTS,
+    SCENARIOS,
+    VARIANT_FAULTS,
+    SynthesisError,
+    canonical_fault,
+    fault_module,
+    synthesise,
+)
 from ads_rca.verdict import Attribution
 
 
@@ -32,17 +49,40 @@ def diagnose(log: RunLog) -> tuple[Attribution, float]:
     return found.attribution, per_frame
 
 
+def drop_2d(log: RunLog) -> RunLog:
+    """``log`` without its 2-D perception and ground-truth-history predictions (in place)."""
+    log.bboxes = {}
+    log.bboxes_gt = {}
+    log.predictions_with_perception = {}
+    return log
+
+
+def fault_names(text: str) -> list[str]:
+    """The faults ``--faults`` names (``variants``: the three 3-D perception variants)."""
+    names: list[str] = []
+    for name in (n for n in text.split(",") if n):
+        expanded = list(VARIANT_FAULTS) if name == "variants" else [canonical_fault(name)]
+        for fault in expanded:
+            if fault not in ALL_FAULTS:
+                raise SystemExit(f"--faults: unknown fault {name!r}; choose from {ALL_FAULTS}")
+            names.append(fault)
+    return names
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("seeds", nargs="?", type=int, default=20)
     parser.add_argument("--first", type=int, default=0, help="first seed")
     parser.add_argument("--scenarios", default=",".join(s for s in SCENARIOS if s != "cruise"))
-    parser.add_argument("--faults", default=",".join(FAULTS))
+    parser.add_argument("--faults", default=",".join(FAULTS), help="faults, or 'variants'")
+    parser.add_argument(
+        "--drop-2d", action="store_true", help="diagnose without bboxes, bboxes_gt and pwp"
+    )
     parser.add_argument("--actors", type=int, default=None, help="background actors")
     parser.add_argument("--horizon", type=int, default=None, help="prediction/plan steps")
     args = parser.parse_args(argv)
     scenarios = [s for s in args.scenarios.split(",") if s]
-    faults = [f for f in args.faults.split(",") if f]
+    faults = fault_names(args.faults)
     options = {
         name: value
         for name, value in (("actors", args.actors), ("horizon", args.horizon))
@@ -51,6 +91,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     labels = list(FAULTS)  # a fault is named by its module, as the verdict names it
     confusion: Counter[tuple[str, str]] = Counter()
     per_scenario: Counter[tuple[str, bool]] = Counter()
+    per_cell: Counter[tuple[str, str, bool]] = Counter()
     wrong: list[str] = []
     times: list[float] = []
     for scenario in scenarios:
@@ -61,25 +102,37 @@ def main(argv: Sequence[str] | None = None) -> int:
                 except SynthesisError as error:
                     print(f"skip {scenario} {fault} {seed}: {error}")
                     continue
+                if args.drop_2d:
+                    drop_2d(log)
                 attribution, ms = diagnose(log)
                 times.append(ms)
                 got = attribution.primary_root_cause or "none"
-                want = canonical_fault(log.metadata.raw["synthesis"]["fault"])
-                confusion[want, got] += 1
+                injected = canonical_fault(log.metadata.raw["synthesis"]["fault"])
+                want = fault_module(injected)
+                confusion[injected, got] += 1
                 per_scenario[scenario, got == want] += 1
+                per_cell[scenario, injected, got == want] += 1
                 if got != want:
                     wrong.append(
-                        f"{scenario:20s} {fault:11s} seed {seed:3d}: got {got}"
+                        f"{scenario:20s} {fault:19s} seed {seed:3d}: got {got}"
                         f" (root causes {attribution.root_causes},"
                         f" basis {attribution.attribution_basis!r},"
                         f" reason {attribution.reason})"
                     )
     width = max(len(x) for x in labels) + 2
     print("injected \\ primary".ljust(20) + "".join(x.rjust(width) for x in labels))
-    for want in labels:
-        if any(confusion[want, g] for g in labels):
-            row = "".join(str(confusion[want, g]).rjust(width) for g in labels)
-            print(want.ljust(20) + row)
+    for injected in ALL_FAULTS:
+        if any(confusion[injected, g] for g in labels):
+            row = "".join(str(confusion[injected, g]).rjust(width) for g in labels)
+            print(injected.ljust(20) + row)
+    print()
+    print("scenario × fault".ljust(46) + "correct")
+    for scenario in scenarios:
+        for fault in faults:
+            ok, bad = per_cell[scenario, fault, True], per_cell[scenario, fault, False]
+            if ok + bad:
+                cell = f"{scenario} × {fault}".ljust(46)
+                print(f"{cell}{ok}/{ok + bad} = {100 * ok / (ok + bad):.1f} %")
     print()
     for scenario in scenarios:
         ok, bad = per_scenario[scenario, True], per_scenario[scenario, False]

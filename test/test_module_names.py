@@ -25,7 +25,7 @@ from ads_rca.live import diagnostics
 from ads_rca.params import SEMANTICS, make_params
 from ads_rca.ros.graph import MONITORS
 from ads_rca.summary import summary_text
-from ads_rca.synth import synthesise
+from ads_rca.synth import fault_module, synthesise
 from ads_rca.verdict import MODULES
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -43,14 +43,17 @@ def synth_fault_action() -> tuple[argparse.ArgumentParser, argparse.Action]:
 def test_synth_fault_choices_are_the_module_names() -> None:
     _, action = synth_fault_action()
     assert action.choices is not None
-    assert tuple(action.choices) == ("none", *MODULES)
+    assert tuple(action.choices)[:5] == ("none", *MODULES)
+    # The rest are variants, named module:variant after the module they blame.
+    assert all(c.split(":")[0] in MODULES for c in tuple(action.choices)[5:])
+    assert {fault_module(c) for c in action.choices} == {"none", *MODULES}
 
 
 def test_the_old_fault_spelling_is_an_alias_and_labels_use_the_module_name() -> None:
     synth, _ = synth_fault_action()
     args = synth.parse_args(["out", "--scenario", "lead_braking", "--fault", "control"])
     assert args.fault == "controller"
-    assert "{none,perception,prediction,planning,controller}" in synth.format_help()
+    assert "{none,perception,prediction,planning,controller," in synth.format_help()
     log = synthesise("lead_braking", "control", 0)
     assert log.metadata.raw["synthesis"]["fault"] == "controller"
 

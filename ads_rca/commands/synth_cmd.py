@@ -16,7 +16,7 @@ from ads_rca.errors import ConfigError
 from ads_rca.io.bag_writer import STORAGES, write_bag
 from ads_rca.io.json_writer import write_run_log
 from ads_rca.model import RunLog
-from ads_rca.synth import FAULTS, SCENARIOS, SynthesisSummary, canonical_fault, synthesise_run
+from ads_rca.synth import ALL_FAULTS, SCENARIOS, SynthesisSummary, canonical_fault, synthesise_run
 from ads_rca.synth.recording import PROFILES, write_recording
 from ads_rca.text import printable
 
@@ -34,8 +34,9 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "--fault",
         default="none",
         type=canonical_fault,  # the old spelling "control" is accepted for "controller"
-        choices=FAULTS,
-        help="the module whose fault is injected (default none)",
+        choices=ALL_FAULTS,
+        help="the module whose fault is injected (default none); perception:shifted, "
+        "perception:shrunk, perception:velocity misperceive the partner in 3-D",
     )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--frames", type=int, help="log length when nothing crashes")

@@ -6,6 +6,9 @@ planner had to react to the partner, and run again with the fault from just befo
 frame. A seed's scene is accepted only if the twin does not crash and every fault does
 (hitting the partner); otherwise the next attempt derived from the seed is tried, so the
 same seed always gives the same scene whatever the fault, and ``fault="none"`` is the twin.
+A variant fault (:data:`VARIANT_FAULTS`, e.g. ``perception:shifted``) takes the seed's scene
+too when it crashes into the partner there, else the next scene that is accepted and where it
+does (the summary's ``attempt`` says which); it never changes the other faults' scenes.
 """
 
 from __future__ import annotations
@@ -14,7 +17,16 @@ from typing import TYPE_CHECKING, TypedDict
 
 from ads_rca.model import RunLog
 from ads_rca.synth.errors import SynthesisError
-from ads_rca.synth.faults import FAULTS, NO_FAULT, FaultSpec, canonical_fault, onset_for
+from ads_rca.synth.faults import (
+    ALL_FAULTS,
+    FAULTS,
+    NO_FAULT,
+    VARIANT_FAULTS,
+    FaultSpec,
+    canonical_fault,
+    fault_module,
+    onset_for,
+)
 from ads_rca.synth.scenarios import BUILDERS, DEFAULT_FRAMES, SCENARIOS
 from ads_rca.synth.simulate import SimResult, simulate
 from ads_rca.synth.world import Scene
@@ -23,11 +35,14 @@ if TYPE_CHECKING:
     import numpy as np
 
 __all__ = [
+    "ALL_FAULTS",
     "FAULTS",
     "SCENARIOS",
+    "VARIANT_FAULTS",
     "SynthesisError",
     "SynthesisSummary",
     "canonical_fault",
+    "fault_module",
     "synthesise",
     "synthesise_run",
 ]
@@ -36,6 +51,17 @@ MAX_ATTEMPTS = 25
 DEFAULT_HORIZON = 30
 #: (scenario, seed, attempt, frames, actors, horizon) -> whether every fault hits the partner.
 _ACCEPTED: dict[tuple[str, int, int, int, int, int], bool] = {}
+#: Variants that cannot turn a scenario's near miss into a crash, and why.
+INAPPLICABLE = {
+    ("pedestrian_crossing", "perception:shrunk"): (
+        "a pedestrian's 0.5 m box shrunk recedes 0.35 m, less than the planner's 1 m margin"
+    ),
+    ("left_turn", "perception:shifted"): (
+        "the oncoming car crosses the turning path; moved sideways it still does"
+    ),
+}
+#: The same key and a variant fault -> whether that variant hits the partner too.
+_VARIANT_HITS: dict[tuple[tuple[str, int, int, int, int, int], str], bool] = {}
 
 
 class SynthesisSummary(TypedDict):
@@ -70,8 +96,8 @@ def synthesise_run(
     fault = canonical_fault(fault)
     if scenario not in BUILDERS:
         raise SynthesisError(f"unknown scenario {scenario!r}; choose from {', '.join(SCENARIOS)}")
-    if fault not in FAULTS:
-        raise SynthesisError(f"unknown fault {fault!r}; choose from {', '.join(FAULTS)}")
+    if fault not in ALL_FAULTS:
+        raise SynthesisError(f"unknown fault {fault!r}; choose from {', '.join(ALL_FAULTS)}")
     unknown = set(options) - {"frames", "actors", "horizon"}
     if unknown:
         raise SynthesisError(f"unknown options {sorted(unknown)}")
@@ -84,6 +110,10 @@ def synthesise_run(
         run = simulate(scene, NO_FAULT, seed, horizon)
         return _finish(run, scene, scenario, fault, seed, 0, -1, -1)
 
+    if (scenario, fault) in INAPPLICABLE:
+        raise SynthesisError(
+            f"{fault} cannot crash the {scenario} scenario: {INAPPLICABLE[scenario, fault]}"
+        )
     frames = int(options.get("frames", DEFAULT_FRAMES[scenario]))
     actors = int(options.get("actors", -1))
     for attempt in range(MAX_ATTEMPTS):
@@ -108,8 +138,16 @@ def synthesise_run(
             _ACCEPTED[key] = ok
         if not _ACCEPTED[key]:
             continue
+        if _VARIANT_HITS.get((key, fault)) is False:
+            continue
         if fault not in runs:
-            runs[fault] = simulate(scene, FaultSpec(fault, onset), sub_seed, horizon)
+            runs[fault] = simulate(scene, FaultSpec.named(fault, onset), sub_seed, horizon)
+        if fault in VARIANT_FAULTS:
+            run = runs[fault]
+            hit = run.collision_frame >= 0 and run.collided_row == scene.partner
+            _VARIANT_HITS[key, fault] = hit
+            if not hit:
+                continue
         return _finish(
             runs[fault], scene, scenario, fault, seed, attempt, onset, twin.reaction_frame
         )

@@ -7,6 +7,12 @@ estimate), so velocities derived from it stay realistic. The tracker (α-β-γ f
 object) keeps its own track ids, bridges short dropouts by coasting and drops a track after
 ``MAX_COAST`` missed frames. Both are vectorised over actors: state arrays are indexed by
 actor row, which stands for the association a real tracker would do by gating.
+
+Each detection also carries the object's size and, only if the detector measured one, a
+velocity. The tracker's shape estimate is the noise-free detected size (an idealised shape
+filter: the planner sees true shapes unless perception is faulty); a measured velocity
+replaces the filter's velocity and acceleration, as a tracker fed with a velocity sensor
+would. The fault-free detector measures none (velocities come from the filter only).
 """
 
 from __future__ import annotations
@@ -41,6 +47,8 @@ class Detections:
     corners: FloatArray  # (D, 4)
     position: FloatArray  # (D, 2) perceived world position
     yaw: FloatArray  # (D,) perceived heading, radians
+    size: FloatArray  # (D, 3) perceived half extents, without per-frame noise
+    velocity: FloatArray  # (D, 2) measured world velocity; NaN: not measured
 
 
 class Detector:
@@ -59,6 +67,7 @@ class Detector:
         yaw: FloatArray,
         ego_xy: FloatArray,
         suppressed: np.ndarray,
+        extent: FloatArray,
     ) -> Detections:
         n = gt.shape[0]
         rng = self._rng
@@ -86,6 +95,8 @@ class Detector:
             corners=corners[order],
             position=position[order],
             yaw=(yaw[rows] + yaw_noise[rows])[order],
+            size=extent[rows][order],
+            velocity=np.full((rows.size, 2), np.nan),
         )
 
 
@@ -98,6 +109,7 @@ class Tracker:
         self.vel = np.zeros((n_actors, 2))
         self.acc = np.zeros((n_actors, 2))
         self.yaw = np.zeros(n_actors)
+        self.extent = np.zeros((n_actors, 3))
         self.age = np.zeros(n_actors, dtype=np.int64)
         self.missed = np.zeros(n_actors, dtype=np.int64)
         self._next_id = first_id
@@ -110,6 +122,10 @@ class Tracker:
         z[det.rows] = det.position
         z_yaw = np.zeros(n)
         z_yaw[det.rows] = det.yaw
+        z_size = np.zeros((n, 3))
+        z_size[det.rows] = det.size
+        z_vel = np.full((n, 2), np.nan)
+        z_vel[det.rows] = det.velocity
         alive = self.track_id >= 0
         pred_pos = self.pos + self.vel * DT + 0.5 * self.acc * DT * DT
         pred_vel = self.vel + self.acc * DT
@@ -128,6 +144,7 @@ class Tracker:
         norm = np.maximum(np.hypot(acc[:, 0], acc[:, 1]) / MAX_ACCEL, 1.0)
         self.acc = np.where(u, acc / norm[:, None], self.acc)
         self.yaw = np.where(update, z_yaw, self.yaw)
+        self.extent = np.where(u, z_size, self.extent)
         self.age = np.where(alive, self.age + 1, self.age)
         self.missed = np.where(update, 0, np.where(coast, self.missed + 1, self.missed))
         dropped = coast & (self.missed > MAX_COAST)
@@ -141,8 +158,12 @@ class Tracker:
             self.vel[new_rows] = 0.0
             self.acc[new_rows] = 0.0
             self.yaw[new_rows] = z_yaw[new_rows]
+            self.extent[new_rows] = z_size[new_rows]
             self.age[new_rows] = 1
             self.missed[new_rows] = 0
+        fused = measured & np.isfinite(z_vel).all(axis=1)
+        self.vel[fused] = z_vel[fused]
+        self.acc[fused] = 0.0
 
     def published(self) -> np.ndarray:
         """Rows of confirmed tracks, ordered by track id."""

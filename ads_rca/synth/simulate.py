@@ -2,7 +2,9 @@
 
 One call runs a scene for one fault and returns the run log (the seed format's content) plus
 what happened. Random numbers come from a generator seeded by the scene seed only and are
-drawn identically whatever the fault, so a faulty run equals its twin up to the onset.
+drawn identically whatever the fault, so a faulty run equals its twin up to the onset. The
+3-D perception output (``detections_3d``, ``tracks_3d``) draws its noise from a second
+generator of its own, and ``controls`` records each frame's command to the controller.
 """
 
 from __future__ import annotations
@@ -13,12 +15,23 @@ from typing import Any
 
 import numpy as np
 
-from ads_rca.model import Actors, Boxes, EgoPose, Plan, Predictions, RunLog, RunMetadata, Track
+from ads_rca.model import (
+    Actors,
+    Boxes,
+    ControlCommand,
+    EgoPose,
+    Plan,
+    Predictions,
+    RunLog,
+    RunMetadata,
+    Track,
+)
 from ads_rca.synth.camera import project_boxes
 from ads_rca.synth.control import Controller
 from ads_rca.synth.faults import BRAKE_GAIN, FaultSpec
 from ads_rca.synth.geometry import FloatArray, sat_gap, to_body, to_world
 from ads_rca.synth.perception import Detector, Tracker
+from ads_rca.synth.perception3d import Misperception, Output3D
 from ads_rca.synth.planning import Planner
 from ads_rca.synth.prediction import predict_positions, state_from_history, wrong_model
 from ads_rca.synth.world import PAD, Scene
@@ -26,6 +39,7 @@ from ads_rca.synth.world import PAD, Scene
 TPF_MS = 50
 CAMERA_LOC = (1.3, 0.0, 1.8)
 PWP_RANGE = 80.0
+WHEELBASE = 2.9  # m, for the steering angle that follows the path's curvature
 
 
 @dataclass
@@ -62,6 +76,8 @@ def simulate(scene: Scene, fault: FaultSpec, seed: int, horizon: int = 30) -> Si
         t = scene.trigger_frame + PAD
         p_t, p_b = scene.xy[t, scene.partner], scene.xy[t - 1, scene.partner]
         stale = (p_t, (p_t - p_b) / 0.05)
+    misperception = Misperception(scene, stale_velocity=stale[1], stale_position=stale[0])
+    output_3d = Output3D(np.random.default_rng([seed, 11]), scene.kinds)
 
     log = RunLog(metadata=RunMetadata(TPF_MS, CAMERA_LOC, -1, 0), frames=())
     s, v = 0.0, scene.ego_speed
@@ -81,9 +97,11 @@ def simulate(scene: Scene, fault: FaultSpec, seed: int, horizon: int = 30) -> Si
         # Camera and perception.
         gt, in_view = project_boxes(pose_xy, pose_yaw, CAMERA_LOC, xy, yaw, scene.extent)
         suppressed = np.zeros(n, dtype=bool)
-        if fault.active("perception", f) and scene.partner >= 0:
+        variant = fault.perceived(f)
+        if variant == "missed" and scene.partner >= 0:
             suppressed[scene.partner] = True
-        det = detector.detect(gt, in_view, xy, yaw, pose_xy, suppressed)
+        det = detector.detect(gt, in_view, xy, yaw, pose_xy, suppressed, scene.extent)
+        det = misperception.apply(det, variant, i, s, pose_xy, v)
         tracker.update(det)
 
         # Prediction from tracks (raw) and from ground-truth history (pwp).
@@ -106,8 +124,9 @@ def simulate(scene: Scene, fault: FaultSpec, seed: int, horizon: int = 30) -> Si
         if fault.active("planning", f):
             keep = rows != scene.partner
         seen = to_world(raw_off[keep], pose_xy, pose_yaw)
+        shapes = tracker.extent[rows][keep, :2]
         result = planner.plan(
-            s, v, pose_xy, pose_yaw, seen, pos[keep], tracker.yaw[rows][keep], half[rows[keep]]
+            s, v, pose_xy, pose_yaw, seen, pos[keep], tracker.yaw[rows][keep], shapes
         )
         if (
             reaction < 0
@@ -145,6 +164,9 @@ def simulate(scene: Scene, fault: FaultSpec, seed: int, horizon: int = 30) -> Si
             [scene.actor_ids[r] for r in near], pwp_off, pred_keys
         )
         log.waypoints[ts] = Plan(plan_keys, result.xy, result.speed.copy())
+        log.detections_3d[ts] = output_3d.detections(det, pose_xy)
+        log.tracks_3d[ts] = output_3d.tracks(tracker, rows)
+        log.controls[ts] = _command(scene, s, v, float(result.speed[1]))
         if collision >= 0:
             last = f
             break
@@ -156,6 +178,15 @@ def simulate(scene: Scene, fault: FaultSpec, seed: int, horizon: int = 30) -> Si
     log.frames = tuple(frames)
     log.metadata = RunMetadata(TPF_MS, CAMERA_LOC, collision, last)
     return SimResult(log, collision, collided, reaction)
+
+
+def _command(scene: Scene, s: float, v: float, target: float) -> ControlCommand:
+    """The command to the controller: the plan's next speed, the acceleration to reach it in
+    one frame, and the steering angle of the path's curvature (CARLA sign: + turns right)."""
+    _, yaw = scene.path.at(np.array([s - 0.5, s + 0.5]))
+    curvature = float(yaw[1] - yaw[0])  # rad per metre (1 m apart)
+    steer = float(np.degrees(np.arctan(WHEELBASE * curvature)))
+    return ControlCommand(steer=steer, acceleration=(target - v) / TPF_MS * 1000.0, speed=target)
 
 
 def _inject(

@@ -14,20 +14,30 @@ the accuracy per scenario × fault, per scenario and overall, and the misattribu
 what a recording of a stack that perceives in 3-D (carla-autoware) carries, so perception and
 prediction are judged from the 3-D objects alone.
 
+``--bag carla-autoware`` goes further: each log is written as a CARLA ROS bridge + Autoware
+stack records it (``--storage`` mcap or sqlite3, rosbags' writer) and read back through the
+profile with the bag's own types, as ``ads-rca diagnose BAG --profile carla-autoware`` does.
+
 Usage: ``python bench/accuracy.py [N] [--scenarios a,b] [--faults x,y] [--drop-2d]
-[--first SEED] [--actors K] [--horizon H]`` (the last two are passed to the synthesiser).
+[--bag PROFILE [--storage S]] [--first SEED] [--actors K] [--horizon H]`` (the last two are
+passed to the synthesiser).
 """
 
 from __future__ import annotations
 
 import argparse
+import atexit
+import shutil
+import tempfile
 import time
 from collections import Counter
 from collections.abc import Sequence
+from pathlib import Path
 
 from ads_rca.engine import diagnose as diagnose_log
 from ads_rca.model import RunLog
 from ads_rca.params import make_params
+from ads_rca.profiles.recording import read_recording
 from ads_rca.synth import (
     ALL_FAULTS,
     FAULTS,
@@ -38,6 +48,7 @@ from ads_rca.synth import (
     fault_module,
     synthesise,
 )
+from ads_rca.synth.recording import PROFILES, write_recording
 from ads_rca.verdict import Attribution
 
 
@@ -55,6 +66,14 @@ def drop_2d(log: RunLog) -> RunLog:
     log.bboxes_gt = {}
     log.predictions_with_perception = {}
     return log
+
+
+def through_bag(log: RunLog, profile: str, storage: str, folder: Path) -> RunLog:
+    """``log`` written as a ``profile`` stack's recording and read back through the profile."""
+    bag = folder / "bag"
+    shutil.rmtree(bag, ignore_errors=True)
+    write_recording(log, bag, profile, storage)
+    return read_recording(bag, profile)
 
 
 def fault_names(text: str) -> list[str]:
@@ -78,6 +97,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         "--drop-2d", action="store_true", help="diagnose without bboxes, bboxes_gt and pwp"
     )
+    parser.add_argument("--bag", choices=PROFILES, help="diagnose each log through a bag")
+    parser.add_argument("--storage", choices=("mcap", "sqlite3"), default="mcap")
     parser.add_argument("--actors", type=int, default=None, help="background actors")
     parser.add_argument("--horizon", type=int, default=None, help="prediction/plan steps")
     args = parser.parse_args(argv)
@@ -93,6 +114,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     per_scenario: Counter[tuple[str, bool]] = Counter()
     per_cell: Counter[tuple[str, str, bool]] = Counter()
     wrong: list[str] = []
+    scratch = Path(tempfile.mkdtemp(prefix="accuracy-"))
+    atexit.register(shutil.rmtree, scratch, True)
     times: list[float] = []
     for scenario in scenarios:
         for fault in faults:
@@ -104,10 +127,13 @@ def main(argv: Sequence[str] | None = None) -> int:
                     continue
                 if args.drop_2d:
                     drop_2d(log)
+                label = log.metadata.raw["synthesis"]
+                if args.bag:
+                    log = through_bag(log, args.bag, args.storage, scratch)
                 attribution, ms = diagnose(log)
                 times.append(ms)
                 got = attribution.primary_root_cause or "none"
-                injected = canonical_fault(log.metadata.raw["synthesis"]["fault"])
+                injected = canonical_fault(label["fault"])
                 want = fault_module(injected)
                 confusion[injected, got] += 1
                 per_scenario[scenario, got == want] += 1
@@ -139,7 +165,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if ok + bad:
             print(f"{scenario:20s} {ok}/{ok + bad} = {100 * ok / (ok + bad):.1f} %")
     total = sum(confusion.values())
-    correct = sum(confusion[x, x] for x in labels)
+    correct = sum(per_scenario[scenario, True] for scenario in scenarios)
     if total:
         print(f"overall accuracy: {correct}/{total} = {100 * correct / total:.1f} %")
         print(f"diagnose: {sum(times) / len(times):.2f} ms per frame (oracles + attribution, mean)")

@@ -13,15 +13,21 @@ import json
 import subprocess
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import pytest
+from test_live_window import assert_close, failed_flags, verdict_keys
 
 from ads_rca.engine import diagnose
 from ads_rca.io import open_run
 from ads_rca.io.bag_options import BagOptions
-from ads_rca.params import Params
+from ads_rca.params import make_params
+from ads_rca.ros.launcher import ManagedProcess
 from ads_rca.synth import synthesise
 from ads_rca.synth.recording import MSG_DIR, write_recording
+
+if TYPE_CHECKING:
+    from conftest import RosEnv
 
 ADS_RCA = str(Path(sys.executable).with_name("ads-rca"))
 CARLA = "carla-autoware"
@@ -68,7 +74,7 @@ def test_a_carla_autoware_recording_is_diagnosed_with_one_command(
     )
     # The same run read in-process gives the same verdict: one reader, whatever the storage.
     log = open_run(bags[f"{CARLA}/{storage}"], bag=BagOptions(CARLA))
-    assert diagnose(log, Params(semantics="corrected")).to_json()["verdict"] == document["verdict"]
+    assert diagnose(log, make_params("corrected")).to_json()["verdict"] == document["verdict"]
 
 
 def test_reference_mode_says_what_it_cannot_judge_on_a_3d_stack(bags: dict[str, Path]) -> None:
@@ -118,9 +124,13 @@ def test_inspect_lists_topics_inputs_and_the_modules_each_mode_can_judge(
 
 def test_a_vision_msgs_recording_is_judged_on_its_2d_boxes(bags: dict[str, Path]) -> None:
     log = open_run(bags["vision_msgs/mcap"], bag=BagOptions("vision_msgs"))
-    judged = diagnose(log, Params(semantics="reference")).to_json()["modules_judged"]
-    assert judged["perception"] == "judged"
-    assert judged["planning"] == "not judged (no predictions, predictions_gt)"
+    judged = diagnose(log, make_params("reference")).to_json()["modules_judged"]
+    assert judged == {
+        "perception": "judged",
+        "prediction": "not judged (no predictions_gt)",
+        "planning": "not judged (no plan, predictions, predictions_gt)",
+        "controller": "not judged (no plan)",
+    }
 
 
 def test_a_bag_without_type_definitions_names_them_and_msg_path_supplies_them(
@@ -132,6 +142,7 @@ def test_a_bag_without_type_definitions_names_them_and_msg_path_supplies_them(
     assert "\n" not in error and "Traceback" not in error
     for missing in (
         "autoware_perception_msgs/msg/TrackedObjects",
+        "autoware_planning_msgs/msg/Trajectory",
         "derived_object_msgs/msg/ObjectArray",
     ):
         assert missing in error
@@ -234,3 +245,25 @@ def test_convert_writes_a_log_folder_as_a_stacks_recording(tmp_path: Path) -> No
         refused.returncode == 2
         and "can be written as carla-autoware, vision_msgs" in refused.stderr
     )
+
+
+@pytest.mark.parametrize("semantics", ["corrected", "reference"])
+def test_replay_of_a_carla_autoware_recording_equals_diagnose(
+    ros_env: RosEnv, bags: dict[str, Path], tmp_path: Path, semantics: str
+) -> None:
+    """The player reads the recording through the profile; the 3-D objects and the input
+    statuses travel on the contract topics; the monitors judge what diagnose judges."""
+    bag, out = bags[f"{CARLA}/sqlite3"], tmp_path / "verdict.json"
+    argv = [sys.executable, "-m", "ads_rca.cli", "replay", str(bag), "--profile", CARLA]
+    argv += ["--semantics", semantics, "--json", str(out)]
+    argv += ["--domain-id", str(ros_env.domain_id), "--timeout", "90"]
+    replay = ManagedProcess("replay", argv, ros_env.env)
+    assert replay.wait(120) == 0, replay.output
+    live = json.loads(out.read_text())
+    log = open_run(bag, bag=BagOptions(CARLA))
+    offline = diagnose(log, make_params(semantics)).to_json()
+    assert live["live"]["complete"], live["live"]
+    assert failed_flags(live) == failed_flags(offline)
+    assert_close(verdict_keys(live), verdict_keys(offline))
+    assert_close(live["frames"], offline["frames"])
+    assert live["modules_judged"] == offline["modules_judged"]

@@ -31,7 +31,7 @@ from ads_rca.profiles.profile import (
     contract_type,
     load_profile,
 )
-from ads_rca.profiles.reader import read_profiled, track_offsets
+from ads_rca.profiles.reader import read_profiled, sample_plan, track_offsets, travel_times
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -244,10 +244,29 @@ def test_trajectory_control_and_collision(store: Typestore) -> None:
     trajectory = _round_trip(
         store, "autoware_planning_msgs/msg/Trajectory", {"header": header(T0), "points": points}
     )
-    plan = decoders.decode_trajectory(trajectory, "map")
-    assert plan.keys == ("0", "1", "2")
-    assert plan.xy.tolist() == [[5.0, 0.0], [6.0, -0.5], [7.0, -1.0]]
-    assert plan.speed.tolist() == [8.0, 7.0, 6.0]
+    timed = decoders.decode_trajectory(trajectory, "map")
+    assert timed.times_s.tolist() == [0.0, 0.1, 0.2]
+    assert timed.xy.tolist() == [[5.0, 0.0], [6.0, -0.5], [7.0, -1.0]]
+    assert timed.speed.tolist() == [8.0, 7.0, 6.0]
+    # The model's plan at a 50 ms period: every other sample between the points.
+    plan = sample_plan(timed.times_s, timed.xy, timed.speed, 0.0, 0.05)
+    assert plan.keys == ("0", "1", "2", "3", "4")
+    assert np.allclose(plan.xy, [[5.0, 0.0], [5.5, -0.25], [6.0, -0.5], [6.5, -0.75], [7.0, -1.0]])
+    assert np.allclose(plan.speed, [8.0, 7.5, 7.0, 6.5, 6.0])
+    # A message stamped 20 ms before its frame: key 0 is 20 ms along.
+    late = sample_plan(timed.times_s, timed.xy, timed.speed, 0.02, 0.05)
+    assert late.keys == ("0", "1", "2", "3") and np.allclose(late.xy[0], [5.2, -0.1])
+    # Not filled: timed by spacing and speed (1.118 m at 7.5 m/s, then at 6.5 m/s).
+    assert np.allclose(
+        travel_times(timed.xy, timed.speed), [0.0, 1.118034 / 7.5, 1.118034 / 7.5 + 1.118034 / 6.5]
+    )
+    backwards = [dict(p) for p in points]
+    backwards[2]["time_from_start"] = {"nanosec": 50_000_000}
+    bad = _round_trip(
+        store, "autoware_planning_msgs/msg/Trajectory", {"header": header(T0), "points": backwards}
+    )
+    with pytest.raises(MalformedMessage, match=r"points\[2\]\.time_from_start: 0.05 s"):
+        decoders.decode_trajectory(bad, "map")
     control = _round_trip(
         store,
         "autoware_control_msgs/msg/Control",

@@ -27,7 +27,7 @@ import numpy.typing as npt
 
 from ads_rca.contract.errors import MalformedMessage
 from ads_rca.contract.rosmsg import normalise_type
-from ads_rca.model import Actors, Boxes, ControlCommand, EgoPose, Objects3D, Plan
+from ads_rca.model import Actors, Boxes, ControlCommand, EgoPose, Objects3D
 from ads_rca.profiles import frames
 
 FloatArray = npt.NDArray[np.float64]
@@ -63,6 +63,18 @@ class PredictedPaths:
     ids: tuple[str, ...]
     points: tuple[FloatArray, ...]
     step_s: tuple[float, ...]
+
+
+@dataclass(frozen=True, eq=False)
+class TimedPlan:
+    """One Trajectory message in the world: its points (N, 2) in the CARLA frame, their
+    speeds and their ``time_from_start`` in seconds. A real planner spaces its points by
+    distance, not by the frame period, so the reader samples the model's plan (key i = i
+    frames ahead) from these times once the period is known."""
+
+    times_s: FloatArray
+    xy: FloatArray
+    speed: FloatArray
 
 
 @dataclass(frozen=True, slots=True)
@@ -414,14 +426,21 @@ def decode_predicted_objects(msg: Any, frame: str) -> PredictedPaths:
     return PredictedPaths(ids, tuple(np.split(xyz, bounds)), tuple(steps))
 
 
-def decode_trajectory(msg: Any, frame: str) -> Plan:
-    """autoware Trajectory → the plan: key i = point i, CARLA xy, longitudinal speed."""
+def decode_trajectory(msg: Any, frame: str) -> TimedPlan:
+    """autoware Trajectory → its points in CARLA xy, longitudinal speeds and
+    ``time_from_start`` (MalformedMessage when the times go backwards)."""
     points = sequence(msg, "points")
     xyz = vectors(points, "points", "pose.position") if len(points) else np.zeros((0, 3))
     if frame != "carla":
         xyz = frames.map_to_carla_xyz(xyz)
     speed = column(points, "points", "longitudinal_velocity_mps")
-    return Plan(tuple(str(i) for i in range(len(points))), xyz[:, :2].copy(), speed)
+    times = np.array([duration_s(point, "time_from_start") for point in points], dtype=np.float64)
+    if times.size and np.any(np.diff(times) < 0):
+        row = int(np.argmax(np.diff(times) < 0)) + 1
+        raise MalformedMessage(
+            f"points[{row}].time_from_start: {times[row]:g} s, before the point ahead of it"
+        )
+    return TimedPlan(times, xyz[:, :2].copy(), speed)
 
 
 def decode_control(msg: Any, frame: str) -> ControlCommand:

@@ -34,15 +34,17 @@ from ads_rca.io.bag_storage import BagMessage
 from ads_rca.model import (
     ControlCommand,
     EgoPose,
+    FloatArray,
     InputStatus,
     Objects3D,
+    Plan,
     Predictions,
     RunLog,
     RunMetadata,
     Track,
 )
 from ads_rca.problems import DROPPED_RECORD, USED_DEFAULT, Problem, ProblemLog
-from ads_rca.profiles.decoders import CollisionEvent, PredictedPaths, decoder_for
+from ads_rca.profiles.decoders import CollisionEvent, PredictedPaths, TimedPlan, decoder_for
 from ads_rca.profiles.profile import InputSpec, Profile
 from ads_rca.progress import Progress, tracked
 
@@ -61,7 +63,6 @@ _FOLDERS = {
     "actors": "actors",
     "bboxes": "detections_2d",
     "bboxes_gt": "ground_truth_2d",
-    "waypoint": "plan",
 }
 _PREDICTION_FOLDERS = {
     "predictions": "predictions",
@@ -152,6 +153,8 @@ def read_profiled(
     for name, folder in _PREDICTION_FOLDERS.items():
         if name in framed:
             folders[folder] = _predictions(framed[name], usable[name], poses, grid, problems)
+    if "plan" in framed:
+        folders["waypoint"] = _plans(framed["plan"], usable["plan"], grid, problems)
     return RunLog.from_folders(
         _metadata(profile, grid, decoded.get("collision", []), problems),
         tuple(sorted(folders["actors"])),
@@ -370,6 +373,60 @@ def _predictions(
         delay_s = (grid.frame_ns(ts // tpf) - item.stamp_ns) / 1e9
         out[ts] = track_offsets(paths, delay_s, tpf / 1000.0, pose)
     return out
+
+
+def _plans(
+    framed: dict[int, Stamped], spec: InputSpec, grid: Grid, problems: list[Problem]
+) -> dict[int, Plan]:
+    """Each frame's trajectory as the model's plan: key i is the point ``i``·tpf after the
+    frame's time (``time_from_start`` from the message's stamp), x, y and speed linearly
+    interpolated, for as long as the trajectory lasts. A trajectory whose times are not
+    filled (all zero) is timed by its points' spacing and speeds, and that is said once."""
+    out: dict[int, Plan] = {}
+    tpf = grid.period_ms
+    said = False
+    for ts, item in sorted(framed.items()):
+        timed = cast("TimedPlan", item.record)
+        times = timed.times_s
+        if len(times) > 1 and times[-1] <= 0.0:
+            times = travel_times(timed.xy, timed.speed)
+            if not said:
+                problems.append(
+                    Problem(
+                        item.file,
+                        spec.topic,
+                        f"frame {ts // tpf}: time_from_start not filled",
+                        "times derived from the points' spacing and speeds",
+                        severity="warning",
+                        timestamp_ms=ts,
+                    )
+                )
+                said = True
+        delay_s = (grid.frame_ns(ts // tpf) - item.stamp_ns) / 1e9
+        out[ts] = sample_plan(times, timed.xy, timed.speed, delay_s, tpf / 1000.0)
+    return out
+
+
+def travel_times(xy: FloatArray, speed: FloatArray) -> FloatArray:
+    """Seconds to each point along a path driven at its points' speeds (the mean of the
+    two ends per segment, at least 0.1 m/s so a stop point is reached)."""
+    step = np.hypot(*np.diff(xy, axis=0).T)
+    mean_speed = np.maximum((speed[1:] + speed[:-1]) / 2.0, 0.1)
+    out: FloatArray = np.concatenate([[0.0], np.cumsum(step / mean_speed)])
+    return out
+
+
+def sample_plan(
+    times: FloatArray, xy: FloatArray, speed: FloatArray, delay_s: float, tpf_s: float
+) -> Plan:
+    """The plan of keys "0", "1", ...: the trajectory at ``delay_s + i·tpf_s`` seconds from
+    its start, while inside it (a point exactly at a sample time is taken as is)."""
+    if len(times) == 0:
+        return Plan((), np.zeros((0, 2)), np.zeros(0))
+    count = int(np.floor((times[-1] - delay_s) / tpf_s + 1e-9)) + 1 if times[-1] >= delay_s else 1
+    at = np.clip(delay_s + np.arange(count) * tpf_s, times[0], times[-1])
+    points = np.column_stack([np.interp(at, times, xy[:, 0]), np.interp(at, times, xy[:, 1])])
+    return Plan(tuple(str(i) for i in range(count)), points, np.interp(at, times, speed))
 
 
 def track_offsets(

@@ -22,6 +22,7 @@ from ads_rca.engine import diagnose
 from ads_rca.io import open_run
 from ads_rca.io.bag_options import BagOptions
 from ads_rca.params import make_params
+from ads_rca.profiles.profile import builtin_path
 from ads_rca.ros.launcher import ManagedProcess
 from ads_rca.synth import synthesise
 from ads_rca.synth.recording import MSG_DIR, write_recording
@@ -37,6 +38,14 @@ def run(*argv: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
         [ADS_RCA, *argv], capture_output=True, text=True, timeout=300, check=False
     )
+
+
+def edited_profile(folder: Path, old: str, new: str) -> Path:
+    """The built-in carla-autoware profile with the first ``old`` replaced by ``new``."""
+    text = builtin_path(CARLA).read_text(encoding="utf-8").replace(old, new, 1)
+    profile = folder / "edited.yaml"
+    profile.write_text(text, encoding="utf-8")
+    return profile
 
 
 @pytest.fixture(scope="module")
@@ -155,18 +164,9 @@ def test_a_bag_without_type_definitions_names_them_and_msg_path_supplies_them(
 def test_a_profile_naming_a_topic_the_bag_lacks_leaves_that_input_absent(
     bags: dict[str, Path], tmp_path: Path
 ) -> None:
-    builtin = (
-        Path(__file__).resolve().parent.parent
-        / "ads_rca"
-        / "profiles"
-        / "builtin"
-        / f"{CARLA}.yaml"
+    profile = edited_profile(
+        tmp_path, "/planning/scenario_planning/trajectory", "/planning/nowhere"
     )
-    text = builtin.read_text().replace(
-        "/planning/scenario_planning/trajectory", "/planning/nowhere"
-    )
-    profile = tmp_path / "mine.yaml"
-    profile.write_text(text)
     done = run("diagnose", str(bags[f"{CARLA}/mcap"]), "--profile", str(profile))
     assert done.returncode == 0, done.stderr
     assert "planning             0      0  not judged (no plan)" in done.stdout
@@ -176,20 +176,11 @@ def test_a_profile_naming_a_topic_the_bag_lacks_leaves_that_input_absent(
 def test_a_profile_whose_type_differs_from_the_stored_one_is_said_once(
     bags: dict[str, Path], tmp_path: Path
 ) -> None:
-    builtin = (
-        Path(__file__).resolve().parent.parent
-        / "ads_rca"
-        / "profiles"
-        / "builtin"
-        / f"{CARLA}.yaml"
-    )
-    text = builtin.read_text().replace(
+    profile = edited_profile(
+        tmp_path,
         "autoware_perception_msgs/msg/TrackedObjects",
         "autoware_perception_msgs/msg/DetectedObjects",
-        1,
     )
-    profile = tmp_path / "typo.yaml"
-    profile.write_text(text)
     done = run("inspect", str(bags[f"{CARLA}/mcap"]), "--profile", str(profile))
     assert done.returncode == 0, done.stderr
     wrong = [

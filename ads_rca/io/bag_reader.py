@@ -35,7 +35,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import yaml
-from rosbags.serde import SerdeError
 
 from ads_rca.contract import rosmsg, topics
 from ads_rca.contract.assembler import RunLogAssembler
@@ -48,6 +47,7 @@ from ads_rca.io.bag_storage import (
     read_mcap,
     read_storage,
 )
+from ads_rca.io.bag_types import DECODE_ERRORS
 from ads_rca.io.files import Unreadable, read_regular
 from ads_rca.model import RunLog
 from ads_rca.problems import IGNORED, SKIPPED_FILE, USED_DEFAULT, Problem
@@ -439,21 +439,6 @@ def _usable_topics(
     return usable
 
 
-#: What the deserialisation of a damaged message can raise (rosbags checks every length
-#: against the bytes that remain, so a damaged length is refused, never allocated).
-_DECODE_ERRORS = (
-    SerdeError,
-    ValueError,
-    TypeError,
-    KeyError,
-    IndexError,
-    AssertionError,
-    OverflowError,
-    RecursionError,
-    UnicodeDecodeError,
-)
-
-
 def _add_message(
     assembler: RunLogAssembler, key: str, message: BagMessage, problems: list[Problem]
 ) -> None:
@@ -467,7 +452,7 @@ def _add_message(
         if key in topics.DATA_TOPICS:
             topics.message_to_record(key, msg, 1)
         assembler.add(key, msg)
-    except _DECODE_ERRORS as error:
+    except DECODE_ERRORS as error:
         detail = str(error).splitlines()[0] if str(error) else type(error).__name__
         problems.append(
             Problem(

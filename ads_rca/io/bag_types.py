@@ -73,7 +73,7 @@ _NOT_DEFINED = "type not defined"
 _PARSE_ERRORS = (TypesysError, AssertionError, ValueError, IndexError, KeyError, RecursionError)
 #: What deserialising damaged bytes can raise (rosbags checks each length against the bytes
 #: that remain, so a damaged count is refused, never allocated).
-_DECODE_ERRORS = (
+DECODE_ERRORS = (
     SerdeError,
     ValueError,
     TypeError,
@@ -337,7 +337,7 @@ class BagTypes:
             self.require([name])
         try:
             return self._store.deserialize_cdr(data, name)
-        except _DECODE_ERRORS as error:
+        except DECODE_ERRORS as error:
             detail = str(error).splitlines()[0] if str(error) else type(error).__name__
             raise MalformedMessage(f"cannot decode this {name}: {detail}") from error
 

@@ -23,6 +23,7 @@ import pytest
 from ads_rca.cli import EXIT_BROKEN_PIPE, build_parser
 from ads_rca.commands.progress_bar import MIN_ITEMS
 from ads_rca.commands.synth_cmd import describe
+from ads_rca.model import ALL_FOLDERS
 from ads_rca.synth import synthesise_run
 
 if TYPE_CHECKING:
@@ -31,7 +32,7 @@ if TYPE_CHECKING:
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = ROOT / "examples" / "cut_in_perception"
 ADS_RCA = str(Path(sys.executable).with_name("ads-rca"))
-#: A log long enough for both bars: 7 folders × 310 files, 310 frames.
+#: A log long enough for both bars: 10 folders × 310 files, 310 frames.
 LONG_FRAMES = 310
 
 
@@ -73,8 +74,9 @@ def run_on_pty(argv: list[str]) -> tuple[int, bytes, bytes]:
 def test_diagnose_shows_a_loading_and_judging_bar_on_a_terminal(long_log: Path) -> None:
     status, out, terminal = run_on_pty([ADS_RCA, "diagnose", str(long_log), "--workers", "1"])
     assert status == 0
-    # Both bars, each with its total: 7 folders of files read, then the frames judged.
-    assert b"\rloading: " in terminal and f"/{7 * LONG_FRAMES} [".encode() in terminal
+    # Both bars, each with its total: every folder's files read, then the frames judged.
+    files = len(ALL_FOLDERS) * LONG_FRAMES  # a synthesised run holds 3-D objects and controls
+    assert b"\rloading: " in terminal and f"/{files} [".encode() in terminal
     assert b"\rjudging: " in terminal and f"/{LONG_FRAMES} [".encode() in terminal
     assert out.startswith(f"{long_log}: {LONG_FRAMES} frames judged".encode())
     assert b"loading" not in out and b"judging" not in out

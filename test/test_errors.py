@@ -99,7 +99,7 @@ def test_malformed_cdr_raises_the_codecs_typed_error_with_its_former_text() -> N
     )
     assert isinstance(caught.value, MalformedMessage)
     assert isinstance(caught.value, ValueError)  # as before it was typed
-    for key in topics.DATA_TOPICS:
+    for key in (k for k in topics.DATA_TOPICS if k in payloads):  # the log's own folders
         with pytest.raises(CdrError):
             topics.decode_record(key, payloads[key][: len(payloads[key]) // 2], 50)
     with pytest.raises(CdrError, match=r"^a string claims 2147483647 bytes, 0 remain$"):

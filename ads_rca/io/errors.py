@@ -19,5 +19,15 @@ class InvalidJson(AdsRcaError, ValueError):
     """A log file's bytes that are not JSON, or nest deeper than the parser reads."""
 
 
+class StrictFileError(AdsRcaError, ValueError):
+    """A value of an optional folder's file (3-D objects, control) that is not what the
+    format says: the reader skips that file for that folder and reports the field."""
+
+    def __init__(self, field: str, issue: str) -> None:
+        super().__init__(f"{field}: {issue}")
+        self.field = field
+        self.issue = issue
+
+
 class OutputExists(InputError, FileExistsError):
     """A bag is written only into a new or empty folder, never over another bag."""

@@ -23,6 +23,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
+from ads_rca.io.errors import StrictFileError
 from ads_rca.model import (
     Actors,
     Boxes,
@@ -293,16 +294,6 @@ def parse_plan(document: Any, file: str, problems: ProblemLog, ts: int) -> Plan 
     ]
     table = np.array(rows, dtype=np.float64).reshape(-1, 3)
     return Plan(keys, table[:, :2].copy(), table[:, 2].copy())
-
-
-class StrictFileError(Exception):
-    """A value of an optional folder's file that is not what the format says: the file
-    is skipped (raised with the field's path and the issue)."""
-
-    def __init__(self, field: str, issue: str) -> None:
-        super().__init__(f"{field}: {issue}")
-        self.field = field
-        self.issue = issue
 
 
 def _strict_number(container: Any, key: str, where: str, unknown: bool = False) -> float:

@@ -417,7 +417,7 @@ def test_synth_profile_writes_a_bag_and_storage_alone_is_refused(
     )
     assert capsys.readouterr().out == (
         f"{tmp_path / 'bag'}: cruise/none seed 0: 20 frames, no collision, no partner, "
-        "no fault injected (carla-autoware sqlite3 bag, 100 messages on 6 topics)\n"
+        "no fault injected (carla-autoware sqlite3 bag, 160 messages on 9 topics)\n"
     )
     messages, _ = _read(tmp_path / "bag")
     assert {t: len(m) for t, m in messages.items()} == {
@@ -426,6 +426,9 @@ def test_synth_profile_writes_a_bag_and_storage_alone_is_refused(
         "/carla/objects": 20,
         "/perception/object_recognition/objects": 20,
         "/planning/scenario_planning/trajectory": 20,
+        "/perception/object_recognition/detection/objects": 20,
+        "/perception/object_recognition/tracking/objects": 20,
+        "/control/command/control_cmd": 20,
     }  # the collision topic is offered, and empty: nothing crashed
     assert main(["synth", str(tmp_path / "log"), "--scenario", "cruise", "--storage", "mcap"]) == 2
     assert capsys.readouterr().err == (

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from ads_rca.io.json_writer import write_run_log
-from ads_rca.model import Objects3D, RunLog
+from ads_rca.model import FOLDERS, Objects3D, RunLog
 from ads_rca.synth import (
     FAULTS,
     SCENARIOS,
@@ -76,9 +76,12 @@ def _run(scenario: str, fault: str) -> tuple[RunLog, SynthesisSummary]:
 
 
 def _folder_hash(root: Path) -> str:
+    """The hash of what a running log held before the 3-D folders: metadata.json and the
+    seed format's seven folders (the optional ones are new, written beside them)."""
     digest = hashlib.sha256()
     for path in sorted(root.rglob("*")):
-        if path.is_file():
+        top = path.relative_to(root).parts[0]
+        if path.is_file() and (top == "metadata.json" or top in FOLDERS):
             digest.update(str(path.relative_to(root)).encode())
             digest.update(path.read_bytes())
     return digest.hexdigest()

@@ -365,8 +365,8 @@ def test_monitors_skip_and_report_malformed_messages_and_judge_the_rest(ros_env:
     try:
         node = rclpy.create_node("hostile_player", context=context)
         sent = topics.advertised(log)  # the example has no 3-D objects or control topics
-        data = [key for key in topics.DATA_TOPICS if key in sent]
-        keys = (topics.METADATA, topics.FRAME, topics.STATUS, *data)
+        data_keys = [key for key in topics.DATA_TOPICS if key in sent]
+        keys = (topics.METADATA, topics.FRAME, topics.STATUS, *data_keys)
         pubs = {
             key: node.create_publisher(
                 topics.message_types()[key], topics.topic_name(key, ns), topics.qos_profile(key)

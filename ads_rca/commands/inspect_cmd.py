@@ -77,8 +77,6 @@ def _load(path: str, args: argparse.Namespace) -> tuple[RunLog, BagContents | No
     contents = load_bag(path)
     if bag.contract:
         return read_bag(path, remap=bag.remap, progress=progress, contents=contents), contents
-    if bag.remap is not None:
-        open_run(path, bag=bag)  # refuses --remap with another profile, in its words
     from ads_rca.profiles.recording import read_recording
 
     log = read_recording(path, bag.profile, bag.msg_path, progress, contents=contents)

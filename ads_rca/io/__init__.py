@@ -30,11 +30,8 @@ def open_run(
     if not os.path.lexists(path):
         raise InputError(f"{os.fspath(path)}: no such log folder or bag")
     if not bag.contract:
-        if remap is not None:
-            raise InputError(
-                f"--remap applies to the {BagOptions().profile} profile; profile "
-                f"{bag.profile!r} names its topics itself (copy it and edit the topics)"
-            )
+        if remap is not None:  # a remap given beside the options: the options' own check
+            BagOptions(bag.profile, str(remap), bag.msg_path)
         if not is_bag(path):
             raise InputError(f"{os.fspath(path)}: profile {bag.profile!r} reads bags; not a bag")
         from ads_rca.profiles.recording import read_recording

@@ -2,8 +2,9 @@
 
 ``profile`` names which topics and types carry the model's inputs (a built-in profile or a
 YAML file, docs/recordings.md); ``remap`` renames a bag's topics onto the contract's (profile
-``ads_rca`` only: a profile names its topics itself); ``msg_path`` gives directories of
-``.msg`` files for message types a bag carries no definition of. The CLI flags are
+``ads_rca`` only: a profile names its topics itself, so the pair is refused here, once for
+every caller); ``msg_path`` gives directories of ``.msg`` files for message types a bag
+carries no definition of. The CLI flags are
 ``--profile``, ``--remap`` and ``--msg-path``; the player's ROS parameters ``profile``,
 ``bag_remap`` and ``msg_path``.
 """
@@ -12,6 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ads_rca.errors import InputError
 from ads_rca.profiles import DEFAULT_PROFILE
 
 
@@ -22,6 +24,13 @@ class BagOptions:
     profile: str = DEFAULT_PROFILE
     remap: str | None = None
     msg_path: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        if self.remap is not None and not self.contract:
+            raise InputError(
+                f"--remap applies to the {DEFAULT_PROFILE} profile; profile "
+                f"{self.profile!r} names its topics itself (copy it and edit the topics)"
+            )
 
     @property
     def contract(self) -> bool:

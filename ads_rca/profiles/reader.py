@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Any, TypeVar, cast
 
 import numpy as np
 
-from ads_rca.capabilities import MODEL_INPUTS
+from ads_rca.capabilities import INPUT_FIELDS, MODEL_INPUTS
 from ads_rca.contract.errors import MalformedMessage
 from ads_rca.contract.rosmsg import normalise_type
 from ads_rca.errors import ConfigError, InputError
@@ -57,17 +57,12 @@ R = TypeVar("R")
 DEFAULT_PERIOD_MS = 50
 _SKIPPED = "message skipped"
 _NS_PER_MS = 1_000_000
-#: The inputs read into per-frame folders of the model, by folder.
+#: The inputs read into per-frame folders of the model as decoded, by folder (the field of
+#: each is the folder's name), and the prediction inputs, resampled per frame, to theirs.
 _FOLDERS = {
-    "pose": "ego",
-    "actors": "actors",
-    "bboxes": "detections_2d",
-    "bboxes_gt": "ground_truth_2d",
+    INPUT_FIELDS[name]: name for name in ("ego", "actors", "detections_2d", "ground_truth_2d")
 }
-_PREDICTION_FOLDERS = {
-    "predictions": "predictions",
-    "predictions_gt": "predictions_with_perception",
-}
+_PREDICTION_FOLDERS = {name: INPUT_FIELDS[name] for name in ("predictions", "predictions_gt")}
 
 
 @dataclass(frozen=True, slots=True)

@@ -59,6 +59,7 @@ class Params:
     perc3d_match_distance: float = 1.0  # m
     perc3d_small_area: float = 2.0  # m²
     perc3d_range: float = 80.0  # m
+    perc3d_velocity_error: float = 1.5  # m/s
 
     def values(self, names: Iterable[str]) -> dict[str, Any]:
         """``{name: value}`` of the parameters ``names``, in that order (for outputs: a

@@ -240,6 +240,13 @@ SPECS: dict[str, ParamSpec] = {
             "within this distance of the ego"
         },
     ),
+    "perc3d_velocity_error": ParamSpec(
+        Range(0.0, 1000.0, unit="m/s"),
+        {
+            "corrected": "a perceived velocity off by more than this is tested over the "
+            "stack's whole plan: perception fails if it made the partner look safer"
+        },
+    ),
 }
 
 #: The log reader's parameter (not an engine threshold; ``commands/input_args.py``).

@@ -213,8 +213,11 @@ def test_metrics_count_in_range_objects_only() -> None:
         "perc3d_match_distance": 1.0,
         "perc3d_small_area": 2.0,
         "perc3d_range": 80.0,
+        "perc3d_velocity_error": 1.5,
         "safety_margin": 0.5,
         "understate_min": 0.3,
+        "pred_abs_threshold": 0.5,
+        "pred_score_threshold": 0.1,
     }
 
 
@@ -278,6 +281,23 @@ def test_a_car_seen_0_1_m_away_does_not_fail() -> None:
     assert number(result, "c_perc") - number(result, "c_true") == pytest.approx(0.1)
 
 
+@pytest.mark.parametrize(("seen_x", "overstated"), [(30.4, False), (30.6, True)])
+def test_a_safer_looking_partner_must_be_displaced_or_hide_the_conflict(
+    seen_x: float, overstated: bool
+) -> None:
+    # Seen 0.4 m further away: c_perc − c_true = 0.4 ≥ understate_min, but displaced by
+    # 0.4 m (threshold max(0.5, 0.1 × 0 m travelled) = 0.5) and c_perc 0.4 < safety_margin
+    # still shows the conflict: not overstated (rule 2's test). Seen 0.6 m away: displaced.
+    log = head_on()
+    log.tracks_3d[CONFLICT] = objects((seen_x, 0.0), CAR_HALF, (0.0, 0.0))
+    result = run(log, "perception", CONFLICT)
+    assert number(result, "c_perc") - number(result, "c_true") == pytest.approx(seen_x - 30.0)
+    assert number(result, "partner_displacement") == pytest.approx(seen_x - 30.0)
+    assert number(result, "displacement_threshold") == pytest.approx(0.5)
+    assert result.metrics["overstated"] is overstated
+    assert result.failed is overstated
+
+
 def test_a_shrunk_box_fails_through_its_extent() -> None:
     # The car seen 2 m long instead of 4 (same centre): its rear appears 1 m later.
     log = head_on()
@@ -305,6 +325,84 @@ def test_an_approaching_car_seen_slower_fails_by_its_velocity() -> None:
     log.tracks_3d[ts] = objects((6.5, 0.0), CAR_HALF, (math.nan, math.nan))
     unknown = run(log, "perception", ts)
     assert not unknown.failed and math.isnan(number(unknown, "partner_velocity_error"))
+
+
+#: A pedestrian (half extents 0.3 m) 11.3 m ahead of the ego (10 m/s), at the edge of its
+#: path (y = -1, the ego's side at -1), stepping in at 1.6 m/s; the stack plans 30 steps.
+WALKER_HALF = (0.3, 0.3)
+STEP_IN = 1.6
+
+
+def crossing(perceived_vy: float, real_vy: float = STEP_IN, last: int = 60) -> RunLog:
+    """The pedestrian's real motion across the path and, at frame 10, its perceived
+    velocity; the plan at frame 10 runs 30 steps (1.5 s) ahead."""
+    ts = 10 * TPF
+    log = scene(10.0, (16.3, -1.0), 0.0, last, partner_half=WALKER_HALF)
+    for f in range(1, last + 1):
+        log.actors[f * TPF].location[1, 1] = -1.0 + real_vy * (f - 10) * DT
+    steps = np.arange(31)
+    ego = np.column_stack((5.0 + 0.5 * steps, np.zeros(31)))
+    log.waypoints[ts] = Plan(tuple(str(i) for i in steps), ego, np.full(31, 10.0))
+    log.tracks_3d[ts] = objects((16.3, -1.0), WALKER_HALF, (0.0, perceived_vy))
+    return log
+
+
+def test_a_pedestrian_seen_walking_back_misleads_over_the_stacks_plan() -> None:
+    # Over the judged 0.5 s both propagations stay level with the ego's side (c_true: the
+    # 4 m gap ahead; c_perc: that gap beside a 0.5 m lateral one, 0.03 m more). Over the
+    # plan's 1.5 s the real walker is in the ego's path when the ego arrives (i = 18:
+    # contact, then overlap); the perceived one is 1.6·0.05·i − 0.3 m beside it while the
+    # ego passes (i = 18..27), least 1.14 m at i = 18.
+    ts = 10 * TPF
+    log = crossing(-STEP_IN)
+    result = run(log, "perception", ts)
+    assert number(result, "partner_velocity_error") == pytest.approx(3.2)
+    assert number(result, "c_true") == pytest.approx(4.0)
+    assert number(result, "c_perc") == pytest.approx(math.hypot(4.0, 0.5))
+    assert result.metrics["overstated"] is False and result.metrics["real_conflict"] is False
+    assert result.metrics["misled"] is True and result.metrics["misled_horizon"] == 30
+    assert number(result, "misled_c_perc") == pytest.approx(1.14)
+    assert number(result, "misled_c_true") < 0.0
+    # No real conflict within the window yet: not a failure, but unconditioned (what the
+    # fallback of rule 7 finds), and the stack's prediction is not judged from it.
+    assert not result.failed and result.metrics["unconditioned"] is True
+    assert "perc3d_velocity_error" in result.thresholds
+    assert run(log, "prediction", ts).skipped == "perception of the partner not correct at ts"
+
+
+def test_a_velocity_error_that_makes_the_partner_look_closer_never_fails() -> None:
+    # Really walking back, perceived stepping in: pessimistic, not misleading, so never a
+    # failure; still a wrong input (unconditioned, as rule 3's error test), and the
+    # stack's prediction from it is not judged.
+    log = crossing(STEP_IN, real_vy=-STEP_IN)
+    result = run(log, "perception", 10 * TPF)
+    assert number(result, "partner_velocity_error") == pytest.approx(3.2)
+    assert number(result, "misled_c_perc") < number(result, "misled_c_true")
+    assert result.metrics["misled"] is False and result.metrics["velocity_wrong"] is True
+    assert result.metrics["unconditioned"] is True and not result.failed
+    assert run(log, "prediction", 10 * TPF).skipped == "perception of the partner not correct at ts"
+
+
+def test_the_velocity_test_runs_only_above_its_threshold() -> None:
+    ts = 10 * TPF
+    small = run(crossing(STEP_IN - 1.2), "perception", ts)  # 1.2 m/s off: below 1.5
+    assert "misled_horizon" not in small.metrics and small.metrics["misled"] is False
+    assert small.metrics["velocity_wrong"] is False and small.metrics["unconditioned"] is False
+    lowered = run(crossing(STEP_IN - 1.2), "perception", ts, perc3d_velocity_error=1.0)
+    assert lowered.metrics["misled_horizon"] == 30
+    unknown = run(crossing(math.nan), "perception", ts)  # a detector without velocities
+    assert "misled_horizon" not in unknown.metrics and unknown.metrics["misled"] is False
+
+
+def test_a_plan_naming_a_huge_step_is_looked_at_for_ten_seconds_only() -> None:
+    ts = 10 * TPF
+    log = crossing(-STEP_IN)
+    plan = log.waypoints[ts]
+    keys = (*plan.keys[:-1], str(10**12))
+    log.waypoints[ts] = Plan(keys, plan.xy, plan.speed)
+    result = run(log, "perception", ts)
+    assert result.metrics["misled_horizon"] == 200  # 10 s at 50 ms
+    assert result.metrics["misled"] is True
 
 
 def test_a_reversed_heading_is_a_180_degree_error() -> None:

@@ -70,6 +70,7 @@ class CorrectedSemantics(Semantics):
         "perc3d_match_distance",
         "perc3d_small_area",
         "perc3d_range",
+        "perc3d_velocity_error",
     )
     reported = REPORTED
     requires: Mapping[Module, tuple[tuple[str, ...], ...]] = {
@@ -100,7 +101,8 @@ class CorrectedSemantics(Semantics):
     }
     rules: Mapping[Module, str] = {
         "perception": "the partner unmatched in a real conflict while the planner's view of "
-        "it is degraded",
+        "it is degraded (3-D: missed, or seen safer by understate_min, displaced or hiding "
+        "the conflict, or moving so over the stack's plan)",
         "prediction": "the partner's clearance overstated by more than understate_min in a "
         "real conflict",
         "planning": "plan clearance below safety_margin against its own inputs where braking "

@@ -5,10 +5,13 @@ boxes. Every frame reports bird's-eye detection metrics from the match of :mod:`
 (precision, recall, IoU, position and heading errors, missed actors, false positives). A
 failure needs a real conflict (c_gt < ``safety_margin``) with the partner in sensing range
 and either missed, or perceived so that the clearance looked safer than it was by at least
-``understate_min``: the real and the perceived partner are both moved at constant velocity
-from ts (the real velocity from the ground truth over one frame, the perceived one as
-recorded) against the ego's plan boxes, so only the errors of position, extent, heading
-and velocity at ts count, not the partner's later manoeuvres (prediction's business).
+``understate_min`` while displaced beyond the displacement threshold or hiding the
+conflict (rule 2's test): the real and the perceived partner are both moved at constant
+velocity from ts (the real velocity from the ground truth over one frame, the perceived one
+as recorded) against the ego's plan boxes, so only the errors of position, extent, heading
+and velocity at ts count, not the partner's later manoeuvres (prediction's business). A
+velocity off by more than ``perc3d_velocity_error`` is also tested over the stack's whole
+plan, longer than the judged window: optimistic there, it fails too (``misled``).
 """
 
 from __future__ import annotations
@@ -20,11 +23,14 @@ import numpy as np
 
 from ads_rca.geometry import FloatArray
 from ads_rca.oracles.base import Metric, OracleResult, RunContext
-from ads_rca.oracles.corrected.boxes import Series
+from ads_rca.oracles.corrected.boxes import Series, build_plan, key_steps
 from ads_rca.oracles.corrected.clearance import (
     Clearance,
+    displacement,
+    displacement_threshold,
     pair_clearances,
     partner_view,
+    path_length,
     undefined_clearance,
 )
 from ads_rca.oracles.corrected.common import clearance_metrics, missing_inputs, num, skipped
@@ -42,8 +48,11 @@ REPORTED_3D = (
     "perc3d_match_distance",
     "perc3d_small_area",
     "perc3d_range",
+    "perc3d_velocity_error",
     "safety_margin",
     "understate_min",
+    "pred_abs_threshold",
+    "pred_score_threshold",
 )
 
 
@@ -98,19 +107,47 @@ class PartnerPerception:
     velocity_error: float  # |perceived − real| world velocity (NaN when unknown)
     c_true: Clearance
     c_perc: Clearance
-    overstated: bool  # c_perc − c_true >= understate_min
+    overstated: bool  # looked safer by understate_min, displaced or hiding the conflict
+    displacement: float = math.nan  # max |perceived − real| centre over the window
+    threshold: float = math.nan  # the displacement threshold
+    velocity_wrong: bool = False  # velocity_error > perc3d_velocity_error
+    misled: Misled | None = None  # the velocity test over the plan (None: not run)
 
     @property
     def matched(self) -> bool:
         return self.object_id is not None
 
     @property
+    def misleading(self) -> bool:
+        """A wrong velocity that made the partner look safer over the stack's plan."""
+        return self.misled is not None and self.misled.optimistic
+
+    @property
+    def degraded(self) -> bool:
+        """Missed, overstated, or moving as it does not: perception let the stack down."""
+        return not self.matched or self.overstated or self.misleading
+
+    @property
     def correct(self) -> bool:
-        """Matched and not overstated: prediction may be judged from this perception."""
-        return self.matched and not self.overstated
+        """Matched, not overstated, velocity right: prediction may be judged from it (a
+        prediction that propagates a wrong perceived velocity is not prediction's error)."""
+        return self.matched and not self.overstated and not self.velocity_wrong
+
+
+@dataclass(frozen=True)
+class Misled:
+    """The velocity test: real and perceived partner at constant velocity over every step
+    of the stack's plan (its own horizon, not only the judged window)."""
+
+    horizon: int  # plan steps compared
+    c_true: float
+    c_perc: float
+    optimistic: bool  # c_perc − c_true >= understate_min
 
 
 NAN2 = (math.nan, math.nan)
+#: The velocity test looks at most this far ahead (s), whatever steps a plan names.
+MISLED_MAX_S = 10.0
 PARTNER: CacheName[PartnerPerception | None] = CacheName("partner_perception")
 
 
@@ -142,12 +179,21 @@ def real_velocity(cc: CorrectedContext, actor_id: str, ts: int) -> FloatArray:
     return np.full(2, np.nan)
 
 
-def moving_boxes(
-    center: FloatArray, velocity: FloatArray, yaw: float, half: FloatArray, cc: CorrectedContext
-) -> Series:
-    """Boxes at indices 0..W of a box moving at constant velocity from ``center``."""
-    t = cc.seconds(np.arange(cc.window + 1))
-    return Series(center[None, :] + t[:, None] * velocity[None, :], np.full(len(t), yaw), half)
+@dataclass(frozen=True)
+class Motion:
+    """A box at ts moving at constant velocity: how rule 2b propagates both the real and
+    the perceived partner, so only their states at ts differ."""
+
+    center: FloatArray  # (2,) world metres
+    velocity: FloatArray  # (2,) m/s
+    yaw: float  # degrees
+    half: FloatArray  # (2,) half extents
+
+    def boxes(self, cc: CorrectedContext, horizon: int) -> Series:
+        """Boxes at indices 0..``horizon`` (index i is i frames after ts)."""
+        t = cc.seconds(np.arange(horizon + 1))
+        moved = self.center[None, :] + t[:, None] * self.velocity[None, :]
+        return Series(moved, np.full(len(t), self.yaw), self.half)
 
 
 def _assess(cc: CorrectedContext, ts: int, partner: str | None) -> PartnerPerception | None:
@@ -161,44 +207,75 @@ def _assess(cc: CorrectedContext, ts: int, partner: str | None) -> PartnerPercep
         )
     col = match.actor_ids.index(partner)
     row = match.object_of(partner)
-    center, half, yaw = match.actor_center[col], match.actor_half[col], match.actor_yaw[col]
     velocity = real_velocity(cc, partner, ts)
+    real = Motion(
+        match.actor_center[col], velocity, float(match.actor_yaw[col]), match.actor_half[col]
+    )
     plan = cc.plan(ts)
-    true_boxes = moving_boxes(center, velocity, float(yaw), half, cc)
+    ego = plan.boxes if plan else None
+    in_range = bool(match.actor_in_range[col])
     if row is None:
-        (c_true,) = pair_clearances([(plan.boxes if plan else None, true_boxes)], cc.window)
+        (c_true,) = pair_clearances([(ego, real.boxes(cc, cc.window))], cc.window)
+        none = undefined_clearance(cc.window)
         return PartnerPerception(
-            partner,
-            bool(match.actor_in_range[col]),
-            None,
-            math.nan,
-            math.nan,
-            NAN2,
-            math.nan,
-            c_true,
-            undefined_clearance(cc.window),
-            False,
+            partner, in_range, None, math.nan, math.nan, NAN2, math.nan, c_true, none, False
         )
     objects = match.objects
-    o_center, o_half = objects.location[row, :2], objects.extent[row, :2]
-    o_yaw, o_velocity = float(objects.yaw[row]), objects.velocity[row, :2]
+    o_velocity = objects.velocity[row, :2]
     known = bool(np.isfinite(o_velocity).all())
-    seen_boxes = moving_boxes(o_center, o_velocity if known else velocity, o_yaw, o_half, cc)
-    ego = plan.boxes if plan else None
-    c_true, c_perc = pair_clearances([(ego, true_boxes), (ego, seen_boxes)], cc.window)
-    size = 2.0 * (o_half - half)
+    seen = Motion(
+        objects.location[row, :2],
+        o_velocity if known else velocity,
+        float(objects.yaw[row]),
+        objects.extent[row, :2],
+    )
+    real_boxes, seen_boxes = real.boxes(cc, cc.window), seen.boxes(cc, cc.window)
+    c_true, c_perc = pair_clearances([(ego, real_boxes), (ego, seen_boxes)], cc.window)
+    displaced = displacement(seen_boxes, real_boxes)
+    threshold = displacement_threshold(cc, path_length(real_boxes))
+    p = cc.params
+    hidden = c_perc.value >= p.safety_margin > c_true.value  # the error hid the conflict
+    overstated = c_perc.value - c_true.value >= p.understate_min and (
+        displaced > threshold or hidden
+    )
+    size = 2.0 * (seen.half - real.half)
+    velocity_error = float(np.hypot(*(o_velocity - velocity))) if known else math.nan
+    velocity_wrong = velocity_error > p.perc3d_velocity_error  # False for NaN
+    misled = _misled(cc, ts, real, seen) if velocity_wrong else None
     return PartnerPerception(
         partner_id=partner,
-        in_range=bool(match.actor_in_range[col]),
+        in_range=in_range,
         object_id=objects.ids[row],
-        position_error=float(np.hypot(*(o_center - center))),
-        yaw_error=float(yaw_error(o_yaw, yaw)),
+        position_error=float(np.hypot(*(seen.center - real.center))),
+        yaw_error=float(yaw_error(seen.yaw, real.yaw)),
         extent_error=(float(size[0]), float(size[1])),
-        velocity_error=float(np.hypot(*(o_velocity - velocity))) if known else math.nan,
+        velocity_error=velocity_error,
         c_true=c_true,
         c_perc=c_perc,
-        overstated=bool(c_perc.value - c_true.value >= cc.params.understate_min),
+        overstated=bool(overstated),
+        displacement=displaced,
+        threshold=threshold,
+        velocity_wrong=velocity_wrong,
+        misled=misled,
     )
+
+
+def _misled(cc: CorrectedContext, ts: int, real: Motion, seen: Motion) -> Misled | None:
+    """The velocity test at ts over every step of the stack's plan at ts (at most
+    ``MISLED_MAX_S``); None without a plan with a step beyond 0 or a pose at ts."""
+    plan, pose = cc.log.waypoints.get(ts), cc.log.pose.get(ts)
+    if plan is None or pose is None:
+        return None
+    horizon = min(int(key_steps(plan.keys).max(initial=-1)), round(MISLED_MAX_S * 1000 / cc.tpf))
+    built = build_plan(plan, pose, cc.ego_half, horizon) if horizon >= 1 else None
+    if built is None:
+        return None
+    c_true, c_perc = pair_clearances(
+        [(built.boxes, real.boxes(cc, horizon)), (built.boxes, seen.boxes(cc, horizon))],
+        horizon,
+    )
+    optimistic = bool(c_perc.value - c_true.value >= cc.params.understate_min)
+    return Misled(horizon, c_true.value, c_perc.value, optimistic)
 
 
 def _not_matched(cc: CorrectedContext, ts: int, thresholds: dict[str, float]) -> OracleResult:
@@ -242,10 +319,21 @@ def perception3d(ctx: RunContext, ts: int) -> OracleResult:
         partner_yaw_error=num(seen.yaw_error),
         partner_extent_error=list(seen.extent_error),
         partner_velocity_error=num(seen.velocity_error),
+        partner_displacement=num(seen.displacement),
+        displacement_threshold=num(seen.threshold),
     )
     ids = (partner,) if seen.object_id is None else (partner, seen.object_id)
-    degraded = seen.in_range and (not seen.matched or seen.overstated)
-    metrics["unconditioned"] = bool(degraded)
+    if seen.misled is not None:
+        metrics.update(
+            misled_horizon=seen.misled.horizon,
+            misled_c_true=num(seen.misled.c_true),
+            misled_c_perc=num(seen.misled.c_perc),
+        )
+    metrics["velocity_wrong"] = seen.velocity_wrong
+    metrics["misled"] = seen.misleading
+    degraded = seen.in_range and seen.degraded
+    # The fallback's test is the error alone, as rule 3's (e above the threshold).
+    metrics["unconditioned"] = bool(degraded or (seen.in_range and seen.velocity_wrong))
     if not seen.in_range:
         return OracleResult("perception", ts, False, metrics, thresholds, ids)
     absent = missing_inputs(cc, ts, ("pose", "waypoint"), "3-D perception check (clearances)")

@@ -488,18 +488,24 @@ def _frames(
     failing: dict[Module, Iterable[int]],
     unconditioned: dict[Module, Iterable[int]] | None = None,
     last: int | None = None,
+    conflict: Iterable[int] = (),
 ) -> tuple[list[FrameResults], RunContext]:
-    """Fake per-frame results for frames 1..last with the given failing frames."""
+    """Fake per-frame results for frames 1..last with the given failing frames (and
+    ``real_conflict`` true at the ``conflict`` frames)."""
     end = last if last is not None else max(cf, 1)
     log = build_log(straight(0.0, 0.0, end + 2), straight(3.0, 0.0, end + 2), end, cf)
     ctx = context(log)
     fail = {m: set(v) for m, v in failing.items()}
     uncond = {m: set(v) for m, v in (unconditioned or {}).items()}
+    conflicts = set(conflict)
     frames = []
     for f in range(1, end + 1):
         frame = FrameResults(f * TPF, f)
         for m in MODULES:
-            metrics: dict[str, Metric] = {"unconditioned": f in uncond.get(m, set())}
+            metrics: dict[str, Metric] = {
+                "unconditioned": f in uncond.get(m, set()),
+                "real_conflict": f in conflicts,
+            }
             frame.results[m] = OracleResult(m, f * TPF, f in fail.get(m, set()), metrics)
         frames.append(frame)
     return frames, ctx
@@ -542,6 +548,40 @@ def test_planning_after_control_is_contributing(planning_from: int, primary: str
     assert a.root_causes == ["planning", "controller"]
     assert a.primary_root_cause == primary
     assert a.contributing == [m for m in ("planning", "controller") if m != primary]
+
+
+@pytest.mark.parametrize(
+    ("prediction", "conflict", "primary"),
+    [
+        # Judged right in a real conflict where planning began, never failing after:
+        # the planner failed on a correct prediction.
+        ([20, 21], range(18, 31), "planning"),
+        ([20, 21], range(18, 22), "prediction"),  # not judged in a conflict at 22
+        ([20, 21, 22], range(18, 31), "prediction"),  # still failing when planning began
+        ([20, 21, 28], range(18, 31), "prediction"),  # a later failing frame, even uncounted
+    ],
+)
+def test_a_prediction_that_recovered_before_planning_failed_is_contributing(
+    prediction: list[int], conflict: range, primary: str
+) -> None:
+    frames, ctx = _frames(
+        30, {"prediction": prediction, "planning": range(22, 29)}, conflict=conflict
+    )
+    a = attribute_corrected(frames, ctx)
+    assert a.root_causes == ["prediction", "planning"]
+    assert a.primary_root_cause == primary
+    assert a.contributing == [m for m in ("prediction", "planning") if m != primary]
+
+
+def test_a_recovered_prediction_before_planning_after_control_leaves_control() -> None:
+    frames, ctx = _frames(
+        30,
+        {"prediction": [18, 19], "controller": [21, 22, 23], "planning": range(24, 29)},
+        conflict=range(18, 31),
+    )
+    a = attribute_corrected(frames, ctx)
+    assert a.primary_root_cause == "controller"
+    assert a.contributing == ["prediction", "planning"]
 
 
 def test_fallback_to_unconditioned_tests() -> None:

@@ -7,14 +7,17 @@ control ``control_min_persistence``); runs are maximal runs of consecutive analy
 inside the window. The primary root cause is the most upstream module with counted failures,
 except that a planning failure whose first counted frame is strictly after the
 controller's is contributing, not primary (the planner plans from the state the controller
-delivered). With a collision but no counted failure, the unconditioned tests of perception
-and prediction (``metrics["unconditioned"]``) are used the same way, and the basis says so.
+delivered), and so is a prediction failure that had ended where planning's counted failure
+begins, prediction judged right there in a real conflict (the planner then failed on a
+correct prediction with a safer plan at hand). With a collision but no counted failure,
+the unconditioned tests of perception and prediction (``metrics["unconditioned"]``) are
+used the same way, and the basis says so.
 Otherwise "no fault found" with its reason. Each blamed module carries its evidence.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 
 from ads_rca.oracles.base import MODULES, Metric, Module, OracleResult, RunContext
 from ads_rca.oracles.corrected.context import corrected_context
@@ -136,7 +139,9 @@ def attribute_corrected(frames: Sequence[FrameResults], ctx: RunContext) -> Attr
         if fallback:
             basis, runs_by_module = BASIS_FALLBACK, fallback
     root_causes = [m for m in MODULES if m in runs_by_module]
-    primary = _primary(root_causes, lambda m: runs_by_module[m][0][0])
+    first = {m: runs[0][0] for m, runs in runs_by_module.items()}
+    recovered = "planning" in first and _recovered(window, first["planning"])
+    primary = _primary(root_causes, first, recovered)
     for module in root_causes:
         modules[module].evidence = _evidence(window, runs_by_module[module], module, basis)
     reason = None
@@ -157,14 +162,32 @@ def _ts(frame: FrameResults) -> int:
     return frame.timestamp_ms
 
 
-def _primary(root_causes: list[Module], first: Callable[[Module], int]) -> Module | None:
-    """Most upstream, skipping planning when it began strictly after the controller."""
+def _recovered(window: Sequence[FrameResults], planning_start: int) -> bool:
+    """Whether prediction was judged right, in a real conflict, where planning's counted
+    failure begins (window position), and never failed from there on."""
+    result = window[planning_start].results.get("prediction")
+    judged_right = (
+        result is not None
+        and not result.failed
+        and result.skipped is None
+        and result.metrics.get("real_conflict") is True
+    )
+    return judged_right and not any(_failed(f, "prediction") for f in window[planning_start:])
+
+
+def _primary(
+    root_causes: list[Module], first: dict[Module, int], prediction_recovered: bool
+) -> Module | None:
+    """Most upstream, skipping planning when it began strictly after the controller, and
+    prediction when it had recovered before planning failed."""
     for module in root_causes:
         if (
             module == "planning"
             and "controller" in root_causes
-            and first("planning") > first("controller")
+            and first["planning"] > first["controller"]
         ):
+            continue
+        if module == "prediction" and prediction_recovered:
             continue
         return module
     return None

@@ -217,6 +217,20 @@ def test_bad_bag_options_are_one_line(
         assert said in done.stderr and done.stderr.count("\n") == 1, (command, done.stderr)
 
 
+@pytest.mark.parametrize("profile", [CARLA, "vision_msgs"])
+def test_a_stacks_recording_read_without_its_profile_names_the_profile(
+    bags: dict[str, Path], profile: str
+) -> None:
+    for command in ("diagnose", "inspect"):
+        done = run(command, str(bags[f"{profile}/mcap"]))
+        assert done.returncode == 2, (command, done.stdout)
+        assert done.stderr.count("\n") == 1, (command, done.stderr)
+        assert "the bag has no run/metadata message" in done.stderr
+        assert done.stderr.rstrip().endswith(
+            f"its topics are the {profile} profile's: add --profile {profile}"
+        ), (command, done.stderr)
+
+
 def test_convert_writes_a_log_folder_as_a_stacks_recording(tmp_path: Path) -> None:
     folder, bag = tmp_path / "run", tmp_path / "bag"
     made = run(

@@ -370,6 +370,19 @@ def topic_keys(
     return {full[key]: key for key in topics.ALL_TOPICS if full[key] in names}
 
 
+class NoRunMetadata(InputError):
+    """A bag read with this project's contract has no run/metadata: often a real stack's
+    recording read without its profile (the message then says which)."""
+
+
+def _profile_hint(contents: BagContents) -> str:
+    """"; …: add --profile NAME" when a built-in stack profile's topics are in the bag."""
+    from ads_rca.profiles.profile import matching_builtin  # profiles read bags: no cycle
+
+    name = matching_builtin(contents.topics)
+    return f"; its topics are the {name} profile's: add --profile {name}" if name else ""
+
+
 def read_bag(
     path: str | os.PathLike[str],
     remap: Remap | str | os.PathLike[str] | None = None,
@@ -403,9 +416,9 @@ def read_bag(
         why += [p for p in problems if p.action == KEPT_BEFORE_CUT]
         why += [p for p in problems if p.file.endswith(BAG_SUFFIXES) and p.severity == "error"]
         cut = [f"{p.file}: {p.field}: {p.issue}" for p in why]
-        raise InputError(
+        raise NoRunMetadata(
             f"{path}: the bag has no run/metadata message (map one, or give 'metadata' in "
-            "the remapping file)" + (f"; {cut[0]}" if cut else "")
+            "the remapping file)" + (f"; {cut[0]}" if cut else "") + _profile_hint(contents)
         )
     try:
         log = assembler.build()

@@ -450,6 +450,33 @@ def test_prediction_without_pwp_is_judged_on_the_linked_raw_track() -> None:
     assert number(wrong, "displacement_error") == pytest.approx(5.0)
 
 
+def test_a_raw_prediction_answers_for_its_model_not_for_perceptions_accepted_error() -> None:
+    # The standing car perceived 0.4 m further (rule 2b accepts it: c_perc − c_true = 0.4
+    # but displaced 0.4 ≤ 0.5 and c_perc 0.4 < safety_margin): the stack predicts it
+    # exactly from there. The reference is reality moved by that perception error, so the
+    # prediction's own error is 0 and c_ref = c_raw = 0.4 (c_gt = 0).
+    log = head_on()
+    log.tracks_3d[CONFLICT] = objects((30.4, 0.0), CAR_HALF, (0.0, 0.0))
+    track = log.predictions[CONFLICT][TRACK]
+    moved = track.offsets.copy()
+    moved[:, 0] += 0.4
+    log.predictions[CONFLICT] = {TRACK: Track(track.keys, moved)}
+    assert run(log, "perception", CONFLICT).metrics["overstated"] is False
+    exact = run(log, "prediction", CONFLICT)
+    assert number(exact, "displacement_error") == pytest.approx(0.0, abs=1e-9)
+    assert number(exact, "c_ref") == pytest.approx(0.4)
+    assert number(exact, "c_raw") == pytest.approx(0.4)
+    assert number(exact, "c_gt") == pytest.approx(0.0, abs=1e-9)
+    assert not exact.failed
+    # Its own model error on top (predicted driving away at 2 m/s) is measured from there.
+    moved[:, 0] += 0.1 * np.arange(1, HORIZON + 1)
+    log.predictions[CONFLICT] = {TRACK: Track(track.keys, moved)}
+    wrong = run(log, "prediction", CONFLICT)
+    assert number(wrong, "displacement_error") == pytest.approx(1.0)
+    assert number(wrong, "c_raw") == pytest.approx(1.4)
+    assert wrong.failed  # understated by 1.0 from c_ref, displaced 1.0 > 0.5
+
+
 def test_prediction_is_not_judged_where_perception_of_the_partner_was_wrong() -> None:
     log = head_on()
     log.tracks_3d[CONFLICT] = no_objects()

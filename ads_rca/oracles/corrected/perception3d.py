@@ -112,6 +112,8 @@ class PartnerPerception:
     threshold: float = math.nan  # the displacement threshold
     velocity_wrong: bool = False  # velocity_error > perc3d_velocity_error
     misled: Misled | None = None  # the velocity test over the plan (None: not run)
+    #: perceived − real centre at indices 0..W (both at constant velocity); None unmatched
+    offset: FloatArray | None = None
 
     @property
     def matched(self) -> bool:
@@ -257,6 +259,7 @@ def _assess(cc: CorrectedContext, ts: int, partner: str | None) -> PartnerPercep
         threshold=threshold,
         velocity_wrong=velocity_wrong,
         misled=misled,
+        offset=seen_boxes.center - real_boxes.center,
     )
 
 

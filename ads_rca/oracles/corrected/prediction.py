@@ -20,8 +20,14 @@ import numpy as np
 from ads_rca.geometry import ego_to_world
 from ads_rca.model import EgoPose, Predictions
 from ads_rca.oracles.base import Metric, OracleResult, RunContext
-from ads_rca.oracles.corrected.boxes import step_order
-from ads_rca.oracles.corrected.clearance import Clearance, PartnerView, partner_view
+from ads_rca.oracles.corrected.boxes import Series, step_order
+from ads_rca.oracles.corrected.clearance import (
+    Clearance,
+    PartnerView,
+    displacement,
+    pair_clearances,
+    partner_view,
+)
 from ads_rca.oracles.corrected.common import (
     REPORTED,
     clearance_metrics,
@@ -31,7 +37,7 @@ from ads_rca.oracles.corrected.common import (
 )
 from ads_rca.oracles.corrected.context import CorrectedContext, corrected_context
 from ads_rca.oracles.corrected.match3d import frame_match, raw_without_pwp
-from ads_rca.oracles.corrected.perception3d import partner_perception
+from ads_rca.oracles.corrected.perception3d import PartnerPerception, partner_perception
 
 #: A final displacement error above this is a miss (the usual motion-forecasting metric).
 MISS_DISTANCE = 2.0
@@ -155,7 +161,8 @@ def prediction(ctx: RunContext, ts: int) -> OracleResult:
 def raw_prediction(cc: CorrectedContext, ts: int, thresholds: dict[str, float]) -> OracleResult:
     """Rule 3 without predictions on ground truth (rule 2b's reading): the partner's raw
     track, linked by the 3-D match, judged only where the partner was perceived correctly
-    at ts, so that the prediction started from a correct perception as pwp would."""
+    at ts, against reality as perceived (:func:`perceived_reality`), so that it answers for
+    its own model as pwp would."""
     absent = missing_inputs(cc, ts, ("pose", "predictions"), "prediction check (raw)")
     if absent:
         return skipped("prediction", ts, f"missing {', '.join(absent)}", thresholds=thresholds)
@@ -173,8 +180,9 @@ def raw_prediction(cc: CorrectedContext, ts: int, thresholds: dict[str, float]) 
     if view.raw is None:
         return skipped("prediction", ts, "no raw prediction of the partner", metrics, thresholds)
     thresholds["displacement_threshold"] = view.threshold
-    e = view.raw_displacement  # against the real boxes: without pwp they are the reference
-    e_over, understated, hidden, judged = judge(cc, view.c_raw, view.c_gt, e, view)
+    ref, c_ref = perceived_reality(cc, ts, view, seen)
+    e = displacement(view.raw, ref)
+    e_over, understated, hidden, judged = judge(cc, view.c_raw, c_ref, e, view)
     metrics.update(
         partner_in_view=seen.in_range,
         partner_in_raw=True,
@@ -188,6 +196,7 @@ def raw_prediction(cc: CorrectedContext, ts: int, thresholds: dict[str, float]) 
         pessimistic=bool(view.c_raw.value < view.c_gt.value),
         unconditioned=bool(e_over),
         **clearance_metrics("c_gt", view.c_gt),
+        **clearance_metrics("c_ref", c_ref),
         **clearance_metrics("c_raw", view.c_raw),
     )
     failed = bool(view.real_conflict and judged)
@@ -197,3 +206,17 @@ def raw_prediction(cc: CorrectedContext, ts: int, thresholds: dict[str, float]) 
         reason = "missing waypoint"
     ids = (seen.partner_id,) if view.raw_id is None else (seen.partner_id, view.raw_id)
     return OracleResult("prediction", ts, failed, metrics, thresholds, ids, reason)
+
+
+def perceived_reality(
+    cc: CorrectedContext, ts: int, view: PartnerView, seen: PartnerPerception
+) -> tuple[Series | None, Clearance]:
+    """The reference of a raw prediction: the partner's real boxes moved by the state error
+    perception made at ts (and rule 2b accepted), so prediction answers only for its own
+    model, as a prediction on ground truth would."""
+    if view.real is None or seen.offset is None:
+        return view.real, view.c_gt
+    ref = Series(view.real.center + seen.offset, view.real.yaw, view.real.half)
+    plan = cc.plan(ts)
+    (c_ref,) = pair_clearances([(plan.boxes if plan else None, ref)], cc.window)
+    return ref, c_ref

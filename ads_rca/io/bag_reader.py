@@ -376,7 +376,8 @@ class NoRunMetadata(InputError):
 
 
 def _profile_hint(contents: BagContents) -> str:
-    """"; …: add --profile NAME" when a built-in stack profile's topics are in the bag."""
+    """The error's ending "…: add --profile NAME" when a built-in stack profile's topics
+    are in the bag (else nothing)."""
     from ads_rca.profiles.profile import matching_builtin  # profiles read bags: no cycle
 
     name = matching_builtin(contents.topics)

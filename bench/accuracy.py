@@ -18,9 +18,14 @@ prediction are judged from the 3-D objects alone.
 stack records it (``--storage`` mcap or sqlite3, rosbags' writer) and read back through the
 profile with the bag's own types, as ``ads-rca diagnose BAG --profile carla-autoware`` does.
 
+``--noise 1,3,6,10`` runs the same scenario × fault × seed set at each synthesiser noise
+level (``ads-rca synth --noise``) and prints each level's tables, its accuracy per fault kind,
+then the accuracy of each fault kind against the noise level; a scene the synthesiser refuses
+at a level is skipped and counted. With one level (the default 1) the output is as before.
+
 Usage: ``python bench/accuracy.py [N] [--scenarios a,b] [--faults x,y] [--drop-2d]
-[--bag PROFILE [--storage S]] [--first SEED] [--actors K] [--horizon H]`` (the last two are
-passed to the synthesiser).
+[--bag PROFILE [--storage S]] [--noise K,K...] [--first SEED] [--actors K] [--horizon H]``
+(the last two are passed to the synthesiser).
 """
 
 from __future__ import annotations
@@ -32,6 +37,7 @@ import tempfile
 import time
 from collections import Counter
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from ads_rca.engine import diagnose as diagnose_log
@@ -48,8 +54,12 @@ from ads_rca.synth import (
     fault_module,
     synthesise,
 )
+from ads_rca.synth.noise import LEVELS
 from ads_rca.synth.recording import PROFILES, write_recording
 from ads_rca.verdict import Attribution
+
+#: A fault is named by its module, as the verdict names it.
+LABELS = list(FAULTS)
 
 
 def diagnose(log: RunLog) -> tuple[Attribution, float]:
@@ -88,42 +98,57 @@ def fault_names(text: str) -> list[str]:
     return names
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("seeds", nargs="?", type=int, default=20)
-    parser.add_argument("--first", type=int, default=0, help="first seed")
-    parser.add_argument("--scenarios", default=",".join(s for s in SCENARIOS if s != "cruise"))
-    parser.add_argument("--faults", default=",".join(FAULTS), help="faults, or 'variants'")
-    parser.add_argument(
-        "--drop-2d", action="store_true", help="diagnose without bboxes, bboxes_gt and pwp"
-    )
-    parser.add_argument("--bag", choices=PROFILES, help="diagnose each log through a bag")
-    parser.add_argument("--storage", choices=("mcap", "sqlite3"), default="mcap")
-    parser.add_argument("--actors", type=int, default=None, help="background actors")
-    parser.add_argument("--horizon", type=int, default=None, help="prediction/plan steps")
-    args = parser.parse_args(argv)
-    scenarios = [s for s in args.scenarios.split(",") if s]
-    faults = fault_names(args.faults)
-    options = {
-        name: value
-        for name, value in (("actors", args.actors), ("horizon", args.horizon))
-        if value is not None
-    }
-    labels = list(FAULTS)  # a fault is named by its module, as the verdict names it
-    confusion: Counter[tuple[str, str]] = Counter()
-    per_scenario: Counter[tuple[str, bool]] = Counter()
-    per_cell: Counter[tuple[str, str, bool]] = Counter()
-    wrong: list[str] = []
-    scratch = Path(tempfile.mkdtemp(prefix="accuracy-"))
-    atexit.register(shutil.rmtree, scratch, True)
-    times: list[float] = []
+def noise_levels(text: str) -> list[float]:
+    """The levels ``--noise`` names (a comma list, each within the synthesiser's range)."""
+    levels: list[float] = []
+    for item in (n.strip() for n in text.split(",") if n.strip()):
+        try:
+            level = float(item)
+        except ValueError:
+            raise SystemExit(f"--noise: {item!r} is not a number") from None
+        if not (LEVELS.low <= level <= LEVELS.high):  # False for NaN too
+            raise SystemExit(f"--noise: {item} is out of range {LEVELS.text()}")
+        levels.append(level)
+    if not levels:
+        raise SystemExit("--noise: give at least one level")
+    return levels
+
+
+@dataclass
+class Tally:
+    """The outcome of one noise level's runs."""
+
+    confusion: Counter[tuple[str, str]] = field(default_factory=Counter)
+    per_scenario: Counter[tuple[str, bool]] = field(default_factory=Counter)
+    per_cell: Counter[tuple[str, str, bool]] = field(default_factory=Counter)
+    wrong: list[str] = field(default_factory=list)
+    times: list[float] = field(default_factory=list)
+    skipped: int = 0
+
+    def accuracy(self, fault: str | None = None) -> tuple[int, int]:
+        """(correct, total) of one injected fault kind, or of all."""
+        cells = [(k, n) for k, n in self.per_cell.items() if fault in (None, k[1])]
+        return sum(n for k, n in cells if k[2]), sum(n for _, n in cells)
+
+
+def run_level(
+    args: argparse.Namespace,
+    scenarios: list[str],
+    faults: list[str],
+    noise: float,
+    options: dict[str, int],
+    scratch: Path,
+) -> Tally:
+    """Synthesise and diagnose every scenario × fault × seed at noise level ``noise``."""
+    tally = Tally()
     for scenario in scenarios:
         for fault in faults:
             for seed in range(args.first, args.first + args.seeds):
                 try:
-                    log = synthesise(scenario, fault, seed, **options)
+                    log = synthesise(scenario, fault, seed, noise, **options)
                 except SynthesisError as error:
                     print(f"skip {scenario} {fault} {seed}: {error}")
+                    tally.skipped += 1
                     continue
                 if args.drop_2d:
                     drop_2d(log)
@@ -131,25 +156,31 @@ def main(argv: Sequence[str] | None = None) -> int:
                 if args.bag:
                     log = through_bag(log, args.bag, args.storage, scratch)
                 attribution, ms = diagnose(log)
-                times.append(ms)
+                tally.times.append(ms)
                 got = attribution.primary_root_cause or "none"
                 injected = canonical_fault(label["fault"])
                 want = fault_module(injected)
-                confusion[injected, got] += 1
-                per_scenario[scenario, got == want] += 1
-                per_cell[scenario, injected, got == want] += 1
+                tally.confusion[injected, got] += 1
+                tally.per_scenario[scenario, got == want] += 1
+                tally.per_cell[scenario, injected, got == want] += 1
                 if got != want:
-                    wrong.append(
+                    tally.wrong.append(
                         f"{scenario:20s} {fault:19s} seed {seed:3d}: got {got}"
                         f" (root causes {attribution.root_causes},"
                         f" basis {attribution.attribution_basis!r},"
                         f" reason {attribution.reason})"
                     )
-    width = max(len(x) for x in labels) + 2
-    print("injected \\ primary".ljust(20) + "".join(x.rjust(width) for x in labels))
+    return tally
+
+
+def report_level(tally: Tally, scenarios: list[str], faults: list[str]) -> None:
+    """One level's confusion table, accuracy per scenario × fault, per scenario, overall."""
+    confusion, per_scenario, per_cell = tally.confusion, tally.per_scenario, tally.per_cell
+    width = max(len(x) for x in LABELS) + 2
+    print("injected \\ primary".ljust(20) + "".join(x.rjust(width) for x in LABELS))
     for injected in ALL_FAULTS:
-        if any(confusion[injected, g] for g in labels):
-            row = "".join(str(confusion[injected, g]).rjust(width) for g in labels)
+        if any(confusion[injected, g] for g in LABELS):
+            row = "".join(str(confusion[injected, g]).rjust(width) for g in LABELS)
             print(injected.ljust(20) + row)
     print()
     print("scenario × fault".ljust(46) + "correct")
@@ -168,10 +199,77 @@ def main(argv: Sequence[str] | None = None) -> int:
     correct = sum(per_scenario[scenario, True] for scenario in scenarios)
     if total:
         print(f"overall accuracy: {correct}/{total} = {100 * correct / total:.1f} %")
+        times = tally.times
         print(f"diagnose: {sum(times) / len(times):.2f} ms per frame (oracles + attribution, mean)")
-    if wrong:
+    if tally.wrong:
         print("\nmisattributed:")
-        print("\n".join(wrong))
+        print("\n".join(tally.wrong))
+
+
+def _percent(counts: tuple[int, int]) -> str:
+    ok, total = counts
+    return f"{100 * ok / total:.1f} %" if total else "-"
+
+
+def report_levels(tallies: dict[float, Tally], faults: list[str]) -> None:
+    """The accuracy of each fault kind (rows) at each noise level (columns)."""
+    levels = list(tallies)
+    width = 10
+    print("fault kind × noise level (accuracy)")
+    print("fault \\ noise".ljust(20) + "".join(f"{k:g}".rjust(width) for k in levels))
+    for fault in faults:
+        row = "".join(_percent(tallies[k].accuracy(fault)).rjust(width) for k in levels)
+        print(fault.ljust(20) + row)
+    overall = "".join(_percent(tallies[k].accuracy()).rjust(width) for k in levels)
+    print("overall".ljust(20) + overall)
+    skipped = "".join(str(tallies[k].skipped).rjust(width) for k in levels)
+    print("skipped".ljust(20) + skipped)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("seeds", nargs="?", type=int, default=20)
+    parser.add_argument("--first", type=int, default=0, help="first seed")
+    parser.add_argument("--scenarios", default=",".join(s for s in SCENARIOS if s != "cruise"))
+    parser.add_argument("--faults", default=",".join(FAULTS), help="faults, or 'variants'")
+    parser.add_argument(
+        "--drop-2d", action="store_true", help="diagnose without bboxes, bboxes_gt and pwp"
+    )
+    parser.add_argument("--bag", choices=PROFILES, help="diagnose each log through a bag")
+    parser.add_argument("--storage", choices=("mcap", "sqlite3"), default="mcap")
+    parser.add_argument(
+        "--noise", default="1", help="synthesiser noise levels, comma separated (default 1)"
+    )
+    parser.add_argument("--actors", type=int, default=None, help="background actors")
+    parser.add_argument("--horizon", type=int, default=None, help="prediction/plan steps")
+    args = parser.parse_args(argv)
+    scenarios = [s for s in args.scenarios.split(",") if s]
+    faults = fault_names(args.faults)
+    levels = noise_levels(args.noise)
+    options = {
+        name: value
+        for name, value in (("actors", args.actors), ("horizon", args.horizon))
+        if value is not None
+    }
+    scratch = Path(tempfile.mkdtemp(prefix="accuracy-"))
+    atexit.register(shutil.rmtree, scratch, True)
+    if len(levels) == 1:
+        report_level(
+            run_level(args, scenarios, faults, levels[0], options, scratch), scenarios, faults
+        )
+        return 0
+    tallies: dict[float, Tally] = {}
+    for level in dict.fromkeys(levels):
+        print(f"=== noise level {level:g} ===")
+        tally = tallies[level] = run_level(args, scenarios, faults, level, options, scratch)
+        report_level(tally, scenarios, faults)
+        print()
+        print("accuracy per fault kind")
+        for fault in faults:
+            print(f"{fault:20s} {_percent(tally.accuracy(fault))}")
+        print(f"skipped: {tally.skipped}")
+        print()
+    report_levels(tallies, faults)
     return 0
 
 

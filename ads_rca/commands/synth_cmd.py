@@ -16,7 +16,9 @@ from ads_rca.errors import ConfigError
 from ads_rca.io.bag_writer import STORAGES, write_bag
 from ads_rca.io.json_writer import write_run_log
 from ads_rca.model import RunLog
+from ads_rca.paramspec import check_number
 from ads_rca.synth import ALL_FAULTS, SCENARIOS, SynthesisSummary, canonical_fault, synthesise_run
+from ads_rca.synth.noise import LEVELS
 from ads_rca.synth.recording import PROFILES, write_recording
 from ads_rca.text import printable
 
@@ -42,6 +44,13 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     parser.add_argument("--frames", type=int, help="log length when nothing crashes")
     parser.add_argument("--actors", type=int, help="number of background actors")
     parser.add_argument(
+        "--noise",
+        metavar="K",
+        default="1",
+        help="noise level: every perception sigma times K, plus a drifting localisation "
+        f"error above 1 (default 1; range {LEVELS.text()})",
+    )
+    parser.add_argument(
         "--profile",
         choices=BAG_PROFILES,
         help="write a rosbag2 bag into OUT_DIR, recorded as from a stack publishing this "
@@ -54,12 +63,14 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
 def run(args: argparse.Namespace) -> int:
     if args.storage is not None and args.profile is None:
         raise ConfigError("--storage: only with --profile (a log folder has no storage)")
+    # Checked here, not by argparse, so any bad value is one line naming --noise.
+    noise = float(check_number("--noise", args.noise, LEVELS))
     options = {
         name: value
         for name, value in (("frames", args.frames), ("actors", args.actors))
         if value is not None
     }
-    log, summary = synthesise_run(args.scenario, args.fault, args.seed, **options)
+    log, summary = synthesise_run(args.scenario, args.fault, args.seed, noise, **options)
     if args.profile is None:
         write_run_log(log, args.out_dir)
         print(printable(f"{args.out_dir}: {describe(summary)}"))

@@ -9,12 +9,15 @@ same seed always gives the same scene whatever the fault, and ``fault="none"`` i
 A variant fault (:data:`VARIANT_FAULTS`, e.g. ``perception:shifted``) takes the seed's scene
 too when it crashes into the partner there, else the next scene that is accepted and where it
 does (the summary's ``attempt`` says which); it never changes the other faults' scenes.
+``noise=K`` scales the stack's noise (:mod:`ads_rca.synth.noise`); a scene is accepted at
+each level on its own, since perception noise changes the closed loop.
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, TypedDict
+from typing import TYPE_CHECKING, NotRequired, TypedDict
 
+from ads_rca.errors import ConfigError
 from ads_rca.model import RunLog
 from ads_rca.synth.errors import SynthesisError
 from ads_rca.synth.faults import (
@@ -27,6 +30,7 @@ from ads_rca.synth.faults import (
     fault_module,
     onset_for,
 )
+from ads_rca.synth.noise import LEVELS, Noise
 from ads_rca.synth.scenarios import BUILDERS, DEFAULT_FRAMES, SCENARIOS
 from ads_rca.synth.simulate import SimResult, simulate
 from ads_rca.synth.world import Scene
@@ -39,6 +43,7 @@ __all__ = [
     "FAULTS",
     "SCENARIOS",
     "VARIANT_FAULTS",
+    "Noise",
     "SynthesisError",
     "SynthesisSummary",
     "canonical_fault",
@@ -49,8 +54,10 @@ __all__ = [
 
 MAX_ATTEMPTS = 25
 DEFAULT_HORIZON = 30
-#: (scenario, seed, attempt, frames, actors, horizon) -> whether every fault hits the partner.
-_ACCEPTED: dict[tuple[str, int, int, int, int, int], bool] = {}
+#: (scenario, seed, attempt, frames, actors, horizon, noise) -> whether every fault hits the
+#: partner.
+_Key = tuple[str, int, int, int, int, int, Noise]
+_ACCEPTED: dict[_Key, bool] = {}
 #: Variants that cannot turn a scenario's near miss into a crash, and why.
 INAPPLICABLE = {
     ("pedestrian_crossing", "perception:shrunk"): (
@@ -61,7 +68,7 @@ INAPPLICABLE = {
     ),
 }
 #: The same key and a variant fault -> whether that variant hits the partner too.
-_VARIANT_HITS: dict[tuple[tuple[str, int, int, int, int, int], str], bool] = {}
+_VARIANT_HITS: dict[tuple[_Key, str], bool] = {}
 
 
 class SynthesisSummary(TypedDict):
@@ -77,22 +84,32 @@ class SynthesisSummary(TypedDict):
     twin_reaction_frame: int
     collision_frame: int
     total_frames: int
+    noise: NotRequired[float]  # the noise level, only when it is not the default 1
 
 
-def synthesise(scenario: str, fault: str, seed: int, **options: int) -> RunLog:
-    """The run log of ``scenario`` with ``fault`` for ``seed``.
+def synthesise(
+    scenario: str, fault: str, seed: int, noise: float | Noise = 1.0, **options: int
+) -> RunLog:
+    """The run log of ``scenario`` with ``fault`` for ``seed`` at noise level ``noise``.
 
     Options: ``frames`` (log length without a crash), ``actors`` (background actors),
     ``horizon`` (prediction keys and plan steps). Metadata ``raw["synthesis"]`` records the
-    scenario, fault, seed, attempt, partner id, onset and the twin's reaction frame.
+    scenario, fault, seed, attempt, partner id, onset and the twin's reaction frame, and the
+    noise level when it is not 1 (a :class:`~ads_rca.synth.noise.Noise` may also turn the
+    localisation error off).
     """
-    return synthesise_run(scenario, fault, seed, **options)[0]
+    return synthesise_run(scenario, fault, seed, noise, **options)[0]
 
 
 def synthesise_run(
-    scenario: str, fault: str, seed: int, **options: int
+    scenario: str, fault: str, seed: int, noise: float | Noise = 1.0, **options: int
 ) -> tuple[RunLog, SynthesisSummary]:
     """:func:`synthesise`, also returning the synthesis summary."""
+    level = noise if isinstance(noise, Noise) else Noise(float(noise))
+    try:
+        LEVELS.check("noise", level.level)
+    except ConfigError as error:
+        raise SynthesisError(str(error)) from None
     fault = canonical_fault(fault)
     if scenario not in BUILDERS:
         raise SynthesisError(f"unknown scenario {scenario!r}; choose from {', '.join(SCENARIOS)}")
@@ -107,8 +124,8 @@ def synthesise_run(
             raise SynthesisError("the cruise scenario has no partner; only fault 'none' applies")
         frames = int(options.get("frames", 2000))
         scene = BUILDERS[scenario](_rng(seed, 0), frames, int(options.get("actors", 50)))
-        run = simulate(scene, NO_FAULT, seed, horizon)
-        return _finish(run, scene, scenario, fault, seed, 0, -1, -1)
+        run = simulate(scene, NO_FAULT, seed, horizon, level)
+        return _finish(run, scene, scenario, fault, seed, 0, -1, -1, level)
 
     if (scenario, fault) in INAPPLICABLE:
         raise SynthesisError(
@@ -121,16 +138,16 @@ def synthesise_run(
         n_background = actors if actors >= 0 else int(rng.integers(2, 7))
         scene = BUILDERS[scenario](rng, frames, n_background)
         sub_seed = seed * 1000 + attempt
-        twin = simulate(scene, NO_FAULT, sub_seed, horizon)
+        twin = simulate(scene, NO_FAULT, sub_seed, horizon, level)
         if twin.collision_frame >= 0 or twin.reaction_frame < 0:
             continue
         onset = onset_for(twin.reaction_frame)
-        key = (scenario, seed, attempt, frames, actors, horizon)
+        key = (scenario, seed, attempt, frames, actors, horizon, level)
         runs: dict[str, SimResult] = {"none": twin}
         if key not in _ACCEPTED:
             ok = True
             for module in FAULTS[1:]:
-                runs[module] = simulate(scene, FaultSpec(module, onset), sub_seed, horizon)
+                runs[module] = simulate(scene, FaultSpec(module, onset), sub_seed, horizon, level)
                 run = runs[module]
                 if run.collision_frame < 0 or run.collided_row != scene.partner:
                     ok = False
@@ -141,7 +158,7 @@ def synthesise_run(
         if _VARIANT_HITS.get((key, fault)) is False:
             continue
         if fault not in runs:
-            runs[fault] = simulate(scene, FaultSpec.named(fault, onset), sub_seed, horizon)
+            runs[fault] = simulate(scene, FaultSpec.named(fault, onset), sub_seed, horizon, level)
         if fault in VARIANT_FAULTS:
             run = runs[fault]
             hit = run.collision_frame >= 0 and run.collided_row == scene.partner
@@ -149,7 +166,7 @@ def synthesise_run(
             if not hit:
                 continue
         return _finish(
-            runs[fault], scene, scenario, fault, seed, attempt, onset, twin.reaction_frame
+            runs[fault], scene, scenario, fault, seed, attempt, onset, twin.reaction_frame, level
         )
     raise SynthesisError(
         f"no acceptable {scenario} scene for seed {seed} in {MAX_ATTEMPTS} attempts"
@@ -171,6 +188,7 @@ def _finish(
     attempt: int,
     onset: int,
     reaction: int,
+    noise: Noise,
 ) -> tuple[RunLog, SynthesisSummary]:
     partner = scene.actor_ids[scene.partner] if scene.partner >= 0 else None
     summary: SynthesisSummary = {
@@ -185,6 +203,8 @@ def _finish(
         "collision_frame": run.collision_frame,
         "total_frames": run.log.metadata.total_frames,
     }
+    if noise.level != 1.0:
+        summary["noise"] = noise.level
     meta = run.log.metadata
     run.log.metadata = type(meta)(
         meta.timesteps_per_frame,

@@ -1,9 +1,10 @@
 """Detector and tracker: the perception module of the simulated stack.
 
 The detector turns the camera's gt boxes into detections with relative (scale-free) corner
-noise, occasional misses of background objects, and its own per-frame ids. Alongside each
-box it reports a perceived 3-D position whose error is a slowly varying bias (like a depth
-estimate), so velocities derived from it stay realistic. The tracker (α-β-γ filter per
+noise, occasional misses of background objects, and its own per-frame ids (every σ comes
+from :class:`~ads_rca.synth.noise.Noise`, the run's noise level). Alongside each box it
+reports a perceived 3-D position whose error is a slowly varying bias (like a depth estimate),
+so velocities derived from it stay realistic. The tracker (α-β-γ filter per
 object) keeps its own track ids, bridges short dropouts by coasting and drops a track after
 ``MAX_COAST`` missed frames. Both are vectorised over actors: state arrays are indexed by
 actor row, which stands for the association a real tracker would do by gating.
@@ -23,13 +24,14 @@ import numpy as np
 
 from ads_rca.synth.camera import HEIGHT, WIDTH
 from ads_rca.synth.geometry import FloatArray
+from ads_rca.synth.noise import DEFAULT_NOISE, Noise
+
+# Re-exported: the perceived position's σ, as the 3-D checks of the tests read it.
+from ads_rca.synth.noise import POSITION_NOISE as POSITION_NOISE  # noqa: PLC0414
+from ads_rca.synth.noise import RANGE_NOISE as RANGE_NOISE  # noqa: PLC0414
 
 DT = 0.05
 MISS_PROBABILITY = 0.03  # background objects only
-BOX_NOISE = 0.02  # σ of corner noise, as a fraction of the box size
-POSITION_NOISE = 0.05  # m, plus RANGE_NOISE per metre of range
-RANGE_NOISE = 0.002
-YAW_NOISE = np.radians(1.0)
 BIAS_CORRELATION = 0.95
 MAX_COAST = 2  # frames a track survives without detections
 CONFIRM_AGE = 8  # frames before a track is published (filter settled)
@@ -54,8 +56,15 @@ class Detections:
 class Detector:
     """Noisy detector; draws the same random numbers every frame whatever it sees."""
 
-    def __init__(self, rng: np.random.Generator, n_actors: int, never_miss: int) -> None:
+    def __init__(
+        self,
+        rng: np.random.Generator,
+        n_actors: int,
+        never_miss: int,
+        noise: Noise = DEFAULT_NOISE,
+    ) -> None:
         self._rng = rng
+        self._noise = noise
         self._never_miss = never_miss
         self._bias = rng.standard_normal((n_actors, 2))
 
@@ -74,7 +83,7 @@ class Detector:
         box_noise = rng.standard_normal((n, 4))
         miss = np.less(rng.random(n), MISS_PROBABILITY)
         white = rng.standard_normal((n, 2))
-        yaw_noise = rng.standard_normal(n) * YAW_NOISE
+        yaw_noise = rng.standard_normal((n,)) * self._noise.yaw
         rho = BIAS_CORRELATION
         self._bias = rho * self._bias + np.sqrt(1 - rho * rho) * white
         if 0 <= self._never_miss < n:
@@ -82,11 +91,12 @@ class Detector:
         seen = in_view & ~miss & ~suppressed
         rows = np.flatnonzero(seen)
         size = np.stack([gt[:, 2] - gt[:, 0], gt[:, 3] - gt[:, 1]], axis=1)[rows]
-        corners = gt[rows] + box_noise[rows] * BOX_NOISE * np.concatenate([size, size], axis=1)
+        jitter = box_noise[rows] * self._noise.box
+        corners = gt[rows] + jitter * np.concatenate([size, size], axis=1)
         corners[:, [0, 2]] = np.clip(corners[:, [0, 2]], 0, WIDTH - 1)
         corners[:, [1, 3]] = np.clip(corners[:, [1, 3]], 0, HEIGHT - 1)
         rng_m = np.hypot(*(xy[rows] - ego_xy).T)
-        sigma = POSITION_NOISE + RANGE_NOISE * rng_m
+        sigma = self._noise.position(rng_m)
         position = xy[rows] + self._bias[rows] * sigma[:, None]
         order = np.argsort(corners[:, 0], kind="stable")
         return Detections(

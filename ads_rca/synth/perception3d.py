@@ -3,11 +3,11 @@
 
 The detector's 3-D objects are its detections as the tracker receives them: the perceived
 position (with the detector's slowly varying bias), heading, half extents with a per-frame
-relative noise of ``EXTENT_NOISE``, a measured velocity (NaN: this detector measures none,
-except the one a ``velocity`` fault makes up), a score falling with range, and the class.
-The tracks are the tracker's published state, keyed by the track ids the raw predictions
-use. Noise and scores come from their own generator, so the 2-D boxes, predictions and plans
-are the same numbers whether or not 3-D output is made.
+relative noise (``Noise.extent``, floored at half the size), a measured velocity (NaN: this
+detector measures none, except the one a ``velocity`` fault makes up), a score falling with
+range, and the class. The tracks are the tracker's published state, keyed by the track ids
+the raw predictions use. Noise and scores come from their own generator, so the 2-D boxes,
+predictions and plans are the same numbers whether or not 3-D output is made.
 
 The faults act on the partner's detection before the tracker, so the tracker, the raw
 predictions and the planner follow exactly as they would follow a real misperception:
@@ -33,11 +33,11 @@ import numpy as np
 
 from ads_rca.model import Objects3D
 from ads_rca.synth.geometry import FloatArray
+from ads_rca.synth.noise import DEFAULT_NOISE, Noise
 from ads_rca.synth.perception import DT, Detections, Tracker
 from ads_rca.synth.prediction import wrong_model
 from ads_rca.synth.world import PEDESTRIAN, VEHICLE, Scene
 
-EXTENT_NOISE = 0.03  # σ of the detected half extents, as a fraction
 SCORE_AT_ZERO = 0.95  # detection score at zero range, falling by SCORE_PER_METRE
 SCORE_PER_METRE = 0.003
 SCORE_NOISE = 0.03
@@ -155,8 +155,11 @@ class Misperception:
 class Output3D:
     """Turns each frame's detections and published tracks into :class:`Objects3D`."""
 
-    def __init__(self, rng: np.random.Generator, kinds: tuple[str, ...]) -> None:
+    def __init__(
+        self, rng: np.random.Generator, kinds: tuple[str, ...], noise: Noise = DEFAULT_NOISE
+    ) -> None:
         self._rng = rng
+        self._noise = noise
         self._labels = tuple(LABELS[k] for k in kinds)
 
     def detections(self, det: Detections, ego_xy: FloatArray) -> Objects3D:
@@ -166,7 +169,7 @@ class Output3D:
         n = len(self._labels)
         size_noise = self._rng.standard_normal((n, 3))[det.rows]
         score_noise = self._rng.standard_normal(n)[det.rows]
-        extent = det.size * np.maximum(1.0 + EXTENT_NOISE * size_noise, 0.5)
+        extent = det.size * np.maximum(1.0 + self._noise.extent * size_noise, 0.5)
         distance = np.hypot(*(det.position - ego_xy).T)
         score = SCORE_AT_ZERO - SCORE_PER_METRE * distance + SCORE_NOISE * score_noise
         velocity = _xyz(det.velocity)

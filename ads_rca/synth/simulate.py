@@ -5,12 +5,21 @@ what happened. Random numbers come from a generator seeded by the scene seed onl
 drawn identically whatever the fault, so a faulty run equals its twin up to the onset. The
 3-D perception output (``detections_3d``, ``tracks_3d``) draws its noise from a second
 generator of its own, and ``controls`` records each frame's command to the controller.
+
+The noise level (:class:`~ads_rca.synth.noise.Noise`) scales every perception σ. Its
+localisation error e_t is a pure translation of the stack's world frame, which changes no
+relative geometry: the loop (perception, prediction, planning, control) runs on the true pose
+exactly as without it, and e_t is added only to what the stack records in its own frame: the
+pose, the plan, the 3-D detections and tracks; ground-truth predictions are expressed relative
+to the localised pose. Ground truth (actors, also the ego's) and image boxes keep no e_t, and
+the raw predictions' body-frame offsets are unchanged (the stack's positions and its pose shift
+together).
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -20,6 +29,7 @@ from ads_rca.model import (
     Boxes,
     ControlCommand,
     EgoPose,
+    Objects3D,
     Plan,
     Predictions,
     RunLog,
@@ -30,6 +40,7 @@ from ads_rca.synth.camera import project_boxes
 from ads_rca.synth.control import Controller
 from ads_rca.synth.faults import BRAKE_GAIN, FaultSpec
 from ads_rca.synth.geometry import FloatArray, sat_gap, to_body, to_world
+from ads_rca.synth.noise import DEFAULT_NOISE, Noise
 from ads_rca.synth.perception import Detector, Tracker
 from ads_rca.synth.perception3d import Misperception, Output3D
 from ads_rca.synth.planning import Planner
@@ -57,11 +68,14 @@ def _f32(a: FloatArray) -> FloatArray:
     return a.astype(np.float32).astype(np.float64)
 
 
-def simulate(scene: Scene, fault: FaultSpec, seed: int, horizon: int = 30) -> SimResult:
-    """Run ``scene`` in closed loop with ``fault`` until a collision or the last frame."""
+def simulate(
+    scene: Scene, fault: FaultSpec, seed: int, horizon: int = 30, noise: Noise = DEFAULT_NOISE
+) -> SimResult:
+    """Run ``scene`` in closed loop with ``fault`` at ``noise`` until a collision or the last
+    frame."""
     n = len(scene.actor_ids)
     rng = np.random.default_rng([seed, 7])
-    detector = Detector(rng, n, never_miss=scene.partner)
+    detector = Detector(rng, n, never_miss=scene.partner, noise=noise)
     tracker = Tracker(n, first_id=1000 + int(rng.integers(0, 9000)))
     planner = Planner(scene.path, scene.ego_extent[:2], scene.desired_speed, horizon)
     controller = Controller()
@@ -77,7 +91,8 @@ def simulate(scene: Scene, fault: FaultSpec, seed: int, horizon: int = 30) -> Si
         p_t, p_b = scene.xy[t, scene.partner], scene.xy[t - 1, scene.partner]
         stale = (p_t, (p_t - p_b) / 0.05)
     misperception = Misperception(scene, stale_velocity=stale[1], stale_position=stale[0])
-    output_3d = Output3D(np.random.default_rng([seed, 11]), scene.kinds)
+    output_3d = Output3D(np.random.default_rng([seed, 11]), scene.kinds, noise)
+    localisation = noise.localisation_error(seed, scene.frames)
 
     log = RunLog(metadata=RunMetadata(TPF_MS, CAMERA_LOC, -1, 0), frames=())
     s, v = 0.0, scene.ego_speed
@@ -90,6 +105,9 @@ def simulate(scene: Scene, fault: FaultSpec, seed: int, horizon: int = 30) -> Si
         xy, yaw = scene.xy[i], scene.yaw[i]
         pose_xy, pose_yaw_arr = scene.path.at(np.asarray(s))
         pose_yaw = float(pose_yaw_arr)
+        # Where the stack believes it is (the true pose without localisation error).
+        offset = None if localisation is None else localisation[f - 1]
+        localised = pose_xy if offset is None else pose_xy + offset
         gaps = sat_gap(pose_xy, np.asarray(pose_yaw), scene.ego_extent[:2], xy, yaw, half)
         if gaps.min() < 0.0:
             collision, collided = f, int(np.argmin(gaps))
@@ -117,7 +135,7 @@ def simulate(scene: Scene, fault: FaultSpec, seed: int, horizon: int = 30) -> Si
         g_pos, g_vel, g_acc = state_from_history(scene.xy[i - 2 : i + 1, near])
         if faulty_prediction:
             g_pos, g_vel, g_acc = _inject(scene, near, g_pos, g_vel, g_acc, stale)
-        pwp_off = to_body(predict_positions(g_pos, g_vel, g_acc, horizon), pose_xy, pose_yaw)
+        pwp_off = to_body(predict_positions(g_pos, g_vel, g_acc, horizon), localised, pose_yaw)
 
         # Planning from the published raw predictions only.
         keep = np.ones(rows.size, dtype=bool)
@@ -139,8 +157,8 @@ def simulate(scene: Scene, fault: FaultSpec, seed: int, horizon: int = 30) -> Si
         # Record this frame.
         frames.append(ts)
         log.pose[ts] = EgoPose(
-            float(pose_xy[0]),
-            float(pose_xy[1]),
+            float(localised[0]),
+            float(localised[1]),
             0.0,
             0.0,
             0.0,
@@ -163,9 +181,9 @@ def simulate(scene: Scene, fault: FaultSpec, seed: int, horizon: int = 30) -> Si
         log.predictions_with_perception[ts] = _tracks(
             [scene.actor_ids[r] for r in near], pwp_off, pred_keys
         )
-        log.waypoints[ts] = Plan(plan_keys, result.xy, result.speed.copy())
-        log.detections_3d[ts] = output_3d.detections(det, pose_xy)
-        log.tracks_3d[ts] = output_3d.tracks(tracker, rows)
+        log.waypoints[ts] = Plan(plan_keys, _shift(result.xy, offset), result.speed.copy())
+        log.detections_3d[ts] = _placed(output_3d.detections(det, pose_xy), offset)
+        log.tracks_3d[ts] = _placed(output_3d.tracks(tracker, rows), offset)
         log.controls[ts] = _command(scene, s, v, float(result.speed[1]))
         if collision >= 0:
             last = f
@@ -207,6 +225,20 @@ def _inject(
     )
     pos[hit], vel[hit], acc[hit] = p, v, a
     return pos, vel, acc
+
+
+def _shift(xy: FloatArray, offset: FloatArray | None) -> FloatArray:
+    """World points ``xy`` (N, 2) as the stack records them: moved by its localisation error."""
+    return xy if offset is None else xy + offset
+
+
+def _placed(objects: Objects3D, offset: FloatArray | None) -> Objects3D:
+    """3-D objects perceived relative to the ego, placed with the localised pose."""
+    if offset is None:
+        return objects
+    location = objects.location.copy()
+    location[:, :2] += offset
+    return replace(objects, location=location)
 
 
 def _tracks(ids: list[str], offsets: FloatArray, keys: tuple[str, ...]) -> Predictions:

@@ -247,6 +247,24 @@ SPECS: dict[str, ParamSpec] = {
             "stack's whole plan: perception fails if it made the partner look safer"
         },
     ),
+    "noise_floor_s": ParamSpec(
+        Range(0.0, 3600.0, unit="s"),
+        {
+            "corrected": "each module's error floor is read from this long a stretch of the "
+            "run, ending one effect window before the frame judged"
+        },
+    ),
+    "noise_floor_min_frames": ParamSpec(
+        _frames(1, 100_000),
+        {"corrected": "fewer floor frames than this give no floor (the fixed thresholds alone)"},
+    ),
+    "noise_floor_factor": ParamSpec(
+        Range(0.0, 100.0),
+        {
+            "corrected": "an error must stand out from its floor by this many floors (control: "
+            "this many times 2 sigma per sqrt of steps); 0 turns the floors off"
+        },
+    ),
 }
 
 #: The log reader's parameter (not an engine threshold; ``commands/input_args.py``).

@@ -175,7 +175,19 @@ def test_memory_does_not_grow_with_run_length(semantics: str, shared: bool) -> N
         assert run.outcome is not None and run.outcome.complete
         held.append(max(run.max_held_records.values()))
     assert held[0] == held[1]
-    assert held[1] < 7 * 60  # a window of frames, not the run
+    # a window of frames (the effect window, rule 8's floor frames before it, the control
+    # horizon: about 125 frames of 9 folders), not the run
+    assert held[1] < 10 * 130
+
+
+def test_windowed_judging_equals_diagnose_under_noise() -> None:
+    """Rule 8's floors read the frames before the effect window: the live window keeps
+    them, so a noisy run is judged as offline (the floors decide this crash: without them
+    perception is blamed)."""
+    log = synthesise("lead_braking", "planning", 0, 10.0)
+    run = assert_same_as_diagnose(log, "corrected", shared=True)
+    assert run.outcome is not None and run.outcome.complete
+    assert run.outcome.document["primary_root_cause"] == "planning"
 
 
 def test_late_collision_event_reevaluates_the_held_window() -> None:

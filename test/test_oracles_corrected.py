@@ -33,7 +33,7 @@ from ads_rca.oracles.base import MODULES, Metric, Module, OracleResult, RunConte
 from ads_rca.oracles.corrected import ORACLES, attribute_corrected
 from ads_rca.oracles.corrected.boxes import Series, build_plan
 from ads_rca.oracles.corrected.clearance import clearances, partner_view
-from ads_rca.oracles.corrected.context import corrected_context
+from ads_rca.oracles.corrected.context import corrected_context, floor_span
 from ads_rca.params import make_params
 from ads_rca.verdict import (
     BASIS_FALLBACK,
@@ -732,14 +732,15 @@ def test_params_replace_keeps_thresholds_in_results() -> None:
 
 # --------------------------------------------------------------------------- robustness
 def test_oracles_read_only_a_bounded_window() -> None:
-    # Same results from the full log and from a log holding only ts..ts + 10 frames (the
-    # prediction window and control horizon) plus the actors file at the collision frame.
+    # Same results from the full log and from a log holding only ts − (W + L) … ts + 10
+    # frames (rule 8's floor frames, the prediction window and control horizon) plus the
+    # actors file at the collision frame.
     full = head_on_log()
     for f in (42, 43, 44):  # something to find: the partner vanishes from the planner
         _undetected(full, f * TPF)
         full.predictions[f * TPF] = {}
     ts = 42 * TPF
-    keep = range(ts, ts + 10 * TPF + 1)
+    keep = range(ts - floor_span(make_params("corrected"), TPF) * TPF, ts + 10 * TPF + 1)
     part = RunLog(full.metadata, tuple(t for t in full.frames if t in keep))
     for name in ("pose", "actors", "bboxes", "bboxes_gt", "predictions", "waypoint"):
         part.folder(name).update({t: v for t, v in full.folder(name).items() if t in keep})

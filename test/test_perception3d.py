@@ -218,6 +218,9 @@ def test_metrics_count_in_range_objects_only() -> None:
         "understate_min": 0.3,
         "pred_abs_threshold": 0.5,
         "pred_score_threshold": 0.1,
+        "noise_floor_s": 3.0,
+        "noise_floor_min_frames": 5,
+        "noise_floor_factor": 1.5,
     }
 
 

@@ -65,15 +65,21 @@ class RunContext:
 
 
 EGO_MATCH_DISTANCE_M = 0.5
+#: A localised pose may be this far (m) from the ego's actor entry (``tolerant`` matching).
+EGO_NEAREST_MAX_M = 2.0
 
 
-def earliest_ego(ctx: RunContext) -> str | None:
+def earliest_ego(ctx: RunContext, tolerant: bool = False) -> str | None:
     """The ego in the earliest analysed frame with both an actors and a pose file (see
-    :func:`ego_at`); None, reported, when no actor matches there."""
+    :func:`ego_at`; ``tolerant``: else the actor nearest the pose within
+    ``EGO_NEAREST_MAX_M``, as a drifting localisation puts it); None, reported, when no
+    actor matches there."""
     log = ctx.log
     for ts in log.unique_frames:
         if ts in log.actors and ts in log.pose:
             found = ego_at(log, ts)
+            if found is None and tolerant:
+                found = nearest_ego(log, ts)
             if found is not None:
                 return found
             break
@@ -88,6 +94,18 @@ def ego_at(log: RunLog, ts: int) -> str | None:
         return None
     row = ego_row(actors, pose)
     return actors.ids[row] if row is not None else None
+
+
+def nearest_ego(log: RunLog, ts: int) -> str | None:
+    """The actor nearest the ego pose at ``ts`` (first in file order on ties) when it is
+    within ``EGO_NEAREST_MAX_M``."""
+    actors, pose = log.actors.get(ts), log.pose.get(ts)
+    if actors is None or pose is None or len(actors) == 0:
+        return None
+    distance = np.hypot(actors.location[:, 0] - pose.x, actors.location[:, 1] - pose.y)
+    distance = np.where(np.isnan(distance), np.inf, distance)
+    row = int(np.argmin(distance))
+    return actors.ids[row] if distance[row] <= EGO_NEAREST_MAX_M else None
 
 
 def ego_row(actors: Actors, pose: EgoPose) -> int | None:

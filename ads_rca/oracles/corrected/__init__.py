@@ -11,14 +11,15 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 
 from ads_rca.model import FOLDERS, Record
-from ads_rca.oracles.base import Module, OracleResult, RunContext
-from ads_rca.oracles.corrected.attribution import (
-    attribute_corrected,
+from ads_rca.oracles.base import Module, OracleResult, RunContext, earliest_ego
+from ads_rca.oracles.corrected.attribution import attribute_corrected
+from ads_rca.oracles.corrected.common import REPORTED
+from ads_rca.oracles.corrected.context import (
+    corrected_context,
+    floor_span,
     window_frames,
     window_terms,
 )
-from ads_rca.oracles.corrected.common import REPORTED
-from ads_rca.oracles.corrected.context import corrected_context
 from ads_rca.oracles.corrected.control import control
 from ads_rca.oracles.corrected.perception import perception
 from ads_rca.oracles.corrected.planning import planning
@@ -71,6 +72,9 @@ class CorrectedSemantics(Semantics):
         "perc3d_small_area",
         "perc3d_range",
         "perc3d_velocity_error",
+        "noise_floor_s",
+        "noise_floor_min_frames",
+        "noise_floor_factor",
     )
     reported = REPORTED
     requires: Mapping[Module, tuple[tuple[str, ...], ...]] = {
@@ -176,6 +180,11 @@ class CorrectedSemantics(Semantics):
         ],
     }
 
+    def find_ego(self, ctx: RunContext) -> str | None:
+        """The earliest analysed frame's ego, tolerant of a localisation error: the actor
+        within 0.5 m of the pose per axis, else the nearest within 2 m."""
+        return earliest_ego(ctx, tolerant=True)
+
     def folders(self, module: Module) -> tuple[str, ...]:
         """Every folder of the seed format, and for the partner-reading rules the 3-D
         objects of a recording (rule 2b, and the 3-D link of prediction and planning)."""
@@ -210,8 +219,11 @@ class CorrectedSemantics(Semantics):
         return max(params.prediction_window, params.control_horizon, 1)
 
     def rejudge_history(self, params: Params, tpf_ms: int) -> int:
-        """The effect window plus the control horizon, and some slack."""
-        return window_frames(params, tpf_ms) + params.control_horizon + 5
+        """The effect window, the floor frames its first frame reads (rule 8), the control
+        horizon, and some slack: a live window keeps their records, so a re-judged frame
+        reads what the offline run read."""
+        span = floor_span(params, tpf_ms)
+        return window_frames(params, tpf_ms) + span + params.control_horizon + 5
 
     def partner_id(self, ctx: RunContext) -> str | None:
         return corrected_context(ctx).partner_id

@@ -20,7 +20,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from ads_rca.oracles.base import MODULES, Metric, Module, OracleResult, RunContext
-from ads_rca.oracles.corrected.context import corrected_context
+from ads_rca.oracles.corrected.context import corrected_context, window_frames
 from ads_rca.params import Params
 from ads_rca.verdict import (
     BASIS_FALLBACK,
@@ -34,20 +34,6 @@ from ads_rca.verdict import (
 
 #: Modules with an unconditioned test, for the fallback (pipeline order).
 FALLBACK_MODULES: tuple[Module, ...] = ("perception", "prediction")
-
-
-def window_terms(params: Params, tpf_ms: int) -> dict[str, int]:
-    """The window each parameter asks for, in frames: ``effect_time_window``, and
-    ``window_s`` seconds at this frame period."""
-    return {
-        "effect_time_window": params.effect_time_window,
-        "window_s": round(params.window_s * 1000.0 / tpf_ms),
-    }
-
-
-def window_frames(params: Params, tpf_ms: int) -> int:
-    """W: ``effect_time_window`` frames, or ``window_s`` seconds when that is longer."""
-    return max(window_terms(params, tpf_ms).values())
 
 
 def persistence(params: Params, module: Module) -> int:

@@ -24,11 +24,11 @@ from ads_rca.geometry import FloatArray, box_signed_distance
 from ads_rca.model import Predictions
 from ads_rca.oracles.corrected.boxes import PlanData, Series, braking_boxes
 from ads_rca.oracles.corrected.context import CacheName, CorrectedContext
-from ads_rca.oracles.corrected.match3d import linked_track, raw_without_pwp
+from ads_rca.oracles.corrected.floors import partner_object
+from ads_rca.oracles.corrected.links import raw_links
+from ads_rca.oracles.corrected.match3d import raw_without_pwp
 
 NAN = float("nan")
-#: The reference's linking rule only considers step-"0" offsets closer than this.
-LINK_MAX_DISTANCE = 100.0
 #: Clearances this close count as equal when choosing the earliest index of the minimum.
 TIE_TOLERANCE = 1e-9
 
@@ -206,7 +206,7 @@ def _build_view(cc: CorrectedContext, ts: int) -> PartnerView:
                 if raw_id is not None:
                     raw = cc.predicted_series(raw_file[raw_id], pose, partner, ts)
         elif pose is not None and raw_file is not None and raw_without_pwp(cc):
-            raw_id = linked_track(cc, ts, partner)  # rule 2b's match stands in for pwp
+            raw_id = partner_object(cc, ts, partner)  # rule 2b's match stands in for pwp
             if raw_id is not None and raw_id in raw_file:
                 raw = cc.predicted_series(raw_file[raw_id], pose, partner, ts)
             else:
@@ -256,22 +256,6 @@ def _reference(pwp: Series | None, real: Series | None) -> Series | None:
     return Series(center, yaw, pwp.half)
 
 
-def _step0(tracks: Predictions, skip: str | None) -> tuple[list[str], FloatArray]:
-    """Ids (file order, ``skip`` left out) with a step "0", and those offsets (N, 2)."""
-    ids = [obstacle for obstacle in tracks if obstacle != skip]
-    if not ids:
-        return [], np.zeros((0, 2))
-    keys = tracks[ids[0]].keys
-    if "0" in keys and all(tracks[i].keys == keys for i in ids):  # the usual case
-        row = keys.index("0")
-        return ids, np.array([tracks[i].offsets[row, :2] for i in ids])
-    found = [(i, tracks[i].offset("0")) for i in ids]
-    kept = [(i, offset[:2]) for i, offset in found if offset is not None]
-    if not kept:
-        return [], np.zeros((0, 2))
-    return [i for i, _ in kept], np.array([offset for _, offset in kept])
-
-
 def link_raw(
     cc: CorrectedContext, ts: int, raw: Predictions, pwp: Predictions, partner: str
 ) -> str | None:
@@ -281,21 +265,10 @@ def link_raw(
     between the unrotated step-"0" offsets, strictly below 100 m, earlier id on ties. If
     several raw ids link to the partner: the one nearest the partner's pwp step "0".
     """
-    pwp_ids, pwp_xy = _step0(pwp, cc.ego_id)
-    if partner not in pwp_ids:
+    if partner == cc.ego_id or partner not in pwp or pwp[partner].offset("0") is None:
         return None
-    raw_ids, raw_xy = _step0(raw, None)
-    if len(raw_ids) < len(raw):  # only raw ids without step "0" are left out
+    if any(track.offset("0") is None for track in raw.values()):
         cc.ctx.report(
             cc.log.file_of("predictions", ts), "step 0", "a raw id has no step 0; ignored", ts
         )
-    if not raw_ids:
-        return None
-    d = np.hypot(raw_xy[:, None, 0] - pwp_xy[None, :, 0], raw_xy[:, None, 1] - pwp_xy[None, :, 1])
-    d = np.where(d < LINK_MAX_DISTANCE, d, np.inf)
-    best = np.argmin(d, axis=1)
-    col = pwp_ids.index(partner)
-    linked = np.flatnonzero((best == col) & np.isfinite(d[np.arange(len(raw_ids)), best]))
-    if linked.size == 0:
-        return None
-    return raw_ids[int(linked[np.argmin(d[linked, col])])]
+    return raw_links(raw, pwp, cc.ego_id).get(partner)

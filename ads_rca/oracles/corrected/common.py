@@ -9,6 +9,9 @@ from ads_rca.oracles.base import Metric, Module, OracleResult
 from ads_rca.oracles.corrected.clearance import Clearance
 from ads_rca.oracles.corrected.context import CorrectedContext
 
+#: The rule-8 parameters every module with a floor reports.
+FLOOR_PARAMETERS = ("noise_floor_s", "noise_floor_min_frames", "noise_floor_factor")
+
 #: The parameters each oracle's results report in ``thresholds``, in that order (the mode's
 #: ``Semantics.reported``); an oracle adds its constants and derived values after them.
 REPORTED: dict[Module, tuple[str, ...]] = {
@@ -18,14 +21,22 @@ REPORTED: dict[Module, tuple[str, ...]] = {
         "understate_min",
         "pred_abs_threshold",
         "pred_score_threshold",
+        *FLOOR_PARAMETERS,
     ),
-    "prediction": ("safety_margin", "understate_min", "pred_abs_threshold", "pred_score_threshold"),
+    "prediction": (
+        "safety_margin",
+        "understate_min",
+        "pred_abs_threshold",
+        "pred_score_threshold",
+        *FLOOR_PARAMETERS,
+    ),
     "planning": ("safety_margin", "max_decel", "decel_tolerance", "standstill_speed"),
     "controller": (
         "control_speed_threshold",
         "actuator_delay",
         "control_lateral_threshold",
         "control_horizon",
+        *FLOOR_PARAMETERS,
     ),
 }
 

@@ -24,11 +24,30 @@ import numpy.typing as npt
 from ads_rca.geometry import FloatArray, box_signed_distance
 from ads_rca.model import FOLDERS, EgoPose, Record, RunLog, Track
 from ads_rca.oracles.base import RunContext
-from ads_rca.oracles.cache import LRU
+from ads_rca.oracles.cache import CACHE_SIZE, LRU
 from ads_rca.oracles.corrected.boxes import PlanData, Series, build_plan, build_predicted, key_steps
 from ads_rca.params import Params
 
 V = TypeVar("V")
+
+
+def window_terms(params: Params, tpf_ms: int) -> dict[str, int]:
+    """The window each parameter asks for, in frames: ``effect_time_window``, and
+    ``window_s`` seconds at this frame period."""
+    return {
+        "effect_time_window": params.effect_time_window,
+        "window_s": round(params.window_s * 1000.0 / tpf_ms),
+    }
+
+
+def window_frames(params: Params, tpf_ms: int) -> int:
+    """W: ``effect_time_window`` frames, or ``window_s`` seconds when that is longer."""
+    return max(window_terms(params, tpf_ms).values())
+
+
+def floor_span(params: Params, tpf_ms: int) -> int:
+    """Frames from the oldest floor frame of ts to ts (rule 8): W + L."""
+    return window_frames(params, tpf_ms) + round(params.noise_floor_s * 1000.0 / tpf_ms)
 
 
 class CacheName(Generic[V]):
@@ -71,13 +90,16 @@ class CorrectedContext:
         self._partner: tuple[int, str | None] | None = None
         self._provisional: PartnerRule = no_partner
         self.plans: LRU[int, PlanData | None] = LRU()
-        #: Per-timestamp caches of the oracle modules, by name.
+        #: Per-timestamp caches of the oracle modules, by name: each holds a frame's floor
+        #: frames and look-ahead (rule 8), so a floor reads each sample once.
         self.caches: dict[str, LRU[int, object]] = {}
+        self.cache_size = CACHE_SIZE + floor_span(self.params, self.tpf)
         self.ts_max = max(self.log.frames) if self.log.frames else 0
         #: The log's per-folder dicts by folder name (``RunLog.folder`` builds a dict per call).
         self.folders: dict[str, dict[int, Record]] = {
             name: self.log.folder(name) for name in FOLDERS
         }
+        self._frame_set: tuple[tuple[int, ...], frozenset[int]] | None = None
         #: A run-wide integer for every actor id seen so far (grows as frames are read).
         self._gid: dict[str, int] = {}
 
@@ -106,13 +128,21 @@ class CorrectedContext:
     def cache(self, name: CacheName[V]) -> LRU[int, V]:
         """A named per-timestamp cache (created on first use)."""
         if name.name not in self.caches:
-            self.caches[name.name] = LRU()
+            self.caches[name.name] = LRU(self.cache_size)
         # The name's type parameter is the one promise about what its cache holds.
         return cast("LRU[int, V]", self.caches[name.name])
 
     def seconds(self, index: int | npt.NDArray[np.int64]) -> FloatArray:
         """Time of horizon index i in seconds (frames × tpf / 1000)."""
         return np.asarray(index, dtype=np.float64) * (self.tpf / 1000.0)
+
+    def is_frame(self, ts: int) -> bool:
+        """Whether ``ts`` is one of the log's analysed frames (a set, rebuilt when a live
+        window's frames change)."""
+        frames = self.log.frames
+        if self._frame_set is None or self._frame_set[0] is not frames:
+            self._frame_set = (frames, frozenset(frames))
+        return ts in self._frame_set[1]
 
     def in_log(self, ts: int) -> bool:
         """Whether ``ts`` lies within the analysed span (missing data there is a problem)."""

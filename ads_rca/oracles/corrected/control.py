@@ -22,6 +22,7 @@ from ads_rca.geometry import world_to_ego
 from ads_rca.oracles.base import Metric, OracleResult, RunContext
 from ads_rca.oracles.corrected.common import REPORTED, skipped
 from ads_rca.oracles.corrected.context import CacheName, CorrectedContext, corrected_context
+from ads_rca.oracles.corrected.floors import Floor, floor_frames, step_floor
 
 
 @dataclass(frozen=True)
@@ -66,6 +67,17 @@ def control_step(cc: CorrectedContext, t: int) -> Step | tuple[str, int]:
     return step
 
 
+def control_floors(cc: CorrectedContext, ts: int) -> tuple[Floor, Floor]:
+    """Rule 8's speed and lateral floors at ts, from the control steps of its floor frames
+    (those with every input; the robust sigma of consecutive steps' differences)."""
+    steps = [s for u in floor_frames(cc, ts) if isinstance(s := control_step(cc, u), Step)]
+    minimum = int(cc.params.noise_floor_min_frames)
+    return (
+        step_floor([s.speed for s in steps], minimum),
+        step_floor([s.lateral for s in steps], minimum),
+    )
+
+
 def _steps(cc: CorrectedContext, ts: int) -> tuple[list[Step], str | None]:
     """The usable steps from ts, stopping at the first missing input, and why it stopped."""
     steps: list[Step] = []
@@ -89,11 +101,15 @@ def control(ctx: RunContext, ts: int) -> OracleResult:
     sum_lat = math.fsum(s.lateral for s in steps)
     decels = [s.decel for s in steps if math.isfinite(s.decel)]
     max_decel = max(decels) if decels else math.nan
-    thr_v = p.control_speed_threshold
+    speed_floor, lateral_floor = control_floors(cc, ts)
+    # rule 8: the summed noise of n steps grows as sqrt(n); 2 sigma of it is not a fault
+    spread = p.noise_floor_factor * 2.0 * math.sqrt(len(steps))
+    thr_v = max(p.control_speed_threshold, spread * speed_floor.value)
     if decels:
         thr_v = max(thr_v, p.actuator_delay * max_decel)
-    thr_lat = p.control_lateral_threshold
+    thr_lat = max(p.control_lateral_threshold, spread * lateral_floor.value)
     thresholds["speed_threshold"] = thr_v
+    thresholds["lateral_threshold"] = thr_lat
     speed_fail = abs(sum_v) > thr_v
     lateral_fail = abs(sum_lat) > thr_lat
     metrics: dict[str, Metric] = {
@@ -102,6 +118,9 @@ def control(ctx: RunContext, ts: int) -> OracleResult:
         "sum_speed_innovation": sum_v,
         "sum_lateral_innovation": sum_lat,
         "speed_threshold": thr_v,
+        "lateral_threshold": thr_lat,
+        **speed_floor.metrics("speed"),
+        **lateral_floor.metrics("lateral"),
         "max_commanded_decel": max_decel,
         "tracking_failure": bool(speed_fail or lateral_fail),
         "speed_tracking_error": math.fsum(abs(s.speed) for s in steps) / len(steps),

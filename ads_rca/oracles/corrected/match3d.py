@@ -161,11 +161,3 @@ def _match(cc: CorrectedContext, ts: int) -> Match3D | None:
         iou=iou,
         best=best,
     )
-
-
-def linked_track(cc: CorrectedContext, ts: int, actor_id: str) -> str | None:
-    """The perceived object's id matched to ``actor_id`` at ts (the partner's raw track
-    when tracked objects share their ids with the predictions), if any."""
-    match = frame_match(cc, ts)
-    row = None if match is None else match.object_of(actor_id)
-    return None if match is None or row is None else match.objects.ids[row]

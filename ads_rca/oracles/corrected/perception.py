@@ -32,6 +32,7 @@ from ads_rca.oracles.corrected.common import (
     skipped,
 )
 from ads_rca.oracles.corrected.context import CorrectedContext, corrected_context
+from ads_rca.oracles.corrected.floors import perception_floor
 from ads_rca.oracles.corrected.match3d import uses_3d
 from ads_rca.oracles.corrected.perception3d import perception3d
 
@@ -147,14 +148,23 @@ def detection_metrics(
     return metrics, {gt.ids[c] for c in cols}
 
 
-def degraded(cc: CorrectedContext, view: PartnerView) -> bool:
-    """The planner's input about the partner is degraded (rule 2's third condition)."""
+def degraded(cc: CorrectedContext, view: PartnerView, allowance: float = 0.0) -> bool:
+    """The planner's input about the partner is degraded (rule 2's third condition), by
+    more than the noise ``allowance`` (rule 8) on the fixed thresholds."""
     if view.raw is None:
         return True
-    understated = view.c_raw.value - view.c_ref.value > cc.params.understate_min
-    displaced = view.raw_displacement > view.threshold
-    hidden = view.c_raw.value >= cc.params.safety_margin
-    return bool(understated and (displaced or hidden))
+    understated = view.c_raw.value - view.c_ref.value > cc.params.understate_min + allowance
+    # an error within the noise floor hides nothing: the stack's ordinary state
+    hidden = view.c_raw.value >= cc.params.safety_margin and (
+        allowance == 0 or view.raw_displacement > allowance
+    )
+    return bool(understated and (displaced(view, allowance) or hidden))
+
+
+def displaced(view: PartnerView, allowance: float) -> bool:
+    """The raw boxes are displaced from the reference beyond the threshold plus the noise
+    allowance (False for NaN)."""
+    return bool(view.raw_displacement > view.threshold + allowance)
 
 
 def perception(ctx: RunContext, ts: int) -> OracleResult:
@@ -188,8 +198,14 @@ def perception(ctx: RunContext, ts: int) -> OracleResult:
     if absent:
         return skipped("perception", ts, f"missing {', '.join(absent)}", metrics, thresholds)
     view = partner_view(cc, ts)
-    is_degraded = degraded(cc, view)
+    floor = perception_floor(cc, ts)
+    allowance = p.noise_floor_factor * floor.value
+    is_degraded = degraded(cc, view, allowance)
     metrics.update(
+        # the fallback's test is the error alone: missed by the planner, or displaced
+        unconditioned=bool(view.raw is None or displaced(view, allowance)),
+        **floor.metrics("perception"),
+        noise_allowance=allowance,
         real_conflict=view.real_conflict,
         planner_input_degraded=is_degraded,
         raw_linked=view.raw is not None,

@@ -33,12 +33,25 @@ from ads_rca.oracles.corrected.clearance import (
     path_length,
     undefined_clearance,
 )
-from ads_rca.oracles.corrected.common import clearance_metrics, missing_inputs, num, skipped
+from ads_rca.oracles.corrected.common import (
+    FLOOR_PARAMETERS,
+    clearance_metrics,
+    missing_inputs,
+    num,
+    skipped,
+)
 from ads_rca.oracles.corrected.context import (
     CacheName,
     CorrectedContext,
     corrected_context,
     ego_box,
+)
+from ads_rca.oracles.corrected.floors import (
+    NO_FLOOR,
+    Floor,
+    partner_row,
+    perception_floor,
+    velocity_floor,
 )
 from ads_rca.oracles.corrected.match3d import Match3D, frame_match, source
 
@@ -53,6 +66,7 @@ REPORTED_3D = (
     "understate_min",
     "pred_abs_threshold",
     "pred_score_threshold",
+    *FLOOR_PARAMETERS,
 )
 
 
@@ -114,6 +128,10 @@ class PartnerPerception:
     misled: Misled | None = None  # the velocity test over the plan (None: not run)
     #: perceived − real centre at indices 0..W (both at constant velocity); None unmatched
     offset: FloatArray | None = None
+    floor: Floor = NO_FLOOR  # rule 8's displacement floor (matched only)
+    velocity_floor: Floor = NO_FLOOR  # rule 8's velocity-error floor (matched only)
+    allowance: float = 0.0  # noise_floor_factor × floor (m)
+    by_allowance: bool = False  # paired with its object only within the noise allowance
 
     @property
     def matched(self) -> bool:
@@ -208,7 +226,7 @@ def _assess(cc: CorrectedContext, ts: int, partner: str | None) -> PartnerPercep
             partner, False, None, math.nan, math.nan, NAN2, math.nan, none, none, False
         )
     col = match.actor_ids.index(partner)
-    row = match.object_of(partner)
+    row, by_allowance = partner_row(cc, ts, partner)
     velocity = real_velocity(cc, partner, ts)
     real = Motion(
         match.actor_center[col], velocity, float(match.actor_yaw[col]), match.actor_half[col]
@@ -236,14 +254,17 @@ def _assess(cc: CorrectedContext, ts: int, partner: str | None) -> PartnerPercep
     displaced = displacement(seen_boxes, real_boxes)
     threshold = displacement_threshold(cc, path_length(real_boxes))
     p = cc.params
+    floor, v_floor = perception_floor(cc, ts), velocity_floor(cc, ts)
+    allowance = p.noise_floor_factor * floor.value  # rule 8
     hidden = c_perc.value >= p.safety_margin > c_true.value  # the error hid the conflict
-    overstated = c_perc.value - c_true.value >= p.understate_min and (
-        displaced > threshold or hidden
+    overstated = c_perc.value - c_true.value >= p.understate_min + allowance and (
+        displaced > threshold + allowance or hidden
     )
     size = 2.0 * (seen.half - real.half)
     velocity_error = float(np.hypot(*(o_velocity - velocity))) if known else math.nan
-    velocity_wrong = velocity_error > p.perc3d_velocity_error  # False for NaN
-    misled = _misled(cc, ts, real, seen) if velocity_wrong else None
+    v_limit = p.perc3d_velocity_error + p.noise_floor_factor * v_floor.value
+    velocity_wrong = velocity_error > v_limit  # False for NaN
+    misled = _misled(cc, ts, real, seen, allowance) if velocity_wrong else None
     return PartnerPerception(
         partner_id=partner,
         in_range=in_range,
@@ -260,12 +281,19 @@ def _assess(cc: CorrectedContext, ts: int, partner: str | None) -> PartnerPercep
         velocity_wrong=velocity_wrong,
         misled=misled,
         offset=seen_boxes.center - real_boxes.center,
+        floor=floor,
+        velocity_floor=v_floor,
+        allowance=allowance,
+        by_allowance=by_allowance,
     )
 
 
-def _misled(cc: CorrectedContext, ts: int, real: Motion, seen: Motion) -> Misled | None:
+def _misled(
+    cc: CorrectedContext, ts: int, real: Motion, seen: Motion, allowance: float
+) -> Misled | None:
     """The velocity test at ts over every step of the stack's plan at ts (at most
-    ``MISLED_MAX_S``); None without a plan with a step beyond 0 or a pose at ts."""
+    ``MISLED_MAX_S``), optimistic by ``understate_min`` plus the noise ``allowance``; None
+    without a plan with a step beyond 0 or a pose at ts."""
     plan, pose = cc.log.waypoints.get(ts), cc.log.pose.get(ts)
     if plan is None or pose is None:
         return None
@@ -277,7 +305,7 @@ def _misled(cc: CorrectedContext, ts: int, real: Motion, seen: Motion) -> Misled
         [(built.boxes, real.boxes(cc, horizon)), (built.boxes, seen.boxes(cc, horizon))],
         horizon,
     )
-    optimistic = bool(c_perc.value - c_true.value >= cc.params.understate_min)
+    optimistic = bool(c_perc.value - c_true.value >= cc.params.understate_min + allowance)
     return Misled(horizon, c_true.value, c_perc.value, optimistic)
 
 
@@ -325,6 +353,13 @@ def perception3d(ctx: RunContext, ts: int) -> OracleResult:
         partner_displacement=num(seen.displacement),
         displacement_threshold=num(seen.threshold),
     )
+    if seen.matched:
+        metrics.update(
+            **seen.floor.metrics("perception"),
+            **seen.velocity_floor.metrics("velocity"),
+            noise_allowance=seen.allowance,
+            partner_paired_by_allowance=seen.by_allowance,
+        )
     ids = (partner,) if seen.object_id is None else (partner, seen.object_id)
     if seen.misled is not None:
         metrics.update(

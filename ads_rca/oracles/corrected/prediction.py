@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from ads_rca.geometry import ego_to_world
+from ads_rca.geometry import FloatArray, ego_to_world
 from ads_rca.model import EgoPose, Predictions
 from ads_rca.oracles.base import Metric, OracleResult, RunContext
 from ads_rca.oracles.corrected.boxes import Series, step_order
@@ -35,7 +35,8 @@ from ads_rca.oracles.corrected.common import (
     num,
     skipped,
 )
-from ads_rca.oracles.corrected.context import CorrectedContext, corrected_context
+from ads_rca.oracles.corrected.context import CacheName, CorrectedContext, corrected_context
+from ads_rca.oracles.corrected.floors import Samples, actor_floor, perceived_offsets
 from ads_rca.oracles.corrected.match3d import frame_match, raw_without_pwp
 from ads_rca.oracles.corrected.perception3d import PartnerPerception, partner_perception
 
@@ -47,8 +48,8 @@ def displacement_metrics(
     cc: CorrectedContext, ts: int, pwp: Predictions, pose: EgoPose
 ) -> dict[str, Metric]:
     """ADE, FDE per actor and overall, and the miss rate, vs the realised positions."""
-    w, tpf = cc.window, cc.tpf
-    ids = [a for a in pwp if a != cc.ego_id]
+    w = cc.window
+    ids, err = errors(cc, ts, pwp, pose)
     out: dict[str, Metric] = {
         "ade": math.nan,
         "fde": math.nan,
@@ -59,23 +60,6 @@ def displacement_metrics(
     }
     if not ids:
         return out
-    tracks = [pwp[a] for a in ids]
-    keys = tracks[0].keys
-    anchor = np.array([pose.x, pose.y])
-    predicted = np.full((len(ids), w, 2), np.nan)
-    if all(t.keys == keys for t in tracks):  # the usual case: one key set, stack at once
-        order, k = step_order(keys, w)
-        if order.size:
-            offsets = np.array([t.offsets for t in tracks])[:, order, :2]
-            predicted[:, k] = ego_to_world(offsets, anchor, pose.yaw)
-    else:
-        for n, track in enumerate(tracks):
-            order, k = step_order(track.keys, w)
-            if order.size:
-                predicted[n, k] = ego_to_world(track.offsets[order, :2], anchor, pose.yaw)
-    real = cc.locations_over(cc.gids(ids), [ts + (j + 1) * tpf for j in range(w)])
-    diff = predicted - real
-    err = np.hypot(diff[..., 0], diff[..., 1])  # (A, W), NaN where undefined
     finite = np.isfinite(err)
     count = finite.sum(axis=1)
     has = count > 0
@@ -92,15 +76,87 @@ def displacement_metrics(
     return out
 
 
+def errors(
+    cc: CorrectedContext,
+    ts: int,
+    tracks_by_actor: Predictions,
+    pose: EgoPose,
+    offsets: dict[str, FloatArray] | None = None,
+) -> tuple[list[str], FloatArray]:
+    """Non-ego actor ids and their |predicted − reference| centre distance (A, W) at
+    indices 1..W (NaN where undefined): the reference is the real position, moved by
+    ``offsets[actor]`` (indices 0..W) where given."""
+    w, tpf = cc.window, cc.tpf
+    ids = [a for a in tracks_by_actor if a != cc.ego_id]
+    if not ids:
+        return [], np.zeros((0, w))
+    tracks = [tracks_by_actor[a] for a in ids]
+    keys = tracks[0].keys
+    anchor = np.array([pose.x, pose.y])
+    predicted = np.full((len(ids), w, 2), np.nan)
+    if all(t.keys == keys for t in tracks):  # the usual case: one key set, stack at once
+        order, k = step_order(keys, w)
+        if order.size:
+            stacked = np.array([t.offsets for t in tracks])[:, order, :2]
+            predicted[:, k] = ego_to_world(stacked, anchor, pose.yaw)
+    else:
+        for n, track in enumerate(tracks):
+            order, k = step_order(track.keys, w)
+            if order.size:
+                predicted[n, k] = ego_to_world(track.offsets[order, :2], anchor, pose.yaw)
+    real = cc.locations_over(cc.gids(ids), [ts + (j + 1) * tpf for j in range(w)])
+    if offsets is not None:
+        shift = np.array([offsets.get(a, np.full((w + 1, 2), np.nan))[1:] for a in ids])
+        real = real + shift
+    diff = predicted - real
+    return ids, np.hypot(diff[..., 0], diff[..., 1])
+
+
+def prediction_samples(cc: CorrectedContext, u: int) -> Samples:
+    """Prediction's error per actor at u, rule 8's samples (cached): e, the max over the
+    horizon of |predicted − real| centre, of every non-ego actor's pwp track; without pwp
+    (rule 2b's reading), of every raw track rule 2b matched, against reality as perceived."""
+    return cc.cache(PREDICTION_SAMPLES).get(u, lambda: _prediction_samples(cc, u))
+
+
+def _prediction_samples(cc: CorrectedContext, u: int) -> Samples:
+    pose = cc.log.pose.get(u)
+    if pose is None:
+        return {}
+    if raw_without_pwp(cc):
+        raw = cc.log.predictions.get(u)
+        if raw is None:
+            return {}
+        ids, err = errors(cc, u, by_actor(cc, u, raw), pose, perceived_offsets(cc, u))
+    else:
+        pwp = cc.log.predictions_with_perception.get(u)
+        if pwp is None:
+            return {}
+        ids, err = errors(cc, u, pwp, pose)
+    finite: list[bool] = np.asarray(np.isfinite(err).any(axis=1), dtype=bool).tolist()
+    e = np.where(np.isfinite(err), err, -np.inf).max(axis=1)
+    return {a: float(v) for a, v, k in zip(ids, e.tolist(), finite, strict=True) if k}
+
+
+PREDICTION_SAMPLES: CacheName[Samples] = CacheName("prediction_samples")
+
+
 def judge(
-    cc: CorrectedContext, c_pred: Clearance, c_gt: Clearance, e: float, view: PartnerView
+    cc: CorrectedContext,
+    c_pred: Clearance,
+    c_gt: Clearance,
+    e: float,
+    view: PartnerView,
+    allowance: float,
 ) -> tuple[bool, bool, bool, bool]:
-    """Rule 3's tests on a predicted clearance and displacement error: (e over the
-    threshold, understated by more than understate_min, conflict hidden, judged failing)."""
+    """Rule 3's tests on a predicted clearance and displacement error, each fixed threshold
+    raised by the noise ``allowance`` (rule 8): (e over the threshold, understated by more
+    than understate_min, conflict hidden, judged failing)."""
     p = cc.params
-    e_over = e > view.threshold
-    understated = c_pred.value - c_gt.value > p.understate_min
-    hidden = c_pred.value >= p.safety_margin
+    e_over = e > view.threshold + allowance
+    understated = c_pred.value - c_gt.value > p.understate_min + allowance
+    # an error within the noise floor hides nothing: the stack's ordinary state
+    hidden = c_pred.value >= p.safety_margin and (allowance == 0 or e > allowance)
     return e_over, understated, hidden, understated and (e_over or hidden)
 
 
@@ -135,8 +191,14 @@ def prediction(ctx: RunContext, ts: int) -> OracleResult:
     view = partner_view(cc, ts)
     thresholds["displacement_threshold"] = view.threshold
     absent_from_pwp = bool(view.in_view) and view.in_pwp is False
-    e_over, understated, hidden, judged = judge(cc, view.c_pwp, view.c_gt, view.e_pwp, view)
+    floor = actor_floor(cc, ts, prediction_samples)
+    allowance = p.noise_floor_factor * floor.value
+    e_over, understated, hidden, judged = judge(
+        cc, view.c_pwp, view.c_gt, view.e_pwp, view, allowance
+    )
     metrics.update(
+        **floor.metrics("prediction"),
+        noise_allowance=allowance,
         partner_in_view=view.in_view,
         partner_in_pwp=view.in_pwp,
         displacement_error=num(view.e_pwp),
@@ -182,8 +244,12 @@ def raw_prediction(cc: CorrectedContext, ts: int, thresholds: dict[str, float]) 
     thresholds["displacement_threshold"] = view.threshold
     ref, c_ref = perceived_reality(cc, ts, view, seen)
     e = displacement(view.raw, ref)
-    e_over, understated, hidden, judged = judge(cc, view.c_raw, c_ref, e, view)
+    floor = actor_floor(cc, ts, prediction_samples)
+    allowance = cc.params.noise_floor_factor * floor.value
+    e_over, understated, hidden, judged = judge(cc, view.c_raw, c_ref, e, view, allowance)
     metrics.update(
+        **floor.metrics("prediction"),
+        noise_allowance=allowance,
         partner_in_view=seen.in_range,
         partner_in_raw=True,
         raw_id=view.raw_id,

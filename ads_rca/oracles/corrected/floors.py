@@ -1,0 +1,268 @@
+"""Rule 8: each module's error floor, read from the run itself before the effect window.
+
+Why: a real stack is noisy. Localisation drifts by decimetres and a camera's 3-D position is
+off by a metre at 20 m, so errors at or over the fixed thresholds (``understate_min``,
+``pred_abs_threshold``, ``control_lateral_threshold``) are the stack's ordinary state, not a
+fault. A module is blamed only when its error stands out from what the same module did on
+the same run before: the floor.
+
+The floor frames of ts are the log's timestamps u with ts − (G + L)·tpf ≤ u < ts − G·tpf:
+G = W (the effect window, rule 6), so no frame of a window frame's floor lies in the
+window, and L = round(``noise_floor_s`` · 1000 / tpf). Only earlier frames are read, so a
+live monitor judges exactly as the offline run does (it keeps them, :meth:`rejudge_history`).
+
+* Perception, rule 2b's velocity and prediction: every floor frame gives one *sample* per
+  actor (its error at u, the same measure the rule applies to the partner at ts; cached
+  per u, independent of who the partner is). The floor is the median over the floor frames
+  of the median over the actors other than the partner (basis ``others``). With fewer than
+  ``noise_floor_min_frames`` such frames (an empty scene), it is the partner's own robust
+  spread, 1.4826 × the median absolute deviation of its samples (basis ``partner``: a bias
+  the partner carried throughout adds nothing, its jitter does). With fewer than that too
+  (a short run), the floor is 0 (basis ``none``): the fixed thresholds alone, as on a
+  noise-free run.
+* Control: the robust sigma of the differences of consecutive floor steps' innovations
+  (differencing removes a steady tracking offset, which is not noise).
+
+The rules add ``noise_floor_factor`` × the floor to their fixed thresholds, and rule 2b
+pairs a partner the match left alone with a free perceived object within the match
+distance plus that allowance (:func:`partner_row`): noise moved the box, it was not missed.
+docs/semantics-corrected.md rule 8 has the precise readings.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from itertools import pairwise
+
+import numpy as np
+
+from ads_rca.model import Track
+from ads_rca.oracles.corrected.boxes import step_order
+from ads_rca.oracles.corrected.context import CacheName, CorrectedContext, window_frames
+from ads_rca.oracles.corrected.links import raw_links
+from ads_rca.oracles.corrected.match3d import frame_match, uses_3d
+
+#: 1.4826 × MAD estimates a normal distribution's standard deviation.
+MAD_SIGMA = 1.4826
+BASIS_OTHERS = "others"
+BASIS_PARTNER = "partner"
+BASIS_NONE = "none"
+BASIS_STEPS = "steps"
+
+#: Samples per actor at one timestamp.
+Samples = dict[str, float]
+
+
+@dataclass(frozen=True)
+class Floor:
+    """A module's error floor at ts, and what it was read from."""
+
+    value: float  # metres (control: per step, m/s or m)
+    frames: int  # floor frames (or differences) it was read from
+    basis: str  # BASIS_OTHERS | BASIS_PARTNER | BASIS_NONE
+
+    def metrics(self, prefix: str) -> dict[str, float | int | str]:
+        return {
+            f"{prefix}_floor": self.value,
+            f"{prefix}_floor_frames": self.frames,
+            f"{prefix}_floor_basis": self.basis,
+        }
+
+
+NO_FLOOR = Floor(0.0, 0, BASIS_NONE)
+PERCEPTION_SAMPLES: CacheName[Samples] = CacheName("perception_samples")
+PREDICTION_SAMPLES: CacheName[Samples] = CacheName("prediction_samples")
+
+
+def floor_frames(cc: CorrectedContext, ts: int) -> list[int]:
+    """The log's timestamps u with ts − (G + L)·tpf ≤ u < ts − G·tpf (ascending)."""
+    p, tpf = cc.params, cc.tpf
+    gap = window_frames(p, tpf)
+    length = round(p.noise_floor_s * 1000.0 / tpf)
+    return [u for u in range(ts - (gap + length) * tpf, ts - gap * tpf, tpf) if cc.is_frame(u)]
+
+
+def median(values: Sequence[float]) -> float:
+    """The median of a short list (plain Python: cheaper than numpy for a few values)."""
+    ordered = sorted(values)
+    mid = len(ordered) // 2
+    return ordered[mid] if len(ordered) % 2 else 0.5 * (ordered[mid - 1] + ordered[mid])
+
+
+def robust_sigma(values: Sequence[float]) -> float:
+    """1.4826 × the median absolute deviation (0 for no values)."""
+    if len(values) == 0:
+        return 0.0
+    centre = median(values)
+    return MAD_SIGMA * median([abs(v - centre) for v in values])
+
+
+def actor_floor(
+    cc: CorrectedContext, ts: int, sampler: Callable[[CorrectedContext, int], Samples]
+) -> Floor:
+    """The floor at ts from per-actor samples (others' median level, else the partner's
+    own spread, else none); cached per timestamp and partner."""
+    partner = cc.partner_at(ts)
+    cache = cc.cache(CacheName[tuple[str | None, Floor]](f"floor:{sampler.__name__}"))
+    found = cache.lookup(ts)
+    if found is None or found[0] != partner:
+        found = (partner, _actor_floor(cc, ts, sampler, partner))
+        cache.put(ts, found)
+    return found[1]
+
+
+def _actor_floor(
+    cc: CorrectedContext,
+    ts: int,
+    sampler: Callable[[CorrectedContext, int], Samples],
+    partner: str | None,
+) -> Floor:
+    frames = [sampler(cc, u) for u in floor_frames(cc, ts)]
+    levels = [
+        median(others)
+        for samples in frames
+        if (others := [v for a, v in samples.items() if a != partner])
+    ]
+    minimum = max(int(cc.params.noise_floor_min_frames), 1)
+    if len(levels) >= minimum:
+        return Floor(median(levels), len(levels), BASIS_OTHERS)
+    own = [samples[partner] for samples in frames if partner in samples]
+    if len(own) >= minimum:
+        return Floor(robust_sigma(own), len(own), BASIS_PARTNER)
+    return NO_FLOOR
+
+
+def perception_floor(cc: CorrectedContext, ts: int) -> Floor:
+    """Perception's displacement floor at ts (m)."""
+    return actor_floor(cc, ts, perception_samples)
+
+
+def velocity_floor(cc: CorrectedContext, ts: int) -> Floor:
+    """Rule 2b's velocity-error floor at ts (m/s)."""
+    return actor_floor(cc, ts, velocity_samples)
+
+
+# -- samples --------------------------------------------------------------------------------
+def perception_samples(cc: CorrectedContext, u: int) -> Samples:
+    """Perception's error per actor at u (cached): rule 2's raw displacement (2-D: each
+    actor's linked raw prediction against its pwp, max over the horizon) or rule 2b's (3-D:
+    each matched actor's perceived against its real box, both at constant velocity)."""
+    return cc.cache(PERCEPTION_SAMPLES).get(u, lambda: _perception_samples(cc, u))
+
+
+def _perception_samples(cc: CorrectedContext, u: int) -> Samples:
+    if uses_3d(cc):
+        return _perception3d_samples(cc, u)
+    raw, pwp = cc.log.predictions.get(u), cc.log.predictions_with_perception.get(u)
+    if raw is None or pwp is None:
+        return {}
+    out: Samples = {}
+    for actor, raw_id in raw_links(raw, pwp, cc.ego_id).items():
+        error = _offset_displacement(raw[raw_id], pwp[actor], cc.window)
+        if math.isfinite(error):
+            out[actor] = error
+    return out
+
+
+def _offset_displacement(a: Track, b: Track, window: int) -> float:
+    """Max over the shared steps 0..W−1 of the distance between two tracks' offsets (the
+    same pose anchors both, so this is their world displacement); NaN when none shared."""
+    rows_a, steps_a = step_order(a.keys, window)
+    rows_b, steps_b = step_order(b.keys, window)
+    shared, ia, ib = np.intersect1d(steps_a, steps_b, return_indices=True)
+    if shared.size == 0:
+        return math.nan
+    diff = a.offsets[rows_a[ia], :2] - b.offsets[rows_b[ib], :2]
+    dist = np.hypot(diff[:, 0], diff[:, 1])
+    return float(np.nanmax(dist)) if np.isfinite(dist).any() else math.nan
+
+
+def _perception3d_samples(cc: CorrectedContext, u: int) -> Samples:
+    offsets = perceived_offsets(cc, u)
+    t = np.array([1, cc.window])  # the offset is linear in time: its max is at an end
+    return {a: float(np.hypot(*off[t].T).max()) for a, off in offsets.items()}
+
+
+def velocity_samples(cc: CorrectedContext, u: int) -> Samples:
+    """Rule 2b's velocity error |perceived − real| (m/s) of every matched in-range actor at
+    u (the perceived velocity standing in for itself when unknown gives 0)."""
+    dt = cc.tpf / 1000.0
+    return {
+        a: float(np.hypot(*(off[1] - off[0]))) / dt for a, off in perceived_offsets(cc, u).items()
+    }
+
+
+PERCEIVED_OFFSETS: CacheName[dict[str, np.ndarray]] = CacheName("perceived_offsets")
+
+
+def perceived_offsets(cc: CorrectedContext, u: int) -> dict[str, np.ndarray]:
+    """Rule 2b's state error of every matched in-range actor at u (cached): perceived −
+    real centre at indices 0..W, both moved at constant velocity (the perceived velocity,
+    else the real one); actors with a NaN error are left out."""
+    return cc.cache(PERCEIVED_OFFSETS).get(u, lambda: _perceived_offsets(cc, u))
+
+
+def _perceived_offsets(cc: CorrectedContext, u: int) -> dict[str, np.ndarray]:
+    match = frame_match(cc, u)
+    if match is None or match.rows.size == 0:
+        return {}
+    ids = [match.actor_ids[c] for c in match.cols.tolist()]
+    states = cc.states_over(cc.gids(ids), [u - cc.tpf, u, u + cc.tpf])[:, :, :2]
+    dt = cc.tpf / 1000.0
+    ahead = (states[:, 2] - states[:, 1]) / dt
+    behind = (states[:, 1] - states[:, 0]) / dt
+    ahead_known = np.asarray(np.isfinite(ahead).all(axis=1), dtype=bool)
+    real_v = np.where(ahead_known[:, None], ahead, behind)
+    seen_v = match.objects.velocity[match.rows, :2]
+    seen_known = np.asarray(np.isfinite(seen_v).all(axis=1), dtype=bool)
+    seen_v = np.where(seen_known[:, None], seen_v, real_v)
+    dp = match.objects.location[match.rows, :2] - match.actor_center[match.cols]
+    t = cc.seconds(np.arange(cc.window + 1))
+    moved = dp[:, None, :] + t[None, :, None] * (seen_v - real_v)[:, None, :]  # (N, W + 1, 2)
+    keep = match.actor_in_range[match.cols] & np.isfinite(moved).all(axis=(1, 2))
+    return {a: moved[n] for n, a in enumerate(ids) if keep[n]}
+
+
+def partner_row(cc: CorrectedContext, ts: int, actor_id: str) -> tuple[int | None, bool]:
+    """The perceived object row that stands for ``actor_id`` at ts, and whether only the
+    noise allowance paired them: rule 2b's match; else (rule 8) the nearest in-range object
+    no actor matched whose centre lies within ``perc3d_match_distance`` plus the allowance
+    (``noise_floor_factor`` × the perception floor) of the actor's; else None."""
+    match = frame_match(cc, ts)
+    if match is None or actor_id not in match.actor_ids:
+        return None, False
+    row = match.object_of(actor_id)
+    if row is not None:
+        return row, False
+    p = cc.params
+    reach = p.perc3d_match_distance + p.noise_floor_factor * perception_floor(cc, ts).value
+    free = np.ones(len(match.objects.ids), dtype=bool)
+    free[match.rows] = False
+    free &= match.object_in_range
+    if not free.any():
+        return None, False
+    col = match.actor_ids.index(actor_id)
+    d = np.hypot(*(match.objects.location[:, :2] - match.actor_center[col]).T)
+    d = np.where(free & np.isfinite(d), d, np.inf)
+    nearest = int(np.argmin(d))
+    return (nearest, True) if d[nearest] <= reach else (None, False)
+
+
+def partner_object(cc: CorrectedContext, ts: int, actor_id: str) -> str | None:
+    """The id of :func:`partner_row`'s object (the actor's raw track when tracked objects
+    share their ids with the predictions)."""
+    row, _ = partner_row(cc, ts, actor_id)
+    match = frame_match(cc, ts)
+    return None if row is None or match is None else match.objects.ids[row]
+
+
+def step_floor(values: Sequence[float], minimum: int) -> Floor:
+    """Control's floor from consecutive steps' innovations: the robust sigma of their
+    differences (at least ``minimum`` differences, else none)."""
+    diffs = [b - a for a, b in pairwise(values)]
+    diffs = [d for d in diffs if math.isfinite(d)]
+    if len(diffs) < max(minimum, 1):
+        return NO_FLOOR
+    return Floor(robust_sigma(diffs), len(diffs), BASIS_STEPS)

@@ -24,8 +24,10 @@ then the accuracy of each fault kind against the noise level; a scene the synthe
 at a level is skipped and counted. With one level (the default 1) the output is as before.
 
 Usage: ``python bench/accuracy.py [N] [--scenarios a,b] [--faults x,y] [--drop-2d]
-[--bag PROFILE [--storage S]] [--noise K,K...] [--first SEED] [--actors K] [--horizon H]``
-(the last two are passed to the synthesiser).
+[--bag PROFILE [--storage S]] [--noise K,K...] [--first SEED] [--actors K] [--horizon H]
+[-p NAME=VALUE ...]`` (``--actors`` and ``--horizon`` are passed to the synthesiser, ``-p``
+sets a corrected-mode parameter, e.g. ``-p noise_floor_factor=0`` for the rules without
+their noise floors).
 """
 
 from __future__ import annotations
@@ -41,8 +43,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ads_rca.engine import diagnose as diagnose_log
+from ads_rca.errors import ConfigError
 from ads_rca.model import RunLog
-from ads_rca.params import make_params
+from ads_rca.params import Params, make_params
 from ads_rca.profiles.recording import read_recording
 from ads_rca.synth import (
     ALL_FAULTS,
@@ -62,10 +65,11 @@ from ads_rca.verdict import Attribution
 LABELS = list(FAULTS)
 
 
-def diagnose(log: RunLog) -> tuple[Attribution, float]:
-    """The corrected attribution of a log and the diagnosis time per analysed frame (ms)."""
+def diagnose(log: RunLog, params: Params | None = None) -> tuple[Attribution, float]:
+    """The corrected attribution of a log (default parameters unless ``params``) and the
+    diagnosis time per analysed frame (ms)."""
     start = time.perf_counter()
-    found = diagnose_log(log, make_params("corrected"))
+    found = diagnose_log(log, params or make_params("corrected"))
     per_frame = (time.perf_counter() - start) * 1000 / max(len(found.frames), 1)
     return found.attribution, per_frame
 
@@ -84,6 +88,20 @@ def through_bag(log: RunLog, profile: str, storage: str, folder: Path) -> RunLog
     shutil.rmtree(bag, ignore_errors=True)
     write_recording(log, bag, profile, storage)
     return read_recording(bag, profile)
+
+
+def corrected_params(items: Sequence[str]) -> Params:
+    """The corrected mode's parameters with ``-p NAME=VALUE`` overrides (checked)."""
+    overrides: dict[str, str] = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep:
+            raise SystemExit(f"-p: {item!r} is not NAME=VALUE")
+        overrides[name.strip()] = value.strip()
+    try:
+        return make_params("corrected", overrides)
+    except ConfigError as error:
+        raise SystemExit(f"-p: {error}") from None
 
 
 def fault_names(text: str) -> list[str]:
@@ -155,7 +173,7 @@ def run_level(
                 label = log.metadata.raw["synthesis"]
                 if args.bag:
                     log = through_bag(log, args.bag, args.storage, scratch)
-                attribution, ms = diagnose(log)
+                attribution, ms = diagnose(log, args.params)
                 tally.times.append(ms)
                 got = attribution.primary_root_cause or "none"
                 injected = canonical_fault(label["fault"])
@@ -242,7 +260,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument("--actors", type=int, default=None, help="background actors")
     parser.add_argument("--horizon", type=int, default=None, help="prediction/plan steps")
+    parser.add_argument(
+        "-p",
+        "--param",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="a corrected-mode parameter (as ads-rca diagnose -p), repeatable",
+    )
     args = parser.parse_args(argv)
+    args.params = corrected_params(args.param)
     scenarios = [s for s in args.scenarios.split(",") if s]
     faults = fault_names(args.faults)
     levels = noise_levels(args.noise)

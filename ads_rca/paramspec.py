@@ -248,10 +248,11 @@ SPECS: dict[str, ParamSpec] = {
         },
     ),
     "noise_floor_s": ParamSpec(
-        Range(0.0, 3600.0, unit="s"),
+        # bounded: every frame reads its floor frames, and a live window keeps them
+        Range(0.0, 60.0, unit="s"),
         {
             "corrected": "each module's error floor is read from this long a stretch of the "
-            "run, ending one effect window before the frame judged"
+            "run, ending one effect window before the frame judged (0: no floors)"
         },
     ),
     "noise_floor_min_frames": ParamSpec(

@@ -61,7 +61,7 @@ class Floor:
 
     value: float  # metres (control: per step, m/s or m)
     frames: int  # floor frames (or differences) it was read from
-    basis: str  # BASIS_OTHERS | BASIS_PARTNER | BASIS_NONE
+    basis: str  # BASIS_OTHERS | BASIS_PARTNER | BASIS_NONE (control: BASIS_STEPS)
 
     def metrics(self, prefix: str) -> dict[str, float | int | str]:
         return {

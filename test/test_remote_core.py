@@ -1,0 +1,116 @@
+"""The remote bridge's pure core (issue #17): keys, endpoints, rate limits, history, with
+hostile values, and one real loopback Zenoh session opened with the built config."""
+
+from __future__ import annotations
+
+import json
+import socket
+
+import pytest
+
+from ads_rca.errors import ConfigError
+from ads_rca.remote.config import session_config
+from ads_rca.remote.history import History, parse_since
+from ads_rca.remote.keys import check_prefix, dashboard_key, ros_key
+from ads_rca.remote.rate import RateLimiter
+
+
+def test_ros_keys_follow_the_zenoh_bridge_ros2dds_convention() -> None:
+    assert ros_key("/diagnostics") == "diagnostics"
+    assert ros_key("/rca/verdict", "car1") == "car1/rca/verdict"
+    assert ros_key("rca/verdict", "/fleet/car1/") == "fleet/car1/rca/verdict"
+    assert dashboard_key("car1", "verdict") == "car1/ads_rca/verdict"
+    assert dashboard_key("", "modules", "perception") == "ads_rca/modules/perception"
+
+
+@pytest.mark.parametrize(
+    "prefix", ["car/*", "a//b", "**", "x$y", "a b", "q?x", "#", "é", "a\x00b", "x" * 201]
+)
+def test_hostile_prefixes_are_refused_in_one_line(prefix: str) -> None:
+    with pytest.raises(ConfigError) as error:
+        check_prefix(prefix)
+    assert "\n" not in str(error.value) and "\x00" not in str(error.value)
+
+
+def test_endpoints_stay_on_loopback_unless_allowed() -> None:
+    config = json.loads(session_config())
+    assert config["scouting"] == {"multicast": {"enabled": False}, "gossip": {"enabled": False}}
+    assert config["listen"]["endpoints"] == ["tcp/127.0.0.1:7447"]
+    with pytest.raises(ConfigError, match="not on loopback"):
+        session_config(listen=["tcp/0.0.0.0:7447"])
+    with pytest.raises(ConfigError, match="not on loopback"):
+        session_config("client", listen=[], connect=["tcp/10.0.0.5:7447"])
+    remote = json.loads(session_config(listen=["tcp/0.0.0.0:7447"], allow_remote=True))
+    assert remote["listen"]["endpoints"] == ["tcp/0.0.0.0:7447"]
+    assert json.loads(session_config(listen=["tcp/[::1]:7447"]))["mode"] == "peer"
+    for bad in ("tcp/127.0.0.1", "tcp/127.0.0.1:0", "tcp/127.0.0.1:70000", "http://x:1", ""):
+        with pytest.raises(ConfigError):
+            session_config(listen=[bad])
+    with pytest.raises(ConfigError, match="mode"):
+        session_config("router")
+    with pytest.raises(ConfigError, match="client"):
+        session_config("client", listen=[])
+
+
+def test_rate_limits_keep_the_newest_sample_and_never_drop_the_verdict() -> None:
+    limiter: RateLimiter[int] = RateLimiter({"frames": 2.0, "verdict": 1.0}, frozenset({"verdict"}))
+    assert limiter.offer("frames", 1, 0.0) == [("frames", 1)]
+    assert limiter.offer("frames", 2, 0.1) == []
+    assert limiter.offer("frames", 3, 0.2) == []  # replaces 2: the newest is what waits
+    assert limiter.flush(0.3) == []
+    assert limiter.flush(0.5) == [("frames", 3)]
+    assert limiter.offer("verdict", 9, 0.5) == [("verdict", 9)]
+    assert limiter.offer("verdict", 10, 0.51) == [("verdict", 10)]
+    assert limiter.offer("other", 1, 0.0) == [("other", 1)]  # no limit
+    limiter.offer("frames", 4, 0.6)
+    assert limiter.flush(0.6, force=True) == [("frames", 4)]
+    for rate in (-1.0, float("nan"), float("inf")):
+        with pytest.raises(ConfigError):
+            RateLimiter({"frames": rate})
+
+
+def test_history_is_bounded_and_answers_since() -> None:
+    history = History(3)
+    for n in range(5):
+        history.add_frame(n, {"frame": n})
+    assert len(history) == 3 and history.evicted == 2
+    assert [d["frame"] for d in history.since(-1)] == [2, 3, 4]
+    assert [d["frame"] for d in history.since(3)] == [4]
+    history.add_frame(3, {"frame": 3, "revision": 1})  # a re-judged frame replaces its own
+    assert history.since(2) == [{"frame": 3, "revision": 1}, {"frame": 4}]
+    assert parse_since({}) == -1 and parse_since({"since": "12"}) == 12
+    for bad in ("x", "1.5", "-2", "1e3", "99999999999999999", " ", "0x10"):
+        with pytest.raises(ConfigError):
+            parse_since({"since": bad})
+    with pytest.raises(ConfigError):
+        History(0)
+
+
+def free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+def test_a_loopback_peer_and_client_exchange_a_sample() -> None:
+    import zenoh
+
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    peer_config = zenoh.Config.from_json5(session_config("peer", listen=[endpoint]))
+    client_config = zenoh.Config.from_json5(session_config("client", listen=[], connect=[endpoint]))
+    key = dashboard_key("test", "status")
+    with zenoh.open(peer_config) as peer:
+        queryable = peer.declare_queryable(
+            key, lambda query: query.reply(key, json.dumps({"state": "running"}))
+        )
+        try:
+            with zenoh.open(client_config) as client:
+                replies = []
+                for _attempt in range(50):  # the client may still be connecting
+                    replies = [r.ok for r in client.get(key, timeout=0.5) if r.ok is not None]
+                    if replies:
+                        break
+                assert replies
+                assert json.loads(replies[0].payload.to_string()) == {"state": "running"}
+        finally:
+            queryable.undeclare()  # type: ignore[no-untyped-call]

@@ -13,6 +13,7 @@ from ads_rca.remote.config import session_config
 from ads_rca.remote.history import History, parse_since
 from ads_rca.remote.keys import check_prefix, dashboard_key, ros_key
 from ads_rca.remote.rate import RateLimiter
+from ads_rca.verdict import Metric, Module
 
 
 def test_ros_keys_follow_the_zenoh_bridge_ros2dds_convention() -> None:
@@ -114,3 +115,66 @@ def test_a_loopback_peer_and_client_exchange_a_sample() -> None:
                 assert json.loads(replies[0].payload.to_string()) == {"state": "running"}
         finally:
             queryable.undeclare()  # type: ignore[no-untyped-call]
+
+
+def result_text(index: int, module: Module = "perception", failed: bool = False) -> str:
+    from ads_rca import strictjson
+    from ads_rca.live.results import LiveResult
+    from ads_rca.oracles.base import OracleResult
+
+    metrics: dict[str, Metric] = {"recall": float("nan"), "note": "</script><b>\u202e"}
+    result = OracleResult(module, index * 50, failed, metrics, {"safety_margin": 0.5})
+    return strictjson.dumps(LiveResult(index, result, index).to_document())
+
+
+def test_remote_state_forwards_results_and_answers_late_dashboards() -> None:
+    from ads_rca import strictjson
+    from ads_rca.remote.state import RemoteState
+
+    state = RemoteState("car1", capacity=3, rates={"modules": 10.0})
+    puts = state.on_result(result_text(0), 0.0)
+    assert [key for key, _ in puts] == ["car1/ads_rca/modules/perception"]
+    sent = puts[0][1]
+    assert "NaN" not in sent and strictjson.loads(sent)["metrics"]["recall"] != 0.5
+    assert state.on_result(result_text(1), 0.01) == []  # within 0.1 s: pending
+    assert state.on_result(result_text(2), 0.02) == []  # the newest replaces it
+    planning = state.on_result(result_text(0, "planning"), 0.03)  # its own key, its own limit
+    assert [key for key, _ in planning] == ["car1/ads_rca/modules/planning"]
+    assert state.flush(0.05) == []
+    due = state.flush(0.2)
+    assert [(key, strictjson.loads(text)["index"]) for key, text in due] == [
+        ("car1/ads_rca/modules/perception", 2)
+    ]
+    for n in range(1, 5):
+        state.on_result(result_text(n), 1.0 + n)
+    frames = strictjson.loads(state.answer("car1/ads_rca/frames", {"since": "2"}, 9.0) or "")
+    assert [f["index"] for f in frames["frames"]] == [3, 4]
+    assert state.history.evicted == 2  # capacity 3 of frames 0..4
+    assert state.answer("car1/ads_rca/verdict", {}, 9.0) is None
+    verdict = {"primary_root_cause": "perception", "note": float("inf")}
+    assert [k for k, _ in state.on_verdict(strictjson.dumps(verdict), 9.0)] == [
+        "car1/ads_rca/verdict"
+    ]
+    assert [k for k, _ in state.on_verdict(strictjson.dumps(verdict), 9.01)] == [
+        "car1/ads_rca/verdict"
+    ]  # never rate-limited
+    answered = strictjson.loads(state.answer("car1/ads_rca/verdict", {}, 9.0) or "")
+    assert answered["primary_root_cause"] == "perception"
+    status = strictjson.loads(state.answer("car1/ads_rca/status", {}, 9.5) or "")
+    assert status["state"] == "verdict" and status["results"] == {"perception": 7, "planning": 1}
+    with pytest.raises(ConfigError):
+        state.answer("car1/ads_rca/frames", {"since": "soon"}, 9.0)
+
+
+@pytest.mark.parametrize(
+    "text",
+    ["", "{", "[]", "null", '{"module": "wheels"}', "[" * 100_000, b"\xff\xfe", '{"index": "x"}'],
+)
+def test_remote_state_counts_what_is_not_a_result_and_forwards_nothing(text: str | bytes) -> None:
+    from ads_rca.remote.state import RemoteState
+
+    state = RemoteState("")
+    assert state.on_result(text, 0.0) == []
+    assert state.on_verdict(text, 0.0) == []
+    assert state.malformed == 2
+    assert "\n" not in state.last_problem and len(state.last_problem) < 260

@@ -51,6 +51,10 @@ class History:
             self._frames.popitem(last=False)
             self.evicted += 1
 
+    def frame(self, index: int) -> dict[str, Any] | None:
+        """The kept document of frame ``index``, if any."""
+        return self._frames.get(index)
+
     def since(self, index: int) -> list[dict[str, Any]]:
         """Frames with an index above ``index``, oldest first."""
         return [doc for n, doc in sorted(self._frames.items()) if n > index]

@@ -1,0 +1,139 @@
+"""What the Zenoh bridge forwards and remembers, without zenoh or rclpy.
+
+The bridge node hands every monitor result (``metrics/<module>``, a LiveResult's JSON) and
+the verdict document (``verdict/json``) to :class:`RemoteState`, which answers with the JSON
+samples to put on Zenoh (rate-limited per key; the verdict and the status never dropped)
+and keeps what a late dashboard asks the queryables for: the verdict, the status and the
+bounded frame history. Every document it sends is strict JSON (no NaN: ``strictjson``).
+A message that is not a result or a verdict is counted and its one-line reason kept; it is
+never forwarded.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+from ads_rca import strictjson
+from ads_rca.contract.errors import DOCUMENT_ERRORS, MalformedMessage
+from ads_rca.live.results import LiveResult
+from ads_rca.oracles.base import MODULES
+from ads_rca.remote.history import History, parse_since
+from ads_rca.remote.keys import check_prefix, dashboard_key
+from ads_rca.remote.rate import RateLimiter
+
+#: A sample to put: key expression and strict JSON text.
+Put = tuple[str, str]
+#: What reading a message may raise (deep nesting: RecursionError).
+READ_ERRORS: tuple[type[Exception], ...] = (MalformedMessage, RecursionError, *DOCUMENT_ERRORS)
+#: Longest reason kept for a malformed message.
+REASON_CHARS = 200
+
+
+class RemoteState:
+    """The bridge's dashboard-side state for one prefix."""
+
+    def __init__(
+        self, prefix: str, capacity: int = 2000, rates: Mapping[str, float] | None = None
+    ) -> None:
+        self.prefix = check_prefix(prefix)
+        self.verdict_key = dashboard_key(self.prefix, "verdict")
+        self.status_key = dashboard_key(self.prefix, "status")
+        self.frames_key = dashboard_key(self.prefix, "frames")
+        self.history = History(capacity)
+        limits: dict[str, float] = {}
+        for name, rate in (rates or {}).items():
+            if name == "modules":  # each module's key on its own: no burst replaces another's
+                limits.update({self.module_key(m): rate for m in MODULES})
+            else:
+                limits[dashboard_key(self.prefix, *name.split("/"))] = rate
+        self.limiter: RateLimiter[str] = RateLimiter(
+            limits, frozenset({self.verdict_key, self.status_key})
+        )
+        self.results: dict[str, int] = {}
+        self.malformed = 0
+        self.last_problem = ""
+        self.verdict: dict[str, Any] | None = None
+        self.last_index = -1
+
+    def module_key(self, module: str) -> str:
+        return dashboard_key(self.prefix, "modules", module)
+
+    def on_result(self, text: str | bytes, now: float) -> list[Put]:
+        """A monitor's result: kept in its frame's history entry and sent on the module's
+        key (rate-limited)."""
+        try:
+            result = LiveResult.from_document(_document(text))
+        except READ_ERRORS as error:
+            self._malformed("result", error)
+            return []
+        document = strictjson.from_strict(strictjson.to_strict(result.to_document()))
+        entry = self.history.frame(result.index) or {
+            "index": result.index,
+            "frame": result.frame,
+            "stamp_ms": result.stamp_ms,
+            "modules": {},
+        }
+        entry["modules"][result.module] = document
+        self.history.add_frame(result.index, entry)
+        self.results[result.module] = self.results.get(result.module, 0) + 1
+        self.last_index = max(self.last_index, result.index)
+        return self.limiter.offer(self.module_key(result.module), strictjson.dumps(document), now)
+
+    def on_verdict(self, text: str | bytes, now: float) -> list[Put]:
+        """The aggregator's verdict document (the ``diagnose --json`` contract): kept and
+        sent, never rate-limited."""
+        try:
+            document = _document(text)
+        except READ_ERRORS as error:
+            self._malformed("verdict", error)
+            return []
+        if "primary_root_cause" not in document:
+            self._malformed("verdict", ValueError("no primary_root_cause"))
+            return []
+        self.verdict = document
+        return self.limiter.offer(self.verdict_key, strictjson.dumps(document), now)
+
+    def status(self, now: float, state: str = "running") -> dict[str, Any]:
+        """The heartbeat: what was seen so far."""
+        return {
+            "state": "verdict" if self.verdict is not None else state,
+            "time": now,
+            "last_index": self.last_index,
+            "frames_held": len(self.history),
+            "frames_evicted": self.history.evicted,
+            "results": dict(self.results),
+            "malformed": self.malformed,
+            "last_problem": self.last_problem,
+        }
+
+    def heartbeat(self, now: float, state: str = "running") -> list[Put]:
+        return self.limiter.offer(self.status_key, strictjson.dumps(self.status(now, state)), now)
+
+    def flush(self, now: float, force: bool = False) -> list[Put]:
+        """Rate-limited samples now due (every one with ``force``)."""
+        return self.limiter.flush(now, force)
+
+    def answer(self, key: str, parameters: Mapping[str, str], now: float) -> str | None:
+        """A queryable's reply for ``key`` (None: nothing to say yet, or not ours)."""
+        if key == self.verdict_key:
+            return None if self.verdict is None else strictjson.dumps(self.verdict)
+        if key == self.status_key:
+            return strictjson.dumps(self.status(now))
+        if key == self.frames_key:
+            since = parse_since(parameters)
+            return strictjson.dumps({"since": since, "frames": self.history.since(since)})
+        return None
+
+    def _malformed(self, what: str, error: BaseException) -> None:
+        self.malformed += 1
+        text = str(error).encode("unicode_escape").decode("ascii")
+        self.last_problem = f"{what}: {text[:REASON_CHARS]}"
+
+
+def _document(text: str | bytes) -> dict[str, Any]:
+    """A JSON object from a message's text (strict JSON's conventions undone)."""
+    document = strictjson.loads(text)
+    if not isinstance(document, dict):
+        raise ValueError("not a JSON object")
+    return document

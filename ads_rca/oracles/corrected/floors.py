@@ -40,7 +40,12 @@ import numpy as np
 
 from ads_rca.model import Track
 from ads_rca.oracles.corrected.boxes import step_order
-from ads_rca.oracles.corrected.context import CacheName, CorrectedContext, window_frames
+from ads_rca.oracles.corrected.context import (
+    CacheName,
+    CorrectedContext,
+    floor_span,
+    window_frames,
+)
 from ads_rca.oracles.corrected.links import raw_links
 from ads_rca.oracles.corrected.match3d import frame_match, uses_3d
 
@@ -78,10 +83,9 @@ PREDICTION_SAMPLES: CacheName[Samples] = CacheName("prediction_samples")
 
 def floor_frames(cc: CorrectedContext, ts: int) -> list[int]:
     """The log's timestamps u with ts − (G + L)·tpf ≤ u < ts − G·tpf (ascending)."""
-    p, tpf = cc.params, cc.tpf
-    gap = window_frames(p, tpf)
-    length = round(p.noise_floor_s * 1000.0 / tpf)
-    return [u for u in range(ts - (gap + length) * tpf, ts - gap * tpf, tpf) if cc.is_frame(u)]
+    tpf = cc.tpf
+    first, end = ts - floor_span(cc.params, tpf) * tpf, ts - window_frames(cc.params, tpf) * tpf
+    return [u for u in range(first, end, tpf) if cc.is_frame(u)]
 
 
 def median(values: Sequence[float]) -> float:

@@ -45,11 +45,10 @@ MISS_DISTANCE = 2.0
 
 
 def displacement_metrics(
-    cc: CorrectedContext, ts: int, pwp: Predictions, pose: EgoPose
+    cc: CorrectedContext, ids: list[str], err: FloatArray
 ) -> dict[str, Metric]:
-    """ADE, FDE per actor and overall, and the miss rate, vs the realised positions."""
+    """ADE, FDE per actor and overall, and the miss rate, from :func:`errors`' distances."""
     w = cc.window
-    ids, err = errors(cc, ts, pwp, pose)
     out: dict[str, Metric] = {
         "ade": math.nan,
         "fde": math.nan,
@@ -112,6 +111,17 @@ def errors(
     return ids, np.hypot(diff[..., 0], diff[..., 1])
 
 
+PWP_ERRORS: CacheName[tuple[list[str], FloatArray]] = CacheName("pwp_errors")
+
+
+def pwp_errors(cc: CorrectedContext, ts: int) -> tuple[list[str], FloatArray]:
+    """:func:`errors` of the pwp file at ts (cached: the frame's metrics and, later, its
+    rule-8 samples read it); the caller has checked that the pwp and pose files exist."""
+    return cc.cache(PWP_ERRORS).get(
+        ts, lambda: errors(cc, ts, cc.log.predictions_with_perception[ts], cc.log.pose[ts])
+    )
+
+
 def prediction_samples(cc: CorrectedContext, u: int) -> Samples:
     """Prediction's error per actor at u, rule 8's samples (cached): e, the max over the
     horizon of |predicted − real| centre, of every non-ego actor's pwp track; without pwp
@@ -129,10 +139,9 @@ def _prediction_samples(cc: CorrectedContext, u: int) -> Samples:
             return {}
         ids, err = errors(cc, u, by_actor(cc, u, raw), pose, perceived_offsets(cc, u))
     else:
-        pwp = cc.log.predictions_with_perception.get(u)
-        if pwp is None:
+        if u not in cc.log.predictions_with_perception:
             return {}
-        ids, err = errors(cc, u, pwp, pose)
+        ids, err = pwp_errors(cc, u)
     finite: list[bool] = np.asarray(np.isfinite(err).any(axis=1), dtype=bool).tolist()
     e = np.where(np.isfinite(err), err, -np.inf).max(axis=1)
     return {a: float(v) for a, v, k in zip(ids, e.tolist(), finite, strict=True) if k}
@@ -182,8 +191,7 @@ def prediction(ctx: RunContext, ts: int) -> OracleResult:
     absent = missing_inputs(cc, ts, ("pose", "predictions_with_perception"), "prediction check")
     if absent:
         return skipped("prediction", ts, f"missing {', '.join(absent)}", thresholds=thresholds)
-    pwp, pose = cc.log.predictions_with_perception[ts], cc.log.pose[ts]
-    metrics = displacement_metrics(cc, ts, pwp, pose)
+    metrics = displacement_metrics(cc, *pwp_errors(cc, ts))
     partner = cc.partner_at(ts)
     if partner is None:
         metrics["unconditioned"] = False
@@ -229,7 +237,8 @@ def raw_prediction(cc: CorrectedContext, ts: int, thresholds: dict[str, float]) 
     if absent:
         return skipped("prediction", ts, f"missing {', '.join(absent)}", thresholds=thresholds)
     pose = cc.log.pose[ts]
-    metrics = displacement_metrics(cc, ts, by_actor(cc, ts, cc.log.predictions[ts]), pose)
+    raw = by_actor(cc, ts, cc.log.predictions[ts])
+    metrics = displacement_metrics(cc, *errors(cc, ts, raw, pose))
     metrics["basis"] = "raw"
     if cc.partner_at(ts) is None:
         metrics["unconditioned"] = False

@@ -61,6 +61,12 @@ def refused(done: subprocess.CompletedProcess[str]) -> str:
         ("max_decel=0", "parameter max_decel: 0 is out of range [0.1, 100] m/s²"),
         ("min_persistence=0", "parameter min_persistence: 0 is out of range [1, 1000] frames"),
         ("max_file_mb=-5", "parameter max_file_mb: -5 is out of range [0.001, 1048576] MB"),
+        ("noise_floor_s=1e9", "parameter noise_floor_s: 1000000000 is out of range [0, 60] s"),
+        ("noise_floor_factor=nan", "parameter noise_floor_factor: nan is out of range [0, 100]"),
+        (
+            "noise_floor_min_frames=0",
+            "parameter noise_floor_min_frames: 0 is out of range [1, 100000] frames",
+        ),
     ],
 )
 def test_a_value_out_of_range_on_the_command_line_is_refused_naming_the_range(

@@ -1,0 +1,139 @@
+"""The bridge's Zenoh side: a session that puts the state's samples and answers its queries.
+
+No rclpy: the ``zenoh_bridge`` node feeds it from ROS subscriptions, and tests and benches
+feed it directly. Every entry point takes the state lock, because the queryables answer on
+a zenoh thread while the node puts from its executor thread. The session is closed on every
+exit path (an open session with a queryable hangs the interpreter at exit).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable, Sequence
+from types import TracebackType
+from typing import Any
+
+from ads_rca.errors import ConfigError
+from ads_rca.remote.config import session_config
+from ads_rca.remote.session import close_session
+from ads_rca.remote.state import Put, RemoteState
+
+
+class ZenohPublisher:
+    """Puts JSON and raw CDR samples; answers ``verdict``, ``status`` and ``frames``."""
+
+    def __init__(
+        self,
+        state: RemoteState,
+        mode: str = "peer",
+        listen: Sequence[str] = (),
+        connect: Sequence[str] = (),
+        allow_remote: bool = False,
+        clock: Callable[[], float] = time.time,
+    ) -> None:
+        self.state = state
+        self.config_text = session_config(mode, listen, connect, allow_remote)
+        self.clock = clock
+        self.lock = threading.Lock()
+        self.puts = 0
+        self.raw_puts = 0
+        self.queries = 0
+        self.refused_queries = 0
+        self._session: Any = None
+        self._declared: list[Any] = []
+        self._raw_publishers: dict[str, Any] = {}
+
+    def open(self) -> ZenohPublisher:
+        import zenoh
+
+        self._session = zenoh.open(zenoh.Config.from_json5(self.config_text))
+        try:
+            for key in (self.state.verdict_key, self.state.status_key, self.state.frames_key):
+                self._declared.append(self._session.declare_queryable(key, self._answerer(key)))
+        except BaseException:
+            self.close()
+            raise
+        return self
+
+    def _answerer(self, key: str) -> Callable[[Any], None]:
+        """The callback of ``key``'s queryable: a query's own key expression may be a
+        wildcard (``**/ads_rca/verdict``), the reply names the key answered."""
+        return lambda query: self._on_query(query, key)
+
+    def _on_query(self, query: Any, key: str) -> None:  # on a zenoh thread
+        try:
+            parameters = dict(query.parameters)
+            with self.lock:
+                self.queries += 1
+                text = self.state.answer(key, parameters, self.clock())
+        except ConfigError as error:
+            with self.lock:
+                self.refused_queries += 1
+            query.reply_err(str(error))
+            return
+        if text is not None:
+            query.reply(key, text)
+
+    def send(self, puts: list[Put]) -> None:
+        """Put JSON samples (what the state's methods returned)."""
+        session = self._session
+        if session is None:
+            return
+        for key, text in puts:
+            session.put(key, text)
+        self.puts += len(puts)
+
+    def put_raw(self, key: str, payload: bytes) -> None:
+        """One raw CDR sample on a zenoh-bridge-ros2dds key (a declared publisher per key)."""
+        if self._session is None:
+            return
+        publisher = self._raw_publishers.get(key)
+        if publisher is None:
+            publisher = self._raw_publishers[key] = self._session.declare_publisher(key)
+        publisher.put(payload)
+        self.raw_puts += 1
+
+    def on_result(self, text: str | bytes) -> None:
+        with self.lock:
+            puts = self.state.on_result(text, self.clock())
+        self.send(puts)
+
+    def on_verdict(self, text: str | bytes) -> None:
+        with self.lock:
+            puts = self.state.on_verdict(text, self.clock())
+        self.send(puts)
+
+    def tick(self, heartbeat: bool, state: str = "running") -> None:
+        """Send what the rate limits now allow, and the status when ``heartbeat``."""
+        now = self.clock()
+        with self.lock:
+            puts = self.state.flush(now)
+            if heartbeat:
+                puts += self.state.heartbeat(now, state)
+        self.send(puts)
+
+    def finish(self, state: str = "stopped") -> None:
+        """Everything pending, then the final status: before closing."""
+        now = self.clock()
+        with self.lock:
+            puts = self.state.flush(now, force=True) + self.state.heartbeat(now, state)
+        self.send(puts)
+
+    def close(self) -> None:
+        """Undeclare everything and close the session; safe to call twice."""
+        declared, self._declared = self._declared, []
+        publishers, self._raw_publishers = self._raw_publishers, {}
+        session, self._session = self._session, None
+        close_session(session, [*declared, *publishers.values()])
+
+    def __enter__(self) -> ZenohPublisher:
+        return self.open()
+
+    def __exit__(
+        self,
+        kind: type[BaseException] | None,
+        value: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
+        self.close()

@@ -1,0 +1,264 @@
+"""What a remote dashboard knows about the runs it watches, without zenoh, rclpy or a UI.
+
+``ads-rca watch`` and ``ads-rca dashboard`` both feed every Zenoh sample (key and payload)
+and every queryable reply into one :class:`DashboardModel`, and draw from it. A run is the
+prefix in front of ``ads_rca/`` in a key, so several runs (one per prefix) are told apart.
+Nothing from the wire is trusted: a key that is not one of ours, a payload that is too big,
+not strict JSON or not an object, or a module that is not one of ours is counted as a
+problem and dropped; kept documents are bounded in number. Drawing code must still escape
+every string (they come from logs).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import orjson
+
+from ads_rca.oracles.base import MODULES
+from ads_rca.remote.keys import DASHBOARD_ROOT
+
+#: Largest payload accepted (a verdict with every frame of a long run stays far below).
+MAX_PAYLOAD = 64 * 1024 * 1024
+#: Clearance points kept per run for the timeline.
+TIMELINE_POINTS = 5000
+#: Near-miss warnings kept per run.
+NEAR_MISSES = 50
+#: Metrics read as "clearance" for the timeline and the near-miss warning, first found wins.
+CLEARANCE_METRICS = ("c_gt", "clearance", "min_clearance")
+#: Near-miss margin when a result names no ``safety_margin`` threshold (m).
+DEFAULT_MARGIN = 0.5
+#: Runs tracked at once (the oldest-updated is forgotten beyond it).
+MAX_RUNS = 64
+#: Wall-clock span over which the frame rate is measured (s).
+RATE_SPAN = 5.0
+
+
+def parse_key(key: str) -> tuple[str, str, str | None] | None:
+    """``(prefix, kind, module)`` of a dashboard key (``<prefix>/ads_rca/verdict``,
+    ``.../status``, ``.../frames``, ``.../modules/<module>``), None when it is not one."""
+    chunks = key.split("/")
+    for at in range(len(chunks) - 1, -1, -1):
+        if chunks[at] != DASHBOARD_ROOT:
+            continue
+        rest = chunks[at + 1 :]
+        prefix = "/".join(chunks[:at])
+        if len(rest) == 1 and rest[0] in ("verdict", "status", "frames"):
+            return prefix, rest[0], None
+        if len(rest) == 2 and rest[0] == "modules" and rest[1] in MODULES:
+            return prefix, "modules", rest[1]
+    return None
+
+
+def _number(value: object) -> float | None:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return None
+    number = float(value)
+    return number if math.isfinite(number) else None
+
+
+def clearance_of(document: Mapping[str, Any]) -> float | None:
+    """The true clearance a result reports (m), None when it reports none."""
+    metrics = document.get("metrics")
+    if not isinstance(metrics, Mapping):
+        return None
+    for name in CLEARANCE_METRICS:
+        found = _number(metrics.get(name))
+        if found is not None:
+            return found
+    return None
+
+
+def margin_of(document: Mapping[str, Any]) -> float:
+    thresholds = document.get("thresholds")
+    if isinstance(thresholds, Mapping):
+        found = _number(thresholds.get("safety_margin"))
+        if found is not None:
+            return found
+    return DEFAULT_MARGIN
+
+
+@dataclass
+class RunView:
+    """One run's state as a dashboard shows it."""
+
+    prefix: str
+    modules: dict[str, dict[str, Any]] = field(default_factory=dict)
+    failures: dict[str, int] = field(default_factory=dict)
+    judged: dict[str, int] = field(default_factory=dict)
+    timeline: deque[tuple[int, float]] = field(
+        default_factory=lambda: deque(maxlen=TIMELINE_POINTS)
+    )
+    near_misses: deque[dict[str, Any]] = field(default_factory=lambda: deque(maxlen=NEAR_MISSES))
+    status: dict[str, Any] | None = None
+    verdict: dict[str, Any] | None = None
+    last_index: int = -1
+    last_frame: Any = None
+    updated: float = 0.0
+    _seen: dict[tuple[str, int], int] = field(default_factory=dict)
+    _arrivals: deque[tuple[float, int]] = field(default_factory=lambda: deque(maxlen=4096))
+
+    def add_result(self, module: str, document: dict[str, Any], now: float) -> None:
+        """A module's result for one frame (a re-judged frame replaces its count)."""
+        index = document.get("index")
+        if not isinstance(index, int) or isinstance(index, bool):
+            raise ValueError("result without an integer index")
+        self.modules[module] = document
+        key = (module, index)
+        failed = 1 if document.get("failed") is True else 0
+        before = self._seen.get(key)
+        if before is None:
+            self.judged[module] = self.judged.get(module, 0) + 1
+        self.failures[module] = self.failures.get(module, 0) + failed - (before or 0)
+        self._seen[key] = failed
+        if len(self._seen) > 4 * TIMELINE_POINTS:  # bounded: forget the oldest frames' flags
+            for old in list(self._seen)[: len(self._seen) // 2]:
+                del self._seen[old]
+        if index > self.last_index:
+            self.last_index = index
+            self.last_frame = document.get("frame")
+            self._arrivals.append((now, index))
+        clearance = clearance_of(document)
+        if clearance is not None and module == "planning":
+            if not self.timeline or self.timeline[-1][0] < index:
+                self.timeline.append((index, clearance))
+            margin = margin_of(document)
+            if clearance < margin:
+                self.near_misses.append(
+                    {
+                        "index": index,
+                        "frame": document.get("frame"),
+                        "module": module,
+                        "clearance": clearance,
+                        "margin": margin,
+                    }
+                )
+        self.updated = now
+
+    def rate(self, now: float) -> float:
+        """Analysed frames per second over the last few seconds of arrivals (0: idle)."""
+        recent = [(t, i) for t, i in self._arrivals if now - t <= RATE_SPAN]
+        if len(recent) < 2:
+            return 0.0
+        span = recent[-1][0] - recent[0][0]
+        return (recent[-1][1] - recent[0][1]) / span if span > 0 else 0.0
+
+    def summary(self, now: float) -> dict[str, Any]:
+        """A JSON-ready digest: what a dashboard draws (every float finite or None)."""
+        modules = {}
+        for module in MODULES:
+            latest = self.modules.get(module)
+            modules[module] = {
+                "judged": self.judged.get(module, 0),
+                "failed_frames": self.failures.get(module, 0),
+                "latest": None
+                if latest is None
+                else {
+                    "index": latest.get("index"),
+                    "frame": latest.get("frame"),
+                    "failed": latest.get("failed") is True,
+                    "skipped": latest.get("skipped"),
+                    "metrics": latest.get("metrics"),
+                },
+            }
+        return {
+            "run": self.prefix,
+            "last_index": self.last_index,
+            "last_frame": self.last_frame,
+            "rate": round(self.rate(now), 2),
+            "modules": modules,
+            "near_misses": list(self.near_misses),
+            "status": self.status,
+            "verdict": self.verdict,
+        }
+
+
+class DashboardModel:
+    """Every run seen, fed sample by sample (see the module doc)."""
+
+    def __init__(self, prefix: str | None = None) -> None:
+        self.only = prefix  # watch one prefix (None: every run)
+        self.runs: dict[str, RunView] = {}
+        self.problems = 0
+        self.last_problem = ""
+
+    def run(self, prefix: str) -> RunView:
+        view = self.runs.get(prefix)
+        if view is None:
+            if len(self.runs) >= MAX_RUNS:
+                oldest = min(self.runs.values(), key=lambda v: v.updated)
+                del self.runs[oldest.prefix]
+            view = self.runs[prefix] = RunView(prefix)
+        return view
+
+    def apply(self, key: str, payload: bytes | str, now: float) -> dict[str, Any] | None:
+        """One sample or reply; the event it makes (``{"run", "kind", ...}``), or None when
+        it was dropped (and counted as a problem) or not ours."""
+        parsed = parse_key(key)
+        if parsed is None:
+            self._problem(f"not a dashboard key: {key[:80]!r}")
+            return None
+        prefix, kind, module = parsed
+        if self.only is not None and prefix != self.only:
+            return None
+        if len(payload) > MAX_PAYLOAD:
+            self._problem(f"{key[:80]}: payload larger than {MAX_PAYLOAD} bytes")
+            return None
+        try:
+            document = orjson.loads(payload)
+        except orjson.JSONDecodeError as error:
+            self._problem(f"{key[:80]}: not JSON ({str(error)[:80]})")
+            return None
+        if not isinstance(document, dict):
+            self._problem(f"{key[:80]}: not a JSON object")
+            return None
+        view = self.run(prefix)
+        try:
+            if kind == "modules":
+                assert module is not None
+                view.add_result(module, document, now)
+                return {"run": prefix, "kind": "module", "module": module, "result": document}
+            if kind == "frames":
+                return self._frames(view, document, now)
+            if kind == "verdict":
+                if "primary_root_cause" not in document:
+                    raise ValueError("verdict without primary_root_cause")
+                view.verdict = document
+            else:
+                view.status = document
+            view.updated = now
+            return {"run": prefix, "kind": kind, kind: document}
+        except (ValueError, TypeError) as error:
+            self._problem(f"{key[:80]}: {str(error)[:120]}")
+            return None
+            return None
+
+    def _frames(self, view: RunView, document: dict[str, Any], now: float) -> dict[str, Any]:
+        frames = document.get("frames")
+        if not isinstance(frames, list):
+            raise ValueError("frames reply without a frames list")
+        added = 0
+        for entry in frames:
+            modules = entry.get("modules") if isinstance(entry, dict) else None
+            if not isinstance(modules, dict):
+                raise ValueError("frames entry without modules")
+            for module, result in modules.items():
+                if module in MODULES and isinstance(result, dict):
+                    view.add_result(module, result, now)
+                    added += 1
+        return {"run": view.prefix, "kind": "frames", "results": added}
+
+    def _problem(self, reason: str) -> None:
+        self.problems += 1
+        self.last_problem = reason.encode("unicode_escape").decode("ascii")[:200]
+
+    def summary(self, now: float) -> dict[str, Any]:
+        return {
+            "runs": [self.runs[p].summary(now) for p in sorted(self.runs)],
+            "problems": self.problems,
+            "last_problem": self.last_problem,
+        }

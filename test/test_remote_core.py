@@ -11,7 +11,7 @@ import pytest
 from ads_rca.errors import ConfigError
 from ads_rca.remote.config import session_config
 from ads_rca.remote.history import History, parse_since
-from ads_rca.remote.keys import check_prefix, dashboard_key, ros_key
+from ads_rca.remote.keys import check_prefix, dashboard_key, ros_key, sample_key
 from ads_rca.remote.rate import RateLimiter
 from ads_rca.verdict import Metric, Module
 
@@ -21,6 +21,7 @@ def test_ros_keys_follow_the_zenoh_bridge_ros2dds_convention() -> None:
     assert ros_key("/rca/verdict", "car1") == "car1/rca/verdict"
     assert ros_key("rca/verdict", "/fleet/car1/") == "fleet/car1/rca/verdict"
     assert dashboard_key("car1", "verdict") == "car1/ads_rca/verdict"
+    assert sample_key("car1", "verdict") == "car1/ads_rca/verdict.json"
     assert dashboard_key("", "modules", "perception") == "ads_rca/modules/perception"
 
 
@@ -133,17 +134,17 @@ def test_remote_state_forwards_results_and_answers_late_dashboards() -> None:
 
     state = RemoteState("car1", capacity=3, rates={"modules": 10.0})
     puts = state.on_result(result_text(0), 0.0)
-    assert [key for key, _ in puts] == ["car1/ads_rca/modules/perception"]
+    assert [key for key, _ in puts] == ["car1/ads_rca/modules/perception.json"]
     sent = puts[0][1]
     assert "NaN" not in sent and strictjson.loads(sent)["metrics"]["recall"] != 0.5
     assert state.on_result(result_text(1), 0.01) == []  # within 0.1 s: pending
     assert state.on_result(result_text(2), 0.02) == []  # the newest replaces it
     planning = state.on_result(result_text(0, "planning"), 0.03)  # its own key, its own limit
-    assert [key for key, _ in planning] == ["car1/ads_rca/modules/planning"]
+    assert [key for key, _ in planning] == ["car1/ads_rca/modules/planning.json"]
     assert state.flush(0.05) == []
     due = state.flush(0.2)
     assert [(key, strictjson.loads(text)["index"]) for key, text in due] == [
-        ("car1/ads_rca/modules/perception", 2)
+        ("car1/ads_rca/modules/perception.json", 2)
     ]
     for n in range(1, 5):
         state.on_result(result_text(n), 1.0 + n)
@@ -153,10 +154,10 @@ def test_remote_state_forwards_results_and_answers_late_dashboards() -> None:
     assert state.answer("car1/ads_rca/verdict", {}, 9.0) is None
     verdict = {"primary_root_cause": "perception", "note": float("inf")}
     assert [k for k, _ in state.on_verdict(strictjson.dumps(verdict), 9.0)] == [
-        "car1/ads_rca/verdict"
+        "car1/ads_rca/verdict.json"
     ]
     assert [k for k, _ in state.on_verdict(strictjson.dumps(verdict), 9.01)] == [
-        "car1/ads_rca/verdict"
+        "car1/ads_rca/verdict.json"
     ]  # never rate-limited
     answered = strictjson.loads(state.answer("car1/ads_rca/verdict", {}, 9.0) or "")
     assert answered["primary_root_cause"] == "perception"

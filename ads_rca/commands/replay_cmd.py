@@ -37,6 +37,7 @@ from ads_rca.commands.playback_args import (
     check_playback_arguments,
     choose_domain_id,
 )
+from ads_rca.commands.zenoh_args import add_zenoh_arguments, zenoh_params_from_args
 from ads_rca.errors import AdsRcaError, InputError
 from ads_rca.params import Params
 from ads_rca.profiles import BUILTIN_PROFILES
@@ -74,6 +75,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help="the four monitors in one process (inputs decoded once; default) or one each",
     )
     parser.add_argument("--verbose", action="store_true", help="show every node's output")
+    add_zenoh_arguments(parser)
     parser.set_defaults(run=run)
 
 
@@ -145,6 +147,7 @@ def _run_graph(
             monitors=args.monitors,
             namespace=args.namespace,
             player_params=player_params,
+            zenoh_params=zenoh_params_from_args(args),
         )
         print(
             printable(
@@ -232,6 +235,8 @@ def _replay(
             graph.start()
             document = graph.wait_verdict(args.timeout)
             failed = graph.failed() if document is None else {}
+            if document is not None and spec.zenoh_params is not None:
+                wait_bridge(graph, float(args.zenoh_linger))
             codes = graph.stop()
             outputs = {name: p.output for name, p in graph.processes.items()}
     except Interrupted:
@@ -265,6 +270,16 @@ def _replay(
             )
         )
     return 0
+
+
+def wait_bridge(graph: Graph, linger_s: float) -> None:
+    """Let the Zenoh bridge forward the verdict and answer late queries for ``linger_s``
+    (it exits by itself then); a bridge that does not is stopped with the rest."""
+    from ads_rca.ros.graph import BRIDGE_NAME
+
+    bridge = graph.processes.get(BRIDGE_NAME)
+    if bridge is not None and bridge.wait(linger_s + 10.0) is None:
+        print("ads-rca replay: the Zenoh bridge did not finish; stopping it", file=sys.stderr)
 
 
 def live_summary(document: dict[str, Any]) -> str:

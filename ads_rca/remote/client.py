@@ -16,7 +16,7 @@ from types import TracebackType
 from typing import Any
 
 from ads_rca.remote.config import DEFAULT_ENDPOINT, session_config
-from ads_rca.remote.keys import DASHBOARD_ROOT, check_prefix
+from ads_rca.remote.keys import DASHBOARD_ROOT, SAMPLE_SUFFIX, check_prefix
 from ads_rca.remote.session import close_session
 
 #: Samples waiting for the caller beyond this are dropped (and counted): a stalled UI must
@@ -56,7 +56,10 @@ class RemoteClient:
 
         self._session = zenoh.open(zenoh.Config.from_json5(self.config_text))
         try:
-            self._subscriber = self._session.declare_subscriber(f"{self.root}/**", self._on_sample)
+            # Only the JSON samples: raw CDR keys of the graph's namespace share the root.
+            self._subscriber = self._session.declare_subscriber(
+                f"{self.root}/**/$*{SAMPLE_SUFFIX}", self._on_sample
+            )
         except BaseException:
             self.close()
             raise

@@ -3,7 +3,14 @@
 Two families. Raw CDR samples follow the zenoh-bridge-ros2dds convention: the ROS topic name
 without its leading slash, under an optional prefix, so a remote ``zenoh-bridge-ros2dds``
 re-publishes them into its own ROS graph. JSON for dashboards lives under
-``<prefix>/ads_rca/...``. A prefix is one or more plain chunks: no wildcard or reserved
+``<prefix>/ads_rca/...``: queryables on ``verdict``, ``status`` and ``frames``, published
+samples on ``verdict.json``, ``status.json`` and ``modules/<module>.json``. Why the suffix:
+the graph's default namespace is ``/ads_rca``, so the raw key of the verdict topic
+(DiagnosticArray) is ``<prefix>/ads_rca/verdict`` itself; a ``.`` never occurs in a ROS
+name, so a JSON sample can never share a key with a CDR one (a remote bridge would
+re-publish it into ROS as a broken message).
+
+A prefix is one or more plain chunks: no wildcard or reserved
 character, no empty chunk, so a key built from it never matches more than it names.
 """
 
@@ -50,9 +57,18 @@ def ros_key(topic: str, prefix: str = "") -> str:
     return f"{base}/{name}" if base else name
 
 
+#: What a published JSON sample's key ends with (a queryable's key has no suffix).
+SAMPLE_SUFFIX = ".json"
+
+
+def sample_key(prefix: str, *parts: str) -> str:
+    """The key of a published JSON sample: :func:`dashboard_key` + ``.json``."""
+    return dashboard_key(prefix, *parts) + SAMPLE_SUFFIX
+
+
 def dashboard_key(prefix: str, *parts: str) -> str:
-    """``<prefix>/ads_rca/<parts>``: the JSON a dashboard reads (``verdict``, ``status``,
-    ``frames``, ``modules/<module>``)."""
+    """``<prefix>/ads_rca/<parts>``: a queryable's key (``verdict``, ``status``,
+    ``frames``); published samples add :data:`SAMPLE_SUFFIX` (:func:`sample_key`)."""
     base = check_prefix(prefix)
     tail = "/".join(check_prefix(part, "key part") for part in parts)
     head = f"{base}/{DASHBOARD_ROOT}" if base else DASHBOARD_ROOT

@@ -49,7 +49,7 @@ class ZenohPublisher:
 
         self._session = zenoh.open(zenoh.Config.from_json5(self.config_text))
         try:
-            for key in (self.state.verdict_key, self.state.status_key, self.state.frames_key):
+            for key in self.state.queries.values():
                 self._declared.append(self._session.declare_queryable(key, self._answerer(key)))
         except BaseException:
             self.close()
@@ -76,21 +76,36 @@ class ZenohPublisher:
             query.reply(key, text)
 
     def send(self, puts: list[Put]) -> None:
-        """Put JSON samples (what the state's methods returned)."""
+        """Put JSON samples (what the state's methods returned). The verdict and the status
+        block rather than drop when the link is congested; results may be dropped by Zenoh
+        then (the frame history still holds them)."""
         session = self._session
         if session is None:
             return
+        import zenoh
+
         for key, text in puts:
-            session.put(key, text)
+            keep = key in (self.state.verdict_key, self.state.status_key)
+            session.put(
+                key,
+                text,
+                encoding=zenoh.Encoding.APPLICATION_JSON,
+                congestion_control=zenoh.CongestionControl.BLOCK if keep else None,
+            )
         self.puts += len(puts)
 
-    def put_raw(self, key: str, payload: bytes) -> None:
-        """One raw CDR sample on a zenoh-bridge-ros2dds key (a declared publisher per key)."""
+    def put_raw(self, key: str, payload: bytes, ros_type: str) -> None:
+        """One raw CDR sample on a zenoh-bridge-ros2dds key (a declared publisher per key;
+        encoding ``application/cdr`` with the ROS type as its schema)."""
         if self._session is None:
             return
         publisher = self._raw_publishers.get(key)
         if publisher is None:
-            publisher = self._raw_publishers[key] = self._session.declare_publisher(key)
+            import zenoh
+
+            encoding = zenoh.Encoding.APPLICATION_CDR.with_schema(ros_type)
+            publisher = self._session.declare_publisher(key, encoding=encoding)
+            self._raw_publishers[key] = publisher
         publisher.put(payload)
         self.raw_puts += 1
 

@@ -19,7 +19,7 @@ from ads_rca.contract.errors import DOCUMENT_ERRORS, MalformedMessage
 from ads_rca.live.results import LiveResult
 from ads_rca.oracles.base import MODULES
 from ads_rca.remote.history import History, parse_since
-from ads_rca.remote.keys import check_prefix, dashboard_key
+from ads_rca.remote.keys import check_prefix, dashboard_key, sample_key
 from ads_rca.remote.rate import RateLimiter
 
 #: A sample to put: key expression and strict JSON text.
@@ -34,19 +34,31 @@ class RemoteState:
     """The bridge's dashboard-side state for one prefix."""
 
     def __init__(
-        self, prefix: str, capacity: int = 2000, rates: Mapping[str, float] | None = None
+        self,
+        prefix: str,
+        capacity: int = 2000,
+        rates: Mapping[str, float] | None = None,
+        run: str = "",
     ) -> None:
         self.prefix = check_prefix(prefix)
-        self.verdict_key = dashboard_key(self.prefix, "verdict")
-        self.status_key = dashboard_key(self.prefix, "status")
-        self.frames_key = dashboard_key(self.prefix, "frames")
+        #: Forward only this run's results and verdict ("" = any run): the graph's other
+        #: runs sharing the domain and namespace are counted in ``other_runs``.
+        self.run = run
+        self.other_runs = 0
+        #: Published samples' keys.
+        self.verdict_key = sample_key(self.prefix, "verdict")
+        self.status_key = sample_key(self.prefix, "status")
+        #: The queryables' keys.
+        self.queries = {
+            kind: dashboard_key(self.prefix, kind) for kind in ("verdict", "status", "frames")
+        }
         self.history = History(capacity)
         limits: dict[str, float] = {}
         for name, rate in (rates or {}).items():
             if name == "modules":  # each module's key on its own: no burst replaces another's
                 limits.update({self.module_key(m): rate for m in MODULES})
             else:
-                limits[dashboard_key(self.prefix, *name.split("/"))] = rate
+                limits[sample_key(self.prefix, *name.split("/"))] = rate
         self.limiter: RateLimiter[str] = RateLimiter(
             limits, frozenset({self.verdict_key, self.status_key})
         )
@@ -57,7 +69,7 @@ class RemoteState:
         self.last_index = -1
 
     def module_key(self, module: str) -> str:
-        return dashboard_key(self.prefix, "modules", module)
+        return sample_key(self.prefix, "modules", module)
 
     def on_result(self, text: str | bytes, now: float) -> list[Put]:
         """A monitor's result: kept in its frame's history entry and sent on the module's
@@ -66,6 +78,9 @@ class RemoteState:
             result = LiveResult.from_document(_document(text))
         except READ_ERRORS as error:
             self._malformed("result", error)
+            return []
+        if self.run and result.run and result.run != self.run:
+            self.other_runs += 1
             return []
         document = strictjson.from_strict(strictjson.to_strict(result.to_document()))
         entry = self.history.frame(result.index) or {
@@ -91,6 +106,11 @@ class RemoteState:
         if "primary_root_cause" not in document:
             self._malformed("verdict", ValueError("no primary_root_cause"))
             return []
+        live = document.get("live")
+        run = live.get("run") if isinstance(live, dict) else None
+        if self.run and isinstance(run, str) and run and run != self.run:
+            self.other_runs += 1
+            return []
         self.verdict = document
         return self.limiter.offer(self.verdict_key, strictjson.dumps(document), now)
 
@@ -98,12 +118,14 @@ class RemoteState:
         """The heartbeat: what was seen so far."""
         return {
             "state": "verdict" if self.verdict is not None else state,
+            "run": self.run,
             "time": now,
             "last_index": self.last_index,
             "frames_held": len(self.history),
             "frames_evicted": self.history.evicted,
             "results": dict(self.results),
             "malformed": self.malformed,
+            "other_runs": self.other_runs,
             "last_problem": self.last_problem,
         }
 
@@ -116,11 +138,11 @@ class RemoteState:
 
     def answer(self, key: str, parameters: Mapping[str, str], now: float) -> str | None:
         """A queryable's reply for ``key`` (None: nothing to say yet, or not ours)."""
-        if key == self.verdict_key:
+        if key == self.queries["verdict"]:
             return None if self.verdict is None else strictjson.dumps(self.verdict)
-        if key == self.status_key:
+        if key == self.queries["status"]:
             return strictjson.dumps(self.status(now))
-        if key == self.frames_key:
+        if key == self.queries["frames"]:
             since = parse_since(parameters)
             return strictjson.dumps({"since": since, "frames": self.history.since(since)})
         return None

@@ -20,8 +20,10 @@ from typing import Any
 import orjson
 
 from ads_rca.oracles.base import MODULES
-from ads_rca.remote.keys import DASHBOARD_ROOT
+from ads_rca.remote.keys import DASHBOARD_ROOT, SAMPLE_SUFFIX
 
+#: The queryables a dashboard asks on connecting.
+QUERIES = ("verdict", "status", "frames")
 #: Largest payload accepted (a verdict with every frame of a long run stays far below).
 MAX_PAYLOAD = 64 * 1024 * 1024
 #: Clearance points kept per run for the timeline.
@@ -39,17 +41,19 @@ RATE_SPAN = 5.0
 
 
 def parse_key(key: str) -> tuple[str, str, str | None] | None:
-    """``(prefix, kind, module)`` of a dashboard key (``<prefix>/ads_rca/verdict``,
-    ``.../status``, ``.../frames``, ``.../modules/<module>``), None when it is not one."""
-    chunks = key.split("/")
+    """``(prefix, kind, module)`` of a dashboard key: a sample's (``<prefix>/ads_rca/
+    verdict.json``, ``status.json``, ``modules/<module>.json``) or a queryable reply's
+    (``verdict``, ``status``, ``frames``); None when it is not one (a raw CDR key)."""
+    sample = key.endswith(SAMPLE_SUFFIX)
+    chunks = (key[: -len(SAMPLE_SUFFIX)] if sample else key).split("/")
     for at in range(len(chunks) - 1, -1, -1):
         if chunks[at] != DASHBOARD_ROOT:
             continue
         rest = chunks[at + 1 :]
         prefix = "/".join(chunks[:at])
-        if len(rest) == 1 and rest[0] in ("verdict", "status", "frames"):
+        if len(rest) == 1 and rest[0] in (("verdict", "status") if sample else QUERIES):
             return prefix, rest[0], None
-        if len(rest) == 2 and rest[0] == "modules" and rest[1] in MODULES:
+        if sample and len(rest) == 2 and rest[0] == "modules" and rest[1] in MODULES:
             return prefix, "modules", rest[1]
     return None
 
@@ -234,7 +238,6 @@ class DashboardModel:
             return {"run": prefix, "kind": kind, kind: document}
         except (ValueError, TypeError) as error:
             self._problem(f"{key[:80]}: {str(error)[:120]}")
-            return None
             return None
 
     def _frames(self, view: RunView, document: dict[str, Any], now: float) -> dict[str, Any]:

@@ -42,8 +42,11 @@ PLAYER = "ads_rca.ros.player"
 AGGREGATOR = "ads_rca.ros.aggregator"
 MONITOR = "ads_rca.ros.monitor"
 RECORDER = "ads_rca.ros.recorder"
+BRIDGE = "ads_rca.ros.zenoh_bridge"
 #: Monitor node name → module it judges: ``<module>_monitor``, in pipeline order.
 MONITORS: dict[str, Module] = {f"{module}_monitor": module for module in MODULES}
+#: The bridge's node, process and executable name.
+BRIDGE_NAME = "zenoh_bridge"
 #: The executable that runs all four monitors in one process.
 GROUP = "monitors"
 MONITORS_SHARED = "shared"
@@ -92,6 +95,9 @@ class GraphSpec:
     monitors: str = MONITORS_SHARED
     #: The aggregator exits 0 once its verdict is acknowledged (the launch file's end of run).
     exit_after_verdict: bool = False
+    #: The Zenoh bridge's own parameters (None: no bridge). It forwards this run only and
+    #: exits once its verdict is out and its ``linger_s`` passed.
+    zenoh_params: dict[str, ParamValue] | None = None
     #: Every node of the graph is given this run id, so it ignores any other run that
     #: shares its domain and namespace (see ads_rca.live.runid).
     run_id: str = field(default_factory=new_run_id)
@@ -117,6 +123,14 @@ class GraphSpec:
                 "run_id": self.run_id,
             }
             out.append(NodeSpec("recorder", "recorder", RECORDER, None, rec))
+        if self.zenoh_params is not None:
+            bridge: dict[str, ParamValue] = {
+                "topic_namespace": self.namespace,
+                "run_id": self.run_id,
+                "exit_after_verdict": True,
+                **self.zenoh_params,
+            }
+            out.append(NodeSpec(BRIDGE_NAME, BRIDGE_NAME, BRIDGE, None, bridge))
         agg: dict[str, ParamValue] = {
             **self.common(),
             **({"verdict_json": str(self.verdict_json)} if self.verdict_json else {}),

@@ -28,11 +28,16 @@ from typing import TextIO
 from ads_rca.ros.env import ros_environment
 from ads_rca.ros.lifeline import PARENT_VARIABLE
 
-ParamValue = bool | int | float | str
+ParamValue = bool | int | float | str | tuple[str, ...]
 
 
 def format_param(value: ParamValue) -> str:
-    """A value as ``-p name:=value`` wants it (YAML): floats keep a '.', strings are quoted."""
+    """A value as ``-p name:=value`` wants it (YAML): floats keep a '.', strings are quoted,
+    a tuple of strings is a YAML flow list (a string array; rcl cannot type an empty one)."""
+    if isinstance(value, tuple):
+        if not value:
+            raise ValueError("an empty list parameter has no type: leave it out")
+        return "[" + ", ".join(format_param(item) for item in value) + "]"
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, int):

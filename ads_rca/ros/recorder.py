@@ -51,6 +51,7 @@ from ads_rca.ros.nodemain import (
     subscribe_ready,
 )
 from ads_rca.ros.nodeparams import NodeParameter, declare_node_parameters, log_in_force
+from ads_rca.ros.qos_match import offered_qos
 
 PARAMETERS: dict[str, NodeParameter] = {
     "output": ("", "Bag directory to create (required; must be new or empty)."),
@@ -257,18 +258,7 @@ class Recorder(Node):
             return topics.qos_profile(key, keep_all=True)
         if name in self.graph_qos:
             return self.graph_qos[name]
-        # Like rosbag2: reliable/latched only if every publisher offers it (else no match).
-        info = self.get_publishers_info_by_topic(name)
-        latched = bool(info) and all(
-            p.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for p in info
-        )
-        reliable = all(p.qos_profile.reliability == ReliabilityPolicy.RELIABLE for p in info)
-        return QoSProfile(
-            history=HistoryPolicy.KEEP_ALL,
-            depth=1000,
-            reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
-            durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,
-        )
+        return offered_qos(self, name, keep_all=True)
 
     def _subscribe(self, name: str, msg_type: str) -> None:
         msg_type = rosmsg.normalise_type(msg_type)

@@ -73,24 +73,25 @@ class ZenohPublisher:
             query.reply_err(str(error))
             return
         if text is not None:
-            query.reply(key, text)
+            import zenoh
+
+            query.reply(key, text, encoding=zenoh.Encoding.APPLICATION_JSON)
 
     def send(self, puts: list[Put]) -> None:
-        """Put JSON samples (what the state's methods returned). The verdict and the status
-        block rather than drop when the link is congested; results may be dropped by Zenoh
-        then (the frame history still holds them)."""
+        """Put JSON samples (what the state's methods returned). Every put blocks rather
+        than drops when the link is congested (Zenoh's default for puts is to drop): the
+        rate limits, not the transport, decide what a slow link is spared."""
         session = self._session
         if session is None:
             return
         import zenoh
 
         for key, text in puts:
-            keep = key in (self.state.verdict_key, self.state.status_key)
             session.put(
                 key,
                 text,
                 encoding=zenoh.Encoding.APPLICATION_JSON,
-                congestion_control=zenoh.CongestionControl.BLOCK if keep else None,
+                congestion_control=zenoh.CongestionControl.BLOCK,
             )
         self.puts += len(puts)
 
@@ -104,7 +105,9 @@ class ZenohPublisher:
             import zenoh
 
             encoding = zenoh.Encoding.APPLICATION_CDR.with_schema(ros_type)
-            publisher = self._session.declare_publisher(key, encoding=encoding)
+            publisher = self._session.declare_publisher(
+                key, encoding=encoding, congestion_control=zenoh.CongestionControl.BLOCK
+            )
             self._raw_publishers[key] = publisher
         publisher.put(payload)
         self.raw_puts += 1

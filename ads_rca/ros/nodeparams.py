@@ -26,8 +26,9 @@ from rcl_interfaces.msg import (
     ParameterDescriptor,
     ParameterType,
 )
-from rclpy.exceptions import ParameterException
+from rclpy.exceptions import ParameterException, ParameterUninitializedException
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 
 from ads_rca.errors import ConfigError
 from ads_rca.oracles.semantics import semantics_for
@@ -162,11 +163,20 @@ def _descriptor(
 
 
 def _declare(node: Node, name: str, default: Any, descriptor: ParameterDescriptor) -> Any:
+    """Declare ``name``; its value. An empty list default is declared by type (rclpy would
+    take ``[]`` for a byte array and refuse every list of strings given for it)."""
+    empty_list = isinstance(default, list) and not default
     try:
-        node.declare_parameter(name, default, descriptor)
+        node.declare_parameter(
+            name, Parameter.Type.STRING_ARRAY if empty_list else default, descriptor
+        )
+        value = node.get_parameter(name).value
+    except ParameterUninitializedException:  # no value given: the empty list, typed
+        node.set_parameters([Parameter(name, Parameter.Type.STRING_ARRAY, [])])
+        return []
     except ParameterException as error:
         raise ConfigError(printable(f"parameter {name}: {error}")) from None
-    return node.get_parameter(name).value
+    return value
 
 
 def _freeze(node: Node, name: str, descriptor: ParameterDescriptor) -> None:

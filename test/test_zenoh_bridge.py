@@ -1,0 +1,273 @@
+"""The Zenoh bridge over real DDS and real Zenoh sessions on loopback, every part its own process.
+
+- ``ads-rca replay --zenoh``: a listener process with no rclpy import receives every frame's
+  result of every module and the verdict, identical to what the replay and ``diagnose``
+  say; the raw CDR samples decode with rosbags into the original messages; a dashboard
+  that connects after the verdict gets it, and the frames it missed, from the queryables;
+- the bridge node on its own survives its Zenoh peer going away and coming back, counts a
+  malformed result instead of forwarding it, and stops cleanly (exit 0, session closed)
+  on SIGINT and on SIGTERM;
+- bad parameters and options are one line and exit 2, before any session opens.
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+import signal
+import socket
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import pytest
+from rosbags.typesys import Stores, get_typestore
+from rosrun import wait_for
+from test_live_window import failed_flags, verdict_keys
+
+from ads_rca import strictjson
+from ads_rca.contract.live_topics import metrics_qos
+from ads_rca.engine import diagnose
+from ads_rca.io.json_log import read_run_log
+from ads_rca.oracles.base import MODULES
+from ads_rca.params import make_params
+from ads_rca.ros.launcher import ManagedProcess, ros_args
+
+if TYPE_CHECKING:
+    from conftest import RosEnv
+
+pytestmark = pytest.mark.timeout(180)
+
+LISTENER = Path(__file__).parent / "zenoh_listener.py"
+TYPESTORE = get_typestore(Stores.ROS2_KILTED)
+
+
+def free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+def rows(path: Path) -> list[dict[str, Any]]:
+    """The listener's lines so far (none before it opened its file; not a half-written one)."""
+    if not path.exists():
+        return []
+    return [json.loads(line) for line in path.read_text().splitlines() if line.endswith("}")]
+
+
+def listener(env: dict[str, str], out: Path, *options: str) -> ManagedProcess:
+    argv = [sys.executable, str(LISTENER), str(out), *options]
+    return ManagedProcess(out.stem, argv, env)
+
+
+def test_replay_over_zenoh_gives_every_result_the_verdict_and_late_catch_up(
+    ros_env: RosEnv, tmp_path: Path, log_dirs: Callable[[str, str], Path]
+) -> None:
+    log_dir = log_dirs("cut_in", "perception")
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    live_rows, late_rows = tmp_path / "live.jsonl", tmp_path / "late.jsonl"
+    remote = listener(ros_env.env, live_rows, "--connect", endpoint, "--until-verdict")
+    out = tmp_path / "verdict.json"
+    argv = [sys.executable, "-m", "ads_rca.cli", "replay", str(log_dir), "--json", str(out)]
+    argv += ["--domain-id", str(ros_env.domain_id), "--namespace", ros_env.namespace]
+    argv += ["--zenoh", "--zenoh-listen", endpoint, "--zenoh-prefix", "car1"]
+    argv += ["--rate-modules", "0", "--zenoh-linger", "20", "--timeout", "90"]
+    replay = ManagedProcess("replay", argv, ros_env.env)
+    try:
+        assert remote.wait(120) == 0, remote.output
+        # Late: the verdict is out; the bridge lingers and answers the queryables.
+        late = listener(
+            ros_env.env,
+            late_rows,
+            *("--connect", endpoint, "--timeout", "3"),
+            *("--query", "car1/ads_rca/verdict", "--query", "car1/ads_rca/frames?since=40"),
+        )
+        assert late.wait(60) == 0, late.output
+        assert replay.wait(120) == 0, replay.output
+    finally:
+        replay.stop()
+    live = json.loads(out.read_text())
+    offline = diagnose(read_run_log(log_dir), make_params("corrected")).to_json()
+    received = rows(live_rows)
+    assert received[-1] == {"end": True, "rclpy_loaded": False}
+    frames = len(live["frames"])
+
+    # Every module's result of every frame, and the verdict: the replay's document.
+    results: dict[str, dict[int, dict[str, Any]]] = {m: {} for m in MODULES}
+    verdicts = []
+    for row in received[:-1]:
+        if row["key"].startswith("car1/ads_rca/modules/"):
+            document = strictjson.loads(row["text"])
+            results[document["module"]][document["index"]] = document
+        elif row["key"] == "car1/ads_rca/verdict.json":
+            verdicts.append(json.loads(row["text"]))  # strict form: NaN never equals NaN
+    for module in MODULES:
+        assert sorted(results[module]) == list(range(frames)), module
+        flags = [results[module][i]["failed"] for i in range(frames)]
+        assert flags == [f[module]["failed"] for f in live["frames"]], module
+    assert len(verdicts) == 1
+    assert sorted(k for k in {*live, *verdicts[0]} if verdicts[0].get(k) != live.get(k)) == []
+    assert failed_flags(verdicts[0]) == failed_flags(offline)
+    assert verdict_keys(verdicts[0])["primary_root_cause"] == offline["primary_root_cause"]
+
+    # Raw CDR under the zenoh-bridge-ros2dds keys decodes into the original messages.
+    ns = ros_env.namespace.strip("/")
+    raw = {r["key"]: r for r in received[:-1] if "b64" in r}
+    verdict_raw = raw[f"car1/{ns}/verdict"]
+    assert verdict_raw["encoding"] == "application/cdr;diagnostic_msgs/msg/DiagnosticArray"
+    array: Any = TYPESTORE.deserialize_cdr(
+        base64.b64decode(verdict_raw["b64"]), "diagnostic_msgs/msg/DiagnosticArray"
+    )
+    assert offline["primary_root_cause"] in array.status[0].message
+    text: Any = TYPESTORE.deserialize_cdr(
+        base64.b64decode(raw[f"car1/{ns}/verdict/json"]["b64"]), "std_msgs/msg/String"
+    ).data
+    assert json.loads(text) == live
+    metrics = [r for r in received[:-1] if r["key"] == f"car1/{ns}/metrics/planning"]
+    assert len(metrics) == frames
+    last: Any = TYPESTORE.deserialize_cdr(
+        base64.b64decode(metrics[-1]["b64"]), "std_msgs/msg/String"
+    )
+    assert json.loads(last.data) == json.loads(strictjson.dumps(results["planning"][frames - 1]))
+
+    # The late dashboard: the verdict and the frames after 40 from the queryables.
+    replies = {r["key"]: r for r in rows(late_rows) if r.get("reply")}
+    assert json.loads(replies["car1/ads_rca/verdict"]["text"]) == live
+    history = strictjson.loads(replies["car1/ads_rca/frames"]["text"])
+    assert [f["index"] for f in history["frames"]] == list(range(41, frames))
+    assert set(history["frames"][-1]["modules"]) == set(MODULES)
+
+
+def bridge_process(ros_env: RosEnv, name: str, **params: Any) -> ManagedProcess:
+    values = {"topic_namespace": ros_env.namespace, "heartbeat_s": 0.2, **params}
+    argv = [sys.executable, "-m", "ads_rca.ros.zenoh_bridge", *ros_args(values)]
+    return ManagedProcess(name, argv, ros_env.env)
+
+
+@pytest.mark.parametrize("stop", [signal.SIGINT, signal.SIGTERM])
+def test_bridge_survives_its_peer_going_away_and_stops_cleanly(
+    ros_env: RosEnv, tmp_path: Path, stop: signal.Signals
+) -> None:
+    import rclpy
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from std_msgs.msg import String
+
+    port = free_port()
+    endpoint = f"tcp/127.0.0.1:{port}"
+    peer_rows = [tmp_path / "peer1.jsonl", tmp_path / "peer2.jsonl"]
+    peer = listener(ros_env.env, peer_rows[0], "--listen", endpoint, "--timeout", "60")
+    bridge = bridge_process(
+        ros_env,
+        "bridge",
+        zenoh_connect=(endpoint,),
+        zenoh_listen=(f"tcp/127.0.0.1:{free_port()}",),
+        zenoh_prefix="car1",
+        bridge_topics=("chatter", "metrics/perception"),
+    )
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    node = rclpy.create_node("talker", context=context)
+    qos = QoSProfile(
+        depth=10, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE
+    )
+    chatter = node.create_publisher(String, f"{ros_env.namespace}/chatter", qos)
+    results = node.create_publisher(  # as a monitor publishes: latched for late readers
+        String, f"{ros_env.namespace}/metrics/perception", metrics_qos()
+    )
+    sent = iter(range(10_000))
+
+    def seen(path: Path, count: int = 1) -> bool:
+        chatter.publish(String(data=f"hello {next(sent)}"))
+        time.sleep(0.05)
+        found = [r for r in rows(path)[:-1] if r.get("key") == "car1" + chatter.topic_name]
+        return len(found) >= count
+
+    try:
+        wait_for(lambda: seen(peer_rows[0]), 30, "the first peer to get samples")
+        results.publish(String(data="not a result {"))
+        peer.signal(signal.SIGTERM)
+        assert peer.wait(10) == 0, peer.output
+        for _ in range(20):  # the peer is gone: the bridge keeps going
+            chatter.publish(String(data="nobody listens"))
+        time.sleep(0.5)
+        assert bridge.returncode is None, bridge.output
+        again = listener(ros_env.env, peer_rows[1], "--listen", endpoint, "--timeout", "60")
+        wait_for(lambda: seen(peer_rows[1], 3), 30, "the bridge to reach the new peer")
+
+        def status() -> dict[str, Any] | None:
+            for row in reversed(rows(peer_rows[1])[:-1]):
+                if row.get("key") == "car1/ads_rca/status.json":
+                    found: dict[str, Any] = strictjson.loads(row["text"])
+                    return found
+            return None
+
+        report = wait_for(status, 10, "a status heartbeat")
+        assert report["malformed"] == 1 and "result" in report["last_problem"]
+        started = time.monotonic()
+        bridge.signal(stop)
+        assert bridge.wait(10) == 0, bridge.output
+        assert time.monotonic() - started < 5
+        assert "Traceback" not in bridge.output
+        assert "bridged" in bridge.output
+        again.signal(signal.SIGTERM)
+        assert again.wait(10) == 0, again.output
+    finally:
+        node.destroy_node()
+        rclpy.shutdown(context=context)
+        for process in (bridge, peer):
+            process.stop()
+
+
+@pytest.mark.parametrize(
+    ("params", "message"),
+    [
+        ({"zenoh_listen": ("tcp/0.0.0.0:7447",)}, "not on loopback"),
+        ({"zenoh_listen": ("http://x",)}, "is not PROTOCOL/HOST:PORT"),
+        ({"zenoh_mode": "router"}, "is not one of peer, client"),
+        ({"zenoh_mode": "client"}, "give at least one connect endpoint"),
+        ({"zenoh_prefix": "car/*/x"}, "chunk '*'"),
+        ({"bridge_topics": ("a b",)}, "chunk 'a b'"),
+        ({"rate_modules": -1.0}, "rate_modules: -1 is out of range"),
+        ({"history_frames": 0}, "history_frames: 0 is out of range"),
+        ({"zenoh_listen": ("tcp/127.0.0.1:{busy}",)}, "cannot open the Zenoh session"),
+    ],
+)
+def test_bad_bridge_parameters_are_one_line_and_exit_2(
+    ros_env: RosEnv, params: dict[str, Any], message: str
+) -> None:
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        values = {
+            k: tuple(x.format(busy=port) for x in v) if isinstance(v, tuple) else v
+            for k, v in params.items()
+        }
+        bridge = bridge_process(ros_env, "bridge", **values)
+        assert bridge.wait(30) == 2, bridge.output
+    errors = [line for line in bridge.output.splitlines() if "ERROR" in line]
+    assert len(errors) == 1 and message in errors[0], bridge.output
+    assert "Traceback" not in bridge.output
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        (["--zenoh-listen", "tcp/192.0.2.1:7447"], "not on loopback"),
+        (["--zenoh-connect", "tcp/127.0.0.1:99999"], "out of range"),
+        (["--zenoh-prefix", "a/$x"], "chunk '$x'"),
+        (["--rate-modules", "nan"], "rate_modules"),
+        (["--zenoh-linger", "-1"], "zenoh_linger"),
+    ],
+)
+def test_bad_replay_zenoh_options_are_one_line_before_any_node(
+    ros_env: RosEnv, log_dirs: Callable[[str, str], Path], options: list[str], message: str
+) -> None:
+    argv = [sys.executable, "-m", "ads_rca.cli", "replay", str(log_dirs("cut_in", "none"))]
+    argv += ["--domain-id", str(ros_env.domain_id), "--zenoh", *options]
+    replay = ManagedProcess("replay", argv, ros_env.env)
+    assert replay.wait(30) == 2, replay.output
+    lines = [line for line in replay.output.splitlines() if line.strip()]
+    assert len(lines) == 1 and message in lines[0], replay.output

@@ -123,8 +123,8 @@ def test_replay_over_zenoh_gives_every_result_the_verdict_and_late_catch_up(
     assert offline["primary_root_cause"] in array.status[0].message
     text: Any = TYPESTORE.deserialize_cdr(
         base64.b64decode(raw[f"car1/{ns}/verdict/json"]["b64"]), "std_msgs/msg/String"
-    ).data
-    assert json.loads(text) == live
+    )
+    assert json.loads(text.data) == live
     metrics = [r for r in received[:-1] if r["key"] == f"car1/{ns}/metrics/planning"]
     assert len(metrics) == frames
     last: Any = TYPESTORE.deserialize_cdr(

@@ -53,6 +53,7 @@ setup(
         "matplotlib",
         "rosbags",
         "mcap",
+        "eclipse-zenoh",
     ],
     zip_safe=True,
     maintainer="ads_rca maintainers",

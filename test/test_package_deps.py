@@ -32,9 +32,10 @@ ROSDEP_KEYS = {
     "mcap": "mcap-ros2-support",  # no key for mcap itself; this one pip-installs it
     "zstandard": "mcap-ros2-support",  # a dependency of mcap
     "lz4": "mcap-ros2-support",  # a dependency of mcap
+    "zenoh": "python3-eclipse-zenoh-pip",
 }
 #: Import name → the PyPI distribution setup.py must require for it.
-PIP_NAMES = {"yaml": "pyyaml", "zstandard": "mcap", "lz4": "mcap"}
+PIP_NAMES = {"yaml": "pyyaml", "zstandard": "mcap", "lz4": "mcap", "zenoh": "eclipse-zenoh"}
 
 
 def third_party_imports() -> dict[str, str]:

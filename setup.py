@@ -52,6 +52,7 @@ setup(
         "matplotlib",
         "rosbags",
         "mcap",
+        "rich",
     ],
     zip_safe=True,
     maintainer="ads_rca maintainers",

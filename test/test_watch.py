@@ -29,6 +29,8 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from ads_rca.remote.config import session_config
 from ads_rca.remote.session import close_session
@@ -278,7 +280,7 @@ def test_json_lines_carry_every_frame_and_the_feeds_verdict() -> None:
         assert "waiting" in watcher.stderr.readline()  # started before the feed
         # The feed waits before its first result so the watch has connected by then
         # (checked below: the first status it saw had no frame yet).
-        with feed(endpoint, "--start-after", "2.5"):
+        with feed(endpoint, "--start-after", "2.0"):
             out, err = watcher.communicate(timeout=60)
     finally:
         if watcher.poll() is None:
@@ -379,6 +381,59 @@ def test_render_before_anything_arrived() -> None:
     header = Header(("tcp/127.0.0.1:7447",), "connecting (retrying)", prefix="car1")
     Console(file=buffer, width=100).print(render(DashboardModel().summary(0.0), header, 0.0))
     assert "runs 0" in buffer.getvalue() and "waiting for a run" in buffer.getvalue()
+
+
+_JSON = st.recursive(
+    st.none() | st.booleans() | st.integers() | st.floats(allow_nan=False) | st.text(),
+    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(), inner, max_size=4),
+    max_leaves=12,
+)
+_FIELDS = st.sampled_from(
+    [
+        "index",
+        "frame",
+        "failed",
+        "skipped",
+        "metrics",
+        "thresholds",
+        "semantics",
+        "modules",
+        "contributing",
+        "live",
+        "state",
+        "time",
+        "malformed",
+        "collision_frame",
+        "reason",
+        "partner_id",
+        "attribution_basis",
+    ]
+)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    result=st.dictionaries(_FIELDS | st.text(), _JSON, max_size=6),
+    verdict=st.dictionaries(_FIELDS | st.text(), _JSON, max_size=8),
+    status=st.dictionaries(_FIELDS | st.text(), _JSON, max_size=5),
+    clearance=st.floats(-5, 5),
+)
+def test_render_survives_any_document_shape(
+    result: dict[str, Any], verdict: dict[str, Any], status: dict[str, Any], clearance: float
+) -> None:
+    """Whatever JSON the wire carries, the screen is drawn, and without a control byte."""
+    from rich.console import Console
+
+    model = DashboardModel()
+    planning = {**result, "index": 3, "metrics": {"c_gt": clearance}}
+    model.apply("r/ads_rca/modules/planning", json.dumps(planning), 1.0)
+    model.apply("r/ads_rca/modules/perception", json.dumps({**result, "index": 1}), 1.0)
+    model.apply("r/ads_rca/status", json.dumps(status), 1.0)
+    model.apply("r/ads_rca/verdict", json.dumps({**verdict, "primary_root_cause": None}), 1.0)
+    buffer = io.StringIO()
+    header = Header(("tcp/127.0.0.1:7447",), "connected")
+    Console(file=buffer, width=120).print(render(model.summary(2.0), header, 2.0))
+    assert not re.search("[\x00-\x09\x0b-\x1f\x7f-\x9f]", buffer.getvalue())
 
 
 @pytest.mark.parametrize(

@@ -54,6 +54,7 @@ setup(
         "rosbags",
         "mcap",
         "eclipse-zenoh",
+        "rich",
     ],
     zip_safe=True,
     maintainer="ads_rca maintainers",

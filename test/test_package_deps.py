@@ -29,6 +29,7 @@ ROSDEP_KEYS = {
     "tqdm": "python3-tqdm",
     "orjson": "python3-orjson",
     "rosbags": "python3-rosbags-pip",
+    "rich": "python3-rich",
     "mcap": "mcap-ros2-support",  # no key for mcap itself; this one pip-installs it
     "zstandard": "mcap-ros2-support",  # a dependency of mcap
     "lz4": "mcap-ros2-support",  # a dependency of mcap

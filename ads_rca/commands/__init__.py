@@ -11,6 +11,7 @@ from ads_rca.commands import (
     inspect_cmd,
     replay_cmd,
     synth_cmd,
+    watch_cmd,
 )
 
 #: In the order ``ads-rca --help`` lists them.
@@ -21,4 +22,5 @@ COMMANDS: tuple[ModuleType, ...] = (
     replay_cmd,
     synth_cmd,
     convert_cmd,
+    watch_cmd,
 )

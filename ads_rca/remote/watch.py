@@ -1,0 +1,647 @@
+"""``ads-rca watch``: a terminal dashboard of the runs on Zenoh, with no ROS at run time.
+
+A Zenoh client session (:class:`~ads_rca.remote.client.RemoteClient`) feeds every sample
+into a :class:`~ads_rca.remote.view.DashboardModel`; :func:`render` draws the model's
+summary with rich (a pure function: tests render it without a terminal) and ``--json``
+prints the model's events as JSON lines instead. It works whenever it is started: before
+the run (the session is retried until the peer listens, the subscription waits), during or
+after it (the queryables are asked on every connection, and again every few seconds until
+anything arrives, since the bridge may come up after the router).
+
+Every string drawn comes from a log through the wire: it is made printable (control
+characters and ANSI escapes shown as ``\\x1b``) and only ever put in a ``rich.text.Text``,
+never parsed as rich markup. The session is closed on every exit path; a stop signal only
+sets a flag the loop checks, so the terminal is restored and nothing is left open.
+"""
+
+from __future__ import annotations
+
+import math
+import signal
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+from types import FrameType
+from typing import IO, Any
+
+import orjson
+from rich.console import Console, Group, RenderableType
+from rich.panel import Panel
+from rich.rule import Rule
+from rich.table import Table
+from rich.text import Text
+
+from ads_rca.oracles.base import MODULES
+from ads_rca.remote.client import RemoteClient
+from ads_rca.remote.config import DEFAULT_ENDPOINT
+from ads_rca.remote.keys import check_prefix
+from ads_rca.remote.view import DashboardModel
+from ads_rca.summary import count_columns
+from ads_rca.text import printable
+
+#: Exit status when ``--timeout`` passes without a verdict.
+EXIT_NO_VERDICT = 3
+#: Seconds between attempts to open the session while the peer is not up.
+RETRY_S = 0.5
+#: Seconds between catch-up queries while nothing has been received.
+CATCH_UP_EVERY_S = 2.0
+#: How long one catch-up query waits for its replies (s).
+CATCH_UP_TIMEOUT_S = 2.0
+#: Seconds between screen refreshes (and checks of the stop flag).
+REFRESH_S = 0.25
+#: Near-miss warnings drawn per run (the newest).
+NEAR_MISSES_SHOWN = 4
+#: Longest text drawn from the wire in one cell.
+TEXT_LIMIT = 80
+#: The metrics drawn first for each module's latest result, when it has them; the row is
+#: filled up to :data:`METRICS_SHOWN` with its other plain metrics, in its own order.
+KEY_METRICS: Mapping[str, tuple[str, ...]] = {
+    "perception": ("recall", "precision", "mean_iou", "partner_matched"),
+    "prediction": ("ade", "fde", "displacement_error", "miss_rate"),
+    "planning": ("c_gt", "c_plan", "ttc_gt", "partner_in_planner_inputs"),
+    "controller": (
+        "tracking_failure",
+        "speed_tracking_error",
+        "lateral_tracking_error",
+        "toward_partner",
+    ),
+}
+METRICS_SHOWN = 4
+#: Thresholds named in the verdict panel (the rest are counted).
+THRESHOLDS_SHOWN = (
+    "safety_margin",
+    "window_s",
+    "effect_time_window",
+    "perc_match_iou",
+    "pred_abs_threshold",
+    "control_speed_threshold",
+)
+
+
+# ---------------------------------------------------------------------------- drawing
+
+
+def safe(value: object, limit: int = TEXT_LIMIT) -> str:
+    """``value`` as one inert line: numbers short, None as a dash, control characters as
+    escapes, at most ``limit`` characters."""
+    if value is None:
+        text = "—"
+    elif isinstance(value, bool):
+        text = "yes" if value else "no"
+    elif isinstance(value, float):
+        text = f"{value:.3g}" if math.isfinite(value) else str(value)
+    elif isinstance(value, str | int):
+        text = str(value)
+    else:  # lists and objects: compact JSON (it came as JSON)
+        try:
+            text = orjson.dumps(value).decode()
+        except TypeError:
+            text = repr(value)
+    text = printable(text[: limit * 4])
+    return text if len(text) <= limit else text[: limit - 1] + "…"
+
+
+def cell(value: object, style: str = "", limit: int = TEXT_LIMIT) -> Text:
+    """A Text of ``value`` made :func:`safe` (a Text is never parsed as markup)."""
+    return Text(safe(value, limit), style=style)
+
+
+def line(*parts: tuple[object, str] | str) -> Text:
+    """A line of labels (plain ``str``, ours) and wire values (``(value, style)``, made
+    safe)."""
+    text = Text()
+    for part in parts:
+        if isinstance(part, str):
+            text.append(part, style="bold")
+        else:
+            text.append(safe(part[0]), style=part[1])
+    return text
+
+
+@dataclass(frozen=True)
+class Header:
+    """What the screen says about the watcher itself, beside the model's summary."""
+
+    endpoints: tuple[str, ...]
+    connection: str
+    prefix: str | None = None
+    dropped: int = 0
+
+
+def render(summary: Mapping[str, Any], header: Header, now: float) -> RenderableType:
+    """The whole screen from a :meth:`DashboardModel.summary` (pure: no terminal needed)."""
+    runs = summary.get("runs") or []
+    problems = int(summary.get("problems") or 0) + header.dropped
+    top = Text()
+    top.append("ads-rca watch", style="bold")
+    top.append(f"  runs {len(runs)}  ·  ")
+    top.append(", ".join(header.endpoints))
+    top.append("  ")
+    connected = header.connection == "connected"
+    top.append(printable(header.connection), style="green" if connected else "yellow")
+    if header.prefix is not None:
+        top.append("  ·  prefix ")
+        top.append(printable(header.prefix or "(none)"))
+    top.append("  ·  problems ")
+    top.append(str(problems), style="red" if problems else "")
+    parts: list[RenderableType] = [top]
+    if summary.get("last_problem"):
+        parts.append(line("last problem: ", (summary.get("last_problem"), "red")))
+    if not runs:
+        parts.append(Text("waiting for a run's results and verdict…", style="dim"))
+    for run in runs:
+        parts.extend(render_run(run, now))
+    return Group(*parts)
+
+
+def render_run(run: Mapping[str, Any], now: float) -> list[RenderableType]:
+    """One run: its progress, a table of its modules, its near misses, its verdict."""
+    name = run.get("run")
+    title = Text("run ", style="bold")
+    title.append(safe(name) if name else "(no prefix)", style="bold cyan")
+    parts: list[RenderableType] = [Rule(title, align="left")]
+    parts.append(progress_line(run, now))
+    parts.append(module_table(run.get("modules") or {}))
+    parts.extend(near_miss_lines(run.get("near_misses") or []))
+    verdict = run.get("verdict")
+    if isinstance(verdict, Mapping):
+        parts.append(verdict_panel(verdict))
+    else:
+        parts.append(Text("verdict: not yet", style="dim"))
+    return parts
+
+
+def progress_line(run: Mapping[str, Any], now: float) -> Text:
+    """Frame, index, rate and the bridge's heartbeat."""
+    text = line(
+        "frame ",
+        (run.get("last_frame"), "cyan"),
+        "  index ",
+        (run.get("last_index"), ""),
+        "  rate ",
+    )
+    rate = run.get("rate")
+    text.append(f"{rate:.1f} frames/s" if isinstance(rate, int | float) else "—")
+    status = run.get("status")
+    text.append("  ·  status ", style="bold")
+    if not isinstance(status, Mapping):
+        text.append("no heartbeat yet", style="dim")
+        return text
+    state = status.get("state")
+    text.append(safe(state), style="green" if state == "verdict" else "yellow")
+    stamp = status.get("time")
+    if isinstance(stamp, int | float) and not isinstance(stamp, bool) and math.isfinite(stamp):
+        age = now - stamp
+        if 0 <= age < 1e6:
+            text.append(f" ({age:.1f} s ago)", style="dim")
+    malformed = status.get("malformed")
+    if isinstance(malformed, int) and not isinstance(malformed, bool) and malformed:
+        text.append(f"  · bridge dropped {malformed} malformed", style="red")
+    return text
+
+
+def module_status(entry: Mapping[str, Any]) -> Text:
+    latest = entry.get("latest")
+    if not isinstance(latest, Mapping):
+        return Text("no data", style="dim")
+    if latest.get("failed"):
+        return Text("FAILED", style="bold red")
+    if latest.get("skipped"):
+        return Text("skipped", style="yellow")
+    return Text("OK", style="green")
+
+
+def key_metrics(module: str, latest: Mapping[str, Any]) -> Text:
+    """A few plain metrics of the latest result (the skip reason when it was skipped)."""
+    if latest.get("skipped"):
+        return cell(latest.get("skipped"), "yellow")
+    metrics = latest.get("metrics")
+    if not isinstance(metrics, Mapping):
+        return Text("")
+    names = [n for n in KEY_METRICS.get(module, ()) if n in metrics]
+    for name, value in metrics.items():
+        if len(names) >= METRICS_SHOWN:
+            break
+        plain = value is None or isinstance(value, str | int | float)
+        if name not in names and plain:
+            names.append(name)
+    text = Text()
+    for name in names[:METRICS_SHOWN]:
+        if text:
+            text.append("  ")
+        text.append(safe(name, 30), style="dim")
+        text.append(" ")
+        text.append(safe(metrics.get(name), 20))
+    return text
+
+
+def module_table(modules: Mapping[str, Any]) -> Table:
+    table = Table(box=None, pad_edge=False, header_style="bold", expand=False)
+    for heading, justify in (
+        ("module", "left"),
+        ("status", "left"),
+        ("judged", "right"),
+        ("failed", "right"),
+        ("latest", "right"),
+        ("key metrics of the latest result", "left"),
+    ):
+        table.add_column(heading, justify=justify)  # type: ignore[arg-type]
+    for module in MODULES:
+        entry = modules.get(module)
+        entry = entry if isinstance(entry, Mapping) else {}
+        latest = entry.get("latest")
+        latest = latest if isinstance(latest, Mapping) else {}
+        failed = entry.get("failed_frames")
+        table.add_row(
+            Text(module),
+            module_status(entry),
+            cell(entry.get("judged", 0)),
+            cell(failed, "red" if failed else ""),
+            cell(latest.get("frame")) if latest else Text("—"),
+            key_metrics(module, latest) if latest else Text(""),
+        )
+    return table
+
+
+def near_miss_lines(near_misses: Sequence[Any]) -> list[Text]:
+    shown = [n for n in near_misses if isinstance(n, Mapping)][-NEAR_MISSES_SHOWN:]
+    if not shown:
+        return []
+    heading = Text(f"near misses: {len(near_misses)} (newest {len(shown)})", style="bold yellow")
+    return [heading] + [
+        line(
+            "  ⚠ frame ",
+            (near.get("frame"), "yellow"),
+            ": ",
+            (near.get("module"), ""),
+            " clearance ",
+            (near.get("clearance"), "yellow"),
+            " m < margin ",
+            (near.get("margin"), ""),
+            " m",
+        )
+        for near in shown
+    ]
+
+
+def verdict_panel(verdict: Mapping[str, Any]) -> Panel:
+    """The verdict: its cause, basis, collision, partner and the semantics mode it came
+    from (named in the title and beside its thresholds)."""
+    semantics = verdict.get("semantics")
+    primary = verdict.get("primary_root_cause")
+    contributing = verdict.get("contributing")
+    if isinstance(contributing, list):
+        contributing_text = ", ".join(safe(c, 40) for c in contributing) or "none"
+    else:
+        contributing_text = safe(contributing)
+    body: list[Text] = [
+        line("primary root cause: ", (primary if primary else "none", "bold red")),
+        line("contributing: ", (contributing_text, "")),
+        line("attribution basis: ", (verdict.get("attribution_basis"), "")),
+        line(
+            "collision frame: ",
+            (verdict.get("collision_frame"), ""),
+            "   partner: ",
+            (verdict.get("partner_id"), "cyan"),
+            "   ego: ",
+            (verdict.get("ego_id"), ""),
+        ),
+    ]
+    if verdict.get("reason") is not None:
+        body.append(line("reason: ", (verdict.get("reason"), "yellow")))
+    body.append(counts_line(verdict))
+    body.append(thresholds_line(verdict))
+    live = verdict.get("live")
+    if isinstance(live, Mapping):
+        complete = live.get("complete") is True
+        why = live.get("why_incomplete")
+        body.append(
+            line(
+                "live: ",
+                ("complete" if complete else "incomplete", "green" if complete else "yellow"),
+                *((("  ", ""), (why, "yellow")) if why and not complete else ()),
+            )
+        )
+    title = Text("verdict · ", style="bold")
+    title.append(f"{safe(semantics, 30)} semantics", style="bold magenta")
+    return Panel(Group(*body), title=title, title_align="left", border_style="red", expand=False)
+
+
+def counts_line(verdict: Mapping[str, Any]) -> Text:
+    """Per module, the window's two counts under the mode's own names."""
+    (counted, other), _legend = count_columns(verdict.get("semantics"))
+    text = Text(f"{counted}/{other}: ", style="bold")
+    modules = verdict.get("modules")
+    modules = modules if isinstance(modules, Mapping) else {}
+    for module in MODULES:
+        counts = modules.get(module)
+        counts = counts if isinstance(counts, Mapping) else {}
+        if module != MODULES[0]:
+            text.append("  ·  ")
+        text.append(f"{module} ")
+        text.append(f"{safe(counts.get('collision'), 12)}/{safe(counts.get('safe'), 12)}")
+    return text
+
+
+def thresholds_line(verdict: Mapping[str, Any]) -> Text:
+    thresholds = verdict.get("thresholds")
+    text = line("thresholds (", (verdict.get("semantics"), "magenta"), "): ")
+    if not isinstance(thresholds, Mapping):
+        text.append("—")
+        return text
+    named = [name for name in THRESHOLDS_SHOWN if name in thresholds]
+    text.append("  ".join(f"{name} {safe(thresholds[name], 16)}" for name in named))
+    others = len(thresholds) - len(named)
+    if others > 0:
+        text.append(f"  (+{others} more)", style="dim")
+    return text
+
+
+# ------------------------------------------------------------------------- the loop
+
+
+class WatchClient(RemoteClient):
+    """The client, plus whether its session reaches a peer or a router right now."""
+
+    def connected(self) -> bool:
+        session = self._session
+        if session is None:
+            return False
+        info = session.info
+        return bool(list(info.peers_zid()) or list(info.routers_zid()))
+
+
+def _one_line(error: BaseException) -> str:
+    """Zenoh's error text without its source location, on one line."""
+    text = str(error).split(" at /", 1)[0].strip() or type(error).__name__
+    return printable(text)[:160]
+
+
+class Watcher:
+    """The session (opened, retried, caught up) and the model it feeds."""
+
+    def __init__(
+        self,
+        connect: Sequence[str] = (DEFAULT_ENDPOINT,),
+        prefix: str | None = None,
+        allow_remote: bool = False,
+        clock: Callable[[], float] = time.time,
+    ) -> None:
+        self.prefix = None if prefix is None else check_prefix(prefix)
+        self.endpoints = tuple(connect)
+        # Checks the endpoints and the prefix now (ConfigError: one line, exit 2).
+        self.client = WatchClient(self.endpoints, self.prefix, allow_remote=allow_remote)
+        self.model = DashboardModel(self.prefix)
+        self.clock = clock
+        self.opened = False
+        self.connected = False
+        self.error = ""
+        self.received = 0
+        self.verdicts = 0
+        self._next_open = 0.0
+        self._next_catch_up = 0.0
+        self._catch_up = threading.Event()
+        self._stopping = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def connection(self) -> str:
+        if self.connected:
+            return "connected"
+        if not self.opened:
+            why = f": {self.error}" if self.error else ""
+            return f"connecting{why} (retrying)"
+        return "not connected (reconnecting)"
+
+    def header(self) -> Header:
+        return Header(self.endpoints, self.connection(), self.prefix, self.client.dropped)
+
+    def step(self) -> list[dict[str, Any]]:
+        """Open the session if due, ask for a catch-up if due, and apply what arrived:
+        the model's events, oldest first."""
+        tick = time.monotonic()
+        if not self.opened and tick >= self._next_open:
+            self._open(tick)
+        if not self.opened:
+            return []
+        connected = self.client.connected()
+        # Ask what was missed on every (re)connection, and every few seconds until
+        # anything arrives (the bridge may join the router later).
+        arrived = connected and not self.connected
+        if arrived or (connected and not self.received and tick >= self._next_catch_up):
+            self._request_catch_up(tick)
+        self.connected = connected
+        events = []
+        for key, payload in self.client.drain():
+            self.received += 1
+            event = self.model.apply(key, payload, self.clock())
+            if event is not None:
+                events.append(event)
+                self.verdicts += event["kind"] == "verdict"
+        return events
+
+    def _open(self, tick: float) -> None:
+        try:
+            self.client.open()
+        except Exception as error:  # zenoh.ZError: the peer is not listening (yet)
+            self.error = _one_line(error)
+            self._next_open = tick + RETRY_S
+            return
+        self.opened, self.error = True, ""
+        self._thread = threading.Thread(target=self._catch_up_loop, daemon=True)
+        self._thread.start()
+
+    def _request_catch_up(self, tick: float) -> None:
+        self._next_catch_up = tick + CATCH_UP_EVERY_S
+        self._catch_up.set()
+
+    def _catch_up_loop(self) -> None:
+        """On its own thread: a query waits for its replies, the screen must not."""
+        while not self._stopping.is_set():
+            if not self._catch_up.wait(REFRESH_S):
+                continue
+            self._catch_up.clear()
+            try:
+                self.client.catch_up(timeout=CATCH_UP_TIMEOUT_S)
+            except Exception as error:  # the session closing under it, or the peer gone
+                self.error = _one_line(error)
+
+    def close(self) -> None:
+        """Stop the catch-up thread and close the session (safe to call twice)."""
+        self._stopping.set()
+        self.client.close()  # ends a query in progress
+        if self._thread is not None:
+            self._thread.join(CATCH_UP_TIMEOUT_S + 1.0)
+            self._thread = None
+
+    def screen(self) -> RenderableType:
+        now = self.clock()
+        return render(self.model.summary(now), self.header(), now)
+
+    def final_event(self, run: str) -> dict[str, Any] | None:
+        """A run's digest once its verdict is in: the cause, the mode and the counts."""
+        view = self.model.runs.get(run)
+        if view is None or view.verdict is None:
+            return None
+        summary = view.summary(self.clock())
+        verdict = view.verdict
+        return {
+            "run": run,
+            "kind": "final",
+            "semantics": verdict.get("semantics"),
+            "primary_root_cause": verdict.get("primary_root_cause"),
+            "contributing": verdict.get("contributing"),
+            "attribution_basis": verdict.get("attribution_basis"),
+            "collision_frame": verdict.get("collision_frame"),
+            "partner_id": verdict.get("partner_id"),
+            "last_index": summary["last_index"],
+            "last_frame": summary["last_frame"],
+            "modules": {
+                m: {"judged": e["judged"], "failed_frames": e["failed_frames"]}
+                for m, e in summary["modules"].items()
+            },
+            "near_misses": len(summary["near_misses"]),
+            "problems": self.model.problems,
+        }
+
+
+class StopSignals:
+    """SIGINT and SIGTERM set a flag the loop checks (so the terminal is restored and the
+    session closed in order); a second signal raises KeyboardInterrupt."""
+
+    def __init__(self) -> None:
+        self.signum = 0
+        self.event = threading.Event()
+
+    def _handle(self, signum: int, frame: FrameType | None) -> None:
+        if self.signum:
+            raise KeyboardInterrupt
+        self.signum = signum
+        self.event.set()
+
+    @contextmanager
+    def installed(self) -> Iterator[StopSignals]:
+        if threading.current_thread() is not threading.main_thread():
+            yield self  # only the main thread may handle signals
+            return
+        previous = {s: signal.signal(s, self._handle) for s in (signal.SIGINT, signal.SIGTERM)}
+        try:
+            yield self
+        finally:
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+
+    def wait(self, seconds: float) -> None:
+        self.event.wait(seconds)
+
+
+@dataclass(frozen=True)
+class WatchOptions:
+    connect: tuple[str, ...] = (DEFAULT_ENDPOINT,)
+    prefix: str | None = None
+    allow_remote: bool = False
+    json: bool = False
+    exit_on_verdict: bool = False
+    timeout: float | None = None
+
+
+def watch(options: WatchOptions, out: IO[bytes] | None = None) -> int:
+    """Run the dashboard until a stop signal, the verdict (``exit_on_verdict``) or the
+    timeout; the exit status (0, :data:`EXIT_NO_VERDICT`, or 128 + the signal)."""
+    watcher = Watcher(options.connect, options.prefix, options.allow_remote)
+    stop = StopSignals()
+    with stop.installed():
+        try:
+            if options.json:
+                code = _json_loop(watcher, options, stop, out or sys.stdout.buffer)
+            else:
+                code = _screen_loop(watcher, options, stop)
+        finally:
+            watcher.close()
+    if stop.signum:
+        return 128 + stop.signum
+    if code == EXIT_NO_VERDICT:
+        where = watcher.connection()
+        print(
+            f"ads-rca watch: no verdict within {options.timeout:g} s "
+            f"({', '.join(watcher.endpoints)}: {where})",
+            file=sys.stderr,
+        )
+    return code
+
+
+def _done(watcher: Watcher, options: WatchOptions, stop: StopSignals, deadline: float) -> bool:
+    if stop.signum:
+        return True
+    if options.exit_on_verdict and watcher.verdicts:
+        return True
+    return time.monotonic() >= deadline
+
+
+def _code(watcher: Watcher) -> int:
+    return 0 if watcher.verdicts else EXIT_NO_VERDICT
+
+
+def _deadline(options: WatchOptions) -> float:
+    return math.inf if options.timeout is None else time.monotonic() + options.timeout
+
+
+def _json_loop(watcher: Watcher, options: WatchOptions, stop: StopSignals, out: IO[bytes]) -> int:
+    """One strict JSON line per event, flushed each; after a run's (new) verdict, its
+    ``final`` digest. A verdict delivered twice (subscription and catch-up) prints once.
+    While the peer is not up, one note on stderr says so."""
+    deadline = _deadline(options)
+    printed: dict[str, Any] = {}
+    waiting_noted = False
+    while True:
+        events = watcher.step()
+        if not watcher.opened and watcher.error and not waiting_noted:
+            waiting_noted = True  # once, on stderr: stdout holds JSON only
+            print(f"ads-rca watch: waiting: {watcher.connection()}", file=sys.stderr, flush=True)
+        for event in events:
+            if event["kind"] == "verdict":
+                if printed.get(event["run"]) == event["verdict"]:
+                    continue
+                printed[event["run"]] = event["verdict"]
+                _write(out, event)
+                final = watcher.final_event(event["run"])
+                if final is not None:
+                    _write(out, final)
+            else:
+                _write(out, event)
+        if _done(watcher, options, stop, deadline):
+            return _code(watcher)
+        stop.wait(REFRESH_S)
+
+
+def _write(out: IO[bytes], event: Mapping[str, Any]) -> None:
+    out.write(orjson.dumps(event) + b"\n")
+    out.flush()
+
+
+def _screen_loop(watcher: Watcher, options: WatchOptions, stop: StopSignals) -> int:
+    """The live screen, redrawn a few times a second; once a verdict made it stop, the
+    last screen is printed again on the normal screen, so it stays in the terminal."""
+    from rich.live import Live
+
+    console = Console()
+    deadline = _deadline(options)
+    with Live(
+        console=console,
+        screen=console.is_terminal,
+        auto_refresh=False,
+        redirect_stdout=False,
+        redirect_stderr=False,
+    ) as live:
+        while True:
+            watcher.step()
+            screen = watcher.screen()
+            live.update(screen, refresh=True)
+            if _done(watcher, options, stop, deadline):
+                break
+            stop.wait(REFRESH_S)
+    if watcher.verdicts and not stop.signum and console.is_terminal:
+        console.print(screen)
+    return _code(watcher)

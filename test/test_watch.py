@@ -355,7 +355,7 @@ def test_render_is_a_pure_function_whose_wire_text_is_inert() -> None:
 
     model = DashboardModel()
     base = f"{HOSTILE_PREFIX}/ads_rca"
-    assert model.apply(f"{base}/modules/perception", json.dumps(HOSTILE_RESULT), 1.0)
+    assert model.apply(f"{base}/modules/perception.json", json.dumps(HOSTILE_RESULT), 1.0)
     assert model.apply(f"{base}/status", json.dumps(HOSTILE_STATUS), 1.0)
     assert model.apply(f"{base}/verdict", json.dumps(HOSTILE_VERDICT), 1.0)
     model.apply("\x1b[2J/ads_rca/verdict", b"[red]not json", 1.0)  # counted, shown escaped
@@ -426,8 +426,8 @@ def test_render_survives_any_document_shape(
 
     model = DashboardModel()
     planning = {**result, "index": 3, "metrics": {"c_gt": clearance}}
-    model.apply("r/ads_rca/modules/planning", json.dumps(planning), 1.0)
-    model.apply("r/ads_rca/modules/perception", json.dumps({**result, "index": 1}), 1.0)
+    model.apply("r/ads_rca/modules/planning.json", json.dumps(planning), 1.0)
+    model.apply("r/ads_rca/modules/perception.json", json.dumps({**result, "index": 1}), 1.0)
     model.apply("r/ads_rca/status", json.dumps(status), 1.0)
     model.apply("r/ads_rca/verdict", json.dumps({**verdict, "primary_root_cause": None}), 1.0)
     buffer = io.StringIO()

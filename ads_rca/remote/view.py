@@ -235,7 +235,6 @@ class DashboardModel:
         except (ValueError, TypeError) as error:
             self._problem(f"{key[:80]}: {str(error)[:120]}")
             return None
-            return None
 
     def _frames(self, view: RunView, document: dict[str, Any], now: float) -> dict[str, Any]:
         frames = document.get("frames")

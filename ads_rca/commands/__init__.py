@@ -6,6 +6,7 @@ from types import ModuleType
 
 from ads_rca.commands import (
     convert_cmd,
+    dashboard_cmd,
     demo_cmd,
     diagnose_cmd,
     inspect_cmd,
@@ -21,4 +22,5 @@ COMMANDS: tuple[ModuleType, ...] = (
     replay_cmd,
     synth_cmd,
     convert_cmd,
+    dashboard_cmd,
 )

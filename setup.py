@@ -24,8 +24,8 @@ setup(
     name=PACKAGE,
     version="0.1.0",
     packages=find_packages(include=[PACKAGE, f"{PACKAGE}.*"]),
-    # The built-in profiles, and the stacks' .msg files (with their licences) that
-    # synthesised recordings are typed by.
+    # The built-in profiles, the stacks' .msg files (with their licences) that synthesised
+    # recordings are typed by, and the web dashboard's page.
     package_data={
         PACKAGE: [
             "py.typed",
@@ -33,6 +33,7 @@ setup(
             "synth/msgs/README.md",
             "synth/msgs/*/LICENSE",
             "synth/msgs/*/msg/*.msg",
+            "remote/static/*",
         ]
     },
     data_files=[
@@ -55,6 +56,7 @@ setup(
         "mcap",
         "eclipse-zenoh",
         "rich",
+        "aiohttp",
     ],
     zip_safe=True,
     maintainer="ads_rca maintainers",

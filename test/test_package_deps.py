@@ -28,6 +28,7 @@ ROSDEP_KEYS = {
     "matplotlib": "python3-matplotlib",
     "tqdm": "python3-tqdm",
     "orjson": "python3-orjson",
+    "aiohttp": "python3-aiohttp",
     "rosbags": "python3-rosbags-pip",
     "rich": "python3-rich",
     "mcap": "mcap-ros2-support",  # no key for mcap itself; this one pip-installs it

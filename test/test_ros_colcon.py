@@ -87,6 +87,9 @@ def test_installed_layout_is_what_ros2_run_expects(install: Path) -> None:
     assert (prefix / "share/ads_rca/package.xml").is_file()
     assert (prefix / "share/ads_rca/config/player.yaml").is_file()
     assert (prefix / "share/ads_rca/launch_scripts/player.launch.py").is_file()
+    site = next((prefix / "lib").glob("python3*/site-packages"))
+    for page in ("index.html", "app.js", "app.css"):  # ads-rca dashboard's page
+        assert (site / "ads_rca/remote/static" / page).is_file(), page
 
 
 def test_installed_player_found_via_ament_index_publishes(

@@ -145,6 +145,8 @@ class Terminal:
     prints ``EXIT:<status>`` after it and keeps the pane open."""
 
     def __init__(self, command: list[str], width: int = 150, height: int = 50) -> None:
+        if not Path(TMUX).exists():
+            pytest.skip("no tmux on this machine: the terminal tests need one")
         self.socket = f"ads_rca_watch_{os.getpid()}_{next(_COUNTER)}"
         shell = f'{shlex.join(command)}; echo "EXIT:$?"; sleep 600'
         self._tmux("new-session", "-d", "-x", str(width), "-y", str(height), "-s", "watch", shell)

@@ -6,6 +6,7 @@ from types import ModuleType
 
 from ads_rca.commands import (
     convert_cmd,
+    dashboard_cmd,
     demo_cmd,
     diagnose_cmd,
     inspect_cmd,
@@ -23,4 +24,5 @@ COMMANDS: tuple[ModuleType, ...] = (
     synth_cmd,
     convert_cmd,
     watch_cmd,
+    dashboard_cmd,
 )

@@ -1,0 +1,613 @@
+"""``ads-rca dashboard``'s web side: an aiohttp app showing the runs seen on Zenoh, live.
+
+One :class:`Hub` owns the :class:`~ads_rca.remote.view.DashboardModel`; a background task
+(:meth:`Hub.pump`) drains the :class:`~ads_rca.remote.client.RemoteClient` into it on the
+event loop (zenoh calls back on its own threads) and asks the queryables for what was missed
+when the dashboard starts or a run it had not seen appears. The browser gets one static
+page (HTML, JS and CSS served from ``static/``, nothing fetched from elsewhere) and
+server-sent events (``/events``).
+
+Pushes are coalesced, not queued: every run has a version that each sample it takes bumps;
+each browser's stream remembers which version of each run it was sent and, at most every
+:data:`MIN_INTERVAL` seconds, sends the runs that changed since (the verdict only when it
+changed). A fast run therefore costs each browser at most ~10 small events a second, a slow
+browser holds nothing but that memory, and one that went away is dropped when its stream is
+found closed. Every document is clipped (:func:`clip`) before it is sent: strings, lists,
+objects and nesting have bounds, so a hostile sample cannot make every page heavy. The page
+inserts wire text with ``textContent`` only, and the headers (:data:`SECURITY_HEADERS`) forbid
+inline script; the ``Host`` header is checked against the loopback names, so a web page
+elsewhere cannot read the API through DNS rebinding.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import ipaddress
+import itertools
+import re
+import signal
+import sys
+import time
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from importlib import resources
+from typing import Any
+
+import orjson
+from aiohttp import web
+
+from ads_rca.errors import ConfigError, InputError
+from ads_rca.remote.client import RemoteClient
+from ads_rca.remote.view import RATE_SPAN, DashboardModel, RunView, margin_of
+
+#: Least time between two events to one browser (s): at most ~10 updates a second.
+MIN_INTERVAL = 0.1
+#: A comment line on an idle stream this often (s), so proxies keep it open.
+KEEPALIVE = 15.0
+#: How often a stream checks that its browser is still there while idle (s).
+LIVENESS = 1.0
+#: A write that does not finish in this long drops the browser (s).
+WRITE_TIMEOUT = 10.0
+#: Browsers streaming at once; more get 503.
+MAX_CLIENTS = 32
+#: How often the pump drains the Zenoh queue (s), and how many samples one pass applies.
+PUMP_PERIOD = 0.05
+PUMP_BATCH = 2000
+#: Queryable catch-up: each query's timeout (s), and the least gap between two (s).
+CATCH_UP_TIMEOUT = 1.0
+CATCH_UP_GAP = 2.0
+#: Bounds of what is sent to a browser (see :func:`clip`).
+MAX_TEXT = 500
+MAX_ITEMS = 60
+MAX_KEYS = 120
+MAX_DEPTH = 8
+#: The run with no prefix, in URLs.
+ROOT_RUN_ID = "@"
+#: Sent with every response.
+SECURITY_HEADERS = {
+    "Content-Security-Policy": (
+        "default-src 'self'; script-src 'self'; style-src 'self'; img-src 'self'; "
+        "connect-src 'self'; object-src 'none'; base-uri 'none'; form-action 'none'; "
+        "frame-ancestors 'none'"
+    ),
+    "X-Content-Type-Options": "nosniff",
+    "X-Frame-Options": "DENY",
+    "Referrer-Policy": "no-referrer",
+    "Cache-Control": "no-store",
+}
+#: The static files: name → content type (nothing else is served from the folder).
+STATIC_FILES = {
+    "index.html": "text/html",
+    "app.js": "text/javascript",
+    "app.css": "text/css",
+}
+_AFTER = re.compile(r"^-?[0-9]{1,12}$")
+
+
+def clip(value: Any, depth: int = 0) -> Any:
+    """``value`` with every string, list, object and nesting level bounded (the cut parts
+    marked with ``…``): what a browser is sent of a document from the wire."""
+    if isinstance(value, str):
+        return value if len(value) <= MAX_TEXT else value[:MAX_TEXT] + "…"
+    if isinstance(value, dict):
+        if depth >= MAX_DEPTH:
+            return "…"
+        out = {}
+        for count, (key, item) in enumerate(value.items()):
+            if count >= MAX_KEYS:
+                out["…"] = f"{len(value) - MAX_KEYS} more keys"
+                break
+            out[clip(str(key))] = clip(item, depth + 1)
+        return out
+    if isinstance(value, list):
+        if depth >= MAX_DEPTH:
+            return "…"
+        items = [clip(item, depth + 1) for item in value[:MAX_ITEMS]]
+        if len(value) > MAX_ITEMS:
+            items.append(f"… {len(value) - MAX_ITEMS} more")
+        return items
+    return value
+
+
+def run_id(prefix: str) -> str:
+    """A run's name in URLs (the run without a prefix is ``@``, which no prefix can be)."""
+    return prefix or ROOT_RUN_ID
+
+
+def _nonfinite(document: dict[str, Any] | None, under: str) -> dict[str, Any]:
+    """The strict-JSON annotation entries of ``document`` that point under ``under``."""
+    found = (document or {}).get("$nonfinite")
+    if not isinstance(found, dict):
+        return {}
+    return {k: v for k, v in found.items() if isinstance(k, str) and k.startswith(under)}
+
+
+def verdict_digest(verdict: dict[str, Any] | None) -> dict[str, Any] | None:
+    """What the page shows of a verdict: all of it but the per-frame list (counted)."""
+    if verdict is None:
+        return None
+    digest = {k: v for k, v in verdict.items() if k not in ("frames", "$nonfinite")}
+    frames = verdict.get("frames")
+    digest["frames_count"] = len(frames) if isinstance(frames, list) else None
+    problems = verdict.get("input_problems")
+    digest["input_problems"] = len(problems) if isinstance(problems, list) else problems
+    annotation = {
+        pointer: kind
+        for under in ("/evidence/", "/thresholds/")
+        for pointer, kind in _nonfinite(verdict, under).items()
+    }
+    digest["nonfinite"] = annotation
+    return dict(clip(digest))
+
+
+def run_digest(view: RunView, now: float) -> dict[str, Any]:
+    """A run's summary as the page draws it, without the verdict (sent on its own)."""
+    summary = view.summary(now)
+    summary.pop("verdict", None)
+    for module, entry in summary["modules"].items():
+        entry["nonfinite"] = _nonfinite(view.modules.get(module), "/metrics/")
+    summary["id"] = run_id(view.prefix)
+    summary["has_verdict"] = view.verdict is not None
+    summary["updated"] = view.updated
+    summary["timeline_points"] = len(view.timeline)
+    summary["timeline_last"] = view.timeline[-1][0] if view.timeline else None
+    return dict(clip(summary))
+
+
+@dataclass(eq=False)  # kept in a set, by identity
+class Client:
+    """One browser's event stream: which version of each run it was last sent."""
+
+    wake: asyncio.Event = field(default_factory=asyncio.Event)
+    sent: dict[str, tuple[int, int]] = field(default_factory=dict)
+    sent_global: int = -1
+    sent_names: list[str] | None = None
+
+
+class Hub:
+    """The model, its versions, and the browsers streaming it."""
+
+    def __init__(self, model: DashboardModel) -> None:
+        self.model = model
+        # Versions come from one counter, so a run dropped and seen again never repeats one.
+        self._counter = itertools.count(1)
+        self.versions: dict[str, int] = {}
+        self.verdict_versions: dict[str, int] = {}
+        self.global_version = 0
+        self.clients: set[Client] = set()
+        self.closing = False
+        self.dropped = 0
+        self.catch_up_error = ""
+        self._digests: dict[str, tuple[int, dict[str, Any]]] = {}
+        self._verdicts: dict[str, tuple[int, dict[str, Any] | None]] = {}
+        self._catch_up: asyncio.Task[int] | None = None
+        self._catch_up_wanted = True
+        self._last_catch_up = -1e9
+        self._rates_at = 0.0
+
+    # Feeding -------------------------------------------------------------------------
+
+    def feed(self, samples: Iterable[tuple[str, bytes]], now: float) -> None:
+        """Apply samples (or queryable replies) to the model and mark what they changed."""
+        known = set(self.model.runs)
+        problems = self.model.problems
+        changed = False
+        for key, payload in samples:
+            event = self.model.apply(key, payload, now)
+            if event is None:
+                continue
+            run = event["run"]
+            self.versions[run] = next(self._counter)
+            if event["kind"] == "verdict":
+                self.verdict_versions[run] = next(self._counter)
+            changed = True
+        if self.model.problems != problems:
+            self.global_version += 1
+            changed = True
+        if set(self.model.runs) - known:
+            self._catch_up_wanted = True  # a run seen first live: ask what it said before
+        if changed:
+            self._forget_gone()
+            self.notify()
+
+    def refresh_rates(self, now: float) -> None:
+        """Once a second, mark the runs fed lately as changed, so their frame rate (read
+        over the last few seconds) goes on being sent as it falls back to zero."""
+        if now - self._rates_at < 1.0:
+            return
+        self._rates_at = now
+        fresh = [p for p, v in self.model.runs.items() if now - v.updated <= RATE_SPAN + 1.5]
+        for prefix in fresh:
+            self.versions[prefix] = next(self._counter)
+        if fresh:
+            self.notify()
+
+    def _forget_gone(self) -> None:
+        for table in (self.versions, self.verdict_versions, self._digests, self._verdicts):
+            for prefix in [p for p in table if p not in self.model.runs]:
+                del table[prefix]
+
+    def notify(self) -> None:
+        for client in self.clients:
+            client.wake.set()
+
+    async def pump(self, client: RemoteClient) -> None:
+        """Drain ``client`` into the model until cancelled; catch up through the
+        queryables at start and when a new run appears (at most every few seconds)."""
+        try:
+            while True:
+                now = time.time()
+                self.feed(client.drain(PUMP_BATCH), now)
+                if client.dropped != self.dropped:
+                    self.dropped = client.dropped
+                    self.global_version += 1
+                    self.notify()
+                self.refresh_rates(now)
+                self._maybe_catch_up(client)
+                await asyncio.sleep(PUMP_PERIOD)
+        finally:
+            if self._catch_up is not None:  # its thread uses the session: let it end first
+                with contextlib.suppress(Exception):
+                    await asyncio.shield(self._catch_up)
+
+    def _maybe_catch_up(self, client: RemoteClient) -> None:
+        running = self._catch_up
+        if running is not None:
+            if not running.done():
+                return
+            self._catch_up = None
+            self._last_catch_up = time.monotonic()
+            error = running.exception()
+            if error is not None:
+                self.catch_up_error = str(error)[:200]
+                self.global_version += 1
+            # Its replies are all queued now: the runs they name are no reason for another.
+            while batch := client.drain(PUMP_BATCH):
+                self.feed(batch, time.time())
+            self._catch_up_wanted = False
+        if not self._catch_up_wanted or time.monotonic() - self._last_catch_up < CATCH_UP_GAP:
+            return
+        self._catch_up_wanted = False
+        self._catch_up = asyncio.ensure_future(
+            asyncio.to_thread(client.catch_up, -1, CATCH_UP_TIMEOUT)
+        )
+
+    # Drawing -------------------------------------------------------------------------
+
+    def digest(self, prefix: str, now: float) -> dict[str, Any]:
+        """The run's digest, computed once per version."""
+        version = self.versions.get(prefix, 0)
+        cached = self._digests.get(prefix)
+        if cached is None or cached[0] != version:
+            cached = self._digests[prefix] = (version, run_digest(self.model.runs[prefix], now))
+        return cached[1]
+
+    def verdict(self, prefix: str) -> dict[str, Any] | None:
+        version = self.verdict_versions.get(prefix, 0)
+        cached = self._verdicts.get(prefix)
+        if cached is None or cached[0] != version:
+            view = self.model.runs[prefix]
+            cached = self._verdicts[prefix] = (version, verdict_digest(view.verdict))
+        return cached[1]
+
+    def header(self, now: float) -> dict[str, Any]:
+        return {
+            "now": now,
+            "names": sorted(self.model.runs),
+            "problems": self.model.problems,
+            "last_problem": self.model.last_problem,
+            "dropped": self.dropped,
+            "catch_up_error": self.catch_up_error,
+        }
+
+    def snapshot(self, now: float) -> dict[str, Any]:
+        """Every run with its verdict: ``GET /api/runs``."""
+        runs = [
+            {**self.digest(prefix, now), "verdict": self.verdict(prefix)}
+            for prefix in sorted(self.model.runs)
+        ]
+        return {**self.header(now), "runs": runs, "clients": len(self.clients)}
+
+    def message(self, client: Client, now: float) -> bytes | None:
+        """The event ``client`` is owed (the runs changed since its last one), None when
+        it is up to date."""
+        runs = []
+        for prefix in sorted(self.model.runs):
+            current = (self.versions.get(prefix, 0), self.verdict_versions.get(prefix, 0))
+            before = client.sent.get(prefix)
+            if before == current:
+                continue
+            entry = dict(self.digest(prefix, now))
+            if before is None or before[1] != current[1]:
+                entry["verdict"] = self.verdict(prefix)
+            runs.append(entry)
+            client.sent[prefix] = current
+        names = sorted(self.model.runs)
+        for gone in [p for p in client.sent if p not in self.model.runs]:
+            del client.sent[gone]
+        if not runs and client.sent_global == self.global_version and client.sent_names == names:
+            return None
+        client.sent_global = self.global_version
+        client.sent_names = names
+        data = orjson.dumps({**self.header(now), "runs": runs})
+        return b"event: runs\ndata: " + data + b"\n\n"
+
+
+HUB: web.AppKey[Hub] = web.AppKey("hub", Hub)
+ALLOWED_HOSTS: web.AppKey[set[str]] = web.AppKey("allowed_hosts", set)
+STATIC: web.AppKey[dict[str, bytes]] = web.AppKey("static", dict)
+
+
+def _view_of(request: web.Request) -> RunView:
+    """The run named in the URL, among the known runs only (never used as a path)."""
+    name = request.match_info["run"]
+    prefix = "" if name == ROOT_RUN_ID else name
+    view = request.app[HUB].model.runs.get(prefix)
+    if view is None:
+        raise web.HTTPNotFound(text="no such run\n")
+    return view
+
+
+async def _page(request: web.Request) -> web.Response:
+    return _static_response(request, "index.html")
+
+
+async def _static(request: web.Request) -> web.Response:
+    name = request.match_info["name"]
+    if name not in STATIC_FILES or name == "index.html":
+        raise web.HTTPNotFound()
+    return _static_response(request, name)
+
+
+def _static_response(request: web.Request, name: str) -> web.Response:
+    return web.Response(
+        body=request.app[STATIC][name], content_type=STATIC_FILES[name], charset="utf-8"
+    )
+
+
+async def _no_icon(request: web.Request) -> web.Response:
+    return web.Response(status=204)  # browsers ask; a 404 would show as an error
+
+
+async def _runs(request: web.Request) -> web.Response:
+    hub = request.app[HUB]
+    return web.Response(
+        body=orjson.dumps(hub.snapshot(time.time())), content_type="application/json"
+    )
+
+
+async def _verdict(request: web.Request) -> web.Response:
+    view = _view_of(request)
+    if view.verdict is None:
+        raise web.HTTPNotFound(text="no verdict yet\n")
+    safe = re.sub(r"[^A-Za-z0-9_.-]", "_", view.prefix) or "root"
+    return web.Response(
+        body=orjson.dumps(view.verdict),
+        content_type="application/json",
+        headers={"Content-Disposition": f'attachment; filename="verdict-{safe}.json"'},
+    )
+
+
+async def _timeline(request: web.Request) -> web.Response:
+    view = _view_of(request)
+    after_text = request.query.get("after", "-1")
+    if not _AFTER.match(after_text):
+        raise web.HTTPBadRequest(text="after: an integer frame index\n")
+    after = int(after_text)
+    points = [[index, clearance] for index, clearance in view.timeline if index > after]
+    planning = view.modules.get("planning")
+    document = {
+        "run": view.prefix,
+        "points": points,
+        "margin": margin_of(planning) if planning is not None else None,
+    }
+    return web.Response(body=orjson.dumps(document), content_type="application/json")
+
+
+async def _events(request: web.Request) -> web.StreamResponse:
+    hub = request.app[HUB]
+    if len(hub.clients) >= MAX_CLIENTS:
+        raise web.HTTPServiceUnavailable(text="too many dashboard pages open\n")
+    response = web.StreamResponse(
+        headers={"Content-Type": "text/event-stream", "X-Accel-Buffering": "no"}
+    )
+    await response.prepare(request)
+    client = Client()
+    hub.clients.add(client)
+    try:
+        await asyncio.wait_for(response.write(b"retry: 2000\n\n"), WRITE_TIMEOUT)
+        quiet_since = time.monotonic()
+        while not hub.closing:
+            message = hub.message(client, time.time())
+            if message is not None:
+                await asyncio.wait_for(response.write(message), WRITE_TIMEOUT)
+                quiet_since = time.monotonic()
+                await asyncio.sleep(MIN_INTERVAL)  # what changes meanwhile goes in one event
+                continue
+            try:
+                await asyncio.wait_for(client.wake.wait(), LIVENESS)
+            except TimeoutError:
+                transport = request.transport
+                if transport is None or transport.is_closing():
+                    break
+                if time.monotonic() - quiet_since >= KEEPALIVE:
+                    await asyncio.wait_for(response.write(b": keep-alive\n\n"), WRITE_TIMEOUT)
+                    quiet_since = time.monotonic()
+            client.wake.clear()
+    except (ConnectionError, TimeoutError):
+        pass  # the browser went away or stopped reading
+    finally:
+        hub.clients.discard(client)
+    return response
+
+
+@web.middleware
+async def _guard(request: web.Request, handler: Callable[[web.Request], Any]) -> web.StreamResponse:
+    """Refuse a ``Host`` that is not this server's loopback name (DNS rebinding)."""
+    allowed = request.app[ALLOWED_HOSTS]
+    if allowed and request.host.lower() not in allowed:
+        raise web.HTTPMisdirectedRequest(text="unexpected Host header\n")
+    response: web.StreamResponse = await handler(request)
+    return response
+
+
+async def _headers(request: web.Request, response: web.StreamResponse) -> None:
+    for name, value in SECURITY_HEADERS.items():
+        response.headers.setdefault(name, value)
+
+
+async def _on_shutdown(app: web.Application) -> None:
+    hub = app[HUB]
+    hub.closing = True
+    hub.notify()
+
+
+def load_static() -> dict[str, bytes]:
+    """The page's files, read once from the package (works from a wheel or a zip too)."""
+    folder = resources.files("ads_rca.remote").joinpath("static")
+    return {name: folder.joinpath(name).read_bytes() for name in STATIC_FILES}
+
+
+def make_app(hub: Hub, allowed_hosts: set[str] | None = None) -> web.Application:
+    """The dashboard's routes on ``hub``; ``allowed_hosts`` (``host:port``, lower case)
+    are the only ``Host`` headers served (empty or None: any)."""
+    app = web.Application(middlewares=[_guard])
+    app[HUB] = hub
+    app[ALLOWED_HOSTS] = set(allowed_hosts or ())
+    app[STATIC] = load_static()
+    app.router.add_get("/", _page)
+    app.router.add_get("/static/{name}", _static)
+    app.router.add_get("/api/runs", _runs)
+    app.router.add_get("/api/runs/{run}/verdict.json", _verdict)
+    app.router.add_get("/api/runs/{run}/timeline", _timeline)
+    app.router.add_get("/events", _events)
+    app.router.add_get("/favicon.ico", _no_icon)
+    app.on_response_prepare.append(_headers)
+    app.on_shutdown.append(_on_shutdown)
+    return app
+
+
+def is_loopback(host: str) -> bool:
+    if host.lower() == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        return False
+
+
+def loopback_hosts(port: int) -> set[str]:
+    """The ``Host`` headers a browser sends for this server on loopback."""
+    return {f"{name}:{port}" for name in ("127.0.0.1", "localhost", "[::1]")}
+
+
+def parse_port(text: str) -> int:
+    """``--port``: 0 (any free port) to 65535, refused in one line."""
+    shown = text.encode("unicode_escape").decode("ascii")[:20]
+    if not re.fullmatch(r"[0-9]{1,5}", text.strip()) or int(text) > 65535:
+        raise ConfigError(f"--port: {shown!r} is not a port number (0 to 65535; 0: any free)")
+    return int(text)
+
+
+def check_host(host: str, allow_remote: bool) -> str:
+    """``--host``: loopback unless ``allow_remote`` (the dashboard has no authentication)."""
+    shown = host.encode("unicode_escape").decode("ascii")[:60]
+    if not host or not re.fullmatch(r"[A-Za-z0-9.:\[\]-]+", host):
+        raise ConfigError(f"--host: {shown!r} is not a host name or address")
+    if not allow_remote and not is_loopback(host):
+        raise ConfigError(
+            f"--host {shown}: not a loopback address; the dashboard has no authentication, "
+            "so pass --allow-remote and put it behind a reverse proxy with TLS and login"
+        )
+    return host.strip("[]")
+
+
+@dataclass(frozen=True)
+class Options:
+    """What ``ads-rca dashboard`` was asked for, checked."""
+
+    host: str
+    port: int
+    connect: Sequence[str]
+    prefix: str | None
+    allow_remote: bool
+
+
+def _url(host: str, port: int) -> str:
+    return f"http://[{host}]:{port}/" if ":" in host else f"http://{host}:{port}/"
+
+
+async def serve(options: Options, client: RemoteClient, ready: Callable[[str], None]) -> int:
+    """Serve until SIGINT (returns 130) or SIGTERM (returns 0), then close the Zenoh
+    session and the web server (on every path: an open session hangs the interpreter at
+    exit). ``ready`` gets the page's URL once the port is bound and Zenoh is open."""
+    loop = asyncio.get_running_loop()
+    stop: asyncio.Future[int] = loop.create_future()
+
+    def stop_with(code: int) -> None:
+        if not stop.done():
+            stop.set_result(code)
+
+    for sig, code in ((signal.SIGINT, 128 + signal.SIGINT), (signal.SIGTERM, 0)):
+        loop.add_signal_handler(sig, stop_with, code)
+    hub = Hub(DashboardModel(options.prefix))
+    app = make_app(hub)
+    runner = web.AppRunner(app, access_log=None, shutdown_timeout=2.0)
+    try:
+        await runner.setup()
+        # "localhost" may resolve to two addresses, which port 0 would give two ports.
+        host = "127.0.0.1" if options.host.lower() == "localhost" else options.host
+        try:
+            await web.TCPSite(runner, host, options.port).start()
+        except OSError as error:
+            reason = error.strerror or str(error)
+            raise InputError(f"cannot serve on {host} port {options.port}: {reason}") from None
+        port = int(runner.addresses[0][1])
+        if not options.allow_remote:
+            app[ALLOWED_HOSTS].update(loopback_hosts(port))
+        _open(client)
+        pump = asyncio.create_task(hub.pump(client))
+        try:
+            ready(_url(host, port))
+            return await stop
+        finally:
+            pump.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await pump
+    finally:
+        client.close()
+        await runner.cleanup()
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            loop.remove_signal_handler(sig)
+
+
+def _open(client: RemoteClient) -> None:
+    """Open the Zenoh session; its own errors (an endpoint it cannot use) as one line."""
+    try:
+        client.open()
+    except Exception as error:
+        if type(error).__module__.split(".")[0] != "zenoh":
+            raise
+        raise InputError(f"zenoh: {str(error).splitlines()[0][:200]}") from None
+
+
+def run(options: Options) -> int:
+    """Run the dashboard in this thread until stopped (see :func:`serve`); a bad option
+    is a ConfigError before anything starts."""
+    client = RemoteClient(
+        options.connect, options.prefix, mode="peer", allow_remote=options.allow_remote
+    )
+
+    def ready(url: str) -> None:
+        endpoints = ", ".join(options.connect)
+        print(f"ads-rca dashboard: {url} (zenoh: {endpoints}; Ctrl-C stops)", flush=True)
+        if not is_loopback(options.host):
+            print(
+                "ads-rca dashboard: warning: serving beyond loopback with no authentication; "
+                "put it behind a reverse proxy with TLS and login",
+                file=sys.stderr,
+                flush=True,
+            )
+
+    return asyncio.run(serve(options, client, ready))

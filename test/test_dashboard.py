@@ -1,0 +1,537 @@
+"""``ads-rca dashboard`` (issue #17 item 3), with real parts only: runs played onto Zenoh by
+``remote_feed.py`` processes, the dashboard as its own process, and Debian's chromium driven
+by Playwright. The page shows each module's status and the verdict of a live replay without
+a reload; the download is the feed's verdict; several runs are listed; text from the wire
+stays text; a late dashboard catches up; bad options are one line; signals stop it cleanly.
+The event stream's coalescing and its dropping of closed streams are checked in-process.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import os
+import queue
+import re
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+import urllib.error
+import urllib.request
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import orjson
+import pytest
+from test_remote_core import free_port
+
+from ads_rca.oracles.base import MODULES
+from ads_rca.remote.client import RemoteClient
+from ads_rca.remote.config import session_config
+from ads_rca.remote.session import close_session
+from ads_rca.remote.view import DashboardModel
+
+pytestmark = pytest.mark.timeout(120)
+
+REPO = Path(__file__).resolve().parents[1]
+EXAMPLE = REPO / "examples" / "cut_in_perception"
+FEED = REPO / "test" / "remote_feed.py"
+CHROMIUM = Path("/usr/bin/chromium")
+#: Markup that runs script if it is ever parsed as HTML.
+HOSTILE = '<img src=x onerror="window.pwned=1">'
+
+
+def _env() -> dict[str, str]:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO), env.get("PYTHONPATH")]))
+    return env
+
+
+class Lines:
+    """A process's stdout lines, read on a thread so a test can wait with a deadline."""
+
+    def __init__(self, process: subprocess.Popen[str]) -> None:
+        self.lines: queue.Queue[str] = queue.Queue()
+        assert process.stdout is not None
+        threading.Thread(target=self._read, args=(process.stdout,), daemon=True).start()
+
+    def _read(self, stream: Iterable[str]) -> None:
+        for line in stream:
+            self.lines.put(line)
+
+    def wait_for(self, pattern: str, timeout: float = 30.0) -> str:
+        end = time.monotonic() + timeout
+        while (left := end - time.monotonic()) > 0:
+            try:
+                line = self.lines.get(timeout=left)
+            except queue.Empty:
+                break
+            if re.search(pattern, line):
+                return line
+        raise AssertionError(f"no line matching {pattern!r} within {timeout} s")
+
+
+def _stop(process: subprocess.Popen[str]) -> None:
+    if process.poll() is None:
+        process.terminate()
+        try:
+            process.wait(10)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
+
+
+@dataclass
+class Feed:
+    endpoint: str
+    process: subprocess.Popen[str]
+    lines: Lines
+
+
+@contextmanager
+def feed(prefix: str, pace: float = 0.0, start_after: float = 0.0) -> Iterator[Feed]:
+    """``remote_feed.py`` playing the bundled crash onto Zenoh under ``prefix``."""
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    argv = [sys.executable, str(FEED), str(EXAMPLE), "--listen", endpoint, "--prefix", prefix]
+    argv += ["--pace", str(pace), "--start-after", str(start_after), "--hold", "90"]
+    process = subprocess.Popen(argv, stdout=subprocess.PIPE, text=True, env=_env())
+    try:
+        lines = Lines(process)
+        lines.wait_for("^READY")
+        yield Feed(endpoint, process, lines)
+    finally:
+        _stop(process)
+
+
+@dataclass
+class Dashboard:
+    url: str
+    process: subprocess.Popen[str]
+
+    def get(self, path: str, host: str | None = None) -> tuple[int, dict[str, str], bytes]:
+        request = urllib.request.Request(self.url + path.lstrip("/"))
+        if host is not None:
+            request.add_header("Host", host)
+        try:
+            with urllib.request.urlopen(request, timeout=10) as response:
+                return response.status, dict(response.headers), response.read()
+        except urllib.error.HTTPError as error:
+            return error.code, dict(error.headers), error.read()
+
+    def runs(self) -> dict[str, Any]:
+        status, _, body = self.get("/api/runs")
+        assert status == 200
+        document: dict[str, Any] = json.loads(body)
+        return document
+
+
+def start_dashboard(*connect: str) -> tuple[subprocess.Popen[str], Lines]:
+    argv = [sys.executable, "-m", "ads_rca.cli", "dashboard", "--port", "0"]
+    for endpoint in connect:
+        argv += ["--connect", endpoint]
+    process = subprocess.Popen(
+        argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env()
+    )
+    return process, Lines(process)
+
+
+@contextmanager
+def dashboard(*connect: str) -> Iterator[Dashboard]:
+    """``ads-rca dashboard`` on a free port, stopped with SIGINT at the end (and checked to
+    have ended cleanly)."""
+    process, lines = start_dashboard(*connect)
+    try:
+        url = re.search(r"http://\S+/", lines.wait_for("^ads-rca dashboard: http://"))
+        assert url is not None
+        yield Dashboard(url.group(0), process)
+        process.send_signal(signal.SIGINT)
+        _, err = process.communicate(timeout=10)
+        assert process.returncode == 130, err
+        assert "Traceback" not in err
+    finally:
+        _stop(process)
+
+
+def poll(condition: Callable[[], Any], timeout: float = 20.0, what: str = "") -> Any:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        found = condition()
+        if found:
+            return found
+        time.sleep(0.05)
+    raise AssertionError(f"timed out waiting for {what or condition}")
+
+
+def feed_verdict(endpoint: str, prefix: str) -> dict[str, Any]:
+    """The verdict the feed answers on Zenoh, read with a session of the test's own."""
+    model = DashboardModel(prefix)
+    with RemoteClient([endpoint]) as client:
+        client.catch_up()
+        for key, payload in client.drain():
+            model.apply(key, payload, time.time())
+    verdict = model.runs[prefix].verdict
+    assert verdict is not None
+    return verdict
+
+
+@pytest.fixture(scope="module")
+def browser() -> Iterator[Any]:
+    if not CHROMIUM.exists():
+        pytest.skip("Debian's chromium is not installed (apt-get install chromium)")
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as playwright:
+        # The background-networking flags keep chromium itself off the network.
+        launched = playwright.chromium.launch(
+            executable_path=str(CHROMIUM),
+            headless=True,
+            args=[
+                "--no-sandbox",
+                "--disable-gpu",
+                "--disable-quic",
+                "--no-first-run",
+                "--disable-background-networking",
+                "--disable-component-update",
+                "--disable-sync",
+            ],
+        )
+        try:
+            yield launched
+        finally:
+            launched.close()
+
+
+def _module_statuses(page: Any) -> dict[str, tuple[str, int]]:
+    found: dict[str, tuple[str, int]] = page.evaluate(
+        """() => Object.fromEntries(
+            Array.from(document.querySelectorAll('#modules tr[data-module]')).map((row) => [
+                row.dataset.module,
+                [row.querySelector('.status').textContent,
+                 Number(row.querySelector('.judged').textContent)],
+            ]))"""
+    )
+    return found
+
+
+def test_the_page_follows_a_live_replay_without_reload(browser: Any) -> None:
+    with feed("car1", pace=0.015, start_after=2.5) as car, dashboard(car.endpoint) as board:
+        page = browser.new_page()
+        requested: list[str] = []
+        page.on("request", lambda request: requested.append(request.url))
+        page.goto(board.url)
+        page.evaluate("window.sameDocument = true")
+        page.wait_for_function("() => Number(document.getElementById('index').textContent) >= 0")
+        first = int(page.text_content("#index"))
+        assert first < 80, "the run was over before the page saw it: nothing to follow live"
+        page.wait_for_function(
+            f"() => Number(document.getElementById('index').textContent) > {first}"
+        )
+        page.wait_for_function(  # every module judged at least once, its status shown
+            """() => Array.from(document.querySelectorAll('#modules .judged'))
+                     .every((cell) => Number(cell.textContent) > 0)"""
+        )
+        statuses = _module_statuses(page)
+        assert sorted(statuses) == sorted(MODULES)
+        for status, judged in statuses.values():
+            assert status in ("ok", "failing") or status.startswith("skipped"), status
+            assert judged > 0
+        page.wait_for_function(
+            "() => document.getElementById('verdict-primary').textContent === 'perception'",
+            timeout=30_000,
+        )
+        page.wait_for_function("() => document.getElementById('index').textContent === '80'")
+        assert page.evaluate("window.sameDocument") is True  # updated in place, never reloaded
+        assert page.locator("#timeline-box polyline").count() == 1
+        assert page.text_content("#runs tbody tr[data-run='car1'] td:last-child") == "perception"
+        facts = page.text_content("#verdict-facts")
+        assert "collision frame81" in facts and "semantics modecorrected" in facts
+        assert page.locator("#verdict-thresholds tr").count() > 10
+        assert page.locator("#evidence [data-module='perception']").count() == 1
+
+        href = page.get_attribute("#download", "href")
+        assert href == "/api/runs/car1/verdict.json"
+        download = page.request.get(board.url.rstrip("/") + href)
+        assert download.status == 200
+        assert download.headers["content-disposition"].startswith("attachment")
+        served = orjson.loads(download.body())
+        sent = feed_verdict(car.endpoint, "car1")
+        assert served["primary_root_cause"] == sent["primary_root_cause"] == "perception"
+        assert len(served["frames"]) == len(sent["frames"]) == 81
+        assert served == sent
+
+        headers = page.request.get(board.url).headers
+        csp = headers["content-security-policy"]
+        assert "default-src 'self'" in csp and "unsafe-inline" not in csp
+        assert headers["x-content-type-options"] == "nosniff"
+        assert requested and all(url.startswith(board.url) for url in requested)
+        page.close()
+
+
+@contextmanager
+def hostile_peer() -> Iterator[str]:
+    """A Zenoh peer answering the catch-up with markup in every string a page shows."""
+    import zenoh
+
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    verdict = {
+        "primary_root_cause": HOSTILE,
+        "contributing": [HOSTILE],
+        "root_causes": [HOSTILE],
+        "attribution_basis": HOSTILE,
+        "reason": HOSTILE,
+        "partner_id": HOSTILE,
+        "semantics": HOSTILE,
+        "thresholds": {HOSTILE: 1},
+        "evidence": {HOSTILE: {"basis": HOSTILE, "metrics": {HOSTILE: HOSTILE}}},
+        "frames": [],
+    }
+    result = {"index": 0, "frame": HOSTILE, "failed": True, "metrics": {HOSTILE: HOSTILE}}
+    answers = {
+        "evil/ads_rca/verdict": verdict,
+        "evil/ads_rca/status": {"state": HOSTILE},
+        "evil/ads_rca/frames": {"frames": [{"modules": {"perception": result}}]},
+    }
+
+    def answer(key: str, payload: str) -> Callable[[Any], None]:
+        return lambda query: query.reply(key, payload)
+
+    session = zenoh.open(zenoh.Config.from_json5(session_config("peer", listen=[endpoint])))
+    declared: list[Any] = []
+    try:
+        for key, document in answers.items():
+            declared.append(session.declare_queryable(key, answer(key, json.dumps(document))))
+        yield endpoint
+    finally:
+        close_session(session, declared)
+
+
+def test_finished_runs_are_listed_caught_up_and_hostile_text_stays_text(browser: Any) -> None:
+    with feed("car_a") as car_a, feed("car_b") as car_b, hostile_peer() as evil:
+        car_a.lines.wait_for("^VERDICT")
+        car_b.lines.wait_for("^VERDICT")
+        with dashboard(car_a.endpoint, car_b.endpoint, evil) as board:  # after the verdicts
+            page = browser.new_page()
+            page.goto(board.url)
+            page.wait_for_function(
+                "() => document.querySelectorAll('#run-select option').length === 3"
+            )
+            options = page.eval_on_selector_all(
+                "#run-select option", "els => els.map(e => e.value)"
+            )
+            assert options == ["car_a", "car_b", "evil"]
+            for run in ("car_a", "car_b"):
+                page.select_option("#run-select", run)
+                page.wait_for_function(
+                    "() => document.getElementById('verdict-primary').textContent === 'perception'"
+                )
+                assert page.text_content("#run-name") == run
+                assert page.text_content("#index") == "80"
+
+            page.select_option("#run-select", "evil")
+            page.wait_for_function(
+                f"() => document.getElementById('verdict-primary').textContent === {HOSTILE!r}"
+            )
+            page.wait_for_function(  # the hostile result too, drawn after the verdict's event
+                "() => document.querySelector('#modules tr[data-module=perception] .judged')"
+                ".textContent === '1'"
+            )
+            for selector in ("#verdict-facts", "#verdict-thresholds", "#evidence", "#modules"):
+                assert HOSTILE in page.text_content(selector), selector
+            assert page.text_content("#frame") == HOSTILE
+            assert page.text_content("#state") == HOSTILE
+            assert page.locator("img").count() == 0
+            assert page.evaluate("typeof window.pwned") == "undefined"
+            download = page.request.get(board.url + "api/runs/evil/verdict.json")
+            assert download.headers["content-type"].startswith("application/json")
+            assert orjson.loads(download.body())["partner_id"] == HOSTILE
+            page.close()
+
+
+def test_bad_options_are_one_line_and_exit_status_2() -> None:
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        taken = str(busy.getsockname()[1])
+        cases = {
+            "not a port": (["--port", "http"], "--port"),
+            "port too high": (["--port", "70000"], "--port"),
+            "port in use": (["--port", taken], "cannot serve on 127.0.0.1 port"),
+            "any interface": (["--host", "0.0.0.0"], "--allow-remote"),
+            "another host": (["--host", "192.0.2.7"], "not a loopback address"),
+            "remote zenoh": (["--connect", "tcp/192.0.2.7:7447"], "not on loopback"),
+            "bad endpoint": (["--connect", "http://x"], "PROTOCOL/HOST:PORT"),
+            "bad prefix": (["--prefix", "car/*"], "--prefix"),
+        }
+        base = [sys.executable, "-m", "ads_rca.cli", "dashboard"]
+        local = ["--connect", f"tcp/127.0.0.1:{free_port()}"]
+        running = {
+            name: subprocess.Popen(
+                [*base, *local, *argv], stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=_env()
+            )
+            for name, (argv, _) in cases.items()
+        }
+        for name, process in running.items():
+            out, err = process.communicate(timeout=30)
+            assert process.returncode == 2, (name, err)
+            assert out == b"", name
+            lines = err.decode().splitlines()
+            assert len(lines) == 1 and lines[0].startswith("ads-rca dashboard: error: "), name
+            assert cases[name][1] in lines[0], (name, lines[0])
+
+
+def _open_stream(url: str) -> socket.socket:
+    """A raw event-stream request, its first event read: a browser that stays connected."""
+    host, port = re.findall(r"http://([^:/]+):(\d+)/", url)[0]
+    stream = socket.create_connection((host, int(port)), timeout=10)
+    stream.sendall(f"GET /events HTTP/1.1\r\nHost: {host}:{port}\r\n\r\n".encode())
+    received = b""
+    while b"event: runs" not in received:
+        chunk = stream.recv(65536)
+        assert chunk, "stream closed"
+        received += chunk
+    return stream
+
+
+def test_sigint_and_sigterm_stop_it_cleanly_with_streams_open() -> None:
+    with feed("car1") as car:
+        car.lines.wait_for("^VERDICT")
+        stops = {signal.SIGINT: 130, signal.SIGTERM: 0}
+        started = {sig: start_dashboard(car.endpoint) for sig in stops}
+        streams = []
+        try:
+            for _, lines in started.values():
+                line = lines.wait_for("^ads-rca dashboard: http://")
+                streams.append(_open_stream(line.split()[2]))
+            for sig, (process, _) in started.items():
+                process.send_signal(sig)
+            begun = time.monotonic()
+            for sig, (process, _) in started.items():
+                _, err = process.communicate(timeout=10)
+                assert process.returncode == stops[sig], err
+                assert err == "", err
+            assert time.monotonic() - begun < 5.0
+        finally:
+            for stream in streams:
+                stream.close()
+            for process, _ in started.values():
+                _stop(process)
+
+
+def _result(index: int) -> bytes:
+    document = {"index": index, "frame": index + 1, "failed": False, "metrics": {"c_gt": 5.0}}
+    return orjson.dumps(document)
+
+
+async def _stream_events(url: str, until: Callable[[dict[str, Any]], bool]) -> list[Any]:
+    import aiohttp
+
+    events: list[Any] = []
+    async with aiohttp.ClientSession() as session, session.get(url) as response:
+        assert response.headers["Content-Type"] == "text/event-stream"
+        async for raw in response.content:
+            line = raw.decode().rstrip("\n")
+            if line.startswith("data: "):
+                events.append((time.monotonic(), json.loads(line[6:])))
+                if until(events[-1][1]):
+                    break
+    return events
+
+
+def test_events_are_coalesced_and_closed_streams_dropped() -> None:
+    """In-process, no Zenoh: 400 results in 0.8 s reach a browser's stream as at most ~10
+    events a second, the last with the last result; a closed stream is forgotten."""
+    from aiohttp import web
+
+    from ads_rca.remote.web import Hub, make_app
+
+    async def scenario() -> None:
+        hub = Hub(DashboardModel())
+        app = make_app(hub)
+        runner = web.AppRunner(app, shutdown_timeout=1.0)
+        await runner.setup()
+        site = web.TCPSite(runner, "127.0.0.1", 0)
+        await site.start()
+        url = f"http://127.0.0.1:{runner.addresses[0][1]}"
+        try:
+
+            async def produce() -> None:
+                while not hub.clients:
+                    await asyncio.sleep(0.01)
+                for index in range(400):
+                    hub.feed([("car9/ads_rca/modules/planning", _result(index))], time.time())
+                    await asyncio.sleep(0.002)
+
+            producer = asyncio.create_task(produce())
+            events = await _stream_events(
+                url + "/events",
+                lambda event: any(r["last_index"] == 399 for r in event["runs"]),
+            )
+            await producer
+            timed = [(at, event) for at, event in events if event["runs"]]
+            span = timed[-1][0] - timed[0][0]
+            assert len(timed) <= span / 0.1 + 2, (len(timed), span)
+            assert all(event["names"] == ["car9"] for _, event in timed)
+            await asyncio.wait_for(_until(lambda: not hub.clients), 5.0)
+
+            import aiohttp
+
+            async with aiohttp.ClientSession() as session:
+                async with session.get(url + "/api/runs/car9/timeline?after=395") as response:
+                    points = (await response.json())["points"]
+                    assert [p[0] for p in points] == [396, 397, 398, 399]
+                for path, code in (
+                    ("/api/runs/car9/verdict.json", 404),  # no verdict yet
+                    ("/api/runs/nope/timeline", 404),
+                    ("/api/runs/car9/timeline?after=x", 400),
+                    ("/static/..%2Fweb.py", 404),
+                    ("/static/index.html", 404),
+                ):
+                    async with session.get(url + path) as response:
+                        assert response.status == code, path
+                        assert "nosniff" in response.headers["X-Content-Type-Options"]
+        finally:
+            await runner.cleanup()
+
+    run_in_thread(lambda: asyncio.run(scenario()))
+
+
+def run_in_thread(body: Callable[[], None]) -> None:
+    """``body`` on a thread of its own: Playwright's sync API keeps an event loop running
+    on this one while the browser fixture lives, and asyncio.run refuses to nest."""
+    failures: list[BaseException] = []
+
+    def target() -> None:
+        try:
+            body()
+        except BaseException as error:
+            failures.append(error)
+
+    thread = threading.Thread(target=target)
+    thread.start()
+    thread.join(60)
+    assert not thread.is_alive(), "the scenario did not end"
+    if failures:
+        raise failures[0]
+
+
+async def _until(condition: Callable[[], bool]) -> None:
+    while not condition():
+        await asyncio.sleep(0.02)
+
+
+def test_what_is_sent_is_bounded() -> None:
+    from ads_rca.remote.web import MAX_ITEMS, MAX_TEXT, clip
+
+    deep: Any = "x"
+    for _ in range(50):
+        deep = [deep]
+    clipped = clip({"s": "y" * 10_000, "l": list(range(1000)), "d": deep})
+    assert len(clipped["s"]) == MAX_TEXT + 1
+    assert len(clipped["l"]) == MAX_ITEMS + 1
+    assert len(json.dumps(clipped)) < 2000

@@ -464,7 +464,7 @@ def test_events_are_coalesced_and_closed_streams_dropped() -> None:
                 while not hub.clients:
                     await asyncio.sleep(0.01)
                 for index in range(400):
-                    hub.feed([("car9/ads_rca/modules/planning", _result(index))], time.time())
+                    hub.feed([("car9/ads_rca/modules/planning.json", _result(index))], time.time())
                     await asyncio.sleep(0.002)
 
             producer = asyncio.create_task(produce())

@@ -10,7 +10,9 @@ How it ends (launch's own ``OnProcessExit`` and ``Shutdown``, per ``graph.exit_o
 
 - the aggregator exits 0 once its verdict is published and acknowledged by every
   subscriber (the recorder among them): the launch shuts down, SIGINT to the rest, the
-  recorder finalises its bag, every node exits 0, and ``ros2 launch`` exits 0;
+  recorder finalises its bag, every node exits 0, and ``ros2 launch`` exits 0; with
+  ``zenoh:=true`` the Zenoh bridge ends the run instead, once it forwarded the verdict and
+  answered late dashboards for ``zenoh_linger`` seconds;
 - a node exits non-zero (the player's 2 for an unusable log, a crash): every node is
   stopped and the launch fails (status 1: ``ros2 launch`` has no other failure status),
   its error line naming the node and its exit status;
@@ -57,9 +59,14 @@ def graph_actions(context: Any) -> list[Any]:
     spec = spec_from_arguments(values)
     actions: list[Any] = []
     for node in spec.nodes():
-        # Strings stay strings (launch_ros would read a run id of digits as an integer).
+        # Strings stay strings (launch_ros would read a run id of digits as an integer);
+        # a tuple (the bridge's endpoints) is a string array.
         params = {
-            name: ParameterValue(value, value_type=str) if isinstance(value, str) else value
+            name: ParameterValue(value, value_type=str)
+            if isinstance(value, str)
+            else list(value)
+            if isinstance(value, tuple)
+            else value
             for name, value in node.params.items()
         }
         process = Node(
@@ -70,19 +77,20 @@ def graph_actions(context: Any) -> list[Any]:
             additional_env=LOCAL_DISCOVERY,
         )
         handler = OnProcessExit(
-            target_action=process, on_exit=functools.partial(on_exit, node.name)
+            target_action=process,
+            on_exit=functools.partial(on_exit, node.name, spec.last_node),
         )
         actions += [process, RegisterEventHandler(handler)]
     return actions
 
 
-def on_exit(name: str, event: Any, context: Any) -> list[Any]:
+def on_exit(name: str, last: str, event: Any, context: Any) -> list[Any]:
     """End of the run: shut the launch down; a failed node: fail the launch, saying why."""
     from launch.actions import LogInfo, Shutdown
 
     from ads_rca.ros.graph import exit_outcome
 
-    outcome = exit_outcome(name, int(event.returncode), stopping=context.is_shutdown)
+    outcome = exit_outcome(name, int(event.returncode), context.is_shutdown, last)
     if outcome is None:
         return []
     over, why = outcome

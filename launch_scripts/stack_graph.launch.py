@@ -31,6 +31,13 @@ ARGUMENTS: dict[str, tuple[str, str]] = {
     "verdict_json": ("", "Write each verdict's JSON here (verdict N > 1: name.N.json)."),
     "detect_collisions": ("false", "Detect collisions from ground truth (flagged derived)."),
     "exit_after_verdict": ("false", "End the launch once the first verdict is out."),
+    "zenoh": ("false", "Start the zenoh_bridge node: results on Zenoh (docs/remote.md)."),
+    "zenoh_mode": ("peer", "Zenoh session mode: peer or client."),
+    "zenoh_listen": ("tcp/127.0.0.1:7447", "Zenoh endpoints to listen on, comma-separated."),
+    "zenoh_connect": ("", "Zenoh endpoints to connect to, comma-separated ('' = none)."),
+    "zenoh_prefix": ("", "Key prefix of every Zenoh sample."),
+    "zenoh_allow_remote": ("false", "Allow Zenoh endpoints off loopback (TLS, access control)."),
+    "rate_modules": ("20.0", "Most JSON samples per second per module key (0 = all)."),
 }
 
 
@@ -43,6 +50,28 @@ def generate_launch_description() -> Any:
         for name, (default, text) in ARGUMENTS.items()
     ]
     return LaunchDescription([*arguments, OpaqueFunction(function=stack_actions)])
+
+
+def bridge_parameters(values: dict[str, str]) -> dict[str, Any]:
+    """The Zenoh bridge beside the stack: every verdict forwarded, no end of its own (the
+    launch's end, Ctrl-C or the aggregator's exit, stops it; it sends what it has first)."""
+    from ads_rca.ros.graph import bridge_params
+
+    def endpoints(text: str) -> tuple[str, ...]:
+        return tuple(part.strip() for part in text.split(",") if part.strip())
+
+    params: dict[str, Any] = bridge_params(
+        values["zenoh_mode"],
+        endpoints(values["zenoh_listen"]),
+        endpoints(values["zenoh_connect"]),
+        values["zenoh_prefix"],
+        values["zenoh_allow_remote"].lower() == "true",
+        values["rate_modules"],
+        0.0,
+    )
+    return {
+        name: list(value) if isinstance(value, tuple) else value for name, value in params.items()
+    } | {"topic_namespace": values["namespace"]}
 
 
 def stack_actions(context: Any) -> list[Any]:
@@ -81,6 +110,8 @@ def stack_actions(context: Any) -> list[Any]:
 
     recorder = {"output": values["record"], "topic_namespace": values["namespace"]}
     actions = [node("recorder", [recorder])] if values["record"] else []
+    if values["zenoh"].lower() == "true":
+        actions.append(node("zenoh_bridge", [bridge_parameters(values)]))
     agg = node("aggregator", [stack_file, aggregator])
     monitors = node("monitors", [stack_file, common])
     end = OnProcessExit(target_action=agg, on_exit=[EmitEvent(event=Shutdown())])

@@ -15,6 +15,7 @@ launch with status 1 naming it, a missing ``log_path`` is one error line and no 
 from __future__ import annotations
 
 import importlib.util
+import json
 import os
 import shutil
 import subprocess
@@ -26,7 +27,7 @@ import pytest
 import yaml
 
 from ads_rca.cli import build_parser
-from ads_rca.errors import InputError
+from ads_rca.errors import AdsRcaError, InputError
 from ads_rca.params import make_params
 from ads_rca.ros.graph import (
     LAUNCH_ARGUMENTS,
@@ -315,3 +316,57 @@ def test_ros2_launch_without_log_path_is_one_line_and_starts_nothing(
     assert result.returncode == 1, output
     assert "log_path is required: ros2 launch ads_rca rca_graph.launch.py log_path:=" in output
     assert "process started" not in output
+
+
+def test_ros2_launch_with_the_bridge_ends_once_it_forwarded_the_verdict(
+    launch_env: dict[str, str], ros_env: RosEnv, tmp_path: Path
+) -> None:
+    from test_zenoh_bridge import free_port, listener, rows
+
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    out = tmp_path / "remote.jsonl"
+    remote = listener(ros_env.env, out, "--connect", endpoint, "--until-verdict")
+    try:
+        result = ros2_launch(
+            launch_env,
+            ros_env,
+            f"log_path:={EXAMPLE}",
+            f"namespace:={ros_env.namespace}",
+            "zenoh:=true",
+            f"zenoh_listen:={endpoint}",
+            "zenoh_linger:=1",
+        )
+        assert remote.wait(30) == 0, remote.output
+    finally:
+        remote.stop()
+    output = result.stdout + result.stderr
+    assert result.returncode == 0, output
+    assert "run over: the Zenoh bridge forwarded the verdict" in output
+    verdicts = [r for r in rows(out) if r.get("key") == "ads_rca/verdict.json"]
+    assert json.loads(verdicts[0]["text"])["primary_root_cause"] == "perception"
+
+
+def test_launch_arguments_start_the_bridge_only_on_request() -> None:
+    base = {"log_path": str(EXAMPLE)}
+    assert spec_from_arguments(base).zenoh_params is None
+    assert spec_from_arguments(base).last_node == "aggregator"
+    spec = spec_from_arguments(
+        {**base, "zenoh": "true", "zenoh_connect": "tcp/127.0.0.1:7000, tcp/127.0.0.1:7001"}
+    )
+    assert spec.last_node == "zenoh_bridge"
+    bridge = next(node for node in spec.nodes() if node.name == "zenoh_bridge")
+    assert bridge.params["zenoh_connect"] == ("tcp/127.0.0.1:7000", "tcp/127.0.0.1:7001")
+    assert bridge.params["zenoh_listen"] == ("tcp/127.0.0.1:7447",)
+    assert bridge.params["run_id"] == spec.run_id and bridge.params["exit_after_verdict"]
+    assert exit_outcome("aggregator", 0, last="zenoh_bridge") is None
+    assert exit_outcome("zenoh_bridge", 0, last="zenoh_bridge") == (
+        True,
+        "run over: the Zenoh bridge forwarded the verdict",
+    )
+    for bad, message in (
+        ({"zenoh": "yes"}, "zenoh must be true or false"),
+        ({"zenoh": "true", "zenoh_listen": "tcp/0.0.0.0:1"}, "not on loopback"),
+        ({"zenoh": "true", "zenoh_linger": "-3"}, "zenoh_linger"),
+    ):
+        with pytest.raises(AdsRcaError, match=message):
+            spec_from_arguments({**base, **bad})

@@ -11,9 +11,8 @@ from __future__ import annotations
 
 import argparse
 
-from ads_rca.paramspec import RATE, SECONDS, check_number
-from ads_rca.remote.config import DEFAULT_ENDPOINT, MODES, session_config
-from ads_rca.remote.keys import check_prefix
+from ads_rca.remote.config import DEFAULT_ENDPOINT, MODES
+from ads_rca.ros.graph import bridge_params
 from ads_rca.ros.launcher import ParamValue
 
 
@@ -60,19 +59,14 @@ def zenoh_params_from_args(args: argparse.Namespace) -> dict[str, ParamValue] | 
     if not args.zenoh:
         args.zenoh_linger = 0.0
         return None
-    listen = tuple(args.zenoh_listen or (DEFAULT_ENDPOINT,))
-    connect = tuple(args.zenoh_connect or ())
-    session_config(args.zenoh_mode, listen, connect, args.zenoh_allow_remote)
-    args.zenoh_linger = float(check_number("zenoh_linger", args.zenoh_linger, SECONDS))
-    params: dict[str, ParamValue] = {
-        "zenoh_mode": args.zenoh_mode,
-        "zenoh_prefix": check_prefix(args.zenoh_prefix, "zenoh_prefix"),
-        "zenoh_allow_remote": bool(args.zenoh_allow_remote),
-        "rate_modules": float(check_number("rate_modules", args.rate_modules, RATE)),
-        "linger_s": args.zenoh_linger,
-    }
-    if args.zenoh_mode == "peer":
-        params["zenoh_listen"] = listen
-    if connect:
-        params["zenoh_connect"] = connect
+    params = bridge_params(
+        args.zenoh_mode,
+        tuple(args.zenoh_listen or ()),
+        tuple(args.zenoh_connect or ()),
+        args.zenoh_prefix,
+        bool(args.zenoh_allow_remote),
+        args.rate_modules,
+        args.zenoh_linger,
+    )
+    args.zenoh_linger = params["linger_s"]
     return params

@@ -34,7 +34,7 @@ from ads_rca.io.files import DEFAULT_MAX_FILE_MB
 from ads_rca.live.runid import new_run_id
 from ads_rca.oracles.base import MODULES, Module
 from ads_rca.params import SEMANTICS, Params, load_config, params_from_sources
-from ads_rca.paramspec import MAX_FILE_MB, RATE, check_number
+from ads_rca.paramspec import MAX_FILE_MB, RATE, SECONDS, check_number
 from ads_rca.profiles import BUILTIN_PROFILES
 from ads_rca.ros.launcher import Launcher, ManagedProcess, ParamValue, ros_args
 
@@ -155,9 +155,45 @@ class GraphSpec:
         out.append(NodeSpec("player", "player", PLAYER, None, player))
         return out
 
+    @property
+    def last_node(self) -> str:
+        """The node whose exit 0 ends the run: the bridge once it forwarded the verdict and
+        lingered, else the aggregator once its verdict was acknowledged."""
+        return BRIDGE_NAME if self.zenoh_params is not None else "aggregator"
+
     def commands(self) -> dict[str, list[str]]:
         """Node name → argv, in start order."""
         return {node.name: node.argv() for node in self.nodes()}
+
+
+def bridge_params(
+    mode: str,
+    listen: tuple[str, ...],
+    connect: tuple[str, ...],
+    prefix: str,
+    allow_remote: bool,
+    rate_modules: object,
+    linger_s: object,
+) -> dict[str, ParamValue]:
+    """The Zenoh bridge's parameters from ``replay``'s options or the launch arguments,
+    checked as the node checks them (ConfigError, one line), before any node starts."""
+    from ads_rca.remote.config import DEFAULT_ENDPOINT, session_config
+    from ads_rca.remote.keys import check_prefix
+
+    listen = listen or (DEFAULT_ENDPOINT,)
+    session_config(mode, listen, connect, allow_remote)
+    params: dict[str, ParamValue] = {
+        "zenoh_mode": mode,
+        "zenoh_prefix": check_prefix(prefix, "zenoh_prefix"),
+        "zenoh_allow_remote": allow_remote,
+        "rate_modules": float(check_number("rate_modules", rate_modules, RATE)),
+        "linger_s": float(check_number("zenoh_linger", linger_s, SECONDS)),
+    }
+    if mode == "peer":
+        params["zenoh_listen"] = listen
+    if connect:
+        params["zenoh_connect"] = connect
+    return params
 
 
 @dataclass(frozen=True)
@@ -223,6 +259,32 @@ LAUNCH_ARGUMENTS: dict[str, LaunchArgument] = {
     "verdict_json": LaunchArgument(
         "", "Also write the verdict JSON to this file ('' = none).", "json_out"
     ),
+    "zenoh": LaunchArgument(
+        "false", "Start the zenoh_bridge node: results on Zenoh (docs/remote.md).", "zenoh"
+    ),
+    "zenoh_mode": LaunchArgument("peer", "Zenoh session mode: peer or client.", "zenoh_mode"),
+    "zenoh_listen": LaunchArgument(
+        "tcp/127.0.0.1:7447",
+        "Zenoh endpoints to listen on, comma-separated (peer mode).",
+        "zenoh_listen",
+    ),
+    "zenoh_connect": LaunchArgument(
+        "", "Zenoh endpoints to connect to, comma-separated ('' = none).", "zenoh_connect"
+    ),
+    "zenoh_prefix": LaunchArgument("", "Key prefix of every Zenoh sample.", "zenoh_prefix"),
+    "zenoh_allow_remote": LaunchArgument(
+        "false",
+        "Allow Zenoh endpoints off loopback (configure Zenoh TLS and access control then).",
+        "zenoh_allow_remote",
+    ),
+    "rate_modules": LaunchArgument(
+        "20.0", "Most JSON samples per second per module key on Zenoh (0 = all).", "rate_modules"
+    ),
+    "zenoh_linger": LaunchArgument(
+        "2.0",
+        "The bridge keeps answering queries this long after the verdict; the run ends then.",
+        "zenoh_linger",
+    ),
 }
 #: ``replay`` options that are no launch argument, and where a launch user finds them.
 REPLAY_ONLY: dict[str, str] = {
@@ -268,6 +330,20 @@ def spec_from_arguments(values: Mapping[str, str]) -> GraphSpec:
     if value("msg_path"):
         player["msg_path"] = str(Path(value("msg_path")).resolve())
     record, verdict_json = value("record"), value("verdict_json")
+    zenoh = _flag("zenoh", value("zenoh"))
+    zenoh_params = (
+        bridge_params(
+            value("zenoh_mode"),
+            _endpoints(value("zenoh_listen")),
+            _endpoints(value("zenoh_connect")),
+            value("zenoh_prefix"),
+            _flag("zenoh_allow_remote", value("zenoh_allow_remote")),
+            value("rate_modules"),
+            value("zenoh_linger"),
+        )
+        if zenoh
+        else None
+    )
     return GraphSpec(
         log_path=Path(log_path).resolve(),
         params=params,
@@ -278,7 +354,18 @@ def spec_from_arguments(values: Mapping[str, str]) -> GraphSpec:
         player_params=player,
         monitors=monitors,
         exit_after_verdict=True,
+        zenoh_params=zenoh_params,
     )
+
+
+def _flag(name: str, text: str) -> bool:
+    if text.lower() not in ("true", "false"):
+        raise InputError(f"{name} must be true or false, not {text[:40]!r}")
+    return text.lower() == "true"
+
+
+def _endpoints(text: str) -> tuple[str, ...]:
+    return tuple(part.strip() for part in text.split(",") if part.strip())
 
 
 def exit_status(code: int) -> str:
@@ -291,19 +378,24 @@ def exit_status(code: int) -> str:
         return f"killed by signal {-code}"
 
 
-def exit_outcome(name: str, code: int, stopping: bool = False) -> tuple[bool, str] | None:
+def exit_outcome(
+    name: str, code: int, stopping: bool = False, last: str = "aggregator"
+) -> tuple[bool, str] | None:
     """What node ``name`` exiting with ``code`` means for a launched graph (``stopping``:
     the launch is already shutting its nodes down).
 
-    ``(True, why)``: the run is over (the aggregator exits 0 once its verdict is
-    acknowledged): stop the rest. ``(False, why)``: a node failed (any non-zero status,
+    ``(True, why)``: the run is over (``last``, the spec's :attr:`GraphSpec.last_node`,
+    exited 0: the aggregator once its verdict is acknowledged, or the Zenoh bridge once it
+    forwarded it): stop the rest. ``(False, why)``: a node failed (any non-zero status,
     signals included, also while stopping): the graph cannot give a verdict, or did not
     stop cleanly; stop everything and fail. None: nothing to do (the player exits 0 after
     playing; every node exits 0 when stopped).
     """
     if code != 0:
         return False, f"{name} exited with {exit_status(code)}: the graph cannot give a verdict"
-    if name == "aggregator" and not stopping:
+    if name == last and not stopping:
+        if name == BRIDGE_NAME:
+            return True, "run over: the Zenoh bridge forwarded the verdict"
         return True, "run over: the aggregator published the verdict"
     return None
 

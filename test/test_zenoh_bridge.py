@@ -271,3 +271,36 @@ def test_bad_replay_zenoh_options_are_one_line_before_any_node(
     assert replay.wait(30) == 2, replay.output
     lines = [line for line in replay.output.splitlines() if line.strip()]
     assert len(lines) == 1 and message in lines[0], replay.output
+
+
+def test_watch_started_before_a_rate_limited_replay_ends_with_every_frame_counted(
+    ros_env: RosEnv, tmp_path: Path, log_dirs: Callable[[str, str], Path]
+) -> None:
+    """The bridge's default rate limits send a few of each module's results live; once the
+    verdict is in, ``watch`` fetches the rest from the frame history before its final
+    digest, so its counts are the run's."""
+    log_dir = log_dirs("cut_in", "perception")
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    watch_argv = [sys.executable, "-m", "ads_rca.cli", "watch", "--connect", endpoint]
+    watch = ManagedProcess("watch", [*watch_argv, "--json", "--exit-on-verdict"], ros_env.env)
+    argv = [sys.executable, "-m", "ads_rca.cli", "replay", str(log_dir)]
+    argv += ["--domain-id", str(ros_env.domain_id), "--namespace", ros_env.namespace]
+    argv += ["--zenoh", "--zenoh-listen", endpoint, "--zenoh-linger", "10", "--timeout", "90"]
+    replay = ManagedProcess("replay", argv, ros_env.env)
+    try:
+        assert watch.wait(120) == 0, watch.output
+        assert replay.wait(120) == 0, replay.output
+    finally:
+        for process in (watch, replay):
+            process.stop()
+    events = [json.loads(line) for line in watch.output.splitlines() if line.startswith("{")]
+    live = [e for e in events if e["kind"] == "module"]
+    final = next(e for e in events if e["kind"] == "final")
+    offline = diagnose(read_run_log(log_dir), make_params("corrected")).to_json()
+    frames = len(offline["frames"])
+    assert len(live) < 4 * frames  # rate-limited live
+    assert final["primary_root_cause"] == offline["primary_root_cause"]
+    assert final["semantics"] == "corrected"
+    for module in MODULES:
+        failed = sum(bool(f[module]["failed"]) for f in offline["frames"])
+        assert final["modules"][module] == {"judged": frames, "failed_frames": failed}, module

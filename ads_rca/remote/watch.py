@@ -37,7 +37,7 @@ from rich.text import Text
 from ads_rca.oracles.base import MODULES
 from ads_rca.remote.client import RemoteClient
 from ads_rca.remote.config import DEFAULT_ENDPOINT
-from ads_rca.remote.keys import check_prefix
+from ads_rca.remote.keys import SAMPLE_SUFFIX, check_prefix
 from ads_rca.remote.view import DashboardModel
 from ads_rca.summary import count_columns
 from ads_rca.text import printable
@@ -403,6 +403,11 @@ class Watcher:
         self.verdicts = 0
         self._next_open = 0.0
         self._next_catch_up = 0.0
+        #: When a live verdict asked for a catch-up (0: none), and when one last ended: the
+        #: bridge rate-limits each module's live samples, so the frames in between are
+        #: fetched from its history once the verdict is in, before the final counts.
+        self._verdict_catch_up = 0.0
+        self._caught_up = 0.0
         self._catch_up = threading.Event()
         self._stopping = threading.Event()
         self._thread: threading.Thread | None = None
@@ -440,7 +445,19 @@ class Watcher:
             if event is not None:
                 events.append(event)
                 self.verdicts += event["kind"] == "verdict"
+                if event["kind"] == "verdict" and key.endswith(SAMPLE_SUFFIX):
+                    self._verdict_catch_up = tick
+                    self._request_catch_up(tick)
         return events
+
+    def settled(self) -> bool:
+        """No catch-up asked for by a live verdict is still running (or it timed out)."""
+        asked = self._verdict_catch_up
+        return (
+            asked == 0.0
+            or self._caught_up >= asked
+            or time.monotonic() - asked > 3 * CATCH_UP_TIMEOUT_S + 1.0
+        )
 
     def _open(self, tick: float) -> None:
         try:
@@ -467,6 +484,7 @@ class Watcher:
                 self.client.catch_up(timeout=CATCH_UP_TIMEOUT_S)
             except Exception as error:  # the session closing under it, or the peer gone
                 self.error = _one_line(error)
+            self._caught_up = time.monotonic()
 
     def close(self) -> None:
         """Stop the catch-up thread and close the session (safe to call twice)."""
@@ -575,7 +593,7 @@ def watch(options: WatchOptions, out: IO[bytes] | None = None) -> int:
 def _done(watcher: Watcher, options: WatchOptions, stop: StopSignals, deadline: float) -> bool:
     if stop.signum:
         return True
-    if options.exit_on_verdict and watcher.verdicts:
+    if options.exit_on_verdict and watcher.verdicts and watcher.settled():
         return True
     return time.monotonic() >= deadline
 
@@ -594,6 +612,7 @@ def _json_loop(watcher: Watcher, options: WatchOptions, stop: StopSignals, out: 
     While the peer is not up, one note on stderr says so."""
     deadline = _deadline(options)
     printed: dict[str, Any] = {}
+    finals: list[str] = []  # runs whose final digest waits for the verdict's catch-up
     waiting_noted = False
     while True:
         events = watcher.step()
@@ -606,12 +625,17 @@ def _json_loop(watcher: Watcher, options: WatchOptions, stop: StopSignals, out: 
                     continue
                 printed[event["run"]] = event["verdict"]
                 _write(out, event)
-                final = watcher.final_event(event["run"])
-                if final is not None:
-                    _write(out, final)
+                finals.append(event["run"])
             else:
                 _write(out, event)
-        if _done(watcher, options, stop, deadline):
+        done = _done(watcher, options, stop, deadline)
+        if finals and (watcher.settled() or done):
+            for run in dict.fromkeys(finals):
+                final = watcher.final_event(run)
+                if final is not None:
+                    _write(out, final)
+            finals.clear()
+        if done:
             return _code(watcher)
         stop.wait(REFRESH_S)
 

@@ -39,6 +39,7 @@ from aiohttp import web
 
 from ads_rca.errors import ConfigError, InputError
 from ads_rca.remote.client import RemoteClient
+from ads_rca.remote.keys import SAMPLE_SUFFIX
 from ads_rca.remote.view import RATE_SPAN, DashboardModel, RunView, margin_of
 
 #: Least time between two events to one browser (s): at most ~10 updates a second.
@@ -201,6 +202,8 @@ class Hub:
             self.versions[run] = next(self._counter)
             if event["kind"] == "verdict":
                 self.verdict_versions[run] = next(self._counter)
+                if key.endswith(SAMPLE_SUFFIX):  # live: fetch the frames rate limits skipped
+                    self._catch_up_wanted = True
             changed = True
         if self.model.problems != problems:
             self.global_version += 1

@@ -304,3 +304,20 @@ def test_watch_started_before_a_rate_limited_replay_ends_with_every_frame_counte
     for module in MODULES:
         failed = sum(bool(f[module]["failed"]) for f in offline["frames"])
         assert final["modules"][module] == {"judged": frames, "failed_frames": failed}, module
+
+
+def test_the_bridge_starts_from_its_config_file(ros_env: RosEnv) -> None:
+    """rcl's own params-file parser reads config/zenoh_bridge.yaml (it refuses what plain
+    YAML accepts, e.g. an empty list or an unquoted endpoint in a flow list)."""
+    config = Path(__file__).resolve().parents[1] / "config" / "zenoh_bridge.yaml"
+    endpoint = f'["tcp/127.0.0.1:{free_port()}"]'
+    argv = [sys.executable, "-m", "ads_rca.ros.zenoh_bridge", "--ros-args"]
+    argv += ["--params-file", str(config), "-p", f"zenoh_listen:={endpoint}"]
+    bridge = ManagedProcess("bridge", argv, ros_env.env)
+    try:
+        wait_for(lambda: "parameters in force" in bridge.output, 30, "the bridge to start")
+        assert "rate_modules=20.0" in bridge.output and "history_frames=2000" in bridge.output
+        bridge.signal(signal.SIGINT)
+        assert bridge.wait(10) == 0, bridge.output
+    finally:
+        bridge.stop()

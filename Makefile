@@ -51,6 +51,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/bench_diagnose.py
 	$(BIN)/python bench/bench_player.py --frames 2000
 	$(BIN)/python bench/bench_graph.py
+	$(BIN)/python bench/bench_zenoh.py
 	$(BIN)/python bench/bench_recorder.py
 	$(BIN)/python bench/bench_memory.py
 	$(BIN)/python bench/bench_aggregator_memory.py

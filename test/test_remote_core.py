@@ -26,7 +26,8 @@ def test_ros_keys_follow_the_zenoh_bridge_ros2dds_convention() -> None:
 
 
 @pytest.mark.parametrize(
-    "prefix", ["car/*", "a//b", "**", "x$y", "a b", "q?x", "#", "é", "a\x00b", "x" * 201]
+    "prefix",
+    ["car/*", "a//b", "**", "x$y", "a b", "q?x", "#", "é", "a\x00b", "x" * 201, ".", "a/../b"],
 )
 def test_hostile_prefixes_are_refused_in_one_line(prefix: str) -> None:
     with pytest.raises(ConfigError) as error:

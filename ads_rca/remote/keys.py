@@ -37,11 +37,11 @@ def check_prefix(prefix: str, what: str = "prefix") -> str:
     if len(stripped) > MAX_PREFIX:
         raise ConfigError(f"{what}: longer than {MAX_PREFIX} characters")
     for chunk in stripped.split("/"):
-        if not _CHUNK.match(chunk):
+        if not _CHUNK.match(chunk) or not chunk.strip("."):  # "." and "..": path steps in a URL
             shown = chunk.encode("unicode_escape").decode("ascii")[:40]
             raise ConfigError(
-                f"{what}: chunk {shown!r} is empty or holds a character other than letters, "
-                "digits and _ - . ~ +"
+                f"{what}: chunk {shown!r} is empty, only dots, or holds a character other than "
+                "letters, digits and _ - . ~ +"
             )
     return stripped
 

@@ -19,6 +19,7 @@ from typing import Any
 
 import orjson
 
+from ads_rca.contract.errors import MalformedMessage
 from ads_rca.oracles.base import MODULES
 from ads_rca.remote.keys import DASHBOARD_ROOT, SAMPLE_SUFFIX
 
@@ -86,11 +87,31 @@ def margin_of(document: Mapping[str, Any]) -> float:
     return DEFAULT_MARGIN
 
 
+def run_of(kind: str, document: Mapping[str, Any]) -> str:
+    """The graph's run id a document names ("" if none): a result's and the status's
+    ``run``, the verdict's ``live.run``, a frames reply's first result's."""
+    if kind == "verdict":
+        live = document.get("live")
+        found = live.get("run") if isinstance(live, Mapping) else None
+    elif kind == "frames":
+        frames = document.get("frames")
+        first = frames[0] if isinstance(frames, list) and frames else None
+        modules = first.get("modules") if isinstance(first, Mapping) else None
+        result = next(iter(modules.values()), None) if isinstance(modules, Mapping) else None
+        found = result.get("run") if isinstance(result, Mapping) else None
+    else:
+        found = document.get("run")
+    return found[:100] if isinstance(found, str) else ""
+
+
 @dataclass
 class RunView:
     """One run's state as a dashboard shows it."""
 
     prefix: str
+    #: The graph's run id its documents name ("" until one does): a new run under the same
+    #: prefix starts a new view instead of adding to this one's counts.
+    run_id: str = ""
     modules: dict[str, dict[str, Any]] = field(default_factory=dict)
     failures: dict[str, int] = field(default_factory=dict)
     judged: dict[str, int] = field(default_factory=dict)
@@ -110,7 +131,7 @@ class RunView:
         """A module's result for one frame (a re-judged frame replaces its count)."""
         index = document.get("index")
         if not isinstance(index, int) or isinstance(index, bool):
-            raise ValueError("result without an integer index")
+            raise MalformedMessage("result without an integer index")
         self.modules[module] = document
         key = (module, index)
         failed = 1 if document.get("failed") is True else 0
@@ -171,6 +192,7 @@ class RunView:
             }
         return {
             "run": self.prefix,
+            "run_id": self.run_id,
             "last_index": self.last_index,
             "last_frame": self.last_frame,
             "rate": round(self.rate(now), 2),
@@ -221,6 +243,11 @@ class DashboardModel:
             self._problem(f"{key[:80]}: not a JSON object")
             return None
         view = self.run(prefix)
+        run_id = run_of(kind, document)
+        if run_id:
+            if view.run_id and run_id != view.run_id:
+                view = self.runs[prefix] = RunView(prefix)
+            view.run_id = run_id
         try:
             if kind == "modules":
                 assert module is not None
@@ -230,25 +257,25 @@ class DashboardModel:
                 return self._frames(view, document, now)
             if kind == "verdict":
                 if "primary_root_cause" not in document:
-                    raise ValueError("verdict without primary_root_cause")
+                    raise MalformedMessage("verdict without primary_root_cause")
                 view.verdict = document
             else:
                 view.status = document
             view.updated = now
             return {"run": prefix, "kind": kind, kind: document}
-        except (ValueError, TypeError) as error:
+        except MalformedMessage as error:
             self._problem(f"{key[:80]}: {str(error)[:120]}")
             return None
 
     def _frames(self, view: RunView, document: dict[str, Any], now: float) -> dict[str, Any]:
         frames = document.get("frames")
         if not isinstance(frames, list):
-            raise ValueError("frames reply without a frames list")
+            raise MalformedMessage("frames reply without a frames list")
         added = 0
         for entry in frames:
             modules = entry.get("modules") if isinstance(entry, dict) else None
             if not isinstance(modules, dict):
-                raise ValueError("frames entry without modules")
+                raise MalformedMessage("frames entry without modules")
             for module, result in modules.items():
                 if module in MODULES and isinstance(result, dict):
                     view.add_result(module, result, now)

@@ -1,0 +1,110 @@
+"""The dashboards' model (``remote/view.py``): what it accepts from the wire and what it counts.
+
+Pure: no Zenoh here (the sessions are tested in test_zenoh_bridge, test_watch and
+test_dashboard). Keys: samples end in ``.json``, queryable replies do not, raw CDR keys are
+neither; a run's counts survive re-judged frames and restart with a new run id.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+import pytest
+
+from ads_rca.remote.view import MAX_RUNS, DashboardModel, parse_key
+
+
+def result(index: int, module: str = "planning", failed: bool = False, **extra: Any) -> str:
+    document = {
+        "module": module,
+        "index": index,
+        "frame": index + 1,
+        "failed": failed,
+        "metrics": {"c_gt": 2.0 - index * 0.5},
+        "thresholds": {"safety_margin": 0.5},
+        "run": "r1",
+        **extra,
+    }
+    return json.dumps(document)
+
+
+def test_keys_samples_replies_and_raw_cdr() -> None:
+    assert parse_key("car1/ads_rca/modules/planning.json") == ("car1", "modules", "planning")
+    assert parse_key("ads_rca/verdict.json") == ("", "verdict", None)
+    assert parse_key("fleet/ads_rca/ads_rca/status.json") == ("fleet/ads_rca", "status", None)
+    assert parse_key("car1/ads_rca/frames") == ("car1", "frames", None)  # a reply
+    assert parse_key("car1/ads_rca/verdict") == ("car1", "verdict", None)  # a reply
+    for raw in (
+        "car1/ads_rca/verdict/json",  # the raw CDR of /ads_rca/verdict/json
+        "car1/ads_rca/metrics/planning",
+        "car1/ads_rca/frames.json",  # frames are only ever a reply
+        "car1/ads_rca/modules/wheels.json",
+        "car1/ads_rca/modules/planning",  # a module is only ever a sample
+    ):
+        assert parse_key(raw) is None, raw
+
+
+def test_counts_near_misses_and_re_judged_frames() -> None:
+    model = DashboardModel()
+    for index in range(5):
+        model.apply("c/ads_rca/modules/planning.json", result(index, failed=index >= 3), 1.0)
+    model.apply("c/ads_rca/modules/planning.json", result(4, failed=False), 2.0)  # re-judged
+    run = model.summary(2.0)["runs"][0]
+    assert run["run_id"] == "r1" and run["last_index"] == 4
+    assert run["modules"]["planning"]["judged"] == 5
+    assert run["modules"]["planning"]["failed_frames"] == 1
+    assert [m["index"] for m in run["near_misses"]] == [4, 4]  # c_gt 0.0 < 0.5, twice seen
+    assert list(model.runs["c"].timeline) == [(i, 2.0 - i * 0.5) for i in range(5)]
+
+
+def test_a_new_run_under_the_same_prefix_starts_over() -> None:
+    model = DashboardModel()
+    model.apply("c/ads_rca/modules/planning.json", result(0, failed=True), 1.0)
+    model.apply("c/ads_rca/modules/planning.json", result(0, run="r2"), 2.0)
+    run = model.summary(2.0)["runs"][0]
+    assert run["run_id"] == "r2"
+    assert run["modules"]["planning"] == {**run["modules"]["planning"], "judged": 1}
+    assert run["modules"]["planning"]["failed_frames"] == 0
+
+
+def test_a_frames_reply_fills_what_rate_limits_skipped() -> None:
+    model = DashboardModel()
+    model.apply("c/ads_rca/modules/planning.json", result(9), 1.0)
+    frames = [{"index": i, "modules": {"planning": json.loads(result(i))}} for i in range(10)]
+    event = model.apply("c/ads_rca/frames", json.dumps({"since": -1, "frames": frames}), 2.0)
+    assert event == {"run": "c", "kind": "frames", "results": 10}
+    assert model.summary(2.0)["runs"][0]["modules"]["planning"]["judged"] == 10
+
+
+@pytest.mark.parametrize(
+    ("key", "payload"),
+    [
+        ("c/ads_rca/modules/planning.json", b"{"),
+        ("c/ads_rca/modules/planning.json", b'{"x": NaN}'),  # not strict JSON
+        ("c/ads_rca/modules/planning.json", b"[1]"),
+        ("c/ads_rca/modules/planning.json", b'{"index": "3"}'),
+        ("c/ads_rca/modules/planning.json", b'{"index": true}'),
+        ("c/ads_rca/verdict.json", b'{"verdict": "x"}'),  # no primary_root_cause
+        ("c/ads_rca/frames", b'{"frames": [1]}'),
+        ("c/ads_rca/frames", b'{"frames": "all"}'),
+        ("\x1b[2J/ads_rca/wheels", b"{}"),
+        ("c/ads_rca/status.json", b"\xff\xfe"),
+    ],
+)
+def test_what_is_not_ours_is_counted_and_dropped(key: str, payload: bytes) -> None:
+    model = DashboardModel()
+    assert model.apply(key, payload, 1.0) is None
+    assert model.problems == 1
+    assert "\x1b" not in model.last_problem and "\n" not in model.last_problem
+    assert all(not view.modules and view.verdict is None for view in model.runs.values())
+
+
+def test_runs_are_bounded_and_one_prefix_can_be_watched_alone() -> None:
+    model = DashboardModel()
+    for n in range(MAX_RUNS + 10):
+        model.apply(f"car{n}/ads_rca/status.json", b'{"state": "running"}', float(n))
+    assert len(model.runs) == MAX_RUNS and "car0" not in model.runs
+    only = DashboardModel(prefix="car1")
+    assert only.apply("car2/ads_rca/status.json", b"{}", 1.0) is None and only.problems == 0
+    assert only.apply("car1/ads_rca/status.json", b"{}", 1.0) is not None

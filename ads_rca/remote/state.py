@@ -14,6 +14,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
+import orjson
+
 from ads_rca import strictjson
 from ads_rca.contract.errors import DOCUMENT_ERRORS, MalformedMessage
 from ads_rca.live.results import LiveResult
@@ -75,17 +77,19 @@ class RemoteState:
         """A monitor's result: kept in its frame's history entry and sent on the module's
         key (rate-limited)."""
         try:
-            result = LiveResult.from_document(_document(text))
+            # Twice with orjson (a few µs): the strict form is kept and sent as it came (no
+            # walk over it), the plain one is read, which checks it is a result.
+            document = _strict_object(text)
+            result = LiveResult.from_document(strictjson.from_strict(_strict_object(text)))
         except READ_ERRORS as error:
             self._malformed("result", error)
             return []
         if self.run and result.run and result.run != self.run:
             self.other_runs += 1
             return []
-        document = strictjson.from_strict(strictjson.to_strict(result.to_document()))
         entry = self.history.frame(result.index) or {
             "index": result.index,
-            "frame": result.frame,
+            "frame": document.get("frame"),
             "stamp_ms": result.stamp_ms,
             "modules": {},
         }
@@ -93,7 +97,7 @@ class RemoteState:
         self.history.add_frame(result.index, entry)
         self.results[result.module] = self.results.get(result.module, 0) + 1
         self.last_index = max(self.last_index, result.index)
-        return self.limiter.offer(self.module_key(result.module), strictjson.dumps(document), now)
+        return self.limiter.offer(self.module_key(result.module), _dumps(document), now)
 
     def on_verdict(self, text: str | bytes, now: float) -> list[Put]:
         """The aggregator's verdict document (the ``diagnose --json`` contract): kept and
@@ -144,13 +148,27 @@ class RemoteState:
             return strictjson.dumps(self.status(now))
         if key == self.queries["frames"]:
             since = parse_since(parameters)
-            return strictjson.dumps({"since": since, "frames": self.history.since(since)})
+            # Every kept result is already strict (its own ``$nonfinite`` inside).
+            return _dumps({"since": since, "frames": self.history.since(since)})
         return None
 
     def _malformed(self, what: str, error: BaseException) -> None:
         self.malformed += 1
         text = str(error).encode("unicode_escape").decode("ascii")
         self.last_problem = f"{what}: {text[:REASON_CHARS]}"
+
+
+def _strict_object(text: str | bytes) -> dict[str, Any]:
+    """A strict JSON object, parsed as it is (NaN literals refused, ``$nonfinite`` kept)."""
+    document = orjson.loads(text)
+    if not isinstance(document, dict):
+        raise MalformedMessage("not a JSON object")
+    return document
+
+
+def _dumps(document: object) -> str:
+    """Compact text of a document that is strict already."""
+    return orjson.dumps(document).decode("utf-8")
 
 
 def _document(text: str | bytes) -> dict[str, Any]:

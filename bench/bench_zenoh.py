@@ -62,6 +62,7 @@ from typing import Any
 
 import numpy as np
 import orjson
+from bench_graph import cpu_seconds
 
 from ads_rca.contract.cdr_decode import decode_string
 from ads_rca.contract.jsontext import dumps_json
@@ -87,15 +88,6 @@ def free_port() -> int:
     with socket.socket() as sock:
         sock.bind(("127.0.0.1", 0))
         return int(sock.getsockname()[1])
-
-
-def cpu_seconds(pid: int) -> float:
-    """User + system CPU time of a running process (Linux /proc), in seconds."""
-    try:
-        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    except OSError:
-        return float("nan")
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 def thread_cpu(pid: int) -> dict[tuple[str, str], float]:

@@ -158,16 +158,6 @@ def dashboard(*connect: str) -> Iterator[Dashboard]:
         _stop(process)
 
 
-def poll(condition: Callable[[], Any], timeout: float = 20.0, what: str = "") -> Any:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        found = condition()
-        if found:
-            return found
-        time.sleep(0.05)
-    raise AssertionError(f"timed out waiting for {what or condition}")
-
-
 def feed_verdict(endpoint: str, prefix: str) -> dict[str, Any]:
     """The verdict the feed answers on Zenoh, read with a session of the test's own."""
     model = DashboardModel(prefix)

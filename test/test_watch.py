@@ -140,6 +140,18 @@ def feed(endpoint: str, *extra: str) -> Iterator[Feed]:
         running.stop()
 
 
+def spawn_watch(*args: str) -> subprocess.Popen[str]:
+    """``ads-rca watch ARGS`` with its output on pipes (no terminal)."""
+    return subprocess.Popen(
+        watch_command(*args),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=_env(),
+        cwd=REPO,
+    )
+
+
 class Terminal:
     """A command in a real terminal: a detached tmux session on a private server. The shell
     prints ``EXIT:<status>`` after it and keeps the pane open."""
@@ -269,14 +281,7 @@ def test_json_lines_carry_every_frame_and_the_feeds_verdict() -> None:
     primary, indices = expected_run()
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     args = ("--connect", endpoint, "--prefix", "car1", "--json", "--exit-on-verdict")
-    watcher = subprocess.Popen(
-        watch_command(*args, "--timeout", "60"),
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env=_env(),
-        cwd=REPO,
-    )
+    watcher = spawn_watch(*args, "--timeout", "60")
     try:
         assert watcher.stderr is not None
         assert "waiting" in watcher.stderr.readline()  # started before the feed
@@ -511,14 +516,7 @@ def test_watch_loads_no_ros(mode: str) -> None:
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
 def test_a_stop_signal_while_waiting_exits_128_plus_it(signum: int) -> None:
     endpoint = f"tcp/127.0.0.1:{free_port()}"
-    process = subprocess.Popen(
-        watch_command("--connect", endpoint, "--json"),
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env=_env(),
-        cwd=REPO,
-    )
+    process = spawn_watch("--connect", endpoint, "--json")
     try:
         assert process.stderr is not None
         assert "waiting" in process.stderr.readline()  # handlers installed, loop running

@@ -12,12 +12,11 @@ from __future__ import annotations
 import queue
 import threading
 from collections.abc import Sequence
-from types import TracebackType
 from typing import Any
 
 from ads_rca.remote.config import DEFAULT_ENDPOINT, session_config
 from ads_rca.remote.keys import DASHBOARD_ROOT, SAMPLE_SUFFIX, check_prefix
-from ads_rca.remote.session import close_session
+from ads_rca.remote.session import SessionOwner, close_session
 
 #: Samples waiting for the caller beyond this are dropped (and counted): a stalled UI must
 #: not grow memory without bound.
@@ -32,7 +31,7 @@ def root_expression(prefix: str | None) -> str:
     return f"{base}/{DASHBOARD_ROOT}" if base else DASHBOARD_ROOT
 
 
-class RemoteClient:
+class RemoteClient(SessionOwner):
     """A Zenoh session subscribed to ``<prefix>/ads_rca/**`` (every prefix by default)."""
 
     def __init__(
@@ -107,14 +106,3 @@ class RemoteClient:
         subscriber, self._subscriber = self._subscriber, None
         session, self._session = self._session, None
         close_session(session, [] if subscriber is None else [subscriber])
-
-    def __enter__(self) -> RemoteClient:
-        return self.open()
-
-    def __exit__(
-        self,
-        kind: type[BaseException] | None,
-        value: BaseException | None,
-        traceback: TracebackType | None,
-    ) -> None:
-        self.close()

@@ -11,16 +11,15 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable, Sequence
-from types import TracebackType
 from typing import Any
 
 from ads_rca.errors import ConfigError
 from ads_rca.remote.config import session_config
-from ads_rca.remote.session import close_session
+from ads_rca.remote.session import SessionOwner, close_session
 from ads_rca.remote.state import Put, RemoteState
 
 
-class ZenohPublisher:
+class ZenohPublisher(SessionOwner):
     """Puts JSON and raw CDR samples; answers ``verdict``, ``status`` and ``frames``."""
 
     def __init__(
@@ -144,14 +143,3 @@ class ZenohPublisher:
         publishers, self._raw_publishers = self._raw_publishers, {}
         session, self._session = self._session, None
         close_session(session, [*declared, *publishers.values()])
-
-    def __enter__(self) -> ZenohPublisher:
-        return self.open()
-
-    def __exit__(
-        self,
-        kind: type[BaseException] | None,
-        value: BaseException | None,
-        traceback: TracebackType | None,
-    ) -> None:
-        self.close()

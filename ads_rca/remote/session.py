@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Iterable
-from typing import Any
+from types import TracebackType
+from typing import Any, Self
 
 
 def close_session(session: Any, declared: Iterable[Any]) -> None:
@@ -20,3 +21,25 @@ def close_session(session: Any, declared: Iterable[Any]) -> None:
             entity.undeclare()
     if session is not None:
         session.close()
+
+
+class SessionOwner:
+    """``with owner:`` opens it and closes it however the block ends (subclasses define
+    ``open`` returning themselves and ``close``, safe to call twice)."""
+
+    def open(self) -> Self:
+        raise NotImplementedError
+
+    def close(self) -> None:
+        raise NotImplementedError
+
+    def __enter__(self) -> Self:
+        return self.open()
+
+    def __exit__(
+        self,
+        kind: type[BaseException] | None,
+        value: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
+        self.close()

@@ -8,7 +8,6 @@ depends on the mode (oracles, analysed frames, ego, window, attribution) is aske
 
 from __future__ import annotations
 
-import gc
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -19,7 +18,9 @@ from ads_rca.oracles.base import MODULES, Module, OracleResult, RunContext
 from ads_rca.oracles.semantics import Oracle, Semantics, semantics_for
 from ads_rca.params import Params
 from ads_rca.problems import CHECK_SKIPPED, Problem, ProblemLog
+from ads_rca.progress import advancer
 from ads_rca.verdict import Attribution, FrameResults, json_safe
+from ads_rca.workers import can_fork, map_forked
 
 
 def evaluate_frame(ctx: RunContext, oracles: Mapping[Module, Oracle], ts: int) -> FrameResults:
@@ -142,7 +143,7 @@ def diagnose(
     ctx = RunContext.create(log, params)
     oracles = semantics.judging_oracles(log)
     timestamps = semantics.analysed_frames(log)
-    if workers > 1 and len(timestamps) >= PARALLEL_MIN_FRAMES and _can_fork():
+    if workers > 1 and len(timestamps) >= PARALLEL_MIN_FRAMES and can_fork():
         frames = _judge_in_workers(ctx, oracles, timestamps, workers, progress)
     else:
         stamps: Iterable[int] = progress(timestamps) if progress is not None else timestamps
@@ -173,40 +174,21 @@ def _judge_in_workers(
     workers: int,
     progress: Callable[[Iterable[int]], Iterable[int]] | None,
 ) -> list[FrameResults]:
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
-
     global _SHARED  # noqa: PLW0603 - inherited by the forked workers, never written there
     chunk = max(50, len(timestamps) // (workers * 8))
     slices = [
         (i, min(i + chunk, len(timestamps)), timestamps) for i in range(0, len(timestamps), chunk)
     ]
-    bar = iter(progress(timestamps)) if progress is not None else None
+    advance = advancer(timestamps, progress)
     frames: list[FrameResults] = []
     _SHARED = (ctx, oracles)
-    # Frozen objects are never visited by the collector, so the workers' collections do not
-    # write to (and copy) every page of the forked log.
-    gc.freeze()
     try:
-        context = multiprocessing.get_context("fork")
-        with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
-            for (start, stop, _), (judged, problems) in zip(
-                slices, pool.map(_judge_slice, slices), strict=True
-            ):
-                frames.extend(judged)
-                ctx.merge(problems)
-                if bar is not None:
-                    for _ in range(stop - start):
-                        next(bar, None)
+        for (start, stop, _), (judged, problems) in zip(
+            slices, map_forked(_judge_slice, slices, workers), strict=True
+        ):
+            frames.extend(judged)
+            ctx.merge(problems)
+            advance(stop - start)
     finally:
-        gc.unfreeze()
         _SHARED = None
     return frames
-
-
-def _can_fork() -> bool:
-    """Fork only where it is the platform's safe default and no ROS context runs here."""
-    import multiprocessing
-    import sys
-
-    return "fork" in multiprocessing.get_all_start_methods() and "rclpy" not in sys.modules

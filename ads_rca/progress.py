@@ -7,7 +7,7 @@ knows whether (or how) progress is shown: ``diagnose`` passes a bar on a termina
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable, Sequence
 from typing import Protocol, TypeVar
 
 T = TypeVar("T")
@@ -22,3 +22,19 @@ class Progress(Protocol):
 def tracked(items: Iterable[T], progress: Progress | None) -> Iterable[T]:
     """``items`` through ``progress`` when there is one."""
     return items if progress is None else progress(items)
+
+
+def advancer(
+    items: Sequence[T], progress: Callable[[Iterable[T]], Iterable[T]] | None
+) -> Callable[[int], None]:
+    """For items handled elsewhere in chunks (worker processes): a function that moves the
+    progress of ``items`` on by so many items."""
+    if progress is None:
+        return lambda done: None
+    bar = iter(progress(items))
+
+    def advance(done: int) -> None:
+        for _ in range(done):
+            next(bar, None)
+
+    return advance

@@ -33,6 +33,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
         "ads_rca.strictjson",
         "ads_rca.geometry",
         "ads_rca.progress",
+        "ads_rca.workers",
     ),
     ("ads_rca.problems", "ads_rca.paramspec", "ads_rca.params"),
     ("ads_rca.model",),

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import os
 from dataclasses import fields
 from pathlib import Path
@@ -32,6 +31,7 @@ from ads_rca.params import (
     params_from_sources,
 )
 from ads_rca.params import parse_assignments as parse_p
+from ads_rca.strictjson import dumps_indented
 from ads_rca.summary import summary_text
 from ads_rca.text import printable
 
@@ -120,7 +120,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "--workers",
         type=int,
         default=os.cpu_count() or 1,
-        help="processes judging frames of long logs (default: one per core)",
+        help="processes reading and judging long logs (default: one per core)",
     )
     parser.set_defaults(run=run)
 
@@ -138,12 +138,19 @@ def run(args: argparse.Namespace) -> int:
         check_output_file(args.json_out, "--json")
     if args.report:
         check_output_file(args.report, "--report")
-    log = open_run(args.path, max_file_mb=max_file_mb, progress=terminal_bar("loading"), bag=bag)
+    workers = max(1, args.workers)
+    log = open_run(
+        args.path,
+        max_file_mb=max_file_mb,
+        progress=terminal_bar("loading"),
+        bag=bag,
+        workers=workers,
+    )
     documents: list[dict[str, Any]] = []
     for params in all_params:
         if not semantics_for(params).analysed_frames(log):
             raise InputError(f"{args.path}: no frame to analyse (no readable actors/ file)")
-        result = diagnose(log, params, terminal_bar("judging"), workers=max(1, args.workers))
+        result = diagnose(log, params, terminal_bar("judging"), workers=workers)
         document = result.to_json()
         # The files first: they never depend on stdout (``| head`` may close it early).
         if args.json_out:
@@ -175,15 +182,16 @@ def _write_report(result: Diagnosis, path: Path) -> None:
 def write_json(document: dict[str, Any], path: Path) -> None:
     """The verdict JSON (the contract; NaN and infinity are already null).
 
-    Streamed to the file piece by piece: the text of a long run's frames is never held
-    whole in memory (the same bytes as ``json.dumps(document, indent=1)`` plus a newline).
-    The path was checked before the work started; a write that fails all the same (disk
-    full, a file that refuses data) is still one line, not a traceback.
+    The bytes of ``json.dumps(document, indent=1)`` plus a newline, written in C
+    (:func:`~ads_rca.strictjson.dumps_indented`); the text is smaller than the document
+    already in memory. The path was checked before the work started; a write that fails all
+    the same (disk full, a file that refuses data) is still one line, not a traceback.
     """
+    text = dumps_indented(document)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        with path.open("w", encoding="utf-8", buffering=1 << 16) as out:
-            json.dump(document, out, indent=1, allow_nan=False)
-            out.write("\n")
+        with path.open("wb") as out:
+            out.write(text)
+            out.write(b"\n")
     except OSError as error:
         raise InputError(f"{path}: cannot write the verdict JSON ({error.strerror})") from None

@@ -6,6 +6,7 @@ import os
 
 from ads_rca.errors import InputError
 from ads_rca.io.bag_options import BagOptions
+from ads_rca.io.bag_paths import is_bag
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB
 from ads_rca.model import RunLog
 from ads_rca.progress import Progress
@@ -17,14 +18,14 @@ def open_run(
     max_file_mb: float = DEFAULT_MAX_FILE_MB,
     progress: Progress | None = None,
     bag: BagOptions | None = None,
+    workers: int = 1,
 ) -> RunLog:
     """Load a run from any supported source: an ADS running-log folder, or a rosbag2 bag
     (directory, ``.mcap`` or ``.db3``) read through ``bag``'s profile (default: this
     project's topics; ``remap`` = topic remapping YAML for them, also ``bag.remap``).
     ``max_file_mb`` caps each file of a log folder (larger ones are reported and skipped);
-    ``progress`` sees the files read, or the bag messages decoded."""
-    from ads_rca.io.bag_reader import is_bag
-
+    ``progress`` sees the files read, or the bag messages decoded; ``workers`` > 1 reads a
+    long log folder in that many forked processes."""
     bag = bag or BagOptions()
     remap = remap if remap is not None else bag.remap
     if not os.path.lexists(path):
@@ -43,4 +44,4 @@ def open_run(
         return read_bag(path, remap=remap, progress=progress)
     from ads_rca.io.json_log import read_run_log
 
-    return read_run_log(path, max_file_mb, progress)
+    return read_run_log(path, max_file_mb, progress, workers)

@@ -40,6 +40,7 @@ from ads_rca.contract import rosmsg, topics
 from ads_rca.contract.assembler import RunLogAssembler
 from ads_rca.contract.errors import MalformedMessage
 from ads_rca.errors import InputError
+from ads_rca.io.bag_paths import BAG_SUFFIXES, METADATA_YAML, is_bag, present, storage_files
 from ads_rca.io.bag_storage import (
     KEPT_BEFORE_CUT,
     BagMessage,
@@ -56,8 +57,6 @@ from ads_rca.progress import Progress, tracked
 if TYPE_CHECKING:
     from ads_rca.io.bag_types import BagTypes
 
-BAG_SUFFIXES = (".mcap", ".db3")
-METADATA_YAML = "metadata.yaml"
 #: A rosbag2 metadata.yaml is a few KiB per topic; anything this large is not one.
 MAX_METADATA_YAML_BYTES = 64 << 20
 _IGNORED_YAML = "metadata.yaml ignored; the storage files are read"
@@ -119,25 +118,6 @@ class BagContents:
         return BagTypes(self.path, self.definitions, msg_path)
 
 
-def _present(path: Path) -> bool:
-    """``path`` names something other than a directory (a FIFO or a dangling symlink too:
-    what it is is said when it is read). Only ``stat``s: never opens."""
-    return os.path.lexists(path) and not path.is_dir()
-
-
-def _storage_files(directory: Path) -> list[Path]:
-    """Everything in ``directory`` named like a storage file (regular or not)."""
-    return sorted(p for p in directory.iterdir() if p.suffix in BAG_SUFFIXES and _present(p))
-
-
-def is_bag(path: str | os.PathLike[str]) -> bool:
-    """A bag directory (metadata.yaml, or one storage file) or a .mcap/.db3 file."""
-    p = Path(path)
-    if p.is_dir():
-        return _present(p / METADATA_YAML) or len(_storage_files(p)) == 1
-    return p.suffix in BAG_SUFFIXES and _present(p)
-
-
 def load_bag(path: str | os.PathLike[str]) -> BagContents:
     """Read a bag's storage files (see the module docstring), checking metadata.yaml against
     them. Raises InputError only when no storage file can be read at all."""
@@ -145,7 +125,7 @@ def load_bag(path: str | os.PathLike[str]) -> BagContents:
     if p.is_dir():
         info, problems = _metadata_yaml(p)
         files = _bag_files(p, info, problems)
-    elif p.suffix in BAG_SUFFIXES and _present(p):
+    elif p.suffix in BAG_SUFFIXES and present(p):
         info, problems, files = None, [], [p]
     elif p.is_file():
         raise InputError(f"{p}: not a bag file (.mcap or .db3)")
@@ -193,7 +173,7 @@ def _read_files(
 def _metadata_yaml(directory: Path) -> tuple[dict[str, Any] | None, list[Problem]]:
     """The ``rosbag2_bagfile_information`` document (None when absent or unusable)."""
     path = directory / METADATA_YAML
-    if not _present(path):
+    if not present(path):
         return None, []
     try:
         # libyaml's safe loader when present: the pure-Python one takes ~80 ms per bag.
@@ -221,7 +201,7 @@ def _bag_files(directory: Path, info: dict[str, Any] | None, problems: list[Prob
         for name in listed:
             candidate = directory / str(name)
             inside = Path(str(name)).name == str(name)  # no path into other directories
-            if inside and _present(candidate) and candidate.suffix in BAG_SUFFIXES:
+            if inside and present(candidate) and candidate.suffix in BAG_SUFFIXES:
                 files.append(candidate)
             else:
                 problems.append(
@@ -234,8 +214,8 @@ def _bag_files(directory: Path, info: dict[str, Any] | None, problems: list[Prob
                 )
     if files:
         return files
-    present = _storage_files(directory)
-    if len(present) != 1:
+    found = storage_files(directory)
+    if len(found) != 1:
         raise InputError(
             f"{directory}: not a bag (no usable metadata.yaml and no single .mcap/.db3)"
         )
@@ -244,11 +224,11 @@ def _bag_files(directory: Path, info: dict[str, Any] | None, problems: list[Prob
             Problem(
                 METADATA_YAML,
                 "relative_file_paths",
-                f"names no storage file of the bag; {present[0].name} read instead",
+                f"names no storage file of the bag; {found[0].name} read instead",
                 USED_DEFAULT,
             )
         )
-    return present
+    return found
 
 
 def _announced_messages(info: dict[str, Any] | None, file: Path) -> int | None:

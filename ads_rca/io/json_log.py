@@ -24,7 +24,7 @@ import itertools
 import json
 import math
 import os
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -33,6 +33,7 @@ import orjson
 from ads_rca.errors import InputError
 from ads_rca.io.errors import InvalidJson
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB, Unreadable, max_bytes, read_regular
+from ads_rca.io.packing import Packed, Packer, unpack
 from ads_rca.io.records import (
     parse_actors,
     parse_boxes,
@@ -54,7 +55,8 @@ from ads_rca.model import (
     read_inputs,
 )
 from ads_rca.problems import IGNORED, KEPT_VALUE, SKIPPED_FILE, USED_DEFAULT, Problem, ProblemLog
-from ads_rca.progress import Progress, tracked
+from ads_rca.progress import Progress, advancer, tracked
+from ads_rca.workers import can_fork, map_forked
 
 DEFAULT_TPF_MS = 50
 #: Deepest nesting of what the reader keeps as raw JSON (``metadata.json``, box extras).
@@ -65,6 +67,12 @@ DEFAULT_TPF_MS = 50
 MAX_KEPT_DEPTH = 200
 _BOX_KEYS = frozenset(("bounding_box",))
 Job = tuple[str, int, str]  # folder, timestamp, file name
+#: Logs with fewer files than this are read in this process: forking and collecting
+#: workers costs more than it saves.
+PARALLEL_MIN_FILES = 1000
+#: Chunks of files per worker: results come back in order, so the parent rebuilds one
+#: chunk's records while the workers parse the next.
+CHUNKS_PER_WORKER = 4
 
 #: A folder's parser: decoded JSON document, file, problems, timestamp -> record or None.
 Parser = Callable[[Any, str, ProblemLog, int], Record | None]
@@ -158,15 +166,16 @@ def read_run_log(
     path: str | os.PathLike[str],
     max_file_mb: float = DEFAULT_MAX_FILE_MB,
     progress: Progress | None = None,
+    workers: int = 1,
 ) -> RunLog:
     """Load a running-log folder. Raises InputError only when ``path`` is no log folder.
 
     ``max_file_mb``: files larger than this are reported and skipped, not read.
     ``progress`` sees each file as it is read (most of the loading time).
-
-    Parsing is single-process on purpose: it is CPU-bound (threads do not help), and
-    shipping parsed records back from worker processes costs as much as parsing them
-    (measured in bench/bench_load.py's notes).
+    ``workers`` > 1 reads and parses the files of a long log in that many forked processes
+    (CPU-bound: threads do not help): each parses a contiguous chunk of the files in the
+    order this process would, and sends its records back packed (:mod:`.packing`), so the
+    log and its problems are the same as read here.
     """
     root = Path(path)
     limit = check_max_file_mb(max_file_mb)
@@ -188,7 +197,10 @@ def read_run_log(
         (folder, ts, name) for folder in ALL_FOLDERS for ts, name in files.get(folder, {}).items()
     ]
     records: dict[str, dict[int, Record]] = {folder: {} for folder in ALL_FOLDERS}
-    parsed, found = _parse_files(str(root), jobs, limit, progress)
+    if workers > 1 and len(jobs) >= PARALLEL_MIN_FILES and can_fork():
+        parsed, found = _parse_in_workers(str(root), jobs, limit, progress, workers)
+    else:
+        parsed, found = _parse_files(str(root), jobs, limit, progress)
     problems.extend(found)
     for folder, ts, record in parsed:
         records[folder][ts] = record
@@ -246,16 +258,16 @@ def _list_folder(root: Path, folder: str, problems: ProblemLog) -> list[tuple[in
 
 
 def _parse_files(
-    root: str, jobs: list[Job], limit: int, progress: Progress | None = None
+    root: str, jobs: Sequence[Job], limit: int, progress: Progress | None = None
 ) -> tuple[list[tuple[str, int, Record]], list[Problem]]:
     """Read (at most ``limit`` bytes a file), decode and parse files in ``jobs`` order; the
     problems found on the way."""
     problems = ProblemLog()
     parsed: list[tuple[str, int, Record]] = []
-    base = Path(root)
+    base = os.path.join(root, "")  # paths as text: no Path object a file
     for folder, ts, name in tracked(jobs, progress):
         file = f"{folder}/{name}"
-        document = _decode(read_regular(base / folder / name, limit), file, problems, ts)
+        document = _decode(read_regular(base + file, limit), file, problems, ts)
         if document is _UNUSABLE:
             continue
         if kept_too_deep(folder, document):
@@ -265,6 +277,45 @@ def _parse_files(
         if record is not None:
             parsed.append((folder, ts, record))
     return parsed, list(problems)
+
+
+# The forked readers' work (set just before forking, cleared after): root, jobs, limit.
+_SHARED_JOBS: tuple[str, list[Job], int] | None = None
+
+
+def _parse_in_workers(
+    root: str, jobs: list[Job], limit: int, progress: Progress | None, workers: int
+) -> tuple[list[tuple[str, int, Record]], list[Problem]]:
+    """:func:`_parse_files` of contiguous chunks of ``jobs`` in forked workers, joined in
+    order (the same records and problems, in the same order)."""
+    global _SHARED_JOBS  # noqa: PLW0603 - inherited by the forked workers, never written there
+    size = -(-len(jobs) // (workers * CHUNKS_PER_WORKER))
+    chunks = [(start, min(start + size, len(jobs))) for start in range(0, len(jobs), size)]
+    advance = advancer(jobs, progress)
+    parsed: list[tuple[str, int, Record]] = []
+    problems: list[Problem] = []
+    _SHARED_JOBS = (root, jobs, limit)
+    try:
+        for (start, stop), (packed, found) in zip(
+            chunks, map_forked(_parse_chunk, chunks, workers), strict=True
+        ):
+            parsed.extend(unpack(packed))
+            problems.extend(found)
+            advance(stop - start)
+    finally:
+        _SHARED_JOBS = None
+    return parsed, problems
+
+
+def _parse_chunk(chunk: tuple[int, int]) -> tuple[Packed, list[Problem]]:
+    """In a worker: parse one chunk of the shared jobs; its records packed, its problems."""
+    assert _SHARED_JOBS is not None
+    root, jobs, limit = _SHARED_JOBS
+    parsed, problems = _parse_files(root, jobs[chunk[0] : chunk[1]], limit)
+    packer = Packer()
+    for folder, ts, record in parsed:
+        packer.add(folder, ts, record)
+    return packer.packed(), problems
 
 
 _UNUSABLE = object()

@@ -1,0 +1,57 @@
+"""Forked worker processes: whether forking is safe here, and a map over chunks in them.
+
+Reading a long log and judging its frames are CPU-bound pure Python + numpy (threads do not
+help); a forked worker inherits everything the parent has loaded without copying it, so the
+work only needs the item it is given. Both the reader (files) and the engine (frames) map a
+module-level function over contiguous chunks with :func:`map_forked` and handle the
+results in chunk order, so the outcome is the single-process one; the callers keep that
+single-process path for short inputs and where forking is not available.
+"""
+
+from __future__ import annotations
+
+import gc
+import os
+import sys
+from collections.abc import Callable, Iterator, Sequence
+from typing import TypeVar
+
+_T = TypeVar("_T")
+_R = TypeVar("_R")
+
+
+def can_fork() -> bool:
+    """Fork only where it is the platform's safe default and no ROS context runs here
+    (rclpy's threads and DDS sockets do not survive a fork)."""
+    import multiprocessing
+
+    return "fork" in multiprocessing.get_all_start_methods() and "rclpy" not in sys.modules
+
+
+def default_workers() -> int:
+    """One worker per core this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def map_forked(function: Callable[[_T], _R], items: Sequence[_T], workers: int) -> Iterator[_R]:
+    """``function`` of each item in ``workers`` forked processes, yielded in items' order
+    as they are done (the caller handles one while the workers compute the next).
+
+    ``function`` must be a module-level function (the workers find it by name); what it
+    needs beyond its item it reads from module globals set before this is called. The
+    collector's objects are frozen meanwhile, so the workers' collections do not write to
+    (and copy) every page they inherited.
+    """
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    gc.freeze()
+    try:
+        context = multiprocessing.get_context("fork")
+        with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
+            yield from pool.map(function, items)
+    finally:
+        gc.unfreeze()

@@ -1,0 +1,147 @@
+"""Benchmark: one whole ``ads-rca diagnose`` process against the reference tool, side by side.
+
+    python bench/bench_vs_reference.py [--reference DIR --reference-python PY]
+                                       [--sizes 1957x11 10000x50] [--repeat 5] [--dir out/bench]
+
+For each size FRAMESxACTORS a ``cruise`` log of that many frames and actors (the ego and
+ACTORS - 1 background actors; its last frame declared the collision frame, so the corrected
+rules judge every frame against a partner) is written under ``--dir`` in the seed format's
+seven folders (the synthesiser's 3-D and control folders removed: the reference reads
+none). Then, in turn, one run each of: the reference tool (``PY DIR/main.py
+log_dir=LOG``, in a scratch working directory, which its configuration framework writes
+into), ``ads-rca diagnose LOG --semantics reference --json FILE`` and the same with
+``--semantics corrected``; that round is repeated ``--repeat`` times after one warm-up round
+(the logs are then in the file cache), and each command's median wall time is printed with
+the reference tool's time divided by ours. Without ``--reference`` (the reference tool is
+not part of this project) only our two times are printed.
+
+The 1,957-frame, 11-actor log is the size of issue #18's measurement (13,700 JSON files);
+the 10,000-frame, 50-actor log is its second target (under 10 s on 2 cores).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from bench_memory import size_on_disk, write_frames_log
+
+from ads_rca.model import OPTIONAL_FOLDERS
+
+DEFAULT_SIZES = ("1957x11", "10000x50")
+
+
+@dataclass
+class Command:
+    """One command to time, and its wall times (s)."""
+
+    name: str
+    argv: list[str]
+    cwd: Path
+    times: list[float] = field(default_factory=list)
+    failed: str = ""
+
+    def run(self, counted: bool) -> None:
+        if self.failed:
+            return
+        start = time.perf_counter()
+        done = subprocess.run(self.argv, cwd=self.cwd, capture_output=True, check=False)
+        seconds = time.perf_counter() - start
+        if done.returncode != 0:
+            tail = done.stderr.decode(errors="replace").strip().splitlines()[-1:]
+            self.failed = f"exit {done.returncode}: {' '.join(tail)[:120]}"
+        elif counted:
+            self.times.append(seconds)
+
+    @property
+    def median(self) -> float | None:
+        return statistics.median(self.times) if self.times and not self.failed else None
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    frames, _, actors = text.partition("x")
+    if not (frames.isdigit() and actors.isdigit() and int(actors) >= 1):
+        raise argparse.ArgumentTypeError(f"{text!r} is not FRAMESxACTORS (e.g. 1957x11)")
+    return int(frames), int(actors)
+
+
+def commands(log: Path, scratch: Path, args: argparse.Namespace) -> list[Command]:
+    """The reference tool (when given) and our two modes on ``log``."""
+    found: list[Command] = []
+    if args.reference:
+        main_py = str(Path(args.reference).resolve() / "main.py")
+        python = args.reference_python or sys.executable
+        found.append(Command("reference tool", [python, main_py, f"log_dir={log}"], scratch))
+    for mode in ("reference", "corrected"):
+        argv = [sys.executable, "-m", "ads_rca.cli", "diagnose", str(log), "--semantics", mode]
+        argv += ["--json", str(scratch / f"{mode}.json")]
+        found.append(Command(f"ads-rca {mode}", argv, scratch))
+    return found
+
+
+def one_size(frames: int, actors: int, args: argparse.Namespace) -> list[str]:
+    """Write one log, time every command on it; the table's rows for it."""
+    with tempfile.TemporaryDirectory(dir=args.dir) as tmp:
+        log = Path(tmp) / f"cruise_{frames}x{actors}"
+        write_frames_log(log, frames, actors - 1)
+        for folder in OPTIONAL_FOLDERS:  # the seed format has none (the reference reads none)
+            shutil.rmtree(log / folder, ignore_errors=True)
+        files = sum(1 for _ in log.rglob("*.json"))
+        megabytes = size_on_disk(log) / 1e6
+        scratch = Path(tmp) / "scratch"
+        scratch.mkdir()
+        timed = commands(log, scratch, args)
+        for round_ in range(args.repeat + 1):  # round 0 warms the file cache
+            for command in timed:
+                command.run(counted=round_ > 0)
+    reference = timed[0].median if args.reference else None
+    rows = []
+    for command in timed:
+        label = f"{frames}x{actors} ({files} files, {megabytes:.0f} MB)"
+        if command.median is None:
+            rows.append(f"{label:<32}{command.name:<18}{'failed':>9}  {command.failed}")
+            continue
+        spread = f"{min(command.times):.2f}-{max(command.times):.2f}"
+        ratio = ""
+        if reference is not None and command is not timed[0]:
+            ratio = f"{reference / command.median:.1f}x"
+        rows.append(f"{label:<32}{command.name:<18}{command.median:>9.2f}{spread:>13}{ratio:>9}")
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawTextHelpFormatter
+    )
+    parser.add_argument("--reference", help="a checkout of the reference tool (its main.py)")
+    parser.add_argument(
+        "--reference-python", help="the interpreter with its dependencies (default: this one)"
+    )
+    parser.add_argument("--sizes", nargs="+", type=parse_size, default=None)
+    parser.add_argument("--repeat", type=int, default=5, help="counted rounds (median)")
+    parser.add_argument("--dir", default="out/bench", help="where the logs are written")
+    args = parser.parse_args()
+    sizes = args.sizes or [parse_size(s) for s in DEFAULT_SIZES]
+    Path(args.dir).mkdir(parents=True, exist_ok=True)
+    print(
+        f"whole processes, wall time: median of {args.repeat} rounds after a warm-up; "
+        f"{os.cpu_count()} CPUs; ratio = reference tool / ours"
+    )
+    if not args.reference:
+        print("reference tool: not given (--reference DIR --reference-python PY); ours only")
+    print(f"{'log':<32}{'command':<18}{'median s':>9}{'min-max s':>13}{'ratio':>9}")
+    for frames, actors in sizes:
+        for row in one_size(frames, actors, args):
+            print(row, flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,147 @@
+"""Reading a log in forked workers gives exactly the log and problems of reading it here.
+
+``read_run_log(..., workers=N)`` parses contiguous chunks of the files in worker processes
+and rebuilds their records from packed arrays (``io/packing.py``). On hostile folders
+(duplicated timestamps, corrupt and empty files, strings where numbers belong, a missing
+folder, a FIFO, files without a timestamp, records dropped, nesting too deep, a file over the
+size cap) the result must be the single-process one: the same records, arrays of the same
+dtype and shape, the same problems in the same order, the same file names.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import shutil
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from logcompare import assert_logs_equal
+
+from ads_rca.io import json_log
+from ads_rca.io.json_log import read_run_log
+from ads_rca.io.json_writer import write_run_log
+from ads_rca.io.packing import Packer, unpack
+from ads_rca.model import ALL_FOLDERS, RunLog
+from ads_rca.synth import synthesise
+
+
+@pytest.fixture(scope="module")
+def crash_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return write_run_log(
+        synthesise("cut_in", "perception", seed=1), tmp_path_factory.mktemp("p") / "log"
+    )
+
+
+def _edit(path: Path, change: Any) -> None:
+    document = json.loads(path.read_text())
+    change(document)
+    path.write_text(json.dumps(document))
+
+
+def _nth(folder: Path, index: int) -> Path:
+    return sorted(p for p in folder.iterdir() if p.suffix == ".json")[index]
+
+
+def damage(root: Path) -> None:
+    """Every kind of bad input the reader reports, spread over the folders."""
+    actors = _nth(root / "actors", 5)
+    copy = actors.with_name(actors.name.replace("-", "-0", 1))
+    shutil.copy(actors, copy)  # a duplicated timestamp (the last listed wins)
+    _edit(copy, lambda d: d[next(iter(d))]["location"].update(x=123.0))
+    pose = _nth(root / "pose", 7)
+    shutil.copy(pose, pose.with_name(pose.name.replace("-", "-00", 1)))
+    _nth(root / "pose", 9).write_text("{")  # corrupt
+    _nth(root / "bboxes", 4).write_text("")  # empty
+    _nth(root / "waypoint", 3).write_bytes(b"\xff\xfe not json")
+    _edit(_nth(root / "pose", 12), lambda d: d.update(x="not a number", y="12.5"))
+    _edit(
+        _nth(root / "actors", 14),
+        lambda d: d[next(iter(d))]["location"].update(y="7.25", z=[1]),
+    )
+    _edit(_nth(root / "bboxes_gt", 6), lambda d: d.append({"bounding_box": [[1, 2]]}))
+    _edit(_nth(root / "predictions", 8), lambda d: d.update(x={"1": {"x": "a", "y": 2}}))
+    _nth(root / "predictions_with_perception", 10).write_text("[1, 2]")  # wrong type
+    _nth(root / "waypoint", 11).write_text('{"0": {"x": NaN, "y": 1, "speed": Infinity}}')
+    _nth(root / "bboxes", 20).write_text("[" * 300 + "]" * 300)  # nested too deep
+    (root / "actors" / "actors.json").write_text("{}")  # no timestamp
+    (root / "pose" / ".hidden-50.json").write_text("{")  # ignored
+    os.mkfifo(root / "bboxes_gt" / "bboxes_gt-99999.json")
+    _nth(root / "predictions", 15).write_text(json.dumps({"big": "x" * 40_000}))  # too large
+
+
+def _read_both(root: Path, monkeypatch: pytest.MonkeyPatch) -> tuple[RunLog, RunLog]:
+    alone = read_run_log(root, max_file_mb=0.03)
+    monkeypatch.setattr(json_log, "PARALLEL_MIN_FILES", 1)
+    monkeypatch.setattr(json_log, "CHUNKS_PER_WORKER", 7)
+    shared = read_run_log(root, max_file_mb=0.03, workers=3)
+    return alone, shared
+
+
+def _arrays(log: RunLog) -> list[np.ndarray]:
+    found: list[np.ndarray] = []
+    for folder in ALL_FOLDERS:
+        for record in log.folder(folder).values():
+            values = record.values() if isinstance(record, dict) else [record]
+            for value in values:
+                fields = (getattr(value, f.name) for f in dataclasses.fields(value))
+                found += [v for v in fields if isinstance(v, np.ndarray)]
+    return found
+
+
+def assert_same_reading(alone: RunLog, shared: RunLog) -> None:
+    assert list(shared.problems) == list(alone.problems)
+    assert shared.files == alone.files
+    assert (shared.source, shared.inputs) == (alone.source, alone.inputs)
+    assert_logs_equal(alone, shared, angle_tol=0.0)
+    for folder in ALL_FOLDERS:
+        a, b = alone.folder(folder), shared.folder(folder)
+        assert list(a) == list(b), folder  # the same timestamps in the same order
+        assert [type(r) for r in a.values()] == [type(r) for r in b.values()], folder
+    pairs = zip(_arrays(alone), _arrays(shared), strict=True)
+    assert all(x.dtype == y.dtype and x.shape == y.shape for x, y in pairs)
+
+
+def test_hostile_folder_reads_the_same_in_workers(
+    crash_log: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    root = Path(shutil.copytree(crash_log, tmp_path / "log"))
+    damage(root)
+    alone, shared = _read_both(root, monkeypatch)
+    issues = {p.issue.split(" (")[0] for p in alone.problems}
+    assert {"empty file", "not a regular file"} <= issues
+    assert any(p.issue.startswith("larger than") for p in alone.problems)
+    assert any("also given by" in p.issue for p in alone.problems)
+    assert len(alone.problems) > 15
+    assert_same_reading(alone, shared)
+
+
+def test_missing_folders_and_metadata_read_the_same_in_workers(
+    crash_log: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    root = Path(shutil.copytree(crash_log, tmp_path / "log"))
+    for folder in ("bboxes", "predictions"):
+        shutil.rmtree(root / folder)
+    (root / "metadata.json").write_text('{"collision_frame": "64", "timesteps_per_frame": 50}')
+    alone, shared = _read_both(root, monkeypatch)
+    assert any(p.issue == "folder missing" for p in alone.problems)
+    assert_same_reading(alone, shared)
+
+
+def test_packed_records_rebuild_exactly(crash_log: Path) -> None:
+    log = read_run_log(crash_log)
+    packer = Packer()
+    order = [(f, ts, r) for f in ALL_FOLDERS for ts, r in log.folder(f).items()]
+    for folder, ts, record in order:
+        packer.add(folder, ts, record)
+    rebuilt = list(unpack(packer.packed()))
+    assert [(f, ts) for f, ts, _ in rebuilt] == [(f, ts) for f, ts, _ in order]
+    copy = RunLog.from_folders(
+        log.metadata,
+        log.frames,
+        {f: {ts: r for g, ts, r in rebuilt if g == f} for f in ALL_FOLDERS},
+    )
+    assert_logs_equal(log, copy, angle_tol=0.0)

@@ -27,8 +27,6 @@ import re
 from collections.abc import Iterable, Mapping
 from typing import Any, cast
 
-import orjson
-
 #: Top-level key of the annotation: JSON Pointer → "nan" | "inf" | "-inf".
 NONFINITE_KEY = "$nonfinite"
 #: Key of the wrapper around a document whose top level is not an object.
@@ -95,43 +93,6 @@ def dumps(document: object, indent: int | None = None) -> str:
     """Strict JSON text of a document (compact, or indented like ``json.dumps``)."""
     separators = (",", ":") if indent is None else None
     return json.dumps(to_strict(document), indent=indent, separators=separators, allow_nan=False)
-
-
-def dumps_indented(document: object) -> bytes:
-    """``json.dumps(document, indent=1)`` as ASCII bytes, for a strict document, made fast.
-
-    The json module writes indented text in pure Python (~1 µs a value). orjson writes it in
-    C with two-space indents; halving them (one pass per depth) and respelling its floats
-    below 1e-4 as Python does (``1e-05``, ``1.5e-07``) gives json's bytes. Where that is not so, or
-    not known to be, json writes the text: text that is not ASCII or holds escapes (json
-    escapes it as ``\\u`` sequences), integers beyond 64 bits, non-string keys, anything orjson
-    refuses. ``document`` must hold no NaN or infinity (orjson writes them as null, json
-    refuses them): give it :func:`to_strict`'s output.
-    """
-    try:
-        data = orjson.dumps(document, option=orjson.OPT_INDENT_2)
-    except orjson.JSONEncodeError:
-        data = b"\\u"  # not orjson's: json's below
-    if not data.isascii() or b"\\u" in data or b"\x7f" in data:
-        return json.dumps(document, indent=1, allow_nan=False).encode("ascii")
-    depth = 1
-    while b"\n" + b"  " * depth in data:  # shallowest first: a halved indent never matches
-        data = re.sub(b"\n" + b"  " * depth + b"(?! )", b"\n" + b" " * depth, data)
-        depth += 1
-    return _FLOAT_SPELLING.sub(_python_float, data)
-
-
-#: orjson's floats that Python spells otherwise: below 1e-4 (``0.00001`` for ``1e-05``,
-#: ``1.5e-7`` for ``1.5e-07``; larger ones are spelt alike). Each ends a line of indented
-#: JSON after a space or at its start (keys and strings are quoted: no string ends so).
-_FLOAT_SPELLING = re.compile(
-    rb"(?m)(?<![^ \n])-?(?:0\.0000[0-9]*|[0-9]+(?:\.[0-9]+)?e-[0-9]+)(?=,?$)"
-)
-
-
-def _python_float(match: re.Match[bytes]) -> bytes:
-    """The float's repr (both spell the shortest digits that read back as the same float)."""
-    return repr(float(match.group())).encode("ascii")
 
 
 def loads(text: str | bytes) -> Any:

@@ -11,7 +11,6 @@ single-process path for short inputs and where forking is not available.
 from __future__ import annotations
 
 import gc
-import os
 import sys
 from collections.abc import Callable, Iterator, Sequence
 from typing import TypeVar
@@ -26,14 +25,6 @@ def can_fork() -> bool:
     import multiprocessing
 
     return "fork" in multiprocessing.get_all_start_methods() and "rclpy" not in sys.modules
-
-
-def default_workers() -> int:
-    """One worker per core this process may run on."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
 
 
 def map_forked(function: Callable[[_T], _R], items: Sequence[_T], workers: int) -> Iterator[_R]:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import os
 from dataclasses import fields
 from pathlib import Path
@@ -31,7 +32,6 @@ from ads_rca.params import (
     params_from_sources,
 )
 from ads_rca.params import parse_assignments as parse_p
-from ads_rca.strictjson import dumps_indented
 from ads_rca.summary import summary_text
 from ads_rca.text import printable
 
@@ -182,16 +182,15 @@ def _write_report(result: Diagnosis, path: Path) -> None:
 def write_json(document: dict[str, Any], path: Path) -> None:
     """The verdict JSON (the contract; NaN and infinity are already null).
 
-    The bytes of ``json.dumps(document, indent=1)`` plus a newline, written in C
-    (:func:`~ads_rca.strictjson.dumps_indented`); the text is smaller than the document
-    already in memory. The path was checked before the work started; a write that fails all
-    the same (disk full, a file that refuses data) is still one line, not a traceback.
+    Streamed to the file piece by piece: the text of a long run's frames is never held
+    whole in memory (the same bytes as ``json.dumps(document, indent=1)`` plus a newline).
+    The path was checked before the work started; a write that fails all the same (disk
+    full, a file that refuses data) is still one line, not a traceback.
     """
-    text = dumps_indented(document)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        with path.open("wb") as out:
-            out.write(text)
-            out.write(b"\n")
+        with path.open("w", encoding="utf-8", buffering=1 << 16) as out:
+            json.dump(document, out, indent=1, allow_nan=False)
+            out.write("\n")
     except OSError as error:
         raise InputError(f"{path}: cannot write the verdict JSON ({error.strerror})") from None

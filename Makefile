@@ -49,7 +49,7 @@ format: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python bench/bench_load.py
 	$(BIN)/python bench/bench_diagnose.py
-	$(BIN)/python bench/bench_vs_reference.py --repeat 3
+	$(BIN)/python bench/bench_vs_reference.py --sizes 1957x11 --repeat 3
 	$(BIN)/python bench/bench_player.py --frames 2000
 	$(BIN)/python bench/bench_graph.py
 	$(BIN)/python bench/bench_zenoh.py

@@ -1,6 +1,7 @@
 """Benchmark: ``ads-rca batch`` throughput (runs per minute) with 1 and 2 local workers.
 
-    python bench/bench_batch.py [--runs 1000] [--frames 200] [--workers 1 2] [--dir DIR]
+    python bench/bench_batch.py [--runs 1000] [--frames 200] [--workers 1 2] [--distinct K]
+                                [--dir DIR]
 
 Synthesises ``--runs`` crash logs of ``--frames`` frames (scenarios and faults cycled,
 written once under ``--dir`` and reused by later runs of the bench), then times the whole
@@ -46,10 +47,20 @@ def _make(args: tuple[int, int, str]) -> str:
     return str(folder)
 
 
-def make_runs(n: int, frames: int, root: Path) -> list[str]:
+def make_runs(n: int, frames: int, root: Path, distinct: int) -> list[str]:
+    """``n`` run folders: ``distinct`` synthesised logs, the rest copies of them (synthesis
+    costs more than diagnosis; the batch reads and judges every copy all the same)."""
     root.mkdir(parents=True, exist_ok=True)
+    unique = min(n, distinct)
     with ProcessPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
-        return list(pool.map(_make, [(i, frames, str(root)) for i in range(n)], chunksize=8))
+        made = list(pool.map(_make, [(i, frames, str(root)) for i in range(unique)]))
+    for i in range(unique, n):
+        source = Path(made[i % unique])
+        folder = root / f"{source.name}_copy{i:05d}"
+        if not folder.exists():
+            shutil.copytree(source, folder)
+        made.append(str(folder))
+    return made
 
 
 def time_batch(listing: Path, workers: int, out: Path) -> tuple[float, list[float], int]:
@@ -80,12 +91,15 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=200)
     parser.add_argument("--workers", type=int, nargs="+", default=[1, 2])
     parser.add_argument(
+        "--distinct", type=int, default=0, help="synthesise this many logs, copy for the rest"
+    )
+    parser.add_argument(
         "--dir", type=Path, default=Path(tempfile.gettempdir()) / "ads_rca_bench_batch"
     )
     args = parser.parse_args()
     runs_dir = args.dir / f"runs_{args.frames}f"
     started = time.monotonic()
-    paths = make_runs(args.runs, args.frames, runs_dir)
+    paths = make_runs(args.runs, args.frames, runs_dir, args.distinct or args.runs)
     print(
         f"{len(paths)} runs of {args.frames} frames ready in {time.monotonic() - started:.1f} s "
         f"({runs_dir})"

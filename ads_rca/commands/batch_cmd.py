@@ -4,9 +4,10 @@ The shell around :mod:`ads_rca.batch`: it checks every input and option before a
 owns the Dask client (and, locally, the :class:`~distributed.LocalCluster`, bound to
 127.0.0.1), submits one task per run, writes each row as it arrives and prints the summary.
 Without ``--scheduler`` a local cluster of ``--workers`` processes is started on loopback
-(no dashboard); with ``--scheduler tcp://host:port`` the same tasks go to an existing
-cluster, which must see the inputs at the same paths (docs/scaling.md). Every exit path
-closes the client and the cluster; Ctrl-C keeps every finished row and exits 130.
+(its dashboard on a random loopback port); with ``--scheduler tcp://host:port`` the same
+tasks go to an existing cluster, which must see the inputs at the same paths
+(docs/scaling.md). Every exit path closes the client and the cluster; Ctrl-C keeps every
+finished row and exits 130.
 """
 
 from __future__ import annotations
@@ -214,7 +215,7 @@ def _client(args: argparse.Namespace) -> Iterator[Any]:
                     threads_per_worker=1,
                     processes=True,
                     host="127.0.0.1",
-                    dashboard_address=None,
+                    dashboard_address="127.0.0.1:0",  # None still starts one on :8787
                     silence_logs=logging.ERROR,
                 )
                 client = Client(cluster)

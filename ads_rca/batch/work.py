@@ -148,7 +148,11 @@ def _orphan_ends(timeout: float) -> None:
     """The child ends with its worker (killed mid-run), or at the latest ``timeout`` + 5 s
     after it started: never an orphan judging on."""
     for number in (signal.SIGINT, signal.SIGTERM, signal.SIGALRM):
-        signal.signal(number, signal.SIG_DFL)
+        # A Python handler (the worker's) becomes the default action; an ignored signal
+        # stays ignored: a batch started where SIGINT is ignored (a background job of a
+        # script) must not lose its runs to a Ctrl-C meant for others in its group.
+        if number == signal.SIGALRM or callable(signal.getsignal(number)):
+            signal.signal(number, signal.SIG_DFL)
     signal.setitimer(signal.ITIMER_REAL, timeout + 5.0)
     if sys.platform.startswith("linux"):
         try:

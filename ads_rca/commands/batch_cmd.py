@@ -210,14 +210,18 @@ def _client(args: argparse.Namespace) -> Iterator[Any]:
                         f"--scheduler {printable(args.scheduler)}: cannot connect ({error})"
                     ) from None
             else:
-                cluster = LocalCluster(
-                    n_workers=args.workers,
-                    threads_per_worker=1,
-                    processes=True,
-                    host="127.0.0.1",
-                    dashboard_address="127.0.0.1:0",  # None still starts one on :8787
-                    silence_logs=logging.ERROR,
-                )
+                # Workers start with SIGINT ignored (inherited through spawn): a Ctrl-C
+                # at the terminal reaches the whole process group, and only this process
+                # should act on it (closing the cluster), not print a worker's traceback.
+                with _no_interrupt():
+                    cluster = LocalCluster(
+                        n_workers=args.workers,
+                        threads_per_worker=1,
+                        processes=True,
+                        host="127.0.0.1",
+                        dashboard_address="127.0.0.1:0",  # None still starts one on :8787
+                        silence_logs=logging.ERROR,
+                    )
                 client = Client(cluster)
             yield client
     finally:

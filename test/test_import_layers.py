@@ -43,7 +43,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("ads_rca.oracles",),
     ("ads_rca.engine", "ads_rca.summary", "ads_rca.compare"),
     ("ads_rca.live", "ads_rca.report"),
-    ("ads_rca.remote",),
+    ("ads_rca.remote", "ads_rca.batch"),
     ("ads_rca.ros",),
     ("ads_rca.commands", "ads_rca.cli"),
 )

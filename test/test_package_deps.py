@@ -35,6 +35,9 @@ ROSDEP_KEYS = {
     "zstandard": "mcap-ros2-support",  # a dependency of mcap
     "lz4": "mcap-ros2-support",  # a dependency of mcap
     "zenoh": "python3-eclipse-zenoh-pip",
+    "dask": "python3-dask",  # Debian's python3-dask; the rosdep key is our guess
+    "distributed": "python3-distributed",  # Debian's python3-distributed; key guessed too
+    "pyarrow": "python3-pyarrow-pip",  # no distribution package we know of: pip, guessed key
 }
 #: Import name → the PyPI distribution setup.py must require for it.
 PIP_NAMES = {"yaml": "pyyaml", "zstandard": "mcap", "lz4": "mcap", "zenoh": "eclipse-zenoh"}

@@ -5,6 +5,7 @@ from __future__ import annotations
 from types import ModuleType
 
 from ads_rca.commands import (
+    batch_cmd,
     convert_cmd,
     dashboard_cmd,
     demo_cmd,
@@ -18,6 +19,7 @@ from ads_rca.commands import (
 #: In the order ``ads-rca --help`` lists them.
 COMMANDS: tuple[ModuleType, ...] = (
     diagnose_cmd,
+    batch_cmd,
     inspect_cmd,
     demo_cmd,
     replay_cmd,

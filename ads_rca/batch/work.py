@@ -1,0 +1,247 @@
+"""Diagnose one run of a batch, isolated in a child process with a timeout.
+
+:func:`diagnose_job` is what a Dask task runs. The diagnosis itself happens in a child
+forked for the run (``os.fork``: the worker's modules are already imported, so a child costs
+a few milliseconds), and the worker thread only waits for its answer on a pipe:
+
+- a run that raises (an unreadable or corrupt log, no frame to analyse) gives a row with the
+  error;
+- a run still going after ``timeout`` seconds is killed (SIGKILL) and gives a row
+  "timed out"; a thread could not be stopped, a process can;
+- a child that dies (a segfault in a library, the out-of-memory killer) gives a row naming
+  the signal.
+
+So nothing a run does can stop the batch or the worker. The answer is the row and the
+verdict JSON's bytes (the same bytes as ``diagnose --json``): the client writes every file,
+so workers need to see the inputs only, never the output folder. POSIX only (fork).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import json
+import os
+import pickle
+import select
+import signal
+import socket
+import sys
+import time
+import traceback
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from ads_rca.batch.rows import Row, error_row, row_from_document
+from ads_rca.errors import AdsRcaError
+from ads_rca.io.bag_options import BagOptions
+from ads_rca.params import Params
+
+#: prctl(2): a signal to get when the parent dies.
+_PR_SET_PDEATHSIG = 1
+#: Bytes read from the child's pipe at a time.
+_CHUNK = 1 << 16
+
+
+@dataclass(frozen=True)
+class Job:
+    """One run and how to diagnose it (pickled to the worker)."""
+
+    run_id: str
+    path: str
+    params: Params
+    max_file_mb: float
+    bag: BagOptions
+    timeout: float
+
+
+@dataclass
+class Outcome:
+    """What a task returns: the row and, for a diagnosed run, its verdict JSON."""
+
+    row: Row
+    json: bytes | None
+
+
+def diagnose_job(job: Job) -> Outcome:
+    """Diagnose ``job`` in a forked child, at most ``job.timeout`` seconds (see module doc)."""
+    warm_up()
+    worker = f"{socket.gethostname()}:{os.getpid()}"
+    started = time.monotonic()
+    read_fd, write_fd = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # the child: never returns
+        os.close(read_fd)
+        _child(job, write_fd, worker)
+    os.close(write_fd)
+    try:
+        data, timed_out = _read_until(read_fd, started + job.timeout)
+    finally:
+        os.close(read_fd)
+    if timed_out:
+        _kill(pid)
+    status = _reap(pid)
+    elapsed = time.monotonic() - started
+    known = {"worker": worker, "diagnose_seconds": elapsed, **_format(job)}
+    if timed_out:
+        return Outcome(
+            error_row(job.run_id, job.path, f"timed out after {job.timeout:g} s", **known), None
+        )
+    if os.WIFSIGNALED(status):
+        name = signal.Signals(os.WTERMSIG(status)).name
+        return Outcome(
+            error_row(job.run_id, job.path, f"diagnosis killed by {name}", **known), None
+        )
+    try:
+        outcome = pickle.loads(data)
+    except Exception:  # an exit before the answer was whole
+        code = os.WEXITSTATUS(status) if os.WIFEXITED(status) else status
+        message = f"diagnosis ended without an answer (exit status {code})"
+        return Outcome(error_row(job.run_id, job.path, message, **known), None)
+    assert isinstance(outcome, Outcome)
+    return outcome
+
+
+_WARM: list[bool] = []
+
+
+def warm_up() -> None:
+    """Import, once per worker, every module a diagnosis loads (the readers, the engine,
+    every oracle, scipy's): a child forked after it starts with them (copy-on-write), where
+    each child would otherwise import them again (~1 s a run)."""
+    if _WARM:
+        return
+    import importlib
+    import pkgutil
+
+    import ads_rca.oracles
+
+    names = ["ads_rca.engine", "ads_rca.io.json_log", "ads_rca.io.bag_reader"]
+    names += [
+        info.name for info in pkgutil.walk_packages(ads_rca.oracles.__path__, "ads_rca.oracles.")
+    ]
+    for name in names:
+        importlib.import_module(name)
+    _WARM.append(True)
+
+
+def _child(job: Job, write_fd: int, worker: str) -> None:
+    code = 0
+    try:
+        _orphan_ends(job.timeout)
+        outcome = run_job(job, worker)
+        payload = pickle.dumps(outcome, protocol=pickle.HIGHEST_PROTOCOL)
+        view = memoryview(payload)
+        while view:
+            written = os.write(write_fd, view)
+            view = view[written:]
+    except BaseException:
+        code = 1
+        with contextlib.suppress(BaseException):
+            traceback.print_exc()
+    finally:
+        os._exit(code)
+
+
+def _orphan_ends(timeout: float) -> None:
+    """The child ends with its worker (killed mid-run), or at the latest ``timeout`` + 5 s
+    after it started: never an orphan judging on."""
+    for number in (signal.SIGINT, signal.SIGTERM, signal.SIGALRM):
+        # A Python handler (the worker's) becomes the default action; an ignored signal
+        # stays ignored: a batch started where SIGINT is ignored (a background job of a
+        # script) must not lose its runs to a Ctrl-C meant for others in its group.
+        if number == signal.SIGALRM or callable(signal.getsignal(number)):
+            signal.signal(number, signal.SIG_DFL)
+    signal.setitimer(signal.ITIMER_REAL, timeout + 5.0)
+    if sys.platform.startswith("linux"):
+        try:
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+        except (OSError, AttributeError):
+            pass
+
+
+def run_job(job: Job, worker: str = "") -> Outcome:
+    """Read and judge the run in this process (the child's work; no timeout here)."""
+    from ads_rca.engine import diagnose
+    from ads_rca.io import open_run
+    from ads_rca.oracles.semantics import semantics_for
+
+    started = time.monotonic()
+    known: dict[str, Any] = {"worker": worker, **_format(job)}
+    try:
+        log = open_run(job.path, max_file_mb=job.max_file_mb, bag=job.bag)
+        known.update(_labels(log.metadata.raw))
+        if not semantics_for(job.params).analysed_frames(log):
+            raise AdsRcaError(f"{job.path}: no frame to analyse (no readable actors/ file)")
+        document = diagnose(log, job.params, None, workers=1).to_json()
+        text = json.dumps(document, indent=1, allow_nan=False) + "\n"
+    except AdsRcaError as error:
+        known["diagnose_seconds"] = time.monotonic() - started
+        return Outcome(error_row(job.run_id, job.path, str(error), **known), None)
+    except Exception as error:
+        known["diagnose_seconds"] = time.monotonic() - started
+        message = f"internal error: {type(error).__name__}: {error}"
+        return Outcome(error_row(job.run_id, job.path, message, **known), None)
+    known["diagnose_seconds"] = time.monotonic() - started
+    row = row_from_document(job.run_id, job.path, document, job.params, **known)
+    return Outcome(row, text.encode("utf-8"))
+
+
+def _format(job: Job) -> dict[str, str]:
+    from ads_rca.io.bag_reader import is_bag
+
+    try:
+        bag = is_bag(job.path)
+    except OSError:
+        bag = False
+    return {
+        "format": "bag" if bag else "log folder",
+        "profile": job.bag.profile if bag else "",
+        "semantics": job.params.semantics,
+    }
+
+
+def _labels(raw: Any) -> dict[str, str]:
+    """Scenario family and injected fault from metadata ``synthesis``, when present."""
+    synthesis = raw.get("synthesis") if isinstance(raw, Mapping) else None
+    if not isinstance(synthesis, Mapping):
+        return {}
+    return {
+        key: value
+        for key, value in (
+            ("scenario", synthesis.get("scenario")),
+            ("injected_fault", synthesis.get("fault")),
+        )
+        if isinstance(value, str)
+    }
+
+
+def _read_until(fd: int, deadline: float) -> tuple[bytes, bool]:
+    """Everything written to ``fd`` until EOF; (what came, True) at ``deadline``."""
+    chunks: list[bytes] = []
+    while True:
+        left = deadline - time.monotonic()
+        if left <= 0:
+            return b"".join(chunks), True
+        ready, _, _ = select.select([fd], [], [], left)
+        if not ready:
+            continue
+        chunk = os.read(fd, _CHUNK)
+        if not chunk:
+            return b"".join(chunks), False
+        chunks.append(chunk)
+
+
+def _kill(pid: int) -> None:
+    with contextlib.suppress(ProcessLookupError):
+        os.kill(pid, signal.SIGKILL)
+
+
+def _reap(pid: int) -> int:
+    while True:
+        try:
+            return os.waitpid(pid, 0)[1]
+        except InterruptedError:
+            continue

@@ -1,0 +1,263 @@
+"""``ads-rca batch INPUTS...``: diagnose many runs on a Dask cluster, one row each.
+
+The shell around :mod:`ads_rca.batch`: it checks every input and option before any work,
+owns the Dask client (and, locally, the :class:`~distributed.LocalCluster`, bound to
+127.0.0.1), submits one task per run, writes each row as it arrives and prints the summary.
+Without ``--scheduler`` a local cluster of ``--workers`` processes is started on loopback
+(its dashboard on a random loopback port); with ``--scheduler tcp://host:port`` the same
+tasks go to an existing cluster, which must see the inputs at the same paths
+(docs/scaling.md). Every exit path closes the client and the cluster; Ctrl-C keeps every
+finished row and exits 130.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+import signal
+import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+from ads_rca.batch.inputs import expand_inputs
+from ads_rca.batch.rows import error_row
+from ads_rca.batch.store import CSV_NAME, PARQUET_NAME, RUNS_DIR, ResultStore
+from ads_rca.batch.summary import summary_text, write_html
+from ads_rca.batch.work import Job, Outcome, diagnose_job
+from ads_rca.commands.diagnose_cmd import add_engine_arguments, params_from_args
+from ads_rca.commands.input_args import (
+    add_bag_arguments,
+    add_reader_arguments,
+    bag_options_from_args,
+    max_file_mb_from_args,
+)
+from ads_rca.commands.outputs import check_output_dir
+from ads_rca.errors import InputError
+from ads_rca.io.bag_options import BagOptions
+from ads_rca.text import printable
+
+EXIT_INTERRUPTED = 130
+HTML_NAME = "summary.html"
+MAX_WORKERS = 512
+#: Seconds to wait for ``--scheduler`` to answer.
+CONNECT_TIMEOUT = 15
+SCHEMES = ("tcp://", "tls://", "ucx://", "inproc://", "ws://", "wss://")
+
+
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    parser = subparsers.add_parser(
+        "batch", help="diagnose many runs on a Dask cluster: one row each, and a summary"
+    )
+    parser.add_argument(
+        "inputs",
+        nargs="+",
+        metavar="INPUT",
+        help="log folder, bag, glob (quoted: 'runs/*') or text file of paths (one a line)",
+    )
+    parser.add_argument("--out", default="batch_out", help="output folder (default batch_out)")
+    parser.add_argument(
+        "--workers",
+        type=int,
+        default=os.cpu_count() or 1,
+        help="local worker processes (default: one per core; ignored with --scheduler)",
+    )
+    parser.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="run on an existing dask.distributed cluster (tcp://host:port) instead of a "
+        "local one; its workers must see the inputs at the same paths",
+    )
+    parser.add_argument(
+        "--timeout",
+        type=float,
+        default=600.0,
+        metavar="SECONDS",
+        help="per-run limit: a run still going is killed and reported (default 600)",
+    )
+    parser.add_argument(
+        "--retries",
+        type=int,
+        default=3,
+        help="times a run is retried when its worker dies (default 3)",
+    )
+    parser.add_argument(
+        "--resume", action="store_true", help="skip the runs already in --out's results"
+    )
+    add_engine_arguments(parser)
+    add_reader_arguments(parser)
+    add_bag_arguments(parser)
+    parser.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    params = params_from_args(args)
+    max_file_mb = max_file_mb_from_args(args)
+    bag = _absolute(bag_options_from_args(args))
+    if not 1 <= args.workers <= MAX_WORKERS:
+        raise InputError(f"--workers {args.workers}: expected 1 to {MAX_WORKERS}")
+    if not 0 < args.timeout < 1e7:
+        raise InputError(f"--timeout {args.timeout:g}: expected a positive number of seconds")
+    if not 0 <= args.retries <= 100:
+        raise InputError(f"--retries {args.retries}: expected 0 to 100")
+    if args.scheduler is not None and not args.scheduler.startswith(SCHEMES):
+        raise InputError(
+            f"--scheduler {printable(args.scheduler)}: expected an address like tcp://host:8786"
+        )
+    runs = expand_inputs(args.inputs)
+    out = Path(args.out)
+    if not args.resume and out.is_dir() and any(out.iterdir()):
+        raise InputError(
+            f"--out {out}: exists and is not empty (--resume continues the batch there)"
+        )
+    check_output_dir(out, "--out", empty=not args.resume)
+    store = ResultStore(out, resume=args.resume)
+    jobs = [
+        Job(r.run_id, r.path, params, max_file_mb, bag, args.timeout)
+        for r in runs
+        if r.run_id not in store.done
+    ]
+    skipped = len(runs) - len(jobs)
+    if skipped:
+        print(printable(f"--resume: {skipped} of {len(runs)} runs already done in {out}"))
+    interrupted = False
+    try:
+        if jobs:
+            _run_jobs(jobs, store, args)
+    except KeyboardInterrupt:
+        interrupted = True
+    finally:
+        with _no_interrupt():
+            store.close()
+    rows = list(store.rows.values())
+    print(summary_text(rows, str(out), interrupted))
+    if interrupted:
+        left = len(runs) - sum(r.run_id in store.rows for r in runs)
+        print(
+            printable(f"interrupted: {left} runs left; ads-rca batch --resume --out {out} ..."),
+            file=sys.stderr,
+        )
+        return EXIT_INTERRUPTED
+    write_html(rows, out / HTML_NAME, str(out))
+    print(printable(f"results: {out / PARQUET_NAME}, {out / CSV_NAME}, {out / RUNS_DIR}/"))
+    print(printable(f"HTML summary: {out / HTML_NAME}"))
+    return 0
+
+
+def _absolute(bag: BagOptions) -> BagOptions:
+    """Paths the workers read, made absolute (their working folder is not ours)."""
+    profile = bag.profile
+    if os.path.isfile(profile):
+        profile = os.path.abspath(profile)
+    remap = os.path.abspath(bag.remap) if bag.remap else None
+    return BagOptions(profile, remap, tuple(os.path.abspath(p) for p in bag.msg_path))
+
+
+def _run_jobs(jobs: list[Job], store: ResultStore, args: argparse.Namespace) -> None:
+    from distributed import as_completed
+
+    with _client(args) as client:
+        futures = [
+            client.submit(diagnose_job, job, key=f"ads-rca-batch-{job.run_id}", pure=False)
+            for job in jobs
+        ]
+        by_key = {future.key: job for future, job in zip(futures, jobs, strict=False)}
+        update = _progress(len(jobs))
+        try:
+            for future in as_completed(futures):
+                job = by_key.pop(future.key)
+                outcome = _outcome(future, job)
+                store.add(outcome.row, outcome.json)
+                future.release()
+                update()
+        except BaseException:
+            with _no_interrupt():
+                client.cancel(list(futures))
+            raise
+        finally:
+            update(done=True)
+
+
+def _outcome(future: Any, job: Job) -> Outcome:
+    """The task's answer, or a row saying why there is none (its worker died too often)."""
+    try:
+        outcome = future.result()
+    except Exception as error:
+        name = type(error).__name__
+        message = f"{name}: {error}" if name != "KilledWorker" else "its worker died every try"
+        return Outcome(error_row(job.run_id, job.path, message), None)
+    assert isinstance(outcome, Outcome)
+    return outcome
+
+
+@contextmanager
+def _client(args: argparse.Namespace) -> Iterator[Any]:
+    """A client of ``--scheduler``, or of a new local cluster on loopback; closed at exit."""
+    import dask
+    from distributed import Client, LocalCluster
+
+    cluster = None
+    client = None
+    try:
+        with dask.config.set({"distributed.scheduler.allowed-failures": args.retries}):
+            if args.scheduler:
+                try:
+                    client = Client(args.scheduler, timeout=CONNECT_TIMEOUT)
+                except (OSError, TimeoutError) as error:
+                    raise InputError(
+                        f"--scheduler {printable(args.scheduler)}: cannot connect ({error})"
+                    ) from None
+            else:
+                # Workers start with SIGINT ignored (inherited through spawn): a Ctrl-C
+                # at the terminal reaches the whole process group, and only this process
+                # should act on it (closing the cluster), not print a worker's traceback.
+                with _no_interrupt():
+                    cluster = LocalCluster(
+                        n_workers=args.workers,
+                        threads_per_worker=1,
+                        processes=True,
+                        host="127.0.0.1",
+                        dashboard_address="127.0.0.1:0",  # None still starts one on :8787
+                        silence_logs=logging.ERROR,
+                    )
+                client = Client(cluster)
+            yield client
+    finally:
+        with _no_interrupt():
+            if client is not None:
+                client.close()
+            if cluster is not None:
+                cluster.close()
+
+
+@contextmanager
+def _no_interrupt() -> Iterator[None]:
+    """Ctrl-C again while the cluster closes or the results are flushed: ignored."""
+    try:
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:  # not the main thread
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _progress(total: int) -> Callable[..., None]:
+    """A bar on a terminal (stderr) only; ``update(done=True)`` closes it."""
+    if not sys.stderr.isatty():
+        return lambda done=False: None
+    from tqdm import tqdm
+
+    bar = tqdm(total=total, desc="runs", unit="run", file=sys.stderr, leave=False)
+
+    def update(done: bool = False) -> None:
+        if done:
+            bar.close()
+        else:
+            bar.update(1)
+
+    return update

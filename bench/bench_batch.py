@@ -1,0 +1,127 @@
+"""Benchmark: ``ads-rca batch`` throughput (runs per minute) with 1 and 2 local workers.
+
+    python bench/bench_batch.py [--runs 1000] [--frames 200] [--workers 1 2] [--distinct K]
+                                [--dir DIR]
+
+Synthesises ``--runs`` crash logs of ``--frames`` frames (scenarios and faults cycled,
+written once under ``--dir`` and reused by later runs of the bench), then times the whole
+command (cluster start, every run diagnosed, results and summary written) once per worker
+count, each into a fresh output folder. Prints runs/min per worker count and the scaling
+figure (runs/min with N workers over runs/min with the first count). The summary's
+per-run diagnose time (median) is printed too: with one core per worker the rest is the
+cluster's and the command's own overhead.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+SCENARIOS = ("cut_in", "lead_braking", "pedestrian_crossing", "left_turn")
+FAULTS = ("none", "perception", "prediction", "planning", "controller")
+
+
+def _make(args: tuple[int, int, str]) -> str:
+    i, frames, root = args
+    from ads_rca.io.json_writer import write_run_log
+    from ads_rca.synth import synthesise
+
+    scenario = SCENARIOS[i % len(SCENARIOS)]
+    fault = FAULTS[(i // len(SCENARIOS)) % len(FAULTS)]
+    seed = i // (len(SCENARIOS) * len(FAULTS))
+    folder = Path(root) / f"run_{i:05d}_{scenario}_{fault}"
+    if not (folder / "metadata.json").exists():
+        tmp = folder.with_name(folder.name + ".tmp")
+        shutil.rmtree(tmp, ignore_errors=True)
+        write_run_log(synthesise(scenario, fault, seed, frames=frames), tmp)
+        os.replace(tmp, folder)
+    return str(folder)
+
+
+def make_runs(n: int, frames: int, root: Path, distinct: int) -> list[str]:
+    """``n`` run folders: ``distinct`` synthesised logs, the rest copies of them (synthesis
+    costs more than diagnosis; the batch reads and judges every copy all the same)."""
+    root.mkdir(parents=True, exist_ok=True)
+    unique = min(n, distinct)
+    with ProcessPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
+        made = list(pool.map(_make, [(i, frames, str(root)) for i in range(unique)]))
+    for i in range(unique, n):
+        source = Path(made[i % unique])
+        folder = root / f"{source.name}_copy{i:05d}"
+        if not folder.exists():
+            shutil.copytree(source, folder)
+        made.append(str(folder))
+    return made
+
+
+def time_batch(listing: Path, workers: int, out: Path) -> tuple[float, list[float], int]:
+    env = dict(
+        os.environ,
+        PYTHONPATH=os.pathsep.join(filter(None, [str(REPO), os.environ.get("PYTHONPATH")])),
+    )
+    started = time.monotonic()
+    done = subprocess.run(
+        [sys.executable, "-m", "ads_rca.cli", "batch", str(listing), "--out", str(out),
+         "--workers", str(workers)],
+        capture_output=True, text=True, env=env, check=False,
+    )  # fmt: skip
+    elapsed = time.monotonic() - started
+    if done.returncode != 0:
+        sys.exit(f"batch failed ({done.returncode}): {done.stderr}")
+    sys.path.insert(0, str(REPO))
+    from ads_rca.batch.store import read_csv
+
+    rows = read_csv(out / "results.csv")
+    errors = sum(1 for r in rows if r["error"])
+    return elapsed, [float(r["diagnose_seconds"]) for r in rows], errors
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--runs", type=int, default=1000)
+    parser.add_argument("--frames", type=int, default=200)
+    parser.add_argument("--workers", type=int, nargs="+", default=[1, 2])
+    parser.add_argument(
+        "--distinct", type=int, default=0, help="synthesise this many logs, copy for the rest"
+    )
+    parser.add_argument(
+        "--dir", type=Path, default=Path(tempfile.gettempdir()) / "ads_rca_bench_batch"
+    )
+    args = parser.parse_args()
+    runs_dir = args.dir / f"runs_{args.frames}f"
+    started = time.monotonic()
+    paths = make_runs(args.runs, args.frames, runs_dir, args.distinct or args.runs)
+    print(
+        f"{len(paths)} runs of {args.frames} frames ready in {time.monotonic() - started:.1f} s "
+        f"({runs_dir})"
+    )
+    listing = args.dir / f"paths_{args.runs}_{args.frames}.txt"
+    listing.write_text("".join(f"{p}\n" for p in paths))
+    print(
+        f"{'workers':>8}{'wall s':>9}{'runs/min':>10}{'scaling':>9}"
+        f"{'median run s':>14}{'errors':>8}"
+    )
+    base = None
+    for workers in args.workers:
+        out = args.dir / f"out_w{workers}"
+        shutil.rmtree(out, ignore_errors=True)
+        elapsed, seconds, errors = time_batch(listing, workers, out)
+        rate = len(paths) / elapsed * 60
+        base = base or rate
+        print(
+            f"{workers:>8}{elapsed:>9.1f}{rate:>10.0f}{rate / base:>9.2f}"
+            f"{statistics.median(seconds):>14.3f}{errors:>8}"
+        )
+
+
+if __name__ == "__main__":
+    main()

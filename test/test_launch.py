@@ -321,7 +321,8 @@ def test_ros2_launch_without_log_path_is_one_line_and_starts_nothing(
 def test_ros2_launch_with_the_bridge_ends_once_it_forwarded_the_verdict(
     launch_env: dict[str, str], ros_env: RosEnv, tmp_path: Path
 ) -> None:
-    from test_zenoh_bridge import free_port, listener, rows
+    from test_remote_core import free_port
+    from test_zenoh_bridge import listener, rows
 
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     out = tmp_path / "remote.jsonl"

@@ -18,7 +18,6 @@ import re
 import shlex
 import shutil
 import signal
-import socket
 import subprocess
 import sys
 import threading
@@ -31,6 +30,7 @@ from typing import Any
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from test_remote_core import free_port
 
 from ads_rca.remote.config import session_config
 from ads_rca.remote.session import close_session
@@ -64,12 +64,6 @@ HOSTILE_RESULT = {
     "metrics": {"[b]m[/b]": "\x1b[31mred", "recall": "[i]x"},
 }
 HOSTILE_STATUS = {"state": "\x1b[2J[green]ok", "time": "soon", "malformed": 3}
-
-
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
 
 
 def _env() -> dict[str, str]:

@@ -26,6 +26,7 @@ import pytest
 from rosbags.typesys import Stores, get_typestore
 from rosrun import wait_for
 from test_live_window import failed_flags, verdict_keys
+from test_remote_core import free_port
 
 from ads_rca import strictjson
 from ads_rca.contract.live_topics import metrics_qos
@@ -42,12 +43,6 @@ pytestmark = pytest.mark.timeout(180)
 
 LISTENER = Path(__file__).parent / "zenoh_listener.py"
 TYPESTORE = get_typestore(Stores.ROS2_KILTED)
-
-
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
 
 
 def rows(path: Path) -> list[dict[str, Any]]:

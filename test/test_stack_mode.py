@@ -185,3 +185,25 @@ def test_collisions_detected_on_a_stacks_topics_are_the_logged_ones() -> None:
         assert document["frame"] == log.metadata.collision_frame, (scenario, fault)
         assert document["derived"] is True
         assert [folder for folder, _ in said] == ["actors"]
+
+
+def test_a_collision_frame_held_for_its_inputs_is_waited_for() -> None:
+    """A monitor may hold the collision frame ``input_timeout_s`` for its inputs (a message
+    DDS delivers late) before judging up to it: the verdict waits that long on top of
+    ``verdict_timeout_s`` before giving up, then says it is incomplete and why."""
+    from ads_rca.live.aggregate import AggregatorCore
+
+    stack = StackConfig.from_values(
+        {**{n: e[0] for n, e in STACK_PARAMETERS.items()}, "timesteps_per_frame": 50},
+        input_timeout_s=30.0,
+    )
+    core = AggregatorCore(make_params("corrected"), verdict_timeout_s=10.0, stack=stack)
+    core.set_collision(40, now=100.0)
+    assert core.poll(100.0 + 10.0 + 1.0) is None  # past verdict_timeout_s alone
+    assert core.poll(100.0 + 39.9) is None
+    outcome = core.poll(100.0 + 40.0)
+    assert outcome is not None and not outcome.complete
+    assert outcome.why_incomplete == [
+        "timed out after 40 s waiting for perception, prediction, planning, controller "
+        "to judge up to the collision"
+    ]

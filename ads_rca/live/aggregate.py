@@ -325,11 +325,12 @@ class AggregatorCore(FollowsRunEnd):
             return None
         why: list[str] = []
         if self.stack and not self.horizon_reached():
-            if self.collision_at is None or now - self.collision_at < self.verdict_timeout_s:
+            budget = self._stack_budget_s()
+            if self.collision_at is None or now - self.collision_at < budget:
                 return None
             open_modules = [m for m in MODULES if self.closed.get(m, -1) != self.collision_frame]
             why.append(
-                f"timed out after {self.verdict_timeout_s:g} s waiting for "
+                f"timed out after {budget:g} s waiting for "
                 f"{', '.join(open_modules)} to judge up to the collision"
             )
             return self._decide(now, why)
@@ -354,6 +355,14 @@ class AggregatorCore(FollowsRunEnd):
                 return None
             why.append(f"inputs stalled for {self.stall_timeout_s:g} s before the horizon")
         return self._decide(now, why)
+
+    def _stack_budget_s(self) -> float:
+        """Stack mode: how long after a collision the verdict waits for the monitors. A
+        monitor may hold the collision frame ``input_timeout_s`` for its inputs before it
+        judges up to it (docs/live-graph.md), so the wait is that plus ``verdict_timeout_s``:
+        an input DDS delivers late makes the verdict late, not incomplete."""
+        held = self.stack_config.input_timeout_s if self.stack_config is not None else 0.0
+        return held + self.verdict_timeout_s
 
     def _decide(self, now: float, why: list[str]) -> VerdictOutcome:
         """The verdict (kept); in stack mode, the next queued collision starts."""

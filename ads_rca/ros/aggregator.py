@@ -65,7 +65,8 @@ PARAMETERS: dict[str, NodeParameter] = {
     "metrics_log": ("", "Append every received result as a JSON line here ('' = none)."),
     "verdict_timeout_s": (
         10.0,
-        "After the horizon, publish anyway after this long without results.",
+        "After the horizon, publish anyway after this long without results (stack mode: "
+        "input_timeout_s + this long after the collision).",
         SECONDS,
     ),
     "stall_timeout_s": (

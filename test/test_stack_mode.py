@@ -207,3 +207,17 @@ def test_a_collision_frame_held_for_its_inputs_is_waited_for() -> None:
         "timed out after 40 s waiting for perception, prediction, planning, controller "
         "to judge up to the collision"
     ]
+
+
+def test_what_the_stamp_sync_drops_is_said_once_per_change() -> None:
+    """The monitor node logs this line (at most once a second): a frame released
+    incomplete is then explained by the messages that came late or matched no frame."""
+    from ads_rca.live.stack_feed import StackFeed
+    from ads_rca.live.window import MonitorCore
+
+    core = MonitorCore("perception", make_params("corrected"), stack=True)
+    feed = StackFeed(config(), core, lambda folder, error: None)
+    assert feed.sync_news() is None
+    feed.sync.counts.late, feed.sync.counts.incomplete = 2, 1
+    assert feed.sync_news() == "stamp sync so far: 2 late messages, 1 frames released incomplete"
+    assert feed.sync_news() is None  # nothing new

@@ -174,6 +174,7 @@ def test_late_messages_are_dropped_and_counted() -> None:
         {ODOMETRY: 100, "a": 99},
     )
     assert (sync.counts.duplicates, sync.counts.unmatched, sync.counts.incomplete) == (0, 0, 0)
+    assert sync.counts.text() == "4 late messages"
 
 
 def test_the_nearest_message_is_used_and_the_other_counted_unmatched() -> None:

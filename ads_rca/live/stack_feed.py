@@ -59,6 +59,7 @@ class StackFeed:
         self._ego_seen = not config.ego_id
         self._period_checked = False
         self._origin_ms: int | None = None  # the first frame's stamp: index 0
+        self._counts_said: dict[str, int] = dict(vars(self.sync.counts))
         core.derived = config.derived()
         if config.ego_id:
             core.ego_id, core.ego_resolved = config.ego_id, True
@@ -95,6 +96,16 @@ class StackFeed:
         # Waited long enough, but a frame before the collision still held is still to come.
         if (released is not None and released >= cf_ms - slop) or (waited and not held_before):
             core.close_horizon()
+
+    def sync_news(self) -> str | None:
+        """One line when the stamp sync dropped or released early more than last said
+        (late, duplicate, unmatched messages; frames released incomplete); else None."""
+        counts = dict(vars(self.sync.counts))
+        if counts == self._counts_said:
+            return None
+        self._counts_said = counts
+        said = self.sync.counts.text()
+        return f"stamp sync so far: {said}" if said else None
 
     def flush(self, now: float) -> None:
         """Release every held frame (the node is stopping, or a test's run ended)."""

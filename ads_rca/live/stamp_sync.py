@@ -115,6 +115,18 @@ class SyncCounts:
     dropped: int = 0  #: messages dropped because too many were held on their topic
     incomplete: int = 0
 
+    def text(self) -> str:
+        """The non-zero counts, one line ('' when nothing was dropped)."""
+        labels = {
+            "late": "late messages",
+            "duplicates": "duplicate messages",
+            "unmatched": "unmatched messages",
+            "overflow": "frames released early (too many held)",
+            "dropped": "messages dropped (too many held)",
+            "incomplete": "frames released incomplete",
+        }
+        return ", ".join(f"{n} {labels[name]}" for name, n in vars(self).items() if n)
+
 
 @dataclass
 class _Held(Generic[P]):

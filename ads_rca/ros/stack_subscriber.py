@@ -89,6 +89,7 @@ class StackSubscriber:
         self.waiting: deque[tuple[str, Any, float]] = deque(maxlen=MAX_WAITING)
         self._facts_said = 0
         self._facts_at = 0.0
+        self._sync_at = 0.0
         qos = stack_qos(config.best_effort)
         folders = {*unit.core.folders, config.reference}
         self.topics = config.input_topics(folders)
@@ -145,9 +146,15 @@ class StackSubscriber:
 
     def _poll(self) -> None:
         assert self.feed is not None
-        self.feed.poll(time.monotonic())
+        now = time.monotonic()
+        self.feed.poll(now)
         self.unit.poll()
         self._say_facts()
+        if now - self._sync_at >= 1.0:  # what the sync dropped: at most a line a second
+            self._sync_at = now
+            news = self.feed.sync_news()
+            if news is not None:
+                self.node.get_logger().warning(news)
 
     def _skip(self, folder: str, error: str) -> None:
         topic = self.config.inputs[folder].topic if folder in self.config.inputs else folder

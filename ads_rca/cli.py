@@ -17,20 +17,28 @@ import sys
 from collections.abc import Sequence
 
 from ads_rca import __version__
-from ads_rca.commands import COMMANDS
+from ads_rca.commands import command_modules
 from ads_rca.errors import AdsRcaError
 from ads_rca.text import printable
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The parser of every command, or only of command ``only`` (what a run of it needs:
+    the other commands' modules are not imported)."""
     parser = argparse.ArgumentParser(
         prog="ads-rca", description="Root-cause analysis of autonomous-driving crashes."
     )
     parser.add_argument("--version", action="version", version=f"ads-rca {__version__}")
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for command in COMMANDS:
+    for command in command_modules(only):
         command.register(subparsers)
     return parser
+
+
+def command_named(argv: Sequence[str]) -> str | None:
+    """The command ``argv`` runs, when its first word names one (else None: ``--help``,
+    ``--version`` or a mistake, which the full parser answers)."""
+    return argv[0] if argv and not argv[0].startswith("-") else None
 
 
 #: Exit statuses of a command stopped by a signal's effect (128 + the signal's number).
@@ -54,7 +62,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def run(argv: Sequence[str] | None) -> int:
-    args = build_parser().parse_args(argv)
+    words = sys.argv[1:] if argv is None else list(argv)
+    args = build_parser(command_named(words)).parse_args(words)
     try:
         return int(args.run(args))
     except AdsRcaError as error:

@@ -13,8 +13,6 @@ from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any, Literal
 
-import yaml
-
 from ads_rca.errors import ConfigError
 from ads_rca.paramspec import SPECS, check_value
 
@@ -127,6 +125,8 @@ def parse_assignments(items: list[str]) -> dict[str, str]:
 
 def load_config(path: str | Path) -> dict[str, Any]:
     """Parameters from a YAML file: a flat mapping, or a ROS 2 params file (any node)."""
+    import yaml  # only a run with a config file needs it
+
     file = Path(path)
     try:
         document = yaml.safe_load(file.read_text())

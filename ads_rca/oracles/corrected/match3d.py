@@ -16,10 +16,10 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-from scipy.optimize import linear_sum_assignment
 
 from ads_rca.geometry import FloatArray, bev_iou
 from ads_rca.model import Objects3D
+from ads_rca.oracles.corrected.assignment import best_matching
 from ads_rca.oracles.corrected.context import CacheName, CorrectedContext, ego_box, other_rows
 from ads_rca.params import Params
 
@@ -83,10 +83,7 @@ def match_objects(
         by_distance = small[None, :] & (distance <= limit) & ~by_iou & whole[:, None]
     near = 1.0 - distance / (2.0 * limit) if limit > 0 else np.ones_like(distance)
     score = np.where(by_iou, iou, np.where(by_distance, params.perc3d_match_iou * near, 0.0))
-    eligible = by_iou | by_distance
-    rows, cols = linear_sum_assignment(np.where(eligible, -score, 0.0))
-    keep = eligible[rows, cols]
-    rows, cols = rows[keep], cols[keep]
+    rows, cols = best_matching(by_iou | by_distance, score)
     return rows, cols, iou[rows, cols], iou.max(axis=0)
 
 

@@ -16,13 +16,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from ads_rca.geometry import FloatArray, axis_aligned_iou, overlap_blocks
 from ads_rca.model import Boxes
 from ads_rca.oracles.base import Metric, OracleResult, RunContext
+from ads_rca.oracles.corrected.assignment import best_matching
 from ads_rca.oracles.corrected.clearance import PartnerView, partner_view
 from ads_rca.oracles.corrected.common import (
     REPORTED,
@@ -60,10 +58,7 @@ def match_boxes(
         return empty, empty, np.zeros(0), np.zeros(m)
     if n * m <= dense_pairs or not threshold > 0:  # a threshold <= 0 makes every pair eligible
         iou = np.nan_to_num(axis_aligned_iou(detections, gts), nan=0.0)
-        eligible = iou >= threshold
-        rows, cols = linear_sum_assignment(np.where(eligible, -iou, 0.0))
-        keep = eligible[rows, cols]
-        rows, cols = rows[keep], cols[keep]
+        rows, cols = best_matching(iou >= threshold, iou)
         return rows, cols, iou[rows, cols], iou.max(axis=0)
     best = np.zeros(m)
     pair_rows, pair_cols, pair_iou = [], [], []
@@ -89,6 +84,10 @@ def _assign_groups(
 ) -> tuple[np.ndarray, np.ndarray, FloatArray]:
     """Optimal assignment of the eligible pairs (row, col, iou), one connected group at a
     time; matched rows ascending, with their columns and IoUs."""
+    from scipy.optimize import linear_sum_assignment  # only for crowds (0.4 s to import)
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
     graph = coo_matrix((np.ones(len(rows)), (rows, cols + n)), shape=(n + m, n + m))
     _count, label = connected_components(graph, directed=False)
     group = label[rows]

@@ -1,0 +1,48 @@
+"""A ``diagnose`` run imports only what it needs (issue #18: import lazily what a run does not
+use). Each of these costs 0.03 to 0.4 s at start-up, more than judging a short run."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from ads_rca.io.json_writer import write_run_log
+from ads_rca.synth import synthesise
+
+#: Top-level packages a diagnose of a log folder never needs.
+UNNEEDED = (
+    "aiohttp",
+    "dask",
+    "distributed",
+    "matplotlib",
+    "mcap",
+    "pyarrow",
+    "rclpy",
+    "rich",
+    "rosbags",
+    "scipy",
+    "yaml",
+    "zenoh",
+)
+
+
+@pytest.mark.parametrize("semantics", ["reference", "corrected"])
+def test_diagnose_of_a_log_folder_imports_nothing_it_does_not_use(
+    tmp_path: Path, semantics: str
+) -> None:
+    folder = write_run_log(synthesise("cut_in", "perception", seed=4), tmp_path / "log")
+    code = (
+        "import json, sys\n"
+        "from ads_rca.cli import main\n"
+        f"status = main(['diagnose', {str(folder)!r}, '--semantics', {semantics!r},"
+        f" '--json', {str(tmp_path / 'v.json')!r}])\n"
+        "print(json.dumps([status, sorted({m.split('.')[0] for m in sys.modules})]))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    status, loaded = json.loads(done.stdout.strip().splitlines()[-1])
+    assert status == 0
+    assert sorted(set(UNNEEDED) & set(loaded)) == []

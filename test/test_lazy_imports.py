@@ -46,3 +46,28 @@ def test_diagnose_of_a_log_folder_imports_nothing_it_does_not_use(
     status, loaded = json.loads(done.stdout.strip().splitlines()[-1])
     assert status == 0
     assert sorted(set(UNNEEDED) & set(loaded)) == []
+
+
+def test_a_batch_child_imports_nothing_the_worker_did_not(tmp_path: Path) -> None:
+    """``ads-rca batch`` forks a child per run from a warmed-up worker: whatever the child
+    imports itself it pays for on every run (SciPy's solver alone is 0.4 s)."""
+    folder = write_run_log(synthesise("cut_in", "perception", seed=4), tmp_path / "log")
+    code = (
+        "import json, sys\n"
+        "from ads_rca.batch.work import Job, run_job, warm_up\n"
+        "from ads_rca.io.bag_options import BagOptions\n"
+        "from ads_rca.params import make_params\n"
+        "warm_up()\n"
+        "before = set(sys.modules)\n"
+        "rows = []\n"
+        "for mode in ('reference', 'corrected'):\n"
+        f"    job = Job('id', {str(folder)!r}, make_params(mode), 64.0, BagOptions(), 60.0)\n"
+        "    rows.append(run_job(job).row.get('error'))\n"
+        "new = sorted(set(sys.modules) - before)\n"
+        "print(json.dumps([rows, new, 'scipy.optimize' in before]))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    errors, imported, solver_warm = json.loads(done.stdout.strip().splitlines()[-1])
+    assert errors == ["", ""]  # diagnosed, no error
+    assert imported == []
+    assert solver_warm  # a crowded frame's matching (not in this log) needs it

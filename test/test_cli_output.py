@@ -180,3 +180,30 @@ def test_demo_piped_to_head_ends_quietly_and_its_nodes_with_it(
     assert result.stdout.startswith(f"ads-rca demo: ROS_DOMAIN_ID={ros_env.domain_id} ")
     assert result.stdout.count("\n") == 1
     assert result.stderr == ""
+
+
+@pytest.mark.parametrize(
+    ("argv", "status", "expected"),
+    [
+        (["nosuch"], 2, "invalid choice: 'nosuch'"),
+        ([""], 2, "invalid choice: ''"),
+        (["diagnose"], 2, "the following arguments are required: path"),
+        (["--bogus"], 2, "the following arguments are required: COMMAND"),
+        (["diagnose\x1b[31m"], 2, "invalid choice"),
+        (["--version"], 0, "ads-rca 0."),
+        (["convert", "--help"], 0, "usage: ads-rca convert"),
+    ],
+)
+def test_the_first_word_picks_the_command_whatever_it_is(
+    argv: list[str], status: int, expected: str
+) -> None:
+    """Only the named command's module is loaded: any other first word gets the full
+    parser's answer (every command listed), never a traceback."""
+    done = subprocess.run(
+        [sys.executable, "-m", "ads_rca.cli", *argv], capture_output=True, text=True, check=False
+    )
+    assert done.returncode == status, done.stderr
+    assert expected in done.stdout + done.stderr
+    assert "Traceback" not in done.stderr
+    if status == 2 and argv != ["diagnose"]:
+        assert "choose from" in done.stderr or "COMMAND" in done.stderr

@@ -30,10 +30,10 @@ MODES = ("reference", "corrected")
 ATTRIBUTION_KEYS = ("primary_root_cause", "root_causes", "contributing", "partner_id")
 
 
-def config(**values: Any) -> StackConfig:
+def config(input_timeout_s: float = 1.0, **values: Any) -> StackConfig:
     defaults = {name: entry[0] for name, entry in STACK_PARAMETERS.items()}
     facts = {"timesteps_per_frame": 50, "camera_loc.x": 1.3, "camera_loc.z": 1.8}
-    return StackConfig.from_values({**defaults, **facts, **values}, input_timeout_s=1.0)
+    return StackConfig.from_values({**defaults, **facts, **values}, input_timeout_s=input_timeout_s)
 
 
 def live(log: RunLog, mode: str, history: int = 400, **stream: Any) -> LiveRun:
@@ -193,10 +193,7 @@ def test_a_collision_frame_held_for_its_inputs_is_waited_for() -> None:
     ``verdict_timeout_s`` before giving up, then says it is incomplete and why."""
     from ads_rca.live.aggregate import AggregatorCore
 
-    stack = StackConfig.from_values(
-        {**{n: e[0] for n, e in STACK_PARAMETERS.items()}, "timesteps_per_frame": 50},
-        input_timeout_s=30.0,
-    )
+    stack = config(input_timeout_s=30.0)
     core = AggregatorCore(make_params("corrected"), verdict_timeout_s=10.0, stack=stack)
     core.set_collision(40, now=100.0)
     assert core.poll(100.0 + 10.0 + 1.0) is None  # past verdict_timeout_s alone

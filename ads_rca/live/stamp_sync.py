@@ -117,15 +117,18 @@ class SyncCounts:
 
     def text(self) -> str:
         """The non-zero counts, one line ('' when nothing was dropped)."""
-        labels = {
-            "late": "late messages",
-            "duplicates": "duplicate messages",
-            "unmatched": "unmatched messages",
-            "overflow": "frames released early (too many held)",
-            "dropped": "messages dropped (too many held)",
-            "incomplete": "frames released incomplete",
-        }
-        return ", ".join(f"{n} {labels[name]}" for name, n in vars(self).items() if n)
+        return ", ".join(f"{n} {COUNT_LABELS[name]}" for name, n in vars(self).items() if n)
+
+
+#: What each of :class:`SyncCounts` counts, as the monitor node says it.
+COUNT_LABELS = {
+    "late": "late messages",
+    "duplicates": "duplicate messages",
+    "unmatched": "unmatched messages",
+    "overflow": "frames released early (too many held)",
+    "dropped": "messages dropped (too many held)",
+    "incomplete": "frames released incomplete",
+}
 
 
 @dataclass

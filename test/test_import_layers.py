@@ -31,6 +31,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
         "ads_rca.errors",
         "ads_rca.text",
         "ads_rca.strictjson",
+        "ads_rca.indented_json",
         "ads_rca.geometry",
         "ads_rca.progress",
         "ads_rca.workers",

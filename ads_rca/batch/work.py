@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
-import json
 import os
 import pickle
 import select
@@ -35,6 +34,7 @@ from typing import Any
 
 from ads_rca.batch.rows import Row, error_row, row_from_document
 from ads_rca.errors import AdsRcaError
+from ads_rca.indented_json import dumps_indented
 from ads_rca.io.bag_options import BagOptions
 from ads_rca.params import Params
 
@@ -179,7 +179,7 @@ def run_job(job: Job, worker: str = "") -> Outcome:
         if not semantics_for(job.params).analysed_frames(log):
             raise AdsRcaError(f"{job.path}: no frame to analyse (no readable actors/ file)")
         document = diagnose(log, job.params, None, workers=1).to_json()
-        text = json.dumps(document, indent=1, allow_nan=False) + "\n"
+        text = dumps_indented(document) + "\n"
     except AdsRcaError as error:
         known["diagnose_seconds"] = time.monotonic() - started
         return Outcome(error_row(job.run_id, job.path, str(error), **known), None)

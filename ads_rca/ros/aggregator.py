@@ -39,6 +39,7 @@ from ads_rca.contract.playback import (
     read_input_problems,
 )
 from ads_rca.errors import AdsRcaError
+from ads_rca.indented_json import dumps_indented
 from ads_rca.live import diagnostics as diag
 from ads_rca.live.aggregate import AggregatorCore, VerdictOutcome
 from ads_rca.live.collision_feed import CollisionFeed, collision_document
@@ -361,7 +362,7 @@ class Aggregator(Node):
     def _publish(self, outcome: VerdictOutcome) -> None:
         document = outcome.document
         document["live"][RUN_KEY] = self.runs.run or ""
-        text = json.dumps(document, indent=1, allow_nan=False)
+        text = dumps_indented(document)
         stamp = self.get_clock().now().to_msg()
         self.verdict_pub.publish(
             diagnostic_array(stamp, [diag.verdict_status(document, self.hardware_id)])

@@ -1,0 +1,141 @@
+"""The fast indented writer gives the json module's bytes, whatever the document."""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import sys
+from typing import Any
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from ads_rca.indented_json import dumps_indented, iter_indented, write_indented
+
+
+def json_module(document: Any) -> str:
+    return json.dumps(document, indent=1, allow_nan=False)
+
+
+#: Floats where orjson and Python spell numbers differently, and their neighbours.
+EDGE_FLOATS = [
+    1e-4,
+    9.99e-5,
+    1e-5,
+    1.5e-5,
+    1e-6,
+    2.5e-6,
+    1e-7,
+    1e-9,
+    1e-10,
+    5e-324,
+    -1e-7,
+    -0.0,
+    0.0,
+    1e15,
+    1e16,
+    1.234e16,
+    1e21,
+    1e22,
+    1.7976931348623157e308,
+    0.1,
+    1 / 3,
+]
+#: Text that looks like numbers, commas and indentation inside strings and keys.
+TRICKY_TEXT = [
+    "1e-7",
+    "x 1e-7",
+    "0.00001,",
+    " 1e-5",
+    "e-5",
+    "a\n 1e-7,",
+    "\x7f",
+    "é",
+    "😀",
+    "\u2028",
+    "\x00\x01\x1f",
+    '"',
+    "\\",
+    "  ",
+    '  "k": 1e-7,',
+    "pose-050.json",
+]
+
+finite = st.floats(allow_nan=False, allow_infinity=False)
+small = st.floats(min_value=-1e-4, max_value=1e-4, allow_nan=False)
+scalars = (
+    st.none()
+    | st.booleans()
+    | st.integers(min_value=-(2**63), max_value=2**63 - 1)
+    | finite
+    | small
+    | st.sampled_from(EDGE_FLOATS)
+    | st.text()
+    | st.sampled_from(TRICKY_TEXT)
+)
+keys = st.text() | st.sampled_from(TRICKY_TEXT)
+documents = st.recursive(
+    scalars,
+    lambda inner: st.lists(inner, max_size=6) | st.dictionaries(keys, inner, max_size=6),
+    max_leaves=40,
+)
+
+
+@settings(max_examples=400, deadline=None)
+@given(documents)
+def test_any_strict_document_is_written_as_the_json_module_writes_it(document: Any) -> None:
+    assert dumps_indented(document) == json_module(document)
+
+
+@settings(max_examples=150, deadline=None)
+@given(documents, st.integers(min_value=1, max_value=64))
+def test_the_pieces_join_to_the_same_text_whatever_their_size(
+    document: Any, block_bytes: int
+) -> None:
+    pieces = list(iter_indented(document, block_bytes))
+    assert "".join(pieces) == json_module(document)
+    assert all(piece.endswith("\n") for piece in pieces[:-1])  # whole lines each
+
+
+@pytest.mark.parametrize("value", EDGE_FLOATS + [-v for v in EDGE_FLOATS])
+def test_every_edge_float_is_spelled_as_python_spells_it(value: float) -> None:
+    document = {"x": value, "list": [value, [value]], "key with 1e-7": f"{value}"}
+    assert dumps_indented(document) == json_module(document)
+    assert dumps_indented(value) == json_module(value)
+
+
+def test_what_orjson_cannot_write_goes_through_the_json_module() -> None:
+    for document in (
+        {"big": 2**70},
+        {1: "integer key", 2.5: "float key", None: "null key", False: "bool key"},
+        {"lone surrogate": "\ud800"},
+    ):
+        assert dumps_indented(document) == json_module(document)
+
+
+def test_a_verdict_sized_document_is_identical_and_written_in_pieces() -> None:
+    frames = [
+        {"frame": i, "metrics": {"error": i * 1e-7, "ok": i % 2 == 0, "ids": [str(i), "é"]}}
+        for i in range(20_000)
+    ]
+    document = {"tool": "ads_rca", "frames": frames, "evidence": {"tiny": 5e-324}}
+    out = io.StringIO()
+    write_indented(document, out)
+    assert out.getvalue() == json_module(document)
+    assert len(list(iter_indented(document, 1 << 16))) > 10
+
+
+def test_non_finite_numbers_are_the_callers_to_make_strict() -> None:
+    # Documented contract: orjson writes them as null; the json module would refuse them.
+    assert json.loads(dumps_indented({"x": math.nan})) == {"x": None}
+    with pytest.raises(ValueError):
+        json_module({"x": math.nan})
+
+
+def test_deep_nesting_within_the_json_modules_reach_is_identical() -> None:
+    document: Any = [1e-7]
+    for _ in range(min(200, sys.getrecursionlimit() // 4)):
+        document = {"k": document}
+    assert dumps_indented(document) == json_module(document)

@@ -151,17 +151,16 @@ def diagnose(
     return Diagnosis(log, ctx, frames, semantics.attribute(frames, ctx))
 
 
-# The forked workers read the run from here (set just before forking, cleared after).
-_SHARED: tuple[RunContext, Mapping[Module, Oracle]] | None = None
+# The forked workers read the run and its timestamps from here (set just before forking,
+# cleared after): a slice sent to a worker is two integers.
+_SHARED: tuple[RunContext, Mapping[Module, Oracle], tuple[int, ...]] | None = None
 
 
-def _judge_slice(
-    bounds: tuple[int, int, tuple[int, ...]],
-) -> tuple[list[FrameResults], list[Problem]]:
+def _judge_slice(bounds: tuple[int, int]) -> tuple[list[FrameResults], list[Problem]]:
     """In a worker: judge one slice; return its results and the problems it reported."""
     assert _SHARED is not None
-    ctx, oracles = _SHARED
-    start, stop, timestamps = bounds
+    ctx, oracles, timestamps = _SHARED
+    start, stop = bounds
     before = len(ctx.problems)
     frames = [evaluate_frame(ctx, oracles, ts) for ts in timestamps[start:stop]]
     return frames, list(ctx.problems)[before:]
@@ -176,14 +175,12 @@ def _judge_in_workers(
 ) -> list[FrameResults]:
     global _SHARED  # noqa: PLW0603 - inherited by the forked workers, never written there
     chunk = max(50, len(timestamps) // (workers * 8))
-    slices = [
-        (i, min(i + chunk, len(timestamps)), timestamps) for i in range(0, len(timestamps), chunk)
-    ]
+    slices = [(i, min(i + chunk, len(timestamps))) for i in range(0, len(timestamps), chunk)]
     advance = advancer(timestamps, progress)
     frames: list[FrameResults] = []
-    _SHARED = (ctx, oracles)
+    _SHARED = (ctx, oracles, timestamps)
     try:
-        for (start, stop, _), (judged, problems) in zip(
+        for (start, stop), (judged, problems) in zip(
             slices, map_forked(_judge_slice, slices, workers), strict=True
         ):
             frames.extend(judged)

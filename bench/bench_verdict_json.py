@@ -1,0 +1,96 @@
+"""Benchmark: writing the verdict JSON, the json module against ``indented_json``; a table.
+
+    python bench/bench_verdict_json.py [--frames 2000 10000] [--actors 11] [--repeat 3]
+
+For each frame count a ``cruise`` log (its last frame declared the collision, so every frame
+is judged against a partner) is synthesised and diagnosed in corrected mode in this process;
+then its ``diagnose --json`` document is written to a scratch file by
+``json.dump(document, indent=1)`` (the writer before) and by
+``indented_json.write_indented`` (now). CPU time, best of ``--repeat``; the peak memory the
+write adds (max RSS, each writer in a fresh child process); and whether the bytes are equal.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+from ads_rca.engine import diagnose
+from ads_rca.indented_json import write_indented
+from ads_rca.params import make_params
+from ads_rca.synth import synthesise
+
+WRITERS: dict[str, Callable[[Any, Any], None]] = {
+    "json.dump (before)": lambda document, out: json.dump(document, out, indent=1),
+    "indented_json (now)": write_indented,
+}
+
+_CHILD = """
+import json, resource, sys
+sys.path[:0] = {path!r}
+from bench_verdict_json import WRITERS
+document = json.load(open({source!r}))
+base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+with open({target!r}, "w") as out:
+    WRITERS[{writer!r}](document, out)
+print((resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - base) / 1024)
+"""
+
+
+def verdict_document(frames: int, actors: int) -> dict[str, Any]:
+    log = synthesise("cruise", "none", seed=1, frames=frames, actors=actors)
+    last = log.frames[-1] // log.tpf
+    log.metadata = replace(log.metadata, collision_frame=last, total_frames=last)
+    return diagnose(log, make_params("corrected"), workers=1).to_json()
+
+
+def best_seconds(document: Any, writer: Callable[[Any, Any], None], target: Path, n: int) -> float:
+    times = []
+    for _ in range(n):
+        with target.open("w") as out:
+            start = time.process_time()
+            writer(document, out)
+            times.append(time.process_time() - start)
+    return min(times)
+
+
+def added_peak_mb(source: Path, target: Path, writer: str) -> float:
+    code = _CHILD.format(path=sys.path[:1], source=str(source), target=str(target), writer=writer)
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    return float(done.stdout.strip())
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--frames", type=int, nargs="*", default=[2000, 10_000])
+    parser.add_argument("--actors", type=int, default=11)
+    parser.add_argument("--repeat", type=int, default=3)
+    args = parser.parse_args()
+    print("frames  MB     writer                 CPU s   added peak MB  same bytes")
+    with tempfile.TemporaryDirectory() as tmp:
+        for frames in args.frames:
+            document = verdict_document(frames, args.actors)
+            source = Path(tmp) / "document.json"
+            source.write_text(json.dumps(document))
+            texts = {}
+            for name, writer in WRITERS.items():
+                target = Path(tmp) / f"{len(texts)}.json"
+                seconds = best_seconds(document, writer, target, args.repeat)
+                peak = added_peak_mb(source, target, name)
+                texts[name] = target.read_bytes()
+                megabytes = len(texts[name]) / 1e6
+                same = len(set(texts.values())) == 1
+                cells = f"{frames:<7} {megabytes:<6.1f} {name:<22} {seconds:<7.3f} {peak:<14.1f}"
+                print(f"{cells} {same}")
+
+
+if __name__ == "__main__":
+    main()

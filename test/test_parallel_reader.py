@@ -145,3 +145,23 @@ def test_packed_records_rebuild_exactly(crash_log: Path) -> None:
         {f: {ts: r for g, ts, r in rebuilt if g == f} for f in ALL_FOLDERS},
     )
     assert_logs_equal(log, copy, angle_tol=0.0)
+
+
+def test_the_collector_is_paused_while_reading_and_restored_after(tmp_path: Path) -> None:
+    import gc
+
+    from ads_rca.workers import collector_paused
+
+    for enabled in (True, False):
+        (gc.enable if enabled else gc.disable)()
+        try:
+            with collector_paused():
+                assert not gc.isenabled()
+            assert gc.isenabled() is enabled
+            with pytest.raises(RuntimeError), collector_paused():
+                raise RuntimeError
+            assert gc.isenabled() is enabled
+        finally:
+            gc.enable()
+    log = write_run_log(synthesise("cruise", "none", seed=0, frames=30), tmp_path / "log")
+    assert read_run_log(log).frames and gc.isenabled()  # the reader gives it back

@@ -56,7 +56,7 @@ from ads_rca.model import (
 )
 from ads_rca.problems import IGNORED, KEPT_VALUE, SKIPPED_FILE, USED_DEFAULT, Problem, ProblemLog
 from ads_rca.progress import Progress, advancer, tracked
-from ads_rca.workers import can_fork, map_forked
+from ads_rca.workers import can_fork, collector_paused, map_forked
 
 DEFAULT_TPF_MS = 50
 #: Deepest nesting of what the reader keeps as raw JSON (``metadata.json``, box extras).
@@ -162,6 +162,7 @@ def _deeper_than(document: Any, limit: int) -> bool:
     return False
 
 
+@collector_paused()  # reading allocates millions of objects, none in cycles (workers too)
 def read_run_log(
     path: str | os.PathLike[str],
     max_file_mb: float = DEFAULT_MAX_FILE_MB,

@@ -80,7 +80,7 @@ def main() -> None:
             document = verdict_document(frames, args.actors)
             source = Path(tmp) / "document.json"
             source.write_text(json.dumps(document))
-            texts = {}
+            texts: dict[str, bytes] = {}
             for name, writer in WRITERS.items():
                 target = Path(tmp) / f"{len(texts)}.json"
                 seconds = best_seconds(document, writer, target, args.repeat)

@@ -113,15 +113,15 @@ def _too_large(limit: int) -> Unreadable:
 
 
 def _read_at_most(fd: int, size_hint: int, limit: int) -> bytes:
-    """Up to ``limit + 1`` bytes: the stated size in one read, then until end of file
-    (a file that grew after ``fstat``)."""
+    """Up to ``limit + 1`` bytes: the stated size in one read, then until end of file (a
+    short read is not taken for the end: on FUSE or NFS a signal can cut a read short)."""
     parts: list[bytes] = []
     total = 0
     while total <= limit:
         want = min(max(size_hint + 1 - total, _READ_STEP), limit + 1 - total)
         chunk = os.read(fd, want)
+        if not chunk:
+            break
         parts.append(chunk)
         total += len(chunk)
-        if len(chunk) < want:  # a regular file's short read: its end (no second read)
-            break
     return b"".join(parts)

@@ -57,6 +57,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/bench_memory.py
 	$(BIN)/python bench/bench_aggregator_memory.py
 	$(BIN)/python bench/bench_safe_read.py
+	$(BIN)/python bench/bench_verdict_json.py
 	$(BIN)/python bench/bench_report.py
 	$(BIN)/python bench/accuracy.py 20
 

@@ -136,13 +136,12 @@ class CorrectedContext:
         """Time of horizon index i in seconds (frames × tpf / 1000)."""
         return np.asarray(index, dtype=np.float64) * (self.tpf / 1000.0)
 
-    def is_frame(self, ts: int) -> bool:
-        """Whether ``ts`` is one of the log's analysed frames (a set, rebuilt when a live
-        window's frames change)."""
+    def frame_set(self) -> frozenset[int]:
+        """The log's analysed frames as a set (rebuilt when a live window's frames change)."""
         frames = self.log.frames
         if self._frame_set is None or self._frame_set[0] is not frames:
             self._frame_set = (frames, frozenset(frames))
-        return ts in self._frame_set[1]
+        return self._frame_set[1]
 
     def in_log(self, ts: int) -> bool:
         """Whether ``ts`` lies within the analysed span (missing data there is a problem)."""

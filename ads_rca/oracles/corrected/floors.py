@@ -85,7 +85,8 @@ def floor_frames(cc: CorrectedContext, ts: int) -> list[int]:
     """The log's timestamps u with ts − (G + L)·tpf ≤ u < ts − G·tpf (ascending)."""
     tpf = cc.tpf
     first, end = ts - floor_span(cc.params, tpf) * tpf, ts - window_frames(cc.params, tpf) * tpf
-    return [u for u in range(first, end, tpf) if cc.is_frame(u)]
+    frames = cc.frame_set()
+    return [u for u in range(first, end, tpf) if u in frames]
 
 
 def median(values: Sequence[float]) -> float:
@@ -117,25 +118,41 @@ def actor_floor(
     return found[1]
 
 
+#: One floor frame's reduction for one partner: (partner, the others' median level or None
+#: without others, the partner's own sample or None).
+Level = tuple[str | None, float | None, float | None]
+
+
 def _actor_floor(
     cc: CorrectedContext,
     ts: int,
     sampler: Callable[[CorrectedContext, int], Samples],
     partner: str | None,
 ) -> Floor:
-    frames = [sampler(cc, u) for u in floor_frames(cc, ts)]
-    levels = [
-        median(others)
-        for samples in frames
-        if (others := [v for a, v in samples.items() if a != partner])
-    ]
+    # consecutive timestamps share all but one floor frame: each frame's level is cached
+    cache = cc.cache(CacheName[Level](f"level:{sampler.__name__}"))
+    reduced: list[Level] = []
+    for u in floor_frames(cc, ts):
+        found = cache.lookup(u)
+        if found is None or found[0] != partner:
+            found = frame_level(sampler(cc, u), partner)
+            cache.put(u, found)
+        reduced.append(found)
+    levels = [level for _, level, _ in reduced if level is not None]
     minimum = max(int(cc.params.noise_floor_min_frames), 1)
     if len(levels) >= minimum:
         return Floor(median(levels), len(levels), BASIS_OTHERS)
-    own = [samples[partner] for samples in frames if partner in samples]
+    own = [sample for _, _, sample in reduced if sample is not None]
     if len(own) >= minimum:
         return Floor(robust_sigma(own), len(own), BASIS_PARTNER)
     return NO_FLOOR
+
+
+def frame_level(samples: Samples, partner: str | None) -> Level:
+    """One floor frame's part of the floor: the median of the actors other than the
+    partner (None without any) and the partner's own sample (None without one)."""
+    others = [v for a, v in samples.items() if a != partner]
+    return partner, median(others) if others else None, samples.get(partner)
 
 
 def perception_floor(cc: CorrectedContext, ts: int) -> Floor:

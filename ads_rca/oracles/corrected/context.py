@@ -24,7 +24,7 @@ import numpy.typing as npt
 from ads_rca.geometry import FloatArray, box_signed_distance
 from ads_rca.model import FOLDERS, EgoPose, Record, RunLog, Track
 from ads_rca.oracles.base import RunContext
-from ads_rca.oracles.cache import CACHE_SIZE, LRU
+from ads_rca.oracles.cache import CACHE_SIZE, LRU, Slide
 from ads_rca.oracles.corrected.boxes import PlanData, Series, build_plan, build_predicted, key_steps
 from ads_rca.params import Params
 
@@ -94,6 +94,8 @@ class CorrectedContext:
         #: frames and look-ahead (rule 8), so a floor reads each sample once.
         self.caches: dict[str, LRU[int, object]] = {}
         self.cache_size = CACHE_SIZE + floor_span(self.params, self.tpf)
+        #: The floors' sliding runs of per-frame values, by name (rule 8).
+        self.slides: dict[str, Slide[object]] = {}
         self.ts_max = max(self.log.frames) if self.log.frames else 0
         #: The log's per-folder dicts by folder name (``RunLog.folder`` builds a dict per call).
         self.folders: dict[str, dict[int, Record]] = {
@@ -131,6 +133,12 @@ class CorrectedContext:
             self.caches[name.name] = LRU(self.cache_size)
         # The name's type parameter is the one promise about what its cache holds.
         return cast("LRU[int, V]", self.caches[name.name])
+
+    def slide(self, name: CacheName[V]) -> Slide[V]:
+        """A named sliding run of per-frame values (created on first use)."""
+        if name.name not in self.slides:
+            self.slides[name.name] = Slide()
+        return cast("Slide[V]", self.slides[name.name])
 
     def seconds(self, index: int | npt.NDArray[np.int64]) -> FloatArray:
         """Time of horizon index i in seconds (frames × tpf / 1000)."""

@@ -70,14 +70,8 @@ def control_step(cc: CorrectedContext, t: int) -> Step | tuple[str, int]:
 def control_floors(cc: CorrectedContext, ts: int) -> tuple[Floor, Floor]:
     """Rule 8's speed and lateral floors at ts, from the control steps of its floor frames
     (those with every input; the robust sigma of consecutive steps' differences)."""
-    known = cc.cache(CONTROL_STEP)
-    steps: list[Step] = []
-    for u in floor_frames(cc, ts):
-        step = known.lookup(u)  # every floor frame but the newest was a floor frame before
-        if step is None:
-            step = control_step(cc, u)
-        if isinstance(step, Step):
-            steps.append(step)
+    found = cc.slide(CONTROL_STEP).read(floor_frames(cc, ts), lambda u: control_step(cc, u))
+    steps = [s for s in found if isinstance(s, Step)]
     minimum = int(cc.params.noise_floor_min_frames)
     return (
         step_floor([s.speed for s in steps], minimum),

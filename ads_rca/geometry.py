@@ -60,7 +60,8 @@ def axis_aligned_iou(a: FloatArray, b: FloatArray) -> FloatArray:
         iou: FloatArray = np.where(positive, inter / np.where(positive, union, 1.0), 0.0)
     # the masks are outer products of per-box flags: built on the boxes, applied in place
     iou[(area_a <= 0)[:, None] | (area_b <= 0)[None, :]] = 0.0
-    iou[np.isnan(a).any(axis=1)[:, None] | np.isnan(b).any(axis=1)[None, :]] = np.nan
+    nan_a, nan_b = np.asarray(np.isnan(a).any(axis=1)), np.asarray(np.isnan(b).any(axis=1))
+    iou[nan_a[:, None] | nan_b[None, :]] = np.nan
     return iou
 
 

@@ -1,12 +1,17 @@
-"""The one bounded cache the oracles use: least recently used, with compute-on-miss.
+"""The bounded caches the oracles use: least recently used, with compute-on-miss, and the
+sliding run of values a floor reads.
 
 Why: oracles memoise parsed layouts and per-timestamp views so the four of them (and
 overlapping horizons) build each thing once, but a live monitor runs for hours, so every
-cache must be bounded. One class instead of a hand-rolled dict per use.
+cache must be bounded. One class instead of a hand-rolled dict per use; and for a floor,
+which reads a value per frame of a window that slides by one frame per timestamp, one
+that keeps the last window's values, so reading the next costs one new value, not a
+lookup per frame.
 """
 
 from __future__ import annotations
 
+from bisect import bisect_left
 from collections import OrderedDict
 from collections.abc import Callable
 from typing import Generic, TypeVar
@@ -48,3 +53,27 @@ class LRU(Generic[K, V]):
 
     def __len__(self) -> int:
         return len(self._data)
+
+
+class Slide(Generic[V]):
+    """The values of the last ascending run of keys read, reused where the next run overlaps
+    it: a run that slides by one key computes one value. A value must be a function of its
+    key (and ``tag``: values read under another tag are not reused)."""
+
+    def __init__(self) -> None:
+        self._keys: list[int] = []
+        self._values: list[V] = []
+        self._tag: object = None
+
+    def read(self, keys: list[int], compute: Callable[[int], V], tag: object = None) -> list[V]:
+        """The value of each of ``keys`` (ascending), computing only those not in the last
+        run read (under the same tag)."""
+        old = self._keys if tag == self._tag else []
+        start = bisect_left(old, keys[0]) if keys else len(old)
+        shared = len(old) - start
+        if shared and old[start:] == keys[:shared]:
+            values = self._values[start:] + [compute(k) for k in keys[shared:]]
+        else:
+            values = [compute(k) for k in keys]
+        self._keys, self._values, self._tag = keys, values, tag
+        return values

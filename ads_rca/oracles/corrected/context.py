@@ -24,7 +24,7 @@ import numpy.typing as npt
 from ads_rca.geometry import FloatArray, box_signed_distance
 from ads_rca.model import FOLDERS, EgoPose, Record, RunLog, Track
 from ads_rca.oracles.base import RunContext
-from ads_rca.oracles.cache import CACHE_SIZE, LRU
+from ads_rca.oracles.cache import CACHE_SIZE, LRU, Slide
 from ads_rca.oracles.corrected.boxes import PlanData, Series, build_plan, build_predicted, key_steps
 from ads_rca.params import Params
 
@@ -94,6 +94,8 @@ class CorrectedContext:
         #: frames and look-ahead (rule 8), so a floor reads each sample once.
         self.caches: dict[str, LRU[int, object]] = {}
         self.cache_size = CACHE_SIZE + floor_span(self.params, self.tpf)
+        #: The floors' sliding runs of per-frame values, by name (rule 8).
+        self.slides: dict[str, Slide[object]] = {}
         self.ts_max = max(self.log.frames) if self.log.frames else 0
         #: The log's per-folder dicts by folder name (``RunLog.folder`` builds a dict per call).
         self.folders: dict[str, dict[int, Record]] = {
@@ -132,17 +134,22 @@ class CorrectedContext:
         # The name's type parameter is the one promise about what its cache holds.
         return cast("LRU[int, V]", self.caches[name.name])
 
+    def slide(self, name: CacheName[V]) -> Slide[V]:
+        """A named sliding run of per-frame values (created on first use)."""
+        if name.name not in self.slides:
+            self.slides[name.name] = Slide()
+        return cast("Slide[V]", self.slides[name.name])
+
     def seconds(self, index: int | npt.NDArray[np.int64]) -> FloatArray:
         """Time of horizon index i in seconds (frames × tpf / 1000)."""
         return np.asarray(index, dtype=np.float64) * (self.tpf / 1000.0)
 
-    def is_frame(self, ts: int) -> bool:
-        """Whether ``ts`` is one of the log's analysed frames (a set, rebuilt when a live
-        window's frames change)."""
+    def frame_set(self) -> frozenset[int]:
+        """The log's analysed frames as a set (rebuilt when a live window's frames change)."""
         frames = self.log.frames
         if self._frame_set is None or self._frame_set[0] is not frames:
             self._frame_set = (frames, frozenset(frames))
-        return ts in self._frame_set[1]
+        return self._frame_set[1]
 
     def in_log(self, ts: int) -> bool:
         """Whether ``ts`` lies within the analysed span (missing data there is a problem)."""

@@ -70,7 +70,8 @@ def control_step(cc: CorrectedContext, t: int) -> Step | tuple[str, int]:
 def control_floors(cc: CorrectedContext, ts: int) -> tuple[Floor, Floor]:
     """Rule 8's speed and lateral floors at ts, from the control steps of its floor frames
     (those with every input; the robust sigma of consecutive steps' differences)."""
-    steps = [s for u in floor_frames(cc, ts) if isinstance(s := control_step(cc, u), Step)]
+    found = cc.slide(CONTROL_STEP).read(floor_frames(cc, ts), lambda u: control_step(cc, u))
+    steps = [s for s in found if isinstance(s, Step)]
     minimum = int(cc.params.noise_floor_min_frames)
     return (
         step_floor([s.speed for s in steps], minimum),

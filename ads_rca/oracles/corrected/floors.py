@@ -34,10 +34,10 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from itertools import pairwise
 
 import numpy as np
 
+from ads_rca.geometry import FloatArray
 from ads_rca.model import Track
 from ads_rca.oracles.corrected.boxes import step_order
 from ads_rca.oracles.corrected.context import (
@@ -85,22 +85,24 @@ def floor_frames(cc: CorrectedContext, ts: int) -> list[int]:
     """The log's timestamps u with ts − (G + L)·tpf ≤ u < ts − G·tpf (ascending)."""
     tpf = cc.tpf
     first, end = ts - floor_span(cc.params, tpf) * tpf, ts - window_frames(cc.params, tpf) * tpf
-    return [u for u in range(first, end, tpf) if cc.is_frame(u)]
+    frames = cc.frame_set()
+    return [u for u in range(first, end, tpf) if u in frames]
 
 
-def median(values: Sequence[float]) -> float:
-    """The median of a short list (plain Python: cheaper than numpy for a few values)."""
-    ordered = sorted(values)
+def median(values: Sequence[float] | FloatArray) -> float:
+    """The median (a stable sort, so equal values keep their order: the one picked is
+    the plain-Python reading's)."""
+    ordered = np.sort(np.asarray(values, dtype=np.float64), kind="stable")
     mid = len(ordered) // 2
-    return ordered[mid] if len(ordered) % 2 else 0.5 * (ordered[mid - 1] + ordered[mid])
+    return float(ordered[mid] if len(ordered) % 2 else 0.5 * (ordered[mid - 1] + ordered[mid]))
 
 
-def robust_sigma(values: Sequence[float]) -> float:
+def robust_sigma(values: Sequence[float] | FloatArray) -> float:
     """1.4826 × the median absolute deviation (0 for no values)."""
     if len(values) == 0:
         return 0.0
-    centre = median(values)
-    return MAD_SIGMA * median([abs(v - centre) for v in values])
+    spread = np.asarray(values, dtype=np.float64)
+    return MAD_SIGMA * median(np.abs(spread - median(spread)))
 
 
 def actor_floor(
@@ -117,25 +119,36 @@ def actor_floor(
     return found[1]
 
 
+#: One floor frame's reduction for one partner: the others' median level (None without
+#: others) and the partner's own sample (None without one).
+Level = tuple[float | None, float | None]
+
+
 def _actor_floor(
     cc: CorrectedContext,
     ts: int,
     sampler: Callable[[CorrectedContext, int], Samples],
     partner: str | None,
 ) -> Floor:
-    frames = [sampler(cc, u) for u in floor_frames(cc, ts)]
-    levels = [
-        median(others)
-        for samples in frames
-        if (others := [v for a, v in samples.items() if a != partner])
-    ]
+    slide = cc.slide(CacheName[Level](f"level:{sampler.__name__}"))
+    reduced = slide.read(
+        floor_frames(cc, ts), lambda u: frame_level(sampler(cc, u), partner), partner
+    )
+    levels = [level for level, _ in reduced if level is not None]
     minimum = max(int(cc.params.noise_floor_min_frames), 1)
     if len(levels) >= minimum:
         return Floor(median(levels), len(levels), BASIS_OTHERS)
-    own = [samples[partner] for samples in frames if partner in samples]
+    own = [sample for _, sample in reduced if sample is not None]
     if len(own) >= minimum:
         return Floor(robust_sigma(own), len(own), BASIS_PARTNER)
     return NO_FLOOR
+
+
+def frame_level(samples: Samples, partner: str | None) -> Level:
+    """One floor frame's part of the floor: the median of the actors other than the
+    partner (None without any) and the partner's own sample (None without one)."""
+    others = [v for a, v in samples.items() if a != partner]
+    return median(others) if others else None, None if partner is None else samples.get(partner)
 
 
 def perception_floor(cc: CorrectedContext, ts: int) -> Floor:
@@ -265,8 +278,8 @@ def partner_object(cc: CorrectedContext, ts: int, actor_id: str) -> str | None:
 def step_floor(values: Sequence[float], minimum: int) -> Floor:
     """Control's floor from consecutive steps' innovations: the robust sigma of their
     differences (at least ``minimum`` differences, else none)."""
-    diffs = [b - a for a, b in pairwise(values)]
-    diffs = [d for d in diffs if math.isfinite(d)]
+    diffs = np.diff(np.asarray(values, dtype=np.float64))
+    diffs = diffs[np.isfinite(diffs)]
     if len(diffs) < max(minimum, 1):
         return NO_FLOOR
     return Floor(robust_sigma(diffs), len(diffs), BASIS_STEPS)

@@ -14,8 +14,9 @@ the json module's (tests compare the two on random documents):
 - DEL and every non-ASCII character escaped as ``\\uXXXX`` (surrogate pairs beyond the
   BMP), as ``ensure_ascii`` does.
 
-An object's long list (a verdict's frames) is converted a batch of items at a time, so the
-text is written piece by piece, never held whole (4 MB beside a 22 MB verdict, measured).
+An object's long values (a verdict's frames and ``$nonfinite`` map) are converted a batch of
+items at a time, so the text is written piece by piece, never held whole
+(``bench/bench_verdict_json.py``).
 What orjson refuses (integers beyond 64 bits, non-string keys, numpy values, lone
 surrogates) is written by the json module. The document must be strict already
 (:func:`ads_rca.strictjson.to_strict`): orjson writes NaN and infinity as ``null``.
@@ -31,8 +32,8 @@ from typing import Any, TextIO
 import numpy as np
 import orjson
 
-#: Items of a long top-level list converted at a time: bounds the text held at once.
-BATCH_ITEMS = 1000
+#: Items of a long top-level value converted at a time: bounds the text held at once.
+BATCH_ITEMS = 250
 _NEWLINE, _SPACE = 0x0A, 0x20
 #: Where orjson and Python spell a float differently: ``0.0000…`` and a one-digit exponent.
 _SMALL_FLOAT = re.compile(rb"0\.0000|e-[1-9](?![0-9])")
@@ -54,8 +55,9 @@ def write_indented(document: Any, out: TextIO) -> None:
 def iter_indented(document: Any, batch_items: int = BATCH_ITEMS) -> Iterator[str]:
     """The text of :func:`dumps_indented`, in consecutive pieces.
 
-    A top-level list value of an object (a verdict's frames) is converted ``batch_items``
-    items at a time, so the text of a long run is never held whole beside the document.
+    A long top-level value of an object (a verdict's frames, its ``$nonfinite`` map) is
+    converted ``batch_items`` items at a time, so the text of a long run is never held whole
+    beside the document.
     """
     if not (isinstance(document, dict) and document and all(type(k) is str for k in document)):
         yield _text(document)
@@ -63,15 +65,22 @@ def iter_indented(document: Any, batch_items: int = BATCH_ITEMS) -> Iterator[str
     yield "{"
     for index, (key, value) in enumerate(document.items()):
         yield f"{',' if index else ''}\n {json.dumps(key)}: "
-        if isinstance(value, list) and len(value) > batch_items:
-            yield "["
-            for start in range(0, len(value), batch_items):
-                body = _text(value[start : start + batch_items])[2:-2]  # without "[\n", "\n]"
-                yield ("," if start else "") + "\n " + body.replace("\n", "\n ")
-            yield "\n ]"
+        if isinstance(value, list | dict) and len(value) > batch_items:
+            yield from _in_batches(value, batch_items)
         else:
             yield _text(value).replace("\n", "\n ")
     yield "\n}"
+
+
+def _in_batches(value: list[Any] | dict[Any, Any], batch_items: int) -> Iterator[str]:
+    """A long list or object one level down, ``batch_items`` items at a time."""
+    items: list[Any] = value if isinstance(value, list) else list(value.items())
+    yield "[" if isinstance(value, list) else "{"
+    for start in range(0, len(items), batch_items):
+        part = items[start : start + batch_items]
+        body = _text(part if isinstance(value, list) else dict(part))[2:-2]  # no [ ] lines
+        yield ("," if start else "") + "\n " + body.replace("\n", "\n ")
+    yield "\n ]" if isinstance(value, list) else "\n }"
 
 
 def _text(value: Any) -> str:

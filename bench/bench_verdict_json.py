@@ -6,18 +6,17 @@ For each frame count a ``cruise`` log (its last frame declared the collision, so
 is judged against a partner) is synthesised and diagnosed in corrected mode in this process;
 then its ``diagnose --json`` document is written to a scratch file by
 ``json.dump(document, indent=1)`` (the writer before) and by
-``indented_json.write_indented`` (now). CPU time, best of ``--repeat``; the peak memory the
-write adds (max RSS, each writer in a fresh child process); and whether the bytes are equal.
+``indented_json.write_indented`` (now). CPU time, best of ``--repeat``; the most memory the
+write allocates at once (tracemalloc); and whether the bytes are equal.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import subprocess
-import sys
 import tempfile
 import time
+import tracemalloc
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
@@ -32,17 +31,6 @@ WRITERS: dict[str, Callable[[Any, Any], None]] = {
     "json.dump (before)": lambda document, out: json.dump(document, out, indent=1),
     "indented_json (now)": write_indented,
 }
-
-_CHILD = """
-import json, resource, sys
-sys.path[:0] = {path!r}
-from bench_verdict_json import WRITERS
-document = json.load(open({source!r}))
-base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-with open({target!r}, "w") as out:
-    WRITERS[{writer!r}](document, out)
-print((resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - base) / 1024)
-"""
 
 
 def verdict_document(frames: int, actors: int) -> dict[str, Any]:
@@ -62,10 +50,16 @@ def best_seconds(document: Any, writer: Callable[[Any, Any], None], target: Path
     return min(times)
 
 
-def added_peak_mb(source: Path, target: Path, writer: str) -> float:
-    code = _CHILD.format(path=sys.path[:1], source=str(source), target=str(target), writer=writer)
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    return float(done.stdout.strip())
+def added_peak_mb(document: Any, writer: Callable[[Any, Any], None], target: Path) -> float:
+    """Most memory allocated at once while writing (tracemalloc: Python objects, numpy
+    arrays and orjson's output all report to it), in MB."""
+    tracemalloc.start()
+    try:
+        with target.open("w") as out:
+            writer(document, out)
+        return tracemalloc.get_traced_memory()[1] / 1e6
+    finally:
+        tracemalloc.stop()
 
 
 def main() -> None:
@@ -78,13 +72,11 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         for frames in args.frames:
             document = verdict_document(frames, args.actors)
-            source = Path(tmp) / "document.json"
-            source.write_text(json.dumps(document))
             texts: dict[str, bytes] = {}
             for name, writer in WRITERS.items():
                 target = Path(tmp) / f"{len(texts)}.json"
                 seconds = best_seconds(document, writer, target, args.repeat)
-                peak = added_peak_mb(source, target, name)
+                peak = added_peak_mb(document, writer, target)
                 texts[name] = target.read_bytes()
                 megabytes = len(texts[name]) / 1e6
                 same = len(set(texts.values())) == 1

@@ -21,6 +21,7 @@ from stackgraph import latest_results, metrics_difference, run_stack_graph, same
 from ads_rca.engine import diagnose
 from ads_rca.params import make_params
 from ads_rca.synth import synthesise
+from ads_rca.verdict import MODULES
 
 pytestmark = pytest.mark.timeout(240)
 
@@ -71,6 +72,8 @@ def test_the_verdict_beside_a_stack_equals_diagnose(
     assert verdict["live"]["complete"] is True, (verdict["live"], sync_lines(run.outputs))
     assert same_verdict(verdict, expected)
     assert verdict["live"]["collision_number"] == 1
+    heard = [f"first result from the {m} monitor" in run.outputs["aggregator"] for m in MODULES]
+    assert all(heard), run.outputs["aggregator"]  # said once each, in the log
     judged = latest_results(run.results)
     assert {stamp for _, stamp in judged} == set(log.unique_frames)
     for frame in offline.frames:

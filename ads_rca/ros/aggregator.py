@@ -137,6 +137,9 @@ class Aggregator(Node):
             path.parent.mkdir(parents=True, exist_ok=True)
             self._metrics_log = path.open("w", encoding="utf-8")
         self.heard: dict[Module, float] = {}
+        #: Monitors a result was received from: the first one of each is said, so a log
+        #: shows whether the aggregator hears the graph at all.
+        self.results_from: set[Module] = set()
         self.run_started: float | None = None
         for module in MODULES:
             self.create_subscription(
@@ -283,6 +286,9 @@ class Aggregator(Node):
         if not self.runs.accept(document):
             return  # a monitor judging another run
         self.heard[result.module] = now
+        if result.module not in self.results_from:
+            self.results_from.add(result.module)
+            self.get_logger().info(f"first result from the {result.module} monitor")
         if result.tpf_ms > 0:
             self._stack_mode()
         self.core.add_result(result, now)

@@ -75,12 +75,13 @@ def iter_indented(document: Any, batch_items: int = BATCH_ITEMS) -> Iterator[str
 def _in_batches(value: list[Any] | dict[Any, Any], batch_items: int) -> Iterator[str]:
     """A long list or object one level down, ``batch_items`` items at a time."""
     items: list[Any] = value if isinstance(value, list) else list(value.items())
-    yield "[" if isinstance(value, list) else "{"
+    as_list = items is value
+    yield "[" if as_list else "{"
     for start in range(0, len(items), batch_items):
         part = items[start : start + batch_items]
-        body = _text(part if isinstance(value, list) else dict(part))[2:-2]  # no [ ] lines
+        body = _text(part if as_list else dict(part))[2:-2]  # without the bracket lines
         yield ("," if start else "") + "\n " + body.replace("\n", "\n ")
-    yield "\n ]" if isinstance(value, list) else "\n }"
+    yield "\n ]" if as_list else "\n }"
 
 
 def _text(value: Any) -> str:

@@ -19,7 +19,6 @@ import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import replace
 from pathlib import Path
 
 
@@ -27,17 +26,13 @@ def one_run(
     frames: int, actors: int, semantics: str, folder: Path, workers: int
 ) -> dict[str, float]:
     """Synthesise, write, load and diagnose one log (in this process)."""
+    from bench_memory import write_frames_log
+
     from ads_rca.engine import diagnose
     from ads_rca.io.json_log import read_run_log
-    from ads_rca.io.json_writer import write_run_log
     from ads_rca.params import make_params
-    from ads_rca.synth import synthesise
 
-    log = synthesise("cruise", "none", seed=1, frames=frames, actors=actors)
-    last = log.frames[-1] // log.tpf
-    log.metadata = replace(log.metadata, collision_frame=last, total_frames=last)
-    write_run_log(log, folder)
-    del log
+    write_frames_log(folder, frames, actors)
     start = time.perf_counter()
     loaded = read_run_log(folder)
     load_s = time.perf_counter() - start

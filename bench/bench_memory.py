@@ -29,15 +29,22 @@ from pathlib import Path
 import numpy as np
 
 from ads_rca.io.json_writer import write_run_log
-from ads_rca.model import Boxes
+from ads_rca.model import Boxes, RunLog
 from ads_rca.synth import synthesise
+
+
+def cruise_crashing_at_the_end(frames: int, actors: int) -> RunLog:
+    """A cruise log whose last frame is declared the collision frame: the corrected rules
+    then judge every frame against a partner (the expensive path)."""
+    log = synthesise("cruise", "none", seed=1, frames=frames, actors=actors)
+    last = log.frames[-1] // log.tpf
+    log.metadata = replace(log.metadata, collision_frame=last, total_frames=last)
+    return log
 
 
 def write_boxes_log(folder: Path, boxes: int) -> None:
     """20 cruise frames; the middle one holds ``boxes`` detections and gt boxes."""
-    log = synthesise("cruise", "none", seed=1, frames=20, actors=5)
-    last = log.frames[-1] // log.tpf
-    log.metadata = replace(log.metadata, collision_frame=last, total_frames=last)
+    log = cruise_crashing_at_the_end(20, 5)
     rng = np.random.default_rng(0)
     xy = rng.uniform(0, 1920, (boxes, 2))
     gt = np.concatenate([xy, xy + rng.uniform(5, 80, (boxes, 2))], axis=1)
@@ -52,10 +59,7 @@ def write_boxes_log(folder: Path, boxes: int) -> None:
 
 def write_frames_log(folder: Path, frames: int, actors: int) -> None:
     """A cruise log of ``frames`` frames whose last frame is declared the collision."""
-    log = synthesise("cruise", "none", seed=1, frames=frames, actors=actors)
-    last = log.frames[-1] // log.tpf
-    log.metadata = replace(log.metadata, collision_frame=last, total_frames=last)
-    write_run_log(log, folder)
+    write_run_log(cruise_crashing_at_the_end(frames, actors), folder)
 
 
 def size_on_disk(folder: Path) -> int:

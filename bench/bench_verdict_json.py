@@ -18,14 +18,14 @@ import tempfile
 import time
 import tracemalloc
 from collections.abc import Callable
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
+
+from bench_memory import cruise_crashing_at_the_end
 
 from ads_rca.engine import diagnose
 from ads_rca.indented_json import write_indented
 from ads_rca.params import make_params
-from ads_rca.synth import synthesise
 
 WRITERS: dict[str, Callable[[Any, Any], None]] = {
     "json.dump (before)": lambda document, out: json.dump(document, out, indent=1),
@@ -34,9 +34,7 @@ WRITERS: dict[str, Callable[[Any, Any], None]] = {
 
 
 def verdict_document(frames: int, actors: int) -> dict[str, Any]:
-    log = synthesise("cruise", "none", seed=1, frames=frames, actors=actors)
-    last = log.frames[-1] // log.tpf
-    log.metadata = replace(log.metadata, collision_frame=last, total_frames=last)
+    log = cruise_crashing_at_the_end(frames, actors)
     return diagnose(log, make_params("corrected"), workers=1).to_json()
 
 

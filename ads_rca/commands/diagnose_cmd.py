@@ -183,7 +183,7 @@ def write_json(document: dict[str, Any], path: Path) -> None:
     """The verdict JSON (the contract; NaN and infinity are already null).
 
     The same bytes as ``json.dumps(document, indent=1)`` plus a newline, written by
-    :mod:`ads_rca.indented_json` (about 5 times faster) piece by piece.
+    :mod:`ads_rca.indented_json` (1.6 to 4.5 times faster) piece by piece.
     The path was checked before the work started; a write that fails all the same (disk
     full, a file that refuses data) is still one line, not a traceback.
     """

@@ -3,8 +3,9 @@
 Reading a long log and judging its frames are CPU-bound pure Python + numpy (threads do not
 help); a forked worker inherits everything the parent has loaded without copying it, so the
 work only needs the item it is given. Both the reader (files) and the engine (frames) map a
-module-level function over contiguous chunks with :func:`map_forked` and handle the
-results in chunk order, so the outcome is the single-process one; the callers keep that
+module-level function over chunks with :func:`map_forked` and handle the results in chunk
+order (the reader puts its problems back in file order), so the outcome is the
+single-process one; the callers keep that
 single-process path for short inputs and where forking is not available.
 """
 

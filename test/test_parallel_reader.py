@@ -1,7 +1,8 @@
 """Reading a log in forked workers gives exactly the log and problems of reading it here.
 
-``read_run_log(..., workers=N)`` parses contiguous chunks of the files in worker processes
-and rebuilds their records from packed arrays (``io/packing.py``). On hostile folders
+``read_run_log(..., workers=N)`` parses interleaved chunks of the files (every n-th file) in
+worker processes, rebuilds their records from packed arrays (``io/packing.py``) and puts the
+problems back in file order. On hostile folders
 (duplicated timestamps, corrupt and empty files, strings where numbers belong, a missing
 folder, a FIFO, files without a timestamp, records dropped, nesting too deep, a file over the
 size cap) the result must be the single-process one: the same records, arrays of the same

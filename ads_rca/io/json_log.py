@@ -25,6 +25,7 @@ import json
 import math
 import os
 from collections.abc import Callable, Iterable, Sequence
+from operator import itemgetter
 from pathlib import Path
 from typing import Any
 
@@ -174,8 +175,8 @@ def read_run_log(
     ``max_file_mb``: files larger than this are reported and skipped, not read.
     ``progress`` sees each file as it is read (most of the loading time).
     ``workers`` > 1 reads and parses the files of a long log in that many forked processes
-    (CPU-bound: threads do not help): each parses a contiguous chunk of the files in the
-    order this process would, and sends its records back packed (:mod:`.packing`), so the
+    (CPU-bound: threads do not help): each parses chunks of every n-th file and sends
+    their records back packed (:mod:`.packing`) with their problems' file positions, so the
     log and its problems are the same as read here.
     """
     root = Path(path)
@@ -259,64 +260,81 @@ def _list_folder(root: Path, folder: str, problems: ProblemLog) -> list[tuple[in
 
 
 def _parse_files(
-    root: str, jobs: Sequence[Job], limit: int, progress: Progress | None = None
+    root: str,
+    jobs: Sequence[Job],
+    limit: int,
+    progress: Progress | None = None,
+    owners: list[int] | None = None,
 ) -> tuple[list[tuple[str, int, Record]], list[Problem]]:
     """Read (at most ``limit`` bytes a file), decode and parse files in ``jobs`` order; the
-    problems found on the way."""
+    problems found on the way. ``owners``, when given, gets each problem's job position."""
     problems = ProblemLog()
     parsed: list[tuple[str, int, Record]] = []
     base = os.path.join(root, "")  # paths as text: no Path object a file
-    for folder, ts, name in tracked(jobs, progress):
+    for position, (folder, ts, name) in enumerate(tracked(jobs, progress)):
+        before = len(problems)
         file = f"{folder}/{name}"
         document = _decode(read_regular(base + file, limit), file, problems, ts)
         if document is _UNUSABLE:
-            continue
-        if kept_too_deep(folder, document):
+            pass
+        elif kept_too_deep(folder, document):
             problems.add(file, "", _too_deep_kept(), SKIPPED_FILE, timestamp_ms=ts)
-            continue
-        record = PARSERS[folder](document, file, problems, ts)
-        if record is not None:
-            parsed.append((folder, ts, record))
+        else:
+            record = PARSERS[folder](document, file, problems, ts)
+            if record is not None:
+                parsed.append((folder, ts, record))
+        if owners is not None:
+            owners.extend([position] * (len(problems) - before))
     return parsed, list(problems)
 
 
-# The forked readers' work (set just before forking, cleared after): root, jobs, limit.
-_SHARED_JOBS: tuple[str, list[Job], int] | None = None
+# The forked readers' work (set just before forking, cleared after): root, jobs, limit and
+# the number of chunks.
+_SHARED_JOBS: tuple[str, list[Job], int, int] | None = None
 
 
 def _parse_in_workers(
     root: str, jobs: list[Job], limit: int, progress: Progress | None, workers: int
 ) -> tuple[list[tuple[str, int, Record]], list[Problem]]:
-    """:func:`_parse_files` of contiguous chunks of ``jobs`` in forked workers, joined in
-    order (the same records and problems, in the same order)."""
+    """:func:`_parse_files` in forked workers, the same records and problems in the same
+    order as read here.
+
+    Chunk ``c`` of ``n`` takes jobs ``c, c + n, c + 2n...``, so every chunk holds the same mix
+    of folders and costs the same: a predictions file costs ten times a pose file, and
+    contiguous chunks of the folder-by-folder jobs left one worker parsing predictions
+    alone while the other waited. The problems come back with their job's position and are
+    put back in job order (stably: one file's problems keep theirs).
+    """
     global _SHARED_JOBS  # noqa: PLW0603 - inherited by the forked workers, never written there
-    size = -(-len(jobs) // (workers * CHUNKS_PER_WORKER))
-    chunks = [(start, min(start + size, len(jobs))) for start in range(0, len(jobs), size)]
+    count = min(len(jobs), workers * CHUNKS_PER_WORKER)
     advance = advancer(jobs, progress)
     parsed: list[tuple[str, int, Record]] = []
-    problems: list[Problem] = []
-    _SHARED_JOBS = (root, jobs, limit)
+    found: list[tuple[int, Problem]] = []
+    _SHARED_JOBS = (root, jobs, limit, count)
     try:
-        for (start, stop), (packed, found) in zip(
-            chunks, map_forked(_parse_chunk, chunks, workers), strict=True
+        for chunk, (packed, problems, owners) in enumerate(
+            map_forked(_parse_chunk, range(count), workers)
         ):
             parsed.extend(unpack(packed))
-            problems.extend(found)
-            advance(stop - start)
+            found.extend(zip([chunk + count * i for i in owners], problems, strict=True))
+            advance(len(range(chunk, len(jobs), count)))
     finally:
         _SHARED_JOBS = None
-    return parsed, problems
+    found.sort(key=itemgetter(0))
+    return parsed, [problem for _, problem in found]
 
 
-def _parse_chunk(chunk: tuple[int, int]) -> tuple[Packed, list[Problem]]:
-    """In a worker: parse one chunk of the shared jobs; its records packed, its problems."""
+def _parse_chunk(chunk: int) -> tuple[Packed, list[Problem], list[int]]:
+    """In a worker: parse every ``count``-th shared job from ``chunk`` on; its records
+    packed, its problems and each problem's position in the chunk."""
     assert _SHARED_JOBS is not None
-    root, jobs, limit = _SHARED_JOBS
-    parsed, problems = _parse_files(root, jobs[chunk[0] : chunk[1]], limit)
+    root, jobs, limit, count = _SHARED_JOBS
+    owners: list[int] = []
+    parsed, problems = _parse_files(root, jobs[chunk::count], limit, owners=owners)
     packer = Packer()
     for folder, ts, record in parsed:
         packer.add(folder, ts, record)
-    return packer.packed(), problems
+    return packer.packed(), problems, owners
 
 
 _UNUSABLE = object()

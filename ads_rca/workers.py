@@ -35,19 +35,40 @@ def map_forked(function: Callable[[_T], _R], items: Sequence[_T], workers: int) 
 
     ``function`` must be a module-level function (the workers find it by name); what it
     needs beyond its item it reads from module globals set before this is called. The
-    collector's objects are frozen meanwhile, so the workers' collections do not write to
-    (and copy) every page they inherited.
+    collector's objects are frozen meanwhile (:func:`loaded_objects_frozen`), so the
+    workers' collections do not write to (and copy) every page they inherited.
     """
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
-    gc.freeze()
-    try:
+    with loaded_objects_frozen():
         context = multiprocessing.get_context("fork")
         with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
             yield from pool.map(function, items)
+
+
+#: How many :func:`loaded_objects_frozen` blocks are open (the collector has one frozen set).
+_frozen_depth = 0
+
+
+@contextmanager
+def loaded_objects_frozen() -> Iterator[None]:
+    """Everything allocated so far out of the collector's sight until the outermost such
+    block ends (blocks nest: an inner one freezes what is new and unfreezes nothing).
+
+    A loaded run is millions of objects in no cycle; with them in sight every full
+    collection walks them all, so building a 10,000-frame verdict document took three
+    times as long. Frozen objects are still freed by reference counting.
+    """
+    global _frozen_depth  # noqa: PLW0603 - one frozen set per process, as the collector has
+    gc.freeze()
+    _frozen_depth += 1
+    try:
+        yield
     finally:
-        gc.unfreeze()
+        _frozen_depth -= 1
+        if _frozen_depth == 0:
+            gc.unfreeze()
 
 
 @contextmanager

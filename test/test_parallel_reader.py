@@ -166,3 +166,30 @@ def test_the_collector_is_paused_while_reading_and_restored_after(tmp_path: Path
             gc.enable()
     log = write_run_log(synthesise("cruise", "none", seed=0, frames=30), tmp_path / "log")
     assert read_run_log(log).frames and gc.isenabled()  # the reader gives it back
+
+
+def _square(n: int) -> int:
+    return n * n
+
+
+def test_frozen_blocks_nest_and_only_the_outermost_unfreezes() -> None:
+    """The diagnose command freezes the loaded run and the forked map freezes again inside:
+    the inner block's end must not hand the run back to the collector."""
+    import gc
+
+    from ads_rca.workers import loaded_objects_frozen, map_forked
+
+    assert gc.get_freeze_count() == 0
+    loaded = [{"record": i} for i in range(1000)]
+    with loaded_objects_frozen():
+        frozen = gc.get_freeze_count()
+        assert frozen >= len(loaded)
+        with loaded_objects_frozen():
+            pass
+        assert gc.get_freeze_count() >= frozen
+        assert list(map_forked(_square, range(5), 2)) == [0, 1, 4, 9, 16]
+        assert gc.get_freeze_count() >= frozen
+        with pytest.raises(RuntimeError), loaded_objects_frozen():
+            raise RuntimeError
+        assert gc.get_freeze_count() >= frozen
+    assert gc.get_freeze_count() == 0

@@ -170,6 +170,7 @@ def run_job(job: Job, worker: str = "") -> Outcome:
     from ads_rca.engine import diagnose
     from ads_rca.io import open_run
     from ads_rca.oracles.semantics import semantics_for
+    from ads_rca.workers import loaded_objects_frozen
 
     started = time.monotonic()
     known: dict[str, Any] = {"worker": worker, **_format(job)}
@@ -178,8 +179,9 @@ def run_job(job: Job, worker: str = "") -> Outcome:
         known.update(_labels(log.metadata.raw))
         if not semantics_for(job.params).analysed_frames(log):
             raise AdsRcaError(f"{job.path}: no frame to analyse (no readable actors/ file)")
-        document = diagnose(log, job.params, None, workers=1).to_json()
-        text = dumps_indented(document) + "\n"
+        with loaded_objects_frozen():  # the loaded run, out of the collector's sight
+            document = diagnose(log, job.params, None, workers=1).to_json()
+            text = dumps_indented(document) + "\n"
     except AdsRcaError as error:
         known["diagnose_seconds"] = time.monotonic() - started
         return Outcome(error_row(job.run_id, job.path, str(error), **known), None)

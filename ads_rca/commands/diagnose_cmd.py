@@ -22,6 +22,7 @@ from ads_rca.engine import Diagnosis, diagnose
 from ads_rca.errors import ConfigError, InputError
 from ads_rca.indented_json import write_indented
 from ads_rca.io import open_run
+from ads_rca.model import RunLog
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import (
     DEFAULT_SEMANTICS,
@@ -34,6 +35,7 @@ from ads_rca.params import (
 from ads_rca.params import parse_assignments as parse_p
 from ads_rca.summary import summary_text
 from ads_rca.text import printable
+from ads_rca.workers import loaded_objects_frozen
 
 #: ``--semantics both``: judge in every mode and say why the verdicts differ.
 BOTH = "both"
@@ -147,27 +149,36 @@ def run(args: argparse.Namespace) -> int:
         workers=workers,
     )
     documents: list[dict[str, Any]] = []
-    for params in all_params:
-        if not semantics_for(params).analysed_frames(log):
-            raise InputError(f"{args.path}: no frame to analyse (no readable actors/ file)")
-        result = diagnose(log, params, terminal_bar("judging"), workers=workers)
-        document = result.to_json()
-        # The files first: they never depend on stdout (``| head`` may close it early).
-        if args.json_out:
-            write_json(document, Path(args.json_out))
-        if args.report:
-            _write_report(result, Path(args.report))
-        if documents:
-            print()
-        print(summary_text(document, args.max_problems))
-        if args.json_out:
-            print(printable(f"verdict JSON: {args.json_out}"))
-        if args.report:
-            print(printable(f"HTML report: {args.report}"))
-        documents.append(document)
+    with loaded_objects_frozen():  # the loaded run stays until the end, in no cycle
+        for params in all_params:
+            documents.append(_judge_and_write(log, params, args, workers, bool(documents)))
     if both:
         print(printable(why_modes_differ(documents)))
     return 0
+
+
+def _judge_and_write(
+    log: RunLog, params: Params, args: argparse.Namespace, workers: int, after: bool
+) -> dict[str, Any]:
+    """Judge ``log`` in one mode, write its files, print its summary (``after`` another
+    one: a blank line first); its verdict JSON."""
+    if not semantics_for(params).analysed_frames(log):
+        raise InputError(f"{args.path}: no frame to analyse (no readable actors/ file)")
+    result = diagnose(log, params, terminal_bar("judging"), workers=workers)
+    document = result.to_json()
+    # The files first: they never depend on stdout (``| head`` may close it early).
+    if args.json_out:
+        write_json(document, Path(args.json_out))
+    if args.report:
+        _write_report(result, Path(args.report))
+    if after:
+        print()
+    print(summary_text(document, args.max_problems))
+    if args.json_out:
+        print(printable(f"verdict JSON: {args.json_out}"))
+    if args.report:
+        print(printable(f"HTML report: {args.report}"))
+    return document
 
 
 def _write_report(result: Diagnosis, path: Path) -> None:

@@ -6,6 +6,8 @@ real CLI in a subprocess, with a timeout (a hang fails the test) and an address-
 - JSON nested deeper than the reader's limit (and deeper than the parsers' own).
 - Output paths that are directories or cannot be written: refused before the work starts.
 - ``metadata.json`` numbers given as strings, a collision frame past the last frame.
+- Integers past the float range in every kind of file; file names with timestamps past
+  2**53 ms.
 - File names, folder names and paths with newlines and terminal escape sequences.
 """
 
@@ -341,6 +343,63 @@ def test_a_collision_frame_past_the_last_frame_is_reported_against_metadata(
         if p["file"] == "metadata.json" and p["field"] == "collision_frame"
     ]
     assert len(past) == 1 and "is past the last actors file" in past[0]["issue"], past
+
+
+#: A JSON integer past the float range (JSON integers have no size limit; 1e999 reads as inf).
+HUGE = int("9" * 400)
+
+
+@pytest.mark.parametrize("semantics", ["reference", "corrected"])
+def test_integers_past_the_float_range_are_infinite_and_reported(
+    log_dir: Path, tmp_path: Path, semantics: str
+) -> None:
+    """One huge integer in each kind of file: read as infinity (as ``1e999`` would be),
+    reported against its file and field, the rest diagnosed; never an OverflowError."""
+
+    def edit(path: Path, change: Any) -> str:
+        document = json.loads(path.read_text())
+        change(document)
+        path.write_text(json.dumps(document))
+        return f"{path.parent.name}/{path.name}"
+
+    first = lambda d: d[next(iter(d))]  # noqa: E731 - the first record of an object file
+    edited = {
+        edit(_one(log_dir / "pose", 3), lambda d: d.update(x=HUGE)): "x",
+        edit(_one(log_dir / "actors", 4), lambda d: first(d)["location"].update(y=-HUGE)): "y",
+        edit(_one(log_dir / "waypoint", 5), lambda d: first(d).update(speed=HUGE)): "speed",
+        edit(_one(log_dir / "predictions", 6), lambda d: first(first(d)).update(x=HUGE)): "x",
+    }
+    metadata = _metadata(log_dir)
+    metadata["collision_frame"] = HUGE
+    metadata["ego_config"]["camera"]["camera_loc"] = [HUGE, 0, 1]
+    (log_dir / "metadata.json").write_text(json.dumps(metadata))
+    document = _verdict(log_dir, tmp_path / "v.json", semantics)
+    problems = document["input_problems"]
+    for file, field in edited.items():
+        found = [p for p in problems if p["file"] == file and p["field"].endswith(field)]
+        assert found and "9999999" in found[0]["issue"], (file, problems)
+        assert "not finite" in found[0]["issue"] or "not a number" in found[0]["issue"]
+    by_field = {p["field"]: p for p in problems if p["file"] == "metadata.json"}
+    assert by_field["collision_frame"]["issue"].endswith("is not an integer")
+    assert "is not [x, y, z]" in by_field["ego_config.camera.camera_loc"]["issue"]
+    assert all(len(p["issue"]) < 200 for p in problems)  # the value is shown cut short
+
+
+def test_a_timestamp_past_2_to_the_53_ms_is_ignored_and_reported(log_dir: Path) -> None:
+    """Int64 arrays of timestamps never see it; the folder's other files are read."""
+    names = []
+    for folder in ("actors", "pose"):
+        huge = log_dir / folder / f"{folder}-{'9' * 30}.json"
+        shutil.copy(_one(log_dir / folder, 0), huge)
+        names.append(f"{folder}/{huge.name}")
+    done = run_cli("diagnose", str(log_dir))
+    assert_clean(done)
+    assert "verdict: planning" in done.stdout
+    done = run_cli("inspect", str(log_dir), "--json")
+    assert_clean(done)
+    issues = {p["file"]: p["issue"] for p in problems_of(done)}
+    for name in names:
+        assert issues[name] == "timestamp past the largest read (9007199254740992 ms)"
 
 
 # --- 7. control characters never reach the terminal raw ---------------------------------

@@ -36,6 +36,7 @@ from ads_rca.io.errors import InvalidJson
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB, Unreadable, max_bytes, read_regular
 from ads_rca.io.packing import Packed, Packer, unpack
 from ads_rca.io.records import (
+    as_float,
     parse_actors,
     parse_boxes,
     parse_control,
@@ -104,6 +105,11 @@ def timestamp_of(file_name: str) -> int | None:
     if not text.isascii() or not text.isdigit():
         return None
     return int(text)
+
+
+#: The largest timestamp a file name may give (2**53 ms, some 285,000 years): every one
+#: below is exact as a float and fits the int64 arrays the checks and players use.
+MAX_TIMESTAMP_MS = 2**53
 
 
 def is_log_file(file_name: str) -> bool:
@@ -255,6 +261,14 @@ def _list_folder(root: Path, folder: str, problems: ProblemLog) -> list[tuple[in
                 f"{folder}/{name}", "file name", "no timestamp after the last '-'", IGNORED
             )
             continue
+        if ts > MAX_TIMESTAMP_MS:
+            problems.add(
+                f"{folder}/{name}",
+                "file name",
+                f"timestamp past the largest read ({MAX_TIMESTAMP_MS} ms)",
+                IGNORED,
+            )
+            continue
         listing.append((ts, name))
     return listing
 
@@ -392,7 +406,7 @@ def read_metadata(
             return default
         shown = show_value(value)
         try:
-            number = float(value)
+            number = as_float(value)
         except (TypeError, ValueError):
             problems.add(file, name, f"{shown} is not a number", f"{USED_DEFAULT}: {default:g}")
             return default
@@ -437,14 +451,17 @@ def _camera_loc(
     for key in ("ego_config", "camera", "camera_loc"):
         value = value.get(key) if isinstance(value, dict) else None
     try:
-        x, y, z = (float(v) for v in value)
+        x, y, z = (as_float(v) for v in value)
         if all(math.isfinite(v) for v in (x, y, z)):
             return (x, y, z)
     except (TypeError, ValueError):
         pass
     if document:
         problems.add(
-            file, name, f"{value!r} is not [x, y, z] in metres", f"{USED_DEFAULT}: [0, 0, 0]"
+            file,
+            name,
+            f"{show_value(value)} is not [x, y, z] in metres",
+            f"{USED_DEFAULT}: [0, 0, 0]",
         )
     return (0.0, 0.0, 0.0)
 

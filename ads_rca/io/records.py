@@ -73,7 +73,7 @@ class _Reader:
             self.report(field, "missing", action, "warning")
             return default
         try:
-            number = float(value)
+            number = as_float(value)
         except (TypeError, ValueError):
             self.report(field, f"{show_value(value)} is not a number", "read as NaN")
             return math.nan
@@ -314,7 +314,7 @@ def _strict_number(container: Any, key: str, where: str, unknown: bool = False) 
         raise StrictFileError(field, "missing" if key not in container else "null is not a number")
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise StrictFileError(field, f"{show_value(value)} is not a number")
-    number = float(value)
+    number = as_float(value)
     if not math.isfinite(number):
         raise StrictFileError(field, f"{show_value(value)} is not a finite number")
     return number
@@ -398,6 +398,15 @@ def _clean(array: np.ndarray, width: int) -> bool:
     if array.dtype.kind not in _NUMERIC_KINDS or array.size % width:
         return False
     return bool(np.isfinite(array).all())
+
+
+def as_float(value: Any) -> float:
+    """``float(value)``, but an integer past the float range is infinite (as ``1e999`` in
+    JSON reads), not an OverflowError: JSON integers have no size limit."""
+    try:
+        return float(value)
+    except OverflowError:
+        return math.inf if value > 0 else -math.inf
 
 
 def _box_id(value: object) -> str:

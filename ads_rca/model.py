@@ -421,8 +421,11 @@ class RunLog:
         """
         extents: dict[str, FloatArray] = {}
         known = self.first_extents
+        complete: set[int] = set()  # ids tuples (by identity) whose every id has one
         for ts in sorted(self.actors):
             frame = self.actors[ts]
+            if id(frame.ids) in complete:
+                continue
             for row, actor_id in enumerate(frame.ids):
                 if actor_id in extents:
                     continue
@@ -430,6 +433,8 @@ class RunLog:
                     extents[actor_id] = known[actor_id]
                 elif not np.isnan(frame.extent[row]).any():
                     extents[actor_id] = frame.extent[row]
+            if all(actor_id in extents for actor_id in frame.ids):
+                complete.add(id(frame.ids))  # later frames listing them add nothing
         return extents
 
     def file_of(self, folder: str, timestamp_ms: int) -> str:

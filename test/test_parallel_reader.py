@@ -193,3 +193,44 @@ def test_frozen_blocks_nest_and_only_the_outermost_unfreezes() -> None:
             raise RuntimeError
         assert gc.get_freeze_count() >= frozen
     assert gc.get_freeze_count() == 0
+
+
+def test_tables_of_frames_sharing_one_ids_tuple_are_the_per_frame_ones(
+    crash_log: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The workers' packer shares one ids tuple among the frames listing the same actors,
+    and the reference tables and first extents are built once per tuple. Read here (a
+    tuple a frame), with every equal tuple shared, and in workers, they must be equal.
+    Actors leave and come back, no extent is known for the first five frames and extents
+    change from frame to frame, so the frame an extent comes from shows."""
+    from ads_rca.oracles.reference.oracles import _build_tables
+
+    root = Path(shutil.copytree(crash_log, tmp_path / "log"))
+    files = sorted((root / "actors").iterdir(), key=lambda f: int(f.stem.rpartition("-")[2]))
+    leaving = next(iter(json.loads(files[0].read_text())))
+    for index, file in enumerate(files):
+        document = json.loads(file.read_text())
+        if 10 <= index < 20:
+            document.pop(leaving, None)  # gone for ten frames, then back
+        for actor in document.values():
+            actor["extent"]["x"] = "unknown" if index < 5 else 1.0 + index / 100
+        file.write_text(json.dumps(document))
+    alone, shared = _read_both(root, monkeypatch)
+    regrouped = read_run_log(root)
+    tuples: dict[tuple[str, ...], tuple[str, ...]] = {}
+    for ts, record in regrouped.actors.items():
+        regrouped.actors[ts] = dataclasses.replace(
+            record, ids=tuples.setdefault(record.ids, record.ids)
+        )
+    assert 2 <= len(tuples) < len(regrouped.actors) / 10
+    for log in (shared, regrouped):
+        assert list(alone.actor_extents) == list(log.actor_extents)
+        for a, b in zip(alone.actor_extents.values(), log.actor_extents.values(), strict=True):
+            assert np.array_equal(a, b)
+        expected, built = _build_tables(alone), _build_tables(log)
+        for field in dataclasses.fields(expected):
+            a, b = getattr(expected, field.name), getattr(built, field.name)
+            if isinstance(a, np.ndarray):
+                assert a.dtype == b.dtype and np.array_equal(a, b, equal_nan=True), field.name
+            else:
+                assert a == b, field.name

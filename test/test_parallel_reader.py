@@ -216,6 +216,8 @@ def test_tables_of_frames_sharing_one_ids_tuple_are_the_per_frame_ones(
             actor["extent"]["x"] = "unknown" if index < 5 else 1.0 + index / 100
         file.write_text(json.dumps(document))
     alone, shared = _read_both(root, monkeypatch)
+    assert list(shared.problems) == list(alone.problems)  # "missing where it first appears"
+    assert sum("first appears" in p.issue for p in alone.problems) == len(alone.actor_extents)
     regrouped = read_run_log(root)
     tuples: dict[tuple[str, ...], tuple[str, ...]] = {}
     for ts, record in regrouped.actors.items():

@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 from ads_rca.errors import InputError
+from ads_rca.io import json_log
 from ads_rca.io.json_log import read_run_log, timestamp_of
 from ads_rca.io.json_writer import write_run_log
 from ads_rca.model import FOLDERS
@@ -257,6 +258,38 @@ def test_id_that_appears_nowhere_else_is_reported(log_dir: Path) -> None:
         problem.file == "bboxes_gt/bboxes_gt-100.json" and "'404' is not an actor" in problem.issue
     )
     assert log.bboxes_gt[100].ids == ("404",)
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_unknown_ids_are_counted_frame_by_frame_when_frames_repeat_them(
+    tmp_path: Path, workers: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The check remembers the unknown ids of each (box ids, actors) pair, as most frames
+    repeat one: a frame with the same boxes but other actors is judged on its own."""
+    log_dir = make_log(tmp_path / "log", frames=8)
+    for f in range(1, 9):
+        box = {"bounding_box": [[1, 2], [3, 4]]}
+        _write(
+            log_dir / f"bboxes_gt/bboxes_gt-{f * TPF}.json",
+            [{**box, "id": "ghost"}, {**box, "id": 20}, {**box, "id": "ghost"}],
+        )
+    actors = json.loads((log_dir / "actors/actors-150.json").read_text())
+    for ts in (150, 300):  # the car '20' is not in these two frames
+        _write(log_dir / f"actors/actors-{ts}.json", {"10": actors["10"]})
+    monkeypatch.setattr(json_log, "PARALLEL_MIN_FILES", 1)
+    issues = [
+        (p.file, p.issue)
+        for p in read_run_log(log_dir, workers=workers).problems
+        if "is not an actor" in p.issue
+    ]
+    assert issues == [
+        ("bboxes_gt/bboxes_gt-50.json", "id 'ghost' is not an actor in the same frame (8 frames)"),
+        ("bboxes_gt/bboxes_gt-150.json", "id '20' is not an actor in the same frame (2 frames)"),
+        (
+            "predictions_with_perception/predictions-150.json",
+            "id '20' is not an actor in the same frame (2 frames)",
+        ),
+    ]
 
 
 def test_unknown_ids_are_reported_in_file_order_whatever_the_hash_seed(log_dir: Path) -> None:

@@ -117,8 +117,12 @@ def _runs(items: Sequence[int], order: Sequence[int]) -> list[tuple[int, int, in
 
 def _first_extents(log: RunLog) -> None:
     seen: set[str] = set()
+    all_seen: set[int] = set()  # ids tuples (by identity: the reader shares them) all seen
     for ts in sorted(log.actors):
         frame = log.actors[ts]
+        if id(frame.ids) in all_seen:
+            continue
+        all_seen.add(id(frame.ids))  # every id is seen once this frame is done
         for row, actor_id in enumerate(frame.ids):
             if actor_id in seen:
                 continue
@@ -146,15 +150,21 @@ def _unknown_ids(log: RunLog) -> None:
     ):
         unknown: Counter[str] = Counter()
         first_seen: dict[str, int] = {}
+        # The unknown ids of each (ids, actors' ids) pair: most frames repeat a pair.
+        known_pairs: dict[tuple[tuple[str, ...], int], list[str]] = {}
         for ts, ids in records.items():
             actors = log.actors.get(ts)
             if actors is None:
                 continue
-            # In file order (not a set's hash order): the problems' order is part of the output.
-            for actor_id in dict.fromkeys(ids):
-                if actor_id not in actors.index:
-                    unknown[actor_id] += 1
-                    first_seen.setdefault(actor_id, ts)
+            pair = (ids, id(actors.ids))
+            missing = known_pairs.get(pair)
+            if missing is None:
+                # In file order (not a set's hash order): the problems' order is output.
+                missing = [a for a in dict.fromkeys(ids) if a not in actors.index]
+                known_pairs[pair] = missing
+            for actor_id in missing:
+                unknown[actor_id] += 1
+                first_seen.setdefault(actor_id, ts)
         for actor_id, count in unknown.items():
             ts = first_seen[actor_id]
             log.problems.add(

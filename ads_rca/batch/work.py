@@ -119,7 +119,7 @@ def warm_up() -> None:
 
     names = ["ads_rca.engine", "ads_rca.io", "ads_rca.io.json_log", "ads_rca.io.bag_reader"]
     names += ["ads_rca.capabilities"]
-    # The corrected matching imports SciPy's solver on first need (0.4 s): once here.
+    # The corrected matching of crowds imports SciPy's packages on first need (0.4 s).
     names += ["scipy.optimize", "scipy.sparse.csgraph"]
     names += [
         info.name for info in pkgutil.walk_packages(ads_rca.oracles.__path__, "ads_rca.oracles.")

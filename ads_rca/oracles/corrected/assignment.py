@@ -1,18 +1,25 @@
 """The best one-to-one matching of eligible pairs, without SciPy where none compete.
 
 Why: matching detections to ground truth is an assignment problem (Hungarian), solved by
-SciPy's ``linear_sum_assignment``; but importing ``scipy.optimize`` costs about 0.4 s, more
-than judging a long run's perception, and on most frames no two eligible pairs share a row
-or a column. Then every eligible pair is in the optimum (each scores > 0, an ineligible
-pair 0, and none excludes another), so it is the answer: the same rows and columns the
-solver returns. SciPy is imported, once, only for a frame where pairs do compete.
+SciPy's ``linear_sum_assignment``; on most frames no two eligible pairs share a row or a
+column. Then every eligible pair is in the optimum (each scores > 0, an ineligible pair 0,
+and none excludes another), so it is the answer: the same rows and columns the solver
+returns. Where pairs do compete, the solver is loaded once (:func:`solver`).
 """
 
 from __future__ import annotations
 
+import functools
+import importlib.machinery
+import importlib.util
+import os
+from collections.abc import Callable
+
 import numpy as np
 
 from ads_rca.model import FloatArray
+
+Solver = Callable[[FloatArray], tuple[np.ndarray, np.ndarray]]
 
 
 def best_matching(eligible: np.ndarray, score: FloatArray) -> tuple[np.ndarray, np.ndarray]:
@@ -25,8 +32,34 @@ def best_matching(eligible: np.ndarray, score: FloatArray) -> tuple[np.ndarray, 
         and bool((score[rows, cols] > 0).all())
     ):
         return rows, cols
-    from scipy.optimize import linear_sum_assignment
-
-    rows, cols = linear_sum_assignment(np.where(eligible, -score, 0.0))
+    rows, cols = solver()(np.where(eligible, -score, 0.0))
     keep = eligible[rows, cols]
     return rows[keep], cols[keep]
+
+
+@functools.cache
+def solver() -> Solver:
+    """SciPy's ``linear_sum_assignment``, loaded alone.
+
+    Why: ``import scipy.optimize`` imports the whole package (about 0.3 s, paid by every
+    worker judging a long run) for this one function, which SciPy builds as an extension
+    module of its own (``scipy/optimize/_lsap``): that module is loaded from where SciPy
+    is installed, without the package around it. The same C function, so the same
+    matchings. Where SciPy is laid out otherwise, the public import.
+    """
+    found = importlib.util.find_spec("scipy")
+    folder = os.path.join(os.path.dirname(found.origin or ""), "optimize") if found else ""
+    for suffix in importlib.machinery.EXTENSION_SUFFIXES:
+        path = os.path.join(folder, "_lsap" + suffix)
+        if folder and os.path.isfile(path):
+            loader = importlib.machinery.ExtensionFileLoader("scipy.optimize._lsap", path)
+            spec = importlib.util.spec_from_file_location(loader.name, path, loader=loader)
+            if spec is not None:
+                module = importlib.util.module_from_spec(spec)
+                loader.exec_module(module)
+                function: Solver = module.linear_sum_assignment
+                return function
+    from scipy.optimize import linear_sum_assignment
+
+    public: Solver = linear_sum_assignment
+    return public

@@ -404,6 +404,29 @@ def test_a_timestamp_past_2_to_the_53_ms_is_ignored_and_reported(log_dir: Path) 
         assert issues[name] == "timestamp past the largest read (9007199254740992 ms)"
 
 
+@pytest.mark.parametrize("semantics", ["reference", "corrected"])
+def test_a_frame_period_past_2_to_the_53_ms_is_reported_and_inferred(
+    log_dir: Path, tmp_path: Path, semantics: str
+) -> None:
+    """``timesteps_per_frame`` of 10**23 overflowed the int64 arrays of the frame checks;
+    it is reported and the period inferred from the file names, as for a missing one."""
+    before = _verdict(log_dir, tmp_path / "before.json", semantics)
+    metadata = _metadata(log_dir)
+    metadata["timesteps_per_frame"] = 10**23
+    (log_dir / "metadata.json").write_text(json.dumps(metadata))
+    after = _verdict(log_dir, tmp_path / "after.json", semantics)
+    [period] = [p for p in after["input_problems"] if p["field"] == "timesteps_per_frame"]
+    assert period["issue"].endswith("is past the largest read (9007199254740992)"), period
+    assert period["action"].startswith("default used")
+    assert after["primary_root_cause"] == before["primary_root_cause"]
+    metadata["timesteps_per_frame"] = 50
+    metadata["total_frames"] = metadata["collision_frame"] = 10**300  # numbers, used
+    (log_dir / "metadata.json").write_text(json.dumps(metadata))
+    huge = _verdict(log_dir, tmp_path / "huge.json", semantics)
+    assert huge["collision_frame"] == int(float(10**300))  # read as a float, as every number
+    assert any("is past the last actors file" in p["issue"] for p in huge["input_problems"])
+
+
 # --- 7. control characters never reach the terminal raw ---------------------------------
 
 

@@ -425,8 +425,9 @@ def read_metadata(
             "timesteps_per_frame", document.get("timesteps_per_frame"), _infer_tpf(timestamps), True
         )
     )
-    if tpf <= 0:
-        problems.add(file, "timesteps_per_frame", f"{tpf} is not positive", USED_DEFAULT)
+    if tpf <= 0 or tpf > MAX_TIMESTAMP_MS:
+        issue = "is not positive" if tpf <= 0 else f"is past the largest read ({MAX_TIMESTAMP_MS})"
+        problems.add(file, "timesteps_per_frame", f"{tpf} {issue}", USED_DEFAULT)
         tpf = _infer_tpf(timestamps)
     camera_loc = _camera_loc(document, file, problems)
     collision = int(field("collision_frame", document.get("collision_frame"), -1, True))

@@ -177,7 +177,7 @@ class Track:
     @cached_property
     def steps(self) -> npt.NDArray[np.int64]:
         """Integer value of each key; -1 where a key is not an integer."""
-        return np.array([_int_or(k, -1) for k in self.keys], dtype=np.int64)
+        return np.array([step_value(k) for k in self.keys], dtype=np.int64)
 
     def offset(self, key: str) -> FloatArray | None:
         """Offset for a key string (first occurrence), or None."""
@@ -210,7 +210,7 @@ class Plan:
     @cached_property
     def steps(self) -> npt.NDArray[np.int64]:
         """Integer value of each key; -1 where a key is not an integer."""
-        return np.array([_int_or(k, -1) for k in self.keys], dtype=np.int64)
+        return np.array([step_value(k) for k in self.keys], dtype=np.int64)
 
     def point(self, key: str) -> FloatArray | None:
         row = self.index.get(key)
@@ -450,8 +450,14 @@ class RunLog:
         return records
 
 
-def _int_or(text: str, default: int) -> int:
+#: Integer step keys past this are no step (they would not fit the int64 step arrays).
+_MAX_STEP = 2**62
+
+
+def step_value(key: str) -> int:
+    """The integer a step key spells, -1 where it is none (or too large for int64)."""
     try:
-        return int(text)
+        value = int(key)
     except ValueError:
-        return default
+        return -1
+    return value if -_MAX_STEP <= value <= _MAX_STEP else -1

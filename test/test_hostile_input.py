@@ -427,6 +427,26 @@ def test_a_frame_period_past_2_to_the_53_ms_is_reported_and_inferred(
     assert any("is past the last actors file" in p["issue"] for p in huge["input_problems"])
 
 
+@pytest.mark.parametrize("semantics", ["reference", "corrected"])
+def test_step_keys_past_int64_are_no_step(log_dir: Path, tmp_path: Path, semantics: str) -> None:
+    """A prediction step or plan point keyed by a 23-digit integer: no step (as a key that
+    is not an integer), never an OverflowError inside a check."""
+    before = _verdict(log_dir, tmp_path / "before.json", semantics)
+    for folder, point in (
+        ("predictions", {"x": 1.0, "y": 2.0, "z": 0.0}),
+        ("waypoint", {"x": 1.0, "y": 2.0, "speed": 0.0}),
+    ):
+        for file in sorted((log_dir / folder).iterdir())[::3]:
+            document = json.loads(file.read_text())
+            for steps in document.values() if folder == "predictions" else [document]:
+                steps["9" * 23] = point
+            file.write_text(json.dumps(document))
+    after = _verdict(log_dir, tmp_path / "after.json", semantics)
+    failed = [p for p in after["input_problems"] if "check failed" in p["issue"]]
+    assert not failed, failed[:3]
+    assert after["primary_root_cause"] == before["primary_root_cause"]
+
+
 # --- 7. control characters never reach the terminal raw ---------------------------------
 
 

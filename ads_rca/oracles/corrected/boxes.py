@@ -17,7 +17,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ads_rca.geometry import FloatArray, along_polyline, ego_to_world
-from ads_rca.model import EgoPose, Plan, Track
+from ads_rca.model import EgoPose, Plan, Track, step_value
 from ads_rca.oracles.cache import LRU
 
 #: Plan headings from neighbouring points shorter than this keep the previous heading.
@@ -32,17 +32,10 @@ def key_steps(keys: tuple[str, ...]) -> npt.NDArray[np.int64]:
     nearly every track and plan of a log has the same keys."""
     found = _KEY_STEPS.lookup(keys)
     if found is None:
-        found = np.array([_int_or_minus_one(k) for k in keys], dtype=np.int64)
+        found = np.array([step_value(k) for k in keys], dtype=np.int64)
         found.flags.writeable = False
         _KEY_STEPS.put(keys, found)
     return found
-
-
-def _int_or_minus_one(text: str) -> int:
-    try:
-        return int(text)
-    except ValueError:
-        return -1
 
 
 @dataclass(frozen=True)

@@ -12,6 +12,8 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from ads_rca import __version__
 from ads_rca.model import RunLog, frame_number
 from ads_rca.oracles.base import MODULES, Module, OracleResult, RunContext
@@ -24,17 +26,23 @@ from ads_rca.workers import can_fork, map_forked
 
 
 def evaluate_frame(ctx: RunContext, oracles: Mapping[Module, Oracle], ts: int) -> FrameResults:
-    """All oracles at one frame. An unexpected error in one oracle is reported, not raised."""
+    """All oracles at one frame. An unexpected error in one oracle is reported, not raised.
+
+    Numbers from a log may be as large as a double goes (1.7e308): their products and
+    differences overflow to infinity and NaN, which every rule judges as its semantics
+    say, so numpy's warnings about it (lines of our code on stderr) are not printed.
+    """
     results: dict[Module, OracleResult] = {}
-    for module, oracle in oracles.items():
-        try:
-            results[module] = oracle(ctx, ts)
-        except Exception as error:
-            issue = f"{module} check failed on this frame: {type(error).__name__}: {error}"
-            ctx.problems.add(
-                ctx.log.file_of("actors", ts), module, issue, CHECK_SKIPPED, "error", ts
-            )
-            results[module] = OracleResult(module, ts, failed=False, skipped=issue)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        for module, oracle in oracles.items():
+            try:
+                results[module] = oracle(ctx, ts)
+            except Exception as error:
+                issue = f"{module} check failed on this frame: {type(error).__name__}: {error}"
+                ctx.problems.add(
+                    ctx.log.file_of("actors", ts), module, issue, CHECK_SKIPPED, "error", ts
+                )
+                results[module] = OracleResult(module, ts, failed=False, skipped=issue)
     return FrameResults(ts, frame_number(ts, ctx.tpf), results)
 
 

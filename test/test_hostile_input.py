@@ -447,6 +447,35 @@ def test_step_keys_past_int64_are_no_step(log_dir: Path, tmp_path: Path, semanti
     assert after["primary_root_cause"] == before["primary_root_cause"]
 
 
+@pytest.mark.parametrize("semantics", ["reference", "corrected"])
+def test_the_largest_doubles_are_judged_without_numpy_warnings(
+    log_dir: Path, tmp_path: Path, semantics: str
+) -> None:
+    """1.7e308 is a valid JSON number: products and differences of it overflow in every
+    rule; what they make (inf, NaN) is judged, and nothing but the verdict is printed."""
+    big = 1.7e308
+    metadata = _metadata(log_dir)
+    metadata["ego_config"]["camera"]["camera_loc"] = [big, -big, big]
+    (log_dir / "metadata.json").write_text(json.dumps(metadata))
+    for index in range(20, 40, 3):
+        boxes = _one(log_dir / "bboxes", index)
+        document = json.loads(boxes.read_text())
+        document.append({"id": big, "bounding_box": [[-big, -big], [big, big]]})
+        boxes.write_text(json.dumps(document))
+        pose = _one(log_dir / "pose", index)
+        document = json.loads(pose.read_text())
+        document.update(x=big, yaw=big, speed=-big)
+        pose.write_text(json.dumps(document))
+    out = tmp_path / "v.json"
+    done = run_cli(
+        "diagnose", str(log_dir), "--semantics", semantics, "--json", str(out),
+        "--report", str(tmp_path / "r.html"),
+    )  # fmt: skip
+    assert_clean(done)
+    assert "Warning" not in done.stderr and "overflow" not in done.stderr, done.stderr
+    assert json.loads(out.read_text())["frames"]  # judged, frame by frame
+
+
 # --- 7. control characters never reach the terminal raw ---------------------------------
 
 

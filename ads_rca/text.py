@@ -12,8 +12,11 @@ from __future__ import annotations
 import re
 
 #: C0 controls (tab and newline included), DEL, C1 controls, the Unicode line and
-#: paragraph separators, and the bidi embedding/override/isolate controls.
-_UNSAFE = re.compile("[\x00-\x1f\x7f-\x9f\u2028\u2029\u200e\u200f\u202a-\u202e\u2066-\u2069]")
+#: paragraph separators, the bidi embedding/override/isolate controls, and lone surrogates
+#: (JSON's ``"\ud800"`` parses to one, and no terminal or UTF-8 file can take it).
+_UNSAFE = re.compile(
+    "[\x00-\x1f\x7f-\x9f\u2028\u2029\u200e\u200f\u202a-\u202e\u2066-\u2069\ud800-\udfff]"
+)
 
 
 def _escape(match: re.Match[str]) -> str:

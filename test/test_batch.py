@@ -168,15 +168,27 @@ def test_corrupt_and_hanging_runs_are_rows_and_the_rest_complete(
     garbage.mkdir()
     (garbage / "notes.bin").write_bytes(os.urandom(64))
     slow = tmp_path / "slow"
-    write_run_log(synthesise("cruise", "none", 0, frames=1000, actors=30), slow)  # ~4 s
+    write_run_log(synthesise("cruise", "none", 0, frames=3000, actors=30), slow)  # ~5 s alone
+    # A folder name that is not UTF-8 and a label with a lone surrogate: valid runs whose
+    # texts CSV, Parquet and HTML cannot hold as they are (the batch crashed on them).
+    odd = Path(shutil.copytree(good[0], tmp_path / os.fsdecode(b"odd\xff")))
+    labelled = Path(shutil.copytree(good[1], tmp_path / "labelled"))
+    metadata = json.loads((labelled / "metadata.json").read_text())
+    metadata["synthesis"]["scenario"] = "\ud800cut"
+    (labelled / "metadata.json").write_text(json.dumps(metadata))
     out = tmp_path / "out"
     done = batch(
-        *map(str, good), str(corrupt), str(garbage), str(slow), "--out", str(out), "--workers", "2",
-        "--timeout", "2",
+        *map(str, good), str(corrupt), str(garbage), str(slow), str(odd), str(labelled),
+        "--out", str(out), "--workers", "2", "--timeout", "2",
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
     rows = {row["path"]: row for row in read_csv(out / "results.csv")}
-    assert len(rows) == 7
+    assert len(rows) == 9 and len(read_parquet(out / "results.parquet")) == 9
+    escaped = os.path.realpath(odd).encode("utf-8", "surrogateescape").decode("utf-8", "replace")
+    assert rows[str(tmp_path.resolve() / "odd\\udcff")]["error"] == "", escaped
+    assert rows[os.path.realpath(labelled)]["scenario"] == "\\ud800cut"
+    assert "\\ud800cut" in (out / "summary.html").read_text(encoding="utf-8")
+    del rows[str(tmp_path.resolve() / "odd\\udcff")], rows[os.path.realpath(labelled)]
     assert "no frame to analyse" in rows[os.path.realpath(corrupt)]["error"]
     assert "not an ADS running log" in rows[os.path.realpath(garbage)]["error"]
     assert rows[os.path.realpath(slow)]["error"] == "timed out after 2 s"

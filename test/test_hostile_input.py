@@ -535,6 +535,34 @@ def test_printable_escapes_every_control_and_keeps_text() -> None:
     assert printable("a\nb\r\t\x00\x7f\x85\x9b") == "a\\x0ab\\x0d\\x09\\x00\\x7f\\x85\\x9b"
     assert printable("\u2028\u2029\u202e\u2066\u200f") == "\\u2028\\u2029\\u202e\\u2066\\u200f"
     assert printable("naïve → café 🚗 \\x0a") == "naïve → café 🚗 \\x0a"
+    assert printable("\ud800a\udfff") == "\\ud800a\\udfff"  # lone surrogates
+
+
+@pytest.mark.parametrize("semantics", ["reference", "corrected"])
+def test_lone_surrogates_in_ids_and_keys_are_escaped_everywhere(
+    log_dir: Path, tmp_path: Path, semantics: str
+) -> None:
+    """JSON's ``"\\ud800"`` parses to a lone surrogate, which no terminal or UTF-8 file can
+    take (the summary and the HTML report raised UnicodeEncodeError): escaped on the
+    terminal and in the report, kept exactly (as JSON escapes) in the verdict JSON."""
+    for index in range(30, 40):
+        boxes = _one(log_dir / "bboxes_gt", index)
+        document = json.loads(boxes.read_text())
+        document.append({"id": "\ud800evil", "bounding_box": [[1, 2], [30, 40]], "l\udfff": 1})
+        boxes.write_text(json.dumps(document))
+        predictions = _one(log_dir / "predictions_with_perception", index)
+        document = json.loads(predictions.read_text())
+        document["\udc00ghost"] = {"0": {"x": 1.0, "y": 2.0, "z": 0.0}}
+        predictions.write_text(json.dumps(document))
+    out, report = tmp_path / "v.json", tmp_path / "r.html"
+    args = ["--semantics", semantics, "--json", str(out), "--report", str(report)]
+    done = run_cli("diagnose", str(log_dir), *args, "--max-problems", "100")
+    assert_clean(done)
+    assert "\\udc00ghost" in done.stdout
+    assert "\\udc00ghost" in report.read_text(encoding="utf-8")
+    document = json.loads(out.read_text())
+    issues = [p["issue"] for p in document["input_problems"]]
+    assert any(r"id '\udc00ghost' is not an actor" in issue for issue in issues)  # repr'd
 
 
 def test_replay_player_skips_a_fifo_and_honours_max_file_mb(

@@ -59,6 +59,17 @@ TYPES: dict[str, str] = {name: kind for name, kind, _ in COLUMN_DOCS}
 Row = dict[str, Any]
 
 
+def storable(row: Row) -> Row:
+    """``row`` with every text valid UTF-8, as CSV, Parquet and HTML need: a lone surrogate
+    (a file name's undecodable byte, JSON's ``"\\ud800"`` in a label) as its escape."""
+    return {
+        name: value.encode("utf-8", "backslashreplace").decode("utf-8")
+        if isinstance(value, str)
+        else value
+        for name, value in row.items()
+    }
+
+
 def empty_row(run_id: str, path: str) -> Row:
     row: Row = {name: _missing(TYPES[name]) for name in COLUMNS}
     row.update(run_id=run_id, path=path)

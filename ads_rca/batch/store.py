@@ -25,7 +25,7 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any, TextIO
 
-from ads_rca.batch.rows import COLUMNS, FLOAT, INT, TYPES, Row, from_text, to_text
+from ads_rca.batch.rows import COLUMNS, FLOAT, INT, TYPES, Row, from_text, storable, to_text
 from ads_rca.errors import InputError
 from ads_rca.text import printable
 
@@ -63,6 +63,7 @@ class ResultStore:
 
     def add(self, row: Row, document: bytes | None) -> None:
         """Record one finished run: its JSON first, then its row (flushed)."""
+        row = storable(row)
         if document is not None:
             _atomic_write(self.out / RUNS_DIR / f"{row['run_id']}.json", document)
         assert self._csv is not None

@@ -74,7 +74,8 @@ def _numbers(rows: Sequence[Row], column: str) -> list[float]:
 def write_html(rows: Sequence[Row], path: Path, title: str = "") -> None:
     """The HTML summary of ``rows`` (see the module docstring)."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(render_html(rows, title), encoding="utf-8")
+    # A lone surrogate from a log (JSON's "\ud800") cannot be UTF-8: written as its escape.
+    path.write_text(render_html(rows, title), encoding="utf-8", errors="backslashreplace")
 
 
 def render_html(rows: Sequence[Row], title: str = "") -> str:

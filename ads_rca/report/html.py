@@ -95,7 +95,8 @@ def join(children: Iterable[object]) -> Html:
 
 def write_report(result: Diagnosis, path: Path) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(render(result))
+    # A lone surrogate from a log (JSON's "\ud800") cannot be UTF-8: written as its escape.
+    path.write_text(render(result), encoding="utf-8", errors="backslashreplace")
 
 
 def render(result: Diagnosis) -> str:

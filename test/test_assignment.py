@@ -3,6 +3,7 @@ and its solver loaded alone (not ``scipy.optimize``) where they do."""
 
 from __future__ import annotations
 
+import importlib.util
 import subprocess
 import sys
 
@@ -86,7 +87,7 @@ def test_competing_pairs_load_the_solver_alone() -> None:
 def test_the_solver_falls_back_to_the_public_import(monkeypatch: pytest.MonkeyPatch) -> None:
     """Where SciPy's extension is not where this version keeps it: ``scipy.optimize``."""
     assignment.solver.cache_clear()
-    monkeypatch.setattr(assignment.importlib.util, "find_spec", lambda name: None)
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name: None)
     try:
         assert assignment.solver() is linear_sum_assignment
     finally:

@@ -363,7 +363,10 @@ def test_integers_past_the_float_range_are_infinite_and_reported(
         path.write_text(json.dumps(document))
         return f"{path.parent.name}/{path.name}"
 
-    first = lambda d: d[next(iter(d))]  # noqa: E731 - the first record of an object file
+    def first(document: dict[str, Any]) -> Any:
+        """The first record of an object file."""
+        return document[next(iter(document))]
+
     edited = {
         edit(_one(log_dir / "pose", 3), lambda d: d.update(x=HUGE)): "x",
         edit(_one(log_dir / "actors", 4), lambda d: first(d)["location"].update(y=-HUGE)): "y",

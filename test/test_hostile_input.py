@@ -7,7 +7,7 @@ real CLI in a subprocess, with a timeout (a hang fails the test) and an address-
 - Output paths that are directories or cannot be written: refused before the work starts.
 - ``metadata.json`` numbers given as strings, a collision frame past the last frame.
 - Integers past the float range in every kind of file; file names with timestamps past
-  2**53 ms.
+  ROS time's last millisecond.
 - File names, folder names and paths with newlines and terminal escape sequences.
 """
 
@@ -390,7 +390,7 @@ def test_integers_past_the_float_range_are_infinite_and_reported(
     assert all(len(p["issue"]) < 200 for p in problems)  # the value is shown cut short
 
 
-def test_a_timestamp_past_2_to_the_53_ms_is_ignored_and_reported(log_dir: Path) -> None:
+def test_a_timestamp_past_ros_time_is_ignored_and_reported(log_dir: Path) -> None:
     """Int64 arrays of timestamps never see it; the folder's other files are read."""
     names = []
     for folder in ("actors", "pose"):
@@ -404,11 +404,11 @@ def test_a_timestamp_past_2_to_the_53_ms_is_ignored_and_reported(log_dir: Path) 
     assert_clean(done)
     issues = {p["file"]: p["issue"] for p in problems_of(done)}
     for name in names:
-        assert issues[name] == "timestamp past the largest read (9007199254740992 ms)"
+        assert issues[name] == "timestamp past the largest read (2147483647999 ms)"
 
 
 @pytest.mark.parametrize("semantics", ["reference", "corrected"])
-def test_a_frame_period_past_2_to_the_53_ms_is_reported_and_inferred(
+def test_a_frame_period_past_ros_time_is_reported_and_inferred(
     log_dir: Path, tmp_path: Path, semantics: str
 ) -> None:
     """``timesteps_per_frame`` of 10**23 overflowed the int64 arrays of the frame checks;
@@ -419,7 +419,7 @@ def test_a_frame_period_past_2_to_the_53_ms_is_reported_and_inferred(
     (log_dir / "metadata.json").write_text(json.dumps(metadata))
     after = _verdict(log_dir, tmp_path / "after.json", semantics)
     [period] = [p for p in after["input_problems"] if p["field"] == "timesteps_per_frame"]
-    assert period["issue"].endswith("is past the largest read (9007199254740992)"), period
+    assert period["issue"].endswith("is past the largest read (2147483647999)"), period
     assert period["action"].startswith("default used")
     assert after["primary_root_cause"] == before["primary_root_cause"]
     metadata["timesteps_per_frame"] = 50
@@ -566,6 +566,27 @@ def test_lone_surrogates_in_ids_and_keys_are_escaped_everywhere(
     document = json.loads(out.read_text())
     issues = [p["issue"] for p in document["input_problems"]]
     assert any(r"id '\udc00ghost' is not an actor" in issue for issue in issues)  # repr'd
+
+
+def test_replay_plays_a_log_with_timestamps_at_and_past_the_end_of_ros_time(
+    log_dir: Path, tmp_path: Path, ros_env: RosEnv
+) -> None:
+    """A frame at ROS time's last millisecond is played (its seconds fill the int32); one
+    a millisecond later is reported and not read (the player died on it: struct.error)."""
+    last = 2**31 * 1000 - 1
+    past: set[str] = set()
+    for folder in ("actors", "pose", "bboxes", "bboxes_gt", "waypoint"):
+        first = _one(log_dir / folder, 0)
+        prefix = first.name.rpartition("-")[0]
+        for ts in (last, last + 1):
+            shutil.copy(first, log_dir / folder / f"{prefix}-{ts}.json")
+        past.add(f"{folder}/{prefix}-{last + 1}.json")
+    out = tmp_path / "v.json"
+    args = ["replay", str(log_dir), "--domain-id", str(ros_env.domain_id), "--timeout", "90"]
+    done = run_cli(*args, "--json", str(out))
+    assert_clean(done)
+    problems = json.loads(out.read_text())["input_problems"]
+    assert {p["file"] for p in problems if p["issue"].startswith("timestamp past")} == past
 
 
 def test_replay_player_skips_a_fifo_and_honours_max_file_mb(

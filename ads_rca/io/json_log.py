@@ -107,9 +107,11 @@ def timestamp_of(file_name: str) -> int | None:
     return int(text)
 
 
-#: The largest timestamp a file name may give (2**53 ms, some 285,000 years): every one
-#: below is exact as a float and fits the int64 arrays the checks and players use.
-MAX_TIMESTAMP_MS = 2**53
+#: The largest timestamp a file name may give (and frame period metadata may): the last
+#: millisecond ROS time can carry (builtin_interfaces/Time's seconds are an int32, some
+#: 68 years), so every frame read can be played and recorded; every one below is exact as a
+#: float and fits the int64 arrays the checks use.
+MAX_TIMESTAMP_MS = 2**31 * 1000 - 1
 
 
 def is_log_file(file_name: str) -> bool:

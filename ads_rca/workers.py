@@ -20,6 +20,17 @@ from typing import TypeVar
 _T = TypeVar("_T")
 _R = TypeVar("_R")
 
+#: The most worker processes a command starts (``--workers``): far beyond any machine's
+#: useful count, and a typo (``--workers 100000``) is an error, not a fork bomb.
+MAX_WORKERS = 512
+
+
+def checked_workers(workers: int, flag: str = "--workers") -> int:
+    """``workers`` when it is 1 to :data:`MAX_WORKERS`; ValueError naming ``flag`` else."""
+    if not 1 <= workers <= MAX_WORKERS:
+        raise ValueError(f"{flag} {workers}: expected 1 to {MAX_WORKERS}")
+    return workers
+
 
 def can_fork() -> bool:
     """Fork only where it is the platform's safe default and no ROS context runs here

@@ -164,6 +164,15 @@ def test_max_file_mb_must_be_positive(log_dir: Path) -> None:
     assert done.stderr.strip().endswith(message)
 
 
+@pytest.mark.parametrize("workers", ["0", "-3", "100000"])
+def test_diagnose_workers_must_be_1_to_512(log_dir: Path, workers: str) -> None:
+    """A typo is an error before the work, not a silent 1 or a fork bomb (batch's rule)."""
+    done = run_cli("diagnose", str(log_dir), "--workers", workers)
+    assert_clean(done, 2)
+    assert done.stdout == ""
+    assert done.stderr.strip() == f"ads-rca diagnose: error: --workers {workers}: expected 1 to 512"
+
+
 # --- 2. JSON nested too deep ------------------------------------------------------------
 
 

@@ -38,10 +38,10 @@ from ads_rca.commands.outputs import check_output_dir
 from ads_rca.errors import InputError
 from ads_rca.io.bag_options import BagOptions
 from ads_rca.text import printable
+from ads_rca.workers import checked_workers
 
 EXIT_INTERRUPTED = 130
 HTML_NAME = "summary.html"
-MAX_WORKERS = 512
 #: Seconds to wait for ``--scheduler`` to answer.
 CONNECT_TIMEOUT = 15
 SCHEMES = ("tcp://", "tls://", "ucx://", "inproc://", "ws://", "wss://")
@@ -96,8 +96,10 @@ def run(args: argparse.Namespace) -> int:
     params = params_from_args(args)
     max_file_mb = max_file_mb_from_args(args)
     bag = _absolute(bag_options_from_args(args))
-    if not 1 <= args.workers <= MAX_WORKERS:
-        raise InputError(f"--workers {args.workers}: expected 1 to {MAX_WORKERS}")
+    try:
+        checked_workers(args.workers)
+    except ValueError as error:
+        raise InputError(str(error)) from None
     if not 0 < args.timeout < 1e7:
         raise InputError(f"--timeout {args.timeout:g}: expected a positive number of seconds")
     if not 0 <= args.retries <= 100:

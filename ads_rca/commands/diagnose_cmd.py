@@ -35,7 +35,7 @@ from ads_rca.params import (
 from ads_rca.params import parse_assignments as parse_p
 from ads_rca.summary import summary_text
 from ads_rca.text import printable
-from ads_rca.workers import loaded_objects_frozen
+from ads_rca.workers import checked_workers, loaded_objects_frozen
 
 #: ``--semantics both``: judge in every mode and say why the verdicts differ.
 BOTH = "both"
@@ -140,7 +140,10 @@ def run(args: argparse.Namespace) -> int:
         check_output_file(args.json_out, "--json")
     if args.report:
         check_output_file(args.report, "--report")
-    workers = max(1, args.workers)
+    try:
+        workers = checked_workers(args.workers)
+    except ValueError as error:
+        raise InputError(str(error)) from None
     log = open_run(
         args.path,
         max_file_mb=max_file_mb,

@@ -274,6 +274,8 @@ MAX_FILE_MB = Range(0.001, 1_048_576.0, unit="MB")
 SECONDS = Range(0.0, 3600.0, unit="s")
 #: Playback speed relative to log time (the player's ``rate``, ``--rate``; 0 = no clock).
 RATE = Range(0.0, 1000.0)
+#: ``replay`` / ``demo --timeout``: seconds to wait for the verdict (at most a week).
+PLAYBACK_TIMEOUT = Range(0.001, 604800.0, unit="s")
 
 
 def check_value(name: str, value: Any, bounds: Range | Choice) -> int | float | str:

@@ -90,6 +90,11 @@ def test_max_file_mb_and_rate_flags_are_range_checked_too(tmp_path: Path) -> Non
     assert line.endswith("parameter max_file_mb: nan is out of range [0.001, 1048576] MB")
     line = refused(run_cli("replay", str(EXAMPLE), "--rate", "-1"))
     assert line.endswith("parameter --rate: -1 is out of range [0, 1000]")
+    for command in ("replay", "demo"):  # a negative or NaN timeout waited not at all
+        for value in ("-1", "nan", "0", "1e9"):
+            line = refused(run_cli(command, str(EXAMPLE), "--timeout", value))
+            shown = {"1e9": "1000000000"}.get(value, value)
+            assert line.endswith(f"parameter --timeout: {shown} is out of range [0.001, 604800] s")
 
 
 def test_every_threshold_has_a_range_holding_both_modes_defaults() -> None:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from ads_rca.paramspec import RATE, check_number
+from ads_rca.paramspec import PLAYBACK_TIMEOUT, RATE, check_number
 from ads_rca.ros.domains import free_domain_id
 from ads_rca.ros.env import (
     ALLOW_EXTERNAL_VARIABLE,
@@ -23,7 +23,12 @@ def add_playback_arguments(parser: argparse.ArgumentParser) -> None:
         default=0.0,
         help=f"playback rate (0 = as fast as acknowledged; range {RATE.text()})",
     )
-    parser.add_argument("--timeout", type=float, default=300.0, help="seconds before giving up")
+    parser.add_argument(
+        "--timeout",
+        type=float,
+        default=300.0,
+        help=f"seconds before giving up (default 300; range {PLAYBACK_TIMEOUT.text()})",
+    )
     parser.add_argument(
         "--domain-id",
         metavar="ID",
@@ -41,6 +46,7 @@ def add_playback_arguments(parser: argparse.ArgumentParser) -> None:
 
 def check_playback_arguments(args: argparse.Namespace) -> None:
     check_number("--rate", args.rate, RATE)
+    check_number("--timeout", args.timeout, PLAYBACK_TIMEOUT)
 
 
 def allow_external(args: argparse.Namespace) -> bool | None:

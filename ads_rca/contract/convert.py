@@ -135,11 +135,14 @@ def quaternions_to_carla_rpy(quaternions: FloatArray) -> FloatArray:
     """
     q = np.asarray(quaternions, dtype=np.float64).reshape(-1, 4)
     x, y, z, w = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
-    sin_r_cos_p = 2.0 * (w * x + y * z)
-    cos_r_cos_p = 1.0 - 2.0 * (x * x + y * y)
-    roll = np.arctan2(sin_r_cos_p, cos_r_cos_p)
-    pitch = np.arctan2(2.0 * (w * y - z * x), np.hypot(sin_r_cos_p, cos_r_cos_p))
-    yaw = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    # A stack's (or a hostile topic's) quaternion may hold any double: overflow gives NaN
+    # angles, judged as such, and no numpy warning on the node's stderr.
+    with np.errstate(over="ignore", invalid="ignore"):
+        sin_r_cos_p = 2.0 * (w * x + y * z)
+        cos_r_cos_p = 1.0 - 2.0 * (x * x + y * y)
+        roll = np.arctan2(sin_r_cos_p, cos_r_cos_p)
+        pitch = np.arctan2(2.0 * (w * y - z * x), np.hypot(sin_r_cos_p, cos_r_cos_p))
+        yaw = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
     degrees: FloatArray = np.degrees(np.stack((roll, -pitch, -yaw), axis=1))
     return degrees
 

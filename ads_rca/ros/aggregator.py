@@ -313,6 +313,8 @@ class Aggregator(Node):
         if frame is None:
             return
         self._stack_mode()  # a collision and no player heard: a stack's run
+        if frame != self.core.collision_frame:  # said once: a graph without a verdict shows it
+            self.get_logger().info(f"collision announced at frame {frame}")
         self.core.set_collision(frame, time.monotonic())
         if forward:
             self.collision_pub.publish(String(data=json.dumps({"frame": frame})))

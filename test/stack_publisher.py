@@ -85,6 +85,10 @@ class Settings:
     seed: int = 0
     collision_topic: str = ""
     wait_subscribers: int = 1
+    #: Subscribers the collision topic must have before publishing starts (the monitors
+    #: and the aggregator: an aggregator matched after the publisher left never hears the
+    #: latched collision, and waits for it forever).
+    wait_collision_subscribers: int = 0
 
     @property
     def collision_name(self) -> str:
@@ -192,6 +196,7 @@ def parse_args(argv: Sequence[str]) -> Settings:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--collision-topic", default="")
     parser.add_argument("--wait-subscribers", type=int, default=1)
+    parser.add_argument("--wait-collision-subscribers", type=int, default=0)
     args = parser.parse_args(list(argv))
     if args.offset_ms < 0:
         raise StackError(f"--offset-ms must be >= 0, not {args.offset_ms}")
@@ -217,6 +222,7 @@ def parse_args(argv: Sequence[str]) -> Settings:
         seed=args.seed,
         collision_topic=args.collision_topic,
         wait_subscribers=args.wait_subscribers,
+        wait_collision_subscribers=args.wait_collision_subscribers,
     )
 
 
@@ -375,7 +381,9 @@ def publish(schedule: Schedule, settings: Settings) -> int:
             )
             for name, type_name in schedule.topic_types.items()
         }
-        if not _wait_for_subscribers(pubs, settings.wait_subscribers):
+        if not _wait_for_subscribers(pubs, settings.wait_subscribers) or not _wait_for(
+            pubs[settings.collision_name], settings.wait_collision_subscribers
+        ):
             counts = {n: p.get_subscription_count() for n, p in pubs.items() if n != topics.CLOCK}
             short = sorted(n for n, c in counts.items() if c < settings.wait_subscribers)
             logger.error(
@@ -405,6 +413,18 @@ def publish(schedule: Schedule, settings: Settings) -> int:
         return 0
     finally:
         node.destroy_node()
+
+
+def _wait_for(publisher: Any, count: int) -> bool:
+    """``publisher`` has ``count`` subscribers within the timeout."""
+    from ads_rca.ros.nodemain import keep_running
+
+    deadline = time.monotonic() + WAIT_TIMEOUT_S
+    while publisher.get_subscription_count() < count:
+        if time.monotonic() > deadline or not keep_running():
+            return False
+        time.sleep(0.01)
+    return True
 
 
 def _wait_for_subscribers(pubs: dict[str, Any], count: int) -> bool:

@@ -73,7 +73,16 @@ def run_stack_graph(
             "aggregator", [*commands["aggregator"], *ros_args(agg, params_file)]
         )
         stack = launcher.start(
-            "stack", [sys.executable, str(PUBLISHER), "--synth", synth, *publisher_options]
+            "stack",
+            [
+                sys.executable,
+                str(PUBLISHER),
+                "--synth",
+                synth,
+                *publisher_options,
+                "--wait-collision-subscribers",
+                "2",  # the monitors' process and the aggregator
+            ],
         )
         assert stack.wait(120.0) == 0, stack.output
         code = aggregator.wait(after_publisher_s)

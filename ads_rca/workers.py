@@ -17,6 +17,8 @@ from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from typing import TypeVar
 
+from ads_rca.errors import InputError
+
 _T = TypeVar("_T")
 _R = TypeVar("_R")
 
@@ -26,9 +28,9 @@ MAX_WORKERS = 512
 
 
 def checked_workers(workers: int, flag: str = "--workers") -> int:
-    """``workers`` when it is 1 to :data:`MAX_WORKERS`; ValueError naming ``flag`` else."""
+    """``workers`` when it is 1 to :data:`MAX_WORKERS`; InputError naming ``flag`` else."""
     if not 1 <= workers <= MAX_WORKERS:
-        raise ValueError(f"{flag} {workers}: expected 1 to {MAX_WORKERS}")
+        raise InputError(f"{flag} {workers}: expected 1 to {MAX_WORKERS}")
     return workers
 
 

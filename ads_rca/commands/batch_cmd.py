@@ -96,10 +96,7 @@ def run(args: argparse.Namespace) -> int:
     params = params_from_args(args)
     max_file_mb = max_file_mb_from_args(args)
     bag = _absolute(bag_options_from_args(args))
-    try:
-        checked_workers(args.workers)
-    except ValueError as error:
-        raise InputError(str(error)) from None
+    checked_workers(args.workers)
     if not 0 < args.timeout < 1e7:
         raise InputError(f"--timeout {args.timeout:g}: expected a positive number of seconds")
     if not 0 <= args.retries <= 100:

@@ -140,10 +140,7 @@ def run(args: argparse.Namespace) -> int:
         check_output_file(args.json_out, "--json")
     if args.report:
         check_output_file(args.report, "--report")
-    try:
-        workers = checked_workers(args.workers)
-    except ValueError as error:
-        raise InputError(str(error)) from None
+    workers = checked_workers(args.workers)
     log = open_run(
         args.path,
         max_file_mb=max_file_mb,

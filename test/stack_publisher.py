@@ -381,14 +381,18 @@ def publish(schedule: Schedule, settings: Settings) -> int:
             )
             for name, type_name in schedule.topic_types.items()
         }
-        if not _wait_for_subscribers(pubs, settings.wait_subscribers) or not _wait_for(
-            pubs[settings.collision_name], settings.wait_collision_subscribers
-        ):
-            counts = {n: p.get_subscription_count() for n, p in pubs.items() if n != topics.CLOCK}
-            short = sorted(n for n, c in counts.items() if c < settings.wait_subscribers)
+        needed = {name: settings.wait_subscribers for name in pubs if name != topics.CLOCK}
+        needed[settings.collision_name] = max(
+            settings.wait_subscribers, settings.wait_collision_subscribers
+        )
+        if not _wait_for_subscribers(pubs, needed, settings.wait_subscribers):
+            counts = {name: (pubs[name].get_subscription_count(), n) for name, n in needed.items()}
+            short = {name: got_n for name, got_n in counts.items() if got_n[0] < got_n[1]}
+            shown = short or counts  # stopped (Ctrl-C) with every topic served: say them all
             logger.error(
-                f"only {min(counts.values())} of {settings.wait_subscribers} subscribers after "
-                f"{WAIT_TIMEOUT_S} s on {', '.join(short)}"
+                f"only {min(got for got, _ in shown.values())} of "
+                f"{max(n for _, n in shown.values())} subscribers after "
+                f"{WAIT_TIMEOUT_S} s on {', '.join(sorted(short))}"
             )
             return 1
         start = time.monotonic()
@@ -415,32 +419,19 @@ def publish(schedule: Schedule, settings: Settings) -> int:
         node.destroy_node()
 
 
-def _wait_for(publisher: Any, count: int) -> bool:
-    """``publisher`` has ``count`` subscribers within the timeout."""
+def _wait_for_subscribers(pubs: dict[str, Any], needed: dict[str, int], clock: int) -> bool:
+    """Every data and collision topic has its ``needed`` subscribers within the timeout;
+    then /clock gets a short grace for ``clock`` (nobody need listen to a stack's clock)."""
     from ads_rca.ros.nodemain import keep_running
 
     deadline = time.monotonic() + WAIT_TIMEOUT_S
-    while publisher.get_subscription_count() < count:
-        if time.monotonic() > deadline or not keep_running():
-            return False
-        time.sleep(0.01)
-    return True
-
-
-def _wait_for_subscribers(pubs: dict[str, Any], count: int) -> bool:
-    """Every data and collision topic has ``count`` subscribers within the timeout; then
-    /clock gets a short grace (nobody need listen to a stack's clock)."""
-    from ads_rca.ros.nodemain import keep_running
-
-    deadline = time.monotonic() + WAIT_TIMEOUT_S
-    waited = [p for name, p in pubs.items() if name != topics.CLOCK]
-    while any(p.get_subscription_count() < count for p in waited):
+    while any(pubs[name].get_subscription_count() < count for name, count in needed.items()):
         if time.monotonic() > deadline or not keep_running():
             return False
         time.sleep(0.01)
     grace = min(deadline, time.monotonic() + 2.0)
-    clock = pubs[topics.CLOCK]
-    while clock.get_subscription_count() < count and time.monotonic() < grace:
+    clock_pub = pubs[topics.CLOCK]
+    while clock_pub.get_subscription_count() < clock and time.monotonic() < grace:
         time.sleep(0.01)
     return True
 

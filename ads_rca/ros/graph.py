@@ -8,7 +8,9 @@ domain); and ``launch_scripts/rca_graph.launch.py``, whose arguments are
 :data:`LAUNCH_ARGUMENTS` (replay's options under their launch names, turned into a spec by
 :func:`spec_from_arguments`) and whose exit handlers follow :func:`exit_outcome`. Start
 order: recorder, aggregator, monitors, then the player, which waits until all of them
-subscribe to ``run/frame`` so none misses the first frame. ``replay`` reads the verdict
+subscribe to ``run/frame`` so none misses the first frame (the recorder and the bridge say
+they are ready only once they matched the monitors' and the aggregator's outputs, so a short
+run's results cannot be over before they hear them). ``replay`` reads the verdict
 from the aggregator's ``verdict_json`` file (written atomically once it is published).
 
 The four monitors run either as one ``monitors`` process (``MONITORS_SHARED``, the default:
@@ -52,6 +54,11 @@ GROUP = "monitors"
 MONITORS_SHARED = "shared"
 MONITORS_SEPARATE = "separate"
 MONITOR_LAYOUTS = (MONITORS_SHARED, MONITORS_SEPARATE)
+#: How long the player waits for every node to be ready before playing anyway.
+PLAYER_WAIT_S = 30.0
+#: How long the recorder and the bridge wait to match the monitors' and the aggregator's
+#: outputs before they say they are ready (inside the player's wait, which started later).
+GRAPH_WAIT_S = 20.0
 
 
 def recorder_available() -> bool:
@@ -121,6 +128,7 @@ class GraphSpec:
                 "output": str(self.record),
                 "topic_namespace": self.namespace,
                 "run_id": self.run_id,
+                "graph_wait_s": GRAPH_WAIT_S,
             }
             out.append(NodeSpec("recorder", "recorder", RECORDER, None, rec))
         if self.zenoh_params is not None:
@@ -128,6 +136,7 @@ class GraphSpec:
                 "topic_namespace": self.namespace,
                 "run_id": self.run_id,
                 "exit_after_verdict": True,
+                "graph_wait_s": GRAPH_WAIT_S,
                 **self.zenoh_params,
             }
             out.append(NodeSpec(BRIDGE_NAME, BRIDGE_NAME, BRIDGE, None, bridge))
@@ -149,7 +158,7 @@ class GraphSpec:
             "topic_namespace": self.namespace,
             "run_id": self.run_id,
             "wait_for_subscribers": len(out),  # every node subscribes to run/frame
-            "wait_timeout_s": 30.0,
+            "wait_timeout_s": PLAYER_WAIT_S,
             **self.player_params,
         }
         out.append(NodeSpec("player", "player", PLAYER, None, player))

@@ -25,7 +25,7 @@ from __future__ import annotations
 import os
 import signal
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from types import FrameType
 from typing import Any
 
@@ -36,7 +36,7 @@ from rclpy.logging import get_logger
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.signals import SignalHandlerOptions
-from rclpy.subscription import RCLError
+from rclpy.subscription import RCLError, Subscription
 
 from ads_rca.contract import live_topics, topics
 from ads_rca.errors import AdsRcaError
@@ -192,6 +192,42 @@ def subscribe_ready(node: Node, namespace: str, run_id: str) -> None:
 
     name = topics.topic_name(live_topics.ready_key(run_id), namespace)
     node.create_subscription(String, name, _ignore, 1)
+
+
+def subscribe_ready_once_matched(
+    node: Node,
+    namespace: str,
+    run_id: str,
+    subscriptions: Mapping[str, Subscription[Any] | None],
+    timeout_s: float,
+) -> None:
+    """:func:`subscribe_ready` once each of ``subscriptions`` (topic → subscription) has
+    matched a publisher, or ``timeout_s`` passed (a warning names the topics still alone).
+
+    Why: the player waits for every node's ready subscription, not for the nodes to find
+    each other. A recorder or bridge that had not yet matched the monitors when a short
+    run ended, stopped before their results reached it (CI: a replay's bag without one
+    metrics message). Waiting here makes the player wait for that match too. Polled on a
+    node timer, so the node spins meanwhile; nothing (0 s, no run id) waits at once.
+    """
+    waiting = {name: sub for name, sub in subscriptions.items() if sub is not None}
+    if not run_id or timeout_s <= 0 or not waiting:
+        subscribe_ready(node, namespace, run_id)
+        return
+    deadline = time.monotonic() + timeout_s
+
+    def check() -> None:
+        alone = [name for name, sub in waiting.items() if sub.get_publisher_count() < 1]
+        if alone and time.monotonic() < deadline:
+            return
+        timer.cancel()
+        if alone:
+            node.get_logger().warning(
+                f"no publisher of {', '.join(sorted(alone))} after {timeout_s:g} s; ready anyway"
+            )
+        subscribe_ready(node, namespace, run_id)
+
+    timer = node.create_timer(0.02, check)
 
 
 def _ignore(msg: object) -> None:

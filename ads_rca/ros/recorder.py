@@ -48,7 +48,7 @@ from ads_rca.ros.nodemain import (
     keep_running,
     start_process,
     stop_requested,
-    subscribe_ready,
+    subscribe_ready_once_matched,
 )
 from ads_rca.ros.nodeparams import NodeParameter, declare_node_parameters, log_in_force
 from ads_rca.ros.qos_match import offered_qos
@@ -76,6 +76,13 @@ PARAMETERS: dict[str, NodeParameter] = {
         Range(0.0, 604_800.0, unit="s"),
     ),
     "run_id": ("", "Record only this run ('' = everything); see ads_rca.live.runid."),
+    "graph_wait_s": (
+        0.0,
+        "With run_id: be counted by the run's player only once the graph's outputs "
+        "(monitor results, verdict, /diagnostics) each have a publisher, at most this long "
+        "(0 = at once).",
+        SECONDS,
+    ),
 }
 _IGNORED = {"/rosout", "/parameter_events"}
 _STRING_TYPE = "std_msgs/msg/String"
@@ -211,7 +218,6 @@ class Recorder(Node):
         self.progress = RunLogAssembler()  # only counts and the String topics
         run_id = checked_run_id(str(self._param("run_id")))
         self.membership = RunMembership(run_id) if run_id else None
-        subscribe_ready(self, self.namespace, run_id)
         self.subs: dict[str, Any] = {}
         self.started = time.monotonic()
         for key, name in self.names.items():
@@ -222,6 +228,9 @@ class Recorder(Node):
             if name in self.explicit if self.explicit else self.discover:
                 self.graph_qos[name] = qos()
                 self._subscribe(name, msg_type)
+        outputs = {name: self.subs[name] for name in self.graph_qos}
+        wait = float(self._param("graph_wait_s"))
+        subscribe_ready_once_matched(self, self.namespace, run_id, outputs, wait)
         if self.discover or self.explicit - set(self.subs):
             self._discover()
             self.create_timer(0.5, self._discover)

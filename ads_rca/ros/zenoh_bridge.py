@@ -39,7 +39,7 @@ from ads_rca.remote.keys import ros_key
 from ads_rca.remote.publisher import ZenohPublisher
 from ads_rca.remote.rate import RateLimiter
 from ads_rca.remote.state import RemoteState
-from ads_rca.ros.nodemain import run_node, subscribe_ready
+from ads_rca.ros.nodemain import run_node, subscribe_ready_once_matched
 from ads_rca.ros.nodeparams import NodeParameter, declare_node_parameters, log_in_force
 from ads_rca.ros.qos_match import offered_qos
 
@@ -84,6 +84,13 @@ PARAMETERS: dict[str, NodeParameter] = {
     "run_id": ("", "Forward only this run's results and verdict ('' = any run)."),
     "exit_after_verdict": (False, "Exit (status 0) linger_s after forwarding the verdict."),
     "linger_s": (0.0, "With exit_after_verdict: keep answering queries this long.", SECONDS),
+    "graph_wait_s": (
+        0.0,
+        "With run_id: be counted by the run's player only once the graph's outputs it "
+        "bridges (monitor results, verdict, /diagnostics) each have a publisher, at most "
+        "this long (0 = at once).",
+        SECONDS,
+    ),
 }
 
 
@@ -151,7 +158,14 @@ class ZenohBridge(Node):
         if self.unknown:
             self._discover()
             self.create_timer(DISCOVERY_PERIOD_S, self._discover)
-        subscribe_ready(self, ns, run_id)
+        outputs = live_topics.graph_topics(ns)
+        subscribe_ready_once_matched(
+            self,
+            ns,
+            run_id,
+            {name: sub for name, sub in self.subs.items() if name in outputs},
+            float(p["graph_wait_s"]),
+        )
         if run_id:  # a graph member: the player waits for our run/frame subscription too
             frame_type = rosmsg.message_class(
                 rosmsg.type_name(topics.message_types()[topics.FRAME])

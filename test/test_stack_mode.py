@@ -103,6 +103,27 @@ def test_two_percent_of_an_input_dropped(mode: str) -> None:
     assert same == len(CRASHES)
 
 
+@pytest.mark.parametrize("mode", MODES)
+def test_a_collision_the_aggregator_never_heard_is_taken_from_the_monitors(mode: str) -> None:
+    """The latched collision event can be gone before the aggregator matches it (its
+    publisher left): the monitors heard it, and their results closing the collision carry
+    its frame. The verdict is the one the event gives, said to come from the monitors; it
+    used to wait forever."""
+    for scenario, fault in CRASHES[1::5]:
+        log = crash(scenario, fault)
+        settings = WindowSettings(input_timeout_s=1.0, history_frames=400)
+        params, stream = make_params(mode), stack_stream(log, seed=5)
+        heard = run_stack(log, params, stream, config(), settings)
+        missed = run_stack(log, params, stream, config(), settings, aggregator_hears=False)
+        verdict, want = verdict_of(missed), verdict_of(heard)
+        assert verdict["live"]["collision_source"] == "monitors", (scenario, fault)
+        assert want["live"]["collision_source"] == "event"
+        assert verdict["live"]["complete"], (scenario, fault)
+        assert verdict["collision_frame"] == log.metadata.collision_frame
+        assert {k: verdict[k] for k in ATTRIBUTION_KEYS} == {k: want[k] for k in ATTRIBUTION_KEYS}
+        assert verdict["frames"] == want["frames"]
+
+
 def test_a_measured_period_gives_the_same_verdict() -> None:
     log = crash("cut_in", "planning")
     settings = WindowSettings(input_timeout_s=1.0, history_frames=400)

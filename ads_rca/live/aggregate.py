@@ -20,8 +20,9 @@ then attributed and the verdict says why it is incomplete.
 Stack mode (``stack=True``, docs/live-graph.md): there are no frame markers. The frames are
 the ones the monitors judged (re-indexed here by stamp, so monitor processes started at
 different times agree), and a module is complete for collision N once its result marked
-``closes_collision`` N arrived. A run can collide several times: the collisions are taken
-in order, a verdict each, numbered.
+``closes_collision`` N arrived (a collision it did not hear itself, its latched event gone
+before it matched, is taken from the first such result: ``collision_source`` "monitors").
+A run can collide several times: the collisions are taken in order, a verdict each, numbered.
 """
 
 from __future__ import annotations
@@ -145,20 +146,23 @@ class AggregatorCore(FollowsRunEnd):
             self.collision_frame, self.collision_source = metadata.collision_frame, "metadata"
         self.last_input = now
 
-    def set_collision(self, frame: int, now: float, derived: bool = False) -> None:
+    def set_collision(
+        self, frame: int, now: float, derived: bool = False, source: str = "event"
+    ) -> None:
         """A live collision event (wins over the metadata). In stack mode a collision after
-        the one being decided waits for its verdict, then is decided in turn."""
+        the one being decided waits for its verdict, then is decided in turn; ``source``
+        says how it was heard (``event``, or ``monitors``: see :meth:`add_result`)."""
         self.last_input = now
         if not self.stack:
-            self.collision_frame, self.collision_source = frame, "event"
+            self.collision_frame, self.collision_source = frame, source
             return
         known = [self.collision_frame, *(q[0] for q in self._queued)]
         if frame in known or frame < self.collision_frame:
             return
         if self.collision_frame >= 0 and self.outcome is None:
-            self._queued.append((frame, "event", derived, now))
+            self._queued.append((frame, source, derived, now))
             return
-        self._start_collision(frame, "event", derived, now)
+        self._start_collision(frame, source, derived, now)
 
     def _start_collision(self, frame: int, source: str, derived: bool, now: float) -> None:
         self.collision_frame, self.collision_source = frame, source
@@ -202,6 +206,10 @@ class AggregatorCore(FollowsRunEnd):
             self.partner_id = result.partner_id
         if result.closes_collision >= 0:
             self.closed[module] = result.closes_collision
+            if self.stack:
+                # A monitor closed a collision this node never heard of (the latched event
+                # was gone before we matched it): taken from the result, not waited for.
+                self.set_collision(result.closes_collision, now, source="monitors")
 
     def _stack_frame(self, result: LiveResult, now: float) -> LiveResult:
         """Stack mode: the result re-indexed by its stamp, its frame registered as expected

@@ -142,10 +142,14 @@ def run_live(
     return run
 
 
-def announce(cores: list[MonitorCore], aggregator: AggregatorCore, frame: int, at: float) -> None:
+def announce(
+    cores: list[MonitorCore], aggregator: AggregatorCore | None, frame: int, at: float
+) -> None:
+    """The collision event, as the monitors and (unless None) the aggregator hear it."""
     for core in cores:
         core.set_collision(frame, at)
-    aggregator.set_collision(frame, at)
+    if aggregator is not None:
+        aggregator.set_collision(frame, at)
 
 
 # --- stack mode ------------------------------------------------------------------------------
@@ -231,12 +235,15 @@ def run_stack(
     drain_s: float = 60.0,
     collisions: Sequence[tuple[float, int]] | None = None,
     skipped: SkipReport | None = None,
+    aggregator_hears: bool = True,
 ) -> LiveRun:
     """Play ``stream`` through stack mode's cores: one :class:`MonitorCore` for the four
     modules fed by a :class:`StackFeed`, and the aggregator, on simulated time (the
     messages' arrival times). ``collisions``: the announcements, (arrival s, frame), by
     default the log's collision when the stream says (a run can collide several times);
-    ``skipped`` hears of every message that could not be read."""
+    ``skipped`` hears of every message that could not be read; not ``aggregator_hears``:
+    the announcements reach the monitors only (the aggregator matched the latched event
+    too late)."""
     from ads_rca.live.stack_feed import StackFeed
 
     core = MonitorCore(MODULES, params, settings, stack=True)
@@ -269,13 +276,13 @@ def run_stack(
         now = message.arrival_s
         while due and now >= due[0][0]:
             at, frame = due.popleft()
-            announce([core], aggregator, frame, at)
+            announce([core], aggregator if aggregator_hears else None, frame, at)
         if message.folder in feed.decoders:
             feed.add(message.folder, message.payload, now)
         pump(now)
     for at, frame in due:
         now = max(now, at)
-        announce([core], aggregator, frame, now)
+        announce([core], aggregator if aggregator_hears else None, frame, now)
     deadline = now + drain_s
     while now < deadline and (len(run.verdicts) < len(collisions) or core.pending):
         now += 0.05

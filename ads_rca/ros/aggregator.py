@@ -291,7 +291,13 @@ class Aggregator(Node):
             self.get_logger().info(f"first result from the {result.module} monitor")
         if result.tpf_ms > 0:
             self._stack_mode()
+        known = self.core.collision_frame
         self.core.add_result(result, now)
+        if self.core.collision_frame != known and self.core.collision_source == "monitors":
+            self.get_logger().info(
+                f"collision at frame {self.core.collision_frame} taken from the "
+                f"{result.module} monitor's result (its event was not heard here)"
+            )
         if self._metrics_log is not None:
             self._metrics_log.write(msg.data + "\n")
         self._poll()

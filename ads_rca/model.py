@@ -44,6 +44,32 @@ OPTIONAL_FOLDERS = ("detections_3d", "tracks_3d", "control")
 #: Every per-frame folder, the optional ones last.
 ALL_FOLDERS = FOLDERS + OPTIONAL_FOLDERS
 
+#: The largest timestamp a log may give (file names, the frame period): the last
+#: millisecond ROS time can carry (builtin_interfaces/Time's seconds are an int32, some
+#: 68 years), so every frame read can be played and recorded; every one below is exact as a
+#: float and fits the int64 arrays the checks use.
+MAX_TIMESTAMP_MS = 2**31 * 1000 - 1
+#: The largest frame number (either sign) or index a run may name: twice the
+#: milliseconds ROS time can carry, so every frame past it is past every stamp of any log,
+#: with any effect window before it, and a collision frame clamped to it judges as the
+#: absurd one did; int64 columns hold it.
+MAX_FRAME = 2**42
+
+
+def bounded_int(value: Any, name: str, low: int, high: int) -> int:
+    """``value`` when it is an integer in [low, high] (an integral float, as other JSON
+    writers give, too); ValueError naming ``name`` else. For numbers a message or a
+    recording states: past int64 one overflowed the aggregator's columns inside a
+    callback, an absurd frame held a verdict forever, a zero frame period divided by 0."""
+    if isinstance(value, float) and value.is_integer():
+        value = int(value)
+    if not isinstance(value, int) or isinstance(value, bool):
+        raise ValueError(f"{name} is not an integer: {str(value)[:40]!r}")
+    if not low <= value <= high:
+        raise ValueError(f"{name} {str(value)[:40]} is outside [{low}, {high}]")
+    return value
+
+
 #: The :class:`RunLog` field holding each folder's records.
 FOLDER_FIELDS = {folder: folder for folder in ALL_FOLDERS} | {
     "waypoint": "waypoints",

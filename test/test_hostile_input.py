@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 import pytest
 
 from ads_rca.io.json_writer import write_run_log
+from ads_rca.model import MAX_FRAME
 from ads_rca.synth import synthesise
 
 if TYPE_CHECKING:
@@ -432,11 +433,25 @@ def test_a_frame_period_past_ros_time_is_reported_and_inferred(
     assert period["action"].startswith("default used")
     assert after["primary_root_cause"] == before["primary_root_cause"]
     metadata["timesteps_per_frame"] = 50
-    metadata["total_frames"] = metadata["collision_frame"] = 10**300  # numbers, used
+    metadata["collision_frame"] = 10**9  # past the last frame
+    (log_dir / "metadata.json").write_text(json.dumps(metadata))
+    past = _verdict(log_dir, tmp_path / "past.json", semantics)
+    metadata["total_frames"] = metadata["collision_frame"] = 10**300
     (log_dir / "metadata.json").write_text(json.dumps(metadata))
     huge = _verdict(log_dir, tmp_path / "huge.json", semantics)
-    assert huge["collision_frame"] == int(float(10**300))  # read as a float, as every number
-    assert any("is past the last actors file" in p["issue"] for p in huge["input_problems"])
+    # Clamped to the largest frame (the live graph's messages carry it; int64 holds it),
+    # said, and judged as any frame past the log is.
+    assert huge["collision_frame"] == MAX_FRAME
+    said = {(p["field"], p["issue"].split()[-1], p["action"]) for p in huge["input_problems"]}
+    assert ("collision_frame", "read", f"default used: {MAX_FRAME}") in said  # clamped
+    assert ("collision_frame", "ms)", "value kept") in said  # and past the last actors file
+    assert ("total_frames", str(MAX_FRAME), "default used: 99") in said
+    keys = ("primary_root_cause", "root_causes", "contributing", "evidence")
+    assert {k: huge[k] for k in keys} == {k: past[k] for k in keys}
+    metadata["collision_frame"] = -(10**300)
+    (log_dir / "metadata.json").write_text(json.dumps(metadata))
+    below = _verdict(log_dir, tmp_path / "below.json", semantics)
+    assert below["collision_frame"] == -MAX_FRAME
 
 
 @pytest.mark.parametrize("semantics", ["reference", "corrected"])

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import random
+import shutil
 import struct
 import subprocess
 import sys
@@ -538,3 +539,108 @@ def test_the_aggregator_skips_malformed_results_and_says_so_once(ros_env: RosEnv
     for key in ("metrics", topics.FRAME):
         said = [line for line in output.splitlines() if f"malformed message on {ns}/{key} " in line]
         assert len(said) == 1, output  # 40 bad messages, one line (rate-limited)
+
+
+_RESULT = {"module": "perception", "stamp_ms": 1000, "failed": False, "index": 3, "frame": 3}
+_HOSTILE_NUMBERS: list[tuple[str, Any]] = [
+    (field, value)
+    for field in ("index", "stamp_ms", "collision_frame", "closes_collision", "revision", "tpf_ms")
+    for value in (10**30, 2**63, -(2**63) - 1, True, "12", 2.5, 1e300)
+]
+
+
+@pytest.mark.parametrize(("field", "value"), _HOSTILE_NUMBERS)
+def test_absurd_numbers_in_a_result_are_one_malformed_message(field: str, value: Any) -> None:
+    """A result whose integers are past int64, past any frame or stamp, booleans, strings or
+    fractions is refused as malformed, naming the field. It used to pass, then overflow the
+    aggregator's int64 columns inside its callback (a traceback that ended the node), or,
+    as a collision a monitor closed, hold every later verdict back."""
+    from ads_rca.contract.errors import MalformedMessage
+    from ads_rca.live.aggregate import AggregatorCore
+    from ads_rca.live.results import LiveResult
+    from ads_rca.live.stack_config import STACK_PARAMETERS, StackConfig
+    from ads_rca.params import make_params
+
+    with pytest.raises(MalformedMessage, match=field):
+        LiveResult.from_document({**_RESULT, "tpf_ms": 50, field: value})
+    # What is accepted is used without an error, in both kinds of run.
+    defaults = {name: entry[0] for name, entry in STACK_PARAMETERS.items()}
+    facts = {"timesteps_per_frame": 50, "camera_loc.x": 1.3, "camera_loc.z": 1.8}
+    stack = StackConfig.from_values({**defaults, **facts}, input_timeout_s=1.0)
+    for run in (None, stack):
+        core = AggregatorCore(make_params("corrected"), stack=run)
+        edge = {"closes_collision": 2**42, "collision_frame": -(2**42), "revision": 2**42}
+        for document in (_RESULT, {**_RESULT, "tpf_ms": 50, **edge}):
+            core.add_result(LiveResult.from_document(document), 1.0)
+        core.poll(2.0)
+        core.poll(1000.0)
+
+
+@pytest.mark.parametrize("value", [10**30, 2**42 + 1, -(2**63) - 1])
+def test_absurd_marker_and_collision_frames_are_malformed(value: int) -> None:
+    from ads_rca.contract.errors import MalformedMessage
+    from ads_rca.live.results import FrameMarker, collision_frame
+    from ads_rca.live.runid import RunFilter
+
+    for document in ({"index": value, "stamp_ms": 0}, {"index": 1, "stamp_ms": value * 1000}):
+        with pytest.raises(MalformedMessage):
+            FrameMarker.from_document(document)
+    if value > 0:
+        with pytest.raises(MalformedMessage, match="collision frame"):
+            collision_frame({"frame": value}, RunFilter(""))
+    assert collision_frame({"frame": 2**42}, RunFilter("")) == 2**42  # model.MAX_FRAME
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "named"),
+    [
+        ("timesteps_per_frame", 0, "timesteps_per_frame 0 is outside"),
+        ("timesteps_per_frame", 10**30, "timesteps_per_frame"),
+        ("collision_frame", 10**30, "collision_frame"),
+        ("collision_frame", "12", "collision_frame is not an integer"),
+        ("total_frames", -1, "total_frames -1 is outside"),
+    ],
+)
+def test_run_metadata_with_numbers_no_reader_gives_is_malformed(
+    key: str, value: Any, named: str
+) -> None:
+    """A ``run/metadata`` (or a recording's) whose frame period is 0 divided by zero in the
+    aggregator, inside its callback; numbers the reader never gives are one malformed
+    message instead, naming the field."""
+    from ads_rca.contract.assembler import run_metadata
+    from ads_rca.contract.errors import MalformedMessage
+
+    log = read_run_log(EXAMPLE)
+    document = playback.read_document(playback.metadata_message(log))
+    document[playback.METADATA_DOCUMENT_KEY][key] = value
+    with pytest.raises(MalformedMessage, match=named):
+        run_metadata(document)
+
+
+def test_a_log_with_an_absurd_collision_frame_replays_to_diagnoses_verdict(
+    ros_env: RosEnv, tmp_path: Path
+) -> None:
+    """metadata.json says the collision is at frame 10**300: the reader clamps it (and says
+    so), the live graph carries it, and the verdict is diagnose's. The aggregator used to
+    die on it (OverflowError in its result callback) and the replay gave no verdict."""
+    from test_live_window import assert_close, failed_flags, verdict_keys
+
+    from ads_rca.engine import diagnose
+    from ads_rca.params import make_params
+
+    log_dir = Path(shutil.copytree(EXAMPLE, tmp_path / "log"))
+    metadata = json.loads((log_dir / "metadata.json").read_text())
+    metadata["collision_frame"] = 10**300
+    (log_dir / "metadata.json").write_text(json.dumps(metadata))
+    out = tmp_path / "verdict.json"
+    argv = [sys.executable, "-m", "ads_rca.cli", "replay", str(log_dir), "--json", str(out)]
+    argv += ["--domain-id", str(ros_env.domain_id), "--timeout", "90"]
+    replay = ManagedProcess("replay", argv, ros_env.env)
+    assert replay.wait(150) == 0, replay.output
+    assert "Traceback" not in replay.output
+    live = json.loads(out.read_text())
+    offline = diagnose(read_run_log(log_dir), make_params("corrected")).to_json()
+    assert live["live"]["complete"], live["live"]
+    assert live["collision_frame"] == offline["collision_frame"] > 10**12
+    assert failed_flags(live) == failed_flags(offline)
+    assert_close(verdict_keys(live), verdict_keys(offline))

@@ -29,7 +29,14 @@ from ads_rca.contract.playback import (
     read_document,
     read_input_problems,
 )
-from ads_rca.model import RunLog, RunMetadata, read_inputs
+from ads_rca.model import (
+    MAX_FRAME,
+    MAX_TIMESTAMP_MS,
+    RunLog,
+    RunMetadata,
+    bounded_int,
+    read_inputs,
+)
 from ads_rca.problems import IGNORED, Problem, ProblemLog
 
 if TYPE_CHECKING:
@@ -39,14 +46,19 @@ _ADDED_METADATA_KEYS = ("source", "frames", "problems", INPUT_PROBLEMS_KEY)
 
 
 def metadata_from_document(document: dict[str, Any]) -> RunMetadata:
-    """A metadata.json document → RunMetadata (the document kept as ``raw``)."""
+    """A metadata.json document → RunMetadata (the document kept as ``raw``); ValueError
+    for numbers the reader never gives (a frame period of 0, a frame past MAX_FRAME)."""
     camera = (document.get("ego_config") or {}).get("camera") or {}
     loc = [float(v) for v in camera.get("camera_loc", (0.0, 0.0, 0.0))]
     return RunMetadata(
-        timesteps_per_frame=int(document["timesteps_per_frame"]),
+        timesteps_per_frame=bounded_int(
+            document["timesteps_per_frame"], "timesteps_per_frame", 1, MAX_TIMESTAMP_MS
+        ),
         camera_loc=(loc[0], loc[1], loc[2]),
-        collision_frame=int(document.get("collision_frame", -1)),
-        total_frames=int(document.get("total_frames", 0)),
+        collision_frame=bounded_int(
+            document.get("collision_frame", -1), "collision_frame", -MAX_FRAME, MAX_FRAME
+        ),
+        total_frames=bounded_int(document.get("total_frames", 0), "total_frames", 0, MAX_FRAME),
         raw=document,
     )
 
@@ -188,7 +200,8 @@ class RunLogAssembler:
         try:
             metadata = metadata_from_document(self.metadata_document)
             frames = tuple(
-                int(self.markers[i]["stamp_ms"]) for i in sorted(i for i in self.markers if i >= 0)
+                bounded_int(self.markers[i]["stamp_ms"], "stamp_ms", 0, MAX_TIMESTAMP_MS)
+                for i in sorted(i for i in self.markers if i >= 0)
             )
         except DOCUMENT_ERRORS as error:
             raise MalformedMessage(str(error)) from error

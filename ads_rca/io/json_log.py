@@ -50,6 +50,8 @@ from ads_rca.io.validate import validate_run_log
 from ads_rca.model import (
     ALL_FOLDERS,
     FOLDERS,
+    MAX_FRAME,
+    MAX_TIMESTAMP_MS,
     OPTIONAL_FOLDERS,
     Record,
     RunLog,
@@ -105,13 +107,6 @@ def timestamp_of(file_name: str) -> int | None:
     if not text.isascii() or not text.isdigit():
         return None
     return int(text)
-
-
-#: The largest timestamp a file name may give (and frame period metadata may): the last
-#: millisecond ROS time can carry (builtin_interfaces/Time's seconds are an int32, some
-#: 68 years), so every frame read can be played and recorded; every one below is exact as a
-#: float and fits the int64 arrays the checks use.
-MAX_TIMESTAMP_MS = 2**31 * 1000 - 1
 
 
 def is_log_file(file_name: str) -> bool:
@@ -433,6 +428,14 @@ def read_metadata(
         tpf = _infer_tpf(timestamps)
     camera_loc = _camera_loc(document, file, problems)
     collision = int(field("collision_frame", document.get("collision_frame"), -1, True))
+    if abs(collision) > MAX_FRAME:  # judges as the absurd frame did (see MAX_FRAME)
+        collision = MAX_FRAME if collision > 0 else -MAX_FRAME
+        problems.add(
+            file,
+            "collision_frame",
+            f"{show_value(document.get('collision_frame'))} is past the largest frame read",
+            f"{USED_DEFAULT}: {collision}",
+        )
     if timestamps and collision * tpf > timestamps[-1]:
         problems.add(
             file,
@@ -443,6 +446,14 @@ def read_metadata(
         )
     last_frame = (timestamps[-1] // tpf) if timestamps else 0
     total = int(field("total_frames", document.get("total_frames"), last_frame, True))
+    if not 0 <= total <= MAX_FRAME:
+        problems.add(
+            file,
+            "total_frames",
+            f"{show_value(document.get('total_frames'))} is not 0 to {MAX_FRAME}",
+            f"{USED_DEFAULT}: {last_frame}",
+        )
+        total = last_frame
     return RunMetadata(tpf, camera_loc, collision, total, raw=document)
 
 

@@ -20,8 +20,12 @@ import numpy as np
 from ads_rca.contract.errors import DOCUMENT_ERRORS, MalformedMessage
 from ads_rca.contract.topics import TOPIC_FOLDERS
 from ads_rca.live.runid import RunFilter, document_run
+from ads_rca.model import MAX_FRAME, MAX_TIMESTAMP_MS, bounded_int
 from ads_rca.oracles.base import MODULES, Module, OracleResult
 from ads_rca.problems import Problem, problems_from_list
+
+#: Stamps a live message may carry, either side of zero (ROS time's range).
+MAX_STAMP = MAX_TIMESTAMP_MS
 
 
 @dataclass(frozen=True, slots=True)
@@ -41,9 +45,11 @@ class FrameMarker:
             index = document.get("index")
             published = document.get("published") or ()
             folders = frozenset(TOPIC_FOLDERS[str(k)] for k in published if str(k) in TOPIC_FOLDERS)
+            if isinstance(index, int):
+                index = bounded_int(index, "index", 0, MAX_FRAME)
             return cls(
                 index if isinstance(index, int) else None,
-                int(document.get("stamp_ms", 0)),
+                bounded_int(document.get("stamp_ms", 0), "stamp_ms", -MAX_STAMP, MAX_STAMP),
                 folders,
                 bool(document.get("duplicate", False)),
             )
@@ -128,7 +134,7 @@ class LiveResult:
             raise ValueError(f"unknown module {module!r}")  # made a MalformedMessage above
         result = OracleResult(
             module,
-            int(d["stamp_ms"]),
+            bounded_int(d["stamp_ms"], "stamp_ms", -MAX_STAMP, MAX_STAMP),
             bool(d["failed"]),
             dict(d.get("metrics") or {}),
             {str(k): v for k, v in (d.get("thresholds") or {}).items()},
@@ -136,12 +142,14 @@ class LiveResult:
             d.get("skipped"),
         )
         return cls(
-            index=int(d["index"]),
+            index=bounded_int(d["index"], "index", -1, MAX_FRAME),
             result=result,
             frame=d["frame"],
-            collision_frame=int(d.get("collision_frame", -1)),
+            collision_frame=bounded_int(
+                d.get("collision_frame", -1), "collision_frame", -MAX_FRAME, MAX_FRAME
+            ),
             incomplete=tuple(d.get("incomplete") or ()),
-            revision=int(d.get("revision", 0)),
+            revision=bounded_int(d.get("revision", 0), "revision", 0, MAX_FRAME),
             ego_id=d.get("ego_id"),
             partner_id=d.get("partner_id"),
             problems=tuple(problems_from_list(d.get("problems"))),
@@ -149,20 +157,25 @@ class LiveResult:
             wait_s=float(d.get("wait_s", 0.0)),
             session=str(d.get("session", "")),
             run=str(d.get("run") or ""),
-            closes_collision=int(d.get("closes_collision", -1)),
-            tpf_ms=int(d.get("tpf_ms", 0)),
+            closes_collision=bounded_int(
+                d.get("closes_collision", -1), "closes_collision", -1, MAX_FRAME
+            ),
+            tpf_ms=bounded_int(d.get("tpf_ms", 0), "tpf_ms", 0, MAX_STAMP),
         )
 
 
 def collision_frame(document: Mapping[str, Any], runs: RunFilter) -> int | None:
     """The frame a ``run/collision`` event sets, or None: an event naming another run is
     ignored, one naming no run (a live stack's own event) is taken; the monitors and the
-    aggregator read the event by this one rule."""
+    aggregator read the event by this one rule. MalformedMessage: a frame past MAX_FRAME."""
     if document_run(document) is not None and not runs.accept(document):
         return None
     frame = document.get("frame")
-    usable = isinstance(frame, int) and not isinstance(frame, bool) and frame >= 0
-    return frame if usable else None
+    if not isinstance(frame, int) or isinstance(frame, bool) or frame < 0:
+        return None
+    if frame > MAX_FRAME:  # an absurd frame would hold the verdict forever
+        raise MalformedMessage(f"collision frame {str(frame)[:40]} is past {MAX_FRAME}")
+    return frame
 
 
 @dataclass

@@ -19,6 +19,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ads_rca.problems import ProblemLog
+from ads_rca.text import short_repr
 
 if TYPE_CHECKING:
     from typing import Unpack  # Python 3.11; annotations only (the package runs on 3.10)
@@ -58,15 +59,18 @@ MAX_FRAME = 2**42
 
 def bounded_int(value: Any, name: str, low: int, high: int) -> int:
     """``value`` when it is an integer in [low, high] (an integral float, as other JSON
-    writers give, too); ValueError naming ``name`` else. For numbers a message or a
-    recording states: past int64 one overflowed the aggregator's columns inside a
-    callback, an absurd frame held a verdict forever, a zero frame period divided by 0."""
+    writers give, too); TypeError (not an integer) or ValueError (out of range) naming
+    ``name`` else. For numbers a message or a recording states: past int64 one overflowed
+    the aggregator's columns inside a callback, an absurd frame held a verdict forever, a
+    zero frame period divided by 0."""
     if isinstance(value, float) and value.is_integer():
         value = int(value)
     if not isinstance(value, int) or isinstance(value, bool):
-        raise ValueError(f"{name} is not an integer: {str(value)[:40]!r}")
+        raise TypeError(f"{name} is not an integer: {short_repr(value)}")
     if not low <= value <= high:
-        raise ValueError(f"{name} {str(value)[:40]} is outside [{low}, {high}]")
+        sign = "-" if value < 0 else ""
+        shown = value if abs(value) < 10**30 else f"{sign}2**{value.bit_length() - 1} or more"
+        raise ValueError(f"{name} {shown} is outside [{low}, {high}]")
     return value
 
 

@@ -10,11 +10,11 @@ from __future__ import annotations
 import textwrap
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, fields, replace
-from pathlib import Path
 from typing import Any, Literal
 
 from ads_rca.errors import ConfigError
 from ads_rca.paramspec import SPECS, check_value
+from ads_rca.text import short_repr
 
 Semantics = Literal["reference", "corrected"]
 SEMANTICS: tuple[Semantics, ...] = ("reference", "corrected")
@@ -79,7 +79,9 @@ def make_params(
 ) -> Params:
     """The mode's defaults with ``overrides`` applied (names checked, values converted)."""
     if semantics not in SEMANTICS:
-        raise ConfigError(f"semantics must be one of {', '.join(SEMANTICS)}, not {semantics!r}")
+        raise ConfigError(
+            f"semantics must be one of {', '.join(SEMANTICS)}, not {short_repr(semantics)}"
+        )
     mode: Semantics = "reference" if semantics == "reference" else "corrected"
     base = Params(semantics=mode)
     if mode == "reference":
@@ -101,6 +103,11 @@ def params_from_sources(
     config file is refused naming ``config_name``."""
     values = dict(overrides)
     mode = semantics or values.pop("semantics", None) or config.get("semantics", DEFAULT_SEMANTICS)
+    if not isinstance(mode, str):  # str() of a YAML alias bomb would never end
+        name = f"{config_name}: " if config_name else ""
+        raise ConfigError(
+            f"{name}semantics must be one of {', '.join(SEMANTICS)}, not {short_repr(mode)}"
+        )
     from_file = engine_overrides(config)
     from_file.pop("semantics", None)
     try:
@@ -118,33 +125,9 @@ def parse_assignments(items: list[str]) -> dict[str, str]:
     for item in items:
         name, sep, value = item.replace(":=", "=", 1).partition("=")
         if not sep or not name.strip():
-            raise ConfigError(f"-p expects name=value, got {item!r}")
+            raise ConfigError(f"-p expects name=value, got {short_repr(item)}")
         out[name.strip()] = value.strip()
     return out
-
-
-def load_config(path: str | Path) -> dict[str, Any]:
-    """Parameters from a YAML file: a flat mapping, or a ROS 2 params file (any node)."""
-    import yaml  # only a run with a config file needs it
-
-    file = Path(path)
-    try:
-        document = yaml.safe_load(file.read_text())
-    except OSError as error:
-        raise ConfigError(f"{file}: cannot read config ({error.strerror})") from None
-    except yaml.YAMLError as error:
-        raise ConfigError(f"{file}: invalid YAML ({str(error).splitlines()[0]})") from None
-    if document is None:
-        return {}
-    if not isinstance(document, dict):
-        raise ConfigError(f"{file}: expected a mapping of parameter names to values")
-    merged: dict[str, Any] = {}
-    ros_sections = [v for v in document.values() if isinstance(v, dict) and "ros__parameters" in v]
-    if ros_sections:
-        for section in ros_sections:
-            merged.update(section["ros__parameters"] or {})
-        return merged
-    return dict(document)
 
 
 def engine_overrides(values: Mapping[str, Any]) -> dict[str, Any]:
@@ -155,7 +138,7 @@ def engine_overrides(values: Mapping[str, Any]) -> dict[str, Any]:
 def _convert(name: str, value: Any) -> Any:
     if name not in _FIELD_TYPES:
         known = ", ".join(sorted(_FIELD_TYPES))
-        raise ConfigError(f"unknown parameter {name!r} (known: {known})")
+        raise ConfigError(f"unknown parameter {short_repr(name)} (known: {known})")
     if name == "semantics":
         return value
     return check_value(name, value, SPECS[name].range)

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ads_rca.errors import ConfigError
+from ads_rca.text import short_repr
 
 
 @dataclass(frozen=True)
@@ -54,7 +55,7 @@ class Choice:
     def check(self, name: str, value: object) -> None:
         """Raise ConfigError unless ``value`` is one of the options."""
         if value not in self.options:
-            raise ConfigError(f"parameter {name}: {value!r} is not {self.text()}")
+            raise ConfigError(f"parameter {name}: {short_repr(value)} is not {self.text()}")
 
 
 def _number_text(value: float) -> str:
@@ -290,14 +291,14 @@ def check_number(name: str, value: Any, bounds: Range) -> int | float:
     """``value`` (a number, or text of one) as the parameter's type, within ``bounds``;
     else ConfigError naming the parameter (and the range)."""
     if isinstance(value, bool):
-        raise ConfigError(f"parameter {name}: {value!r} is not a number")
+        raise ConfigError(f"parameter {name}: {short_repr(value)} is not a number")
     try:
         number = float(value)
     except (TypeError, ValueError, OverflowError):
-        raise ConfigError(f"parameter {name}: {value!r} is not a number") from None
+        raise ConfigError(f"parameter {name}: {short_repr(value)} is not a number") from None
     if bounds.integer and math.isfinite(number):
         if not number.is_integer():
-            raise ConfigError(f"parameter {name}: {value!r} is not an integer")
+            raise ConfigError(f"parameter {name}: {short_repr(value)} is not an integer")
         bounds.check(name, int(number))
         return int(number)
     bounds.check(name, number)

@@ -10,6 +10,7 @@ JSON outputs keep the exact strings: JSON escapes control characters itself.
 from __future__ import annotations
 
 import re
+import reprlib
 
 #: C0 controls (tab and newline included), DEL, C1 controls, the Unicode line and
 #: paragraph separators, the bidi embedding/override/isolate controls, and lone surrogates
@@ -36,3 +37,19 @@ def printable_lines(text: str) -> str:
     """Each line of ``text`` made printable, keeping its line breaks (another process's
     output, shown line by line)."""
     return "\n".join(printable(line) for line in text.split("\n"))
+
+
+#: A few levels and items of a container, a few dozen characters of a string or number.
+_SHORT = reprlib.Repr()
+_SHORT.maxlevel, _SHORT.maxlist, _SHORT.maxdict, _SHORT.maxtuple = 3, 4, 4, 4
+_SHORT.maxstring = _SHORT.maxother = _SHORT.maxlong = 40
+
+
+def short_repr(value: object, limit: int = 40) -> str:
+    """A repr of a value a user gave, at most ``limit`` characters, for an error message.
+
+    Never walks more than a few levels and items: a YAML document whose aliases share one
+    list nine times at each of nine levels is tiny, but its full repr is 9**9 items long.
+    """
+    text = _SHORT.repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."

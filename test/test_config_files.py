@@ -9,8 +9,9 @@ from typing import Any
 
 import pytest
 
+from ads_rca.io.yaml_files import load_config
 from ads_rca.oracles.semantics import semantics_for
-from ads_rca.params import SEMANTICS, load_config, make_params
+from ads_rca.params import SEMANTICS, make_params
 
 CONFIG = Path(__file__).resolve().parent.parent / "config"
 

@@ -132,8 +132,8 @@ def test_document_readers_raise_malformed_message_with_the_readers_error_as_caus
         FrameMarker.from_document({"stamp_ms": []})
     assert isinstance(marker.value.__cause__, TypeError)
     assert str(marker.value) == str(marker.value.__cause__)
-    # Infinity where an integer belongs: an OverflowError, which escaped before.
-    with pytest.raises(MalformedMessage, match=r"^unusable run/metadata: OverflowError\("):
+    # Infinity where an integer belongs (an OverflowError escaped before): not an integer.
+    with pytest.raises(MalformedMessage, match=r"^unusable run/metadata: TypeError\("):
         run_metadata({"timesteps_per_frame": float("inf")})
     assembler = RunLogAssembler()
     with pytest.raises(MalformedMessage, match=r"^'int' object is not iterable$"):

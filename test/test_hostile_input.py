@@ -174,6 +174,15 @@ def test_diagnose_workers_must_be_1_to_512(log_dir: Path, workers: str) -> None:
     assert done.stderr.strip() == f"ads-rca diagnose: error: --workers {workers}: expected 1 to 512"
 
 
+@pytest.mark.parametrize("command", ["diagnose", "inspect"])
+def test_max_problems_must_not_be_negative(log_dir: Path, command: str) -> None:
+    """-5 printed all but the last five problems and called those five "more"."""
+    done = run_cli(command, str(log_dir), "--max-problems", "-5")
+    assert_clean(done, 2)
+    assert done.stderr.strip() == f"ads-rca {command}: error: --max-problems -5: expected 0 or more"
+    assert_clean(run_cli(command, str(log_dir), "--max-problems", "0"))
+
+
 # --- 2. JSON nested too deep ------------------------------------------------------------
 
 

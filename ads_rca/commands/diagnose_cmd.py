@@ -13,6 +13,7 @@ from ads_rca.commands.input_args import (
     add_bag_arguments,
     add_reader_arguments,
     bag_options_from_args,
+    checked_max_problems,
     max_file_mb_from_args,
 )
 from ads_rca.commands.outputs import check_output_file
@@ -22,13 +23,13 @@ from ads_rca.engine import Diagnosis, diagnose
 from ads_rca.errors import ConfigError, InputError
 from ads_rca.indented_json import write_indented
 from ads_rca.io import open_run
+from ads_rca.io.yaml_files import load_config
 from ads_rca.model import RunLog
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import (
     DEFAULT_SEMANTICS,
     SEMANTICS,
     Params,
-    load_config,
     parameters_help,
     params_from_sources,
 )
@@ -141,6 +142,7 @@ def run(args: argparse.Namespace) -> int:
     if args.report:
         check_output_file(args.report, "--report")
     workers = checked_workers(args.workers)
+    checked_max_problems(args.max_problems)
     log = open_run(
         args.path,
         max_file_mb=max_file_mb,

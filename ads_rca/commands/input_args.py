@@ -14,7 +14,8 @@ from typing import Any
 from ads_rca.errors import InputError
 from ads_rca.io.bag_options import BagOptions
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB
-from ads_rca.params import load_config, parse_assignments
+from ads_rca.io.yaml_files import load_config
+from ads_rca.params import parse_assignments
 from ads_rca.paramspec import MAX_FILE_MB, check_number
 from ads_rca.profiles import BUILTIN_PROFILES, DEFAULT_PROFILE
 
@@ -77,11 +78,21 @@ def add_bag_arguments(
 def bag_options_from_args(args: argparse.Namespace) -> BagOptions:
     """The bag options given on the command line, each checked before any work."""
     remap = getattr(args, "remap", None) or getattr(args, "bag_remap", None)
-    if remap and not Path(remap).is_file():
-        raise InputError(f"--remap {remap}: no such file")
+    if remap:
+        from ads_rca.io.yaml_files import load_yaml
+
+        load_yaml(remap, "remapping")  # a FIFO, /dev/zero, bad YAML: refused before any work
     msg_path = tuple(getattr(args, "msg_path", None) or ())
     for directory in msg_path:
         if not Path(directory).is_dir():
             raise InputError(f"--msg-path {directory}: no such directory")
     profile = str(getattr(args, "profile", None) or DEFAULT_PROFILE)
     return BagOptions(profile, remap or None, msg_path)
+
+
+def checked_max_problems(value: int) -> int:
+    """``--max-problems`` when it is 0 or more; a negative one printed all but the last few
+    problems and called those "more"."""
+    if value < 0:
+        raise InputError(f"--max-problems {value}: expected 0 or more")
+    return value

@@ -13,6 +13,7 @@ from ads_rca.commands.input_args import (
     add_bag_arguments,
     add_reader_arguments,
     bag_options_from_args,
+    checked_max_problems,
     max_file_mb_from_args,
 )
 from ads_rca.commands.progress_bar import terminal_bar
@@ -115,6 +116,7 @@ def text_lines(info: dict[str, Any]) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
+    checked_max_problems(args.max_problems)
     if not Path(args.path).exists():
         open_run(args.path, bag=BagOptions())  # the one-line "no such log folder or bag"
     log, contents = _load(args.path, args)

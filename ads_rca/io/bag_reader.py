@@ -50,9 +50,11 @@ from ads_rca.io.bag_storage import (
 )
 from ads_rca.io.bag_types import DECODE_ERRORS
 from ads_rca.io.files import Unreadable, read_regular
+from ads_rca.io.yaml_files import load_yaml
 from ads_rca.model import RunLog
 from ads_rca.problems import IGNORED, SKIPPED_FILE, USED_DEFAULT, Problem
 from ads_rca.progress import Progress, tracked
+from ads_rca.text import short_repr
 
 if TYPE_CHECKING:
     from ads_rca.io.bag_types import BagTypes
@@ -76,16 +78,17 @@ class Remap:
 
 def load_remap(path: str | os.PathLike[str]) -> Remap:
     """A remapping YAML: ``{their_topic: our_topic_key, ..., metadata: {...}}``."""
-    document = yaml.safe_load(Path(path).read_text(encoding="utf-8")) or {}
+    document = load_yaml(path, "remapping") or {}
     if not isinstance(document, dict):
         raise InputError(f"{path}: a remapping file is a mapping of topic → topic key")
     metadata = document.pop("metadata", None)
     mapping: dict[str, str] = {}
     for theirs, ours in document.items():
-        key = str(ours)
-        if key not in topics.ALL_TOPICS:
-            raise InputError(f"{path}: {ours!r} is not a contract topic key {topics.ALL_TOPICS}")
-        mapping[str(theirs)] = key
+        # Names are strings: str() of anything else could be a billion-laughs expansion.
+        if not isinstance(theirs, str) or ours not in topics.ALL_TOPICS:
+            shown = short_repr(ours if isinstance(theirs, str) else theirs)
+            raise InputError(f"{path}: {shown} is not a contract topic key {topics.ALL_TOPICS}")
+        mapping[theirs] = ours
     if metadata is not None and not isinstance(metadata, dict):
         raise InputError(f"{path}: 'metadata' must be a mapping (a metadata.json document)")
     return Remap(mapping, metadata)

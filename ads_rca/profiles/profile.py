@@ -20,22 +20,19 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from ads_rca.capabilities import MODEL_INPUTS
 from ads_rca.contract import topics
 from ads_rca.errors import ConfigError
-from ads_rca.io.files import Unreadable, read_regular
+from ads_rca.io.yaml_files import load_yaml
 from ads_rca.profiles import BUILTIN_PROFILES
 from ads_rca.profiles.decoders import DECODERS, FRAMES
+from ads_rca.text import short_repr
 
 #: The inputs that can time the frames, in the order a profile without ``reference`` tries.
 REFERENCE_INPUTS = ("actors", "ego", "clock")
 #: Which predicted path a prediction input takes.
 PATHS = ("most_probable",)
 BUILTIN_NAMES = BUILTIN_PROFILES
-#: A profile is a few KiB; anything this large is not one.
-MAX_PROFILE_BYTES = 1 << 20
 
 _TOP_KEYS = ("profile", "description", "reference", "contract", "inputs", "metadata")
 _INPUT_KEYS = ("topic", "type", "frame", "path")
@@ -117,15 +114,7 @@ def load_profile(name_or_path: str | os.PathLike[str]) -> Profile:
     path = builtin_path(text) if text in BUILTIN_NAMES else Path(text)
     if text not in BUILTIN_NAMES and not os.path.lexists(path):
         raise ConfigError(f"{text}: no such profile (a file, or one of {', '.join(BUILTIN_NAMES)})")
-    data = read_regular(path, MAX_PROFILE_BYTES)
-    if isinstance(data, Unreadable):
-        raise ConfigError(f"{path}: {data.issue}")
-    try:
-        document = yaml.safe_load(data.decode("utf-8"))
-    except (UnicodeDecodeError, yaml.YAMLError, RecursionError) as error:
-        detail = " ".join(str(error).split()) or type(error).__name__
-        raise ConfigError(f"{path}: not a YAML profile: {detail}") from None
-    return parse_profile(document, str(path))
+    return parse_profile(load_yaml(path, "profile"), str(path))
 
 
 def parse_profile(document: object, file: str) -> Profile:
@@ -137,7 +126,7 @@ def parse_profile(document: object, file: str) -> Profile:
     description = _text(file, "description", document.get("description", ""), empty=True)
     contract = document.get("contract", False)
     if not isinstance(contract, bool):
-        raise ConfigError(f"{file}: contract: {contract!r} is not true or false")
+        raise ConfigError(f"{file}: contract: {short_repr(contract)} is not true or false")
     inputs_doc = document.get("inputs")
     if not isinstance(inputs_doc, dict) or not inputs_doc:
         raise ConfigError(f"{file}: inputs: a mapping of model input → topic and type")
@@ -160,7 +149,7 @@ def parse_profile(document: object, file: str) -> Profile:
             )
     elif reference not in REFERENCE_INPUTS or reference not in inputs:
         raise ConfigError(
-            f"{file}: reference: {reference!r} is not an input of the profile among "
+            f"{file}: reference: {short_repr(reference)} is not an input of the profile among "
             f"{', '.join(REFERENCE_INPUTS)}"
         )
     camera_loc, ego_role = _metadata(file, document.get("metadata", {}))
@@ -194,14 +183,20 @@ def _input(file: str, key: object, value: object, contract: bool) -> InputSpec:
     _known(file, f"{where}.", value, _INPUT_KEYS)
     topic = _text(file, f"{where}.topic", value.get("topic"))
     if not topic.startswith("/") or any(c.isspace() for c in topic):
-        raise ConfigError(f"{file}: {where}.topic: {topic!r} is not an absolute topic name")
+        raise ConfigError(
+            f"{file}: {where}.topic: {short_repr(topic)} is not an absolute topic name"
+        )
     type_name = _text(file, f"{where}.type", value.get("type"))
     frame = _text(file, f"{where}.frame", value.get("frame", "map"))
     if frame not in FRAMES:
-        raise ConfigError(f"{file}: {where}.frame: {frame!r} is not one of {', '.join(FRAMES)}")
+        raise ConfigError(
+            f"{file}: {where}.frame: {short_repr(frame)} is not one of {', '.join(FRAMES)}"
+        )
     path = _text(file, f"{where}.path", value.get("path", PATHS[0]))
     if path not in PATHS:
-        raise ConfigError(f"{file}: {where}.path: {path!r} is not one of {', '.join(PATHS)}")
+        raise ConfigError(
+            f"{file}: {where}.path: {short_repr(path)} is not one of {', '.join(PATHS)}"
+        )
     if "path" in value and key not in ("predictions", "predictions_gt"):
         raise ConfigError(f"{file}: {where}.path: only a prediction input takes a path")
     if contract:
@@ -213,7 +208,7 @@ def _input(file: str, key: object, value: object, contract: bool) -> InputSpec:
         decoder = DECODERS.get(type_name)
         if decoder is None:
             raise ConfigError(
-                f"{file}: {where}.type: no decoder for {type_name!r} (known: "
+                f"{file}: {where}.type: no decoder for {short_repr(type_name)} (known: "
                 f"{', '.join(sorted(DECODERS))})"
             )
         if key not in decoder.inputs:
@@ -233,7 +228,9 @@ def _metadata(file: str, value: object) -> tuple[tuple[float, float, float] | No
     if camera is not None:
         numbers = [float(v) for v in camera if _is_number(v)] if isinstance(camera, list) else []
         if len(numbers) != 3 or len(camera) != 3 or not all(map(math.isfinite, numbers)):
-            raise ConfigError(f"{file}: metadata.camera_loc: {camera!r:.60} is not [x, y, z]")
+            raise ConfigError(
+                f"{file}: metadata.camera_loc: {short_repr(camera, 60)} is not [x, y, z]"
+            )
         camera_loc = (numbers[0], numbers[1], numbers[2])
     ego_role = _text(file, "metadata.ego_role", value.get("ego_role", ""), empty=True)
     return camera_loc, ego_role
@@ -252,7 +249,7 @@ def _known(file: str, prefix: str, document: dict[Any, Any], keys: tuple[str, ..
 def _text(file: str, where: str, value: object, empty: bool = False) -> str:
     """A string value (non-empty unless ``empty``)."""
     if not isinstance(value, str):
-        raise ConfigError(f"{file}: {where}: {value!r:.60} is not a string")
+        raise ConfigError(f"{file}: {where}: {short_repr(value, 60)} is not a string")
     if not empty and not value:
         raise ConfigError(f"{file}: {where}: empty")
     return value

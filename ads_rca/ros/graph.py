@@ -33,9 +33,10 @@ from typing import Any, TextIO
 from ads_rca.contract import topics
 from ads_rca.errors import InputError
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB
+from ads_rca.io.yaml_files import load_config
 from ads_rca.live.runid import new_run_id
 from ads_rca.oracles.base import MODULES, Module
-from ads_rca.params import SEMANTICS, Params, load_config, params_from_sources
+from ads_rca.params import SEMANTICS, Params, params_from_sources
 from ads_rca.paramspec import MAX_FILE_MB, RATE, SECONDS, check_number
 from ads_rca.profiles import BUILTIN_PROFILES
 from ads_rca.ros.launcher import Launcher, ManagedProcess, ParamValue, ros_args

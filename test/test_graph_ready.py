@@ -15,6 +15,7 @@ from __future__ import annotations
 import sys
 import time
 from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -47,6 +48,15 @@ def start(ros_env: RosEnv, tmp_path: Path, name: str, wait_s: float) -> ManagedP
     params["zenoh_listen"] = (f"tcp/127.0.0.1:{free_port()}",)
     argv = [sys.executable, "-m", "ads_rca.ros.zenoh_bridge", *ros_args(params)]
     return ManagedProcess(name, argv, ros_env.env)
+
+
+@contextmanager
+def running(process: ManagedProcess) -> Iterator[ManagedProcess]:
+    """``process``, stopped (SIGINT, as a launch does) when the block ends."""
+    try:
+        yield process
+    finally:
+        process.stop()
 
 
 @dataclass
@@ -99,8 +109,7 @@ def graph_publishers(node: Any, namespace: str) -> list[Any]:
 def test_ready_only_once_every_graph_output_has_a_publisher(
     ros_env: RosEnv, tmp_path: Path, player_side: PlayerSide, name: str
 ) -> None:
-    process = start(ros_env, tmp_path, name, 60.0)
-    try:
+    with running(start(ros_env, tmp_path, name, 60.0)) as process:
         wait_for(lambda: player_side.frame.get_subscription_count() >= 1, 60, "the node")
         time.sleep(1.5)
         assert process.returncode is None, process.output
@@ -109,8 +118,6 @@ def test_ready_only_once_every_graph_output_has_a_publisher(
         assert len(made) == len(live_topics.graph_topics(ros_env.namespace))
         wait_for(lambda: player_side.ready.get_subscription_count() == 1, 30, "ready")
         assert "no publisher of" not in process.output
-    finally:
-        process.stop()
     assert process.returncode == 0, process.output
 
 
@@ -118,12 +125,9 @@ def test_ready_only_once_every_graph_output_has_a_publisher(
 def test_ready_anyway_after_graph_wait_naming_the_topics_alone(
     ros_env: RosEnv, tmp_path: Path, player_side: PlayerSide, name: str
 ) -> None:
-    process = start(ros_env, tmp_path, name, 1.0)
-    try:
+    with running(start(ros_env, tmp_path, name, 1.0)) as process:
         wait_for(lambda: player_side.ready.get_subscription_count() == 1, 60, "ready")
         wait_for(lambda: "no publisher of" in process.output, 10, "the warning")
-    finally:
-        process.stop()
     (line,) = [s for s in process.output.splitlines() if "no publisher of" in s]
     ns = ros_env.namespace
     for topic in (f"{ns}/metrics/planning", f"{ns}/verdict", live_topics.DIAGNOSTICS):

@@ -46,8 +46,9 @@ _ADDED_METADATA_KEYS = ("source", "frames", "problems", INPUT_PROBLEMS_KEY)
 
 
 def metadata_from_document(document: dict[str, Any]) -> RunMetadata:
-    """A metadata.json document → RunMetadata (the document kept as ``raw``); ValueError
-    for numbers the reader never gives (a frame period of 0, a frame past MAX_FRAME)."""
+    """A metadata.json document → RunMetadata (the document kept as ``raw``); TypeError or
+    ValueError for numbers the reader never gives (a frame period of 0, a frame past
+    MAX_FRAME, a string)."""
     camera = (document.get("ego_config") or {}).get("camera") or {}
     loc = [float(v) for v in camera.get("camera_loc", (0.0, 0.0, 0.0))]
     return RunMetadata(

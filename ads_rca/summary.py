@@ -30,6 +30,8 @@ def summary_text(document: dict[str, Any], max_problems: int = 10, how: str = "j
         partner = document.get("partner_id")
         with_partner = f" with actor {partner}" if partner else ""
         lines.append(f"collision at frame {collision}{with_partner}")
+    elif isinstance(collision, int) and collision < -1:  # reference: every failure counts
+        lines.append(f"collision frame {collision}: before the run")
     else:
         lines.append("no collision in this run")
     lines.append(window_text(document.get("effect_window")))

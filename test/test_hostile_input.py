@@ -370,6 +370,38 @@ HUGE = int("9" * 400)
 
 
 @pytest.mark.parametrize("semantics", ["reference", "corrected"])
+def test_a_negative_collision_frame_other_than_minus_one(tmp_path: Path, semantics: str) -> None:
+    """Only -1 means "no collision" to the reference (``collision_frame == -1``); at -5 it
+    counts every failure as a collision (tried on the reference tool itself: the example
+    log's controller, 80 safe at -1, is 80 collision at -5). Corrected finds no collision.
+    Both say the frame is before the run."""
+    example = Path(__file__).resolve().parents[1] / "examples" / "cut_in_perception"
+    log_dir = Path(shutil.copytree(example, tmp_path / "log"))
+    metadata = _metadata(log_dir)
+    metadata["collision_frame"] = -1
+    (log_dir / "metadata.json").write_text(json.dumps(metadata))
+    none = _verdict(log_dir, tmp_path / "none.json", semantics)
+    metadata["collision_frame"] = -5
+    (log_dir / "metadata.json").write_text(json.dumps(metadata))
+    before = _verdict(log_dir, tmp_path / "before.json", semantics)
+    [said] = [p for p in before["input_problems"] if p["field"] == "collision_frame"]
+    assert said["issue"].startswith("frame -5 is before the run") and said["action"] == "value kept"
+    failures = {m: c["safe"] for m, c in none["modules"].items()}
+    if semantics == "reference":
+        assert sum(failures.values()) > 0
+        assert all(c["collision"] == 0 for c in none["modules"].values())
+        assert {m: (c["collision"], c["safe"]) for m, c in before["modules"].items()} == {
+            m: (n, 0) for m, n in failures.items()
+        }
+        assert before["root_causes"] == [m for m, n in failures.items() if n]
+    else:
+        assert before["primary_root_cause"] is None and before["reason"] == "no collision"
+        assert before["modules"] == none["modules"]
+    done = run_cli("diagnose", str(log_dir), "--semantics", semantics)
+    assert "collision frame -5: before the run" in done.stdout
+
+
+@pytest.mark.parametrize("semantics", ["reference", "corrected"])
 def test_integers_past_the_float_range_are_infinite_and_reported(
     log_dir: Path, tmp_path: Path, semantics: str
 ) -> None:

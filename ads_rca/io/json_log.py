@@ -436,6 +436,14 @@ def read_metadata(
             f"{show_value(document.get('collision_frame'))} is past the largest frame read",
             f"{USED_DEFAULT}: {collision}",
         )
+    if collision < -1:
+        problems.add(
+            file,
+            "collision_frame",
+            f"frame {collision} is before the run (only -1 means no collision: the reference "
+            "counts every failure as in the window, corrected finds no collision)",
+            KEPT_VALUE,
+        )
     if timestamps and collision * tpf > timestamps[-1]:
         problems.add(
             file,

@@ -18,12 +18,16 @@ from ads_rca.verdict import (
     ModuleVerdict,
 )
 
+#: The one collision frame that means "no collision" to the reference (``== -1``).
+NO_COLLISION_FRAME = -1
+
 
 def attribute_reference(frames: Sequence[FrameResults], ctx: RunContext) -> Attribution:
     """The reference verdict: count failures in and before the (unbounded) window.
 
-    A failure at ts counts as ``collision`` when a collision happened and
-    ts > (collision_frame - effect_time_window) * tpf, with no upper bound; else ``safe``.
+    A failure at ts counts as ``collision`` when collision_frame is not -1 (the reference's
+    test: any other negative frame is a collision before the run, so every failure counts)
+    and ts > (collision_frame - effect_time_window) * tpf, with no upper bound; else ``safe``.
     Root causes are the modules with any ``collision`` count, in pipeline order.
     """
     collision_frame = ctx.log.metadata.collision_frame
@@ -35,7 +39,7 @@ def attribute_reference(frames: Sequence[FrameResults], ctx: RunContext) -> Attr
             if not result.failed:
                 continue
             verdict = modules[module]
-            if collision_frame >= 0 and frame.timestamp_ms > start_ms:
+            if collision_frame != NO_COLLISION_FRAME and frame.timestamp_ms > start_ms:
                 verdict.collision += 1
                 if verdict.first_failure_frame is None:
                     verdict.first_failure_frame = frame.frame
@@ -50,7 +54,7 @@ def attribute_reference(frames: Sequence[FrameResults], ctx: RunContext) -> Attr
     root_causes = [m for m in MODULES if modules[m].collision > 0]
     reason = None
     if not root_causes:
-        reason = NO_COLLISION if collision_frame < 0 else NO_MODULE_FAILED
+        reason = NO_COLLISION if collision_frame == NO_COLLISION_FRAME else NO_MODULE_FAILED
     return Attribution(
         modules=modules,
         root_causes=root_causes,

@@ -15,6 +15,16 @@ from ads_rca.problems import Problem, ProblemLog
 from ads_rca.text import printable
 
 
+def collision_text(collision_frame: int) -> str:
+    """How the summary and the report name the run's collision frame: -1 is none, a frame
+    below it is before the run (the reference counts every failure as a collision then)."""
+    if collision_frame >= 0:
+        return f"collision at frame {collision_frame}"
+    if collision_frame < -1:
+        return f"collision frame {collision_frame}: before the run"
+    return "no collision in this run"
+
+
 def summary_text(document: dict[str, Any], max_problems: int = 10, how: str = "judged") -> str:
     """Counts per module, the verdict with evidence, and the input problems.
 
@@ -26,14 +36,10 @@ def summary_text(document: dict[str, Any], max_problems: int = 10, how: str = "j
         f"semantics {document.get('semantics')}"
     ]
     collision = document.get("collision_frame", -1)
-    if isinstance(collision, int) and collision >= 0:
-        partner = document.get("partner_id")
-        with_partner = f" with actor {partner}" if partner else ""
-        lines.append(f"collision at frame {collision}{with_partner}")
-    elif isinstance(collision, int) and collision < -1:  # reference: every failure counts
-        lines.append(f"collision frame {collision}: before the run")
-    else:
-        lines.append("no collision in this run")
+    collision = collision if isinstance(collision, int) else -1
+    partner = document.get("partner_id")
+    text = collision_text(collision)
+    lines.append(f"{text} with actor {partner}" if partner and collision >= 0 else text)
     lines.append(window_text(document.get("effect_window")))
     (counted, other), legend = count_columns(document.get("semantics"))
     lines.append(f"{'module':<12}{counted:>10}{other:>7}  first failure")

@@ -397,8 +397,10 @@ def test_a_negative_collision_frame_other_than_minus_one(tmp_path: Path, semanti
     else:
         assert before["primary_root_cause"] is None and before["reason"] == "no collision"
         assert before["modules"] == none["modules"]
-    done = run_cli("diagnose", str(log_dir), "--semantics", semantics)
+    report = tmp_path / "report.html"
+    done = run_cli("diagnose", str(log_dir), "--semantics", semantics, "--report", str(report))
     assert "collision frame -5: before the run" in done.stdout
+    assert "collision frame -5: before the run" in report.read_text()
 
 
 @pytest.mark.parametrize("semantics", ["reference", "corrected"])

@@ -34,7 +34,7 @@ from ads_rca.report.figures import (
     scene_frames,
     series_ends,
 )
-from ads_rca.summary import window_text
+from ads_rca.summary import collision_text, window_text
 
 #: Nested evidence deeper than this is shown as text, not as tables within tables.
 TABLE_DEPTH = 3
@@ -132,7 +132,7 @@ def render(result: Diagnosis) -> str:
             " \N{EM DASH} semantics ",
             el("b", result.params.semantics),
             f", {len(result.frames)} frames judged ({result.log.tpf} ms each), ",
-            f"collision frame {meta.collision_frame}" if meta.has_collision else "no collision",
+            collision_text(meta.collision_frame),
             ", ego ",
             result.ctx.ego_id,
             ", partner ",

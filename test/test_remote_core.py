@@ -168,6 +168,46 @@ def test_remote_state_forwards_results_and_answers_late_dashboards() -> None:
         state.answer("car1/ads_rca/frames", {"since": "soon"}, 9.0)
 
 
+def test_the_verdict_waits_for_the_results_it_counts() -> None:
+    """CI: the bridge took one message per topic and turn, so the verdict (decided once the
+    aggregator had every result) went out with 81 planning results still queued, and a
+    dashboard stopping at the verdict never saw them. It now waits for as many results per
+    module as its ``live.results_received`` counts, at most VERDICT_HOLD_S."""
+    from ads_rca import strictjson
+    from ads_rca.remote.state import VERDICT_HOLD_S, RemoteState
+
+    verdict = {
+        "primary_root_cause": "planning",
+        "live": {"results_received": {"perception": 1, "planning": 2}},
+    }
+    state = RemoteState("car1", rates={"modules": 0.0})
+    state.on_result(result_text(0), 0.0)
+    assert state.on_verdict(strictjson.dumps(verdict), 1.0) == []  # 2 planning results due
+    assert state.answer("car1/ads_rca/verdict", {}, 1.0) is None
+    assert [k for k, _ in state.on_result(result_text(0, "planning"), 1.1)] == [
+        "car1/ads_rca/modules/planning.json"
+    ]
+    assert [k for k, _ in state.on_result(result_text(1, "planning"), 1.2)] == [
+        "car1/ads_rca/modules/planning.json",  # the last result first,
+        "car1/ads_rca/verdict.json",  # then the verdict
+    ]
+    assert (
+        strictjson.loads(state.answer("car1/ads_rca/status", {}, 2.0) or "")[
+            "verdict_ahead_of_results"
+        ]
+        == 0
+    )
+    # A bridge that missed results (started late): the verdict goes out after the hold,
+    # or at once when the bridge stops, and the status says how many it went ahead of.
+    for force, at in ((False, 10.0 + VERDICT_HOLD_S), (True, 10.0)):
+        late = RemoteState("car1", rates={"modules": 0.0})
+        assert late.on_verdict(strictjson.dumps(verdict), 10.0) == []
+        assert late.flush(10.0 + VERDICT_HOLD_S / 2) == []
+        assert [k for k, _ in late.flush(at, force=force)] == ["car1/ads_rca/verdict.json"]
+        assert late.status(at)["verdict_ahead_of_results"] == 3
+        assert late.status(at)["state"] == "verdict"
+
+
 @pytest.mark.parametrize(
     "text",
     ["", "{", "[]", "null", '{"module": "wheels"}', "[" * 100_000, b"\xff\xfe", '{"index": "x"}'],

@@ -7,6 +7,12 @@ and keeps what a late dashboard asks the queryables for: the verdict, the status
 bounded frame history. Every document it sends is strict JSON (no NaN: ``strictjson``).
 A message that is not a result or a verdict is counted and its one-line reason kept; it is
 never forwarded.
+
+The verdict is held until every result it was decided on has been forwarded (per module,
+as many as its ``live.results_received`` counts), at most :data:`VERDICT_HOLD_S`. Why: the
+bridge takes one message per topic and turn, so with results still queued (CI: 81 planning
+results) the verdict, decided once the aggregator had them all, overtook them, and a
+dashboard that stops at the verdict never saw them.
 """
 
 from __future__ import annotations
@@ -30,6 +36,9 @@ Put = tuple[str, str]
 READ_ERRORS: tuple[type[Exception], ...] = (MalformedMessage, RecursionError, *DOCUMENT_ERRORS)
 #: Longest reason kept for a malformed message.
 REASON_CHARS = 200
+#: Longest a verdict waits for the results it counts (a bridge started late never gets
+#: them all: the verdict goes out then, and the status says how many were missing).
+VERDICT_HOLD_S = 5.0
 
 
 class RemoteState:
@@ -68,6 +77,10 @@ class RemoteState:
         self.malformed = 0
         self.last_problem = ""
         self.verdict: dict[str, Any] | None = None
+        #: A verdict waiting for the results it counts, and since when.
+        self._held: tuple[dict[str, Any], float] | None = None
+        #: Results the last verdict counted that had not come when it went out.
+        self.verdict_ahead = 0
         self.last_index = -1
 
     def module_key(self, module: str) -> str:
@@ -97,7 +110,8 @@ class RemoteState:
         self.history.add_frame(result.index, entry)
         self.results[result.module] = self.results.get(result.module, 0) + 1
         self.last_index = max(self.last_index, result.index)
-        return self.limiter.offer(self.module_key(result.module), _dumps(document), now)
+        puts = self.limiter.offer(self.module_key(result.module), _dumps(document), now)
+        return puts + self._release(now) if self._held is not None else puts
 
     def on_verdict(self, text: str | bytes, now: float) -> list[Put]:
         """The aggregator's verdict document (the ``diagnose --json`` contract): kept and
@@ -115,7 +129,30 @@ class RemoteState:
         if self.run and isinstance(run, str) and run and run != self.run:
             self.other_runs += 1
             return []
-        self.verdict = document
+        self._held = (document, now)
+        return self._release(now)
+
+    def _missing(self, document: Mapping[str, Any]) -> int:
+        """Results ``document`` counts (its ``live.results_received``) not forwarded yet."""
+        live = document.get("live")
+        counted = live.get("results_received") if isinstance(live, dict) else None
+        if not isinstance(counted, dict):
+            return 0
+        return sum(
+            max(0, n - self.results.get(str(m), 0))
+            for m, n in counted.items()
+            if isinstance(n, int) and not isinstance(n, bool)
+        )
+
+    def _release(self, now: float, force: bool = False) -> list[Put]:
+        """The held verdict's sample once its results are out, or it waited long enough."""
+        if self._held is None:
+            return []
+        document, since = self._held
+        missing = self._missing(document)
+        if missing and not force and now - since < VERDICT_HOLD_S:
+            return []
+        self._held, self.verdict, self.verdict_ahead = None, document, missing
         return self.limiter.offer(self.verdict_key, strictjson.dumps(document), now)
 
     def status(self, now: float, state: str = "running") -> dict[str, Any]:
@@ -129,6 +166,7 @@ class RemoteState:
             "frames_evicted": self.history.evicted,
             "results": dict(self.results),
             "malformed": self.malformed,
+            "verdict_ahead_of_results": self.verdict_ahead,
             "other_runs": self.other_runs,
             "last_problem": self.last_problem,
         }
@@ -137,8 +175,9 @@ class RemoteState:
         return self.limiter.offer(self.status_key, strictjson.dumps(self.status(now, state)), now)
 
     def flush(self, now: float, force: bool = False) -> list[Put]:
-        """Rate-limited samples now due (every one with ``force``)."""
-        return self.limiter.flush(now, force)
+        """Rate-limited samples now due (every one with ``force``), and a held verdict
+        whose wait is over (with ``force``, at once)."""
+        return self.limiter.flush(now, force) + self._release(now, force)
 
     def answer(self, key: str, parameters: Mapping[str, str], now: float) -> str | None:
         """A queryable's reply for ``key`` (None: nothing to say yet, or not ours)."""

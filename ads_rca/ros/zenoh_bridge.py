@@ -222,12 +222,16 @@ class ZenohBridge(Node):
                 text = "\x00"  # counted as malformed by the state, never forwarded
             if verdict:
                 self.zenoh.on_verdict(text)
-                if self.zenoh.state.verdict is not None and self.verdict_at is None:
-                    self.verdict_at = now
             else:
                 self.zenoh.on_result(text)
+            self._note_verdict(now)
 
         return on_message
+
+    def _note_verdict(self, now: float) -> None:
+        """When the verdict went out (it waits for the results it counts: RemoteState)."""
+        if self.zenoh.state.verdict is not None and self.verdict_at is None:
+            self.verdict_at = now
 
     def _tick(self) -> None:
         now = time.monotonic()
@@ -237,6 +241,7 @@ class ZenohBridge(Node):
         if heartbeat:
             self.next_heartbeat = now + self.heartbeat_s
         self.zenoh.tick(heartbeat)
+        self._note_verdict(now)
         if (
             self.exit_after_verdict
             and self.verdict_at is not None

@@ -32,6 +32,7 @@ import time
 from dataclasses import replace
 from typing import Any
 
+import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
@@ -62,7 +63,7 @@ from ads_rca.oracles.semantics import semantics_for
 from ads_rca.paramspec import SECONDS, Range
 from ads_rca.ros.diagnostics import array as diagnostic_array
 from ads_rca.ros.graph import GROUP, MONITORS
-from ads_rca.ros.nodemain import run_node, subscribe_ready
+from ads_rca.ros.nodemain import run_node, subscribe_ready, wait_for_acks
 from ads_rca.ros.nodeparams import (
     NodeParameter,
     declare_engine_parameters,
@@ -74,6 +75,9 @@ from ads_rca.ros.stack_subscriber import (
     listen_for_collisions,
     missing_inputs,
 )
+
+#: Longest a stopping monitor waits for its subscribers to acknowledge its last results.
+CLOSE_FLUSH_S = 3.0
 
 PARAMETERS: dict[str, NodeParameter] = {
     "topic_namespace": (topics.DEFAULT_NAMESPACE, "Namespace of the contract topics."),
@@ -164,6 +168,14 @@ class Monitor(Node):
         )
         self.create_timer(float(p["heartbeat_s"]), self._heartbeat)
         log_in_force(self, p, self.params)
+
+    def close(self) -> None:
+        """Before the node goes (run_node calls this): every subscriber has the results
+        published, at most :data:`CLOSE_FLUSH_S` (a second stop signal ends the wait).
+        Samples not yet acknowledged go with their publisher: in CI a recorder stopped just
+        after this monitor lacked a replay's last 13 planning ``values``."""
+        if rclpy.ok():
+            wait_for_acks([self.metrics_pub, self.values_pub], CLOSE_FLUSH_S, signals_allowed=1)
 
     def publish(self, results: list[LiveResult]) -> None:
         """Each result on the metrics topic (JSON) and its ``values`` topic (numbers); the

@@ -77,13 +77,17 @@ def keep_running() -> bool:
     return not _SIGNALS and rclpy.ok()
 
 
-def wait_for_acks(publishers: Iterable[Publisher[Any]], timeout_s: float) -> bool:
+def wait_for_acks(
+    publishers: Iterable[Publisher[Any]], timeout_s: float, signals_allowed: int = 0
+) -> bool:
     """Every subscriber of ``publishers`` acknowledged every message; False after
-    ``timeout_s`` or on a stop signal (checked every 0.1 s: the wait is in C++)."""
+    ``timeout_s`` or on a stop signal (checked every 0.1 s: the wait is in C++).
+    ``signals_allowed``: stop signals that already came and do not end the wait (a node
+    flushing on its way out after the first one: a second still ends it at once)."""
     deadline = time.monotonic() + timeout_s
     slice_ = Duration(seconds=0.1)
     waiting = list(publishers)
-    while keep_running():
+    while stop_requested() <= signals_allowed and rclpy.ok():
         waiting = [p for p in waiting if not p.wait_for_all_acked(slice_)]
         if not waiting:
             return True

@@ -102,21 +102,18 @@ def params_from_sources(
     a node's params file has others too), then the mode's defaults. A bad value in the
     config file is refused naming ``config_name``."""
     values = dict(overrides)
+    # As given, never str()'d: make_params refuses anything but a mode's name, and str() of
+    # a YAML alias bomb (a config file's semantics) would never end.
     mode = semantics or values.pop("semantics", None) or config.get("semantics", DEFAULT_SEMANTICS)
-    if not isinstance(mode, str):  # str() of a YAML alias bomb would never end
-        name = f"{config_name}: " if config_name else ""
-        raise ConfigError(
-            f"{name}semantics must be one of {', '.join(SEMANTICS)}, not {short_repr(mode)}"
-        )
     from_file = engine_overrides(config)
     from_file.pop("semantics", None)
     try:
-        make_params(str(mode), from_file)
+        make_params(mode, from_file)
     except ConfigError as error:
         raise ConfigError(f"{config_name}: {error}" if config_name else str(error)) from None
     merged = {**from_file, **values}
     merged.pop("semantics", None)
-    return make_params(str(mode), merged)
+    return make_params(mode, merged)
 
 
 def parse_assignments(items: list[str]) -> dict[str, str]:

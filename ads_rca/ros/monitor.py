@@ -32,7 +32,6 @@ import time
 from dataclasses import replace
 from typing import Any
 
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
@@ -174,8 +173,7 @@ class Monitor(Node):
         published, at most :data:`CLOSE_FLUSH_S` (a second stop signal ends the wait).
         Samples not yet acknowledged go with their publisher: in CI a recorder stopped just
         after this monitor lacked a replay's last 13 planning ``values``."""
-        if rclpy.ok():
-            wait_for_acks([self.metrics_pub, self.values_pub], CLOSE_FLUSH_S, signals_allowed=1)
+        wait_for_acks([self.metrics_pub, self.values_pub], CLOSE_FLUSH_S, signals_allowed=1)
 
     def publish(self, results: list[LiveResult]) -> None:
         """Each result on the metrics topic (JSON) and its ``values`` topic (numbers); the

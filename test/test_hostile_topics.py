@@ -555,19 +555,17 @@ def test_absurd_numbers_in_a_result_are_one_malformed_message(field: str, value:
     fractions is refused as malformed, naming the field. It used to pass, then overflow the
     aggregator's int64 columns inside its callback (a traceback that ended the node), or,
     as a collision a monitor closed, hold every later verdict back."""
+    from test_stack_mode import config
+
     from ads_rca.contract.errors import MalformedMessage
     from ads_rca.live.aggregate import AggregatorCore
     from ads_rca.live.results import LiveResult
-    from ads_rca.live.stack_config import STACK_PARAMETERS, StackConfig
     from ads_rca.params import make_params
 
     with pytest.raises(MalformedMessage, match=field):
         LiveResult.from_document({**_RESULT, "tpf_ms": 50, field: value})
     # What is accepted is used without an error, in both kinds of run.
-    defaults = {name: entry[0] for name, entry in STACK_PARAMETERS.items()}
-    facts = {"timesteps_per_frame": 50, "camera_loc.x": 1.3, "camera_loc.z": 1.8}
-    stack = StackConfig.from_values({**defaults, **facts}, input_timeout_s=1.0)
-    for run in (None, stack):
+    for run in (None, config()):  # a player's run, and a stack's (test_stack_mode's facts)
         core = AggregatorCore(make_params("corrected"), stack=run)
         edge = {"closes_collision": 2**42, "collision_frame": -(2**42), "revision": 2**42}
         for document in (_RESULT, {**_RESULT, "tpf_ms": 50, **edge}):

@@ -94,6 +94,16 @@ RANGE_CASES = [
         "parameter chunk_size: 0 is out of range [1024, 1073741824] bytes",
     ),
     (
+        "ads_rca.ros.recorder",
+        "graph_wait_s:=-1.0",
+        "parameter graph_wait_s: -1 is out of range [0, 3600] s",
+    ),
+    (
+        "ads_rca.ros.zenoh_bridge",
+        "graph_wait_s:=.nan",
+        "parameter graph_wait_s: nan is out of range [0, 3600] s",
+    ),
+    (
         "ads_rca.ros.topic_summary",
         "timeout_s:=-1.0",
         "parameter timeout_s: -1 is out of range [0, 86400] s",

@@ -47,6 +47,8 @@ INPUT_FIELDS = {
 }
 
 JUDGED = "judged"
+#: How every "not judged (no ...)" reason starts (a result skipped for it is "no data").
+NOT_JUDGED = "not judged"
 Key = TypeVar("Key", bound=str)
 
 
@@ -109,13 +111,14 @@ def judged_modules(
             out[module] = JUDGED
         else:
             fewest = min(missing, key=len)
-            out[module] = f"not judged (no {', '.join(fewest)})"
+            out[module] = f"{NOT_JUDGED} (no {', '.join(fewest)})"
     return out
 
 
 __all__ = [
     "INPUT_FIELDS",
     "JUDGED",
+    "NOT_JUDGED",
     "MODEL_INPUTS",
     "complete",
     "held_status",

@@ -15,12 +15,14 @@ from typing import Any
 import numpy as np
 
 from ads_rca import __version__
+from ads_rca.annotations import ANNOTATIONS_KEY, annotations_from_document
 from ads_rca.model import RunLog, frame_number
 from ads_rca.oracles.base import MODULES, Module, OracleResult, RunContext
 from ads_rca.oracles.semantics import Oracle, Semantics, semantics_for
 from ads_rca.params import Params
 from ads_rca.problems import CHECK_SKIPPED, Problem, ProblemLog
 from ads_rca.progress import advancer
+from ads_rca.run_figures import FIGURES_KEY, figures_from_document
 from ads_rca.verdict import Attribution, FrameResults, json_safe
 from ads_rca.workers import can_fork, map_forked
 
@@ -116,6 +118,13 @@ class Diagnosis:
             "frames": [frame_json(f) for f in self.frames] if include_frames else [],
             "input_problems": [p.to_dict() for p in self.problems],
         }
+        # What a run says about itself (a CARLA run's events and figures), when it does.
+        annotations = annotations_from_document(self.log.metadata.raw)
+        if annotations:
+            document[ANNOTATIONS_KEY] = [a.to_dict() for a in annotations]
+        figures = figures_from_document(self.log.metadata.raw)
+        if figures:
+            document[FIGURES_KEY] = figures
         return dict(json_safe(document))
 
 

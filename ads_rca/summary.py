@@ -8,10 +8,12 @@ from __future__ import annotations
 
 from typing import Any
 
+from ads_rca.annotations import annotations_from_document
 from ads_rca.capabilities import JUDGED
 from ads_rca.oracles.base import MODULES
 from ads_rca.oracles.semantics import MODES, Semantics, semantics_for
 from ads_rca.problems import Problem, ProblemLog
+from ads_rca.run_figures import FIGURE_KEYS, figures_from_document
 from ads_rca.text import printable
 
 
@@ -64,10 +66,27 @@ def summary_text(document: dict[str, Any], max_problems: int = 10, how: str = "j
         for module in document.get("root_causes") or []
         if evidence.get(module)
     )
+    lines.extend(run_notes_lines(document))
     problems = ProblemLog(Problem.from_dict(p) for p in document.get("input_problems") or [])
     lines.append(f"input problems: {len(problems)}")
     lines.extend(f"  {line}" for line in problems.summary_lines(max_problems))
     return "\n".join(printable(line) for line in lines)
+
+
+def run_notes_lines(document: dict[str, Any], shown: int = 10) -> list[str]:
+    """The run's own figures and annotations (a CARLA run's), when it has any."""
+    lines: list[str] = []
+    figures = figures_from_document(document)
+    if figures:
+        values = ", ".join(f"{k}={_short(figures[k])}" for k in FIGURE_KEYS)
+        lines.append(f"run figures: {values}")
+    annotations = annotations_from_document(document)
+    if annotations:
+        lines.append(f"annotations ({len(annotations)}; events, not collisions):")
+        lines.extend(f"  {a.line()}" for a in annotations[:shown])
+        if len(annotations) > shown:
+            lines.append(f"  ... {len(annotations) - shown} more")
+    return lines
 
 
 def window_text(window: Any) -> str:

@@ -38,7 +38,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ),
     ("ads_rca.problems", "ads_rca.paramspec", "ads_rca.params"),
     ("ads_rca.model",),
-    ("ads_rca.verdict", "ads_rca.capabilities"),
+    ("ads_rca.verdict", "ads_rca.capabilities", "ads_rca.annotations", "ads_rca.run_figures"),
     ("ads_rca.contract",),
     ("ads_rca.io", "ads_rca.synth", "ads_rca.profiles"),
     ("ads_rca.oracles",),

@@ -17,13 +17,15 @@ from ads_rca.commands.input_args import (
     add_reader_arguments,
     bag_options_from_args,
     max_file_mb_from_args,
+    source_options_from_args,
 )
 from ads_rca.commands.outputs import check_output_dir
 from ads_rca.contract import topics
 from ads_rca.errors import InputError
 from ads_rca.io import open_run
-from ads_rca.io.bag_reader import is_bag, read_bag
+from ads_rca.io.bag_reader import read_bag
 from ads_rca.io.bag_writer import STORAGES, McapOptions, write_bag
+from ads_rca.io.formats import BAG, CARLA, resolved_format
 from ads_rca.io.json_log import read_run_log
 from ads_rca.io.json_writer import write_run_log
 from ads_rca.io.mcap_writer import COMPRESSIONS, DEFAULT_CHUNK_SIZE
@@ -62,7 +64,9 @@ def run(args: argparse.Namespace) -> int:
     check_output_dir(out, "OUT")
     max_file_mb = max_file_mb_from_args(args)
     bag = bag_options_from_args(args)
-    if is_bag(source) or bag.remap:
+    options_in = source_options_from_args(args)
+    fmt = resolved_format(source, options_in.source_format)
+    if fmt == BAG or bag.remap:
         if bag.contract:
             log = read_bag(source, remap=bag.remap, namespace=args.namespace)
         else:
@@ -74,7 +78,15 @@ def run(args: argparse.Namespace) -> int:
             for line in log.problems.summary_lines(10):
                 print(f"  {line}", file=sys.stderr)
         return 0
-    log = read_run_log(source, max_file_mb)
+    if fmt == CARLA:  # written as a log folder's bag would be (its metadata keeps the rest)
+        log = open_run(
+            source,
+            max_file_mb=max_file_mb,
+            source_format=CARLA,
+            derived_collision=options_in.derived_collision,
+        )
+    else:
+        log = read_run_log(source, max_file_mb)
     if not bag.contract:
         return _write_recording(log, source, out, bag.profile, args.storage)
     options: McapOptions = {}

@@ -15,6 +15,7 @@ from ads_rca.commands.input_args import (
     bag_options_from_args,
     checked_max_problems,
     max_file_mb_from_args,
+    source_options_from_args,
 )
 from ads_rca.commands.outputs import check_output_file
 from ads_rca.commands.progress_bar import terminal_bar
@@ -137,6 +138,7 @@ def run(args: argparse.Namespace) -> int:
     all_params = [params_from_args(args, mode) for mode in (SEMANTICS if both else (None,))]
     max_file_mb = max_file_mb_from_args(args)
     bag = bag_options_from_args(args)
+    source = source_options_from_args(args)
     if args.json_out:
         check_output_file(args.json_out, "--json")
     if args.report:
@@ -149,6 +151,8 @@ def run(args: argparse.Namespace) -> int:
         progress=terminal_bar("loading"),
         bag=bag,
         workers=workers,
+        source_format=source.source_format,
+        derived_collision=source.derived_collision,
     )
     documents: list[dict[str, Any]] = []
     with loaded_objects_frozen():  # the loaded run stays until the end, in no cycle

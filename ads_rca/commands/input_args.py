@@ -1,26 +1,30 @@
-"""Options of the log reader shared by every command that reads a log (``max_file_mb``).
+"""Options of the log reader shared by every command that reads a log (``max_file_mb``,
+``format``, ``derived_collision``).
 
 The reader's settings are not engine thresholds, but keep one name everywhere: the CLI flag
-``--max-file-mb``, ``-p max_file_mb=N`` and the ``max_file_mb`` key of a ``--config`` file
-(commands with engine options), and the player node's ROS parameter ``max_file_mb``.
+(``--max-file-mb``, ``--format``, ``--derived-collision``), ``-p max_file_mb=N`` and the
+same key of a ``--config`` file (commands with engine options), and the player node's ROS
+parameter of that name.
 """
 
 from __future__ import annotations
 
 import argparse
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from ads_rca.errors import InputError
 from ads_rca.io.bag_options import BagOptions
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB
+from ads_rca.io.formats import AUTO, FORMATS, checked_format
 from ads_rca.io.yaml_files import load_config
 from ads_rca.params import parse_assignments
 from ads_rca.paramspec import MAX_FILE_MB, check_number
 from ads_rca.profiles import BUILTIN_PROFILES, DEFAULT_PROFILE
 
 #: The reader's parameter names (popped from ``-p`` / config before the engine sees them).
-READER_PARAMS = ("max_file_mb",)
+READER_PARAMS = ("max_file_mb", "format", "derived_collision")
 
 
 def add_reader_arguments(parser: argparse.ArgumentParser) -> None:
@@ -32,17 +36,58 @@ def add_reader_arguments(parser: argparse.ArgumentParser) -> None:
         help=f"skip (and report) log files larger than this (default {DEFAULT_MAX_FILE_MB:g}; "
         f"range {MAX_FILE_MB.text()})",
     )
+    parser.add_argument(
+        "--format",
+        default=None,
+        metavar="NAME",
+        help=f"the input's format: {', '.join(FORMATS)} (default {AUTO}: told by the path; "
+        "docs/formats.md)",
+    )
+    parser.add_argument(
+        "--derived-collision",
+        action="store_const",
+        const=True,
+        default=None,
+        help="a CARLA run records no collision: take the first tick where the ego's box "
+        "overlaps another's (assumed extents) as one, flagged derived (default off)",
+    )
+
+
+def _reader_setting(args: argparse.Namespace, name: str, default: Any) -> Any:
+    """The flag, else ``-p name=``, else the config file's key, else ``default``."""
+    if getattr(args, name, None) is not None:
+        return getattr(args, name)
+    overrides: dict[str, Any] = parse_assignments(getattr(args, "params", None) or [])
+    if name in overrides:
+        return overrides[name]
+    config_path = getattr(args, "config", None)
+    config: dict[str, Any] = load_config(config_path) if config_path else {}
+    return config.get(name, default)
 
 
 def max_file_mb_from_args(args: argparse.Namespace) -> float:
     """--max-file-mb, else ``-p max_file_mb=``, else the config file's, else the default."""
-    if getattr(args, "max_file_mb", None) is not None:
-        return float(check_number("max_file_mb", args.max_file_mb, MAX_FILE_MB))
-    overrides: dict[str, Any] = parse_assignments(getattr(args, "params", None) or [])
-    config_path = getattr(args, "config", None)
-    config: dict[str, Any] = load_config(config_path) if config_path else {}
-    value = overrides.get("max_file_mb", config.get("max_file_mb", DEFAULT_MAX_FILE_MB))
+    value = _reader_setting(args, "max_file_mb", DEFAULT_MAX_FILE_MB)
     return float(check_number("max_file_mb", value, MAX_FILE_MB))
+
+
+@dataclass(frozen=True)
+class SourceOptions:
+    """Which reader (``format``) and, for a CARLA run, whether to derive its collision."""
+
+    source_format: str = AUTO
+    derived_collision: bool = False
+
+
+def source_options_from_args(args: argparse.Namespace) -> SourceOptions:
+    """``format`` and ``derived_collision`` as :func:`max_file_mb_from_args` finds them,
+    each checked (one line naming it)."""
+    derived = _reader_setting(args, "derived_collision", False)
+    if isinstance(derived, str) and derived.lower() in ("true", "false"):  # -p gives text
+        derived = derived.lower() == "true"
+    if not isinstance(derived, bool):
+        raise InputError(f"derived_collision: expected true or false, not {derived!r:.40}")
+    return SourceOptions(checked_format(_reader_setting(args, "format", AUTO)), derived)
 
 
 def add_bag_arguments(

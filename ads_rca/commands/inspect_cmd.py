@@ -15,11 +15,13 @@ from ads_rca.commands.input_args import (
     bag_options_from_args,
     checked_max_problems,
     max_file_mb_from_args,
+    source_options_from_args,
 )
 from ads_rca.commands.progress_bar import terminal_bar
 from ads_rca.io import open_run
 from ads_rca.io.bag_options import BagOptions
-from ads_rca.io.bag_reader import BagContents, is_bag, load_bag, read_bag
+from ads_rca.io.bag_reader import BagContents, load_bag, read_bag
+from ads_rca.io.formats import BAG, resolved_format
 from ads_rca.model import FOLDERS, RunLog
 from ads_rca.oracles.semantics import MODES, semantics_for
 from ads_rca.strictjson import dumps
@@ -70,11 +72,18 @@ def summary(log: RunLog, contents: BagContents | None = None) -> dict[str, Any]:
 
 def _load(path: str, args: argparse.Namespace) -> tuple[RunLog, BagContents | None]:
     bag = bag_options_from_args(args)
+    source = source_options_from_args(args)
     progress = terminal_bar("loading")
-    if not is_bag(path):
-        return open_run(
-            path, max_file_mb=max_file_mb_from_args(args), progress=progress, bag=bag
-        ), None
+    if resolved_format(path, source.source_format) != BAG:
+        log = open_run(
+            path,
+            max_file_mb=max_file_mb_from_args(args),
+            progress=progress,
+            bag=bag,
+            source_format=source.source_format,
+            derived_collision=source.derived_collision,
+        )
+        return log, None
     contents = load_bag(path)
     if bag.contract:
         return read_bag(path, remap=bag.remap, progress=progress, contents=contents), contents

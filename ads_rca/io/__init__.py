@@ -8,6 +8,7 @@ from ads_rca.errors import InputError
 from ads_rca.io.bag_options import BagOptions
 from ads_rca.io.bag_paths import is_bag
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB
+from ads_rca.io.formats import AUTO, BAG, CARLA, LOG, resolved_format
 from ads_rca.model import RunLog
 from ads_rca.progress import Progress
 
@@ -19,17 +20,40 @@ def open_run(
     progress: Progress | None = None,
     bag: BagOptions | None = None,
     workers: int = 1,
+    source_format: str = AUTO,
+    derived_collision: bool = False,
 ) -> RunLog:
-    """Load a run from any supported source: an ADS running-log folder, or a rosbag2 bag
-    (directory, ``.mcap`` or ``.db3``) read through ``bag``'s profile (default: this
-    project's topics; ``remap`` = topic remapping YAML for them, also ``bag.remap``).
-    ``max_file_mb`` caps each file of a log folder (larger ones are reported and skipped);
-    ``progress`` sees the files read, or the bag messages decoded; ``workers`` > 1 reads a
-    long log folder in that many forked processes."""
+    """Load a run from any supported source (``source_format``, :mod:`.formats`; ``auto``
+    tells them apart by the path): an ADS running-log folder, a rosbag2 bag (directory,
+    ``.mcap`` or ``.db3``) read through ``bag``'s profile (default: this project's topics;
+    ``remap`` = topic remapping YAML for them, also ``bag.remap``), or a CARLA
+    experiment-client run folder (``derived_collision``: the first box overlap is its
+    collision, flagged derived). ``max_file_mb`` caps each file of a folder (larger ones
+    are reported and skipped); ``progress`` sees the files read, or the bag messages
+    decoded; ``workers`` > 1 reads a long log folder in that many forked processes."""
     bag = bag or BagOptions()
     remap = remap if remap is not None else bag.remap
     if not os.path.lexists(path):
         raise InputError(f"{os.fspath(path)}: no such log folder or bag")
+    fmt = resolved_format(path, source_format)
+    if derived_collision and fmt != CARLA:
+        raise InputError(
+            f"{os.fspath(path)}: the derived collision check applies to CARLA "
+            f"run folders, not to a {'bag' if fmt == BAG else 'running log'}"
+        )
+    if fmt == CARLA:
+        if remap is not None or not bag.contract:
+            raise InputError("--profile and --remap apply to bags, not to a CARLA run folder")
+        from ads_rca.io.carla_run import read_carla_run
+
+        return read_carla_run(path, max_file_mb, derived_collision)
+    if fmt == LOG and source_format != AUTO and is_bag(path):
+        raise InputError(f"{os.fspath(path)}: --format {LOG}: this is a bag")
+    if fmt == BAG and not is_bag(path):
+        raise InputError(
+            f"{os.fspath(path)}: --format {BAG}: not a bag (a .mcap or .db3 file, "
+            "or a folder with metadata.yaml)"
+        )
     if not bag.contract:
         if remap is not None:  # a remap given beside the options: the options' own check
             BagOptions(bag.profile, str(remap), bag.msg_path)

@@ -285,8 +285,8 @@ def _parse_files(
     for position, (folder, ts, name) in enumerate(tracked(jobs, progress)):
         before = len(problems)
         file = f"{folder}/{name}"
-        document = _decode(read_regular(base + file, limit), file, problems, ts)
-        if document is _UNUSABLE:
+        document = decode_file(read_regular(base + file, limit), file, problems, ts)
+        if document is UNUSABLE:
             pass
         elif kept_too_deep(folder, document):
             problems.add(file, "", _too_deep_kept(), SKIPPED_FILE, timestamp_ms=ts)
@@ -348,23 +348,26 @@ def _parse_chunk(chunk: int) -> tuple[Packed, list[Problem], list[int]]:
     return packer.packed(), problems, owners
 
 
-_UNUSABLE = object()
+#: What :func:`decode_file` returns for a file it reported as unusable.
+UNUSABLE = object()
 
 
-def _decode(data: bytes | Unreadable, file: str, problems: ProblemLog, ts: int | None) -> Any:
+def decode_file(data: bytes | Unreadable, file: str, problems: ProblemLog, ts: int | None) -> Any:
+    """The JSON document in ``data`` (as :func:`~ads_rca.io.files.read_regular` gave it), or
+    :data:`UNUSABLE` with the reason reported: unreadable, empty or invalid JSON."""
     if isinstance(data, Unreadable):
         problems.add(file, "", data.issue, SKIPPED_FILE, timestamp_ms=ts)
-        return _UNUSABLE
+        return UNUSABLE
     if not data.strip():
         problems.add(file, "", "empty file", SKIPPED_FILE, timestamp_ms=ts)
-        return _UNUSABLE
+        return UNUSABLE
     try:
         return decode_json(data)
     except InvalidJson as error:
         detail = str(error).splitlines()[0]
         issue = f"invalid JSON ({detail})"
         problems.add(file, "", issue, SKIPPED_FILE, timestamp_ms=ts)
-        return _UNUSABLE
+        return UNUSABLE
 
 
 def read_metadata(
@@ -387,10 +390,10 @@ def read_metadata(
     if data is None:
         problems.add(file, "", "missing", USED_DEFAULT)
     else:
-        decoded = _decode(data, file, problems, None)
-        if decoded is not _UNUSABLE and kept_too_deep("metadata", decoded):
+        decoded = decode_file(data, file, problems, None)
+        if decoded is not UNUSABLE and kept_too_deep("metadata", decoded):
             problems.add(file, "", _too_deep_kept(), USED_DEFAULT)
-        elif decoded is not _UNUSABLE:
+        elif decoded is not UNUSABLE:
             document = decoded
     if not isinstance(document, dict):
         problems.add(file, "", "expected an object", USED_DEFAULT)

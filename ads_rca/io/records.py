@@ -46,13 +46,25 @@ _NUMERIC_KINDS = "fiub"
 _STEP_XYZ = itemgetter("x", "y", "z")
 
 
-class _Reader:
-    """Reads numbers out of one file, reporting each bad value once with its field path."""
+class FieldReader:
+    """Reads numbers out of one file, reporting each bad value once with its field path.
 
-    def __init__(self, file: str, problems: ProblemLog, timestamp_ms: int) -> None:
+    ``text_numbers_reported``: a number written as text (``"12.5"``) or a boolean is read
+    and reported (formats whose writers never do that); the seed format's reference reads
+    them silently, so its reader does too.
+    """
+
+    def __init__(
+        self,
+        file: str,
+        problems: ProblemLog,
+        timestamp_ms: int | None,
+        text_numbers_reported: bool = False,
+    ) -> None:
         self.file = file
         self.problems = problems
         self.timestamp_ms = timestamp_ms
+        self.text_numbers_reported = text_numbers_reported
 
     def report(self, field: str, issue: str, action: str, severity: str = "error") -> None:
         self.problems.add(
@@ -79,11 +91,16 @@ class _Reader:
             return math.nan
         if not math.isfinite(number):
             self.report(field, f"{show_value(value)} is not finite", KEPT_VALUE, "warning")
+        elif self.text_numbers_reported and isinstance(value, str | bool):
+            kind = "text" if isinstance(value, str) else "a boolean"
+            self.report(
+                field, f"{show_value(value)} is {kind}, not a number", KEPT_VALUE, "warning"
+            )
         return number
 
 
 def parse_pose(document: Any, file: str, problems: ProblemLog, ts: int) -> EgoPose | None:
-    reader = _Reader(file, problems, ts)
+    reader = FieldReader(file, problems, ts)
     if not isinstance(document, Mapping):
         reader.report("", f"expected an object, found {_type(document)}", SKIPPED_FILE)
         return None
@@ -92,7 +109,7 @@ def parse_pose(document: Any, file: str, problems: ProblemLog, ts: int) -> EgoPo
 
 
 def parse_actors(document: Any, file: str, problems: ProblemLog, ts: int) -> Actors | None:
-    reader = _Reader(file, problems, ts)
+    reader = FieldReader(file, problems, ts)
     if not isinstance(document, Mapping):
         reader.report("", f"expected an object, found {_type(document)}", SKIPPED_FILE)
         return None
@@ -167,7 +184,7 @@ def _actors_fast(document: Mapping[str, Any]) -> Actors | None:
 
 
 def parse_boxes(document: Any, file: str, problems: ProblemLog, ts: int) -> Boxes | None:
-    reader = _Reader(file, problems, ts)
+    reader = FieldReader(file, problems, ts)
     if not isinstance(document, list):
         reader.report("", f"expected a list of boxes, found {_type(document)}", SKIPPED_FILE)
         return None
@@ -225,7 +242,7 @@ def _boxes_fast(document: list[Any]) -> Boxes | None:
 def parse_predictions(
     document: Any, file: str, problems: ProblemLog, ts: int
 ) -> Predictions | None:
-    reader = _Reader(file, problems, ts)
+    reader = FieldReader(file, problems, ts)
     if not isinstance(document, Mapping):
         reader.report("", f"expected an object, found {_type(document)}", SKIPPED_FILE)
         return None
@@ -263,7 +280,7 @@ def _predictions_fast(document: Mapping[str, Any]) -> Predictions | None:
     }
 
 
-def _track(steps: Mapping[str, Any], where: str, reader: _Reader) -> Track:
+def _track(steps: Mapping[str, Any], where: str, reader: FieldReader) -> Track:
     keys = tuple(str(k) for k in steps)
     rows = [
         [
@@ -277,7 +294,7 @@ def _track(steps: Mapping[str, Any], where: str, reader: _Reader) -> Track:
 
 
 def parse_plan(document: Any, file: str, problems: ProblemLog, ts: int) -> Plan | None:
-    reader = _Reader(file, problems, ts)
+    reader = FieldReader(file, problems, ts)
     if not isinstance(document, Mapping):
         reader.report("", f"expected an object, found {_type(document)}", SKIPPED_FILE)
         return None
@@ -329,7 +346,7 @@ def _strict_file(
         try:
             return parse(document)
         except StrictFileError as error:
-            _Reader(file, problems, ts).report(error.field, error.issue, SKIPPED_FILE)
+            FieldReader(file, problems, ts).report(error.field, error.issue, SKIPPED_FILE)
             return None
 
     checked.__name__ = parse.__name__

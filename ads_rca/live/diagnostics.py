@@ -28,6 +28,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
+from ads_rca.capabilities import NOT_JUDGED
 from ads_rca.contract.cdr import CdrWriter
 from ads_rca.contract.cdr_decode import CdrReader
 from ads_rca.contract.errors import CdrError
@@ -147,10 +148,13 @@ def shown_id(actor_id: str) -> str:
 
 
 def result_status(live: LiveResult, semantics: str, hardware_id: str) -> Status:
-    """One judged frame: ERROR failed, WARN skipped or judged with incomplete inputs, else OK."""
+    """One judged frame: ERROR failed, STALE when the run has no data for the module (its
+    inputs are absent: never OK), WARN skipped or judged with incomplete inputs, else OK."""
     r = live.result
     if r.failed:
         level, message = ERROR, f"frame {live.frame}: {r.module} failed"
+    elif r.skipped and r.skipped.startswith(NOT_JUDGED):
+        level, message = STALE, f"frame {live.frame}: no data: {r.skipped}"
     elif r.skipped or live.incomplete:
         level = WARN
         message = f"frame {live.frame}: " + (

@@ -118,8 +118,8 @@ def judged_modules(
 __all__ = [
     "INPUT_FIELDS",
     "JUDGED",
-    "NOT_JUDGED",
     "MODEL_INPUTS",
+    "NOT_JUDGED",
     "complete",
     "held_status",
     "input_status",

@@ -90,8 +90,10 @@ def test_the_maps_derive_from_the_table() -> None:
     assert tuple(topics.FOLDER_TOPICS) == ALL_FOLDERS  # data topics in the folders' order
     assert tuple(topics.FOLDER_TOPICS.values()) == topics.DATA_TOPICS
     assert {topics.FOLDER_TOPICS[f]: f for f in ALL_FOLDERS} == topics.TOPIC_FOLDERS
-    assert tuple(str(t.folder) for t in topics.TABLE if t.optional) == OPTIONAL_FOLDERS
-    assert {topics.METADATA, topics.FRAME, topics.STATUS} == topics.TEXT_TOPICS
+    optional_data = tuple(str(t.folder) for t in topics.TABLE if t.optional and t.folder)
+    assert optional_data == OPTIONAL_FOLDERS
+    assert [t.key for t in topics.TABLE if t.optional and not t.folder] == [topics.ANNOTATIONS]
+    assert {topics.METADATA, topics.ANNOTATIONS, topics.FRAME, topics.STATUS} == topics.TEXT_TOPICS
     for topic in topics.TABLE:
         assert topics.MESSAGE_TYPE_NAMES[topic.key] == topic.codec.type_name
         assert topics.QOS[topic.key] is topic.qos

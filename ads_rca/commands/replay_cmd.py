@@ -29,6 +29,7 @@ from ads_rca.commands.input_args import (
     add_reader_arguments,
     bag_options_from_args,
     max_file_mb_from_args,
+    source_options_from_args,
 )
 from ads_rca.commands.outputs import check_output_dir, check_output_file
 from ads_rca.commands.playback_args import (
@@ -94,6 +95,9 @@ def run(args: argparse.Namespace) -> int:
     check_playback_arguments(args)
     params = params_from_args(args)
     player_params: dict[str, ParamValue] = {"max_file_mb": float(max_file_mb_from_args(args))}
+    source = source_options_from_args(args)
+    player_params["format"] = source.source_format
+    player_params["derived_collision"] = source.derived_collision
     bag = bag_options_from_args(args)
     if bag.remap:
         player_params["bag_remap"] = str(Path(bag.remap).resolve())

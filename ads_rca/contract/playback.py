@@ -9,10 +9,12 @@ those too is what makes the topic stream carry the whole log, losslessly.
 
 from __future__ import annotations
 
+from bisect import bisect_left
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
+from ads_rca.annotations import Annotation, annotations_from_document
 from ads_rca.contract import topics
 from ads_rca.contract.convert import carried_plan_rows
 from ads_rca.contract.jsontext import dumps_json, loads_json
@@ -93,6 +95,28 @@ def frame_marker(
         **extra,
     }
     return String(data=dumps_json(document))
+
+
+def annotations_by_tick(log: RunLog, ticks: list[Tick]) -> dict[int, list[Annotation]]:
+    """Each annotation on the first tick at or after its time (those after the last tick on
+    the last), keyed by the tick's position in ``ticks``; none before the first tick's
+    time is lost either: it goes with the first."""
+    found = annotations_from_document(log.metadata.raw)
+    if not found or not ticks:
+        return {}
+    stamps = [tick.stamp_ms for tick in ticks]  # ascending (a timeline is)
+    out: dict[int, list[Annotation]] = {}
+    for annotation in found:
+        position = bisect_left(stamps, annotation.timestamp_ms)
+        out.setdefault(min(position, len(ticks) - 1), []).append(annotation)
+    return out
+
+
+def annotation_message(annotation: Annotation, **extra: object) -> String:
+    """``run/annotations``: one annotation (kind, text, its time and file) as JSON."""
+    from std_msgs.msg import String
+
+    return String(data=dumps_json({**annotation.to_dict(), **extra}))
 
 
 def dropped_plan_keys(log: RunLog, timestamp_ms: int) -> int:

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 from functools import cache
 from typing import TYPE_CHECKING, Any
 
+from ads_rca.annotations import annotations_from_document
 from ads_rca.contract import codec
 from ads_rca.contract.codec import Codec
 from ads_rca.contract.convert import MarkerStyle
@@ -49,6 +50,8 @@ TRAJECTORY = "planning/trajectory"
 OBJECTS_3D = "perception/objects_3d"
 TRACKS_3D = "perception/tracks_3d"
 CONTROL_COMMAND = "control/command"
+#: A run's annotations (a CARLA run's events), each sent with the tick it falls on.
+ANNOTATIONS = "run/annotations"
 FRAME = "run/frame"
 STATUS = "player/status"
 CLOCK = "/clock"
@@ -91,9 +94,10 @@ class Topic:
 
     ``folder``: the log folder (a name in :data:`ads_rca.model.ALL_FOLDERS`) whose records a
     per-frame data topic carries, stamped with their log time; None for the player's own
-    topics. ``optional``: the folder is one of :data:`ads_rca.model.OPTIONAL_FOLDERS`, and
-    the topic is advertised only for a log that has its records (:func:`advertised`), so
-    a running log without them sends and records exactly what it did before they existed."""
+    topics. ``optional``: the topic is advertised only for a log that has its records
+    (:func:`advertised`): the folder is one of :data:`ads_rca.model.OPTIONAL_FOLDERS`, or,
+    without a folder, the records are the run's annotations; so a running log without them
+    sends and records exactly what it did before they existed."""
 
     key: str
     codec: Codec[Any]
@@ -142,6 +146,7 @@ TABLE: tuple[Topic, ...] = (
         optional=True,
     ),
     Topic(CONTROL_COMMAND, codec.CONTROL, folder="control", optional=True),
+    Topic(ANNOTATIONS, codec.TEXT, optional=True),
     Topic(FRAME, codec.TEXT),
     Topic(STATUS, codec.TEXT, LATCHED_QOS),
     Topic(CLOCK, codec.CLOCK),
@@ -167,10 +172,15 @@ QOS: dict[str, QoSSpec] = {topic.key: topic.qos for topic in TABLE} | {
 
 def advertised(log: RunLog) -> tuple[str, ...]:
     """The topic keys a player of ``log`` advertises (and a bag of it declares): every key
-    but the optional data topics whose folder the log has no record in."""
-    return tuple(
-        topic.key for topic in TABLE if not topic.optional or log.folder(str(topic.folder))
-    )
+    but the optional data topics whose folder the log has no record in, and the
+    annotations of a run that has none."""
+    return tuple(topic.key for topic in TABLE if not topic.optional or _carries(log, topic))
+
+
+def _carries(log: RunLog, topic: Topic) -> bool:
+    if topic.folder is None:  # the annotations
+        return bool(annotations_from_document(log.metadata.raw))
+    return bool(log.folder(topic.folder))
 
 
 @cache

@@ -21,6 +21,8 @@ from ads_rca.contract.convert import clock_message
 from ads_rca.contract.playback import (
     FINISHED,
     PLAYING,
+    annotation_message,
+    annotations_by_tick,
     dropped_plan_keys,
     frame_marker,
     metadata_message,
@@ -116,12 +118,15 @@ def playback_messages(log: RunLog) -> Iterator[tuple[str, int, Any]]:
     extra = {"problems": len(log.problems), "loops": 0, "source": log.source}
     yield topics.STATUS, first, status_message(PLAYING, 0, **extra, elapsed_s=0.0)
     last = first
-    for tick in ticks:
+    annotations = annotations_by_tick(log, ticks)
+    for position, tick in enumerate(ticks):
         last = max(last, tick.stamp_ms * _NS_PER_MS)
         yield topics.CLOCK, last, clock_message(tick.stamp_ms)
         messages = topics.frame_messages(log, tick.stamp_ms)
         for key, msg in messages.items():
             yield key, last, msg
+        for annotation in annotations.get(position, ()):
+            yield topics.ANNOTATIONS, last, annotation_message(annotation)
         marker_extra = {}
         if dropped := dropped_plan_keys(log, tick.stamp_ms):
             marker_extra["dropped_plan_keys"] = dropped

@@ -33,6 +33,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.patches import Polygon
 
+from ads_rca.annotations import annotations_from_document
 from ads_rca.engine import Diagnosis
 from ads_rca.geometry import box_corners, ego_to_world
 from ads_rca.oracles.base import MODULES, Module
@@ -266,6 +267,7 @@ def _metric_panel(
     if chosen.band is not None:
         _band(ax, result, module, chosen.band, frames, frame_ok)
     _collision_window(ax, result, skipped, module)
+    _annotation_lines(ax, result, skipped, module)
     marks: list[tuple[str, str, SeriesEnd, float, float]] = []
     marker = "." if len(frames) <= MARKED_FRAMES else ""
     for key, color in zip(chosen.keys, SERIES_COLORS, strict=False):
@@ -386,6 +388,19 @@ def _collision_window(ax: Axes, result: Diagnosis, skipped: Skipped, module: Mod
             label=f"effect window ({result.window_frames} frames)",
         )
         ax.axvline(float(span[1]), color="red", lw=1, label="collision")
+
+
+def _annotation_lines(ax: Axes, result: Diagnosis, skipped: Skipped, module: Module) -> None:
+    """The run's annotations (a CARLA run's events) as dotted lines at their frames."""
+    found = annotations_from_document(result.log.metadata.raw)
+    if not found or result.log.tpf <= 0:
+        return
+    at = _floats([a.timestamp_ms / result.log.tpf for a in found])
+    drawable = skipped.keep(f"metrics, {module} annotations", at)
+    label = "annotation (event, not a collision)"
+    for x in at[drawable]:
+        ax.axvline(float(x), color="purple", lw=0.8, ls=":", label=label)
+        label = "_nolegend_"
 
 
 # --- the bird's-eye scenes ---------------------------------------------------------------

@@ -23,6 +23,7 @@ from typing import Any
 
 from matplotlib.figure import Figure
 
+from ads_rca.annotations import annotations_from_document
 from ads_rca.engine import Diagnosis
 from ads_rca.oracles.base import MODULES
 from ads_rca.report.figures import (
@@ -34,6 +35,7 @@ from ads_rca.report.figures import (
     scene_frames,
     series_ends,
 )
+from ads_rca.run_figures import figures_from_document
 from ads_rca.summary import collision_text, window_text
 
 #: Nested evidence deeper than this is shown as text, not as tables within tables.
@@ -164,6 +166,7 @@ def render(result: Diagnosis) -> str:
         el("ul", *(el("li", line) for line in ends)),
         el("h3", f"Not plotted ({len(unplotted)})"),
         el("ul", *(el("li", line) for line in unplotted)),
+        *_run_notes(result),
         el("h2", "Thresholds"),
         value_table(result.semantics.used(result.params)),
         el("h2", f"Input problems ({len(result.problems)})"),
@@ -176,6 +179,27 @@ def render(result: Diagnosis) -> str:
         el("style", Html(_CSS)),
     )
     return f"<!doctype html>\n{el('html', head, el('body', *body))}\n"
+
+
+def _run_notes(result: Diagnosis) -> list[Html]:
+    """The run's own figures and annotations (a CARLA run's), when it has any."""
+    raw = result.log.metadata.raw
+    out: list[Html] = []
+    figures = figures_from_document(raw)
+    if figures:
+        out += [el("h2", "The run's own figures"), value_table(figures)]
+    annotations = annotations_from_document(raw)
+    if annotations:
+        out += [
+            el("h2", f"Annotations ({len(annotations)})"),
+            el("p", "Events the run recorded (dotted lines above): not collisions.", class_="note"),
+            el(
+                "table",
+                _row("th", "time (ms)", "kind", "text", "file"),
+                *(_row("td", a.timestamp_ms, a.kind, a.text, a.source) for a in annotations),
+            ),
+        ]
+    return out
 
 
 def _img(fig: Figure, alt: str) -> Html:

@@ -33,6 +33,7 @@ from typing import Any, TextIO
 from ads_rca.contract import topics
 from ads_rca.errors import InputError
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB
+from ads_rca.io.formats import AUTO, FORMATS, checked_format
 from ads_rca.io.yaml_files import load_config
 from ads_rca.live.runid import new_run_id
 from ads_rca.oracles.base import MODULES, Module
@@ -219,7 +220,18 @@ class LaunchArgument:
 #: The launch file's arguments: ``ads-rca replay``'s options for the graph, by launch name.
 LAUNCH_ARGUMENTS: dict[str, LaunchArgument] = {
     "log_path": LaunchArgument(
-        "", "Running-log folder or rosbag2 bag (dir, .mcap, .db3) to play (required).", "path"
+        "",
+        "Running-log folder, rosbag2 bag (dir, .mcap, .db3) or CARLA run folder to play "
+        "(required).",
+        "path",
+    ),
+    "format": LaunchArgument(
+        AUTO, f"The input's format: {', '.join(FORMATS)} (docs/formats.md).", "format"
+    ),
+    "derived_collision": LaunchArgument(
+        "false",
+        "A CARLA run's collision is the first box overlap, flagged derived (default none).",
+        "derived_collision",
     ),
     "bag_remap": LaunchArgument(
         "", "Topic remapping YAML for a bag whose topic names differ ('' = none).", "bag_remap"
@@ -331,7 +343,11 @@ def spec_from_arguments(values: Mapping[str, str]) -> GraphSpec:
         value("semantics") or None, load_config(params_file) if params_file else {}, {}
     )
     max_file_mb = float(check_number("max_file_mb", value("max_file_mb"), MAX_FILE_MB))
-    player: dict[str, ParamValue] = {"max_file_mb": max_file_mb}
+    player: dict[str, ParamValue] = {
+        "max_file_mb": max_file_mb,
+        "format": checked_format(value("format")),
+        "derived_collision": _flag("derived_collision", value("derived_collision")),
+    }
     if value("bag_remap"):
         player["bag_remap"] = str(Path(value("bag_remap")).resolve())
     if value("profile"):

@@ -33,6 +33,8 @@ from ads_rca.contract.playback import (
     FINISHED,
     PLAYING,
     Tick,
+    annotation_message,
+    annotations_by_tick,
     dropped_plan_keys,
     frame_marker,
     metadata_message,
@@ -44,6 +46,7 @@ from ads_rca.contract.playback import (
 from ads_rca.errors import AdsRcaError, ConfigError
 from ads_rca.io.bag_options import BagOptions
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB
+from ads_rca.io.formats import AUTO, FORMATS, checked_format
 from ads_rca.live.runid import checked_run_id, new_run_id
 from ads_rca.model import RunLog
 from ads_rca.paramspec import MAX_FILE_MB, RATE, SECONDS, Range
@@ -66,7 +69,20 @@ MAX_FRAME = 2**31 - 1
 #: Every parameter: (default, description[, range]); declared by
 #: ``nodeparams.declare_node_parameters``, which checks the ranges.
 PARAMETERS: dict[str, NodeParameter] = {
-    "log_path": ("", "Running-log folder or rosbag2 bag (dir, .mcap, .db3) to play (required)."),
+    "log_path": (
+        "",
+        "Running-log folder, rosbag2 bag (dir, .mcap, .db3) or CARLA experiment-client run "
+        "folder to play (required).",
+    ),
+    "format": (
+        AUTO,
+        f"The input's format: {', '.join(FORMATS)} ({AUTO}: told by the path; docs/formats.md).",
+    ),
+    "derived_collision": (
+        False,
+        "A CARLA run records no collision: take the first tick where the ego's box overlaps "
+        "another's (assumed extents) as one, flagged derived.",
+    ),
     "bag_remap": ("", "Topic remapping YAML for a bag whose topic names differ ('' = none)."),
     "profile": (
         DEFAULT_PROFILE,
@@ -153,6 +169,7 @@ class Player(Node):
         self.max_file_mb = float(self._param("max_file_mb"))
         self.log = self._load(str(self._param("log_path")), self._bag_options())
         self.ticks = select(timeline(self.log), self.start_frame, self.stop_frame)
+        self.annotations = annotations_by_tick(self.log, self.ticks)
         if not self.ticks:
             self.get_logger().warning(
                 f"frames {self.start_frame}..{self.stop_frame} select nothing "
@@ -252,7 +269,13 @@ class Player(Node):
             raise ConfigError("parameter log_path is required (a running-log folder)")
         if not Path(log_path).exists():
             raise ConfigError(f"{log_path}: no such log folder")
-        log = open_run(log_path, max_file_mb=self.max_file_mb, bag=bag)
+        log = open_run(
+            log_path,
+            max_file_mb=self.max_file_mb,
+            bag=bag,
+            source_format=checked_format(self._param("format")),
+            derived_collision=bool(self._param("derived_collision")),
+        )
         for problem in log.problems:
             self.get_logger().warning(str(problem))
         self.get_logger().info(
@@ -356,6 +379,9 @@ class Player(Node):
         )
         for key, msg in messages.items():
             self.pubs[key].publish(msg)
+        for annotation in self.annotations.get(self._position, ()):
+            note = annotation_message(annotation, run=self.run_id)
+            self.pubs[topics.ANNOTATIONS].publish(encode_string(note.data) if fast else note)
         extra: dict[str, Any] = {"run": self.run_id}
         if dropped := dropped_plan_keys(self.log, tick.stamp_ms):
             extra["dropped_plan_keys"] = dropped

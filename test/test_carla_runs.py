@@ -339,7 +339,7 @@ HOSTILE_TELEMETRY: dict[str, tuple[Callable[[dict[str, Any]], None], str, int]] 
     "time repeated": (_set("t_sim", 0.1), "t_sim: time repeated (frame skipped)", 39),
     "negative time": (_set("t_sim", -1.0), "frames[3].t_sim: -1.0 s is outside the log's", 39),
     "no time at all": (
-        lambda d: [d["frames"][3].pop(k) for k in ("t_sim", "frame")],
+        lambda d: d["frames"].__setitem__(3, {"ego": d["frames"][3]["ego"]}),
         "frames[3].t_sim: missing (no frame either)",
         39,
     ),

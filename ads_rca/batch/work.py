@@ -54,6 +54,8 @@ class Job:
     max_file_mb: float
     bag: BagOptions
     timeout: float
+    source_format: str = "auto"
+    derived_collision: bool = False
 
 
 @dataclass
@@ -175,7 +177,13 @@ def run_job(job: Job, worker: str = "") -> Outcome:
     started = time.monotonic()
     known: dict[str, Any] = {"worker": worker, **_format(job)}
     try:
-        log = open_run(job.path, max_file_mb=job.max_file_mb, bag=job.bag)
+        log = open_run(
+            job.path,
+            max_file_mb=job.max_file_mb,
+            bag=job.bag,
+            source_format=job.source_format,
+            derived_collision=job.derived_collision,
+        )
         known.update(_labels(log.metadata.raw))
         if not semantics_for(job.params).analysed_frames(log):
             raise AdsRcaError(f"{job.path}: no frame to analyse (no readable actors/ file)")
@@ -194,16 +202,21 @@ def run_job(job: Job, worker: str = "") -> Outcome:
     return Outcome(row, text.encode("utf-8"))
 
 
+#: The format column's words for each reader (``ads_rca.io.formats``).
+FORMAT_NAMES = {"bag": "bag", "carla": "CARLA run", "log": "log folder"}
+
+
 def _format(job: Job) -> dict[str, str]:
-    from ads_rca.io.bag_reader import is_bag
+    from ads_rca.errors import AdsRcaError
+    from ads_rca.io.formats import resolved_format
 
     try:
-        bag = is_bag(job.path)
-    except OSError:
-        bag = False
+        found = resolved_format(job.path, job.source_format)
+    except (OSError, AdsRcaError):
+        found = "log"
     return {
-        "format": "bag" if bag else "log folder",
-        "profile": job.bag.profile if bag else "",
+        "format": FORMAT_NAMES[found],
+        "profile": job.bag.profile if found == "bag" else "",
         "semantics": job.params.semantics,
     }
 

@@ -33,6 +33,7 @@ from ads_rca.commands.input_args import (
     add_reader_arguments,
     bag_options_from_args,
     max_file_mb_from_args,
+    source_options_from_args,
 )
 from ads_rca.commands.outputs import check_output_dir
 from ads_rca.errors import InputError
@@ -95,6 +96,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
 def run(args: argparse.Namespace) -> int:
     params = params_from_args(args)
     max_file_mb = max_file_mb_from_args(args)
+    source = source_options_from_args(args)
     bag = _absolute(bag_options_from_args(args))
     checked_workers(args.workers)
     if not 0 < args.timeout < 1e7:
@@ -114,7 +116,16 @@ def run(args: argparse.Namespace) -> int:
     check_output_dir(out, "--out", empty=not args.resume)
     store = ResultStore(out, resume=args.resume)
     jobs = [
-        Job(r.run_id, r.path, params, max_file_mb, bag, args.timeout)
+        Job(
+            r.run_id,
+            r.path,
+            params,
+            max_file_mb,
+            bag,
+            args.timeout,
+            source.source_format,
+            source.derived_collision,
+        )
         for r in runs
         if r.run_id not in store.done
     ]

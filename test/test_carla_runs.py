@@ -515,10 +515,13 @@ def test_replay_of_a_carla_run_equals_diagnose_with_its_annotation_and_no_data(
 def test_a_batch_job_diagnoses_a_carla_run_and_names_its_format(tmp_path: Path) -> None:
     from ads_rca.batch.work import Job, run_job
     from ads_rca.io.bag_options import BagOptions
+    from ads_rca.io.formats import SourceOptions
 
     root = write_carla_run(tmp_path / "run", lead_gap_m=6.0)
     params = make_params("corrected")
-    job = Job("r1", str(root), params, 64.0, BagOptions(), 60.0, "auto", True)
+    job = Job(
+        "r1", str(root), params, 64.0, BagOptions(), 60.0, SourceOptions(derived_collision=True)
+    )
     outcome = run_job(job)
     assert outcome.row["format"] == "CARLA run" and not outcome.row.get("error"), outcome.row
     assert outcome.row["collision_frame"] == 5  # derived, as asked

@@ -36,6 +36,7 @@ from ads_rca.batch.rows import Row, error_row, row_from_document
 from ads_rca.errors import AdsRcaError
 from ads_rca.indented_json import dumps_indented
 from ads_rca.io.bag_options import BagOptions
+from ads_rca.io.formats import SourceOptions
 from ads_rca.params import Params
 
 #: prctl(2): a signal to get when the parent dies.
@@ -54,8 +55,7 @@ class Job:
     max_file_mb: float
     bag: BagOptions
     timeout: float
-    source_format: str = "auto"
-    derived_collision: bool = False
+    source: SourceOptions = SourceOptions()  # noqa: RUF009 - frozen, so one shared default is safe
 
 
 @dataclass
@@ -181,8 +181,7 @@ def run_job(job: Job, worker: str = "") -> Outcome:
             job.path,
             max_file_mb=job.max_file_mb,
             bag=job.bag,
-            source_format=job.source_format,
-            derived_collision=job.derived_collision,
+            source=job.source,
         )
         known.update(_labels(log.metadata.raw))
         if not semantics_for(job.params).analysed_frames(log):
@@ -211,7 +210,7 @@ def _format(job: Job) -> dict[str, str]:
     from ads_rca.io.formats import resolved_format
 
     try:
-        found = resolved_format(job.path, job.source_format)
+        found = resolved_format(job.path, job.source.source_format)
     except (OSError, AdsRcaError):
         found = "log"
     return {

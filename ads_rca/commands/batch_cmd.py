@@ -123,8 +123,7 @@ def run(args: argparse.Namespace) -> int:
             max_file_mb,
             bag,
             args.timeout,
-            source.source_format,
-            source.derived_collision,
+            source,
         )
         for r in runs
         if r.run_id not in store.done

@@ -82,8 +82,7 @@ def run(args: argparse.Namespace) -> int:
         log = open_run(
             source,
             max_file_mb=max_file_mb,
-            source_format=CARLA,
-            derived_collision=options_in.derived_collision,
+            source=options_in,
         )
     else:
         log = read_run_log(source, max_file_mb)

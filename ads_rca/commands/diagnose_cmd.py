@@ -151,8 +151,7 @@ def run(args: argparse.Namespace) -> int:
         progress=terminal_bar("loading"),
         bag=bag,
         workers=workers,
-        source_format=source.source_format,
-        derived_collision=source.derived_collision,
+        source=source,
     )
     documents: list[dict[str, Any]] = []
     with loaded_objects_frozen():  # the loaded run stays until the end, in no cycle

@@ -1,5 +1,5 @@
 """Options of the log reader shared by every command that reads a log (``max_file_mb``,
-``format``, ``derived_collision``).
+``format``, ``derived_collision``, ``ego_agent``).
 
 The reader's settings are not engine thresholds, but keep one name everywhere: the CLI flag
 (``--max-file-mb``, ``--format``, ``--derived-collision``), ``-p max_file_mb=N`` and the
@@ -10,21 +10,22 @@ parameter of that name.
 from __future__ import annotations
 
 import argparse
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from ads_rca.errors import InputError
 from ads_rca.io.bag_options import BagOptions
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB
-from ads_rca.io.formats import AUTO, FORMATS, checked_format
+from ads_rca.io.formats import AUTO, FORMATS, SOURCE_PARAMS, SourceOptions
 from ads_rca.io.yaml_files import load_config
 from ads_rca.params import parse_assignments
 from ads_rca.paramspec import MAX_FILE_MB, check_number
 from ads_rca.profiles import BUILTIN_PROFILES, DEFAULT_PROFILE
 
 #: The reader's parameter names (popped from ``-p`` / config before the engine sees them).
-READER_PARAMS = ("max_file_mb", "format", "derived_collision")
+READER_PARAMS = ("max_file_mb", *SOURCE_PARAMS)
+#: The defaults of the source options (``SourceOptions``), by parameter name.
+SOURCE_DEFAULTS = {"format": AUTO, "derived_collision": False, "ego_agent": ""}
 
 
 def add_reader_arguments(parser: argparse.ArgumentParser) -> None:
@@ -42,6 +43,13 @@ def add_reader_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="NAME",
         help=f"the input's format: {', '.join(FORMATS)} (default {AUTO}: told by the path; "
         "docs/formats.md)",
+    )
+    parser.add_argument(
+        "--ego-agent",
+        default=None,
+        metavar="TOKEN|N",
+        help="a DLP scene has no ego: the agent to take as one, by token or by number in "
+        "token order (default: the longest-lived moving car)",
     )
     parser.add_argument(
         "--derived-collision",
@@ -71,23 +79,12 @@ def max_file_mb_from_args(args: argparse.Namespace) -> float:
     return float(check_number("max_file_mb", value, MAX_FILE_MB))
 
 
-@dataclass(frozen=True)
-class SourceOptions:
-    """Which reader (``format``) and, for a CARLA run, whether to derive its collision."""
-
-    source_format: str = AUTO
-    derived_collision: bool = False
-
-
 def source_options_from_args(args: argparse.Namespace) -> SourceOptions:
-    """``format`` and ``derived_collision`` as :func:`max_file_mb_from_args` finds them,
-    each checked (one line naming it)."""
-    derived = _reader_setting(args, "derived_collision", False)
-    if isinstance(derived, str) and derived.lower() in ("true", "false"):  # -p gives text
-        derived = derived.lower() == "true"
-    if not isinstance(derived, bool):
-        raise InputError(f"derived_collision: expected true or false, not {derived!r:.40}")
-    return SourceOptions(checked_format(_reader_setting(args, "format", AUTO)), derived)
+    """``format``, ``derived_collision`` and ``ego_agent`` as :func:`max_file_mb_from_args`
+    finds them, each checked (one line naming it)."""
+    return SourceOptions.from_values(
+        {name: _reader_setting(args, name, default) for name, default in SOURCE_DEFAULTS.items()}
+    )
 
 
 def add_bag_arguments(

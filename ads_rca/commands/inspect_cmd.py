@@ -80,8 +80,7 @@ def _load(path: str, args: argparse.Namespace) -> tuple[RunLog, BagContents | No
             max_file_mb=max_file_mb_from_args(args),
             progress=progress,
             bag=bag,
-            source_format=source.source_format,
-            derived_collision=source.derived_collision,
+            source=source,
         )
         return log, None
     contents = load_bag(path)

@@ -96,8 +96,7 @@ def run(args: argparse.Namespace) -> int:
     params = params_from_args(args)
     player_params: dict[str, ParamValue] = {"max_file_mb": float(max_file_mb_from_args(args))}
     source = source_options_from_args(args)
-    player_params["format"] = source.source_format
-    player_params["derived_collision"] = source.derived_collision
+    player_params.update(source.as_params())
     bag = bag_options_from_args(args)
     if bag.remap:
         player_params["bag_remap"] = str(Path(bag.remap).resolve())

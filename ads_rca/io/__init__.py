@@ -8,7 +8,7 @@ from ads_rca.errors import InputError
 from ads_rca.io.bag_options import BagOptions
 from ads_rca.io.bag_paths import is_bag
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB
-from ads_rca.io.formats import AUTO, BAG, CARLA, LOG, resolved_format
+from ads_rca.io.formats import AUTO, BAG, CARLA, LOG, SourceOptions, resolved_format
 from ads_rca.model import RunLog
 from ads_rca.progress import Progress
 
@@ -20,18 +20,19 @@ def open_run(
     progress: Progress | None = None,
     bag: BagOptions | None = None,
     workers: int = 1,
-    source_format: str = AUTO,
-    derived_collision: bool = False,
+    source: SourceOptions | None = None,
 ) -> RunLog:
-    """Load a run from any supported source (``source_format``, :mod:`.formats`; ``auto``
-    tells them apart by the path): an ADS running-log folder, a rosbag2 bag (directory,
-    ``.mcap`` or ``.db3``) read through ``bag``'s profile (default: this project's topics;
-    ``remap`` = topic remapping YAML for them, also ``bag.remap``), or a CARLA
-    experiment-client run folder (``derived_collision``: the first box overlap is its
-    collision, flagged derived). ``max_file_mb`` caps each file of a folder (larger ones
-    are reported and skipped); ``progress`` sees the files read, or the bag messages
+    """Load a run from any supported source (``source.source_format``, :mod:`.formats`;
+    ``auto`` tells them apart by the path): an ADS running-log folder, a rosbag2 bag
+    (directory, ``.mcap`` or ``.db3``) read through ``bag``'s profile (default: this
+    project's topics; ``remap`` = topic remapping YAML for them, also ``bag.remap``), or a
+    CARLA experiment-client run folder (``source.derived_collision``: the first box overlap
+    is its collision, flagged derived). ``max_file_mb`` caps each file of a folder (larger
+    ones are reported and skipped); ``progress`` sees the files read, or the bag messages
     decoded; ``workers`` > 1 reads a long log folder in that many forked processes."""
     bag = bag or BagOptions()
+    source = source or SourceOptions()
+    source_format, derived_collision = source.source_format, source.derived_collision
     remap = remap if remap is not None else bag.remap
     if not os.path.lexists(path):
         raise InputError(f"{os.fspath(path)}: no such log folder or bag")

@@ -9,7 +9,10 @@ refused by the reader that opens it, with its one line.
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from ads_rca.errors import InputError
 from ads_rca.io.bag_paths import is_bag
@@ -29,11 +32,60 @@ FORMATS = (AUTO, LOG, BAG, CARLA)
 CARLA_TELEMETRY = ("telemetry.json", "telemetry.csv")
 
 
+#: The reader options a user gives by name (CLI flag, ``-p``, config key, ROS parameter).
+SOURCE_PARAMS = ("format", "derived_collision", "ego_agent")
+#: The longest ``ego_agent`` (a DLP token is 40 hex digits).
+MAX_EGO_AGENT = 64
+
+
+@dataclass(frozen=True)
+class SourceOptions:
+    """Which reader reads a run (``format``) and the options of the dataset formats:
+    ``derived_collision`` (a CARLA or DLP run's first box overlap is its collision, flagged
+    derived) and ``ego_agent`` (which DLP agent is the ego; "" = the default choice)."""
+
+    source_format: str = AUTO
+    derived_collision: bool = False
+    ego_agent: str = ""
+
+    @classmethod
+    def from_values(cls, values: Mapping[str, Any]) -> SourceOptions:
+        """From :data:`SOURCE_PARAMS` values as a user gives them (text from ``-p`` or a
+        launch argument, typed from YAML or a ROS parameter), each checked: InputError,
+        one line naming it."""
+        derived = values.get("derived_collision", False)
+        if isinstance(derived, str) and derived.strip().lower() in ("true", "false"):
+            derived = derived.strip().lower() == "true"
+        if not isinstance(derived, bool):
+            raise InputError(f"derived_collision: expected true or false, not {_shown(derived)}")
+        ego = values.get("ego_agent", "")
+        if isinstance(ego, int) and not isinstance(ego, bool):
+            ego = str(ego)
+        if not isinstance(ego, str) or len(ego) > MAX_EGO_AGENT or not ego.isprintable():
+            raise InputError(
+                f"ego_agent: expected an agent token or number (at most {MAX_EGO_AGENT} "
+                f"printable characters), not {_shown(ego)}"
+            )
+        return cls(checked_format(values.get("format", AUTO)), derived, ego.strip())
+
+    def as_params(self) -> dict[str, str | bool]:
+        """The same options as the player's ROS parameters."""
+        return {
+            "format": self.source_format,
+            "derived_collision": self.derived_collision,
+            "ego_agent": self.ego_agent,
+        }
+
+
+def _shown(value: object) -> str:
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
 def checked_format(name: object) -> str:
     """``name`` when it is one of :data:`FORMATS`; InputError (one line) else."""
     if name not in FORMATS:
-        shown = repr(name) if len(repr(name)) <= 40 else repr(name)[:37] + "..."
-        raise InputError(f"format {shown}: expected one of {', '.join(FORMATS)}")
+        raise InputError(f"format {_shown(name)}: expected one of {', '.join(FORMATS)}")
     return str(name)
 
 

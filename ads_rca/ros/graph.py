@@ -33,7 +33,7 @@ from typing import Any, TextIO
 from ads_rca.contract import topics
 from ads_rca.errors import InputError
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB
-from ads_rca.io.formats import AUTO, FORMATS, checked_format
+from ads_rca.io.formats import AUTO, FORMATS, SOURCE_PARAMS, SourceOptions
 from ads_rca.io.yaml_files import load_config
 from ads_rca.live.runid import new_run_id
 from ads_rca.oracles.base import MODULES, Module
@@ -228,6 +228,9 @@ LAUNCH_ARGUMENTS: dict[str, LaunchArgument] = {
     "format": LaunchArgument(
         AUTO, f"The input's format: {', '.join(FORMATS)} (docs/formats.md).", "format"
     ),
+    "ego_agent": LaunchArgument(
+        "", "A DLP scene's ego: an agent token or number ('' = the default choice).", "ego_agent"
+    ),
     "derived_collision": LaunchArgument(
         "false",
         "A CARLA run's collision is the first box overlap, flagged derived (default none).",
@@ -343,11 +346,8 @@ def spec_from_arguments(values: Mapping[str, str]) -> GraphSpec:
         value("semantics") or None, load_config(params_file) if params_file else {}, {}
     )
     max_file_mb = float(check_number("max_file_mb", value("max_file_mb"), MAX_FILE_MB))
-    player: dict[str, ParamValue] = {
-        "max_file_mb": max_file_mb,
-        "format": checked_format(value("format")),
-        "derived_collision": _flag("derived_collision", value("derived_collision")),
-    }
+    source = SourceOptions.from_values({name: value(name) for name in SOURCE_PARAMS})
+    player: dict[str, ParamValue] = {"max_file_mb": max_file_mb, **source.as_params()}
     if value("bag_remap"):
         player["bag_remap"] = str(Path(value("bag_remap")).resolve())
     if value("profile"):

@@ -46,7 +46,7 @@ from ads_rca.contract.playback import (
 from ads_rca.errors import AdsRcaError, ConfigError
 from ads_rca.io.bag_options import BagOptions
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB
-from ads_rca.io.formats import AUTO, FORMATS, checked_format
+from ads_rca.io.formats import AUTO, FORMATS, SOURCE_PARAMS, SourceOptions
 from ads_rca.live.runid import checked_run_id, new_run_id
 from ads_rca.model import RunLog
 from ads_rca.paramspec import MAX_FILE_MB, RATE, SECONDS, Range
@@ -77,6 +77,11 @@ PARAMETERS: dict[str, NodeParameter] = {
     "format": (
         AUTO,
         f"The input's format: {', '.join(FORMATS)} ({AUTO}: told by the path; docs/formats.md).",
+    ),
+    "ego_agent": (
+        "",
+        "A DLP scene has no ego: the agent to take as one, by token or by number in token "
+        "order ('' = the longest-lived moving car).",
     ),
     "derived_collision": (
         False,
@@ -273,8 +278,7 @@ class Player(Node):
             log_path,
             max_file_mb=self.max_file_mb,
             bag=bag,
-            source_format=checked_format(self._param("format")),
-            derived_collision=bool(self._param("derived_collision")),
+            source=SourceOptions.from_values({k: self._param(k) for k in SOURCE_PARAMS}),
         )
         for problem in log.problems:
             self.get_logger().warning(str(problem))

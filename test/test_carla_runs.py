@@ -289,7 +289,7 @@ def test_carla_options_on_other_inputs_are_one_line(
 ) -> None:
     log_dir = log_dirs("cut_in", "planning")
     for argv, expected in (
-        (["--derived-collision"], "derived collision check applies to CARLA run folders"),
+        (["--derived-collision"], "derived collision check applies to CARLA runs and DLP scenes"),
         (["--format", "carla"], "no telemetry.json or telemetry.csv"),
     ):
         done = run("diagnose", str(log_dir), *argv)

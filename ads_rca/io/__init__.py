@@ -8,7 +8,7 @@ from ads_rca.errors import InputError
 from ads_rca.io.bag_options import BagOptions
 from ads_rca.io.bag_paths import is_bag
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB
-from ads_rca.io.formats import AUTO, BAG, CARLA, LOG, SourceOptions, resolved_format
+from ads_rca.io.formats import AUTO, BAG, CARLA, DLP, LOG, SourceOptions, resolved_format
 from ads_rca.model import RunLog
 from ads_rca.progress import Progress
 
@@ -37,11 +37,20 @@ def open_run(
     if not os.path.lexists(path):
         raise InputError(f"{os.fspath(path)}: no such log folder or bag")
     fmt = resolved_format(path, source_format)
-    if derived_collision and fmt != CARLA:
+    kind = {BAG: "a bag", LOG: "a running log", CARLA: "a CARLA run"}.get(fmt, fmt)
+    if derived_collision and fmt not in (CARLA, DLP):
         raise InputError(
-            f"{os.fspath(path)}: the derived collision check applies to CARLA "
-            f"run folders, not to a {'bag' if fmt == BAG else 'running log'}"
+            f"{os.fspath(path)}: the derived collision check applies to CARLA runs and DLP "
+            f"scenes, not to {kind}"
         )
+    if source.ego_agent and fmt != DLP:
+        raise InputError(f"{os.fspath(path)}: ego_agent applies to DLP scenes, not to {kind}")
+    if fmt == DLP:
+        if remap is not None or not bag.contract:
+            raise InputError("--profile and --remap apply to bags, not to a DLP scene")
+        from ads_rca.io.dlp_scene import read_dlp_scene
+
+        return read_dlp_scene(path, max_file_mb, source)
     if fmt == CARLA:
         if remap is not None or not bag.contract:
             raise InputError("--profile and --remap apply to bags, not to a CARLA run folder")

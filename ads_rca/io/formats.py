@@ -24,12 +24,16 @@ LOG = "log"
 BAG = "bag"
 #: A CARLA experiment-client run folder (telemetry.json or .csv, run_metadata.json ...).
 CARLA = "carla"
+#: A Dragon Lake Parking scene: ``DJI_XXXX_scene.json`` (or a folder holding one) and its
+#: frames, agents, instances and obstacles files beside it.
+DLP = "dlp"
 
 #: Every name ``--format`` takes, ``auto`` first.
-FORMATS = (AUTO, LOG, BAG, CARLA)
+FORMATS = (AUTO, LOG, BAG, CARLA, DLP)
 
 #: Files whose presence makes a folder a CARLA experiment-client run.
 CARLA_TELEMETRY = ("telemetry.json", "telemetry.csv")
+DLP_SCENE = "_scene.json"
 
 
 #: The reader options a user gives by name (CLI flag, ``-p``, config key, ROS parameter).
@@ -91,13 +95,22 @@ def checked_format(name: object) -> str:
 
 def detect_format(path: str | os.PathLike[str]) -> str:
     """The format of ``path``: a bag, a CARLA run folder (a telemetry file and no
-    ``actors/`` folder), else a running-log folder (whose reader says what is wrong)."""
+    ``actors/`` folder), a DLP scene (a ``_scene.json`` file, or a folder with one and no
+    ``actors/``), else a running-log folder (whose reader says what is wrong)."""
     if is_bag(path):
         return BAG
     folder = Path(path)
+    if folder.name.endswith(DLP_SCENE) and not folder.is_dir():
+        return DLP
     telemetry = any(os.path.lexists(folder / name) for name in CARLA_TELEMETRY)
     if telemetry and folder.is_dir() and not (folder / "actors").is_dir():
         return CARLA
+    if folder.is_dir() and not (folder / "actors").is_dir():
+        try:
+            if any(name.endswith(DLP_SCENE) for name in os.listdir(folder)):
+                return DLP
+        except OSError:
+            pass
     return LOG
 
 

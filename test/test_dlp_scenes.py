@@ -1,0 +1,268 @@
+"""Dragon Lake Parking scenes (seed 002, issue #19): every field of the synthesised scene
+(ads_rca/synth/dlp_scenes.py) as worked out by hand, mirrored headings, the reversing car's
+signed speed, the ego's choice, timestamps along the linked list, the capability record,
+streaming, hostile files (a broken or looping list, missing and cut files, bad instances),
+and a real replay over DDS equal to diagnose.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import pytest
+
+from ads_rca.engine import diagnose
+from ads_rca.errors import InputError
+from ads_rca.io import open_run
+from ads_rca.io.dlp_scene import read_dlp_scene
+from ads_rca.io.formats import SourceOptions, detect_format
+from ads_rca.params import make_params
+from ads_rca.ros.launcher import ManagedProcess
+from ads_rca.synth.dlp_scenes import STEM, frame_token, scene_agents, write_dlp_scene
+
+if TYPE_CHECKING:
+    from conftest import RosEnv
+
+ADS_RCA = str(Path(sys.executable).with_name("ads-rca"))
+FRAMES = 50
+
+
+def run(*argv: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [ADS_RCA, *argv], capture_output=True, text=True, timeout=300, check=False
+    )
+
+
+def ids() -> dict[int, str]:
+    """Each synthesised agent's number → its actor id (token order, from 1)."""
+    agents = scene_agents(FRAMES)
+    ordered = sorted(agents, key=lambda a: a.token)
+    return {a.number: str(ordered.index(a) + 1) for a in agents}
+
+
+def problems_of(log: Any) -> list[str]:
+    return [f"{p.file} {p.field}: {p.issue} ({p.action})" for p in log.problems]
+
+
+@pytest.fixture
+def scene(tmp_path: Path) -> Path:
+    return write_dlp_scene(tmp_path / "scene", FRAMES)
+
+
+def test_every_field_maps_as_worked_out_by_hand(scene: Path) -> None:
+    log = read_dlp_scene(scene)
+    assert problems_of(log) == []
+    assert log.tpf == 40 and log.frames == tuple(range(0, 40 * FRAMES, 40))
+    assert log.metadata.collision_frame == -1
+    number = ids()
+    ego = log.metadata.raw["ego_agent"]
+    assert (ego["id"], ego["type"], ego["frames"]) == (number[1], "Car", FRAMES)
+    assert ego["chosen_by"] == "default: the longest-lived moving car"
+    pose = log.pose[400]  # frame 10, t = 0.4 s: car 1 at (10 + 5 * 0.4, 20) in DLP's frame
+    assert (pose.x, pose.y, pose.z, pose.yaw, pose.speed) == (12.0, -20.0, 0.0, 0.0, 5.0)
+    actors = log.actors[400]
+    obstacle = "4"  # after the three agents
+    assert actors.ids == (number[1], *sorted((number[2], number[3]), key=int), obstacle)
+    row = {actor_id: n for n, actor_id in enumerate(actors.ids)}
+    expected = {
+        number[1]: ([12.0, -20.0, 0.0], 0.0, [2.35, 0.95, 0.75]),
+        number[2]: ([40 - 2.5 * 0.2, -30.0, 0.0], 0.0, [2.25, 0.9, 0.75]),  # reversing
+        number[3]: ([25.0, -(10 + 0.4), 0.0], -90.0, [0.415, 0.415, 0.9]),  # mirrored π/2
+        obstacle: ([60.0, -5.0, 0.0], -180.0, [2.3, 1.0, 0.75]),
+    }
+    for actor_id, (location, yaw, extent) in expected.items():
+        np.testing.assert_allclose(actors.location[row[actor_id]], location)
+        assert actors.rotation[row[actor_id]].tolist() == [0.0, 0.0, yaw]
+        np.testing.assert_allclose(actors.extent[row[actor_id]], extent)
+    tokens = log.metadata.raw["actor_tokens"]
+    assert tokens[number[1]] == scene_agents(FRAMES)[0].token
+
+
+def test_the_reversing_car_as_ego_has_a_negative_speed(scene: Path) -> None:
+    number = ids()
+    log = read_dlp_scene(scene, source=SourceOptions(ego_agent=number[2]))
+    assert log.frames == tuple(range(5 * 40, (FRAMES - 5) * 40, 40))  # its lifetime
+    poses = [log.pose[ts] for ts in log.frames]
+    assert {p.speed for p in poses} == {-2.5} and {p.yaw for p in poses} == {0.0}
+    assert log.inputs["ego"].state == "real" and "chosen by ego_agent" in log.inputs["ego"].reason
+
+
+def test_the_ego_by_token_and_its_mirrored_heading(scene: Path) -> None:
+    walker = scene_agents(FRAMES)[2]
+    log = read_dlp_scene(scene, source=SourceOptions(ego_agent=walker.token))
+    first = log.pose[log.frames[0]]
+    assert (first.x, first.y, first.yaw, first.speed) == (25.0, -10.0, -90.0, 1.0)
+
+
+def test_the_capability_record(scene: Path) -> None:
+    log = read_dlp_scene(scene)
+    states = {name: status.state for name, status in log.inputs.items()}
+    assert states["ego"] == "assumed" and "DLP has no ego" in log.inputs["ego"].reason
+    assert states["actors"] == "real"
+    assert states["collision"] == "absent"
+    absent = [n for n, s in states.items() if s == "absent"]
+    assert set(absent) == set(states) - {"ego", "actors"}
+    document = diagnose(log, make_params("corrected")).to_json()
+    assert all(v.startswith("not judged") for v in document["modules_judged"].values())
+    assert document["verdict"] == "no fault found (no collision)"
+
+
+def test_auto_detects_a_scene_file_and_its_folder(scene: Path) -> None:
+    assert detect_format(scene) == detect_format(scene.parent) == "dlp"
+    write_dlp_scene(scene.parent / "two", 5)
+    (scene.parent / "two" / f"{STEM}_scene.json").rename(scene.parent / "DJI_0002_scene.json")
+    with pytest.raises(InputError, match="2 DLP scenes"):
+        open_run(scene.parent)
+
+
+def test_the_derived_collision_is_the_first_overlap(scene: Path) -> None:
+    """A parked car moved to (20, 20): car 1 (half length 2.35) reaches it (half length
+    2.3) when 10 + 5t > 20 - 4.65, from frame 27 (t = 1.08 s)."""
+    obstacles_file = scene.with_name(f"{STEM}_obstacles.json")
+    obstacles = json.loads(obstacles_file.read_text())
+    for entry in obstacles.values():
+        entry["coords"], entry["heading"] = [20.0, 20.0], 0.0
+    obstacles_file.write_text(json.dumps(obstacles))
+    assert read_dlp_scene(scene).metadata.collision_frame == -1
+    log = read_dlp_scene(scene, source=SourceOptions(derived_collision=True))
+    assert log.metadata.collision_frame == 27
+    assert log.inputs["collision"].state == "derived"
+
+
+def test_the_instances_are_streamed_not_read_whole(scene: Path) -> None:
+    """max_file_mb caps what is read whole; the instances file, far larger, is streamed
+    (only each instance is held to the cap)."""
+    instances = scene.with_name(f"{STEM}_instances.json")
+    assert instances.stat().st_size > 40_000
+    log = read_dlp_scene(scene, max_file_mb=0.01)
+    assert len(log.frames) == FRAMES and problems_of(log) == []
+
+
+# --- hostile files -----------------------------------------------------------------------------
+
+
+def _edit(path: Path, edit: Any) -> None:
+    document = json.loads(path.read_text())
+    edit(document)
+    path.write_text(json.dumps(document))
+
+
+def test_a_broken_link_ends_the_list_and_says_so(scene: Path) -> None:
+    frames_file = scene.with_name(f"{STEM}_frames.json")
+    _edit(frames_file, lambda d: d[frame_token(20)].update(next="0" * 40))
+    log = read_dlp_scene(scene)
+    assert len(log.frames) == 21
+    found = problems_of(log)
+    assert any("a next link names no frame (the list ends here)" in p for p in found), found
+    assert any("29 frames are not on the list from first_frame" in p for p in found), found
+    assert any("instances: no frame on the list (record dropped)" in p for p in found), found
+
+
+def test_a_cycle_ends_the_list_and_says_so(scene: Path) -> None:
+    frames_file = scene.with_name(f"{STEM}_frames.json")
+    _edit(frames_file, lambda d: d[frame_token(20)].update(next=frame_token(10)))
+    log = read_dlp_scene(scene)
+    assert len(log.frames) == 21
+    assert any("the next links make a cycle" in p for p in problems_of(log))
+
+
+def test_bad_instances_are_counted_and_dropped(scene: Path) -> None:
+    instances_file = scene.with_name(f"{STEM}_instances.json")
+    car = scene_agents(FRAMES)[0]
+
+    def damage(document: dict[str, Any]) -> None:
+        document[car.instance(3)]["coords"] = ["12", 20]
+        document[car.instance(4)]["heading"] = float("nan")
+        document[car.instance(5)]["agent_token"] = "nobody"
+        document[car.instance(6)] = [1, 2]
+
+    _edit(instances_file, damage)
+    log = read_dlp_scene(scene)
+    found = problems_of(log)
+    for expected in (
+        "coords, heading: 2 instances: not finite numbers (record dropped)",
+        "agent_token: 1 instances: no agent of the agents file (record dropped)",
+        ": 1 instances: not an object (record dropped)",
+    ):
+        assert any(expected in p for p in found), (expected, found)
+    assert len(log.frames) == FRAMES - 4  # the ego's frames without its instance
+    assert any("no instance in 4 frames of its lifetime" in p for p in found), found
+
+
+def test_a_cut_instances_file_keeps_what_came_before(scene: Path) -> None:
+    instances_file = scene.with_name(f"{STEM}_instances.json")
+    data = instances_file.read_bytes()
+    instances_file.write_bytes(data[: len(data) // 3])
+    log = read_dlp_scene(scene)
+    found = problems_of(log)
+    assert any("invalid JSON" in p and "kept" in p for p in found), found
+    assert 0 < len(log.frames) < FRAMES
+
+
+@pytest.mark.parametrize(
+    ("damage", "expected"),
+    [
+        ("no instances", "_instances.json: missing (a DLP scene needs all five files)"),
+        ("no agents", "not a usable DLP agents file (missing)"),
+        ("scene not an object", "not a usable DLP scene file"),
+        ("first frame unknown", "first_frame names no frame of the frames file"),
+        ("instances fifo", "_instances.json: not a regular file"),
+        ("bad ego", "ego_agent 99: no such agent"),
+    ],
+)
+def test_an_unusable_scene_is_one_line(scene: Path, damage: str, expected: str) -> None:
+    import os
+
+    part = {name: scene.with_name(f"{STEM}_{name}.json") for name in ("instances", "agents")}
+    argv: list[str] = []
+    if damage == "no instances":
+        part["instances"].unlink()
+    elif damage == "no agents":
+        part["agents"].unlink()
+    elif damage == "scene not an object":
+        scene.write_text("[]")
+    elif damage == "first frame unknown":
+        _edit(scene, lambda d: d.update(first_frame="x"))
+    elif damage == "instances fifo":
+        part["instances"].unlink()
+        os.mkfifo(part["instances"])
+    elif damage == "bad ego":
+        argv = ["--ego-agent", "99"]
+    done = run("diagnose", str(scene), *argv)
+    assert done.returncode == 2, done.stdout
+    assert expected in done.stderr and "Traceback" not in done.stderr, done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1, done.stderr
+
+
+def test_ego_agent_elsewhere_is_one_line(tmp_path: Path) -> None:
+    from ads_rca.synth.carla_runs import write_carla_run
+
+    done = run("diagnose", str(write_carla_run(tmp_path / "run")), "--ego-agent", "1")
+    assert done.returncode == 2 and "ego_agent applies to DLP scenes" in done.stderr
+    long = run("diagnose", str(tmp_path / "run"), "--ego-agent", "x" * 100)
+    assert long.returncode == 2 and "ego_agent: expected an agent token" in long.stderr
+
+
+# --- the live graph ----------------------------------------------------------------------------
+
+
+def test_replay_of_a_dlp_scene_equals_diagnose(
+    ros_env: RosEnv, scene: Path, tmp_path: Path
+) -> None:
+    out = tmp_path / "verdict.json"
+    argv = [sys.executable, "-m", "ads_rca.cli", "replay", str(scene), "--json", str(out)]
+    argv += ["--ego-agent", ids()[2], "--domain-id", str(ros_env.domain_id), "--timeout", "90"]
+    replay = ManagedProcess("replay", argv, ros_env.env)
+    assert replay.wait(120) == 0, replay.output
+    live = json.loads(out.read_text())
+    offline = diagnose(
+        read_dlp_scene(scene, source=SourceOptions(ego_agent=ids()[2])), make_params("corrected")
+    ).to_json()
+    for key in ("frames", "modules_judged", "verdict", "ego_id"):
+        assert live[key] == offline[key], key
+    assert len(live["frames"]) == FRAMES - 10

@@ -20,6 +20,7 @@ from ads_rca.model import RunLog, frame_number
 from ads_rca.oracles.base import MODULES, Module, OracleResult, RunContext
 from ads_rca.oracles.semantics import Oracle, Semantics, semantics_for
 from ads_rca.params import Params
+from ads_rca.prediction_scores import SCORES_KEY, run_scores
 from ads_rca.problems import CHECK_SKIPPED, Problem, ProblemLog
 from ads_rca.progress import advancer
 from ads_rca.run_figures import FIGURES_KEY, figures_from_document
@@ -125,6 +126,9 @@ class Diagnosis:
         figures = figures_from_document(self.log.metadata.raw)
         if figures:
             document[FIGURES_KEY] = figures
+        scores = run_scores(self.frames)
+        if scores:
+            document[SCORES_KEY] = scores
         return dict(json_safe(document))
 
 

@@ -12,6 +12,7 @@ from ads_rca.annotations import annotations_from_document
 from ads_rca.capabilities import JUDGED
 from ads_rca.oracles.base import MODULES
 from ads_rca.oracles.semantics import MODES, Semantics, semantics_for
+from ads_rca.prediction_scores import MISS_M, SCORES_KEY
 from ads_rca.problems import Problem, ProblemLog
 from ads_rca.run_figures import FIGURE_KEYS, figures_from_document
 from ads_rca.text import printable
@@ -74,8 +75,19 @@ def summary_text(document: dict[str, Any], max_problems: int = 10, how: str = "j
 
 
 def run_notes_lines(document: dict[str, Any], shown: int = 10) -> list[str]:
-    """The run's own figures and annotations (a CARLA run's), when it has any."""
+    """The run's own figures and annotations (a CARLA run's) and a predictor's scores, when
+    it has any."""
     lines: list[str] = []
+    scores = document.get(SCORES_KEY)
+    if isinstance(scores, dict) and scores.get("scored"):
+        lines.append(
+            f"prediction scores ({scores['scored']} tracks against the realised future): "
+            + _score_text(scores)
+        )
+        by_type = scores.get("by_type")
+        for kind, row in (by_type if isinstance(by_type, dict) else {}).items():
+            if isinstance(row, dict):
+                lines.append(f"  {kind}: {row.get('scored')} tracks, {_score_text(row)}")
     figures = figures_from_document(document)
     if figures:
         values = ", ".join(f"{k}={_short(figures[k])}" for k in FIGURE_KEYS)
@@ -87,6 +99,13 @@ def run_notes_lines(document: dict[str, Any], shown: int = 10) -> list[str]:
         if len(annotations) > shown:
             lines.append(f"  ... {len(annotations) - shown} more")
     return lines
+
+
+def _score_text(row: dict[str, Any]) -> str:
+    return (
+        f"ADE {_short(row.get('ade'))} m, FDE {_short(row.get('fde'))} m, "
+        f"miss rate {_short(row.get('miss_rate'))} (FDE > {MISS_M:g} m)"
+    )
 
 
 def window_text(window: Any) -> str:

@@ -24,6 +24,7 @@ from ads_rca.io.formats import SourceOptions, detect_format
 from ads_rca.params import make_params
 from ads_rca.ros.launcher import ManagedProcess
 from ads_rca.synth.dlp_scenes import STEM, frame_token, scene_agents, write_dlp_scene
+from ads_rca.synth.predictor_files import write_predictions
 
 if TYPE_CHECKING:
     from conftest import RosEnv
@@ -254,15 +255,120 @@ def test_ego_agent_elsewhere_is_one_line(tmp_path: Path) -> None:
 def test_replay_of_a_dlp_scene_equals_diagnose(
     ros_env: RosEnv, scene: Path, tmp_path: Path
 ) -> None:
-    out = tmp_path / "verdict.json"
+    """Player, monitors, aggregator and recorder over DDS, the reversing car as the ego and
+    a predictor's files: the same frames, verdict and prediction scores as diagnose; on
+    /diagnostics the prediction module is OK where it scored, perception STALE (no data)."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    ego = ids()[2]
+    log = read_dlp_scene(scene, source=SourceOptions(ego_agent=ego))
+    predictions = write_predictions(log, tmp_path / "pred", bias=(0.0, 1.0), ego_id=ego)
+    bag, out = tmp_path / "bag", tmp_path / "verdict.json"
     argv = [sys.executable, "-m", "ads_rca.cli", "replay", str(scene), "--json", str(out)]
-    argv += ["--ego-agent", ids()[2], "--domain-id", str(ros_env.domain_id), "--timeout", "90"]
+    argv += ["--ego-agent", ego, "--predictions", str(predictions), "--record", str(bag)]
+    argv += ["--domain-id", str(ros_env.domain_id), "--timeout", "90"]
     replay = ManagedProcess("replay", argv, ros_env.env)
     assert replay.wait(120) == 0, replay.output
     live = json.loads(out.read_text())
-    offline = diagnose(
-        read_dlp_scene(scene, source=SourceOptions(ego_agent=ids()[2])), make_params("corrected")
-    ).to_json()
-    for key in ("frames", "modules_judged", "verdict", "ego_id"):
+    source = SourceOptions(ego_agent=ego, predictions=str(predictions))
+    offline = diagnose(open_run(scene, source=source), make_params("corrected")).to_json()
+    for key in ("frames", "modules_judged", "verdict", "ego_id", "prediction_scores"):
         assert live[key] == offline[key], key
     assert len(live["frames"]) == FRAMES - 10
+    assert live["prediction_scores"]["ade"] == pytest.approx(1.0)
+    levels: dict[str, set[int]] = {}
+    with next(bag.glob("*.mcap")).open("rb") as stream:
+        reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+        for _schema, channel, _raw, msg in reader.iter_decoded_messages(log_time_order=False):
+            if channel.topic == "/diagnostics":
+                for status in msg.status:
+                    levels.setdefault(status.name, set()).add(int(status.level))
+    by_module = {
+        m: next(v for k, v in levels.items() if k.endswith(m)) for m in ("perception", "prediction")
+    }
+    assert by_module["perception"] == {3}, levels  # STALE: no data
+    assert 0 in by_module["prediction"], levels  # OK where it scored (STALE at the end,
+    # where the predictor has no future to give)
+
+
+# --- prediction scoring ------------------------------------------------------------------------
+
+
+def _scored(scene: Path, predictions: Path, mode: str = "corrected") -> dict[str, Any]:
+    log = open_run(scene, source=SourceOptions(predictions=str(predictions)))
+    return diagnose(log, make_params(mode)).to_json()
+
+
+@pytest.mark.parametrize(
+    ("bias", "error", "miss"),
+    [((0.0, 0.0), 0.0, 0.0), ((0.0, 3.0), 3.0, 1.0), ((0.6, 0.8), 1.0, 0.0)],
+)
+def test_a_predictor_is_scored_against_the_realised_future(
+    scene: Path, tmp_path: Path, bias: tuple[float, float], error: float, miss: float
+) -> None:
+    """Every step of every track off by ``bias``: ADE = FDE = |bias|; a miss is FDE > 2 m."""
+    log = read_dlp_scene(scene)
+    ego = log.metadata.raw["ego_agent"]["id"]
+    write_predictions(log, tmp_path / "pred", bias=bias, ego_id=ego)
+    scores = _scored(scene, tmp_path / "pred")["prediction_scores"]
+    assert scores["ade"] == pytest.approx(error) and scores["fde"] == pytest.approx(error)
+    assert scores["miss_rate"] == miss and scores["miss_threshold_m"] == 2.0
+    assert set(scores["by_type"]) == {"Car", "Pedestrian"}
+    assert scores["by_type"]["Pedestrian"]["ade"] == pytest.approx(error)
+
+
+def test_steps_past_the_window_and_unknown_ids_are_not_scored(scene: Path, tmp_path: Path) -> None:
+    """One hand-written file at 0.4 s: the reversing car (x 39.5, y -30 in the model's frame;
+    the ego at 12, -20, yaw 0) predicted 1 m off at key "0", 2 m off at key "9", 100 m off at
+    key "12" (past prediction_window 10: not scored); an id that is no actor."""
+    number = ids()
+    folder = tmp_path / "pred"
+    folder.mkdir()
+    car = {  # the car reverses 0.1 m a frame: at frame 10 + k + 1, x = 39.5 - 0.1 (k + 1)
+        "0": {"x": 39.4 - 12 + 1.0, "y": -10.0, "z": 0.0},
+        "9": {"x": 38.5 - 12, "y": -10.0 + 2.0, "z": 0.0},
+        "12": {"x": 138.2 - 12, "y": -10.0, "z": 0.0},
+    }
+    (folder / "predictions-400.json").write_text(json.dumps({number[2]: car, "999": car}))
+    document = _scored(scene, folder)
+    frame = next(f for f in document["frames"] if f["timestamp_ms"] == 400)["prediction"]
+    assert frame["scored_ids"] == 1 and frame["unmatched_ids"] == 1
+    assert frame["ade"] == pytest.approx(1.5) and frame["fde"] == pytest.approx(2.0)
+    assert frame["miss_rate"] == 0.0
+    assert document["prediction_scores"]["scored"] == 1
+
+
+def test_reference_mode_does_not_score(scene: Path, tmp_path: Path) -> None:
+    log = read_dlp_scene(scene)
+    write_predictions(log, tmp_path / "pred", ego_id=log.metadata.raw["ego_agent"]["id"])
+    assert "prediction_scores" not in _scored(scene, tmp_path / "pred", "reference")
+
+
+def test_bad_prediction_files_are_reported_and_the_rest_scored(scene: Path, tmp_path: Path) -> None:
+    log = read_dlp_scene(scene)
+    folder = write_predictions(log, tmp_path / "pred", bias=(0.0, 1.0))
+    (folder / "predictions-400.json").write_text('{"1": ')
+    (folder / "predictions-440.json").write_text('{"1": {"0": {"x": "far", "y": 0}}}')
+    (folder / "notes.txt").write_text("ignored")
+    document = _scored(scene, folder)
+    problems = [f"{p['file']} {p['field']}: {p['issue']}" for p in document["input_problems"]]
+    assert any(p.startswith("pred/predictions-400.json : invalid JSON") for p in problems)
+    assert any("pred/predictions-440.json" in p and "'far'" in p for p in problems), problems
+    assert document["prediction_scores"]["ade"] == pytest.approx(1.0)
+    assert document["modules_judged"]["prediction"].startswith("not judged")
+
+
+def test_predictions_elsewhere_or_missing_are_one_line(
+    scene: Path, tmp_path: Path, log_dirs: Any
+) -> None:
+    for argv, expected in (
+        ([str(scene), "--predictions", str(tmp_path / "none")], "no such folder of prediction"),
+        (
+            [str(log_dirs("cut_in", "planning")), "--predictions", str(tmp_path)],
+            "--predictions applies to CARLA runs and DLP scenes",
+        ),
+    ):
+        done = run("diagnose", *argv)
+        assert done.returncode == 2 and expected in done.stderr, done.stderr
+        assert len(done.stderr.strip().splitlines()) == 1

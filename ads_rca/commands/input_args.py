@@ -25,7 +25,7 @@ from ads_rca.profiles import BUILTIN_PROFILES, DEFAULT_PROFILE
 #: The reader's parameter names (popped from ``-p`` / config before the engine sees them).
 READER_PARAMS = ("max_file_mb", *SOURCE_PARAMS)
 #: The defaults of the source options (``SourceOptions``), by parameter name.
-SOURCE_DEFAULTS = {"format": AUTO, "derived_collision": False, "ego_agent": ""}
+SOURCE_DEFAULTS = {"format": AUTO, "derived_collision": False, "ego_agent": "", "predictions": ""}
 
 
 def add_reader_arguments(parser: argparse.ArgumentParser) -> None:
@@ -50,6 +50,13 @@ def add_reader_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="TOKEN|N",
         help="a DLP scene has no ego: the agent to take as one, by token or by number in "
         "token order (default: the longest-lived moving car)",
+    )
+    parser.add_argument(
+        "--predictions",
+        default=None,
+        metavar="DIR",
+        help="a folder of a predictor's prediction files (the seed format, ids = actor ids) "
+        "to score against a CARLA run's or DLP scene's realised future",
     )
     parser.add_argument(
         "--derived-collision",
@@ -80,8 +87,8 @@ def max_file_mb_from_args(args: argparse.Namespace) -> float:
 
 
 def source_options_from_args(args: argparse.Namespace) -> SourceOptions:
-    """``format``, ``derived_collision`` and ``ego_agent`` as :func:`max_file_mb_from_args`
-    finds them, each checked (one line naming it)."""
+    """``format``, ``derived_collision``, ``ego_agent`` and ``predictions`` as
+    :func:`max_file_mb_from_args` finds them, each checked (one line naming it)."""
     return SourceOptions.from_values(
         {name: _reader_setting(args, name, default) for name, default in SOURCE_DEFAULTS.items()}
     )

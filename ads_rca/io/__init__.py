@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+from dataclasses import replace
 
 from ads_rca.errors import InputError
 from ads_rca.io.bag_options import BagOptions
@@ -45,18 +46,16 @@ def open_run(
         )
     if source.ego_agent and fmt != DLP:
         raise InputError(f"{os.fspath(path)}: ego_agent applies to DLP scenes, not to {kind}")
-    if fmt == DLP:
-        if remap is not None or not bag.contract:
-            raise InputError("--profile and --remap apply to bags, not to a DLP scene")
-        from ads_rca.io.dlp_scene import read_dlp_scene
-
-        return read_dlp_scene(path, max_file_mb, source)
-    if fmt == CARLA:
-        if remap is not None or not bag.contract:
-            raise InputError("--profile and --remap apply to bags, not to a CARLA run folder")
-        from ads_rca.io.carla_run import read_carla_run
-
-        return read_carla_run(path, max_file_mb, derived_collision)
+    if source.predictions and fmt not in (CARLA, DLP):
+        raise InputError(
+            f"{os.fspath(path)}: --predictions applies to CARLA runs and DLP scenes (which hold "
+            f"no predictions), not to {kind}"
+        )
+    if fmt in (CARLA, DLP):
+        log = _dataset_run(path, fmt, max_file_mb, source, remap, bag)
+        if source.predictions:
+            with_predictions(log, source.predictions, max_file_mb)
+        return log
     if fmt == LOG and source_format != AUTO and is_bag(path):
         raise InputError(f"{os.fspath(path)}: --format {LOG}: this is a bag")
     if fmt == BAG and not is_bag(path):
@@ -79,3 +78,44 @@ def open_run(
     from ads_rca.io.json_log import read_run_log
 
     return read_run_log(path, max_file_mb, progress, workers)
+
+
+def _dataset_run(
+    path: str | os.PathLike[str],
+    fmt: str,
+    max_file_mb: float,
+    source: SourceOptions,
+    remap: str | os.PathLike[str] | None,
+    bag: BagOptions,
+) -> RunLog:
+    """A CARLA run or a DLP scene (no profile, no remapping: they are not bags)."""
+    what = "a CARLA run folder" if fmt == CARLA else "a DLP scene"
+    if remap is not None or not bag.contract:
+        raise InputError(f"--profile and --remap apply to bags, not to {what}")
+    if fmt == CARLA:
+        from ads_rca.io.carla_run import read_carla_run
+
+        return read_carla_run(path, max_file_mb, source.derived_collision)
+    from ads_rca.io.dlp_scene import read_dlp_scene
+
+    return read_dlp_scene(path, max_file_mb, source)
+
+
+def with_predictions(log: RunLog, directory: str, max_file_mb: float) -> None:
+    """A predictor's prediction files put in ``log`` (which had none), its problems
+    reported, and the capability record saying where they came from."""
+    from ads_rca.io.json_log import read_predictions_folder
+    from ads_rca.model import INPUTS_KEY, InputStatus
+
+    found, problems = read_predictions_folder(directory, max_file_mb)
+    log.predictions.update(found)
+    log.problems.extend(problems)
+    log.inputs["predictions"] = InputStatus(
+        "real",
+        os.fspath(directory),
+        "a predictor's output given with --predictions: not judged by the verdict rules, "
+        "scored against the realised future (ids are actor ids)",
+    )
+    raw = dict(log.metadata.raw)
+    raw[INPUTS_KEY] = {name: s.to_dict() for name, s in log.inputs.items()}
+    log.metadata = replace(log.metadata, raw=raw)

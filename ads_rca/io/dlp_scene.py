@@ -55,6 +55,7 @@ from ads_rca.model import (
     RunLog,
     RunMetadata,
 )
+from ads_rca.prediction_scores import ACTOR_TYPES_KEY
 from ads_rca.problems import (
     DROPPED_RECORD,
     IGNORED,
@@ -527,6 +528,7 @@ def _run_log(
             "chosen_by": chosen_by,
         },
         "actor_tokens": dict(zip(ids, agents.tokens, strict=True)),
+        ACTOR_TYPES_KEY: dict(zip(ids, agents.kinds, strict=True)),
     }
     inputs = _capabilities(names, agents, ego, ids, chosen_by, source.derived_collision)
     raw[INPUTS_KEY] = {key: status.to_dict() for key, status in inputs.items()}

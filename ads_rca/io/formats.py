@@ -37,7 +37,7 @@ DLP_SCENE = "_scene.json"
 
 
 #: The reader options a user gives by name (CLI flag, ``-p``, config key, ROS parameter).
-SOURCE_PARAMS = ("format", "derived_collision", "ego_agent")
+SOURCE_PARAMS = ("format", "derived_collision", "ego_agent", "predictions")
 #: The longest ``ego_agent`` (a DLP token is 40 hex digits).
 MAX_EGO_AGENT = 64
 
@@ -46,11 +46,14 @@ MAX_EGO_AGENT = 64
 class SourceOptions:
     """Which reader reads a run (``format``) and the options of the dataset formats:
     ``derived_collision`` (a CARLA or DLP run's first box overlap is its collision, flagged
-    derived) and ``ego_agent`` (which DLP agent is the ego; "" = the default choice)."""
+    derived), ``ego_agent`` (which DLP agent is the ego; "" = the default choice) and
+    ``predictions`` (a folder of a predictor's prediction files to score against a CARLA
+    run's or a DLP scene's realised future; "" = none)."""
 
     source_format: str = AUTO
     derived_collision: bool = False
     ego_agent: str = ""
+    predictions: str = ""
 
     @classmethod
     def from_values(cls, values: Mapping[str, Any]) -> SourceOptions:
@@ -70,7 +73,10 @@ class SourceOptions:
                 f"ego_agent: expected an agent token or number (at most {MAX_EGO_AGENT} "
                 f"printable characters), not {_shown(ego)}"
             )
-        return cls(checked_format(values.get("format", AUTO)), derived, ego.strip())
+        predictions = values.get("predictions", "")
+        if not isinstance(predictions, str):
+            raise InputError(f"predictions: expected a folder path, not {_shown(predictions)}")
+        return cls(checked_format(values.get("format", AUTO)), derived, ego.strip(), predictions)
 
     def as_params(self) -> dict[str, str | bool]:
         """The same options as the player's ROS parameters."""
@@ -78,6 +84,7 @@ class SourceOptions:
             "format": self.source_format,
             "derived_collision": self.derived_collision,
             "ego_agent": self.ego_agent,
+            "predictions": str(Path(self.predictions).resolve()) if self.predictions else "",
         }
 
 

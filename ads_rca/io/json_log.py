@@ -53,6 +53,7 @@ from ads_rca.model import (
     MAX_FRAME,
     MAX_TIMESTAMP_MS,
     OPTIONAL_FOLDERS,
+    Predictions,
     Record,
     RunLog,
     RunMetadata,
@@ -226,6 +227,29 @@ def read_run_log(
     )
     validate_run_log(log, listings, missing_folders=[f for f in FOLDERS if not (root / f).is_dir()])
     return log
+
+
+def read_predictions_folder(
+    directory: str | os.PathLike[str], max_file_mb: float = DEFAULT_MAX_FILE_MB
+) -> tuple[dict[int, Predictions], ProblemLog]:
+    """A folder of prediction files in the seed format (``predictions-<ms>.json``, the
+    running-log reader's naming and parsing rules): a predictor's output given beside a run
+    that has none (``--predictions``). InputError only when it is no folder."""
+    root = Path(directory)
+    limit = check_max_file_mb(max_file_mb)
+    if not root.is_dir():
+        raise InputError(f"{root}: no such folder of prediction files")
+    problems = ProblemLog()
+    out: dict[int, Predictions] = {}
+    for ts, name in sorted(dict(_list_folder(root.parent, root.name, problems)).items()):
+        file = f"{root.name}/{name}"
+        document = decode_file(read_regular(root / name, limit), file, problems, ts)
+        if document is UNUSABLE:
+            continue
+        record = parse_predictions(document, file, problems, ts)
+        if record is not None:
+            out[ts] = record
+    return out, problems
 
 
 def check_max_file_mb(max_file_mb: float) -> int:

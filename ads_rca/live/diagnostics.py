@@ -153,6 +153,13 @@ def result_status(live: LiveResult, semantics: str, hardware_id: str) -> Status:
     r = live.result
     if r.failed:
         level, message = ERROR, f"frame {live.frame}: {r.module} failed"
+    elif r.skipped and r.skipped.startswith(NOT_JUDGED) and r.metrics.get("scored_ids"):
+        level = OK  # a predictor's tracks scored against the realised future
+        message = (
+            f"frame {live.frame}: {r.metrics['scored_ids']} predictions scored "
+            f"(ADE {_metres(r.metrics.get('ade'))}, FDE {_metres(r.metrics.get('fde'))}); "
+            f"the verdict rule: {r.skipped}"
+        )
     elif r.skipped and r.skipped.startswith(NOT_JUDGED):
         level, message = STALE, f"frame {live.frame}: no data: {r.skipped}"
     elif r.skipped or live.incomplete:
@@ -178,6 +185,10 @@ def result_status(live: LiveResult, semantics: str, hardware_id: str) -> Status:
         head[RUN_KEY] = live.run
     values = flatten(head) + flatten(r.metrics, "metric.") + flatten(r.thresholds, "threshold.")
     return Status(level, status_name(r.module), message, hardware_id, values)
+
+
+def _metres(value: object) -> str:
+    return f"{value:.2f} m" if isinstance(value, float) else "-"
 
 
 def simple_status(

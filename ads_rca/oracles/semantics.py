@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any
 
 from ads_rca.model import ALL_FOLDERS, FOLDERS, InputStatus, Record, RunLog
 from ads_rca.params import Params
-from ads_rca.verdict import Attribution, FrameResults, Module, OracleResult
+from ads_rca.verdict import Attribution, FrameResults, Metric, Module, OracleResult
 
 if TYPE_CHECKING:
     from ads_rca.oracles.base import RunContext
@@ -84,6 +84,10 @@ class Semantics:
     #: Results depend on the collision partner (the actors at the collision frame): a
     #: later collision re-judges the frames in the window, and the verdict names the partner.
     uses_partner: bool = False
+    #: A predictor's tracks are scored against the realised future where the prediction
+    #: module cannot be judged (:mod:`ads_rca.prediction_scores`); its look-ahead must cover
+    #: ``prediction_window`` frames and its folders the raw predictions, actors and pose.
+    scores_predictions: bool = False
     #: Per module, what a report plots over time (the first whose first key is present wins).
     headline: Mapping[Module, Sequence[Headline]]
     #: See :data:`EGO_ID_TIMESTAMP_MS`.
@@ -133,7 +137,7 @@ class Semantics:
         return {
             module: oracle
             if verdicts.get(module, JUDGED) == JUDGED
-            else partial(not_judged, module, verdicts[module])
+            else partial(not_judged, module, verdicts[module], self.scores_predictions)
             for module, oracle in self.oracles.items()
         }
 
@@ -251,10 +255,17 @@ class Semantics:
         )
 
 
-def not_judged(module: Module, why: str, _ctx: RunContext, ts: int) -> OracleResult:
+def not_judged(module: Module, why: str, scores: bool, ctx: RunContext, ts: int) -> OracleResult:
     """The result of a module the run's inputs do not let be judged (see
-    :meth:`Semantics.judging_oracles`)."""
-    return OracleResult(module, ts, failed=False, skipped=why)
+    :meth:`Semantics.judging_oracles`); with ``scores`` (:attr:`Semantics.scores_predictions`)
+    a predictor's tracks are still scored against the realised future
+    (:mod:`ads_rca.prediction_scores`)."""
+    metrics: dict[str, Metric] = {}
+    if scores and module == "prediction":
+        from ads_rca.prediction_scores import frame_scores
+
+        metrics = frame_scores(ctx.log, ts, ctx.params.prediction_window)
+    return OracleResult(module, ts, failed=False, metrics=metrics, skipped=why)
 
 
 def semantics_for(mode: str | Params) -> Semantics:

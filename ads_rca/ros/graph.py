@@ -231,6 +231,9 @@ LAUNCH_ARGUMENTS: dict[str, LaunchArgument] = {
     "ego_agent": LaunchArgument(
         "", "A DLP scene's ego: an agent token or number ('' = the default choice).", "ego_agent"
     ),
+    "predictions": LaunchArgument(
+        "", "A predictor's prediction files to score ('' = none).", "predictions"
+    ),
     "derived_collision": LaunchArgument(
         "false",
         "A CARLA run's collision is the first box overlap, flagged derived (default none).",

@@ -83,6 +83,11 @@ PARAMETERS: dict[str, NodeParameter] = {
         "A DLP scene has no ego: the agent to take as one, by token or by number in token "
         "order ('' = the longest-lived moving car).",
     ),
+    "predictions": (
+        "",
+        "A folder of a predictor's prediction files to score against a CARLA run's or DLP "
+        "scene's realised future ('' = none).",
+    ),
     "derived_collision": (
         False,
         "A CARLA run records no collision: take the first tick where the ego's box overlaps "

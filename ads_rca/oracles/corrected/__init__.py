@@ -45,6 +45,7 @@ class CorrectedSemantics(Semantics):
     oracles = ORACLES
     analyses_duplicates = False
     uses_partner = True
+    scores_predictions = True  # its look-ahead and folders cover the scoring
     parameters = (
         "effect_time_window",
         "window_s",

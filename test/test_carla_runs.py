@@ -526,3 +526,14 @@ def test_a_batch_job_diagnoses_a_carla_run_and_names_its_format(tmp_path: Path) 
     assert outcome.row["format"] == "CARLA run" and not outcome.row.get("error"), outcome.row
     assert outcome.row["collision_frame"] == 5  # derived, as asked
     assert outcome.json is not None and json.loads(outcome.json)["annotations"]
+
+
+def test_a_frame_rate_that_disagrees_with_the_ticks_is_said(tmp_path: Path) -> None:
+    root = write_carla_run(tmp_path / "run")
+    facts = json.loads((root / "run_metadata.json").read_text())
+    facts["fps"] = 10
+    (root / "run_metadata.json").write_text(json.dumps(facts))
+    log = read_carla_run(root)
+    assert log.tpf == 100
+    expected = "telemetry.json t_sim: ticks are 50 ms apart, the frame rate gives 100 ms"
+    assert any(line.startswith(expected) for line in problems_of(log)), problems_of(log)

@@ -114,9 +114,10 @@ def read_carla_run(
             "warning",
         )
     ticks = _ticks(telemetry, problems)
+    _check_spacing([telemetry.stamps[i] for i in ticks], tpf, telemetry.file, problems)
     ego_blueprint = scenario.get("ego_vehicle")
     if not isinstance(ego_blueprint, str):
-        if SCENARIO in os.listdir(root) and ego_blueprint is not None:
+        if ego_blueprint is not None:
             problems.add(SCENARIO, "ego_vehicle", "not text", "class default used", "warning")
         ego_blueprint = ""
     ego_half, ego_known = blueprint_extent(ego_blueprint, "vehicle")
@@ -274,6 +275,24 @@ def _ticks(telemetry: Telemetry, problems: ProblemLog) -> list[int]:
             continue
         kept.append(i)
     return kept
+
+
+def _check_spacing(stamps: Sequence[int], tpf: int, file: str, problems: ProblemLog) -> None:
+    """Say so when the ticks' most common spacing is not the frame period the rate gives
+    (frame numbers then do not count ticks)."""
+    steps = np.diff(np.asarray(stamps, dtype=np.int64))
+    if steps.size == 0:
+        return
+    values, counts = np.unique(steps, return_counts=True)
+    common = int(values[np.argmax(counts)])
+    if abs(common - tpf) > 1:
+        problems.add(
+            file,
+            "t_sim",
+            f"ticks are {common} ms apart, the frame rate gives {tpf} ms",
+            f"{KEPT_VALUE}: frames numbered at {tpf} ms",
+            "warning",
+        )
 
 
 # --- model ---------------------------------------------------------------------------------

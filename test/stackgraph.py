@@ -47,8 +47,11 @@ def run_stack_graph(
     params_file: Path | None = None,
     executables: dict[str, list[str]] | None = None,
     after_publisher_s: float = 20.0,
+    companions: dict[str, list[str]] | None = None,
 ) -> StackRun:
-    """Monitors and aggregator in stack mode, then the test stack; wait for the verdict."""
+    """Monitors and aggregator in stack mode, then the ``companions`` (more of the stack: a
+    predictor node...), then the test stack; wait for the verdict. ``synth`` is a
+    ``SCENARIO:FAULT:SEED`` spec, or the path of a run the test stack reads (``--log``)."""
     verdict = tmp / "verdict.json"
     metrics = tmp / "metrics.jsonl"
     diag = tmp / "diag.jsonl"
@@ -72,12 +75,13 @@ def run_stack_graph(
         aggregator = launcher.start(
             "aggregator", [*commands["aggregator"], *ros_args(agg, params_file)]
         )
+        started = [launcher.start(name, argv) for name, argv in (companions or {}).items()]
         stack = launcher.start(
             "stack",
             [
                 sys.executable,
                 str(PUBLISHER),
-                "--synth",
+                "--log" if Path(synth).exists() else "--synth",
                 synth,
                 *publisher_options,
                 "--wait-collision-subscribers",
@@ -89,6 +93,9 @@ def run_stack_graph(
         outputs = {"monitors": monitors.output, "aggregator": aggregator.output}
         assert code == 0, outputs["aggregator"]
         monitors.stop(timeout=10.0)
+        for companion in started:
+            outputs[companion.name] = companion.output
+            companion.stop(timeout=5.0)
         probe.stop(timeout=5.0)
     [summary] = [json.loads(line) for line in stack.lines if line.startswith("{")]
     verdicts = [json.loads(p.read_text()) for p in sorted(tmp.glob("verdict*.json"))]

@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import dlp_predictor
 import numpy as np
 import pytest
 
@@ -372,3 +373,58 @@ def test_predictions_elsewhere_or_missing_are_one_line(
         done = run("diagnose", *argv)
         assert done.returncode == 2 and expected in done.stderr, done.stderr
         assert len(done.stderr.strip().splitlines()) == 1
+
+
+def test_a_predictor_node_beside_a_playing_scene_is_scored(
+    ros_env: RosEnv, scene: Path, tmp_path: Path
+) -> None:
+    """Stack mode over DDS, each its own process: the test stack plays the scene (pose and
+    actors), a predictor node (test/dlp_predictor.py) publishes constant-position
+    predictions for each frame it hears, the monitors and aggregator judge the stack's
+    topics. Its scores equal diagnose's of the same predictions given as files: an actor's
+    error k + 1 frames ahead is the distance it moved (the reversing car 0.1 m a frame)."""
+    from stackgraph import run_stack_graph
+
+    log = read_dlp_scene(scene)
+    ego = log.metadata.raw["ego_agent"]["id"]
+    files = tmp_path / "constant"
+    files.mkdir()
+    for ts in log.frames:  # the same predictor, offline
+        tracks = dlp_predictor.predictions(log.pose[ts], log.actors[ts], ego, 10)
+        document = {
+            i: {
+                k: dict(zip("xyz", t.offsets[n].tolist(), strict=True))
+                for n, k in enumerate(t.keys)
+            }
+            for i, t in tracks.items()
+        }
+        (files / f"predictions-{ts}.json").write_text(json.dumps(document))
+    offline = _scored(scene, files)["prediction_scores"]
+    inputs = {f"inputs.{f}.layout": "none" for f in ("bboxes", "bboxes_gt", "waypoint")}
+    inputs["inputs.predictions_with_perception.layout"] = "none"
+    predictor = [sys.executable, str(Path(__file__).with_name("dlp_predictor.py"))]
+    predictor += ["--namespace", ros_env.namespace, "--ego-id", ego]
+    run = run_stack_graph(
+        ros_env.env,
+        tmp_path,
+        str(scene),
+        {
+            "semantics": "corrected",
+            "topic_namespace": ros_env.namespace,
+            "timesteps_per_frame": 40,
+            "ego_id": ego,
+            "input_timeout_s": 30.0,
+            "stall_timeout_s": 3.0,
+            **inputs,
+        },
+        [
+            *("--namespace", ros_env.namespace, "--offset-ms", "0", "--jitter-ms", "0"),
+            *("--wait-subscribers", "2"),
+        ],
+        companions={"predictor": predictor},
+        after_publisher_s=60.0,
+    )
+    [verdict] = run.verdicts
+    assert verdict["prediction_scores"] == pytest.approx(offline), run.outputs
+    car = offline["by_type"]["Car"]
+    assert 0 < car["ade"] < car["fde"] <= 1.0 + 1e-9  # the reversing car: 0.1 m a frame

@@ -7,7 +7,9 @@ scored against where that actor really went, with the usual trajectory-predictio
 
 - a track's step key k is k + 1 frames ahead, anchored at the ego pose at ts and rotated by
   its yaw (rule 1 of docs/semantics-corrected.md); keys k < ``prediction_window`` only;
-- a step is scored where the actor has a position k + 1 frames later;
+- a step is scored where the actor has a position k + 1 frames later, at or before the
+  collision frame when there is one (what follows a crash is no future to predict; the
+  live graph's view also ends there);
 - ADE: the mean distance over a track's scored steps; FDE: the distance at its last scored
   step; a miss: FDE above :data:`MISS_M` (2 m);
 - per frame: how many tracks were scored (``scored_ids``), how many ids are no actor of the
@@ -43,6 +45,8 @@ def frame_scores(log: RunLog, ts: int, window: int) -> dict[str, Metric]:
     if not tracks or pose is None or actors is None:
         return {}
     tpf = log.tpf
+    meta = log.metadata
+    last_ms = meta.collision_frame * tpf if meta.has_collision else None
     ids = [i for i in tracks if i in actors.index]
     unmatched = len(tracks) - len(ids)
     rad = np.deg2rad(pose.yaw)
@@ -56,7 +60,10 @@ def frame_scores(log: RunLog, ts: int, window: int) -> dict[str, Metric]:
             continue
         real = np.full((steps.size, 2), np.nan)
         for n, step in enumerate(steps.tolist()):
-            later = log.actors.get(ts + (step + 1) * tpf)
+            stamp = ts + (step + 1) * tpf
+            if last_ms is not None and stamp > last_ms:
+                continue
+            later = log.actors.get(stamp)
             row = later.index.get(actor_id) if later is not None else None
             if row is not None:
                 real[n] = later.location[row, 0:2]  # type: ignore[union-attr]

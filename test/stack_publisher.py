@@ -381,7 +381,14 @@ def publish(schedule: Schedule, settings: Settings) -> int:
             )
             for name, type_name in schedule.topic_types.items()
         }
-        needed = {name: settings.wait_subscribers for name in pubs if name != topics.CLOCK}
+        # Topics the run has messages for (a scene without boxes declares their topics, but
+        # no monitor need listen there).
+        carrying = {out.topic for out in schedule.messages}
+        needed = {
+            name: settings.wait_subscribers
+            for name in pubs
+            if name != topics.CLOCK and name in carrying
+        }
         needed[settings.collision_name] = max(
             settings.wait_subscribers, settings.wait_collision_subscribers
         )

@@ -25,8 +25,9 @@ from ads_rca.synth import synthesise
 
 PUBLISHER = Path(__file__).resolve().parent / "stack_publisher.py"
 PROBE = Path(__file__).resolve().parent / "diag_probe.py"
-#: Monitor parameters the aggregator does not have.
+#: Monitor parameters the aggregator does not have, and the other way round.
 MONITOR_ONLY = frozenset({"history_frames"})
+AGGREGATOR_ONLY = frozenset({"stall_timeout_s", "verdict_timeout_s", "detect_collisions"})
 
 
 @dataclass
@@ -69,8 +70,9 @@ def run_stack_graph(
     }
     with Launcher(env, echo=sys.stderr) as launcher:
         probe = launcher.start("diag_probe", [sys.executable, str(PROBE), str(diag)])
+        watched = {k: v for k, v in shared.items() if k not in AGGREGATOR_ONLY}
         monitors = launcher.start(
-            "monitors", [*commands["monitors"], *ros_args(shared, params_file)]
+            "monitors", [*commands["monitors"], *ros_args(watched, params_file)]
         )
         aggregator = launcher.start(
             "aggregator", [*commands["aggregator"], *ros_args(agg, params_file)]

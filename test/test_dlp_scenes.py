@@ -380,11 +380,17 @@ def test_a_predictor_node_beside_a_playing_scene_is_scored(
 ) -> None:
     """Stack mode over DDS, each its own process: the test stack plays the scene (pose and
     actors), a predictor node (test/dlp_predictor.py) publishes constant-position
-    predictions for each frame it hears, the monitors and aggregator judge the stack's
-    topics. Its scores equal diagnose's of the same predictions given as files: an actor's
-    error k + 1 frames ahead is the distance it moved (the reversing car 0.1 m a frame)."""
-    from stackgraph import run_stack_graph
+    predictions for each frame it hears, the monitors judge the stack's topics. Every
+    frame's scores equal diagnose's of the same predictions given as files (by type, one
+    "unknown": a stack sends no agent types): an actor's error k + 1 frames ahead is the
+    distance it moved (the reversing car 0.1 m a frame). The parked car stands on car 1's
+    path, so the aggregator's collision detection ends the run."""
+    from stackgraph import latest_results, metrics_difference, run_stack_graph
 
+    obstacles_file = scene.with_name(f"{STEM}_obstacles.json")
+    _edit(
+        obstacles_file, lambda d: [e.update(coords=[20.0, 20.0], heading=0.0) for e in d.values()]
+    )
     log = read_dlp_scene(scene)
     ego = log.metadata.raw["ego_agent"]["id"]
     files = tmp_path / "constant"
@@ -399,7 +405,9 @@ def test_a_predictor_node_beside_a_playing_scene_is_scored(
             for i, t in tracks.items()
         }
         (files / f"predictions-{ts}.json").write_text(json.dumps(document))
-    offline = _scored(scene, files)["prediction_scores"]
+    source = SourceOptions(derived_collision=True, predictions=str(files))
+    offline = diagnose(open_run(scene, source=source), make_params("corrected"))
+    assert offline.log.metadata.collision_frame == 27
     inputs = {f"inputs.{f}.layout": "none" for f in ("bboxes", "bboxes_gt", "waypoint")}
     inputs["inputs.predictions_with_perception.layout"] = "none"
     predictor = [sys.executable, str(Path(__file__).with_name("dlp_predictor.py"))]
@@ -414,7 +422,7 @@ def test_a_predictor_node_beside_a_playing_scene_is_scored(
             "timesteps_per_frame": 40,
             "ego_id": ego,
             "input_timeout_s": 30.0,
-            "stall_timeout_s": 3.0,
+            "detect_collisions": True,
             **inputs,
         },
         [
@@ -422,9 +430,28 @@ def test_a_predictor_node_beside_a_playing_scene_is_scored(
             *("--wait-subscribers", "2"),
         ],
         companions={"predictor": predictor},
-        after_publisher_s=60.0,
+        after_publisher_s=90.0,
     )
-    [verdict] = run.verdicts
-    assert verdict["prediction_scores"] == pytest.approx(offline), run.outputs
-    car = offline["by_type"]["Car"]
-    assert 0 < car["ade"] < car["fde"] <= 1.0 + 1e-9  # the reversing car: 0.1 m a frame
+    live = latest_results(run.results)
+    keys = ("scored_ids", "unmatched_ids", "ade", "fde", "miss_rate")
+    compared = 0
+    for frame in offline.frames:
+        want = frame.results["prediction"].metrics
+        got = live.get(("prediction", frame.timestamp_ms))
+        if got is None or not want.get("scored_ids"):
+            continue
+        difference = metrics_difference(
+            {k: want[k] for k in keys}, {k: got.result.metrics[k] for k in keys}
+        )
+        assert difference is None, (frame.timestamp_ms, difference)
+        # a stack sends no agent types: one "unknown" type, the frame's own figures
+        overall = {k: got.result.metrics[k] for k in keys if k != "unmatched_ids"}
+        assert got.result.metrics["by_type"] == {"unknown": overall}
+        compared += 1
+    assert compared >= 25, (compared, run.outputs)
+    # frame 20: the reversing car (0.1 m a frame) scored up to the collision frame 27, so
+    # keys 0..6 (errors 0.1 to 0.7 m, ADE 0.4), and the parked car (0 m)
+    at_20 = next(f for f in offline.frames if f.timestamp_ms == 800).results["prediction"]
+    car = at_20.metrics["by_type"]["Car"]
+    assert car["scored_ids"] == 2 and car["ade"] == pytest.approx((0.4 + 0.0) / 2)
+    assert car["fde"] == pytest.approx((0.7 + 0.0) / 2)

@@ -16,11 +16,12 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from ads_rca.capabilities import INPUT_FIELDS, held_status
 from ads_rca.contract import topics
 from ads_rca.contract.stack_layouts import CONTRACT, Layout, layout
 from ads_rca.errors import ConfigError
 from ads_rca.live.stamp_sync import SyncSettings
-from ads_rca.model import FOLDERS, RunMetadata
+from ads_rca.model import FOLDER_FIELDS, FOLDERS, INPUTS_KEY, InputStatus, RunMetadata
 from ads_rca.paramspec import Range
 from ads_rca.text import printable
 
@@ -186,13 +187,26 @@ class StackConfig:
         return {f: self.inputs[f].topic for f in (settings.reference, *settings.inputs)}
 
     def metadata(self, timesteps_per_frame: int) -> RunMetadata:
-        """The run metadata these facts give (no collision known, no end known)."""
+        """The run metadata these facts give (no collision known, no end known), with the
+        inputs the stack provides (:data:`~ads_rca.model.INPUTS_KEY`): a module lacking one
+        is "not judged", as ``diagnose`` says of a recording without it."""
+        statuses = held_status({FOLDER_FIELDS[folder] for folder in self.inputs})
+        folder_of = {field_name: folder for folder, field_name in FOLDER_FIELDS.items()}
+        for name, field_name in INPUT_FIELDS.items():
+            folder = folder_of.get(field_name, "")
+            if folder in self.inputs:
+                statuses[name] = InputStatus("real", self.inputs[folder].topic, "")
+            elif folder in FOLDERS:
+                statuses[name] = InputStatus("absent", "", "the stack does not provide it")
         return RunMetadata(
             timesteps_per_frame=timesteps_per_frame,
             camera_loc=self.camera_loc,
             collision_frame=-1,
             total_frames=UNBOUNDED_FRAMES,
-            raw={"stack": {"ego_id": self.ego_id, "reference_input": self.reference}},
+            raw={
+                "stack": {"ego_id": self.ego_id, "reference_input": self.reference},
+                INPUTS_KEY: {name: status.to_dict() for name, status in statuses.items()},
+            },
         )
 
     def derived(self) -> tuple[str, ...]:

@@ -87,6 +87,32 @@ def held_status(fields: Collection[str]) -> dict[str, InputStatus]:
     return {name: out[name] for name in MODEL_INPUTS}
 
 
+#: What each model input is, in words ("the source records no <this>").
+INPUT_WORDS = {
+    "ego": "ego pose",
+    "actors": "actors",
+    "detections_2d": "2-D detections",
+    "ground_truth_2d": "2-D ground-truth boxes",
+    "detections_3d": "3-D detections",
+    "tracked_objects": "tracked objects",
+    "predictions": "predictions",
+    "predictions_gt": "predictions on ground truth",
+    "plan": "plan",
+    "control": "control commands",
+    "collision": "collision",
+    "clock": "clock",
+}
+
+
+def source_statuses(given: Mapping[str, InputStatus], lacking: str) -> dict[str, InputStatus]:
+    """Every model input of a dataset's run: ``given``'s statuses, the others absent because
+    ``lacking`` (e.g. "a DLP scene holds no") that input."""
+    return {
+        name: given.get(name) or InputStatus("absent", "", f"{lacking} {INPUT_WORDS[name]}")
+        for name in MODEL_INPUTS
+    }
+
+
 def statuses_to_document(statuses: Mapping[str, InputStatus]) -> dict[str, dict[str, str]]:
     """The JSON form (verdict JSON, inspect)."""
     return {name: status.to_dict() for name, status in statuses.items()}
@@ -125,5 +151,6 @@ __all__ = [
     "input_status",
     "judged_modules",
     "recorded",
+    "source_statuses",
     "statuses_to_document",
 ]

@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 
 from ads_rca.annotations import ANNOTATIONS_KEY, MAX_ANNOTATIONS, MAX_KIND, Annotation, bounded
+from ads_rca.capabilities import source_statuses
 from ads_rca.errors import ConfigError, InputError
 from ads_rca.geometry import FloatArray
 from ads_rca.io.carla_blueprints import blueprint_extent
@@ -480,7 +481,6 @@ def _capabilities(
     derived_collision: bool,
 ) -> dict[str, InputStatus]:
     """Every model input of this run: real, derived, assumed or absent, and why."""
-    absent = "the CARLA experiment client records no "
     ego_extent = (
         f"its extent from blueprint {ego_blueprint}"
         if ego_known
@@ -521,20 +521,15 @@ def _capabilities(
         if plan_file
         else InputStatus("absent", "", "no plan.json")
     )
-    return {
+    given = {
         "ego": InputStatus("real", telemetry.file, ""),
         "actors": actors,
-        "detections_2d": InputStatus("absent", "", absent + "2-D detections"),
-        "ground_truth_2d": InputStatus("absent", "", absent + "2-D ground-truth boxes"),
-        "detections_3d": InputStatus("absent", "", absent + "3-D detections"),
-        "tracked_objects": InputStatus("absent", "", absent + "tracked objects"),
-        "predictions": InputStatus("absent", "", absent + "predictions"),
-        "predictions_gt": InputStatus("absent", "", absent + "predictions"),
         "plan": plan,
         "control": InputStatus("absent", "", "pedal and steering inputs only, no commanded speed"),
         "collision": collision,
         "clock": InputStatus("absent", "", "a run folder has no clock topic"),
     }
+    return source_statuses(given, "the CARLA experiment client records no")
 
 
 def _plain(value: float | int) -> float | int | None:

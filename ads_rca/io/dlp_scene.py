@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ads_rca.capabilities import source_statuses
 from ads_rca.errors import InputError
 from ads_rca.geometry import FloatArray
 from ads_rca.io.errors import InvalidJson
@@ -621,7 +622,6 @@ def _capabilities(
     chosen_by: str,
     derived_collision: bool,
 ) -> dict[str, InputStatus]:
-    absent = "a DLP scene holds no "
     who = f"agent {ids[ego]} ({agents.kinds[ego]}, token {agents.tokens[ego][:12]}…)"
     ego_status = (
         InputStatus("real", names["instances"], f"{who}, chosen by ego_agent")
@@ -632,7 +632,7 @@ def _capabilities(
             f"DLP has no ego: {who} stands in ({chosen_by}; choose with ego_agent)",
         )
     )
-    return {
+    given = {
         "ego": ego_status,
         "actors": InputStatus(
             "real",
@@ -640,14 +640,7 @@ def _capabilities(
             "moving agents' instances and the parked obstacles (static), mirrored from DLP's "
             "right-handed frame; half extents from full sizes, heights assumed per class",
         ),
-        "detections_2d": InputStatus("absent", "", absent + "image detections"),
-        "ground_truth_2d": InputStatus("absent", "", absent + "image boxes"),
-        "detections_3d": InputStatus("absent", "", absent + "stack detections"),
-        "tracked_objects": InputStatus("absent", "", absent + "stack tracks"),
-        "predictions": InputStatus("absent", "", absent + "predictions"),
-        "predictions_gt": InputStatus("absent", "", absent + "predictions"),
         "plan": InputStatus("absent", "", "the ego's future is its actual path, not a plan"),
-        "control": InputStatus("absent", "", absent + "control commands"),
         "collision": (
             InputStatus(
                 "derived",
@@ -660,3 +653,4 @@ def _capabilities(
         ),
         "clock": InputStatus("absent", "", "a scene has no clock topic"),
     }
+    return source_statuses(given, "a DLP scene holds no")

@@ -212,7 +212,7 @@ def test_a_cut_instances_file_keeps_what_came_before(scene: Path) -> None:
         ("no instances", "_instances.json: missing (a DLP scene needs all five files)"),
         ("no agents", "not a usable DLP agents file (missing)"),
         ("scene not an object", "not a usable DLP scene file"),
-        ("first frame unknown", "first_frame names no frame of the frames file"),
+        ("first frame unknown", "_frames.json: no frame is the scene's first_frame"),
         ("instances fifo", "_instances.json: not a regular file"),
         ("bad ego", "ego_agent 99: no such agent"),
     ],

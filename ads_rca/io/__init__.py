@@ -26,10 +26,10 @@ def open_run(
     """Load a run from any supported source (``source.source_format``, :mod:`.formats`;
     ``auto`` tells them apart by the path): an ADS running-log folder, a rosbag2 bag
     (directory, ``.mcap`` or ``.db3``) read through ``bag``'s profile (default: this
-    project's topics; ``remap`` = topic remapping YAML for them, also ``bag.remap``), or a
-    CARLA experiment-client run folder (``source.derived_collision``: the first box overlap
-    is its collision, flagged derived). ``max_file_mb`` caps each file of a folder (larger
-    ones are reported and skipped); ``progress`` sees the files read, or the bag messages
+    project's topics; ``remap`` = topic remapping YAML for them, also ``bag.remap``), a CARLA
+    experiment-client run folder or a DLP scene (docs/formats.md; ``source`` holds their
+    options: the derived collision, the DLP ego, a predictor's files to score). ``max_file_mb``
+    caps each file read whole (larger ones are reported and skipped); ``progress`` sees the files read, or the bag messages
     decoded; ``workers`` > 1 reads a long log folder in that many forked processes."""
     bag = bag or BagOptions()
     source = source or SourceOptions()
@@ -38,7 +38,7 @@ def open_run(
     if not os.path.lexists(path):
         raise InputError(f"{os.fspath(path)}: no such log folder or bag")
     fmt = resolved_format(path, source_format)
-    kind = {BAG: "a bag", LOG: "a running log", CARLA: "a CARLA run"}.get(fmt, fmt)
+    kind = {BAG: "a bag", LOG: "a running log", CARLA: "a CARLA run", DLP: "a DLP scene"}[fmt]
     if derived_collision and fmt not in (CARLA, DLP):
         raise InputError(
             f"{os.fspath(path)}: the derived collision check applies to CARLA runs and DLP "

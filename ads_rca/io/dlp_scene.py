@@ -292,10 +292,7 @@ def _frame_list(
         problems.add(name, "", f"{bad} frames are not objects with a next token", DROPPED_RECORD)
     current = scene.get("first_frame")
     if not isinstance(current, str) or current not in frames:
-        raise InputError(
-            f"{path.with_name(path.name.replace('_frames', '_scene'))}: "
-            "first_frame names no frame of the frames file"
-        )
+        raise InputError(f"{path}: no frame is the scene's first_frame")
     order: dict[str, int] = {}
     stamps: list[int] = []
     while current:

@@ -28,9 +28,10 @@ def open_run(
     (directory, ``.mcap`` or ``.db3``) read through ``bag``'s profile (default: this
     project's topics; ``remap`` = topic remapping YAML for them, also ``bag.remap``), a CARLA
     experiment-client run folder or a DLP scene (docs/formats.md; ``source`` holds their
-    options: the derived collision, the DLP ego, a predictor's files to score). ``max_file_mb``
-    caps each file read whole (larger ones are reported and skipped); ``progress`` sees the files read, or the bag messages
-    decoded; ``workers`` > 1 reads a long log folder in that many forked processes."""
+    options: the derived collision, the DLP ego, a predictor's files to score).
+    ``max_file_mb`` caps each file read whole (larger ones are reported and skipped);
+    ``progress`` sees the files read, or the bag messages decoded; ``workers`` > 1 reads a
+    long log folder in that many forked processes."""
     bag = bag or BagOptions()
     source = source or SourceOptions()
     source_format, derived_collision = source.source_format, source.derived_collision

@@ -452,6 +452,7 @@ def test_a_predictor_node_beside_a_playing_scene_is_scored(
     # frame 20: the reversing car (0.1 m a frame) scored up to the collision frame 27, so
     # keys 0..6 (errors 0.1 to 0.7 m, ADE 0.4), and the parked car (0 m)
     at_20 = next(f for f in offline.frames if f.timestamp_ms == 800).results["prediction"]
-    car = at_20.metrics["by_type"]["Car"]
+    car: Any = at_20.metrics["by_type"]
+    car = car["Car"]
     assert car["scored_ids"] == 2 and car["ade"] == pytest.approx((0.4 + 0.0) / 2)
     assert car["fde"] == pytest.approx((0.7 + 0.0) / 2)

@@ -456,3 +456,18 @@ def test_a_predictor_node_beside_a_playing_scene_is_scored(
     car = car["Car"]
     assert car["scored_ids"] == 2 and car["ade"] == pytest.approx((0.4 + 0.0) / 2)
     assert car["fde"] == pytest.approx((0.7 + 0.0) / 2)
+
+
+def test_frames_without_a_usable_time_are_one_line_however_many(scene: Path) -> None:
+    frames_file = scene.with_name(f"{STEM}_frames.json")
+
+    def untime(document: dict[str, Any]) -> None:
+        for frame in range(10, 30):
+            document[frame_token(frame)]["timestamp"] = "soon"
+
+    _edit(frames_file, untime)
+    log = read_dlp_scene(scene)
+    lines = [p for p in problems_of(log) if "no time after the previous frame's" in p]
+    assert len(lines) == 1 and "20 frames have no time" in lines[0], problems_of(log)
+    assert len(log.frames) == FRAMES - 20
+    assert not any("not on the list" in p for p in problems_of(log))

@@ -295,8 +295,10 @@ def _frame_list(
         raise InputError(f"{path}: no frame is the scene's first_frame")
     order: dict[str, int] = {}
     stamps: list[int] = []
+    visited: set[str] = set()
+    untimed: list[tuple[str, float]] = []
     while current:
-        if current in order:
+        if current in visited:
             problems.add(
                 name, _text(current, "?"), "the next links make a cycle", "the list ends here"
             )
@@ -308,19 +310,24 @@ def _frame_list(
             )
             break
         seconds, following = entry
+        visited.add(current)
         stamp = round(seconds * 1000.0) if math.isfinite(seconds) else None
         if stamp is None or not 0 <= stamp <= MAX_TIMESTAMP_MS or (stamps and stamp <= stamps[-1]):
-            problems.add(
-                name,
-                f"{_text(current, '?')}.timestamp",
-                f"{seconds!r} s is no time after the previous frame's",
-                SKIPPED_FRAME,
-            )
+            untimed.append((current, seconds))
         else:
             order[current] = len(stamps)
             stamps.append(stamp)
         current = following
-    off_list = len(frames) - len(order)
+    if untimed:  # one line, however many: a file of text timestamps has one per frame
+        first, value = untimed[0]
+        problems.add(
+            name,
+            "timestamp",
+            f"{len(untimed)} frames have no time after the previous frame's (the first: "
+            f"{_text(first, '?')} at {value!r} s)",
+            SKIPPED_FRAME,
+        )
+    off_list = len(frames) - len(visited)
     if off_list > 0:
         problems.add(
             name, "", f"{off_list} frames are not on the list from first_frame", IGNORED, "warning"

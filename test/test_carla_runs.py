@@ -537,3 +537,14 @@ def test_a_frame_rate_that_disagrees_with_the_ticks_is_said(tmp_path: Path) -> N
     assert log.tpf == 100
     expected = "telemetry.json t_sim: ticks are 50 ms apart, the frame rate gives 100 ms"
     assert any(line.startswith(expected) for line in problems_of(log)), problems_of(log)
+
+
+def test_convert_writes_a_run_as_a_bag_that_diagnoses_the_same(tmp_path: Path) -> None:
+    root = write_carla_run(tmp_path / "run")
+    bag, direct, again = tmp_path / "bag", tmp_path / "direct.json", tmp_path / "again.json"
+    assert run("convert", str(root), str(bag)).returncode == 0
+    assert run("diagnose", str(root), "--json", str(direct)).returncode == 0
+    assert run("diagnose", str(bag), "--json", str(again)).returncode == 0
+    first, second = json.loads(direct.read_text()), json.loads(again.read_text())
+    for key in ("frames", "modules_judged", "verdict", "annotations", "run_figures"):
+        assert first[key] == second[key], key

@@ -471,3 +471,15 @@ def test_frames_without_a_usable_time_are_one_line_however_many(scene: Path) -> 
     assert len(lines) == 1 and "20 frames have no time" in lines[0], problems_of(log)
     assert len(log.frames) == FRAMES - 20
     assert not any("not on the list" in p for p in problems_of(log))
+
+
+def test_convert_writes_a_scene_as_a_bag_that_diagnoses_the_same(
+    scene: Path, tmp_path: Path
+) -> None:
+    bag, direct, again = tmp_path / "bag", tmp_path / "direct.json", tmp_path / "again.json"
+    assert run("convert", str(scene), str(bag)).returncode == 0
+    assert run("diagnose", str(scene), "--json", str(direct)).returncode == 0
+    assert run("diagnose", str(bag), "--json", str(again)).returncode == 0
+    first, second = json.loads(direct.read_text()), json.loads(again.read_text())
+    for key in ("frames", "modules_judged", "verdict", "ego_id"):
+        assert first[key] == second[key], key

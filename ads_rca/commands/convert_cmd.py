@@ -25,7 +25,7 @@ from ads_rca.errors import InputError
 from ads_rca.io import open_run
 from ads_rca.io.bag_reader import read_bag
 from ads_rca.io.bag_writer import STORAGES, McapOptions, write_bag
-from ads_rca.io.formats import BAG, CARLA, resolved_format
+from ads_rca.io.formats import BAG, CARLA, DLP, resolved_format
 from ads_rca.io.json_log import read_run_log
 from ads_rca.io.json_writer import write_run_log
 from ads_rca.io.mcap_writer import COMPRESSIONS, DEFAULT_CHUNK_SIZE
@@ -78,7 +78,7 @@ def run(args: argparse.Namespace) -> int:
             for line in log.problems.summary_lines(10):
                 print(f"  {line}", file=sys.stderr)
         return 0
-    if fmt == CARLA:  # written as a log folder's bag would be (its metadata keeps the rest)
+    if fmt in (CARLA, DLP):  # written as a log folder's bag would be (metadata keeps the rest)
         log = open_run(
             source,
             max_file_mb=max_file_mb,

@@ -483,3 +483,13 @@ def test_convert_writes_a_scene_as_a_bag_that_diagnoses_the_same(
     first, second = json.loads(direct.read_text()), json.loads(again.read_text())
     for key in ("frames", "modules_judged", "verdict", "ego_id"):
         assert first[key] == second[key], key
+
+
+def test_a_batch_job_diagnoses_a_scene_and_names_its_format(scene: Path) -> None:
+    from ads_rca.batch.work import Job, run_job
+    from ads_rca.io.bag_options import BagOptions
+
+    job = Job("s1", str(scene), make_params("corrected"), 64.0, BagOptions(), 60.0)
+    outcome = run_job(job)
+    assert outcome.row["format"] == "DLP scene" and not outcome.row.get("error"), outcome.row
+    assert outcome.json is not None and json.loads(outcome.json)["frames"]

@@ -202,7 +202,7 @@ def run_job(job: Job, worker: str = "") -> Outcome:
 
 
 #: The format column's words for each reader (``ads_rca.io.formats``).
-FORMAT_NAMES = {"bag": "bag", "carla": "CARLA run", "log": "log folder"}
+FORMAT_NAMES = {"bag": "bag", "carla": "CARLA run", "dlp": "DLP scene", "log": "log folder"}
 
 
 def _format(job: Job) -> dict[str, str]:

@@ -15,10 +15,13 @@ import numpy.typing as npt
 FloatArray = npt.NDArray[np.float64]
 
 
-def ego_to_world(offsets_xy: FloatArray, anchor_xy: FloatArray, yaw_deg: float) -> FloatArray:
+def ego_to_world(
+    offsets_xy: FloatArray, anchor_xy: FloatArray, yaw_deg: float | FloatArray
+) -> FloatArray:
     """World positions of ego-frame offsets (K, 2) rotated by yaw and added to the anchor.
 
-    ``anchor_xy`` is (2,) or (K, 2) (the reference anchors each step at a different point).
+    ``anchor_xy`` is (2,) or (K, 2) (the reference anchors each step at a different point);
+    ``yaw_deg`` a scalar or one yaw per row (K,).
     """
     theta = np.deg2rad(yaw_deg)
     c, s = np.cos(theta), np.sin(theta)
@@ -29,8 +32,11 @@ def ego_to_world(offsets_xy: FloatArray, anchor_xy: FloatArray, yaw_deg: float) 
     return world
 
 
-def world_to_ego(points_xy: FloatArray, origin_xy: FloatArray, yaw_deg: float) -> FloatArray:
-    """Inverse of :func:`ego_to_world`: world points (K, 2) into the ego frame."""
+def world_to_ego(
+    points_xy: FloatArray, origin_xy: FloatArray, yaw_deg: float | FloatArray
+) -> FloatArray:
+    """Inverse of :func:`ego_to_world`: world points (K, 2) into the ego frame (origin (2,)
+    or (K, 2), yaw a scalar or (K,))."""
     theta = np.deg2rad(yaw_deg)
     c, s = np.cos(theta), np.sin(theta)
     d = np.asarray(points_xy, dtype=np.float64) - origin_xy

@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from ads_rca.geometry import ego_to_world
 from ads_rca.model import RunLog
 from ads_rca.verdict import FrameResults, Metric
 
@@ -49,8 +50,6 @@ def frame_scores(log: RunLog, ts: int, window: int) -> dict[str, Metric]:
     last_ms = meta.collision_frame * tpf if meta.has_collision else None
     ids = [i for i in tracks if i in actors.index]
     unmatched = len(tracks) - len(ids)
-    rad = np.deg2rad(pose.yaw)
-    cos, sin = np.cos(rad), np.sin(rad)
     per_track: list[tuple[str, float, float]] = []  # (id, ADE, FDE)
     for actor_id in ids:
         track = tracks[actor_id]
@@ -67,13 +66,7 @@ def frame_scores(log: RunLog, ts: int, window: int) -> dict[str, Metric]:
             row = later.index.get(actor_id) if later is not None else None
             if row is not None:
                 real[n] = later.location[row, 0:2]  # type: ignore[union-attr]
-        predicted = np.stack(
-            [
-                pose.x + offsets[:, 0] * cos - offsets[:, 1] * sin,
-                pose.y + offsets[:, 0] * sin + offsets[:, 1] * cos,
-            ],
-            axis=1,
-        )
+        predicted = ego_to_world(offsets[:, 0:2], pose.xy, pose.yaw)
         error = np.hypot(*(predicted - real).T)
         scored = np.isfinite(error)
         if not scored.any():

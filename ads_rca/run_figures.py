@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ads_rca.geometry import FloatArray, box_signed_distance
+from ads_rca.geometry import FloatArray, box_signed_distance, ego_to_world, world_to_ego
 
 HARD_BRAKE_MS2 = -4.0
 LEAD_MIN_M = 1.0
@@ -82,25 +82,18 @@ class ActorRows:
 def world_velocity(ego: EgoTrack) -> FloatArray:
     """The body velocity in the CARLA world frame (left-handed: y right), (T, 2); speed
     along the heading where the body velocity is not recorded."""
-    rad = np.deg2rad(ego.yaw)
-    fwd = np.stack([np.cos(rad), np.sin(rad)], axis=1)
-    right = np.stack([-np.sin(rad), np.cos(rad)], axis=1)
     vx, vy_left = ego.body_velocity[:, 0], ego.body_velocity[:, 1]
     missing = ~(np.isfinite(vx) & np.isfinite(vy_left))
-    vx = np.where(missing, ego.speed, vx)
-    vy_right = np.where(missing, 0.0, -vy_left)
-    out: FloatArray = fwd * vx[:, None] + right * vy_right[:, None]
-    return out
+    body = np.stack([np.where(missing, ego.speed, vx), np.where(missing, 0.0, -vy_left)], -1)
+    return ego_to_world(body, np.zeros(2), ego.yaw)  # y right, as the world's
 
 
 def accelerations(ego: EgoTrack, dt: float) -> tuple[FloatArray, FloatArray]:
     """Longitudinal and lateral acceleration per tick (0 on the first)."""
     velocity = world_velocity(ego)
-    rad = np.deg2rad(ego.yaw)
     change = np.zeros_like(velocity)
     change[1:] = np.diff(velocity, axis=0)
-    along = (change[:, 0] * np.cos(rad) + change[:, 1] * np.sin(rad)) / dt
-    across = (-change[:, 0] * np.sin(rad) + change[:, 1] * np.cos(rad)) / dt
+    along, across = (world_to_ego(change, np.zeros(2), ego.yaw) / dt).T
     return along, across
 
 
@@ -131,9 +124,9 @@ def min_time_to_collision(ego: EgoTrack, rows: ActorRows) -> float:
         return float("nan")
     offset = rows.xy - ego.xy[tick]
     distance = np.hypot(offset[:, 0], offset[:, 1])
-    rad = np.deg2rad(ego.yaw[tick])
+    ahead_m = world_to_ego(rows.xy, ego.xy[tick], ego.yaw[tick])[:, 0]
     with np.errstate(invalid="ignore", divide="ignore"):
-        cosine = (offset[:, 0] * np.cos(rad) + offset[:, 1] * np.sin(rad)) / distance
+        cosine = ahead_m / distance
     ahead = (
         rows.vehicle
         & (distance >= LEAD_MIN_M)

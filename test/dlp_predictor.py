@@ -12,7 +12,6 @@ monitors subscribe to its output, so a stack that waits for its subscribers wait
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 import time
 
@@ -20,6 +19,7 @@ import numpy as np
 
 from ads_rca.contract import topics
 from ads_rca.contract.convert import message_stamp_ms
+from ads_rca.geometry import world_to_ego
 from ads_rca.model import Actors, EgoPose, Track
 
 WAIT_S = 60.0
@@ -27,16 +27,12 @@ WAIT_S = 60.0
 
 def predictions(pose: EgoPose, actors: Actors, ego_id: str, steps: int) -> dict[str, Track]:
     """Every actor but the ego staying put, as ``steps`` ego-frame offsets."""
-    cos, sin = math.cos(math.radians(pose.yaw)), math.sin(math.radians(pose.yaw))
     out: dict[str, Track] = {}
     keys = tuple(str(k) for k in range(steps))
+    offsets = world_to_ego(actors.location[:, 0:2], pose.xy, pose.yaw)
     for row, actor_id in enumerate(actors.ids):
-        if actor_id == ego_id:
-            continue
-        dx = float(actors.location[row, 0]) - pose.x
-        dy = float(actors.location[row, 1]) - pose.y
-        offset = [dx * cos + dy * sin, -dx * sin + dy * cos, 0.0]
-        out[actor_id] = Track(keys, np.tile(offset, (steps, 1)))
+        if actor_id != ego_id:
+            out[actor_id] = Track(keys, np.tile([*offsets[row], 0.0], (steps, 1)))
     return out
 
 

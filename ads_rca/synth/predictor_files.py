@@ -10,9 +10,9 @@ along the ego's x and y axes. A zero bias is a perfect predictor (ADE 0); a bias
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 
+from ads_rca.geometry import world_to_ego
 from ads_rca.model import RunLog
 
 
@@ -30,7 +30,6 @@ def write_predictions(
         pose, actors = log.pose.get(ts), log.actors.get(ts)
         if pose is None or actors is None:
             continue
-        cos, sin = math.cos(math.radians(pose.yaw)), math.sin(math.radians(pose.yaw))
         document: dict[str, dict[str, dict[str, float]]] = {}
         for actor_id in actors.ids:
             if actor_id == ego_id:
@@ -41,9 +40,7 @@ def write_predictions(
                 row = later.index.get(actor_id) if later is not None else None
                 if later is None or row is None:
                     break
-                dx = float(later.location[row, 0]) - pose.x
-                dy = float(later.location[row, 1]) - pose.y
-                x, y = dx * cos + dy * sin, -dx * sin + dy * cos
+                x, y = world_to_ego(later.location[row, 0:2], pose.xy, pose.yaw).tolist()
                 track[str(k)] = {"x": x + bias[0], "y": y + bias[1], "z": 0.0}
             if track:
                 document[actor_id] = track

@@ -10,7 +10,7 @@ Timestamps are integer milliseconds. Frame ``f`` is ``f * timesteps_per_frame`` 
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import TYPE_CHECKING, Any, TypedDict, cast
@@ -99,6 +99,16 @@ def frame_number(timestamp_ms: int, tpf: int) -> int | float:
     """Frame index of a timestamp: an int on the frame grid, else a float (the verdict's
     frames and the player's frame markers number frames with this one rule)."""
     return timestamp_ms // tpf if timestamp_ms % tpf == 0 else timestamp_ms / tpf
+
+
+def most_common_step(stamps: Sequence[int]) -> int | None:
+    """The most common difference between consecutive stamps (ascending, no repeats; the
+    smallest on ties): a dataset's frame period. None for fewer than two stamps."""
+    steps = np.diff(np.asarray(stamps, dtype=np.int64))
+    if steps.size == 0:
+        return None
+    values, counts = np.unique(steps, return_counts=True)
+    return int(values[np.argmax(counts)])
 
 
 @dataclass(frozen=True, slots=True)

@@ -66,6 +66,7 @@ from ads_rca.model import (
     Record,
     RunLog,
     RunMetadata,
+    most_common_step,
 )
 from ads_rca.problems import (
     DROPPED_RECORD,
@@ -122,7 +123,14 @@ def read_carla_run(
             problems.add(SCENARIO, "ego_vehicle", "not text", "class default used", "warning")
         ego_blueprint = ""
     ego_half, ego_known = blueprint_extent(ego_blueprint, "vehicle")
-    ego = _ego_track(telemetry, ticks, ego_half)
+    ego_values = np.asarray([telemetry.ego[i] for i in ticks], dtype=np.float64).reshape(-1, 9)
+    ego = EgoTrack(
+        ego_values[:, 0:2],
+        ego_values[:, 5],
+        ego_values[:, 6],
+        ego_values[:, 7:9],
+        np.array(ego_half[:2]),
+    )
     found = _actor_table(telemetry, ticks)
     rows = found.rows
     dt = 1.0 / fps
@@ -136,7 +144,6 @@ def read_carla_run(
     stamps = [telemetry.stamps[i] for i in ticks]
     pose: dict[int, Record] = {}
     actors: dict[int, Record] = {}
-    ego_values = np.asarray([telemetry.ego[i] for i in ticks], dtype=np.float64).reshape(-1, 9)
     ego_extent = np.array(ego_half, dtype=np.float64)
     for n, ts in enumerate(stamps):
         x, y, z, roll, pitch, yaw, speed = (float(v) for v in ego_values[n, :7])
@@ -281,12 +288,8 @@ def _ticks(telemetry: Telemetry, problems: ProblemLog) -> list[int]:
 def _check_spacing(stamps: Sequence[int], tpf: int, file: str, problems: ProblemLog) -> None:
     """Say so when the ticks' most common spacing is not the frame period the rate gives
     (frame numbers then do not count ticks)."""
-    steps = np.diff(np.asarray(stamps, dtype=np.int64))
-    if steps.size == 0:
-        return
-    values, counts = np.unique(steps, return_counts=True)
-    common = int(values[np.argmax(counts)])
-    if abs(common - tpf) > 1:
+    common = most_common_step(stamps)
+    if common is not None and abs(common - tpf) > 1:
         problems.add(
             file,
             "t_sim",
@@ -297,13 +300,6 @@ def _check_spacing(stamps: Sequence[int], tpf: int, file: str, problems: Problem
 
 
 # --- model ---------------------------------------------------------------------------------
-
-
-def _ego_track(
-    telemetry: Telemetry, ticks: Sequence[int], half: tuple[float, float, float]
-) -> EgoTrack:
-    values = np.asarray([telemetry.ego[i] for i in ticks], dtype=np.float64).reshape(-1, 9)
-    return EgoTrack(values[:, 0:2], values[:, 5], values[:, 6], values[:, 7:9], np.array(half[:2]))
 
 
 @dataclass(frozen=True)

@@ -46,6 +46,7 @@ from ads_rca.io.files import DEFAULT_MAX_FILE_MB, Unreadable, open_regular, read
 from ads_rca.io.formats import SourceOptions
 from ads_rca.io.json_log import UNUSABLE, check_max_file_mb, decode_file
 from ads_rca.io.json_stream import object_members
+from ads_rca.io.records import as_float
 from ads_rca.model import (
     INPUTS_KEY,
     MAX_TIMESTAMP_MS,
@@ -55,6 +56,7 @@ from ads_rca.model import (
     Record,
     RunLog,
     RunMetadata,
+    most_common_step,
 )
 from ads_rca.prediction_scores import ACTOR_TYPES_KEY
 from ads_rca.problems import (
@@ -205,12 +207,8 @@ def _text(value: object, default: str) -> str:
 
 def _number(value: object) -> float:
     """A JSON number as a float; NaN for anything else (text, booleans, lists...)."""
-    if isinstance(value, int | float) and not isinstance(value, bool):
-        try:
-            return float(value)
-        except OverflowError:
-            return math.inf if value > 0 else -math.inf
-    return math.nan
+    numeric = isinstance(value, int | float) and not isinstance(value, bool)
+    return as_float(value) if numeric else math.nan
 
 
 def _agents(
@@ -460,7 +458,7 @@ def _run_log(
             f"{table.duplicates} instances repeat an agent's frame",
             "the first kept",
         )
-    tpf = _frame_period(stamps, names["frames"], problems)
+    tpf = most_common_step(stamps) or DEFAULT_TPF  # the list's times only increase
     mine = table.agent == ego
     ego_frames = table.frame[mine]
     lifetime = int(ego_frames[-1] - ego_frames[0] + 1)
@@ -499,8 +497,7 @@ def _run_log(
         rows = np.concatenate([rows[table.agent[rows] == ego], rows[table.agent[rows] != ego]])
         who = np.concatenate([table.agent[rows], obstacle_rows])
         location = np.zeros((len(who), 3))
-        location[: len(rows), 0] = table.xy[rows, 0]
-        location[: len(rows), 1] = 0.0 - table.xy[rows, 1]
+        location[: len(rows), 0:2] = mirrored(table.xy[rows])
         location[len(rows) :, 0:2] = obstacles[:, 0:2]
         rotation = np.zeros((len(who), 3))
         rotation[: len(rows), 2] = 0.0 - np.degrees(table.heading[rows])
@@ -552,18 +549,6 @@ def mirrored(xy: FloatArray) -> FloatArray:
     """DLP's right-handed (x, y) as the model's left-handed (x, -y) (no -0.0)."""
     out: FloatArray = np.stack([xy[:, 0], 0.0 - xy[:, 1]], axis=1)
     return out
-
-
-def _frame_period(stamps: list[int], name: str, problems: ProblemLog) -> int:
-    steps = np.diff(np.asarray(stamps, dtype=np.int64))
-    if steps.size == 0:
-        return DEFAULT_TPF
-    values, counts = np.unique(steps, return_counts=True)
-    tpf = int(values[np.argmax(counts)])
-    if tpf <= 0:
-        problems.add(name, "timestamp", "no frame period", f"{USED_DEFAULT}: {DEFAULT_TPF} ms")
-        return DEFAULT_TPF
-    return tpf
 
 
 def _first_overlap(

@@ -25,8 +25,7 @@ from ads_rca.errors import InputError
 from ads_rca.io import open_run
 from ads_rca.io.bag_reader import read_bag
 from ads_rca.io.bag_writer import STORAGES, McapOptions, write_bag
-from ads_rca.io.formats import BAG, CARLA, DLP, resolved_format
-from ads_rca.io.json_log import read_run_log
+from ads_rca.io.formats import BAG, resolved_format
 from ads_rca.io.json_writer import write_run_log
 from ads_rca.io.mcap_writer import COMPRESSIONS, DEFAULT_CHUNK_SIZE
 from ads_rca.model import RunLog
@@ -78,14 +77,8 @@ def run(args: argparse.Namespace) -> int:
             for line in log.problems.summary_lines(10):
                 print(f"  {line}", file=sys.stderr)
         return 0
-    if fmt in (CARLA, DLP):  # written as a log folder's bag would be (metadata keeps the rest)
-        log = open_run(
-            source,
-            max_file_mb=max_file_mb,
-            source=options_in,
-        )
-    else:
-        log = read_run_log(source, max_file_mb)
+    # A log folder, CARLA run or DLP scene: written as a log folder's bag would be.
+    log = open_run(source, max_file_mb=max_file_mb, source=options_in)
     if not bag.contract:
         return _write_recording(log, source, out, bag.profile, args.storage)
     options: McapOptions = {}

@@ -16,8 +16,8 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from ads_rca.capabilities import INPUT_FIELDS, held_status
-from ads_rca.contract import topics
+from ads_rca.capabilities import INPUT_FIELDS, source_statuses
+from ads_rca.contract import live_topics, topics
 from ads_rca.contract.stack_layouts import CONTRACT, Layout, layout
 from ads_rca.errors import ConfigError
 from ads_rca.live.stamp_sync import SyncSettings
@@ -190,14 +190,14 @@ class StackConfig:
         """The run metadata these facts give (no collision known, no end known), with the
         inputs the stack provides (:data:`~ads_rca.model.INPUTS_KEY`): a module lacking one
         is "not judged", as ``diagnose`` says of a recording without it."""
-        statuses = held_status({FOLDER_FIELDS[folder] for folder in self.inputs})
         folder_of = {field_name: folder for folder, field_name in FOLDER_FIELDS.items()}
-        for name, field_name in INPUT_FIELDS.items():
-            folder = folder_of.get(field_name, "")
-            if folder in self.inputs:
-                statuses[name] = InputStatus("real", self.inputs[folder].topic, "")
-            elif folder in FOLDERS:
-                statuses[name] = InputStatus("absent", "", "the stack does not provide it")
+        given = {
+            name: InputStatus("real", self.inputs[folder].topic, "")
+            for name, folder in ((n, folder_of[f]) for n, f in INPUT_FIELDS.items())
+            if folder in self.inputs
+        }
+        given["collision"] = InputStatus("real", live_topics.COLLISION, "")
+        statuses = source_statuses(given, "the stack does not provide")
         return RunMetadata(
             timesteps_per_frame=timesteps_per_frame,
             camera_loc=self.camera_loc,

@@ -1,10 +1,10 @@
 """Options of the log reader shared by every command that reads a log (``max_file_mb``,
-``format``, ``derived_collision``, ``ego_agent``).
+``format``, ``derived_collision``, ``ego_agent``, ``predictions``).
 
 The reader's settings are not engine thresholds, but keep one name everywhere: the CLI flag
-(``--max-file-mb``, ``--format``, ``--derived-collision``), ``-p max_file_mb=N`` and the
-same key of a ``--config`` file (commands with engine options), and the player node's ROS
-parameter of that name.
+(``--max-file-mb``, ``--format``, ``--derived-collision``, ``--ego-agent``,
+``--predictions``), ``-p max_file_mb=N`` and the same key of a ``--config`` file (commands
+with engine options), and the player node's ROS parameter of that name.
 """
 
 from __future__ import annotations
@@ -63,8 +63,8 @@ def add_reader_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_const",
         const=True,
         default=None,
-        help="a CARLA run records no collision: take the first tick where the ego's box "
-        "overlaps another's (assumed extents) as one, flagged derived (default off)",
+        help="a CARLA run or DLP scene records no collision: take the first frame where the "
+        "ego's box overlaps another's as one, flagged derived (default off)",
     )
 
 

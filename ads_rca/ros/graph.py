@@ -221,8 +221,8 @@ class LaunchArgument:
 LAUNCH_ARGUMENTS: dict[str, LaunchArgument] = {
     "log_path": LaunchArgument(
         "",
-        "Running-log folder, rosbag2 bag (dir, .mcap, .db3) or CARLA run folder to play "
-        "(required).",
+        "Running-log folder, rosbag2 bag (dir, .mcap, .db3), CARLA run folder or DLP scene to "
+        "play (required).",
         "path",
     ),
     "format": LaunchArgument(
@@ -236,7 +236,8 @@ LAUNCH_ARGUMENTS: dict[str, LaunchArgument] = {
     ),
     "derived_collision": LaunchArgument(
         "false",
-        "A CARLA run's collision is the first box overlap, flagged derived (default none).",
+        "A CARLA run's or DLP scene's collision is the first box overlap, flagged derived "
+        "(default none).",
         "derived_collision",
     ),
     "bag_remap": LaunchArgument(

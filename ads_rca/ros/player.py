@@ -71,8 +71,8 @@ MAX_FRAME = 2**31 - 1
 PARAMETERS: dict[str, NodeParameter] = {
     "log_path": (
         "",
-        "Running-log folder, rosbag2 bag (dir, .mcap, .db3) or CARLA experiment-client run "
-        "folder to play (required).",
+        "Running-log folder, rosbag2 bag (dir, .mcap, .db3), CARLA experiment-client run "
+        "folder or DLP scene to play (required).",
     ),
     "format": (
         AUTO,
@@ -90,8 +90,8 @@ PARAMETERS: dict[str, NodeParameter] = {
     ),
     "derived_collision": (
         False,
-        "A CARLA run records no collision: take the first tick where the ego's box overlaps "
-        "another's (assumed extents) as one, flagged derived.",
+        "A CARLA run or DLP scene records no collision: take the first frame where the ego's "
+        "box overlaps another's as one, flagged derived.",
     ),
     "bag_remap": ("", "Topic remapping YAML for a bag whose topic names differ ('' = none)."),
     "profile": (

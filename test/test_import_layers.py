@@ -37,7 +37,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
         "ads_rca.workers",
     ),
     ("ads_rca.problems", "ads_rca.paramspec", "ads_rca.params"),
-    ("ads_rca.model",),
+    ("ads_rca.model", "ads_rca.lanes"),
     (
         "ads_rca.verdict",
         "ads_rca.capabilities",

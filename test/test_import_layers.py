@@ -44,6 +44,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
         "ads_rca.annotations",
         "ads_rca.run_figures",
         "ads_rca.prediction_scores",
+        "ads_rca.openlane_scores",
     ),
     ("ads_rca.contract",),
     ("ads_rca.io", "ads_rca.synth", "ads_rca.profiles"),

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any, TypedDict, cast
 import numpy as np
 import numpy.typing as npt
 
+from ads_rca.lanes import LaneGraph
 from ads_rca.problems import ProblemLog
 from ads_rca.text import short_repr
 
@@ -310,6 +311,8 @@ class LogExtras(TypedDict, total=False):
     tracks_3d: dict[int, Objects3D]
     controls: dict[int, ControlCommand]
     inputs: dict[str, InputStatus]
+    lanes: dict[int, LaneGraph]
+    lanes_predicted: dict[int, LaneGraph]
 
 
 #: How a model input is present in a run: ``real`` (read from the source as is), ``derived``
@@ -398,6 +401,11 @@ class RunLog:
     #: Where each model input came from and how (``ads_rca.capabilities``); empty means a
     #: running log, whose folders are all real.
     inputs: dict[str, InputStatus] = field(default_factory=dict)
+    #: Map perception per timestamp (OpenLane-V2 segments; empty for every other source):
+    #: the ground truth's lane centerlines, traffic elements and topology, and a model's
+    #: prediction of them (``--predictions``).
+    lanes: dict[int, LaneGraph] = field(default_factory=dict)
+    lanes_predicted: dict[int, LaneGraph] = field(default_factory=dict)
 
     @classmethod
     def from_folders(

@@ -9,7 +9,16 @@ from ads_rca.errors import InputError
 from ads_rca.io.bag_options import BagOptions
 from ads_rca.io.bag_paths import is_bag
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB
-from ads_rca.io.formats import AUTO, BAG, CARLA, DLP, LOG, SourceOptions, resolved_format
+from ads_rca.io.formats import (
+    AUTO,
+    BAG,
+    CARLA,
+    DLP,
+    LOG,
+    OPENLANE,
+    SourceOptions,
+    resolved_format,
+)
 from ads_rca.model import RunLog
 from ads_rca.progress import Progress
 
@@ -27,8 +36,9 @@ def open_run(
     ``auto`` tells them apart by the path): an ADS running-log folder, a rosbag2 bag
     (directory, ``.mcap`` or ``.db3``) read through ``bag``'s profile (default: this
     project's topics; ``remap`` = topic remapping YAML for them, also ``bag.remap``), a CARLA
-    experiment-client run folder or a DLP scene (docs/formats.md; ``source`` holds their
-    options: the derived collision, the DLP ego, a predictor's files to score).
+    experiment-client run folder, a DLP scene or an OpenLane-V2 segment (docs/formats.md;
+    ``source`` holds their options: the derived collision, the DLP ego, a predictor's
+    files to score).
     ``max_file_mb`` caps each file read whole (larger ones are reported and skipped);
     ``progress`` sees the files read, or the bag messages decoded; ``workers`` > 1 reads a
     long log folder in that many forked processes."""
@@ -39,7 +49,13 @@ def open_run(
     if not os.path.lexists(path):
         raise InputError(f"{os.fspath(path)}: no such log folder or bag")
     fmt = resolved_format(path, source_format)
-    kind = {BAG: "a bag", LOG: "a running log", CARLA: "a CARLA run", DLP: "a DLP scene"}[fmt]
+    kind = {
+        BAG: "a bag",
+        LOG: "a running log",
+        CARLA: "a CARLA run",
+        DLP: "a DLP scene",
+        OPENLANE: "an OpenLane-V2 segment",
+    }[fmt]
     if derived_collision and fmt not in (CARLA, DLP):
         raise InputError(
             f"{os.fspath(path)}: the derived collision check applies to CARLA runs and DLP "
@@ -47,11 +63,17 @@ def open_run(
         )
     if source.ego_agent and fmt != DLP:
         raise InputError(f"{os.fspath(path)}: ego_agent applies to DLP scenes, not to {kind}")
-    if source.predictions and fmt not in (CARLA, DLP):
+    if source.predictions and fmt not in (CARLA, DLP, OPENLANE):
         raise InputError(
-            f"{os.fspath(path)}: --predictions applies to CARLA runs and DLP scenes (which hold "
-            f"no predictions), not to {kind}"
+            f"{os.fspath(path)}: --predictions applies to CARLA runs, DLP scenes and OpenLane-V2 "
+            f"segments (which hold no predictions), not to {kind}"
         )
+    if fmt == OPENLANE:
+        if remap is not None or not bag.contract:
+            raise InputError("--profile and --remap apply to bags, not to an OpenLane-V2 segment")
+        from ads_rca.io.openlane_frames import read_openlane_segment
+
+        return read_openlane_segment(path, max_file_mb, source)
     if fmt in (CARLA, DLP):
         log = _dataset_run(path, fmt, max_file_mb, source, remap, bag)
         if source.predictions:

@@ -27,13 +27,19 @@ CARLA = "carla"
 #: A Dragon Lake Parking scene: ``DJI_XXXX_scene.json`` (or a folder holding one) and its
 #: frames, agents, instances and obstacles files beside it.
 DLP = "dlp"
+#: An OpenLane-V2 segment: ``<segment>/info/<timestamp>.json`` (the segment folder or its
+#: ``info/``).
+OPENLANE = "openlane"
 
 #: Every name ``--format`` takes, ``auto`` first.
-FORMATS = (AUTO, LOG, BAG, CARLA, DLP)
+FORMATS = (AUTO, LOG, BAG, CARLA, DLP, OPENLANE)
 
 #: Files whose presence makes a folder a CARLA experiment-client run.
 CARLA_TELEMETRY = ("telemetry.json", "telemetry.csv")
 DLP_SCENE = "_scene.json"
+#: The folder of an OpenLane-V2 segment's per-frame files, and the split index's prefix.
+OPENLANE_INFO = "info"
+OPENLANE_INDEX = "data_dict_"
 
 
 #: The reader options a user gives by name (CLI flag, ``-p``, config key, ROS parameter).
@@ -103,12 +109,17 @@ def checked_format(name: object) -> str:
 def detect_format(path: str | os.PathLike[str]) -> str:
     """The format of ``path``: a bag, a CARLA run folder (a telemetry file and no
     ``actors/`` folder), a DLP scene (a ``_scene.json`` file, or a folder with one and no
-    ``actors/``), else a running-log folder (whose reader says what is wrong)."""
+    ``actors/``), else a running-log folder (whose reader says what
+    is wrong). Before CARLA's and DLP's checks: an OpenLane-V2 segment (a folder with an
+    ``info/`` of JSON files and no ``actors/``, that ``info/`` itself, or a dataset root
+    holding ``data_dict_*.json``)."""
     if is_bag(path):
         return BAG
     folder = Path(path)
     if folder.name.endswith(DLP_SCENE) and not folder.is_dir():
         return DLP
+    if _openlane(folder):
+        return OPENLANE
     telemetry = any(os.path.lexists(folder / name) for name in CARLA_TELEMETRY)
     if telemetry and folder.is_dir() and not (folder / "actors").is_dir():
         return CARLA
@@ -119,6 +130,20 @@ def detect_format(path: str | os.PathLike[str]) -> str:
         except OSError:
             pass
     return LOG
+
+
+def _openlane(folder: Path) -> bool:
+    """An OpenLane-V2 segment (a folder with an ``info/`` of ``*.json`` files and no
+    ``actors/``, or that ``info/`` itself) or a dataset root (``data_dict_*.json``), by names."""
+    if not folder.is_dir() or (folder / "actors").is_dir():
+        return False
+    info = folder if folder.name == OPENLANE_INFO else folder / OPENLANE_INFO
+    try:
+        if info.is_dir() and any(n.endswith(".json") for n in os.listdir(info)):
+            return True
+        return any(n.startswith(OPENLANE_INDEX) and n.endswith(".json") for n in os.listdir(folder))
+    except OSError:
+        return False
 
 
 def resolved_format(path: str | os.PathLike[str], name: str = AUTO) -> str:

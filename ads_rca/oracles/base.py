@@ -47,7 +47,8 @@ class RunContext:
     @classmethod
     def create(cls, log: RunLog, params: Params) -> RunContext:
         ctx = cls(log, params)
-        ctx.ego_id = semantics_for(params).find_ego(ctx)
+        if not _records_no_actors(log):  # else no actor can match: nothing to find or report
+            ctx.ego_id = semantics_for(params).find_ego(ctx)
         return ctx
 
     @property
@@ -62,6 +63,13 @@ class RunContext:
     def merge(self, problems: Iterable[Problem]) -> None:
         """Problems found by a copy of this context (a worker process), minus repeats."""
         self.problems.extend(new_problems(problems, self._reported))
+
+
+def _records_no_actors(log: RunLog) -> bool:
+    """The run's capability record says it has no actors (an OpenLane-V2 segment, a
+    recording without them)."""
+    status = log.inputs.get("actors")
+    return bool(log.inputs) and (status is None or status.state == "absent")
 
 
 EGO_MATCH_DISTANCE_M = 0.5

@@ -137,7 +137,9 @@ def _openlane(folder: Path) -> bool:
     ``actors/``, or that ``info/`` itself) or a dataset root (``data_dict_*.json``), by names."""
     if not folder.is_dir() or (folder / "actors").is_dir():
         return False
-    info = folder if folder.name == OPENLANE_INFO else folder / OPENLANE_INFO
+    if folder.name == OPENLANE_INFO:
+        return True
+    info = folder / OPENLANE_INFO
     try:
         if info.is_dir() and any(n.endswith(".json") for n in os.listdir(info)):
             return True

@@ -500,3 +500,13 @@ def test_inspect_lists_the_capability_record(segment: Path, tmp_path: Path) -> N
     assert "ego: derived" in result.stdout
     assert "detections_2d: real" in result.stdout
     assert "actors: OpenLane-V2 holds no actors" in result.stdout
+
+
+def test_a_batch_job_diagnoses_a_segment_and_names_its_format(segment: Path) -> None:
+    from ads_rca.batch.work import Job, run_job
+    from ads_rca.io.bag_options import BagOptions
+
+    job = Job("s1", str(segment), make_params("corrected"), 64.0, BagOptions(), 60.0)
+    outcome = run_job(job)
+    assert outcome.row["format"] == "OpenLane-V2 segment" and not outcome.row.get("error")
+    assert outcome.json is not None and len(json.loads(outcome.json)["frames"]) == FRAMES

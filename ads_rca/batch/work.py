@@ -202,7 +202,13 @@ def run_job(job: Job, worker: str = "") -> Outcome:
 
 
 #: The format column's words for each reader (``ads_rca.io.formats``).
-FORMAT_NAMES = {"bag": "bag", "carla": "CARLA run", "dlp": "DLP scene", "log": "log folder"}
+FORMAT_NAMES = {
+    "bag": "bag",
+    "carla": "CARLA run",
+    "dlp": "DLP scene",
+    "log": "log folder",
+    "openlane": "OpenLane-V2 segment",
+}
 
 
 def _format(job: Job) -> dict[str, str]:

@@ -56,7 +56,8 @@ def add_reader_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         metavar="DIR",
         help="a folder of a predictor's prediction files (the seed format, ids = actor ids) "
-        "to score against a CARLA run's or DLP scene's realised future",
+        "to score against a CARLA run's or DLP scene's realised future; for an OpenLane-V2 "
+        "segment, a model's per-frame results (<timestamp>.json)",
     )
     parser.add_argument(
         "--derived-collision",

@@ -281,6 +281,7 @@ def test_bad_result_files_are_reported_and_the_rest_read(segment: Path, tmp_path
     files[1].write_text('{"something": 1}')
     files[2].unlink()
     (folder / f"{NS_START + 99 * 500_000_000}.json").write_text("{}")
+    (folder / "README.json").write_text("{}")
     document = json.loads(files[3].read_text())
     document["predictions"]["traffic_element"][0]["confidence"] = "0.9"
     document["predictions"]["lane_centerline"][1]["confidence"] = math.nan
@@ -290,6 +291,7 @@ def test_bad_result_files_are_reported_and_the_rest_read(segment: Path, tmp_path
     assert any(files[0].name in p and "invalid JSON" in p for p in found), found
     assert any(files[1].name in p and "expected an annotation object" in p for p in found)
     assert any("1 prediction files name no frame" in p for p in found)
+    assert any("pred/README.json file name: not <timestamp>.json" in p for p in found), found
     assert any("3 frames have no usable prediction" in p for p in found)
     assert any("traffic_element[0].confidence: '0.9' is not a number" in p for p in found)
     assert any("lane_centerline[1].confidence: nan is not a number" in p for p in found)

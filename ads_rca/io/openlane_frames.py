@@ -173,7 +173,7 @@ def read_openlane_segment(
     limit = check_max_file_mb(max_file_mb)
     folder = info_folder(path)
     problems = ProblemLog()
-    raw_stamps = _listing(folder, problems)
+    raw_stamps = _listing(folder, INFO, problems)
     if not raw_stamps:
         raise InputError(f"{folder}: no <timestamp>.json info files")
     unit = timestamp_unit(list(raw_stamps))
@@ -211,8 +211,9 @@ def _median(stamps: Sequence[int]) -> int:
     return sorted(stamps)[len(stamps) // 2]
 
 
-def _listing(folder: Path, problems: ProblemLog) -> dict[int, str]:
-    """Raw timestamp -> file name of every ``<digits>.json``; others reported and ignored."""
+def _listing(folder: Path, label: str, problems: ProblemLog) -> dict[int, str]:
+    """Raw timestamp -> file name of every ``<digits>.json`` in ``folder`` (``label`` in
+    reports); others reported and ignored."""
     try:
         names = sorted(os.listdir(folder))
     except OSError as error:
@@ -229,14 +230,14 @@ def _listing(folder: Path, problems: ProblemLog) -> dict[int, str]:
         out.setdefault(int(stem), name)
     if odd:
         problems.add(
-            f"{INFO}/{bounded_text(odd[0], '?')}",
+            f"{label}/{bounded_text(odd[0], '?')}",
             "file name",
             f"not <timestamp>.json ({len(odd)} such files)",
             IGNORED,
             "warning",
         )
     if len(out) > MAX_FILES:
-        problems.add(f"{INFO}/", "", f"{len(out)} info files: the first {MAX_FILES} read", IGNORED)
+        problems.add(f"{label}/", "", f"{len(out)} files: the first {MAX_FILES} read", IGNORED)
         out = dict(sorted(out.items())[:MAX_FILES])
     return out
 
@@ -306,7 +307,9 @@ def _read_info(
         return None
     annotation = document.get("annotation")
     if not isinstance(annotation, dict):
-        problems.add(file, "annotation", "missing or not an object", "read as empty", "warning")
+        problems.add(
+            file, "annotation", "missing or not an object", "read as empty", "warning", stamp_ms
+        )
         annotation = {}
     graph = lane_graph(annotation, file, "annotation", problems, stamp_ms, predicted=False)
     return InfoFrame(stamp_ms, raw, file, rotation, translation, graph, document)
@@ -490,7 +493,7 @@ def _with_predictions(log: RunLog, directory: str, unit: str, limit: int) -> Non
     if not root.is_dir():
         raise InputError(f"{root}: no such folder of prediction files")
     problems = ProblemLog()
-    listed = _listing(root, problems)
+    listed = _listing(root, root.name, problems)
     divisor = UNITS[unit]
     frames = set(log.frames)
     unmatched: list[str] = []

@@ -24,6 +24,7 @@ from ads_rca.prediction_scores import SCORES_KEY, run_scores
 from ads_rca.problems import CHECK_SKIPPED, Problem, ProblemLog
 from ads_rca.progress import advancer
 from ads_rca.run_figures import FIGURES_KEY, figures_from_document
+from ads_rca.trajectory_scores import TRAJECTORY_SCORES_KEY, trajectory_scores
 from ads_rca.verdict import Attribution, FrameResults, json_safe
 from ads_rca.workers import can_fork, map_forked
 
@@ -129,6 +130,8 @@ class Diagnosis:
         scores = run_scores(self.frames)
         if scores:
             document[SCORES_KEY] = scores
+        if self.log.ego_snapshots is not None:  # a table of snapshots (atmaCup #18)
+            document[TRAJECTORY_SCORES_KEY] = trajectory_scores(self.log.ego_snapshots)
         return dict(json_safe(document))
 
 

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any, TypedDict, cast
 import numpy as np
 import numpy.typing as npt
 
+from ads_rca.ego_snapshots import EgoSnapshots
 from ads_rca.lanes import LaneGraph
 from ads_rca.problems import ProblemLog
 from ads_rca.text import short_repr
@@ -313,6 +314,7 @@ class LogExtras(TypedDict, total=False):
     inputs: dict[str, InputStatus]
     lanes: dict[int, LaneGraph]
     lanes_predicted: dict[int, LaneGraph]
+    ego_snapshots: EgoSnapshots | None
 
 
 #: How a model input is present in a run: ``real`` (read from the source as is), ``derived``
@@ -406,6 +408,9 @@ class RunLog:
     #: prediction of them (``--predictions``).
     lanes: dict[int, LaneGraph] = field(default_factory=dict)
     lanes_predicted: dict[int, LaneGraph] = field(default_factory=dict)
+    #: A table of independent snapshots (atmaCup #18): each row's vehicle state, realised
+    #: and predicted future ego paths (``ads_rca.ego_snapshots``); None for other sources.
+    ego_snapshots: EgoSnapshots | None = None
 
     @classmethod
     def from_folders(

@@ -16,6 +16,7 @@ from ads_rca.prediction_scores import MISS_M, SCORES_KEY
 from ads_rca.problems import Problem, ProblemLog
 from ads_rca.run_figures import FIGURE_KEYS, figures_from_document
 from ads_rca.text import printable
+from ads_rca.trajectory_scores import TRAJECTORY_SCORES_KEY
 
 
 def collision_text(collision_frame: int) -> str:
@@ -88,6 +89,7 @@ def run_notes_lines(document: dict[str, Any], shown: int = 10) -> list[str]:
         for kind, row in (by_type if isinstance(by_type, dict) else {}).items():
             if isinstance(row, dict):
                 lines.append(f"  {kind}: {row.get('scored')} tracks, {_score_text(row)}")
+    lines.extend(trajectory_lines(document.get(TRAJECTORY_SCORES_KEY), shown))
     figures = figures_from_document(document)
     if figures:
         values = ", ".join(f"{k}={_short(figures[k])}" for k in FIGURE_KEYS)
@@ -99,6 +101,46 @@ def run_notes_lines(document: dict[str, Any], shown: int = 10) -> list[str]:
         if len(annotations) > shown:
             lines.append(f"  ... {len(annotations) - shown} more")
     return lines
+
+
+def trajectory_lines(scores: object, shown: int = 10) -> list[str]:
+    """A snapshot table's ego-trajectory scores (``trajectory_scores``): the competition's
+    MAE, ADE and FDE, per horizon, the worst rows; or why nothing was scored."""
+    if not isinstance(scores, dict):
+        return []
+    head = f"trajectory scores ({scores.get('scored')} of {scores.get('rows')} rows scored"
+    if not scores.get("scored"):
+        return [f"{head}): {scores.get('note', 'nothing scored')}"]
+    lines = [
+        f"{head}; {scores.get('no_truth')} without a realised path, "
+        f"{scores.get('no_prediction')} without a prediction): MAE {_precise(scores.get('mae'))} "
+        f"(the competition's, over x, y, z), ADE {_short(scores.get('ade'))} m, "
+        f"FDE {_short(scores.get('fde'))} m (3-D)"
+    ]
+    horizons = scores.get("by_horizon")
+    if isinstance(horizons, list):
+        lines.append(
+            "  by horizon (mean distance): "
+            + ", ".join(
+                f"{_short(h.get('horizon_s'))} s {_short(h.get('distance'))} m"
+                for h in horizons
+                if isinstance(h, dict)
+            )
+        )
+    worst = scores.get("worst_rows")
+    if isinstance(worst, list) and worst:
+        lines.append("  worst rows by ADE:")
+        lines.extend(
+            f"    {row.get('id')}: ADE {_short(row.get('ade'))} m, FDE "
+            f"{_short(row.get('fde'))} m, MAE {_short(row.get('mae'))}"
+            for row in worst[:shown]
+            if isinstance(row, dict)
+        )
+    return lines
+
+
+def _precise(value: object) -> str:
+    return f"{value:.6g}" if isinstance(value, float) else _short(value)
 
 
 def _score_text(row: dict[str, Any]) -> str:

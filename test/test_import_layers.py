@@ -37,7 +37,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
         "ads_rca.workers",
     ),
     ("ads_rca.problems", "ads_rca.paramspec", "ads_rca.params"),
-    ("ads_rca.model", "ads_rca.lanes"),
+    ("ads_rca.model", "ads_rca.lanes", "ads_rca.ego_snapshots"),
     (
         "ads_rca.verdict",
         "ads_rca.capabilities",
@@ -45,6 +45,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
         "ads_rca.run_figures",
         "ads_rca.prediction_scores",
         "ads_rca.openlane_scores",
+        "ads_rca.trajectory_scores",
     ),
     ("ads_rca.contract",),
     ("ads_rca.io", "ads_rca.synth", "ads_rca.profiles"),

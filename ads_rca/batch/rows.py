@@ -23,7 +23,7 @@ STR, INT, FLOAT = "str", "int", "float"
 COLUMN_DOCS: tuple[tuple[str, str, str], ...] = (
     ("run_id", STR, "stable id: SHA-256 of the resolved path, 16 hex digits"),
     ("path", STR, "the run's resolved path"),
-    ("format", STR, "log folder, bag, CARLA run, DLP scene or OpenLane-V2 segment"),
+    ("format", STR, "log folder, bag, CARLA run, DLP scene, OpenLane-V2 segment or atmaCup table"),
     ("profile", STR, "the bag profile read through (bags only)"),
     ("semantics", STR, "oracle semantics"),
     ("scenario", STR, "scenario family (metadata synthesis.scenario), when known"),

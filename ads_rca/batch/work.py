@@ -208,6 +208,7 @@ FORMAT_NAMES = {
     "dlp": "DLP scene",
     "log": "log folder",
     "openlane": "OpenLane-V2 segment",
+    "atmacup": "atmaCup table",
 }
 
 

@@ -1,10 +1,11 @@
 """Options of the log reader shared by every command that reads a log (``max_file_mb``,
-``format``, ``derived_collision``, ``ego_agent``, ``predictions``).
+``format``, ``derived_collision``, ``ego_agent``, ``predictions``, ``submission``).
 
 The reader's settings are not engine thresholds, but keep one name everywhere: the CLI flag
 (``--max-file-mb``, ``--format``, ``--derived-collision``, ``--ego-agent``,
-``--predictions``), ``-p max_file_mb=N`` and the same key of a ``--config`` file (commands
-with engine options), and the player node's ROS parameter of that name.
+``--predictions``, ``--submission``), ``-p max_file_mb=N`` and the same key of a
+``--config`` file (commands with engine options), and the player node's ROS parameter of
+that name.
 """
 
 from __future__ import annotations
@@ -25,7 +26,13 @@ from ads_rca.profiles import BUILTIN_PROFILES, DEFAULT_PROFILE
 #: The reader's parameter names (popped from ``-p`` / config before the engine sees them).
 READER_PARAMS = ("max_file_mb", *SOURCE_PARAMS)
 #: The defaults of the source options (``SourceOptions``), by parameter name.
-SOURCE_DEFAULTS = {"format": AUTO, "derived_collision": False, "ego_agent": "", "predictions": ""}
+SOURCE_DEFAULTS = {
+    "format": AUTO,
+    "derived_collision": False,
+    "ego_agent": "",
+    "predictions": "",
+    "submission": "",
+}
 
 
 def add_reader_arguments(parser: argparse.ArgumentParser) -> None:
@@ -60,6 +67,13 @@ def add_reader_arguments(parser: argparse.ArgumentParser) -> None:
         "segment, a model's per-frame results (<timestamp>.json)",
     )
     parser.add_argument(
+        "--submission",
+        default=None,
+        metavar="FILE",
+        help="an atmaCup #18 submission CSV (x_0 ... z_5, optionally an ID column): predicted "
+        "ego paths to score against the table's realised ones (MAE, ADE, FDE)",
+    )
+    parser.add_argument(
         "--derived-collision",
         action="store_const",
         const=True,
@@ -88,7 +102,7 @@ def max_file_mb_from_args(args: argparse.Namespace) -> float:
 
 
 def source_options_from_args(args: argparse.Namespace) -> SourceOptions:
-    """``format``, ``derived_collision``, ``ego_agent`` and ``predictions`` as
+    """``format``, ``derived_collision``, ``ego_agent``, ``predictions`` and ``submission`` as
     :func:`max_file_mb_from_args` finds them, each checked (one line naming it)."""
     return SourceOptions.from_values(
         {name: _reader_setting(args, name, default) for name, default in SOURCE_DEFAULTS.items()}

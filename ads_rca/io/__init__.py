@@ -10,6 +10,7 @@ from ads_rca.io.bag_options import BagOptions
 from ads_rca.io.bag_paths import is_bag
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB
 from ads_rca.io.formats import (
+    ATMACUP,
     AUTO,
     BAG,
     CARLA,
@@ -55,6 +56,7 @@ def open_run(
         CARLA: "a CARLA run",
         DLP: "a DLP scene",
         OPENLANE: "an OpenLane-V2 segment",
+        ATMACUP: "an atmaCup table",
     }[fmt]
     if derived_collision and fmt not in (CARLA, DLP):
         raise InputError(
@@ -74,6 +76,16 @@ def open_run(
         from ads_rca.io.openlane_frames import read_openlane_segment
 
         return read_openlane_segment(path, max_file_mb, source)
+    if source.submission and fmt != ATMACUP:
+        raise InputError(
+            f"{os.fspath(path)}: --submission applies to atmaCup tables, not to {kind}"
+        )
+    if fmt == ATMACUP:
+        if remap is not None or not bag.contract:
+            raise InputError("--profile and --remap apply to bags, not to an atmaCup table")
+        from ads_rca.io.atmacup_table import read_atmacup_table
+
+        return read_atmacup_table(path, max_file_mb, source)
     if fmt in (CARLA, DLP):
         log = _dataset_run(path, fmt, max_file_mb, source, remap, bag)
         if source.predictions:

@@ -31,8 +31,12 @@ DLP = "dlp"
 #: ``info/``).
 OPENLANE = "openlane"
 
+#: An atmaCup #18 driving table: ``train_features.csv`` or ``test_features.csv`` (or a
+#: folder holding one), ``traffic_lights/`` beside it.
+ATMACUP = "atmacup"
+
 #: Every name ``--format`` takes, ``auto`` first.
-FORMATS = (AUTO, LOG, BAG, CARLA, DLP, OPENLANE)
+FORMATS = (AUTO, LOG, BAG, CARLA, DLP, ATMACUP, OPENLANE)
 
 #: Files whose presence makes a folder a CARLA experiment-client run.
 CARLA_TELEMETRY = ("telemetry.json", "telemetry.csv")
@@ -40,10 +44,12 @@ DLP_SCENE = "_scene.json"
 #: The folder of an OpenLane-V2 segment's per-frame files, and the split index's prefix.
 OPENLANE_INFO = "info"
 OPENLANE_INDEX = "data_dict_"
+#: The table files of an atmaCup #18 dataset folder.
+ATMACUP_TABLES = ("train_features.csv", "test_features.csv")
 
 
 #: The reader options a user gives by name (CLI flag, ``-p``, config key, ROS parameter).
-SOURCE_PARAMS = ("format", "derived_collision", "ego_agent", "predictions")
+SOURCE_PARAMS = ("format", "derived_collision", "ego_agent", "predictions", "submission")
 #: The longest ``ego_agent`` (a DLP token is 40 hex digits).
 MAX_EGO_AGENT = 64
 
@@ -52,14 +58,17 @@ MAX_EGO_AGENT = 64
 class SourceOptions:
     """Which reader reads a run (``format``) and the options of the dataset formats:
     ``derived_collision`` (a CARLA or DLP run's first box overlap is its collision, flagged
-    derived), ``ego_agent`` (which DLP agent is the ego; "" = the default choice) and
+    derived), ``ego_agent`` (which DLP agent is the ego; "" = the default choice),
     ``predictions`` (a folder of a predictor's prediction files to score against a CARLA
-    run's or a DLP scene's realised future; "" = none)."""
+    run's or a DLP scene's realised future; "" = none) and ``submission`` (an atmaCup #18
+    submission CSV, predicted ego paths to score against the table's realised ones; "" =
+    none)."""
 
     source_format: str = AUTO
     derived_collision: bool = False
     ego_agent: str = ""
     predictions: str = ""
+    submission: str = ""
 
     @classmethod
     def from_values(cls, values: Mapping[str, Any]) -> SourceOptions:
@@ -82,7 +91,16 @@ class SourceOptions:
         predictions = values.get("predictions", "")
         if not isinstance(predictions, str):
             raise InputError(f"predictions: expected a folder path, not {_shown(predictions)}")
-        return cls(checked_format(values.get("format", AUTO)), derived, ego.strip(), predictions)
+        submission = values.get("submission", "")
+        if not isinstance(submission, str):
+            raise InputError(f"submission: expected a file path, not {_shown(submission)}")
+        return cls(
+            checked_format(values.get("format", AUTO)),
+            derived,
+            ego.strip(),
+            predictions,
+            submission,
+        )
 
     def as_params(self) -> dict[str, str | bool]:
         """The same options as the player's ROS parameters."""
@@ -91,6 +109,7 @@ class SourceOptions:
             "derived_collision": self.derived_collision,
             "ego_agent": self.ego_agent,
             "predictions": str(Path(self.predictions).resolve()) if self.predictions else "",
+            "submission": str(Path(self.submission).resolve()) if self.submission else "",
         }
 
 
@@ -109,7 +128,8 @@ def checked_format(name: object) -> str:
 def detect_format(path: str | os.PathLike[str]) -> str:
     """The format of ``path``: a bag, a CARLA run folder (a telemetry file and no
     ``actors/`` folder), a DLP scene (a ``_scene.json`` file, or a folder with one and no
-    ``actors/``), else a running-log folder (whose reader says what
+    ``actors/``), an atmaCup table (``train_features.csv`` / ``test_features.csv``, or a
+    folder with one and no ``actors/``), else a running-log folder (whose reader says what
     is wrong). Before CARLA's and DLP's checks: an OpenLane-V2 segment (a folder with an
     ``info/`` of JSON files and no ``actors/``, that ``info/`` itself, or a dataset root
     holding ``data_dict_*.json``)."""
@@ -118,6 +138,11 @@ def detect_format(path: str | os.PathLike[str]) -> str:
     folder = Path(path)
     if folder.name.endswith(DLP_SCENE) and not folder.is_dir():
         return DLP
+    if folder.name in ATMACUP_TABLES and not folder.is_dir():
+        return ATMACUP
+    tables = any(os.path.lexists(folder / name) for name in ATMACUP_TABLES)
+    if tables and folder.is_dir() and not (folder / "actors").is_dir():
+        return ATMACUP
     if _openlane(folder):
         return OPENLANE
     telemetry = any(os.path.lexists(folder / name) for name in CARLA_TELEMETRY)

@@ -234,6 +234,9 @@ LAUNCH_ARGUMENTS: dict[str, LaunchArgument] = {
     "predictions": LaunchArgument(
         "", "A predictor's prediction files to score ('' = none).", "predictions"
     ),
+    "submission": LaunchArgument(
+        "", "An atmaCup #18 submission CSV to score ('' = none).", "submission"
+    ),
     "derived_collision": LaunchArgument(
         "false",
         "A CARLA run's or DLP scene's collision is the first box overlap, flagged derived "

@@ -88,6 +88,11 @@ PARAMETERS: dict[str, NodeParameter] = {
         "A folder of a predictor's prediction files to score against a CARLA run's or DLP "
         "scene's realised future ('' = none).",
     ),
+    "submission": (
+        "",
+        "An atmaCup #18 submission CSV: predicted ego paths to score against the table's "
+        "realised ones ('' = none).",
+    ),
     "derived_collision": (
         False,
         "A CARLA run or DLP scene records no collision: take the first frame where the ego's "

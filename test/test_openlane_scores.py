@@ -123,6 +123,15 @@ def test_vectorised_frechet_equals_the_recursion_on_random_polylines() -> None:
     b = [rng.normal(size=(int(rng.integers(1, 9)), 3)) * 4 for _ in range(11)]
     expected = np.array([[slow_frechet(x, y) for y in b] for x in a])
     np.testing.assert_allclose(frechet_matrix(a, b), expected, rtol=1e-12)
+    # the scorer's cut-off skips only pairs at or beyond it
+    relaxed = expected * relaxation_factors(a)[:, None]
+    ranked = np.sort(relaxed, axis=None)
+    cutoff = float(ranked[49] + ranked[50]) / 2  # between two distances, so no tie
+    cut = lane_distance_matrix(a, b, cutoff=cutoff)
+    near = relaxed < cutoff
+    assert 0 < near.sum() < near.size
+    np.testing.assert_allclose(cut[near], relaxed[near], rtol=1e-12)
+    assert (cut[~near] >= cutoff).all()
 
 
 def test_relaxation_scales_a_lane_by_its_nearest_point() -> None:

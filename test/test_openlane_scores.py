@@ -43,7 +43,7 @@ def graph(
     attributes: Sequence[int] = (),
     element_scores: Sequence[float] | None = None,
     lane_lane: np.ndarray | None = None,
-    lane_element: np.ndarray | None = None,
+    lane_element: np.ndarray | Sequence[Sequence[float]] | None = None,
 ) -> LaneGraph:
     n, k = len(lanes), len(boxes)
     return LaneGraph(
@@ -450,3 +450,19 @@ def test_a_nan_link_between_matched_lanes_counts_as_wrong() -> None:
 def test_mismatched_shapes_are_refused_by_the_graph() -> None:
     with pytest.raises(ValueError, match="lane_lane"):
         graph([line(0, 10)], lane_lane=np.zeros((2, 2)))
+
+
+def test_an_element_of_no_known_attribute_counts_for_no_class_but_links() -> None:
+    # attribute 20 is none of the 13: DET_t has no class to judge (NaN), but the element is
+    # matched (IoU 1) for the topology: lane row {E0}/{E0} 1, element column {L0}/{L0} 1
+    truth = graph([line(0, 10)], boxes=BOXES[:1], attributes=(20,), lane_element=[[1.0]])
+    pred = graph(
+        [line(0, 10)],
+        scores=[0.9],
+        boxes=BOXES[:1],
+        attributes=(20,),
+        element_scores=(0.9,),
+        lane_element=[[0.9]],
+    )
+    s = score_frames([(truth, pred)])
+    assert math.isnan(s.det_t) and s.det_t_ap == {} and s.top_lt == 1.0

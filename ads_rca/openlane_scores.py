@@ -12,7 +12,7 @@ ours, vectorised with numpy. docs/openlane-metrics.md states every rule with its
   lane's relaxation ``max(0.5, 1 - 0.005 * d)``, d its point nearest the ego (m) (devkit
   ``pairwise(..., relax=True)``). The devkit skips pairs whose Chamfer distance is 3 m or
   more (Chamfer <= Fréchet, so they cannot match); we skip those whose first or last points
-  are 3 m or more apart (the same bound, cheaper): neither changes a match.
+  are 3 m or more apart (another lower bound, cheaper): neither changes a match.
 - Element distance: ``1 - IoU`` of the (x1, y1, x2, y2) image boxes.
 - Matching, per frame and threshold: predictions in descending confidence; each one looks
   only at its NEAREST ground truth (first on ties) and is a true positive iff that distance
@@ -52,8 +52,8 @@ Where we differ, on purpose (``devkit_empty=True`` restores the devkit's empty-s
   compares float32 recalls with ``np.arange(0, 1.001, 0.1)``: with the numpy it pins (< 1.24)
   the comparison runs in float32 and agrees; under numpy 2 it runs in float64 and a recall of
   exactly 0.7 misses the 0.7 level (10 lanes, 7 found: AP 7/11 there, 8/11 here).
-- Unusable input, which the devkit would crash on or score as NaN: a lane with no point or a
-  non-finite coordinate and an element whose box is non-finite or inverted (x2 < x1 or
+- Unusable input, which the devkit would crash on or score as NaN: a lane with no point, not
+  (P, 3), or with a non-finite coordinate, and an element whose box is non-finite or inverted (x2 < x1 or
   y2 < y1) are dropped (with their adjacency rows and columns) and counted in
   ``dropped_lanes`` / ``dropped_elements``; a prediction whose confidence is not finite ranks
   after every scored prediction (in list order) and is counted in ``unscored``; a

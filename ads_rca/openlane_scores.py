@@ -52,14 +52,14 @@ Where we differ, on purpose (``devkit_empty=True`` restores the devkit's empty-s
   compares float32 recalls with ``np.arange(0, 1.001, 0.1)``: with the numpy it pins (< 1.24)
   the comparison runs in float32 and agrees; under numpy 2 it runs in float64 and a recall of
   exactly 0.7 misses the 0.7 level (10 lanes, 7 found: AP 7/11 there, 8/11 here).
-- Unusable input, which the devkit would crash on or score as NaN: a lane with no point, not
-  (P, 3), or with a non-finite coordinate, and an element whose box is non-finite or inverted (x2 < x1 or
-  y2 < y1) are dropped (with their adjacency rows and columns) and counted in
-  ``dropped_lanes`` / ``dropped_elements``; a prediction whose confidence is not finite ranks
-  after every scored prediction (in list order) and is counted in ``unscored``; a
-  ground-truth link is a finite non-zero entry; a non-finite predicted link confidence
-  between matched vertices is the opposite of the truth, as the devkit fills its NaNs.
-  Boxes of zero union have IoU 0.
+- Unusable input, which the devkit would crash on or score as NaN: a lane with no point,
+  not (P, 3), or with a non-finite coordinate, and an element whose box is non-finite or
+  inverted (x2 < x1 or y2 < y1) are dropped (with their adjacency rows and columns) and
+  counted in ``dropped_lanes`` / ``dropped_elements``. A prediction whose confidence is not
+  finite ranks after every scored prediction (in list order) and is counted in
+  ``unscored``. A ground-truth link is a finite non-zero entry; a non-finite predicted link
+  confidence between matched vertices is the opposite of the truth, as the devkit fills its
+  NaNs. Boxes of zero union have IoU 0.
 """
 
 from __future__ import annotations

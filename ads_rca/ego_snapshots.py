@@ -68,6 +68,12 @@ class EgoSnapshots:
     def __len__(self) -> int:
         return len(self.ids)
 
+    def row_at(self, timestamp_ms: int) -> int | None:
+        """The row played at ``timestamp_ms`` (None: no row there)."""
+        row = int(np.searchsorted(self.timestamps, timestamp_ms))
+        found = row < len(self.timestamps) and int(self.timestamps[row]) == timestamp_ms
+        return row if found else None
+
     @property
     def has_truth(self) -> bool:
         """Whether any row has a realised path (a train table; a test table has none)."""

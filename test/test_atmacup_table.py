@@ -13,11 +13,20 @@ import os
 import subprocess
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pytest
 
+from ads_rca.contract import topics
+from ads_rca.contract.ego_paths import (
+    ego_path_document,
+    merged,
+    read_ego_path,
+    snapshots_from_rows,
+)
+from ads_rca.contract.errors import MalformedMessage
+from ads_rca.contract.jsontext import dumps_json, loads_json
 from ads_rca.engine import diagnose
 from ads_rca.errors import InputError
 from ads_rca.io import open_run
@@ -25,6 +34,7 @@ from ads_rca.io.atmacup_table import read_atmacup_table
 from ads_rca.io.formats import ATMACUP, LOG, SourceOptions, detect_format
 from ads_rca.model import RunLog
 from ads_rca.params import make_params
+from ads_rca.ros.launcher import ManagedProcess
 from ads_rca.synth.atmacup_tables import (
     LIGHTS,
     ROWS,
@@ -37,6 +47,9 @@ from ads_rca.synth.atmacup_tables import (
     write_table,
 )
 from ads_rca.trajectory_scores import TRAJECTORY_SCORES_KEY, trajectory_scores
+
+if TYPE_CHECKING:
+    from conftest import RosEnv
 
 ADS_RCA = str(Path(sys.executable).with_name("ads-rca"))
 IDS = [row.ident for row in ROWS]
@@ -471,3 +484,87 @@ def test_inspect_lists_the_capability_record(table: Path) -> None:
     done = run("inspect", str(table))
     assert done.returncode == 0, done.stderr
     assert "actors: derived" in done.stdout and "detections_2d: real" in done.stdout
+
+
+# --- live: run/ego_paths -------------------------------------------------------------------------
+
+
+def test_ego_path_messages_round_trip_and_rebuild_the_scores(table: Path) -> None:
+    log = read(table, write_submission(table / "sub.csv", hand_paths()))
+    assert topics.EGO_PATHS in topics.advertised(log)
+    documents = [ego_path_document(log, ts) for ts in log.frames]
+    assert ego_path_document(log, 50) is None  # no row there
+    first = documents[0]
+    assert first is not None and first["id"] == IDS[0] and first["row"] == 0
+    assert first["realised"][1] == [10.0, -0.2, 0.02]  # mirrored, as in the snapshots
+    rows = {}
+    for document in documents:
+        assert document is not None
+        row = read_ego_path(loads_json(dumps_json(document)))
+        rows[row.stamp_ms] = row
+    rebuilt = trajectory_scores(snapshots_from_rows(rows))
+    offline = scores_of(log)
+    assert rebuilt == offline
+
+
+def test_a_live_models_later_prediction_replaces_the_players(table: Path) -> None:
+    log = read(table)
+    player = read_ego_path(loads_json(dumps_json(ego_path_document(log, 0))))
+    assert player.predicted is None and player.realised is not None
+    guess = [[x + 1.0, -y, z] for x, y, z in ROWS[0].path]  # the model frame: y mirrored
+    model = read_ego_path({"stamp_ms": 0, "predicted": guess, "submission": "my-model"})
+    row = merged(player, model)
+    assert row.ident == IDS[0] and row.submission == "my-model"
+    scores = trajectory_scores(snapshots_from_rows({0: row}))
+    assert scores["scored"] == 1 and scores["mae"] == pytest.approx(6 / 18)
+
+
+@pytest.mark.parametrize(
+    ("document", "expected"),
+    [
+        ({"id": "x"}, "stamp_ms is not a timestamp"),
+        ({"stamp_ms": -1}, "stamp_ms is not a timestamp"),
+        ({"stamp_ms": True}, "stamp_ms is not a timestamp"),
+        ({"stamp_ms": 0, "id": 7}, "id and submission must be text"),
+        ({"stamp_ms": 0, "id": "x" * 300}, "longer than 256"),
+        ({"stamp_ms": 0, "row": "1"}, "row is not an integer"),
+        ({"stamp_ms": 0, "realised": [[1, 2, 3]] * 5}, "realised is not six"),
+        ({"stamp_ms": 0, "predicted": [[1, 2, "3"]] * 6}, "predicted is not six"),
+        ({"stamp_ms": 0, "predicted": [[1, 2, True]] * 6}, "predicted is not six"),
+    ],
+)
+def test_a_malformed_ego_path_message_is_refused(document: dict[str, Any], expected: str) -> None:
+    with pytest.raises(MalformedMessage, match=expected):
+        read_ego_path(document)
+
+
+def test_replay_of_a_table_scores_as_diagnose(ros_env: RosEnv, tmp_path: Path) -> None:
+    """Player, monitors, aggregator and recorder over DDS: the player sends each row's paths
+    on run/ego_paths and marks its frame as a snapshot; the live verdict's trajectory scores
+    are diagnose's."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    table = tmp_path / "data"
+    write_table(table)
+    sub = write_submission(table / "sub.csv", hand_paths()).resolve()
+    bag, out = tmp_path / "bag", tmp_path / "verdict.json"
+    argv = [sys.executable, "-m", "ads_rca.cli", "replay", str(table), "--submission", str(sub)]
+    argv += ["--record", str(bag), "--json", str(out), "--domain-id", str(ros_env.domain_id)]
+    replay = ManagedProcess("replay", [*argv, "--timeout", "90"], ros_env.env)
+    assert replay.wait(120) == 0, replay.output
+    live = json.loads(out.read_text())
+    offline = diagnose(read(table, sub), make_params("corrected")).to_json()
+    for key in ("frames", "modules_judged", TRAJECTORY_SCORES_KEY, "verdict"):
+        assert live[key] == offline[key], key
+    assert live[TRAJECTORY_SCORES_KEY]["mae"] == pytest.approx(HAND_MAE)
+    paths: list[dict[str, Any]] = []
+    snapshots: list[str] = []
+    with next(bag.glob("*.mcap")).open("rb") as stream:
+        reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+        for _schema, channel, _raw, msg in reader.iter_decoded_messages(log_time_order=False):
+            if channel.topic.endswith("/run/ego_paths"):
+                paths.append(json.loads(msg.data))
+            elif channel.topic.endswith("/run/frame"):
+                snapshots.append(json.loads(msg.data).get("snapshot"))
+    assert [p["id"] for p in paths] == IDS and snapshots == IDS

@@ -92,8 +92,10 @@ def test_the_maps_derive_from_the_table() -> None:
     assert {topics.FOLDER_TOPICS[f]: f for f in ALL_FOLDERS} == topics.TOPIC_FOLDERS
     optional_data = tuple(str(t.folder) for t in topics.TABLE if t.optional and t.folder)
     assert optional_data == OPTIONAL_FOLDERS
-    assert [t.key for t in topics.TABLE if t.optional and not t.folder] == [topics.ANNOTATIONS]
-    assert {topics.METADATA, topics.ANNOTATIONS, topics.FRAME, topics.STATUS} == topics.TEXT_TOPICS
+    optional_text = [t.key for t in topics.TABLE if t.optional and not t.folder]
+    assert optional_text == [topics.ANNOTATIONS, topics.EGO_PATHS]
+    text = {topics.METADATA, topics.ANNOTATIONS, topics.EGO_PATHS, topics.FRAME, topics.STATUS}
+    assert text == topics.TEXT_TOPICS
     for topic in topics.TABLE:
         assert topics.MESSAGE_TYPE_NAMES[topic.key] == topic.codec.type_name
         assert topics.QOS[topic.key] is topic.qos

@@ -52,6 +52,9 @@ TRACKS_3D = "perception/tracks_3d"
 CONTROL_COMMAND = "control/command"
 #: A run's annotations (a CARLA run's events), each sent with the tick it falls on.
 ANNOTATIONS = "run/annotations"
+#: A snapshot table's row's future ego paths (realised, predicted), sent with its frame
+#: (``ads_rca.contract.ego_paths``).
+EGO_PATHS = "run/ego_paths"
 FRAME = "run/frame"
 STATUS = "player/status"
 CLOCK = "/clock"
@@ -147,6 +150,7 @@ TABLE: tuple[Topic, ...] = (
     ),
     Topic(CONTROL_COMMAND, codec.CONTROL, folder="control", optional=True),
     Topic(ANNOTATIONS, codec.TEXT, optional=True),
+    Topic(EGO_PATHS, codec.TEXT, optional=True),
     Topic(FRAME, codec.TEXT),
     Topic(STATUS, codec.TEXT, LATCHED_QOS),
     Topic(CLOCK, codec.CLOCK),
@@ -172,12 +176,14 @@ QOS: dict[str, QoSSpec] = {topic.key: topic.qos for topic in TABLE} | {
 
 def advertised(log: RunLog) -> tuple[str, ...]:
     """The topic keys a player of ``log`` advertises (and a bag of it declares): every key
-    but the optional data topics whose folder the log has no record in, and the
-    annotations of a run that has none."""
+    but the optional data topics whose folder the log has no record in, the annotations of
+    a run that has none, and the ego paths of a run that is no snapshot table."""
     return tuple(topic.key for topic in TABLE if not topic.optional or _carries(log, topic))
 
 
 def _carries(log: RunLog, topic: Topic) -> bool:
+    if topic.key == EGO_PATHS:
+        return log.ego_snapshots is not None
     if topic.folder is None:  # the annotations
         return bool(annotations_from_document(log.metadata.raw))
     return bool(log.folder(topic.folder))

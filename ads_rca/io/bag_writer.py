@@ -17,7 +17,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol, TypedDict
 
 from ads_rca.contract import rosmsg, topics
-from ads_rca.contract.convert import clock_message
+from ads_rca.contract.convert import clock_message, string_message
+from ads_rca.contract.ego_paths import ego_path_document
+from ads_rca.contract.jsontext import dumps_json
 from ads_rca.contract.playback import (
     FINISHED,
     PLAYING,
@@ -127,9 +129,13 @@ def playback_messages(log: RunLog) -> Iterator[tuple[str, int, Any]]:
             yield key, last, msg
         for annotation in annotations.get(position, ()):
             yield topics.ANNOTATIONS, last, annotation_message(annotation)
-        marker_extra = {}
+        marker_extra: dict[str, object] = {}
         if dropped := dropped_plan_keys(log, tick.stamp_ms):
             marker_extra["dropped_plan_keys"] = dropped
+        paths = ego_path_document(log, tick.stamp_ms)
+        if paths is not None:
+            yield topics.EGO_PATHS, last, string_message(dumps_json(paths))
+            marker_extra["snapshot"] = paths["id"]
         names = [topics.CLOCK, *published_names(messages)]
         yield topics.FRAME, last, frame_marker(tick, names, log.tpf, **marker_extra)
     yield topics.STATUS, last, status_message(FINISHED, len(ticks), **extra, elapsed_s=0.0)

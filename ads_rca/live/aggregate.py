@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 
 from ads_rca.capabilities import held_status
+from ads_rca.contract.ego_paths import EgoPathRow, merged, snapshots_from_rows
 from ads_rca.engine import Diagnosis, frame_json
 from ads_rca.live.results import (
     Columns,
@@ -127,6 +128,9 @@ class AggregatorCore(FollowsRunEnd):
         self._origin_ms: int | None = None  # stack mode: the stamp of index STACK_MARGIN
         #: Every verdict given, in order (stack mode can give several).
         self.verdicts: list[VerdictOutcome] = []
+        #: A snapshot table's rows' future ego paths (``run/ego_paths``), merged per stamp:
+        #: scored at the verdict as ``diagnose`` scores the table.
+        self.ego_paths: dict[int, EgoPathRow] = {}
 
     # --- feeding ---------------------------------------------------------------------
 
@@ -181,6 +185,10 @@ class AggregatorCore(FollowsRunEnd):
             index = marker.index
             if self.expected.accepts(index) and not self.expected.has(index):
                 self.expected.set(index, stamp_ms=marker.stamp_ms, arrived=now)
+
+    def add_ego_path(self, row: EgoPathRow) -> None:
+        """One ``run/ego_paths`` message (the player's row, or a live model's prediction)."""
+        self.ego_paths[row.stamp_ms] = merged(self.ego_paths.get(row.stamp_ms), row)
 
     def set_finished(self, now: float, frames_published: int | None = None) -> None:
         """The player's end; effective once ``frames_published`` markers arrived (DDS does
@@ -404,6 +412,7 @@ class AggregatorCore(FollowsRunEnd):
             problems=ProblemLog([*self.input_problems, *self.problems]),
             inputs=self.recorded_inputs
             or held_status({FOLDER_FIELDS[f] for f in self.folders_sent if f in FOLDER_FIELDS}),
+            ego_snapshots=snapshots_from_rows(self.ego_paths) if self.ego_paths else None,
         )
         # The engine's attribution; its context reports nothing we keep (no records here).
         attribution = self.semantics.attribute(

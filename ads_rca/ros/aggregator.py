@@ -30,6 +30,7 @@ from std_msgs.msg import String
 
 from ads_rca.contract import live_topics, topics
 from ads_rca.contract.assembler import run_metadata
+from ads_rca.contract.ego_paths import read_ego_path
 from ads_rca.contract.errors import MalformedMessage
 from ads_rca.contract.jsontext import loads_json
 from ads_rca.contract.malformed import SkippedMessages
@@ -148,6 +149,12 @@ class Aggregator(Node):
                 self._on_result,
                 live_topics.metrics_qos(subscriber=True),
             )
+        self.create_subscription(
+            String,
+            topics.topic_name(topics.EGO_PATHS, ns),
+            self._on_ego_path,
+            topics.qos_profile(topics.EGO_PATHS, keep_all=True),
+        )
         for key in (topics.FRAME, topics.METADATA, topics.STATUS):
             self.create_subscription(
                 String,
@@ -232,6 +239,17 @@ class Aggregator(Node):
                     self.get_logger().info(f"{tpf} ms per frame, {window_text(window)}")
 
         return on_message
+
+    def _on_ego_path(self, msg: String) -> None:
+        """A snapshot row's paths (``run/ego_paths``): kept for the verdict's scores."""
+        try:
+            document = read_document(msg)
+            row = read_ego_path(document)
+        except MalformedMessage as error:
+            self._skip(topics.EGO_PATHS, error, time.monotonic())
+            return
+        if self.runs.accept(document):
+            self.core.add_ego_path(row)
 
     def _subscribe_detection(self) -> None:
         from ads_rca.ros.stack_subscriber import message_class, stack_qos

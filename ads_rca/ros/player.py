@@ -29,6 +29,8 @@ from ads_rca.contract import live_topics, topics
 from ads_rca.contract.camera import camera_intrinsics, camera_mount
 from ads_rca.contract.cdr import encode_clock, encode_string, encode_tf_message
 from ads_rca.contract.convert import camera_info_message, clock_message
+from ads_rca.contract.ego_paths import ego_path_document
+from ads_rca.contract.jsontext import dumps_json
 from ads_rca.contract.playback import (
     FINISHED,
     PLAYING,
@@ -399,6 +401,11 @@ class Player(Node):
         extra: dict[str, Any] = {"run": self.run_id}
         if dropped := dropped_plan_keys(self.log, tick.stamp_ms):
             extra["dropped_plan_keys"] = dropped
+        paths = ego_path_document(self.log, tick.stamp_ms)
+        if paths is not None:  # a snapshot table's row: its paths, and the frame marked so
+            text = dumps_json({**paths, "run": self.run_id})
+            self.pubs[topics.EGO_PATHS].publish(encode_string(text) if fast else String(data=text))
+            extra["snapshot"] = paths["id"]
         names = published_names(messages)
         if self.publish_clock:
             names.insert(0, topics.CLOCK)

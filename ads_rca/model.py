@@ -40,9 +40,11 @@ FOLDERS = (
 )
 
 #: Optional per-frame folders, our extension of the seed format for what recordings of real
-#: stacks carry (3-D detections, tracked objects, control commands). A running log has none:
-#: then nothing is read, written, sent or checked for them, and every output stays as it was.
-OPTIONAL_FOLDERS = ("detections_3d", "tracks_3d", "control")
+#: stacks carry (3-D detections, tracked objects, control commands) and for map perception
+#: (an OpenLane-V2 segment's lane graphs, ground truth and predicted). A running log has
+#: none: then nothing is read, written, sent or checked for them, and every output stays as
+#: it was.
+OPTIONAL_FOLDERS = ("detections_3d", "tracks_3d", "control", "lanes", "lanes_predicted")
 
 #: Every per-frame folder, the optional ones last.
 ALL_FOLDERS = FOLDERS + OPTIONAL_FOLDERS
@@ -94,6 +96,8 @@ FILE_PREFIX = {
     "detections_3d": "detections_3d",
     "tracks_3d": "tracks_3d",
     "control": "control",
+    "lanes": "lanes",
+    "lanes_predicted": "lanes_predicted",
 }
 
 
@@ -298,7 +302,7 @@ class ControlCommand:
 
 
 #: What one per-frame file holds; which one is set by its folder (see :meth:`RunLog.folder`).
-Record = EgoPose | Actors | Boxes | Predictions | Plan | Objects3D | ControlCommand
+Record = EgoPose | Actors | Boxes | Predictions | Plan | Objects3D | ControlCommand | LaneGraph
 
 
 class LogExtras(TypedDict, total=False):
@@ -405,7 +409,8 @@ class RunLog:
     inputs: dict[str, InputStatus] = field(default_factory=dict)
     #: Map perception per timestamp (OpenLane-V2 segments; empty for every other source):
     #: the ground truth's lane centerlines, traffic elements and topology, and a model's
-    #: prediction of them (``--predictions``).
+    #: prediction of them (``--predictions``); the optional folders ``lanes`` and
+    #: ``lanes_predicted``.
     lanes: dict[int, LaneGraph] = field(default_factory=dict)
     lanes_predicted: dict[int, LaneGraph] = field(default_factory=dict)
     #: A table of independent snapshots (atmaCup #18): each row's vehicle state, realised

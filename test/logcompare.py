@@ -14,6 +14,7 @@ from typing import TypeVar
 import numpy as np
 import numpy.typing as npt
 
+from ads_rca.lanes import LaneGraph
 from ads_rca.model import (
     ALL_FOLDERS,
     Actors,
@@ -87,6 +88,18 @@ def _control(a: ControlCommand, b: ControlCommand, where: str) -> None:
     _exact([a.steer, a.acceleration, a.speed], [b.steer, b.acceleration, b.speed], where)
 
 
+def _lanes(a: LaneGraph, b: LaneGraph, where: str) -> None:
+    assert a.lane_ids == b.lane_ids, f"{where}: lane ids {a.lane_ids} != {b.lane_ids}"
+    assert a.element_ids == b.element_ids, f"{where}: element ids"
+    assert len(a.lanes) == len(b.lanes), f"{where}: lanes"
+    for row, (x, y) in enumerate(zip(a.lanes, b.lanes, strict=True)):
+        _exact(x, y, f"{where} lane {row}")
+    for name in ("lane_scores", "element_boxes", "element_scores", "lane_lane", "lane_element"):
+        _exact(getattr(a, name), getattr(b, name), f"{where} {name}")
+    for name in ("element_category", "element_attribute"):
+        assert getattr(a, name).tolist() == getattr(b, name).tolist(), f"{where} {name}"
+
+
 def assert_logs_equal(
     a: RunLog, b: RunLog, angle_tol: float = 1e-9, *, check_frames: bool = True
 ) -> None:
@@ -97,7 +110,7 @@ def assert_logs_equal(
     assert same, "metadata differs"
     if check_frames:
         assert a.frames == b.frames, f"frames {a.frames} != {b.frames}"
-    assert ALL_FOLDERS[0] == "pose" and ALL_FOLDERS[-1] == "control"  # compared in this order
+    assert ALL_FOLDERS[0] == "pose" and ALL_FOLDERS[-1] == "lanes_predicted"  # this order
     _folder("pose", a.pose, b.pose, lambda x, y, w: _pose(x, y, angle_tol, w))
     _folder("actors", a.actors, b.actors, lambda x, y, w: _actors(x, y, angle_tol, w))
     _folder("bboxes", a.bboxes, b.bboxes, _boxes)
@@ -109,6 +122,8 @@ def assert_logs_equal(
     _folder("detections_3d", a.detections_3d, b.detections_3d, _objects)
     _folder("tracks_3d", a.tracks_3d, b.tracks_3d, _objects)
     _folder("control", a.controls, b.controls, _control)
+    _folder("lanes", a.lanes, b.lanes, _lanes)
+    _folder("lanes_predicted", a.lanes_predicted, b.lanes_predicted, _lanes)
 
 
 def _folder(

@@ -3,7 +3,8 @@
 Built in code (no reader needed): all seven folders, numeric and non-numeric ids, extras on
 boxes, step keys out of order, an empty predictions record, missing files, and optionally
 a duplicated analysed frame and records-only stamps (a pose with no actors file).
-:func:`add_3d` adds the optional folders (3-D detections, tracks, control commands).
+:func:`add_3d` adds the optional folders (3-D detections, tracks, control commands, lane
+graphs: ground truth and predicted).
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import zlib
 
 import numpy as np
 
+from ads_rca.lanes import LaneGraph
 from ads_rca.model import (
     Actors,
     Boxes,
@@ -140,6 +142,38 @@ def _plan(rng: np.random.Generator, *, shuffled: bool) -> Plan:
     return Plan(keys=tuple(keys), xy=rng.normal(0, 100, (10, 2)), speed=rng.uniform(0, 20, 10))
 
 
+def lane_graph(rng: np.random.Generator, lanes: int, elements: int, predicted: bool) -> LaneGraph:
+    """A lane graph as OpenLane-V2 gives one (so a log folder's files read it back): lanes of
+    2 to 6 points, ids of every kind (digits, unicode, spaces), elements of both categories,
+    0/1 topology for a ground truth (NaN scores), confidences in [0, 1] for a prediction."""
+    names = ("7", "lane é", "0042", "l-3", "💡", "x y")
+    lane_ids = tuple(
+        f"{names[i % len(names)]}#{i}" if i >= len(names) else names[i] for i in range(lanes)
+    )
+    points = tuple(rng.normal(0, 20, (int(rng.integers(2, 7)), 3)) for _ in range(lanes))
+
+    def scores(count: int) -> np.ndarray:
+        return rng.uniform(0, 1, count) if predicted else np.full(count, np.nan)
+
+    def links(rows: int, columns: int) -> np.ndarray:
+        found = rng.uniform(0, 1, (rows, columns))
+        return found if predicted else (found > 0.6).astype(np.float64)
+
+    corners = rng.uniform(0, 1000, (elements, 2))
+    return LaneGraph(
+        lane_ids=lane_ids,
+        lanes=points,
+        lane_scores=scores(lanes),
+        element_ids=tuple(str(100 + i) for i in range(elements)),
+        element_boxes=np.hstack([corners, corners + rng.uniform(5, 80, (elements, 2))]),
+        element_category=rng.integers(1, 3, elements),
+        element_attribute=rng.integers(0, 13, elements),
+        element_scores=scores(elements),
+        lane_lane=links(lanes, lanes),
+        lane_element=links(lanes, elements),
+    )
+
+
 def objects_3d(rng: np.random.Generator, ids: tuple[str, ...]) -> Objects3D:
     """3-D objects for ``ids``: unknown (NaN) velocity components and scores on some rows,
     labels of every kind (unicode and empty included), yaw over the whole circle."""
@@ -188,4 +222,21 @@ def add_3d(log: RunLog, seed: int = 0) -> RunLog:
             log.controls[ts] = ControlCommand(steer=steer, acceleration=acceleration, speed=speed)
     if log.frames:
         log.controls[log.frames[-1] + 7] = ControlCommand(-0.0, float("nan"), 1e-300)
+    add_lanes(log, seed)
+    return log
+
+
+def add_lanes(log: RunLog, seed: int = 0) -> RunLog:
+    """``log`` with lane graphs added (in place; returned), from a generator of its own: a
+    ground truth on every frame but every fourth (the second frame's empty, the third's
+    without elements), a prediction on every third frame (the first without lanes)."""
+    rng = np.random.default_rng(20_000 + seed)
+    for f, ts in enumerate(dict.fromkeys(log.frames)):
+        if f % 4 != 3:
+            lanes = 0 if f == 1 else int(rng.integers(1, 7))
+            elements = 0 if f in (1, 2) else int(rng.integers(1, 4))
+            log.lanes[ts] = lane_graph(rng, lanes, elements, predicted=False)
+        if f % 3 == 0:
+            lanes = 0 if f == 0 else int(rng.integers(1, 5))
+            log.lanes_predicted[ts] = lane_graph(rng, lanes, int(rng.integers(0, 3)), True)
     return log

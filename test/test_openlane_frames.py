@@ -512,3 +512,29 @@ def test_a_batch_job_diagnoses_a_segment_and_names_its_format(segment: Path) -> 
     outcome = run_job(job)
     assert outcome.row["format"] == "OpenLane-V2 segment" and not outcome.row.get("error")
     assert outcome.json is not None and len(json.loads(outcome.json)["frames"]) == FRAMES
+
+
+def test_lane_graphs_survive_a_bag_and_a_log_folder(segment: Path, tmp_path: Path) -> None:
+    """The segment → bag (map/lanes, map/lanes_predicted) → log folder (lanes/,
+    lanes_predicted/) → the same graphs, exactly."""
+    from logcompare import assert_logs_equal
+
+    from ads_rca.io.bag_reader import read_bag
+    from ads_rca.io.json_log import read_run_log
+
+    folder = write_openlane_predictions(tmp_path / "pred", segment, "missing_sign")
+    bag, out = tmp_path / "bag", tmp_path / "folder"
+    converted = run("convert", str(segment), str(bag), "--predictions", str(folder))
+    assert converted.returncode == 0, converted.stderr
+    assert run("convert", str(bag), str(out)).returncode == 0
+    original = read_openlane_segment(segment, source=SourceOptions(predictions=str(folder)))
+    for back in (read_bag(bag), read_run_log(out)):
+        only = [
+            RunLog.from_folders(log.metadata, (), {"lanes": log.lanes, "lanes_predicted": p})
+            for log, p in ((original, original.lanes_predicted), (back, back.lanes_predicted))
+        ]
+        only[1].metadata = only[0].metadata
+        assert_logs_equal(only[0], only[1], check_frames=False)
+    document = json.loads(next((out / "lanes").glob("*.json")).read_text())
+    assert document["lane_centerline"][1]["points"][0] == [0.0, 3.5, 0.0]  # y left again
+    assert "confidence" not in document["lane_centerline"][0]

@@ -196,7 +196,9 @@ def test_bags_carry_them_and_declare_them_only_when_there(tmp_path: Path, storag
     log = log_3d(2)
     counts = write_bag(log, tmp_path / "with", storage)
     names = {key: topics.topic_name(key) for key in OPTIONAL_TOPICS}
-    assert [counts[names[key]] for key in OPTIONAL_TOPICS] == [12, 7, 10 + 1]
+    # 3-D detections, tracks, control commands; lane graphs on 3 frames in 4, predicted
+    # ones on every third
+    assert [counts[names[key]] for key in OPTIONAL_TOPICS] == [12, 7, 10 + 1, 11, 5]
     assert_logs_equal(log, read_bag(tmp_path / "with"))
     write_bag(make_log(6, 3, 2), tmp_path / "without", storage)
     assert not {m.topic for m in iter_bag(tmp_path / "without")} & set(names.values())
@@ -248,6 +250,8 @@ def test_a_monitor_whose_oracle_reads_them_holds_them(monkeypatch: pytest.Monkey
     expected.metadata = view.metadata  # the document's, with model_inputs
     expected.detections_3d.clear()
     expected.controls.clear()
+    expected.lanes.clear()
+    expected.lanes_predicted.clear()
     for ts in list(expected.tracks_3d):
         if ts not in view.tracks_3d:
             del expected.tracks_3d[ts]
@@ -417,4 +421,6 @@ def test_player_dds_summary_and_recorder_keep_every_value(ros_env: RosEnv, tmp_p
         len(log.detections_3d),
         len(log.tracks_3d),
         len(log.controls),
+        len(log.lanes),
+        len(log.lanes_predicted),
     ]

@@ -29,6 +29,7 @@ from ads_rca.contract import cdr, convert, playback, topics
 from ads_rca.contract.assembler import RunLogAssembler
 from ads_rca.contract.cdr_decode import decode_clock, decode_string
 from ads_rca.contract.topics import decode_record, stamp_ms
+from ads_rca.lanes import LaneGraph
 from ads_rca.live import diagnostics as diag
 from ads_rca.model import (
     OPTIONAL_FOLDERS,
@@ -70,6 +71,8 @@ def assert_records_equal(a: Any, b: Any) -> None:
         x, y = getattr(a, name), getattr(b, name)
         if isinstance(x, np.ndarray):
             assert x.shape == y.shape and x.tobytes() == y.tobytes(), (name, x, y)
+        elif name == "lanes":  # a lane graph's tuple of (P, 3) arrays
+            assert [(a.shape, a.tobytes()) for a in x] == [(b.shape, b.tobytes()) for b in y]
         elif name == "extras":
             assert [list(e.items()) for e in x] == [list(e.items()) for e in y]
         else:
@@ -127,6 +130,8 @@ def test_3d_objects_and_control_commands_encode_byte_for_byte_and_decode_exactly
         topics.OBJECTS_3D: 13,
         topics.TRACKS_3D: 7,
         topics.CONTROL_COMMAND: 12,  # the duplicated frame's again, and a records-only one
+        topics.LANES: 12,  # 3 frames in 4, the duplicated frame's again
+        topics.LANES_PREDICTED: 5,  # every third frame
     }
     assert check_log(log) > 120
 
@@ -175,6 +180,26 @@ def awkward_log() -> RunLog:
     )
     log.controls[0] = ControlCommand(nan, -inf, -0.0)
     log.controls[2_000_000_050] = ControlCommand(1e-300, 0.0, 1e308)
+    # Points travel as float64 (NaN signs kept); scores, boxes and adjacency as JSON text
+    # (NaN and infinities by the strict-JSON convention, so no -NaN there).
+    log.lanes[0] = LaneGraph(
+        lane_ids=("é", "0", "ユニコード"),
+        lanes=(
+            np.array([[nan, -0.0, 1e308], [1e-300, -nan, -5.0]]),
+            np.empty((0, 3)),
+            np.array([[1.0, 2.0, 3.0]]),
+        ),
+        lane_scores=np.array([nan, inf, -0.0]),
+        element_ids=("\u202e", 'q"uote'),
+        element_boxes=np.array([[nan, 1.0, -0.0, 3.0], [1e-320, 2.0, 3.0, -inf]]),
+        element_category=np.array([1, 7]),
+        element_attribute=np.array([0, -99]),
+        element_scores=np.array([nan, 0.5]),
+        lane_lane=np.array([[nan, inf, 0.0], [-0.0, 1.0, 0.5], [0.0, 0.0, 1e-310]]),
+        lane_element=np.array([[1.0, 0.0], [nan, -inf], [0.25, 0.75]]),
+    )
+    log.lanes_predicted[-50] = LaneGraph.empty()
+    log.lanes_predicted[2_000_000_050] = log.lanes[0]
     return log
 
 

@@ -30,17 +30,23 @@ from ads_rca.contract.convert import (
     EGO_FRAME,
     FLIP_Y,
     IMAGE_FRAME,
+    LABEL_HEIGHT,
+    LANE_WIDTH,
+    TEXT_VIEW_FACING,
     WORLD_FRAME,
     MarkerStyle,
     carla_rpy_to_quaternions,
     carried_plan_rows,
     control_positions,
+    label_heights,
+    lane_marker_texts,
     marker_id,
     object_texts,
     objects_rpy,
     step_ms,
 )
 from ads_rca.contract.jsontext import dumps_json
+from ads_rca.lanes import LaneGraph
 from ads_rca.model import Actors, Boxes, ControlCommand, EgoPose, Objects3D, Plan, Predictions
 
 #: Encapsulation header: representation CDR_LE (0x0001), options 0.
@@ -410,6 +416,23 @@ def encode_predictions(predictions: Predictions, timestamp_ms: int, style: Marke
         fixed,
         points * np.array([1.0, -1.0, 1.0]),
         ["", *texts],
+    )
+
+
+def encode_lanes(graph: LaneGraph, timestamp_ms: int, style: MarkerStyle) -> bytes:
+    """A lane graph as :func:`convert.lanes_to_markers` (lanes in ``base_link``, element
+    labels stacked above the ego)."""
+    n, k = graph.lane_count, graph.element_count
+    fixed = marker_rows(n + k, style, LINE_STRIP)
+    fixed["ita"][1:, 0] = np.arange(n + k)
+    fixed["ita"][n + 1 :, 1] = TEXT_VIEW_FACING
+    fixed["scale"][1 : n + 1, 0] = LANE_WIDTH
+    fixed["scale"][n + 1 :, 2] = LABEL_HEIGHT
+    fixed["pose"][n + 1 :, 2] = label_heights(k)
+    fixed["points"][1 : n + 1] = [len(lane) for lane in graph.lanes]
+    points = np.concatenate(graph.lanes) * FLIP_Y if n else np.empty((0, 3))
+    return encode_marker_array(
+        timestamp_ms, EGO_FRAME, style.ns, fixed, points, ["", *lane_marker_texts(graph)]
     )
 
 

@@ -35,6 +35,7 @@ from ads_rca.contract.cdr import HEADER_SIZE, MESH_WHEN_EMPTY, MIDDLE_WHEN_EMPTY
 from ads_rca.contract.convert import (
     check_box_points,
     control_from_fields,
+    lane_graph_of,
     marker_document,
     objects_from_fields,
     quaternions_to_carla_rpy,
@@ -42,6 +43,7 @@ from ads_rca.contract.convert import (
     track_keys,
 )
 from ads_rca.contract.errors import CdrError, MalformedMessage, NoStamp
+from ads_rca.lanes import LaneGraph
 from ads_rca.model import (
     Actors,
     Boxes,
@@ -400,6 +402,13 @@ def decode_predictions(data: bytes) -> Predictions:
         offsets[:, 1] = -offsets[:, 1]
         out.setdefault(str(document.get("id", marker_id)), Track(keys=keys, offsets=offsets))
     return out
+
+
+@_typed
+def decode_lanes(data: bytes) -> LaneGraph:
+    """``map/lanes*`` MarkerArray → LaneGraph (:func:`convert.markers_to_lanes`)."""
+    m = read_markers(data)
+    return lane_graph_of(list(zip(m.texts, m.points, strict=True)))
 
 
 # --- trajectory ---------------------------------------------------------------------------

@@ -1,8 +1,8 @@
 """How each kind of record travels: its message type and its conversions on both paths.
 
 One :class:`Codec` per kind (ego pose, actors, boxes, predictions, plan, 3-D objects, control
-command, JSON text, clock) holds the four conversions a topic needs, so the topic table
-(:mod:`ads_rca.contract.topics`) gives a topic its kind in one row and everything else
+command, lane graph, JSON text, clock) holds the four conversions a topic needs, so the topic
+table (:mod:`ads_rca.contract.topics`) gives a topic its kind in one row and everything else
 follows from it:
 
 - ``build`` / ``read``: record ↔ rclpy message object (:mod:`~ads_rca.contract.convert`:
@@ -27,6 +27,7 @@ from typing import Any, Generic, TypeVar
 
 from ads_rca.contract import cdr, cdr_decode, convert
 from ads_rca.contract.convert import MarkerStyle
+from ads_rca.lanes import LaneGraph
 from ads_rca.model import Actors, Boxes, ControlCommand, EgoPose, Objects3D, Plan, Predictions
 
 R = TypeVar("R")
@@ -109,6 +110,18 @@ def objects(style: MarkerStyle) -> Codec[Objects3D]:
         read=lambda msg, _tpf: convert.markers_to_objects(msg),
         encode=lambda record, stamp, _tpf: cdr.encode_objects(record, stamp, style),
         decode=lambda data, _tpf: cdr_decode.decode_objects(data),
+        stamp=cdr_decode.marker_array_stamp_ms,
+    )
+
+
+def lanes(style: MarkerStyle) -> Codec[LaneGraph]:
+    """A lane graph as LINE_STRIP lanes and TEXT_VIEW_FACING element labels in ``style``."""
+    return Codec(
+        _MARKER_ARRAY,
+        build=lambda record, stamp, _tpf: convert.lanes_to_markers(record, stamp, style),
+        read=lambda msg, _tpf: convert.markers_to_lanes(msg),
+        encode=lambda record, stamp, _tpf: cdr.encode_lanes(record, stamp, style),
+        decode=lambda data, _tpf: cdr_decode.decode_lanes(data),
         stamp=cdr_decode.marker_array_stamp_ms,
     )
 

@@ -25,6 +25,7 @@ import numpy as np
 
 from ads_rca.contract.errors import MalformedMessage, NoStamp
 from ads_rca.contract.jsontext import dumps_json, loads_json
+from ads_rca.lanes import LaneGraph
 from ads_rca.model import (
     Actors,
     Boxes,
@@ -545,6 +546,132 @@ def markers_to_predictions(msg: MarkerArray) -> Predictions:
         offsets = np.array([(p.x, -p.y, p.z) for p in m.points], dtype=np.float64).reshape(-1, 3)
         out.setdefault(str(document.get("id", m.id)), Track(keys=keys, offsets=offsets))
     return out
+
+
+# --- lane graphs (map perception) ---------------------------------------------------------
+
+#: A lane centerline's line width (m); the traffic elements' labels: height (m) and where
+#: they stack above the ego (z of the first, then one step up each).
+LANE_WIDTH = 0.3
+LABEL_HEIGHT = 0.5
+LABEL_BASE_Z = 3.0
+LABEL_STEP_Z = 0.6
+#: visualization_msgs/Marker.TEXT_VIEW_FACING (the traffic elements' labels).
+TEXT_VIEW_FACING = 9
+
+
+def lane_marker_texts(graph: LaneGraph) -> list[str]:
+    """Every lane's marker ``text``, then every traffic element's (docs/topics.md): JSON
+    {"lane", "score", "next", "elements"} with lane i's rows of the two adjacency matrices,
+    and {"element", "box", "category", "attribute", "score"}."""
+    lanes = [
+        dumps_json({"lane": ident, "score": score, "next": following, "elements": governed})
+        for ident, score, following, governed in zip(
+            graph.lane_ids,
+            graph.lane_scores.tolist(),
+            graph.lane_lane.tolist(),
+            graph.lane_element.tolist(),
+            strict=True,
+        )
+    ]
+    elements = [
+        dumps_json(
+            {"element": ident, "box": box, "category": category, "attribute": attribute}
+            | {"score": score}
+        )
+        for ident, box, category, attribute, score in zip(
+            graph.element_ids,
+            graph.element_boxes.tolist(),
+            graph.element_category.tolist(),
+            graph.element_attribute.tolist(),
+            graph.element_scores.tolist(),
+            strict=True,
+        )
+    ]
+    return lanes + elements
+
+
+def label_heights(count: int) -> FloatArray:
+    """z of each traffic element's label (stacked above the ego)."""
+    out: FloatArray = LABEL_BASE_Z + LABEL_STEP_Z * np.arange(count, dtype=np.float64)
+    return out
+
+
+def lanes_to_markers(graph: LaneGraph, timestamp_ms: int, style: MarkerStyle) -> MarkerArray:
+    """A lane graph → DELETEALL + one LINE_STRIP per lane centerline (``base_link``, REP-103:
+    y flipped back to the left) + one TEXT_VIEW_FACING label per traffic element, stacked
+    above the ego (the elements are image boxes: ``perception/ground_truth`` draws them).
+    Marker ids: lanes 0…n−1, elements n…; ``text`` as :func:`lane_marker_texts`."""
+    from geometry_msgs.msg import Pose, Quaternion, Vector3
+    from visualization_msgs.msg import Marker, MarkerArray
+
+    ns = style.ns
+    head = header(timestamp_ms, EGO_FRAME)
+    color = _color(style)
+    texts = lane_marker_texts(graph)
+    markers = [_delete_all(timestamp_ms, EGO_FRAME, ns)]
+    for index, lane in enumerate(graph.lanes):
+        points = [_point(*p) for p in (lane * FLIP_Y).tolist()]
+        markers.append(_line_strip(head, ns, index, LANE_WIDTH, color, points, texts[index]))
+    n = graph.lane_count
+    for row, z in enumerate(label_heights(graph.element_count).tolist()):
+        markers.append(
+            Marker(
+                header=head,
+                ns=ns,
+                id=n + row,
+                type=TEXT_VIEW_FACING,
+                action=Marker.ADD,
+                pose=Pose(position=_point(0.0, 0.0, z), orientation=Quaternion(w=1.0)),
+                scale=Vector3(z=LABEL_HEIGHT),
+                color=color,
+                text=texts[n + row],
+            )
+        )
+    return MarkerArray(markers=markers)
+
+
+def markers_to_lanes(msg: MarkerArray) -> LaneGraph:
+    """The inverse of :func:`lanes_to_markers`."""
+    return lane_graph_of(
+        [
+            (m.text, np.array([(p.x, p.y, p.z) for p in m.points], dtype=np.float64))
+            for m in _added(msg)
+        ]
+    )
+
+
+def lane_graph_of(markers: Sequence[tuple[str, FloatArray]]) -> LaneGraph:
+    """A lane graph from its markers' (text, (P, 3) points in REP-103); MalformedMessage for
+    markers that are not one (a text of neither kind, rows of the wrong length)."""
+    lanes: list[dict[str, Any]] = []
+    elements: list[dict[str, Any]] = []
+    points: list[FloatArray] = []
+    for text, pts in markers:
+        document = marker_document(text)
+        if "lane" in document:
+            lanes.append(document)
+            points.append(np.reshape(pts, (-1, 3)) * FLIP_Y)
+        elif "element" in document:
+            elements.append(document)
+        else:
+            raise MalformedMessage("a lanes marker that is neither a lane nor an element")
+    n, k = len(lanes), len(elements)
+    try:
+        return LaneGraph(
+            lane_ids=tuple(str(d["lane"]) for d in lanes),
+            lanes=tuple(points),
+            lane_scores=np.array([float(d["score"]) for d in lanes], dtype=np.float64),
+            element_ids=tuple(str(d["element"]) for d in elements),
+            element_boxes=np.array([d["box"] for d in elements], dtype=np.float64).reshape(-1, 4),
+            element_category=np.array([int(d["category"]) for d in elements], dtype=np.int64),
+            element_attribute=np.array([int(d["attribute"]) for d in elements], dtype=np.int64),
+            element_scores=np.array([float(d["score"]) for d in elements], dtype=np.float64),
+            lane_lane=np.array([d["next"] for d in lanes], dtype=np.float64).reshape(n, n),
+            lane_element=np.array([d["elements"] for d in lanes], dtype=np.float64).reshape(n, k),
+        )
+    except (KeyError, TypeError, ValueError) as error:
+        raise MalformedMessage(f"a lanes marker's text: {error}") from None
 
 
 # --- plan ---------------------------------------------------------------------------------

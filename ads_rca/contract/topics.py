@@ -50,6 +50,9 @@ TRAJECTORY = "planning/trajectory"
 OBJECTS_3D = "perception/objects_3d"
 TRACKS_3D = "perception/tracks_3d"
 CONTROL_COMMAND = "control/command"
+#: Map perception (an OpenLane-V2 segment): the ground truth's and a model's lane graphs.
+LANES = "map/lanes"
+LANES_PREDICTED = "map/lanes_predicted"
 #: A run's annotations (a CARLA run's events), each sent with the tick it falls on.
 ANNOTATIONS = "run/annotations"
 #: A snapshot table's row's future ego paths (realised, predicted), sent with its frame
@@ -149,6 +152,18 @@ TABLE: tuple[Topic, ...] = (
         optional=True,
     ),
     Topic(CONTROL_COMMAND, codec.CONTROL, folder="control", optional=True),
+    Topic(
+        LANES,
+        codec.lanes(MarkerStyle("lanes", (1.0, 1.0, 1.0))),
+        folder="lanes",
+        optional=True,
+    ),
+    Topic(
+        LANES_PREDICTED,
+        codec.lanes(MarkerStyle("lanes_predicted", (1.0, 0.3, 0.3))),
+        folder="lanes_predicted",
+        optional=True,
+    ),
     Topic(ANNOTATIONS, codec.TEXT, optional=True),
     Topic(EGO_PATHS, codec.TEXT, optional=True),
     Topic(FRAME, codec.TEXT),

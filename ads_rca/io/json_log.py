@@ -34,6 +34,7 @@ import orjson
 from ads_rca.errors import InputError
 from ads_rca.io.errors import InvalidJson
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB, Unreadable, max_bytes, read_regular
+from ads_rca.io.openlane_annotation import parse_lanes, parse_predicted_lanes
 from ads_rca.io.packing import Packed, Packer, unpack
 from ads_rca.io.records import (
     as_float,
@@ -92,6 +93,8 @@ PARSERS: dict[str, Parser] = {
     "detections_3d": parse_objects_3d,
     "tracks_3d": parse_objects_3d,
     "control": parse_control,
+    "lanes": parse_lanes,
+    "lanes_predicted": parse_predicted_lanes,
 }
 
 

@@ -17,6 +17,8 @@ from typing import Any
 import numpy as np
 import orjson
 
+from ads_rca.io.openlane_annotation import annotation_document
+from ads_rca.lanes import LaneGraph
 from ads_rca.model import (
     ALL_FOLDERS,
     FILE_PREFIX,
@@ -51,6 +53,8 @@ def write_run_log(log: RunLog, out_dir: str | os.PathLike[str]) -> Path:
         "detections_3d": lambda record, _ts: objects_document(record),
         "tracks_3d": lambda record, _ts: objects_document(record),
         "control": lambda record, _ts: control_document(record),
+        "lanes": lambda record, _ts: annotation_document(record, False),
+        "lanes_predicted": lambda record, _ts: annotation_document(record, True),
     }
     for folder in ALL_FOLDERS:
         if folder not in FOLDERS and not log.folder(folder):
@@ -180,7 +184,7 @@ def record_is_finite(record: Record) -> bool:
             return False
     elif isinstance(record, Plan):
         arrays = [record.xy, record.speed]
-    elif isinstance(record, Objects3D | ControlCommand):
+    elif isinstance(record, Objects3D | ControlCommand | LaneGraph):
         return True  # strict JSON: orjson writes NaN as the null these formats read back
     else:  # Predictions
         arrays = [track.offsets for track in record.values()]

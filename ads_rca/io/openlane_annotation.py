@@ -22,10 +22,12 @@ from ads_rca.geometry import FloatArray
 from ads_rca.io.records import as_float
 from ads_rca.lanes import ELEMENT_ATTRIBUTES, ELEMENT_CATEGORIES, LaneGraph
 from ads_rca.model import Boxes
-from ads_rca.problems import DROPPED_RECORD, ProblemLog, Severity
+from ads_rca.problems import DROPPED_RECORD, SKIPPED_FILE, ProblemLog, Severity
 
 #: Ids longer than this are not kept.
 MAX_TEXT = 64
+#: OpenLane-V2's right-handed ego frame <-> the model's: y negated (its own inverse).
+MIRROR = np.array([1.0, -1.0, 1.0])
 
 
 def lane_graph(
@@ -47,7 +49,7 @@ def lane_graph(
     lanes: list[FloatArray] = []
     lane_scores: list[float] = []
     for row, entry in enumerate(lanes_listed):
-        field = f"{where}.lane_centerline[{row}]"
+        field = _at(where, f"lane_centerline[{row}]")
         ident = _entry_id(entry, field, lane_ids, report)
         if ident is None:
             continue
@@ -69,7 +71,7 @@ def lane_graph(
     attributes: list[int] = []
     element_scores: list[float] = []
     for row, entry in enumerate(elements_listed):
-        field = f"{where}.traffic_element[{row}]"
+        field = _at(where, f"traffic_element[{row}]")
         ident = _entry_id(entry, field, element_ids, report)
         if ident is None:
             continue
@@ -122,6 +124,11 @@ def lane_graph(
     )
 
 
+def _at(where: str, key: str) -> str:
+    """A problem's field: ``key`` inside ``where`` ("" for a document's top level)."""
+    return f"{where}.{key}" if where else key
+
+
 class _Reporter:
     """One file's problems: field, issue, action."""
 
@@ -136,7 +143,7 @@ def _listed(annotation: Mapping[str, Any], key: str, where: str, report: _Report
     value = annotation.get(key, [])
     if isinstance(value, list):
         return value
-    report(f"{where}.{key}", f"expected a list, found {type_name(value)}", "read as empty")
+    report(_at(where, key), f"expected a list, found {type_name(value)}", "read as empty")
     return []
 
 
@@ -186,7 +193,7 @@ def _topology(
     """An adjacency matrix of the file's list order; no links (zeros) when missing or of
     the wrong shape; text, NaN and out-of-range entries read as 0 (or clipped, or a ground
     truth's non-0/1 as 1 past 0.5), each kind reported once."""
-    field = f"{where}.{key}"
+    field = _at(where, key)
     zeros = np.zeros(shape)
     value = annotation.get(key)
     if value is None:
@@ -298,3 +305,70 @@ def boxes_of(graph: LaneGraph, predicted: bool) -> Boxes:
             extra["score"] = float(graph.element_scores[row])
         extras.append(extra)
     return Boxes(graph.element_ids, graph.element_boxes.copy(), tuple(extras))
+
+
+def annotation_document(graph: LaneGraph, predicted: bool) -> dict[str, Any]:
+    """A graph as OpenLane-V2's annotation schema, back in its right-handed ego frame (the
+    inverse of :func:`lane_graph`; confidences only for a prediction): the file of a log
+    folder's ``lanes/`` and ``lanes_predicted/``."""
+
+    def scored(entry: dict[str, Any], score: float) -> dict[str, Any]:
+        return {**entry, "confidence": score} if predicted else entry
+
+    return {
+        "lane_centerline": [
+            scored({"id": ident, "points": (lane * MIRROR).tolist()}, score)
+            for ident, lane, score in zip(
+                graph.lane_ids, graph.lanes, graph.lane_scores.tolist(), strict=True
+            )
+        ],
+        "traffic_element": [
+            scored(
+                {
+                    "id": ident,
+                    "category": category,
+                    "attribute": attribute,
+                    "points": [box[:2], box[2:]],
+                },
+                score,
+            )
+            for ident, box, category, attribute, score in zip(
+                graph.element_ids,
+                graph.element_boxes.tolist(),
+                graph.element_category.tolist(),
+                graph.element_attribute.tolist(),
+                graph.element_scores.tolist(),
+                strict=True,
+            )
+        ],
+        "topology_lclc": graph.lane_lane.tolist(),
+        "topology_lcte": graph.lane_element.tolist(),
+    }
+
+
+def parse_lanes(document: Any, file: str, problems: ProblemLog, ts: int) -> LaneGraph | None:
+    """A log folder's ``lanes/`` file (:func:`annotation_document` of a ground truth)."""
+    return _parse(document, file, problems, ts, predicted=False)
+
+
+def parse_predicted_lanes(
+    document: Any, file: str, problems: ProblemLog, ts: int
+) -> LaneGraph | None:
+    """A log folder's ``lanes_predicted/`` file (with confidences)."""
+    return _parse(document, file, problems, ts, predicted=True)
+
+
+def _parse(
+    document: Any, file: str, problems: ProblemLog, ts: int, predicted: bool
+) -> LaneGraph | None:
+    if not isinstance(document, dict):
+        problems.add(
+            file,
+            "",
+            f"expected an annotation object, found {type_name(document)}",
+            SKIPPED_FILE,
+            "error",
+            ts,
+        )
+        return None
+    return lane_graph(document, file, "", problems, ts, predicted)

@@ -14,7 +14,7 @@ import subprocess
 import sys
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pytest
@@ -33,6 +33,9 @@ from ads_rca.synth.openlane_segments import (
     write_openlane_predictions,
     write_openlane_segment,
 )
+
+if TYPE_CHECKING:
+    from conftest import RosEnv
 
 ADS_RCA = str(Path(sys.executable).with_name("ads-rca"))
 FRAMES = 6
@@ -538,3 +541,34 @@ def test_lane_graphs_survive_a_bag_and_a_log_folder(segment: Path, tmp_path: Pat
     document = json.loads(next((out / "lanes").glob("*.json")).read_text())
     assert document["lane_centerline"][1]["points"][0] == [0.0, 3.5, 0.0]  # y left again
     assert "confidence" not in document["lane_centerline"][0]
+
+
+def test_replay_of_a_segment_equals_diagnose_and_records_its_lanes(
+    ros_env: RosEnv, segment: Path, tmp_path: Path
+) -> None:
+    """Player, monitors, aggregator and recorder over DDS with a model's results: the same
+    frames and verdict as diagnose (reference perception judged on the predicted elements),
+    and the recording's map/lanes and map/lanes_predicted give the graphs back."""
+    from logcompare import assert_logs_equal
+
+    from ads_rca.io.bag_reader import read_bag
+    from ads_rca.ros.launcher import ManagedProcess
+
+    folder = write_openlane_predictions(tmp_path / "pred", segment, "perfect")
+    bag, out = tmp_path / "bag", tmp_path / "verdict.json"
+    argv = [sys.executable, "-m", "ads_rca.cli", "replay", str(segment), "--json", str(out)]
+    argv += ["--predictions", str(folder), "--semantics", "reference", "--record", str(bag)]
+    argv += ["--domain-id", str(ros_env.domain_id), "--timeout", "90"]
+    replay = ManagedProcess("replay", argv, ros_env.env)
+    assert replay.wait(120) == 0, replay.output
+    live = json.loads(out.read_text())
+    log = read_openlane_segment(segment, source=SourceOptions(predictions=str(folder)))
+    offline = diagnose(log, make_params("reference")).to_json()
+    for key in ("frames", "modules_judged", "verdict"):
+        assert live[key] == offline[key], key
+    assert live["modules_judged"]["perception"] == "judged"
+    recorded = read_bag(bag)
+    for name in ("lanes", "lanes_predicted"):
+        expected = RunLog.from_folders(log.metadata, (), {name: log.folder(name)})
+        back = RunLog.from_folders(log.metadata, (), {name: recorded.folder(name)})
+        assert_logs_equal(expected, back, check_frames=False)

@@ -130,7 +130,7 @@ def detect_format(path: str | os.PathLike[str]) -> str:
     ``actors/`` folder), a DLP scene (a ``_scene.json`` file, or a folder with one and no
     ``actors/``), an atmaCup table (``train_features.csv`` / ``test_features.csv``, or a
     folder with one and no ``actors/``), else a running-log folder (whose reader says what
-    is wrong). Before CARLA's and DLP's checks: an OpenLane-V2 segment (a folder with an
+    is wrong). After CARLA's and DLP's checks: an OpenLane-V2 segment (a folder with an
     ``info/`` of JSON files and no ``actors/``, that ``info/`` itself, or a dataset root
     holding ``data_dict_*.json``)."""
     if is_bag(path):
@@ -143,8 +143,6 @@ def detect_format(path: str | os.PathLike[str]) -> str:
     tables = any(os.path.lexists(folder / name) for name in ATMACUP_TABLES)
     if tables and folder.is_dir() and not (folder / "actors").is_dir():
         return ATMACUP
-    if _openlane(folder):
-        return OPENLANE
     telemetry = any(os.path.lexists(folder / name) for name in CARLA_TELEMETRY)
     if telemetry and folder.is_dir() and not (folder / "actors").is_dir():
         return CARLA
@@ -154,6 +152,8 @@ def detect_format(path: str | os.PathLike[str]) -> str:
                 return DLP
         except OSError:
             pass
+    if _openlane(folder):
+        return OPENLANE
     return LOG
 
 

@@ -270,7 +270,8 @@ def _in_unit(
         problems.add(
             f"{INFO}/{other[0]}",
             "file name",
-            f"{len(other)} timestamps are not in the segment's unit ({unit}, from the median)",
+            f"{len(other)} timestamps are not in the segment's unit ({unit}, from the median) "
+            "or are past the latest time read",
             SKIPPED_FRAME,
         )
     return out

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from ads_rca.ego_snapshots import HORIZONS_S, EgoSnapshots
+from ads_rca.model import RunLog
 
 #: Key of the verdict JSON holding the scores.
 TRAJECTORY_SCORES_KEY = "trajectory_scores"
@@ -114,4 +115,25 @@ def trajectory_scores(snapshots: EgoSnapshots, worst: int = WORST_ROWS) -> dict[
     return out
 
 
-__all__ = ["TRAJECTORY_SCORES_KEY", "WORST_ROWS", "trajectory_scores"]
+def frame_scores(log: RunLog, timestamp_ms: int) -> dict[str, float | str]:
+    """One frame's row scored (the planning module's metrics where the verdict rules cannot
+    judge planning, offline and on the live monitor): its ID and its ADE, FDE and MAE as in
+    ``per_row``; {} when the frame is no row with both paths."""
+    snapshots = log.ego_snapshots
+    row = snapshots.row_at(timestamp_ms) if snapshots is not None else None
+    if snapshots is None or row is None:
+        return {}
+    realised, predicted = snapshots.realised[row], snapshots.predicted[row]
+    if not (np.isfinite(realised).all() and np.isfinite(predicted).all()):
+        return {}
+    error = realised - predicted
+    distance = np.sqrt((error**2).sum(axis=1))
+    return {
+        "row_id": _bounded(snapshots.ids[row]),
+        "trajectory_ade": float(distance.mean()),
+        "trajectory_fde": float(distance[-1]),
+        "trajectory_mae": float(np.abs(error).mean()),
+    }
+
+
+__all__ = ["TRAJECTORY_SCORES_KEY", "WORST_ROWS", "frame_scores", "trajectory_scores"]

@@ -538,6 +538,60 @@ def test_a_malformed_ego_path_message_is_refused(document: dict[str, Any], expec
         read_ego_path(document)
 
 
+def test_each_frame_scores_its_row_in_the_planning_result(table: Path) -> None:
+    log = read(table, write_submission(table / "sub.csv", hand_paths()))
+    frames = diagnose(log, make_params("corrected")).to_json()["frames"]
+    planning = [f["planning"] for f in frames]
+    assert [p["row_id"] for p in planning] == IDS
+    assert all(p["skipped"].startswith("not judged") and not p["failed"] for p in planning)
+    np.testing.assert_allclose([p["trajectory_ade"] for p in planning], HAND_ADE)
+    np.testing.assert_allclose([p["trajectory_fde"] for p in planning], HAND_FDE)
+    np.testing.assert_allclose(
+        [p["trajectory_mae"] for p in planning], [6 / 18, 1.8 / 18, 5.4 / 18]
+    )
+    reference = diagnose(log, make_params("reference")).to_json()["frames"]
+    assert all("row_id" not in f["planning"] for f in reference)  # the reference's rules only
+    plain = diagnose(read(table), make_params("corrected")).to_json()["frames"]
+    assert all("row_id" not in f["planning"] for f in plain)  # no submission: nothing scored
+
+
+def test_the_planning_monitor_waits_for_a_rows_paths_and_scores_it(table: Path) -> None:
+    from ads_rca.live.diagnostics import OK, result_status
+    from ads_rca.live.results import FrameMarker
+    from ads_rca.live.window import MonitorCore
+
+    log = read(table, write_submission(table / "sub.csv", hand_paths()))
+    core = MonitorCore("planning", make_params("corrected"))
+    core.set_metadata(log.metadata, 0.0)
+    assert core.wants_paths
+    marker = FrameMarker(0, 0, frozenset({"pose", "actors", "bboxes"}), snapshot=True)
+    for folder in core.folders:
+        record = log.folder(folder).get(0)
+        if record is not None:
+            core.add_record(folder, 0, record, 0.1)
+    core.add_marker(marker, 0.1)
+    core.set_finished(0.1, 1)  # one frame played: no look-ahead to wait for
+    assert core.poll(0.2) == []  # the row's paths have not come
+    document = ego_path_document(log, 0)
+    assert document is not None
+    core.add_ego_path(read_ego_path(loads_json(dumps_json(document))), 0.3)
+    results = core.poll(0.3)
+    assert len(results) == 1 and not results[0].incomplete
+    metrics = results[0].result.metrics
+    assert metrics["row_id"] == IDS[0] and metrics["trajectory_ade"] == pytest.approx(1.0)
+    status = result_status(results[0], "corrected", "test")
+    assert status.level == OK and f"row {IDS[0]}: predicted path scored" in status.message
+    # A frame whose row never comes is judged when inputs time out, marked incomplete.
+    late_core = MonitorCore("planning", make_params("corrected"))
+    late_core.set_metadata(log.metadata, 0.0)
+    late_core.add_marker(FrameMarker(0, 0, frozenset(), snapshot=True), 0.1)
+    late_core.set_finished(0.1, 1)
+    assert late_core.poll(0.2) == []
+    late = late_core.poll(0.1 + late_core.settings.input_timeout_s + 1)
+    assert len(late) == 1 and "no ego_paths record" in " ".join(late[0].incomplete)
+    assert "row_id" not in late[0].result.metrics
+
+
 def test_replay_of_a_table_scores_as_diagnose(ros_env: RosEnv, tmp_path: Path) -> None:
     """Player, monitors, aggregator and recorder over DDS: the player sends each row's paths
     on run/ego_paths and marks its frame as a snapshot; the live verdict's trajectory scores
@@ -568,3 +622,4 @@ def test_replay_of_a_table_scores_as_diagnose(ros_env: RosEnv, tmp_path: Path) -
             elif channel.topic.endswith("/run/frame"):
                 snapshots.append(json.loads(msg.data).get("snapshot"))
     assert [p["id"] for p in paths] == IDS and snapshots == IDS
+    assert [f["planning"]["row_id"] for f in live["frames"]] == IDS  # each row scored live

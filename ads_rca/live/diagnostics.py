@@ -160,6 +160,13 @@ def result_status(live: LiveResult, semantics: str, hardware_id: str) -> Status:
             f"(ADE {_metres(r.metrics.get('ade'))}, FDE {_metres(r.metrics.get('fde'))}); "
             f"the verdict rule: {r.skipped}"
         )
+    elif r.skipped and r.skipped.startswith(NOT_JUDGED) and "trajectory_ade" in r.metrics:
+        level = OK  # a snapshot table's row: its predicted ego path against the realised one
+        message = (
+            f"frame {live.frame}: row {shown_id(str(r.metrics.get('row_id')))}: predicted path "
+            f"scored (ADE {_metres(r.metrics.get('trajectory_ade'))}, FDE "
+            f"{_metres(r.metrics.get('trajectory_fde'))}); the verdict rule: {r.skipped}"
+        )
     elif r.skipped and r.skipped.startswith(NOT_JUDGED):
         level, message = STALE, f"frame {live.frame}: no data: {r.skipped}"
     elif r.skipped or live.incomplete:

@@ -36,6 +36,8 @@ class FrameMarker:
     stamp_ms: int
     folders: frozenset[str] = frozenset()
     duplicate: bool = False
+    #: The frame is a snapshot table's row (its paths come on ``run/ego_paths``).
+    snapshot: bool = False
 
     @classmethod
     def from_document(cls, document: Mapping[str, Any]) -> FrameMarker:
@@ -52,6 +54,7 @@ class FrameMarker:
                 bounded_int(document.get("stamp_ms", 0), "stamp_ms", -MAX_STAMP, MAX_STAMP),
                 folders,
                 bool(document.get("duplicate", False)),
+                isinstance(document.get("snapshot"), str),
             )
         except DOCUMENT_ERRORS as error:
             raise MalformedMessage(str(error)) from error

@@ -42,6 +42,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ads_rca.capabilities import complete
+from ads_rca.contract.ego_paths import EgoPathRow, merged, snapshots_from_rows
 from ads_rca.engine import evaluate_frame
 from ads_rca.live.results import FollowsRunEnd, FrameMarker, LiveResult, RunEnd
 from ads_rca.model import (
@@ -142,6 +143,10 @@ class MonitorCore(FollowsRunEnd):
         self.collision_at: float | None = None
         #: What the stack's layouts derive rather than carry (said on every result).
         self.derived: tuple[str, ...] = ()
+        #: A snapshot table's rows' paths (``run/ego_paths``), which the planning module's
+        #: not-judged result scores: a snapshot frame waits for its row as for a record.
+        self.ego_paths: dict[int, EgoPathRow] = {}
+        self.wants_paths = "planning" in self.modules and self.semantics.scores_predictions
 
     # --- feeding ---------------------------------------------------------------------
 
@@ -234,6 +239,13 @@ class MonitorCore(FollowsRunEnd):
                     self.first_extents[actor_id] = extent[row]
         self._settle(now)
 
+    def add_ego_path(self, row: EgoPathRow, now: float) -> None:
+        """One ``run/ego_paths`` message of the run's player."""
+        self._touch(now)
+        if self.wants_paths:
+            self.ego_paths[row.stamp_ms] = merged(self.ego_paths.get(row.stamp_ms), row)
+            self._settle(now)
+
     def add_marker(self, marker: FrameMarker, now: float) -> None:
         self._touch(now)
         entry = _Entry(marker, now)
@@ -266,6 +278,8 @@ class MonitorCore(FollowsRunEnd):
             stamp = entry.marker.stamp_ms
             wanted = [f for f in self.folders if f in entry.marker.folders]
             missing = tuple(f for f in wanted if stamp not in self.records[f])
+            if self.wants_paths and entry.marker.snapshot and stamp not in self.ego_paths:
+                missing += ("ego_paths",)
             if missing and not stalled and now - entry.arrived < timeout and not self.stack:
                 break
             entry.settled, entry.missing = True, missing
@@ -368,6 +382,11 @@ class MonitorCore(FollowsRunEnd):
             first_extents=dict(self.first_extents),
             problems=ProblemLog(self.input_problems),
             inputs=dict(self.inputs),
+            ego_snapshots=(
+                snapshots_from_rows({s: self.ego_paths[s] for s in frames if s in self.ego_paths})
+                if self.ego_paths
+                else None
+            ),
         )
 
     def _context(self, log: RunLog) -> RunContext:
@@ -477,6 +496,8 @@ class MonitorCore(FollowsRunEnd):
             for stamp in [s for s in by_stamp if s < floor]:
                 if stamp != pinned:
                     del by_stamp[stamp]
+        for stamp in [s for s in self.ego_paths if s < floor]:
+            del self.ego_paths[stamp]
         for index in [i for i, s in self.analysed.items() if s < floor]:
             if self.analysed[index] != pinned:
                 del self.analysed[index]

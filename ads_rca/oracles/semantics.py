@@ -265,6 +265,10 @@ def not_judged(module: Module, why: str, scores: bool, ctx: RunContext, ts: int)
         from ads_rca.prediction_scores import frame_scores
 
         metrics = frame_scores(ctx.log, ts, ctx.params.prediction_window)
+    elif scores and module == "planning" and ctx.log.ego_snapshots is not None:
+        from ads_rca.trajectory_scores import frame_scores as row_scores
+
+        metrics = dict(row_scores(ctx.log, ts))  # a snapshot table's row's predicted path
     return OracleResult(module, ts, failed=False, metrics=metrics, skipped=why)
 
 

@@ -40,6 +40,7 @@ from std_msgs.msg import String
 from ads_rca.contract import live_topics, topics
 from ads_rca.contract.assembler import run_metadata
 from ads_rca.contract.cdr import encode_joint_state, encode_string
+from ads_rca.contract.ego_paths import read_ego_path
 from ads_rca.contract.errors import CdrError, MalformedMessage, NoStamp
 from ads_rca.contract.jsontext import dumps_json
 from ads_rca.contract.malformed import SkippedMessages
@@ -346,7 +347,8 @@ class MonitorInputs:
         # Data topics arrive as CDR bytes and are decoded straight into model records
         # (ads_rca.contract.cdr_decode): building rclpy message objects costs ~10 ms a frame.
         self.subscriptions: list[Any] = []
-        for key in (*lossless, topics.FRAME, topics.METADATA, topics.STATUS):
+        paths = (topics.EGO_PATHS,) if core.wants_paths else ()
+        for key in (*lossless, topics.FRAME, topics.METADATA, topics.STATUS, *paths):
             sub = node.create_subscription(
                 topics.message_types()[key],
                 topics.topic_name(key, namespace),
@@ -401,6 +403,13 @@ class MonitorInputs:
                         return
                     core.add_marker(marker, now)
                     self.unit.on_marker(now)
+                elif key == topics.EGO_PATHS:
+                    try:
+                        row = read_ego_path(document)
+                    except MalformedMessage as error:
+                        self._skip(key, error, now)
+                        return
+                    core.add_ego_path(row, now)
                 elif document.get("state") == FINISHED:
                     core.set_finished(now, _count(document.get("frames_published")))
             elif self._metadata is None:

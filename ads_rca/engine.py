@@ -17,6 +17,8 @@ import numpy as np
 from ads_rca import __version__
 from ads_rca.annotations import ANNOTATIONS_KEY, annotations_from_document
 from ads_rca.model import RunLog, frame_number
+from ads_rca.openlane_run_scores import OPENLANE_SCORES_KEY
+from ads_rca.openlane_run_scores import run_scores as lane_run_scores
 from ads_rca.oracles.base import MODULES, Module, OracleResult, RunContext
 from ads_rca.oracles.semantics import Oracle, Semantics, semantics_for
 from ads_rca.params import Params
@@ -130,6 +132,9 @@ class Diagnosis:
         scores = run_scores(self.frames)
         if scores:
             document[SCORES_KEY] = scores
+        lanes = lane_run_scores(self.frames, self.params.semantics)
+        if lanes:  # an OpenLane-V2 segment's model, with the benchmark's figures
+            document[OPENLANE_SCORES_KEY] = lanes
         if self.log.ego_snapshots is not None:  # a table of snapshots (atmaCup #18)
             document[TRAJECTORY_SCORES_KEY] = trajectory_scores(self.log.ego_snapshots)
         return dict(json_safe(document))

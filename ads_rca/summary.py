@@ -10,6 +10,8 @@ from typing import Any
 
 from ads_rca.annotations import annotations_from_document
 from ads_rca.capabilities import JUDGED
+from ads_rca.openlane_run_scores import OPENLANE_SCORES_KEY
+from ads_rca.openlane_run_scores import summary_lines as openlane_lines
 from ads_rca.oracles.base import MODULES
 from ads_rca.oracles.semantics import MODES, Semantics, semantics_for
 from ads_rca.prediction_scores import MISS_M, SCORES_KEY
@@ -90,6 +92,7 @@ def run_notes_lines(document: dict[str, Any], shown: int = 10) -> list[str]:
             if isinstance(row, dict):
                 lines.append(f"  {kind}: {row.get('scored')} tracks, {_score_text(row)}")
     lines.extend(trajectory_lines(document.get(TRAJECTORY_SCORES_KEY), shown))
+    lines.extend(openlane_lines(document.get(OPENLANE_SCORES_KEY)))
     figures = figures_from_document(document)
     if figures:
         values = ", ".join(f"{k}={_short(figures[k])}" for k in FIGURE_KEYS)

@@ -45,6 +45,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
         "ads_rca.run_figures",
         "ads_rca.prediction_scores",
         "ads_rca.openlane_scores",
+        "ads_rca.openlane_run_scores",
         "ads_rca.trajectory_scores",
     ),
     ("ads_rca.contract",),

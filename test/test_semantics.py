@@ -96,7 +96,13 @@ def test_the_modes_rules() -> None:
     assert corrected.window_frames(corrected_params, 25) == 40
     # folders read and the look-ahead needed at a frame.
     assert reference.module_folders(["perception"]) == ("bboxes", "bboxes_gt")
-    assert corrected.module_folders(["perception"]) == (*FOLDERS, "detections_3d", "tracks_3d")
+    assert corrected.module_folders(["perception"]) == (
+        *FOLDERS,
+        "detections_3d",
+        "tracks_3d",
+        "lanes",
+        "lanes_predicted",
+    )
     assert corrected.module_folders(["controller"]) == FOLDERS
     none: dict[str, dict[int, Any]] = {"predictions_with_perception": {}}
     assert [reference.lookahead_frames(m, reference_params, none, 0, 100) for m in MODULES] == [

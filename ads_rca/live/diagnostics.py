@@ -35,6 +35,7 @@ from ads_rca.contract.errors import CdrError
 from ads_rca.contract.jsontext import dumps_json
 from ads_rca.live.results import LiveResult, plain
 from ads_rca.live.runid import RUN_KEY
+from ads_rca.openlane_run_scores import FRAME_KEY, SEGMENT_KEY, figures_text
 from ads_rca.params import make_params
 from ads_rca.text import printable
 
@@ -167,6 +168,15 @@ def result_status(live: LiveResult, semantics: str, hardware_id: str) -> Status:
             f"scored (ADE {_metres(r.metrics.get('trajectory_ade'))}, FDE "
             f"{_metres(r.metrics.get('trajectory_fde'))}); the verdict rule: {r.skipped}"
         )
+    elif r.skipped and r.skipped.startswith(NOT_JUDGED) and FRAME_KEY in r.metrics:
+        level = OK  # an OpenLane-V2 model's lane graphs against the ground truth
+        segment = r.metrics.get(SEGMENT_KEY)
+        frames = segment.get("frames") if isinstance(segment, Mapping) else None
+        message = (
+            f"frame {live.frame}: OpenLane-V2 {figures_text(r.metrics[FRAME_KEY])} (frame) / "
+            f"{figures_text(segment)} (segment so far, {_count(frames)}); "
+            f"the verdict rule: {r.skipped}"
+        )
     elif r.skipped and r.skipped.startswith(NOT_JUDGED):
         level, message = STALE, f"frame {live.frame}: no data: {r.skipped}"
     elif r.skipped or live.incomplete:
@@ -192,6 +202,12 @@ def result_status(live: LiveResult, semantics: str, hardware_id: str) -> Status:
         head[RUN_KEY] = live.run
     values = flatten(head) + flatten(r.metrics, "metric.") + flatten(r.thresholds, "threshold.")
     return Status(level, status_name(r.module), message, hardware_id, values)
+
+
+def _count(frames: object) -> str:
+    if not isinstance(frames, int) or isinstance(frames, bool):
+        return "- frames"
+    return f"{frames} frame" + ("" if frames == 1 else "s")
 
 
 def _metres(value: object) -> str:

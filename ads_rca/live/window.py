@@ -55,6 +55,7 @@ from ads_rca.model import (
     frame_number,
     read_inputs,
 )
+from ads_rca.openlane_run_scores import LaneMatches
 from ads_rca.oracles.base import MODULES, Module, RunContext
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import Params
@@ -147,6 +148,9 @@ class MonitorCore(FollowsRunEnd):
         #: not-judged result scores: a snapshot frame waits for its row as for a record.
         self.ego_paths: dict[int, EgoPathRow] = {}
         self.wants_paths = "planning" in self.modules and self.semantics.scores_predictions
+        #: An OpenLane-V2 segment's scored frames' matches, kept for the segment figures
+        #: (a frame is matched when judged, never again; :mod:`ads_rca.openlane_run_scores`).
+        self.lane_matches = LaneMatches()
 
     # --- feeding ---------------------------------------------------------------------
 
@@ -395,6 +399,7 @@ class MonitorCore(FollowsRunEnd):
         else:
             ctx = RunContext.create(log, self.params)
             self.ego_id, self.ego_resolved = ctx.ego_id, True
+        ctx.lane_matches = self.lane_matches  # the segment so far: every judged frame's
         if self.judge_without_collision and self.collision_frame < 0:
             self.semantics.judge_without_collision(ctx)
         return ctx

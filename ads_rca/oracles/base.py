@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ads_rca.model import Actors, EgoPose, RunLog
+from ads_rca.openlane_run_scores import LaneMatches
 from ads_rca.oracles.semantics import EGO_ID_TIMESTAMP_MS, semantics_for
 from ads_rca.params import Params
 from ads_rca.problems import CHECK_SKIPPED, Problem, ProblemLog, new_problems
@@ -43,6 +44,9 @@ class RunContext:
     ego_id: str | None = None
     problems: ProblemLog = field(default_factory=ProblemLog)
     _reported: set[tuple[str, str, str]] = field(default_factory=set, repr=False)
+    #: The OpenLane-V2 frames' matches the segment figures pool (a live monitor gives every
+    #: context of its run the same one; :mod:`ads_rca.openlane_run_scores`).
+    lane_matches: LaneMatches = field(default_factory=LaneMatches, repr=False)
 
     @classmethod
     def create(cls, log: RunLog, params: Params) -> RunContext:

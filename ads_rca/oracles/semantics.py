@@ -259,12 +259,20 @@ def not_judged(module: Module, why: str, scores: bool, ctx: RunContext, ts: int)
     """The result of a module the run's inputs do not let be judged (see
     :meth:`Semantics.judging_oracles`); with ``scores`` (:attr:`Semantics.scores_predictions`)
     a predictor's tracks are still scored against the realised future
-    (:mod:`ads_rca.prediction_scores`)."""
+    (:mod:`ads_rca.prediction_scores`), an OpenLane-V2 model's lane graphs against the
+    ground truth (:mod:`ads_rca.openlane_run_scores`)."""
     metrics: dict[str, Metric] = {}
     if scores and module == "prediction":
         from ads_rca.prediction_scores import frame_scores
 
         metrics = frame_scores(ctx.log, ts, ctx.params.prediction_window)
+    elif scores and module == "perception" and (ctx.log.lanes or ctx.log.lanes_predicted):
+        from ads_rca.openlane_run_scores import THRESHOLDS
+        from ads_rca.openlane_run_scores import frame_scores as lane_scores
+
+        metrics = lane_scores(ctx.log, ts, ctx.lane_matches)  # an OpenLane-V2 segment's
+        if metrics:
+            return OracleResult(module, ts, False, metrics, dict(THRESHOLDS), skipped=why)
     elif scores and module == "planning" and ctx.log.ego_snapshots is not None:
         from ads_rca.trajectory_scores import frame_scores as row_scores
 

@@ -188,8 +188,13 @@ class CorrectedSemantics(Semantics):
 
     def folders(self, module: Module) -> tuple[str, ...]:
         """Every folder of the seed format, and for the partner-reading rules the 3-D
-        objects of a recording (rule 2b, and the 3-D link of prediction and planning)."""
-        return FOLDERS if module == "controller" else (*FOLDERS, "detections_3d", "tracks_3d")
+        objects of a recording (rule 2b, and the 3-D link of prediction and planning);
+        perception also an OpenLane-V2 segment's lane graphs, which its not-judged result
+        scores (:mod:`ads_rca.openlane_run_scores`)."""
+        if module == "controller":
+            return FOLDERS
+        lanes = ("lanes", "lanes_predicted") if module == "perception" else ()
+        return (*FOLDERS, "detections_3d", "tracks_3d", *lanes)
 
     def attribute(self, frames: Sequence[FrameResults], ctx: RunContext) -> Attribution:
         return attribute_corrected(frames, ctx)

@@ -32,7 +32,7 @@ import pytest
 from test_hostile_bags import convert
 
 from ads_rca.contract import cdr, cdr_decode, live_topics, playback, rosmsg, topics
-from ads_rca.contract.errors import CdrError, JsonTextError, NoStamp
+from ads_rca.contract.errors import CdrError, JsonTextError, MalformedMessage, NoStamp
 from ads_rca.contract.jsontext import loads_json
 from ads_rca.contract.malformed import SkippedMessages
 from ads_rca.errors import InputError
@@ -642,3 +642,60 @@ def test_a_log_with_an_absurd_collision_frame_replays_to_diagnoses_verdict(
     assert live["collision_frame"] == offline["collision_frame"] > 10**12
     assert failed_flags(live) == failed_flags(offline)
     assert_close(verdict_keys(live), verdict_keys(offline))
+
+
+def _lane_markers(tmp_path: Path) -> Any:
+    """A synthesised OpenLane-V2 segment's first ground-truth lane graph as a MarkerArray."""
+    from ads_rca.io import open_run
+    from ads_rca.synth.openlane_segments import write_openlane_segment
+
+    log = open_run(write_openlane_segment(tmp_path))
+    data = topics.frame_payloads(log, log.frames[0])[topics.LANES]
+    return rosmsg.deserialize(data, "visualization_msgs/msg/MarkerArray")
+
+
+@pytest.mark.parametrize(
+    "row, text",
+    [
+        (1, '{"lane": [1], "score": 0.5, "next": [0, 0, 0], "elements": [0, 0]}'),
+        (1, '{"lane": true, "score": 0.5, "next": [0, 0, 0], "elements": [0, 0]}'),
+        (1, '{"lane": "a", "score": "0.5", "next": [0, 0, 0], "elements": [0, 0]}'),
+        (1, '{"lane": "a", "score": 0.5, "next": [0, 0], "elements": [0, 0]}'),
+        (1, '{"lane": "a", "score": 0.5, "next": 7, "elements": [0, 0]}'),
+        (1, '{"lane": "a", "next": [0, 0, 0], "elements": [0, 0]}'),
+        (1, '{"lane": "a", "score": 0.5, "next": [0, 0, 0], "elements": [0, 0, true]}'),
+        (4, '{"element": "e", "box": [1, 2, 3], "category": 1, "attribute": 0, "score": 1}'),
+        (4, '{"element": "e", "box": [1, 2, 3, 4], "category": 1.5, "attribute": 0}'),
+        (
+            4,
+            '{"element": "e", "box": [1, 2, 3, 4], "category": 2, "attribute": 1' + "0" * 19 + "}",
+        ),
+        (4, '{"element": {}, "box": [1, 2, 3, 4], "category": 2, "attribute": 0, "score": 1}'),
+        (4, '{"neither": 1}'),
+    ],
+)
+def test_lane_marker_texts_that_are_no_lane_graph_are_refused(
+    tmp_path: Path, row: int, text: str
+) -> None:
+    """A lanes marker's text with a wrong type, length or range in any field: one typed
+    error on both paths (objects and CDR bytes), never a KeyError, TypeError or
+    OverflowError of the decoder (rows 1-3 are the lanes, 4-5 the elements)."""
+    msg = _lane_markers(tmp_path)
+    assert len(msg.markers) == 6, "the synthesised graph: 3 lanes and 2 elements"
+    msg.markers[row].text = text
+    with pytest.raises(MalformedMessage):
+        topics.message_to_record(topics.LANES, msg, 500)
+    data = rosmsg.serialize(msg, "visualization_msgs/msg/MarkerArray")
+    with pytest.raises(CdrError):
+        topics.decode_record(topics.LANES, data, 500)
+
+
+def test_lane_markers_round_trip_unchanged(tmp_path: Path) -> None:
+    msg = _lane_markers(tmp_path)
+    data = rosmsg.serialize(msg, "visualization_msgs/msg/MarkerArray")
+    by_object = topics.message_to_record(topics.LANES, msg, 500)
+    by_bytes = topics.decode_record(topics.LANES, data, 500)
+    for graph in (by_object, by_bytes):
+        assert graph.lane_lane.shape == (3, 3) and graph.lane_element.shape == (3, 2)
+    assert by_object.lane_ids == by_bytes.lane_ids
+    assert (by_object.lane_lane == by_bytes.lane_lane).all()

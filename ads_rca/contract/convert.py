@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ads_rca.contract.errors import MalformedMessage, NoStamp
 from ads_rca.contract.jsontext import dumps_json, loads_json
@@ -37,6 +38,7 @@ from ads_rca.model import (
     Predictions,
     Track,
 )
+from ads_rca.text import short_repr
 
 if TYPE_CHECKING:
     from builtin_interfaces.msg import Duration, Time
@@ -657,21 +659,59 @@ def lane_graph_of(markers: Sequence[tuple[str, FloatArray]]) -> LaneGraph:
         else:
             raise MalformedMessage("a lanes marker that is neither a lane nor an element")
     n, k = len(lanes), len(elements)
-    try:
-        return LaneGraph(
-            lane_ids=tuple(str(d["lane"]) for d in lanes),
-            lanes=tuple(points),
-            lane_scores=np.array([float(d["score"]) for d in lanes], dtype=np.float64),
-            element_ids=tuple(str(d["element"]) for d in elements),
-            element_boxes=np.array([d["box"] for d in elements], dtype=np.float64).reshape(-1, 4),
-            element_category=np.array([int(d["category"]) for d in elements], dtype=np.int64),
-            element_attribute=np.array([int(d["attribute"]) for d in elements], dtype=np.int64),
-            element_scores=np.array([float(d["score"]) for d in elements], dtype=np.float64),
-            lane_lane=np.array([d["next"] for d in lanes], dtype=np.float64).reshape(n, n),
-            lane_element=np.array([d["elements"] for d in lanes], dtype=np.float64).reshape(n, k),
-        )
-    except (KeyError, TypeError, ValueError) as error:
-        raise MalformedMessage(f"a lanes marker's text: {error}") from None
+    return LaneGraph(
+        lane_ids=_marker_ids(lanes, "lane"),
+        lanes=tuple(points),
+        lane_scores=_marker_numbers(lanes, "score", ()),
+        element_ids=_marker_ids(elements, "element"),
+        element_boxes=_marker_numbers(elements, "box", (4,)),
+        element_category=_marker_numbers(elements, "category", (), np.int64),
+        element_attribute=_marker_numbers(elements, "attribute", (), np.int64),
+        element_scores=_marker_numbers(elements, "score", ()),
+        lane_lane=_marker_numbers(lanes, "next", (n,)),
+        lane_element=_marker_numbers(lanes, "elements", (k,)),
+    )
+
+
+def _marker_ids(documents: Sequence[dict[str, Any]], key: str) -> tuple[str, ...]:
+    """Each lanes marker's ``key`` id as text; MalformedMessage where one is no text or
+    integer."""
+    ids = tuple(document.get(key) for document in documents)
+    for value in ids:
+        if not isinstance(value, (str, int)) or isinstance(value, bool):
+            raise MalformedMessage(f"a lanes marker's {key} id is {short_repr(value)}")
+    return tuple(map(str, ids))
+
+
+def _marker_numbers(
+    documents: Sequence[dict[str, Any]],
+    key: str,
+    shape: tuple[int, ...],
+    dtype: type[np.float64] | type[np.int64] = np.float64,
+) -> npt.NDArray[Any]:
+    """Each lanes marker's ``key``: a number (``shape`` ()) or a list of ``shape[0]``
+    numbers (integers for int64), stacked; MalformedMessage where one is not."""
+    integral = dtype is np.int64
+    rows = [document.get(key) for document in documents]
+    for value in rows:
+        values = [value] if not shape else value if isinstance(value, list) else None
+        if (
+            values is None
+            or len(values) != (shape[0] if shape else 1)
+            or not all(_in_range(v, integral) for v in values)
+        ):
+            wanted = f"{shape[0]} numbers" if shape else "an integer" if integral else "a number"
+            raise MalformedMessage(f"a lanes marker's {key} is not {wanted}: {short_repr(value)}")
+    return np.array(rows, dtype=dtype).reshape(len(rows), *shape)
+
+
+def _in_range(value: object, integral: bool) -> bool:
+    """A JSON number that fits its column (an int64 for integers, a double else)."""
+    if isinstance(value, bool):
+        return False
+    if isinstance(value, int):
+        return -(2**63) <= value < 2**63
+    return isinstance(value, float) and not integral
 
 
 # --- plan ---------------------------------------------------------------------------------

@@ -367,7 +367,7 @@ def test_predictions_elsewhere_or_missing_are_one_line(
         ([str(scene), "--predictions", str(tmp_path / "none")], "no such folder of prediction"),
         (
             [str(log_dirs("cut_in", "planning")), "--predictions", str(tmp_path)],
-            "--predictions applies to CARLA runs and DLP scenes",
+            "--predictions applies to CARLA runs, DLP scenes and OpenLane-V2 segments",
         ),
     ):
         done = run("diagnose", *argv)

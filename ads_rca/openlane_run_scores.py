@@ -220,7 +220,8 @@ def run_scores(frames: Iterable[FrameResults], semantics: str) -> dict[str, Any]
             latest = (frame.timestamp_ms, segment)
     if latest is None:
         return {}
-    return {**latest[1], "semantics": semantics, "rules": dict(RULES)}
+    rules = {key: list(v) if isinstance(v, list) else v for key, v in RULES.items()}
+    return {**latest[1], "semantics": semantics, "rules": rules}
 
 
 __all__ = [

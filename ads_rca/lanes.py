@@ -89,6 +89,20 @@ class LaneGraph:
     def element_count(self) -> int:
         return len(self.element_ids)
 
+    def element_rows(self) -> list[tuple[str, list[float], int, int, float]]:
+        """Each traffic element as plain values: (id, box, category, attribute, score), the
+        one walk the writers of a graph (log folders, markers) share."""
+        return list(
+            zip(
+                self.element_ids,
+                self.element_boxes.tolist(),
+                self.element_category.tolist(),
+                self.element_attribute.tolist(),
+                self.element_scores.tolist(),
+                strict=True,
+            )
+        )
+
     @classmethod
     def empty(cls) -> LaneGraph:
         """A frame that sees nothing."""

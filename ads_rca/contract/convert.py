@@ -581,14 +581,7 @@ def lane_marker_texts(graph: LaneGraph) -> list[str]:
             {"element": ident, "box": box, "category": category, "attribute": attribute}
             | {"score": score}
         )
-        for ident, box, category, attribute, score in zip(
-            graph.element_ids,
-            graph.element_boxes.tolist(),
-            graph.element_category.tolist(),
-            graph.element_attribute.tolist(),
-            graph.element_scores.tolist(),
-            strict=True,
-        )
+        for ident, box, category, attribute, score in graph.element_rows()
     ]
     return lanes + elements
 

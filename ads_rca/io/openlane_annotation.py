@@ -332,14 +332,7 @@ def annotation_document(graph: LaneGraph, predicted: bool) -> dict[str, Any]:
                 },
                 score,
             )
-            for ident, box, category, attribute, score in zip(
-                graph.element_ids,
-                graph.element_boxes.tolist(),
-                graph.element_category.tolist(),
-                graph.element_attribute.tolist(),
-                graph.element_scores.tolist(),
-                strict=True,
-            )
+            for ident, box, category, attribute, score in graph.element_rows()
         ],
         "topology_lclc": graph.lane_lane.tolist(),
         "topology_lcte": graph.lane_element.tolist(),

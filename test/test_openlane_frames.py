@@ -39,10 +39,11 @@ if TYPE_CHECKING:
 
 ADS_RCA = str(Path(sys.executable).with_name("ads-rca"))
 FRAMES = 6
-#: The ns segment's first frame: 315967376859927000 ns = 315967376859.927 ms, rounded.
-NS_FIRST_MS = 315_967_376_860
-#: The µs segment's first frame: 1531883530412470 µs = 1531883530412.47 ms, rounded.
-US_FIRST_MS = 1_531_883_530_412
+#: Frames count from the segment's first stamp (315967376859927000 ns in the ns segment,
+#: 1531883530412470 µs in the µs one, kept as the metadata's segment.first_timestamp), so
+#: either segment's first frame is at 0 ms, not at the epoch's 315967376860 ms.
+NS_FIRST_MS = 0
+US_FIRST_MS = 0
 
 
 def run(*argv: str) -> subprocess.CompletedProcess[str]:
@@ -373,6 +374,21 @@ def test_a_timestamp_that_disagrees_with_its_file_name(segment: Path) -> None:
     assert len(found) == 1 and "12345 is not the file name's" in found[0], found
     assert "the file name's kept" in found[0]
     assert log.frames == tuple(NS_FIRST_MS + 500 * n for n in range(FRAMES))
+
+
+def test_frames_count_from_the_first_listed_stamp_even_when_its_file_is_unusable(
+    segment: Path, tmp_path: Path
+) -> None:
+    """The origin is the first timestamp listed in the segment's unit, not the first usable
+    frame: a cut first file leaves frame 0 out (reported) and the others where they were,
+    and a model's results, named by the dataset's stamps, land on the same frames."""
+    predictions = write_openlane_predictions(tmp_path / "pred", segment)
+    info_files(segment)[0].write_text('{"pose": ')
+    log = read_openlane_segment(segment, source=SourceOptions(predictions=str(predictions)))
+    assert log.frames == tuple(500 * n for n in range(1, FRAMES))
+    assert log.metadata.raw["segment"]["first_timestamp"] == NS_START
+    assert set(log.lanes_predicted) == set(log.frames)
+    assert any(p.startswith(f"info/{NS_START}.json") for p in problems_of(log))
 
 
 def test_gaps_are_reported_as_the_running_log_reader_does(segment: Path) -> None:

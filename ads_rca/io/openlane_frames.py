@@ -9,8 +9,10 @@ No actors, no plan, no crash (docs/formats.md "OpenLane-V2 segments" has the who
   segment from the median file name: at least :data:`NS_FROM` (1e17; Argoverse 2 stamps are
   ~3.2e17 ns) is nanoseconds, at least :data:`US_FROM` (1e14; nuScenes' ~1.5e15 µs) is
   microseconds, anything smaller is not an OpenLane-V2 segment (InputError). A file of the
-  other magnitude is skipped and reported. Frames sit at their own milliseconds (rounded);
-  the frame period is the most common step. A step longer than 1.5 periods is a gap
+  other magnitude is skipped and reported. Frames sit at their milliseconds since the
+  segment's first timestamp (rounded; that stamp, in its unit, is the metadata's
+  ``segment.first_timestamp``), so frame numbers count from 0 as a log's do rather than
+  from the epoch; the frame period is the most common step. A step longer than 1.5 periods is a gap
   (reported; nuScenes' steps vary from 0.4 to 0.6 s, which are not).
 - the ego: ``pose.rotation`` (3x3, ego -> city) and ``pose.translation`` of the right-handed
   city frame, mirrored into the model's left-handed one as the CARLA ROS bridge does
@@ -182,7 +184,8 @@ def read_openlane_segment(
             f"{folder}: timestamps like {_median(list(raw_stamps))} are neither nanoseconds "
             f"(>= 1e17) nor microseconds (>= 1e14)"
         )
-    stamps = _in_unit(raw_stamps, unit, problems)
+    origin = min((raw for raw in raw_stamps if _unit_of(raw) == unit), default=0)
+    stamps = _in_unit(raw_stamps, unit, origin, problems)
     frames: list[InfoFrame] = []
     for stamp_ms, (raw, name) in sorted(stamps.items()):
         frame = _read_info(folder / name, f"{INFO}/{name}", raw, stamp_ms, limit, problems)
@@ -191,9 +194,9 @@ def read_openlane_segment(
     frames = _usable_rotations(frames, problems)
     if not frames:
         raise InputError(f"{folder}: no usable info file ({_last(problems)})")
-    log = _run_log(Path(path), folder, frames, unit, problems)
+    log = _run_log(Path(path), folder, frames, unit, origin, problems)
     if source.predictions:
-        _with_predictions(log, source.predictions, unit, limit)
+        _with_predictions(log, source.predictions, unit, origin, limit)
     return log
 
 
@@ -242,16 +245,23 @@ def _listing(folder: Path, label: str, problems: ProblemLog) -> dict[int, str]:
     return out
 
 
-def _in_unit(
-    raw_stamps: Mapping[int, str], unit: str, problems: ProblemLog
-) -> dict[int, tuple[int, str]]:
-    """Milliseconds -> (raw stamp, file name) of the files whose stamp is in ``unit`` and in
-    range; the others (and a second file rounding to the same millisecond) reported."""
+def segment_ms(raw: int, unit: str, origin: int) -> int:
+    """A timestamp in ``unit`` as milliseconds since the segment's first one (``origin``,
+    same unit), rounded half up."""
     divisor = UNITS[unit]
+    return (raw - origin + divisor // 2) // divisor
+
+
+def _in_unit(
+    raw_stamps: Mapping[int, str], unit: str, origin: int, problems: ProblemLog
+) -> dict[int, tuple[int, str]]:
+    """Milliseconds since ``origin`` -> (raw stamp, file name) of the files whose stamp is
+    in ``unit`` and in range; the others (and a second file rounding to the same
+    millisecond) reported."""
     out: dict[int, tuple[int, str]] = {}
     other: list[str] = []
     for raw, name in sorted(raw_stamps.items()):
-        stamp_ms = (raw + divisor // 2) // divisor
+        stamp_ms = segment_ms(raw, unit, origin)
         if _unit_of(raw) != unit or stamp_ms > MAX_TIMESTAMP_MS:
             other.append(name)
             continue
@@ -370,7 +380,12 @@ def ego_poses(
 
 
 def _run_log(
-    given: Path, folder: Path, frames: list[InfoFrame], unit: str, problems: ProblemLog
+    given: Path,
+    folder: Path,
+    frames: list[InfoFrame],
+    unit: str,
+    origin: int,
+    problems: ProblemLog,
 ) -> RunLog:
     stamps = [f.stamp_ms for f in frames]
     tpf = most_common_step(stamps) or DEFAULT_TPF
@@ -408,7 +423,7 @@ def _run_log(
             "source": bounded_text(meta.get("source"), ""),
             "source_id": bounded_text(meta.get("source_id"), ""),
             "frames": len(frames),
-            "first_timestamp": frames[0].raw,
+            "first_timestamp": origin,
         },
     }
     inputs = _capabilities(predicted=False)
@@ -487,7 +502,7 @@ def _capabilities(predicted: bool, predictions: str = "") -> dict[str, InputStat
 # --- predictions -------------------------------------------------------------------------
 
 
-def _with_predictions(log: RunLog, directory: str, unit: str, limit: int) -> None:
+def _with_predictions(log: RunLog, directory: str, unit: str, origin: int, limit: int) -> None:
     """A model's per-frame results put in ``log``: ``bboxes`` and ``lanes_predicted``, the
     capability record and metadata saying where they came from."""
     root = Path(directory)
@@ -495,11 +510,10 @@ def _with_predictions(log: RunLog, directory: str, unit: str, limit: int) -> Non
         raise InputError(f"{root}: no such folder of prediction files")
     problems = ProblemLog()
     listed = _listing(root, root.name, problems)
-    divisor = UNITS[unit]
     frames = set(log.frames)
     unmatched: list[str] = []
     for stamp, name in sorted(listed.items()):
-        stamp_ms = (stamp + divisor // 2) // divisor
+        stamp_ms = segment_ms(stamp, unit, origin)
         file = f"{root.name}/{name}"
         if _unit_of(stamp) != unit or stamp_ms not in frames:
             unmatched.append(file)

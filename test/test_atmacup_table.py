@@ -595,7 +595,7 @@ def test_the_planning_monitor_waits_for_a_rows_paths_and_scores_it(table: Path) 
 def test_replay_of_a_table_scores_as_diagnose(ros_env: RosEnv, tmp_path: Path) -> None:
     """Player, monitors, aggregator and recorder over DDS: the player sends each row's paths
     on run/ego_paths and marks its frame as a snapshot; the live verdict's trajectory scores
-    are diagnose's."""
+    are diagnose's, and so are its input problems (the ego has no size: no check needs one)."""
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
 
@@ -609,7 +609,7 @@ def test_replay_of_a_table_scores_as_diagnose(ros_env: RosEnv, tmp_path: Path) -
     assert replay.wait(120) == 0, replay.output
     live = json.loads(out.read_text())
     offline = diagnose(read(table, sub), make_params("corrected")).to_json()
-    for key in ("frames", "modules_judged", TRAJECTORY_SCORES_KEY, "verdict"):
+    for key in ("frames", "modules_judged", TRAJECTORY_SCORES_KEY, "verdict", "input_problems"):
         assert live[key] == offline[key], key
     assert live[TRAJECTORY_SCORES_KEY]["mae"] == pytest.approx(HAND_MAE)
     paths: list[dict[str, Any]] = []

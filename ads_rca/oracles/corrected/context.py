@@ -16,6 +16,7 @@ They assume the data at ts … ts + horizon is final when an oracle first asks f
 from __future__ import annotations
 
 from collections.abc import Callable
+from functools import cached_property
 from typing import Generic, TypeVar, cast
 
 import numpy as np
@@ -81,12 +82,6 @@ class CorrectedContext:
         self.tpf: int = ctx.log.tpf
         self.window: int = max(int(ctx.params.prediction_window), 1)
         self.ego_id: str | None = ctx.ego_id
-        extent = self.log.actor_extents.get(self.ego_id) if self.ego_id is not None else None
-        if extent is None:
-            ctx.report("actors/", "ego extent", "the ego has no actor extent; clearances undefined")
-            self.ego_half: FloatArray = np.full(2, np.nan)
-        else:
-            self.ego_half = np.asarray(extent[:2], dtype=np.float64)
         self._partner: tuple[int, str | None] | None = None
         self._provisional: PartnerRule = no_partner
         self.plans: LRU[int, PlanData | None] = LRU()
@@ -104,6 +99,19 @@ class CorrectedContext:
         self._frame_set: tuple[tuple[int, ...], frozenset[int]] | None = None
         #: A run-wide integer for every actor id seen so far (grows as frames are read).
         self._gid: dict[str, int] = {}
+
+    @cached_property
+    def ego_half(self) -> FloatArray:
+        """The ego's half extent (x, y); NaN where it has none, reported when a check first
+        needs it (a run no rule judges, e.g. a snapshot table, needs none: the live monitor,
+        which asks each frame's partner, must not report what ``diagnose`` never looked at)."""
+        extent = self.log.actor_extents.get(self.ego_id) if self.ego_id is not None else None
+        if extent is None:
+            self.ctx.report(
+                "actors/", "ego extent", "the ego has no actor extent; clearances undefined"
+            )
+            return np.full(2, np.nan)
+        return np.asarray(extent[:2], dtype=np.float64)
 
     # -- identities -------------------------------------------------------------------------
     @property

@@ -65,13 +65,23 @@ def batch(*args: str, timeout: float = 300) -> subprocess.CompletedProcess[str]:
 
 
 def start_batch(*args: str) -> subprocess.Popen[str]:
-    return subprocess.Popen(
-        [sys.executable, "-m", "ads_rca.cli", "batch", *args],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env=_env(),
-    )
+    """A batch as started at a terminal: with SIGINT's default action, whatever this test
+    run inherited (a suite started as a background job of a script ignores SIGINT, and the
+    batch rightly keeps an ignored SIGINT ignored: its Ctrl-C test then saw a finished
+    batch)."""
+    # A Python handler here is the default action in the child (an exec resets handlers,
+    # not an ignored disposition).
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        return subprocess.Popen(
+            [sys.executable, "-m", "ads_rca.cli", "batch", *args],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env=_env(),
+        )
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 @pytest.fixture(scope="module")

@@ -9,10 +9,17 @@ with each row's frame and before its ``run/frame`` marker, one message:
 
 with ``realised`` / ``predicted`` six ``[x, y, z]`` points (the model's frame at the row's
 moment: y mirrored, metres) or null where there is none. A live trajectory-prediction model
-may send the same message with only ``stamp_ms``, ``id`` and ``predicted`` (and its
-``submission``: a name for itself): the aggregator merges the messages of one stamp, a path
-given later replacing an earlier one, and scores the run's rows at its verdict as
-``diagnose`` scores the table (``ads_rca.trajectory_scores``).
+(any node on the run's graph, in its own process) may send the same message with only
+``stamp_ms``, ``id`` and ``predicted``, its ``submission`` (a name for itself) and the
+``run`` it answers (the player's messages name it). The messages of one stamp are merged,
+a path given later replacing an earlier one (:func:`merged`): the aggregator scores the
+run's rows so at its verdict as ``diagnose`` scores the table
+(``ads_rca.trajectory_scores``), and the planning monitor scores each row frame by frame;
+a model usually answers after it heard the frame, so when its path comes after the monitor
+judged the row, the row's planning result is published again with ``revision`` + 1
+(``ads_rca.live.row_paths``: the rule and its bounds). A message of another run is dropped;
+one that cannot be read (a field of the wrong type, text over :data:`MAX_TEXT`, a
+coordinate beyond :data:`MAX_COORDINATE_M`) is skipped and said.
 """
 
 from __future__ import annotations
@@ -29,6 +36,9 @@ from ads_rca.model import MAX_TIMESTAMP_MS, RunLog
 
 #: The longest row ID or submission name a message may carry.
 MAX_TEXT = 256
+#: The largest coordinate (metres, either sign) a path may have: a path 3 s ahead further
+#: than this is no path (and its squares would overflow the scores).
+MAX_COORDINATE_M = 1e6
 
 
 def ego_path_document(log: RunLog, timestamp_ms: int) -> dict[str, Any] | None:
@@ -77,8 +87,8 @@ def read_ego_path(document: dict[str, Any]) -> EgoPathRow:
         raise MalformedMessage("run/ego_paths: id and submission must be text")
     if len(ident) > MAX_TEXT or len(submission) > MAX_TEXT:
         raise MalformedMessage(f"run/ego_paths: id or submission longer than {MAX_TEXT}")
-    if not isinstance(row, int) or isinstance(row, bool):
-        raise MalformedMessage("run/ego_paths: row is not an integer")
+    if not isinstance(row, int) or isinstance(row, bool) or not -1 <= row <= MAX_TIMESTAMP_MS:
+        raise MalformedMessage("run/ego_paths: row is not an integer from -1 up")
     return EgoPathRow(
         stamp,
         ident,
@@ -101,6 +111,10 @@ def _path(value: object, name: str) -> FloatArray | None:
     ):
         raise MalformedMessage(f"run/ego_paths: {name} is not six [x, y, z] points")
     out: FloatArray = np.asarray(value, dtype=np.float64).reshape(shape)
+    if not (np.abs(out) <= MAX_COORDINATE_M).all():  # NaN fails too
+        raise MalformedMessage(
+            f"run/ego_paths: {name} has a coordinate beyond {MAX_COORDINATE_M:g} m"
+        )
     return out
 
 

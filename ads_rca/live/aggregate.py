@@ -36,6 +36,7 @@ import numpy as np
 
 from ads_rca.capabilities import held_status
 from ads_rca.contract.ego_paths import EgoPathRow, merged, snapshots_from_rows
+from ads_rca.contract.errors import MalformedMessage
 from ads_rca.engine import Diagnosis, frame_json
 from ads_rca.live.results import (
     Columns,
@@ -187,7 +188,15 @@ class AggregatorCore(FollowsRunEnd):
                 self.expected.set(index, stamp_ms=marker.stamp_ms, arrived=now)
 
     def add_ego_path(self, row: EgoPathRow) -> None:
-        """One ``run/ego_paths`` message (the player's row, or a live model's prediction)."""
+        """One ``run/ego_paths`` message (the player's row, or a live model's prediction);
+        MalformedMessage when it would be a row beyond :data:`MAX_ROWS` (only the rows of
+        analysed frames are scored at the verdict: one of a stamp never played counts for
+        nothing)."""
+        if row.stamp_ms not in self.ego_paths and len(self.ego_paths) >= MAX_ROWS:
+            raise MalformedMessage(
+                f"run/ego_paths: {MAX_ROWS} rows are held already; the row at "
+                f"{row.stamp_ms} ms is skipped"
+            )
         self.ego_paths[row.stamp_ms] = merged(self.ego_paths.get(row.stamp_ms), row)
 
     def set_finished(self, now: float, frames_published: int | None = None) -> None:
@@ -372,6 +381,12 @@ class AggregatorCore(FollowsRunEnd):
             why.append(f"inputs stalled for {self.stall_timeout_s:g} s before the horizon")
         return self._decide(now, why)
 
+    def _rows(self, required: list[_Expected]) -> dict[int, EgoPathRow]:
+        """The snapshot rows of the verdict's frames (merged per stamp)."""
+        return {
+            e.stamp_ms: self.ego_paths[e.stamp_ms] for e in required if e.stamp_ms in self.ego_paths
+        }
+
     def _stack_budget_s(self) -> float:
         """Stack mode: how long after a collision the verdict waits for the monitors. A
         monitor may hold the collision frame ``input_timeout_s`` for its inputs before it
@@ -412,7 +427,7 @@ class AggregatorCore(FollowsRunEnd):
             problems=ProblemLog([*self.input_problems, *self.problems]),
             inputs=self.recorded_inputs
             or held_status({FOLDER_FIELDS[f] for f in self.folders_sent if f in FOLDER_FIELDS}),
-            ego_snapshots=snapshots_from_rows(self.ego_paths) if self.ego_paths else None,
+            ego_snapshots=snapshots_from_rows(rows) if (rows := self._rows(required)) else None,
         )
         # The engine's attribution; its context reports nothing we keep (no records here).
         attribution = self.semantics.attribute(
@@ -450,6 +465,9 @@ class AggregatorCore(FollowsRunEnd):
 
 #: Stack mode: results this many frames before the first one heard are still placed.
 STACK_MARGIN = 4096
+#: Snapshot rows (``run/ego_paths`` stamps) held at most: an atmaCup #18 train table has
+#: about 43,000; a flood of made-up stamps must not grow memory without end.
+MAX_ROWS = 1 << 17
 
 
 def _frames_text(by_module: Mapping[Module, list[int]]) -> str:

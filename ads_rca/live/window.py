@@ -25,6 +25,11 @@ A collision announced later (a live stack's collision topic) moves the frames st
 back to the queue (`corrected` only: reference results do not depend on the partner); they
 are judged again and published with a higher ``revision``.
 
+A snapshot table's row (``run/ego_paths``) that a live model gives a path for after its
+frame was judged is scored again: its planning result alone is published with a higher
+``revision`` (:mod:`ads_rca.live.row_paths` has the rule; the oracle runs on a one-row view,
+as the planning result of such a row reads the row's paths only).
+
 One core can judge several modules on one window (the ``monitors`` process): frames then
 wait for the longest look-ahead among them, and the modules of a frame are judged on one
 context, so the `corrected` oracles share their per-frame caches (clearances, plans) as
@@ -41,10 +46,11 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ads_rca.capabilities import complete
-from ads_rca.contract.ego_paths import EgoPathRow, merged, snapshots_from_rows
+from ads_rca.capabilities import JUDGED, complete, judged_modules
+from ads_rca.contract.ego_paths import EgoPathRow, snapshots_from_rows
 from ads_rca.engine import evaluate_frame
 from ads_rca.live.results import FollowsRunEnd, FrameMarker, LiveResult, RunEnd
+from ads_rca.live.row_paths import JudgedRow, RowPaths, rescored_incomplete
 from ads_rca.model import (
     Actors,
     FloatArray,
@@ -145,9 +151,13 @@ class MonitorCore(FollowsRunEnd):
         #: What the stack's layouts derive rather than carry (said on every result).
         self.derived: tuple[str, ...] = ()
         #: A snapshot table's rows' paths (``run/ego_paths``), which the planning module's
-        #: not-judged result scores: a snapshot frame waits for its row as for a record.
-        self.ego_paths: dict[int, EgoPathRow] = {}
+        #: not-judged result scores: a snapshot frame waits for its row as for a record, and
+        #: a judged row given a later path is scored again (:mod:`ads_rca.live.row_paths`).
+        self.row_paths = RowPaths(max_held=2 * self.settings.max_pending_frames + 64)
         self.wants_paths = "planning" in self.modules and self.semantics.scores_predictions
+        #: Planning is not judged by its rules on this run's inputs: its result of a row reads
+        #: the row's paths only, so a later path re-scores it (set with the metadata).
+        self.rescores_rows = False
         #: An OpenLane-V2 segment's scored frames' matches, kept for the segment figures
         #: (a frame is matched when judged, never again; :mod:`ads_rca.openlane_run_scores`).
         self.lane_matches = LaneMatches()
@@ -167,6 +177,8 @@ class MonitorCore(FollowsRunEnd):
         if self.inputs:
             chosen = self.semantics.oracles_for_inputs(complete(self.inputs))
             self.oracles = {m: chosen[m] for m in self.modules}
+            verdicts = judged_modules(self.semantics.requires, complete(self.inputs))
+            self.rescores_rows = self.wants_paths and verdicts.get("planning") != JUDGED
         changed = self.metadata is None or metadata.collision_frame != self.metadata.collision_frame
         if changed and metadata.collision_frame >= 0:
             self.set_collision(metadata.collision_frame, now)
@@ -244,10 +256,11 @@ class MonitorCore(FollowsRunEnd):
         self._settle(now)
 
     def add_ego_path(self, row: EgoPathRow, now: float) -> None:
-        """One ``run/ego_paths`` message of the run's player."""
+        """One ``run/ego_paths`` message (the player's row, or a live model's path for it);
+        MalformedMessage when it is refused (:class:`~ads_rca.live.row_paths.RowPaths`)."""
         self._touch(now)
         if self.wants_paths:
-            self.ego_paths[row.stamp_ms] = merged(self.ego_paths.get(row.stamp_ms), row)
+            self.row_paths.add(row, self._floor())
             self._settle(now)
 
     def add_marker(self, marker: FrameMarker, now: float) -> None:
@@ -282,7 +295,7 @@ class MonitorCore(FollowsRunEnd):
             stamp = entry.marker.stamp_ms
             wanted = [f for f in self.folders if f in entry.marker.folders]
             missing = tuple(f for f in wanted if stamp not in self.records[f])
-            if self.wants_paths and entry.marker.snapshot and stamp not in self.ego_paths:
+            if self.wants_paths and entry.marker.snapshot and not self.row_paths.has(stamp):
                 missing += ("ego_paths",)
             if missing and not stalled and now - entry.arrived < timeout and not self.stack:
                 break
@@ -344,6 +357,9 @@ class MonitorCore(FollowsRunEnd):
         if self.metadata is None:
             return []
         self._settle(now)
+        return self._judge_ready(now) + self._rescore()
+
+    def _judge_ready(self, now: float) -> list[LiveResult]:
         stalled = self.stalled(now)
         ready: list[tuple[_Entry, tuple[str, ...]]] = []
         for entry in self.pending:
@@ -386,11 +402,9 @@ class MonitorCore(FollowsRunEnd):
             first_extents=dict(self.first_extents),
             problems=ProblemLog(self.input_problems),
             inputs=dict(self.inputs),
-            ego_snapshots=(
-                snapshots_from_rows({s: self.ego_paths[s] for s in frames if s in self.ego_paths})
-                if self.ego_paths
-                else None
-            ),
+            ego_snapshots=snapshots_from_rows(rows)
+            if (rows := self.row_paths.rows(frames))
+            else None,
         )
 
     def _context(self, log: RunLog) -> RunContext:
@@ -463,7 +477,55 @@ class MonitorCore(FollowsRunEnd):
                         extra={"derived": list(self.derived)} if self.derived else {},
                     )
                 )
+                if module == "planning" and self.rescores_rows and entry.marker.snapshot:
+                    self.row_paths.judged_row(out[-1])
         return out
+
+    def _rescore(self) -> list[LiveResult]:
+        """The planning result, again with ``revision`` + 1, of each judged row a later
+        ``run/ego_paths`` message changed (:mod:`ads_rca.live.row_paths`)."""
+        out = []
+        for judged in self.row_paths.due():
+            result = self._row_result(judged)
+            self.row_paths.rescored(result)
+            # A later re-judge goes higher still (set_collision adds 1 to a judged frame's;
+            # a frame already queued again is published after this result).
+            for entry in self._judged:
+                if entry.marker.stamp_ms == result.stamp_ms:
+                    entry.revision = max(entry.revision, result.revision)
+            for entry in self.pending:
+                if entry.marker.stamp_ms == result.stamp_ms:
+                    entry.revision = max(entry.revision, result.revision + 1)
+            out.append(result)
+        return out
+
+    def _row_result(self, judged: JudgedRow) -> LiveResult:
+        """The planning oracle on a one-row view: the row's result reads its paths only."""
+        assert self.metadata is not None
+        last = judged.result
+        stamp = last.stamp_ms
+        log = RunLog.from_folders(
+            replace(self.metadata, collision_frame=self.collision_frame),
+            (stamp,),
+            {folder: {} for folder in self.folders},
+            source="live",
+            problems=ProblemLog(self.input_problems),
+            inputs=dict(self.inputs),
+            ego_snapshots=snapshots_from_rows({stamp: judged.paths}) if judged.paths else None,
+        )
+        ctx = RunContext(log, self.params, ego_id=last.ego_id)
+        started = time.perf_counter()
+        result = evaluate_frame(ctx, {"planning": self.oracles["planning"]}, stamp).results
+        spent = time.perf_counter() - started
+        return replace(
+            last,
+            result=result["planning"],
+            incomplete=rescored_incomplete(last.incomplete, judged.paths),
+            revision=last.revision + 1,
+            problems=tuple(new_problems(ctx.problems, self._reported)),
+            compute_s=spent,
+            wait_s=0.0,
+        )
 
     def _partner(self, ctx: RunContext, stamp_ms: int) -> str | None:
         """The partner the frame was judged against (None where the mode has none)."""
@@ -487,27 +549,31 @@ class MonitorCore(FollowsRunEnd):
         keep = self.history_frames()
         while len(self._judged) > keep:
             self._judged.popleft()
-        oldest = [q[0].marker.stamp_ms for q in (self._judged, self.pending) if q]
-        if self._markers:
-            oldest.append(self._markers[0].marker.stamp_ms)
-        if oldest:
-            floor = min(oldest)
-        elif self.complete_through is not None:  # everything settled so far was judged
-            floor = self.complete_through + 1
-        else:
+        floor = self._floor()
+        if floor is None:
             return
         pinned = self._pinned_stamp()
         for by_stamp in self.records.values():
             for stamp in [s for s in by_stamp if s < floor]:
                 if stamp != pinned:
                     del by_stamp[stamp]
-        for stamp in [s for s in self.ego_paths if s < floor]:
-            del self.ego_paths[stamp]
+        self.row_paths.forget_before(floor)
         for index in [i for i, s in self.analysed.items() if s < floor]:
             if self.analysed[index] != pinned:
                 del self.analysed[index]
         size = sum(len(r) for r in self.records.values())
         self.stats.max_records = max(self.stats.max_records, size)
+
+    def _floor(self) -> int | None:
+        """The oldest stamp a held, pending or settling frame has (None: nothing yet)."""
+        oldest = [q[0].marker.stamp_ms for q in (self._judged, self.pending) if q]
+        if self._markers:
+            oldest.append(self._markers[0].marker.stamp_ms)
+        if oldest:
+            return min(oldest)
+        if self.complete_through is not None:  # everything settled so far was judged
+            return self.complete_through + 1
+        return None
 
     def _pinned_stamp(self) -> int | None:
         """The analysed frame the partner is read at: the latest one <= the collision frame."""

@@ -249,7 +249,10 @@ class Aggregator(Node):
             self._skip(topics.EGO_PATHS, error, time.monotonic())
             return
         if self.runs.accept(document):
-            self.core.add_ego_path(row)
+            try:
+                self.core.add_ego_path(row)
+            except MalformedMessage as error:  # beyond the rows held (live.aggregate)
+                self._skip(topics.EGO_PATHS, error, time.monotonic())
 
     def _subscribe_detection(self) -> None:
         from ads_rca.ros.stack_subscriber import message_class, stack_qos

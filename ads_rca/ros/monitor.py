@@ -391,7 +391,8 @@ class MonitorInputs:
                 except MalformedMessage as error:
                     self._skip(key, error, now)
                     return
-                if not self._ours(document, info):
+                # Anyone on the run may send a row's paths (a live model): not the player.
+                if not self._ours(document, info, player=key != topics.EGO_PATHS):
                     return
                 if key == topics.METADATA:
                     self._on_metadata(document, now)
@@ -404,12 +405,10 @@ class MonitorInputs:
                     core.add_marker(marker, now)
                     self.unit.on_marker(now)
                 elif key == topics.EGO_PATHS:
-                    try:
-                        row = read_ego_path(document)
+                    try:  # refused by the reader, or by the rows' bounds (live.row_paths)
+                        core.add_ego_path(read_ego_path(document), now)
                     except MalformedMessage as error:
                         self._skip(key, error, now)
-                        return
-                    core.add_ego_path(row, now)
                 elif document.get("state") == FINISHED:
                     core.set_finished(now, _count(document.get("frames_published")))
             elif self._metadata is None:
@@ -420,10 +419,11 @@ class MonitorInputs:
 
         return on_message
 
-    def _ours(self, document: dict[str, Any], info: Any) -> bool:
-        """A player message of our run (the first one locks the run and its participant)."""
+    def _ours(self, document: dict[str, Any], info: Any, player: bool = True) -> bool:
+        """A message of our run (the first one locks the run; the first of the ``player``'s
+        its participant)."""
         known = self.runs.run
-        if not self.runs.accept(document, info, player=True):
+        if not self.runs.accept(document, info, player=player):
             return False
         if known is None and self.runs.run is not None:
             self.unit.core.run = self.runs.run

@@ -225,6 +225,23 @@ def test_deeply_nested_json_is_reported_and_the_rest_diagnosed(
     assert_clean(run_cli("convert", str(tmp_path / "bag"), str(tmp_path / "back")))
 
 
+@pytest.mark.parametrize(("depth", "reported"), [(198, False), (199, True)])
+def test_a_box_extra_nested_at_the_kept_limit_is_judged_by_depth_not_by_brackets(
+    log_dir: Path, depth: int, reported: bool
+) -> None:
+    """The reader walks a boxes file for deep extras only when its text has more than
+    MAX_KEPT_DEPTH (200) brackets. An extra nested 199 levels inside a box inside the list
+    is a document 201 deep: its fewest brackets are 1 + 1 + 199 = 201, walked and reported;
+    198 levels (1 + 1 + 198 = 200 brackets, not walked) is within the limit either way."""
+    from ads_rca.io.json_log import MAX_KEPT_DEPTH, read_run_log
+
+    assert MAX_KEPT_DEPTH == 200
+    target = _one(log_dir / "bboxes")
+    target.write_text('[{"id": 1, "x": ' + _nested(depth) + "}]")
+    issues = [p.issue for p in read_run_log(log_dir).problems if p.file.endswith(target.name)]
+    assert ("invalid JSON (nested too deep: more than 200 levels)" in issues) is reported
+
+
 def test_nesting_the_parser_reads_never_overflows_later(log_dir: Path, tmp_path: Path) -> None:
     """1000 levels: orjson reads it, but repr and json.dumps of it overflow Python's stack."""
     _write_nested(_one(log_dir / "predictions"), 1000)  # an unknown key: ignored

@@ -148,6 +148,35 @@ def test_packed_records_rebuild_exactly(crash_log: Path) -> None:
     assert_logs_equal(log, copy, angle_tol=0.0)
 
 
+@pytest.mark.parametrize(
+    "document",
+    [
+        {},  # no track
+        {"7": {}},  # a track without steps
+        {"7": {"0": {"x": 1, "y": 2, "z": 3}, "1": {"x": 1.5, "y": -2, "z": 0}}, "9": {}},
+        {"3": {"5": {"x": 0.25, "y": 1e300, "z": -0.0}}, "4": {"5": {"x": 2, "y": 2, "z": 2}}},
+    ],
+)
+def test_a_predictions_file_packed_in_pieces_is_packed_as_its_record(document: Any) -> None:
+    """The readers pack a clean predictions file's pieces without making its tracks; what
+    they send must be what packing the record parse_predictions makes sends: the same
+    numbers (integers as floats) and the same entry."""
+    from ads_rca.io.records import parse_predictions, prediction_parts
+    from ads_rca.problems import ProblemLog
+
+    problems = ProblemLog()
+    record = parse_predictions(document, "predictions/p-50.json", problems, 50)
+    parts = prediction_parts(document)
+    assert record is not None and parts is not None and not list(problems)
+    whole, pieces = Packer(), Packer()
+    whole.add("predictions", 50, record)
+    pieces.add_predictions("predictions", 50, *parts)
+    (numbers_a, entries_a), (numbers_b, entries_b) = whole.packed(), pieces.packed()
+    assert numbers_a.dtype == numbers_b.dtype == np.float64
+    assert numbers_a.tobytes() == numbers_b.tobytes()
+    assert entries_a == entries_b
+
+
 def test_the_collector_is_paused_while_reading_and_restored_after(tmp_path: Path) -> None:
     import gc
 

@@ -45,6 +45,7 @@ from ads_rca.io.records import (
     parse_plan,
     parse_pose,
     parse_predictions,
+    prediction_parts,
     show_value,
 )
 from ads_rca.io.validate import validate_run_log
@@ -135,15 +136,20 @@ def decode_json(data: bytes) -> Any:
         raise InvalidJson(str(error)) from None
 
 
-def kept_too_deep(folder: str, document: object) -> bool:
+def kept_too_deep(folder: str, document: object, text: bytes | Unreadable | None = None) -> bool:
     """True when the raw JSON the reader keeps of ``document`` nests over MAX_KEPT_DEPTH.
 
     ``metadata.json`` is kept whole; of a boxes file, each box's fields but the corners
     (which become numbers or a reported NaN). Other folders keep numbers only.
+    ``text``, the boxes file's JSON text when at hand, spares the walk over every box's
+    fields when it has no more than MAX_KEPT_DEPTH brackets: each level opens with one
+    (two counts in C: 1.0 instead of 3.9 µs for a file of 9 boxes, 4 instead of 18 for 44).
     """
     if folder == "metadata":
         return _deeper_than(document, MAX_KEPT_DEPTH)
     if folder not in ("bboxes", "bboxes_gt") or not isinstance(document, list):
+        return False
+    if isinstance(text, bytes) and text.count(b"[") + text.count(b"{") <= MAX_KEPT_DEPTH:
         return False
     return any(
         isinstance(value, dict | list) and _deeper_than(value, MAX_KEPT_DEPTH - 2)
@@ -303,23 +309,38 @@ def _parse_files(
     limit: int,
     progress: Progress | None = None,
     owners: list[int] | None = None,
+    packer: Packer | None = None,
 ) -> tuple[list[tuple[str, int, Record]], list[Problem]]:
     """Read (at most ``limit`` bytes a file), decode and parse files in ``jobs`` order; the
-    problems found on the way. ``owners``, when given, gets each problem's job position."""
+    problems found on the way. ``owners``, when given, gets each problem's job position.
+    With a ``packer`` the records go there instead (none is returned), a clean predictions
+    file without making its tracks (a tenth of a large log's reading: dozens of tracks a
+    file, each an object to make and to take apart again)."""
     problems = ProblemLog()
     parsed: list[tuple[str, int, Record]] = []
     base = os.path.join(root, "")  # paths as text: no Path object a file
     for position, (folder, ts, name) in enumerate(tracked(jobs, progress)):
         before = len(problems)
         file = f"{folder}/{name}"
-        document = decode_file(read_regular(base + file, limit), file, problems, ts)
+        data = read_regular(base + file, limit)
+        document = decode_file(data, file, problems, ts)
         if document is UNUSABLE:
             pass
-        elif kept_too_deep(folder, document):
+        elif kept_too_deep(folder, document, data):
             problems.add(file, "", _too_deep_kept(), SKIPPED_FILE, timestamp_ms=ts)
         else:
-            record = PARSERS[folder](document, file, problems, ts)
-            if record is not None:
+            parse = PARSERS[folder]
+            if (
+                packer is not None
+                and parse is parse_predictions
+                and (parts := prediction_parts(document)) is not None
+            ):
+                packer.add_predictions(folder, ts, *parts)
+            elif (record := parse(document, file, problems, ts)) is None:
+                pass
+            elif packer is not None:
+                packer.add(folder, ts, record)
+            else:
                 parsed.append((folder, ts, record))
         if owners is not None:
             owners.extend([position] * (len(problems) - before))
@@ -368,10 +389,8 @@ def _parse_chunk(chunk: int) -> tuple[Packed, list[Problem], list[int]]:
     assert _SHARED_JOBS is not None
     root, jobs, limit, count = _SHARED_JOBS
     owners: list[int] = []
-    parsed, problems = _parse_files(root, jobs[chunk::count], limit, owners=owners)
     packer = Packer()
-    for folder, ts, record in parsed:
-        packer.add(folder, ts, record)
+    _, problems = _parse_files(root, jobs[chunk::count], limit, owners=owners, packer=packer)
     return packer.packed(), problems, owners
 
 

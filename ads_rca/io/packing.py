@@ -60,6 +60,20 @@ class Packer:
         else:
             entries.append((folder, ts, _AS_IS, record))
 
+    def add_predictions(
+        self,
+        folder: str,
+        ts: int,
+        ids: tuple[str, ...],
+        keys: list[tuple[str, ...]],
+        offsets: FloatArray,
+    ) -> None:
+        """A predictions record given in pieces (its ids, each track's keys, all offsets
+        end to end): packed as :meth:`add` packs the record they make, without making it."""
+        start = self._put(offsets)
+        shared = tuple(self._tuple(track_keys) for track_keys in keys)
+        self._entries.append((folder, ts, _PREDICTIONS, self._tuple(ids), shared, start))
+
     def packed(self) -> Packed:
         numbers = np.concatenate(self._blocks) if self._blocks else np.zeros(0)
         return numbers.astype(np.float64, copy=False), self._entries

@@ -31,6 +31,7 @@ from ads_rca.model import (
     Boxes,
     ControlCommand,
     EgoPose,
+    FloatArray,
     Objects3D,
     Plan,
     Predictions,
@@ -260,24 +261,41 @@ def parse_predictions(
     return out
 
 
-def _predictions_fast(document: Mapping[str, Any]) -> Predictions | None:
-    """All tracks of a file in one array conversion, then split (views, no copies)."""
+#: A clean predictions file in pieces: obstacle ids, each track's step keys (file order),
+#: and every step's offsets end to end, (K, 3).
+PredictionParts = tuple[tuple[str, ...], list[tuple[str, ...]], FloatArray]
+
+
+def prediction_parts(document: Any) -> PredictionParts | None:
+    """All tracks of a predictions file in one array conversion, or None unless every step
+    of every track has numeric, finite x, y and z (then :func:`parse_predictions` says
+    what is wrong). A reader process packs these pieces without making the tracks."""
+    if not isinstance(document, Mapping):
+        return None
     try:
         tracks = list(document.values())
         steps = map(_STEP_XYZ, chain.from_iterable(map(dict.values, tracks)))
         flat = np.array(list(chain.from_iterable(steps)))  # 1-D: numpy discovers it faster
-        lengths = [len(t) for t in tracks]
+        keys = [tuple(track) for track in tracks]
     except (KeyError, TypeError, ValueError, AttributeError):
         return None
     if not _clean(flat, 3):
         return None
-    flat = flat.astype(np.float64).reshape(-1, 3)
-    ends = np.cumsum(lengths).tolist()
-    starts = [0, *ends[:-1]] if ends else []
-    return {
-        str(obstacle_id): Track(tuple(track), flat[start:end])
-        for (obstacle_id, track), start, end in zip(document.items(), starts, ends, strict=True)
-    }
+    return tuple(map(str, document)), keys, flat.astype(np.float64).reshape(-1, 3)
+
+
+def _predictions_fast(document: Mapping[str, Any]) -> Predictions | None:
+    """:func:`prediction_parts` split into tracks (views of the one array, no copies)."""
+    parts = prediction_parts(document)
+    if parts is None:
+        return None
+    ids, keys, flat = parts
+    out: Predictions = {}
+    row = 0
+    for obstacle_id, track_keys in zip(ids, keys, strict=True):
+        out[obstacle_id] = Track(track_keys, flat[row : row + len(track_keys)])
+        row += len(track_keys)
+    return out
 
 
 def _track(steps: Mapping[str, Any], where: str, reader: FieldReader) -> Track:

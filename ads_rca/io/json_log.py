@@ -324,9 +324,11 @@ def _parse_files(
         file = f"{folder}/{name}"
         data = read_regular(base + file, limit)
         document = decode_file(data, file, problems, ts)
+        too_deep = document is not UNUSABLE and kept_too_deep(folder, document, data)
+        del data  # the text is not needed while parsing (a large file's text is megabytes)
         if document is UNUSABLE:
             pass
-        elif kept_too_deep(folder, document, data):
+        elif too_deep:
             problems.add(file, "", _too_deep_kept(), SKIPPED_FILE, timestamp_ms=ts)
         else:
             parse = PARSERS[folder]

@@ -28,7 +28,7 @@ from ads_rca.progress import advancer
 from ads_rca.run_figures import FIGURES_KEY, figures_from_document
 from ads_rca.trajectory_scores import TRAJECTORY_SCORES_KEY, trajectory_scores
 from ads_rca.verdict import Attribution, FrameResults, json_safe
-from ads_rca.workers import can_fork, map_forked
+from ads_rca.workers import can_fork, collector_paused, map_forked
 
 
 def evaluate_frame(ctx: RunContext, oracles: Mapping[Module, Oracle], ts: int) -> FrameResults:
@@ -87,6 +87,7 @@ class Diagnosis:
         extra = f" (contributing: {', '.join(a.contributing)})" if a.contributing else ""
         return f"{a.primary_root_cause}{extra}"
 
+    @collector_paused()  # a new dict or list for every value of every frame, in no cycle
     def to_json(self, include_frames: bool = True) -> dict[str, Any]:
         """The machine contract of ``ads-rca diagnose --json`` (see ads_rca.verdict)."""
         a = self.attribution

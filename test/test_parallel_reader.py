@@ -197,6 +197,35 @@ def test_the_collector_is_paused_while_reading_and_restored_after(tmp_path: Path
     assert read_run_log(log).frames and gc.isenabled()  # the reader gives it back
 
 
+def test_what_a_paused_stretch_allocated_skips_the_young_collections() -> None:
+    """After the pause, the 20,000 lists made during it are not waiting for a young
+    collection (gen0's count starts again below its threshold, 700 by default) and are not
+    left frozen outside a frozen block (inside one they join it); a cycle made during the
+    pause is still freed by a full collection."""
+    import gc
+
+    from ads_rca.workers import collector_paused, loaded_objects_frozen
+
+    class Node:
+        pass
+
+    gc.collect()
+    with collector_paused():
+        kept = [[i] for i in range(20_000)]
+        cycle = Node()
+        cycle.self = cycle  # type: ignore[attr-defined]
+        del cycle
+    assert gc.isenabled() and gc.get_freeze_count() == 0
+    assert gc.get_count()[0] < gc.get_threshold()[0]
+    assert gc.collect() >= 1  # the Node (and its __dict__)
+    with loaded_objects_frozen():
+        before = gc.get_freeze_count()
+        with collector_paused():
+            more = [[i] for i in range(20_000)]
+        assert gc.get_freeze_count() >= before + len(more)
+    assert gc.get_freeze_count() == 0 and len(kept) == 20_000
+
+
 def _square(n: int) -> int:
     return n * n
 

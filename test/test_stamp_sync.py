@@ -17,7 +17,13 @@ from ads_rca.live.stamp_sync import StampSync, SyncedFrame, SyncSettings, measur
 from ads_rca.model import RunLog
 from ads_rca.synth import synthesise
 
-INPUTS = tuple(topic.key for topic in DATA if topic.key != ODOMETRY)
+#: The topics a synthesised run carries: every data topic but the map perception only an
+#: OpenLane-V2 segment has (a stack sends the topics it has; its layouts name them).
+INPUTS = tuple(
+    topic.key
+    for topic in DATA
+    if topic.key != ODOMETRY and topic.folder not in ("lanes", "lanes_predicted")
+)
 TIMEOUT_S = 2.0
 #: (topic, stamp_ms, payload, arrival_s); the payload names the log frame it came from.
 Message = tuple[str, int, tuple[str, int], float]

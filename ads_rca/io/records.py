@@ -285,22 +285,17 @@ def prediction_parts(document: Any) -> PredictionParts | None:
 
 
 def _predictions_fast(document: Mapping[str, Any]) -> Predictions | None:
-    """All tracks of a file in one array conversion, then split (views, no copies)."""
-    try:
-        tracks = list(document.values())
-        steps = map(_STEP_XYZ, chain.from_iterable(map(dict.values, tracks)))
-        flat = np.array(list(chain.from_iterable(steps)))  # 1-D: numpy discovers it faster
-        lengths = [len(t) for t in tracks]
-    except (KeyError, TypeError, ValueError, AttributeError):
+    """All tracks of a file in one array conversion (:func:`prediction_parts`), then split
+    (views, no copies)."""
+    parts = prediction_parts(document)
+    if parts is None:
         return None
-    if not _clean(flat, 3):
-        return None
-    flat = flat.astype(np.float64).reshape(-1, 3)
-    ends = np.cumsum(lengths).tolist()
+    ids, keys, flat = parts
+    ends = np.cumsum([len(k) for k in keys]).tolist()
     starts = [0, *ends[:-1]] if ends else []
     return {
-        str(obstacle_id): Track(tuple(track), flat[start:end])
-        for (obstacle_id, track), start, end in zip(document.items(), starts, ends, strict=True)
+        obstacle_id: Track(steps, flat[start:end])
+        for obstacle_id, steps, start, end in zip(ids, keys, starts, ends, strict=True)
     }
 
 

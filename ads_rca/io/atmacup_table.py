@@ -51,7 +51,7 @@ from ads_rca.io.csv_table import CsvTable, booleans, numbers, read_csv_table, sh
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB, read_regular
 from ads_rca.io.formats import SourceOptions
 from ads_rca.io.json_log import UNUSABLE, check_max_file_mb, decode_file
-from ads_rca.io.records import as_float
+from ads_rca.io.records import is_json_number, json_number
 from ads_rca.model import (
     INPUTS_KEY,
     Actors,
@@ -397,16 +397,12 @@ def _boxes(document: Any, where: str, issues: dict[tuple[str, str], list[str]]) 
     extras: list[Mapping[str, Any]] = []
     for n, entry in enumerate(document):
         bbox = entry.get("bbox") if isinstance(entry, dict) else None
-        values = (
-            [as_float(v) if _is_number(v) else np.nan for v in bbox]
-            if isinstance(bbox, list) and len(bbox) == 4
-            else []
-        )
+        values = [json_number(v) for v in bbox] if isinstance(bbox, list) and len(bbox) == 4 else []
         if len(values) != 4 or not np.isfinite(values).all():
             _note(issues, "bbox", "not four finite numbers", where)
             continue
         index = entry.get("index")
-        if not (_is_number(index) and float(index).is_integer() and 0 <= index <= MAX_INDEX):
+        if not (is_json_number(index) and float(index).is_integer() and 0 <= index <= MAX_INDEX):
             _note(issues, "index", "not an integer 0 to 999999: the list position used", where)
             index = n
         kind = entry.get("class")
@@ -428,10 +424,6 @@ def _note(issues: dict[tuple[str, str], list[str]], field: str, issue: str, wher
     files = issues.setdefault((field, issue), [])
     if not files or files[-1] != where:
         files.append(where)
-
-
-def _is_number(value: object) -> bool:
-    return isinstance(value, int | float) and not isinstance(value, bool)
 
 
 # --- capability record -----------------------------------------------------------------------

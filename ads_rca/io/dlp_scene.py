@@ -46,7 +46,7 @@ from ads_rca.io.files import DEFAULT_MAX_FILE_MB, Unreadable, open_regular, read
 from ads_rca.io.formats import SourceOptions
 from ads_rca.io.json_log import UNUSABLE, check_max_file_mb, decode_file
 from ads_rca.io.json_stream import object_members
-from ads_rca.io.records import as_float
+from ads_rca.io.records import json_number
 from ads_rca.model import (
     INPUTS_KEY,
     MAX_TIMESTAMP_MS,
@@ -205,12 +205,6 @@ def _text(value: object, default: str) -> str:
     return value[:MAX_TEXT] if isinstance(value, str) and value.isprintable() else default
 
 
-def _number(value: object) -> float:
-    """A JSON number as a float; NaN for anything else (text, booleans, lists...)."""
-    numeric = isinstance(value, int | float) and not isinstance(value, bool)
-    return as_float(value) if numeric else math.nan
-
-
 def _agents(
     files: Mapping[str, Path], names: Mapping[str, str], problems: ProblemLog, limit: int
 ) -> Agents:
@@ -242,8 +236,12 @@ def _agents(
         entry = obstacles[tok]
         where = _text(tok, "?")
         coords = entry.get("coords") if isinstance(entry, dict) else None
-        xy = [_number(v) for v in coords] if isinstance(coords, list) and len(coords) == 2 else []
-        heading = _number(entry.get("heading")) if isinstance(entry, dict) else math.nan
+        xy = (
+            [json_number(v) for v in coords]
+            if isinstance(coords, list) and len(coords) == 2
+            else []
+        )
+        heading = json_number(entry.get("heading")) if isinstance(entry, dict) else math.nan
         if len(tok) > MAX_TEXT or len(xy) != 2 or not all(map(math.isfinite, [*xy, heading])):
             problems.add(names["obstacles"], where, "no finite coords and heading", DROPPED_RECORD)
             continue
@@ -262,7 +260,7 @@ def _half(
 ) -> tuple[float, float, float]:
     """Half extents from DLP's full [length, width]; the class's height assumed."""
     height = HALF_HEIGHTS.get(kind.lower(), DEFAULT_HALF_HEIGHT)
-    values = [_number(v) for v in size] if isinstance(size, list) and len(size) == 2 else []
+    values = [json_number(v) for v in size] if isinstance(size, list) and len(size) == 2 else []
     if len(values) != 2 or not all(math.isfinite(v) and v > 0 for v in values):
         full = DEFAULT_SIZES.get(kind.lower(), DEFAULT_SIZE)
         problems.add(
@@ -285,7 +283,7 @@ def _frame_list(
         if not isinstance(entry, dict) or not isinstance(entry.get("next", ""), str):
             bad += 1
             continue
-        frames[tok] = (_number(entry.get("timestamp")), entry.get("next", ""))
+        frames[tok] = (json_number(entry.get("timestamp")), entry.get("next", ""))
     if bad:
         problems.add(name, "", f"{bad} frames are not objects with a next token", DROPPED_RECORD)
     current = scene.get("first_frame")
@@ -356,8 +354,12 @@ def _instances(
             out.drop("agent_token", "no agent of the agents file")
             continue
         coords = entry.get("coords")
-        xy = [_number(v) for v in coords] if isinstance(coords, list) and len(coords) == 2 else []
-        heading, speed = _number(entry.get("heading")), _number(entry.get("speed"))
+        xy = (
+            [json_number(v) for v in coords]
+            if isinstance(coords, list) and len(coords) == 2
+            else []
+        )
+        heading, speed = json_number(entry.get("heading")), json_number(entry.get("speed"))
         if len(xy) != 2 or not all(map(math.isfinite, [*xy, heading])):
             out.drop("coords, heading", "not finite numbers")
             continue

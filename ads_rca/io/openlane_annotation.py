@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from ads_rca.geometry import FloatArray
-from ads_rca.io.records import as_float
+from ads_rca.io.records import as_float, json_number
 from ads_rca.lanes import ELEMENT_ATTRIBUTES, ELEMENT_CATEGORIES, LaneGraph
 from ads_rca.model import Boxes
 from ads_rca.problems import DROPPED_RECORD, SKIPPED_FILE, ProblemLog, Severity
@@ -174,7 +174,7 @@ def _score(
     """NaN for the ground truth; a prediction's confidence in [0, 1], or None (reported)."""
     if not predicted:
         return math.nan
-    value = _number(entry.get("confidence"))
+    value = json_number(entry.get("confidence"))
     if not 0.0 <= value <= 1.0:
         given = shown(entry.get("confidence"))
         report(f"{field}.confidence", f"{given} is not a number in [0, 1]", DROPPED_RECORD)
@@ -245,12 +245,6 @@ def _rectangular(value: list[Any]) -> bool:
 
 
 # --- numbers -----------------------------------------------------------------------------
-
-
-def _number(value: object) -> float:
-    """A JSON number as a float; NaN for anything else (text, booleans, lists...)."""
-    numeric = isinstance(value, int | float) and not isinstance(value, bool)
-    return as_float(value) if numeric else math.nan
 
 
 def _integer(value: object) -> int | None:

@@ -436,6 +436,17 @@ def _clean(array: np.ndarray, width: int) -> bool:
     return bool(np.isfinite(array).all())
 
 
+def is_json_number(value: object) -> bool:
+    """An int or float of a parsed JSON document (a boolean is none)."""
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def json_number(value: object) -> float:
+    """A JSON number as a float (:func:`as_float`: past the float range infinite); NaN for
+    anything else (text, booleans, lists...)."""
+    return as_float(value) if is_json_number(value) else math.nan
+
+
 def as_float(value: Any) -> float:
     """``float(value)``, but an integer past the float range is infinite (as ``1e999`` in
     JSON reads), not an OverflowError: JSON integers have no size limit."""

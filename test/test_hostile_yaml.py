@@ -52,6 +52,8 @@ def hostile_files(folder: Path) -> dict[str, tuple[Path, str]]:
     write("too_large", "# " + "x" * (2 << 20) + "\n", "larger than 1 MB")
     write("bomb_value", f"safety_margin: {BOMB}\n", "is not a number")
     write("bomb_semantics", f"semantics: {BOMB}\n", "semantics must be one of")
+    write("huge_integer", "ego_agent: 1" + "0" * 5000 + "\n", "integer string conversion")
+    write("impossible_date", "semantics: 2001-13-40\n", "month must be in 1..12")
     fifo = folder / "fifo.yaml"
     os.mkfifo(fifo)
     made["fifo"] = (fifo, "not a regular file (FIFO)")
@@ -88,6 +90,8 @@ CASES = [
     "too_large",
     "bomb_value",
     "bomb_semantics",
+    "huge_integer",
+    "impossible_date",
     "fifo",
     "dev_zero",
     "directory",

@@ -3,9 +3,10 @@ remappings (``--remap``) and stack profiles (``--profile FILE``).
 
 Read as the log reader reads its files (:func:`~ads_rca.io.files.read_regular`): only a
 regular file, at most :data:`MAX_YAML_BYTES`, so a FIFO or ``/dev/zero`` named by mistake
-is refused instead of hanging or filling memory. Text that is not UTF-8, is not YAML, or
-nests deeper than the parser recurses is one :class:`ConfigError` line naming the file,
-never a traceback. PyYAML's safe loader builds no objects but plain ones, and aliases
+is refused instead of hanging or filling memory. Text that is not UTF-8, is not YAML,
+nests deeper than the parser recurses or holds a scalar the loader cannot build (an
+integer of thousands of digits, an impossible date) is one :class:`ConfigError` line
+naming the file, never a traceback. PyYAML's safe loader builds no objects but plain ones, and aliases
 share one object, so a "billion laughs" document stays small; what takes it apart (a
 value shown in an error) cuts it short.
 """
@@ -36,7 +37,10 @@ def load_yaml(path: str | os.PathLike[str], what: str) -> Any:
         raise ConfigError(f"{name}: cannot read {what} ({issue})")
     try:
         return yaml.safe_load(data.decode("utf-8"))
-    except (UnicodeDecodeError, yaml.YAMLError, RecursionError) as error:
+    except (yaml.YAMLError, RecursionError, ValueError) as error:
+        # ValueError: bytes that are not UTF-8, and what the safe loader's constructors
+        # raise for a scalar it cannot make (an integer past Python's 4300-digit
+        # conversion limit, a date like 2001-13-40).
         detail = " ".join(str(error).split())[:200] or type(error).__name__
         if isinstance(error, RecursionError):
             detail = "nested too deep"

@@ -6,9 +6,9 @@ regular file, at most :data:`MAX_YAML_BYTES`, so a FIFO or ``/dev/zero`` named b
 is refused instead of hanging or filling memory. Text that is not UTF-8, is not YAML,
 nests deeper than the parser recurses or holds a scalar the loader cannot build (an
 integer of thousands of digits, an impossible date) is one :class:`ConfigError` line
-naming the file, never a traceback. PyYAML's safe loader builds no objects but plain ones, and aliases
-share one object, so a "billion laughs" document stays small; what takes it apart (a
-value shown in an error) cuts it short.
+naming the file, never a traceback. PyYAML's safe loader builds no objects but plain
+ones, and aliases share one object, so a "billion laughs" document stays small; what
+takes it apart (a value shown in an error) cuts it short.
 """
 
 from __future__ import annotations

@@ -36,7 +36,11 @@ import orjson
 BATCH_ITEMS = 250
 _NEWLINE, _SPACE = 0x0A, 0x20
 #: Where orjson and Python spell a float differently: ``0.0000…`` and a one-digit exponent.
-_SMALL_FLOAT = re.compile(rb"0\.0000|e-[1-9](?![0-9])")
+#: Two patterns, each led by a literal that the regex engine searches for at memchr speed
+#: (their alternation is scanned a byte at a time: four times as long on a verdict). They
+#: never overlap (neither holds the other's first byte), so their matches together are
+#: those of the alternation.
+_SMALL_FLOATS = (re.compile(rb"0\.0000"), re.compile(rb"e-[1-9](?![0-9])"))
 _NUMBER_BYTES = frozenset(b"0123456789.-+eE")
 _ESCAPED = re.compile("[\x7f-\U0010ffff]")
 
@@ -124,8 +128,7 @@ def _respell_small_floats(block: bytes) -> bytes:
         return block
     pieces: list[bytes] = []
     done = 0
-    for match in _SMALL_FLOAT.finditer(block):
-        start, end = match.start(), match.end()
+    for start, end in sorted(m.span() for p in _SMALL_FLOATS for m in p.finditer(block)):
         if start < done:
             continue
         while start > 0 and block[start - 1] in _NUMBER_BYTES:

@@ -57,7 +57,10 @@ def map_forked(function: Callable[[_T], _R], items: Sequence[_T], workers: int) 
     with loaded_objects_frozen():
         context = multiprocessing.get_context("fork")
         with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
-            yield from pool.map(function, items)
+            results = pool.map(function, items)  # forks the workers, collector as it was
+            # Here, the results are unpickled: containers by the thousand, in no cycle.
+            with collector_paused():
+                yield from results
 
 
 #: How many :func:`loaded_objects_frozen` blocks are open (the collector has one frozen set).

@@ -54,8 +54,22 @@ def test_counts_near_misses_and_re_judged_frames() -> None:
     assert run["run_id"] == "r1" and run["last_index"] == 4
     assert run["modules"]["planning"]["judged"] == 5
     assert run["modules"]["planning"]["failed_frames"] == 1
-    assert [m["index"] for m in run["near_misses"]] == [4, 4]  # c_gt 0.0 < 0.5, twice seen
+    # c_gt 0.0 < 0.5 at frame 4, judged twice: one near miss, the latest judgement's
+    assert [(m["index"], m["clearance"]) for m in run["near_misses"]] == [(4, 0.0)]
     assert list(model.runs["c"].timeline) == [(i, 2.0 - i * 0.5) for i in range(5)]
+
+
+def test_a_re_judged_frame_is_one_near_miss_with_its_latest_clearance() -> None:
+    model = DashboardModel()
+    for index in range(5):  # c_gt 2.0 - 0.5 * index: only frame 4 (0.0) is below 0.5
+        model.apply("c/ads_rca/modules/planning.json", result(index), 1.0)
+    rejudged = [(2, 0.1), (4, 0.2), (2, 0.3), (4, 0.9)]  # frame 4 ends above the margin
+    for index, clearance in rejudged:
+        document = result(index, metrics={"c_gt": clearance})
+        model.apply("c/ads_rca/modules/planning.json", document, 2.0)
+    run = model.summary(2.0)["runs"][0]
+    assert [(m["index"], m["clearance"]) for m in run["near_misses"]] == [(2, 0.3)]
+    assert run["modules"]["planning"]["judged"] == 5
 
 
 def test_a_new_run_under_the_same_prefix_starts_over() -> None:

@@ -152,6 +152,8 @@ class RunView:
             if not self.timeline or self.timeline[-1][0] < index:
                 self.timeline.append((index, clearance))
             margin = margin_of(document)
+            if before is not None:  # re-judged: its latest judgement is the one that counts
+                self._forget_near_miss(index)
             if clearance < margin:
                 self.near_misses.append(
                     {
@@ -163,6 +165,14 @@ class RunView:
                     }
                 )
         self.updated = now
+
+    def _forget_near_miss(self, index: int) -> None:
+        """Drop a frame's near miss (one frame is at most one near miss, however often the
+        live graph re-judges it)."""
+        kept = [near for near in self.near_misses if near["index"] != index]
+        if len(kept) != len(self.near_misses):
+            self.near_misses.clear()
+            self.near_misses.extend(kept)
 
     def rate(self, now: float) -> float:
         """Analysed frames per second over the last few seconds of arrivals (0: idle)."""

@@ -163,6 +163,9 @@ def _escape(key: str) -> str:
 
 
 def _pointer(tokens: list[str]) -> str:
+    joined = "/" + "/".join(tokens)
+    if "~" not in joined and joined.count("/") == len(tokens):  # nothing to escape (usual)
+        return joined
     return "".join("/" + t.replace("~", "~0").replace("/", "~1") for t in tokens)
 
 

@@ -9,6 +9,10 @@ the largest commanded deceleration) or |Σ lateral| exceeds ``control_lateral_th
 It concerns the partner only when the deviation points toward it: faster than planned with
 the partner ahead (slower with it behind), or drift to its side. There is no speed gate:
 exact tracking never fires, and a real deviation fires at any speed.
+
+Each frame's horizon adds one step, and a step costs a handful of numpy calls on a ~30-point
+plan, so steps are read a block of frames at a time (one array pass over their plans), and
+only a step that reports a problem is read on its own.
 """
 
 from __future__ import annotations
@@ -18,8 +22,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ads_rca.geometry import world_to_ego
+from ads_rca.geometry import FloatArray, world_to_ego
 from ads_rca.oracles.base import Metric, OracleResult, RunContext
+from ads_rca.oracles.corrected.boxes import key_steps, step_order
 from ads_rca.oracles.corrected.common import REPORTED, skipped
 from ads_rca.oracles.corrected.context import CacheName, CorrectedContext, corrected_context
 from ads_rca.oracles.corrected.floors import Floor, floor_frames, step_floor
@@ -37,12 +42,106 @@ class Step:
 #: A step, or the first missing (folder, timestamp) it needs.
 CONTROL_STEP: CacheName[Step | tuple[str, int]] = CacheName("control_step")
 
+#: Frames whose steps are computed together (one array pass over their plans).
+BLOCK = 32
+
+
+@dataclass(frozen=True)
+class StepBlock:
+    """The steps at ``start`` + i·tpf, i < :data:`BLOCK`; None where the step cannot be
+    read without a problem report (a missing input, a plan with no step 1 or a non-integer
+    key): those take :func:`_control_step`'s path, which reports."""
+
+    start: int
+    steps: list[Step | None]
+
+
+#: Step blocks by block number (timestamp // (BLOCK · tpf)).
+STEP_BLOCKS: CacheName[StepBlock | None] = CacheName("control_step_blocks")
+
 
 def control_step(cc: CorrectedContext, t: int) -> Step | tuple[str, int]:
-    """The step at t (cached: overlapping horizons share it), or the first missing input.
+    """The step at t, or the first missing input: from t's block of steps where it could
+    be read silently, else on its own (cached: overlapping horizons share it)."""
+    tpf = cc.tpf
+    if t % tpf == 0:
+        blocks = cc.cache(STEP_BLOCKS)
+        number = t // (BLOCK * tpf)
+        block = blocks.lookup(number)
+        if block is None and "ego_half" in vars(cc):  # else a plan build reports it first
+            block = step_block(cc, number * BLOCK * tpf)
+            blocks.put(number, block)
+        if block is not None:
+            step = block.steps[(t - block.start) // tpf]
+            if step is not None:
+                return step
+    return _control_step(cc, t)
 
-    Each frame's horizon adds one new step, so steps are computed one at a time.
-    """
+
+def step_block(cc: CorrectedContext, start: int) -> StepBlock:
+    """The steps of the frames start + i·tpf, i < :data:`BLOCK`, in one pass per key layout:
+    the same IEEE operations as :meth:`PlanData.lateral_offset`, so the same values."""
+    tpf = cc.tpf
+    pose, plans = cc.log.pose, cc.log.waypoints
+    groups: dict[tuple[str, ...], list[int]] = {}
+    for i in range(BLOCK):
+        t = start + i * tpf
+        plan = plans.get(t)
+        if plan is not None and len(plan) and t in pose and t + tpf in pose:
+            groups.setdefault(plan.keys, []).append(i)
+    steps: list[Step | None] = [None] * BLOCK
+    for keys, members in groups.items():
+        values = key_steps(keys)
+        times = [start + i * tpf for i in members]
+        shapes = ((len(keys), 2), (len(keys),))
+        if (values < 0).any() or any(
+            (plans[t].xy.shape, plans[t].speed.shape) != shapes for t in times
+        ):
+            continue  # a non-integer key (the plan build reports it) or a malformed plan
+        order, sorted_steps = step_order(keys, int(values.max()) + 1)
+        rows = {step: row for row, step in enumerate(sorted_steps.tolist())}
+        if 1 not in rows:
+            continue
+        before = [pose[t] for t in times]
+        after = [pose[t + tpf] for t in times]
+        lateral = _lateral_offsets(
+            np.stack([plans[t].xy for t in times])[:, order],
+            np.array([[p.x, p.y] for p in after]),
+            [p.yaw for p in before],
+        )
+        speed = np.stack([plans[t].speed for t in times])[:, order]
+        v1 = speed[:, rows[1]].tolist()
+        v0 = speed[:, rows[0]].tolist() if 0 in rows else [math.nan] * len(times)
+        for n, i in enumerate(members):
+            steps[i] = Step(after[n].speed - v1[n], lateral[n], (v0[n] - v1[n]) / (tpf / 1000.0))
+    return StepBlock(start, steps)
+
+
+def _lateral_offsets(xy: FloatArray, points: FloatArray, yaws: list[float]) -> list[float]:
+    """:meth:`PlanData.lateral_offset` of ``points`` (K, 2) from the polylines ``xy``
+    (K, M, 2), each signed by its yaw (deg)."""
+    if xy.shape[1] == 1:
+        start, vec, length2 = xy, np.zeros_like(xy), np.ones(xy.shape[:2])
+    else:
+        start, vec = xy[:, :-1], np.diff(xy, axis=1)
+        length2 = vec[..., 0] * vec[..., 0] + vec[..., 1] * vec[..., 1]
+        length2 = np.where(length2 > 0, length2, np.inf)
+    px, py = points[:, :1] - start[..., 0], points[:, 1:] - start[..., 1]
+    t = np.minimum(np.maximum((px * vec[..., 0] + py * vec[..., 1]) / length2, 0.0), 1.0)
+    dx, dy = px - t * vec[..., 0], py - t * vec[..., 1]
+    j = np.argmin(dx * dx + dy * dy, axis=1)
+    rows = np.arange(len(j))
+    out = []
+    for ex, ey, yaw in zip(dx[rows, j].tolist(), dy[rows, j].tolist(), yaws, strict=True):
+        theta = math.radians(yaw)
+        side = -math.sin(theta) * ex + math.cos(theta) * ey
+        distance = math.hypot(ex, ey)
+        out.append(-distance if side < 0 else distance)
+    return out
+
+
+def _control_step(cc: CorrectedContext, t: int) -> Step | tuple[str, int]:
+    """The step at t read on its own (reporting what is missing), cached."""
     cache = cc.cache(CONTROL_STEP)
     found = cache.lookup(t)
     if found is not None:

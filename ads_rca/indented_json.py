@@ -128,7 +128,8 @@ def _respell_small_floats(block: bytes) -> bytes:
         return block
     pieces: list[bytes] = []
     done = 0
-    for start, end in sorted(m.span() for p in _SMALL_FLOATS for m in p.finditer(block)):
+    for span in sorted(m.span() for p in _SMALL_FLOATS for m in p.finditer(block)):
+        start, end = span
         if start < done:
             continue
         while start > 0 and block[start - 1] in _NUMBER_BYTES:

@@ -69,6 +69,6 @@ setup(
     python_requires=">=3.10",
     entry_points={
         "console_scripts": [f"{name} = {target}" for name, target in NODES.items()]
-        + ["ads-rca = ads_rca.cli:main"],
+        + ["ads-rca = ads_rca.cli:entry"],
     },
 )

@@ -16,7 +16,7 @@ import signal
 import sys
 from collections.abc import Sequence
 
-from ads_rca import __version__
+from ads_rca import __version__, quick_exit
 from ads_rca.commands import command_modules
 from ads_rca.errors import AdsRcaError
 from ads_rca.text import printable
@@ -61,6 +61,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_BROKEN_PIPE
 
 
+def entry() -> None:
+    """The ``ads-rca`` program: :func:`main`, then the end of the process (at once, when the
+    command kept what it loaded: :mod:`ads_rca.quick_exit`)."""
+    quick_exit.allow()
+    status = main()
+    if quick_exit.requested():
+        quick_exit.exit_now(status)
+    sys.exit(status)
+
+
 def run(argv: Sequence[str] | None) -> int:
     words = sys.argv[1:] if argv is None else list(argv)
     args = build_parser(command_named(words)).parse_args(words)
@@ -74,4 +84,4 @@ def run(argv: Sequence[str] | None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    entry()

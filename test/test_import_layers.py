@@ -35,6 +35,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
         "ads_rca.geometry",
         "ads_rca.progress",
         "ads_rca.workers",
+        "ads_rca.quick_exit",
     ),
     ("ads_rca.problems", "ads_rca.paramspec", "ads_rca.params"),
     ("ads_rca.model", "ads_rca.lanes", "ads_rca.ego_snapshots"),

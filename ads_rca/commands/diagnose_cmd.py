@@ -35,6 +35,7 @@ from ads_rca.params import (
     params_from_sources,
 )
 from ads_rca.params import parse_assignments as parse_p
+from ads_rca.quick_exit import keep_until_exit
 from ads_rca.summary import summary_text
 from ads_rca.text import printable
 from ads_rca.workers import checked_workers, loaded_objects_frozen
@@ -159,6 +160,7 @@ def run(args: argparse.Namespace) -> int:
             documents.append(_judge_and_write(log, params, args, workers, bool(documents)))
     if both:
         print(printable(why_modes_differ(documents)))
+    keep_until_exit(log, documents)  # every file is written and closed
     return 0
 
 
@@ -183,6 +185,7 @@ def _judge_and_write(
         print(printable(f"verdict JSON: {args.json_out}"))
     if args.report:
         print(printable(f"HTML report: {args.report}"))
+    keep_until_exit(result)  # its judging caches too
     return document
 
 

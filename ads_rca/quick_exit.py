@@ -1,0 +1,51 @@
+"""Ending the ``ads-rca`` program without freeing what a one-shot command loaded.
+
+A diagnosis holds its run as millions of small objects. Freeing them one by one when the
+process ends changes nothing but memory the operating system takes back anyway, and it
+cost 0.05 to 0.09 s of a 1 s diagnosis of a 1,957-frame log and 0.6 s of a 10,000-frame,
+50-actor one. So the program (:func:`ads_rca.cli.entry`) :func:`allow`\\ s it; a command
+that is done hands what it loaded to :func:`keep_until_exit`, and the program, once its
+output is flushed, ends with ``os._exit`` (as mypy does for the same reason). Everything a
+command writes is closed before it returns; nothing it starts (forked workers, pools) is
+still running by then.
+
+``ads_rca.cli.main`` called in-process (tests, another program) never allows it: nothing
+is kept, and the objects are freed as usual when the command returns.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import sys
+from typing import NoReturn
+
+_allowed = False
+_kept: list[object] = []
+
+
+def allow() -> None:
+    """This process is the ``ads-rca`` program: it may end without freeing objects."""
+    global _allowed  # noqa: PLW0603 - one process, one program
+    _allowed = True
+
+
+def keep_until_exit(*objects: object) -> None:
+    """Keep ``objects`` alive until the program ends, and end it at once (when allowed;
+    else nothing happens and they are freed as usual)."""
+    if _allowed:
+        _kept.extend(objects)
+
+
+def requested() -> bool:
+    """A command kept objects for the quick exit."""
+    return bool(_kept)
+
+
+def exit_now(status: int) -> NoReturn:
+    """Flush the standard streams and end the process with ``status``, freeing nothing."""
+    for stream in (sys.stdout, sys.stderr):
+        # a reader gone or a stream closed: there is nothing left to keep
+        with contextlib.suppress(OSError, ValueError):
+            stream.flush()
+    os._exit(status)

@@ -26,10 +26,12 @@ def best_matching(eligible: np.ndarray, score: FloatArray) -> tuple[np.ndarray, 
     """The matched (rows ascending, columns) maximising the summed ``score`` over the
     ``eligible`` pairs (boolean matrix); an ineligible pair is never matched."""
     rows, cols = np.nonzero(eligible)  # row-major: rows ascending
+    # pairs are few (about one a box): Python sets test them faster than np.unique
+    row_list, col_list = rows.tolist(), cols.tolist()
     if (
-        np.unique(rows).size == rows.size
-        and np.unique(cols).size == cols.size
-        and bool((score[rows, cols] > 0).all())
+        len(set(row_list)) == len(row_list)
+        and len(set(col_list)) == len(col_list)
+        and all(value > 0 for value in score[rows, cols].tolist())  # False for NaN
     ):
         return rows, cols
     rows, cols = solver()(np.where(eligible, -score, 0.0))

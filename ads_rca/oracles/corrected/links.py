@@ -8,6 +8,8 @@ Rule 2 links the partner this way, rule 8 every actor (its samples).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ads_rca.geometry import FloatArray
@@ -39,12 +41,14 @@ def raw_links(raw: Predictions, pwp: Predictions, ego_id: str | None) -> dict[st
     raw_ids, raw_xy = step0_offsets(raw, None)
     if not pwp_ids or not raw_ids:
         return {}
-    d = np.hypot(raw_xy[:, None, 0] - pwp_xy[None, :, 0], raw_xy[:, None, 1] - pwp_xy[None, :, 1])
-    d = np.where(d < LINK_MAX_DISTANCE, d, np.inf)
-    best = np.argmin(d, axis=1)
-    reach = np.isfinite(d[np.arange(len(raw_ids)), best])
-    out: dict[str, str] = {}
-    for col in np.unique(best[reach]).tolist():
-        linked = np.flatnonzero((best == col) & reach)
-        out[pwp_ids[col]] = raw_ids[int(linked[np.argmin(d[linked, col])])]
-    return out
+    diff = raw_xy[:, None] - pwp_xy[None, :]  # (raw, pwp, 2)
+    d = np.hypot(diff[..., 0], diff[..., 1])
+    d[~(d < LINK_MAX_DISTANCE)] = np.inf  # NaN too
+    best = d.argmin(axis=1)  # the first minimum: the earlier pwp id on ties
+    nearest = np.minimum.reduce(d, axis=1)
+    # one pass over the raw ids in order (ids are few: Python beats a numpy call per actor)
+    winner: dict[int, tuple[float, int]] = {}  # pwp column -> (distance, raw row)
+    for row, (col, distance) in enumerate(zip(best.tolist(), nearest.tolist(), strict=True)):
+        if distance < math.inf and (col not in winner or distance < winner[col][0]):
+            winner[col] = (distance, row)  # strictly nearer: the earlier raw id on ties
+    return {pwp_ids[col]: raw_ids[winner[col][1]] for col in sorted(winner)}

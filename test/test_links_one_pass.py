@@ -1,0 +1,66 @@
+"""``raw_links`` resolves the raw ids in one pass: the same links as the per-actor numpy form
+(each raw id's nearest pwp id below the distance cap, earlier pwp id on ties; per actor the
+nearest raw id, earlier raw id on ties), NaN offsets and exact ties included."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ads_rca.model import Predictions, Track
+from ads_rca.oracles.corrected.links import LINK_MAX_DISTANCE, raw_links, step0_offsets
+
+
+def per_actor_form(raw: Predictions, pwp: Predictions, ego_id: str | None) -> dict[str, str]:
+    pwp_ids, pwp_xy = step0_offsets(pwp, ego_id)
+    raw_ids, raw_xy = step0_offsets(raw, None)
+    if not pwp_ids or not raw_ids:
+        return {}
+    d = np.hypot(raw_xy[:, None, 0] - pwp_xy[None, :, 0], raw_xy[:, None, 1] - pwp_xy[None, :, 1])
+    d = np.where(d < LINK_MAX_DISTANCE, d, np.inf)
+    best = np.argmin(d, axis=1)
+    reach = np.isfinite(d[np.arange(len(raw_ids)), best])
+    out: dict[str, str] = {}
+    for col in np.unique(best[reach]).tolist():
+        linked = np.flatnonzero((best == col) & reach)
+        out[pwp_ids[col]] = raw_ids[int(linked[np.argmin(d[linked, col])])]
+    return out
+
+
+def tracks(rng: np.random.Generator, count: int, prefix: str) -> Predictions:
+    xy = np.round(rng.random((count, 2)) * 6) * 30  # a coarse grid: exact ties, some >= 100 m
+    xy[rng.random((count, 2)) < 0.1] = np.nan
+    return {
+        f"{prefix}{i}": Track(("0", "1"), np.array([[xy[i, 0], xy[i, 1], 0.0], [0.0, 0.0, 0.0]]))
+        for i in range(count)
+    }
+
+
+def test_the_same_links_as_the_per_actor_form() -> None:
+    rng = np.random.default_rng(8)
+    linked = 0
+    for case in range(1500):
+        raw = tracks(rng, int(rng.integers(0, 9)), "r")
+        pwp = tracks(rng, int(rng.integers(0, 9)), "p")
+        ego = "p0" if case % 2 else None
+        got, want = raw_links(raw, pwp, ego), per_actor_form(raw, pwp, ego)
+        assert list(got.items()) == list(want.items()), case  # order too
+        linked += len(got)
+    assert linked > 1000  # links were made (and contested: several raw ids per actor)
+
+
+def test_a_shared_actor_goes_to_the_nearest_raw_id_then_the_earlier() -> None:
+    """Raw a at 3 m and raw b at 3 m from actor p (a tie: a, the earlier, wins); raw c at 1 m
+    from actor q, raw d at 2 m from q: c. Raw e 150 m from everything links to nobody."""
+
+    def at(x: float, y: float) -> Track:
+        return Track(("0",), np.array([[x, y, 0.0]]))
+
+    pwp = {"p": at(0.0, 0.0), "q": at(50.0, 0.0)}
+    raw = {
+        "d": at(52.0, 0.0),
+        "a": at(3.0, 0.0),
+        "b": at(0.0, -3.0),
+        "c": at(49.0, 0.0),
+        "e": at(0.0, 150.0),
+    }
+    assert raw_links(raw, pwp, None) == {"p": "a", "q": "c"}

@@ -1,5 +1,6 @@
-"""Control steps read a block of frames at a time give bit for bit the step each frame's
-own plan gives, and leave every step that reports a problem to the single-step path."""
+"""Control steps and floors read a block of frames at a time give bit for bit what each
+frame read on its own gives, and leave every step that reports a problem to the single-step
+path (so the problems reported, and their order, are the same)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,16 @@ import numpy as np
 from ads_rca.model import EgoPose, Plan, RunLog, RunMetadata
 from ads_rca.oracles.base import RunContext
 from ads_rca.oracles.corrected.context import corrected_context
-from ads_rca.oracles.corrected.control import BLOCK, Step, _control_step, step_block
+from ads_rca.oracles.corrected.control import (
+    BLOCK,
+    FLOOR_BLOCKS,
+    Step,
+    _control_floors,
+    _control_step,
+    control_floors,
+    step_block,
+)
+from ads_rca.oracles.corrected.floors import Floor
 from ads_rca.params import make_params
 
 TPF = 50
@@ -22,31 +32,64 @@ def bits(step: Step) -> tuple[str, str, str]:
     return (float.hex(step.speed), float.hex(step.lateral), float.hex(step.decel))
 
 
-def hostile_log(seed: int) -> RunLog:
+def hostile_log(seed: int, frames: int = 3 * BLOCK, rough: float = 1.0) -> RunLog:
     """Random plans (shuffled and repeated keys, no step 0 or 1, one point, repeated points,
-    NaN points, a non-integer key, an empty plan) and poses (random yaws, NaN, gaps)."""
+    NaN points, a non-integer key, an empty plan) and poses (random yaws, NaN, infinite
+    speed, gaps); ``rough`` scales how often an input is hostile."""
     rng = random.Random(seed)
-    log = RunLog(metadata=RunMetadata(TPF, (1.3, 0.0, 1.8), -1, 3 * BLOCK), frames=())
-    for f in range(3 * BLOCK + 1):
+    odd = rough * 0.2
+    log = RunLog(metadata=RunMetadata(TPF, (1.3, 0.0, 1.8), -1, frames), frames=())
+    for f in range(frames + 1):
         t = f * TPF
-        if rng.random() < 0.9:
-            x = math.nan if rng.random() < 0.03 else rng.uniform(-50.0, 50.0)
-            log.pose[t] = EgoPose(x, rng.uniform(-50, 50), 0, 0, 0, rng.uniform(-360, 360), 3.0)
-        n = rng.choice((0, 1, 2, 5, 5, 5, 8))
+        if rng.random() > odd / 2:
+            x = math.nan if rng.random() < odd / 6 else rng.uniform(-50.0, 50.0)
+            yaw, v = rng.uniform(-360, 360), math.inf if rng.random() < odd / 6 else 3.0
+            log.pose[t] = EgoPose(x, rng.uniform(-50, 50), 0, 0, 0, yaw, v)
+        n = rng.choice((0, 1, 2, 5, 5, 5, 8)) if rng.random() < odd * 5 else 5
         keys = [str(k) for k in range(n)]
-        if n and rng.random() < 0.2:
+        if n and rng.random() < odd:
             keys[rng.randrange(n)] = rng.choice(("0", "1", "7", "x", "1.5", "40"))
-        if rng.random() < 0.3:
+        if rng.random() < odd * 1.5:
             rng.shuffle(keys)
         xy = np.array([[rng.uniform(-60, 60), rng.uniform(-60, 60)] for _ in keys]).reshape(-1, 2)
-        if n > 2 and rng.random() < 0.2:
+        if n > 2 and rng.random() < odd:
             xy[1] = xy[0]  # a zero-length segment
-        if n and rng.random() < 0.05:
+        if n and rng.random() < odd / 4:
             xy[rng.randrange(n), rng.randrange(2)] = math.nan
         speed = np.array([rng.uniform(0, 20) for _ in keys])
-        if rng.random() < 0.95:
+        if rng.random() > odd / 4:
             log.waypoints[t] = Plan(tuple(keys), xy, speed)
+    log.frames = tuple(f * TPF for f in range(frames) if rng.random() > odd / 10)
     return log
+
+
+def floor_bits(floors: tuple[Floor, Floor]) -> list[tuple[str, int, str]]:
+    return [(float.hex(f.value), f.frames, f.basis) for f in floors]
+
+
+def test_a_block_of_control_floors_is_each_frames_own_floor_bit_for_bit() -> None:
+    # floors of 10 and 11 frames (9 and 10 differences: the odd and the even median) two
+    # frames before ts, on random logs with gaps, missing inputs and infinite speeds: the
+    # block reading and the single one agree on every floor and on the problems reported
+    used = 0
+    for seed in range(30):
+        log = hostile_log(seed, 4 * BLOCK, 0.05 if seed % 3 else 1.0)
+        floor_s = 0.5 if seed % 2 else 0.55
+        params = make_params(
+            "corrected",
+            {"effect_time_window": 2, "window_s": 0.1, "noise_floor_s": floor_s},
+        )
+        fast = corrected_context(RunContext(log, params))
+        slow = corrected_context(RunContext(log, params))
+        for cc in (fast, slow):
+            assert len(cc.ego_half) == 2  # the first plan build's report, in both
+        for ts in log.frames:
+            got, want = control_floors(fast, ts), _control_floors(slow, ts)
+            assert floor_bits(got) == floor_bits(want), (seed, ts)
+            block = fast.cache(FLOOR_BLOCKS).lookup(ts // (BLOCK * TPF))
+            used += block is not None and block.floors[ts // TPF % BLOCK] is not None
+        assert list(fast.ctx.problems) == list(slow.ctx.problems)
+    assert used > 1000  # most floors were read by blocks
 
 
 def test_a_block_of_steps_is_each_frames_own_step_bit_for_bit() -> None:

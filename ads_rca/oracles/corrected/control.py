@@ -26,8 +26,21 @@ from ads_rca.geometry import FloatArray, world_to_ego
 from ads_rca.oracles.base import Metric, OracleResult, RunContext
 from ads_rca.oracles.corrected.boxes import key_steps, step_order
 from ads_rca.oracles.corrected.common import REPORTED, skipped
-from ads_rca.oracles.corrected.context import CacheName, CorrectedContext, corrected_context
-from ads_rca.oracles.corrected.floors import Floor, floor_frames, step_floor
+from ads_rca.oracles.corrected.context import (
+    CacheName,
+    CorrectedContext,
+    corrected_context,
+    floor_span,
+    window_frames,
+)
+from ads_rca.oracles.corrected.floors import (
+    BASIS_STEPS,
+    NO_FLOOR,
+    Floor,
+    floor_frames,
+    robust_sigmas,
+    step_floor,
+)
 
 
 @dataclass(frozen=True)
@@ -57,25 +70,32 @@ class StepBlock:
 
 
 #: Step blocks by block number (timestamp // (BLOCK · tpf)).
-STEP_BLOCKS: CacheName[StepBlock | None] = CacheName("control_step_blocks")
+STEP_BLOCKS: CacheName[StepBlock] = CacheName("control_step_blocks")
 
 
 def control_step(cc: CorrectedContext, t: int) -> Step | tuple[str, int]:
     """The step at t, or the first missing input: from t's block of steps where it could
     be read silently, else on its own (cached: overlapping horizons share it)."""
+    step = block_step(cc, t)
+    return step if step is not None else _control_step(cc, t)
+
+
+def block_step(cc: CorrectedContext, t: int) -> Step | None:
+    """The step at t from its block, None where it must be read on its own (it reports a
+    problem, t is off the frame grid, or no plan was built yet: the first build reports
+    an ego without extent, and must come first)."""
     tpf = cc.tpf
-    if t % tpf == 0:
-        blocks = cc.cache(STEP_BLOCKS)
-        number = t // (BLOCK * tpf)
-        block = blocks.lookup(number)
-        if block is None and "ego_half" in vars(cc):  # else a plan build reports it first
-            block = step_block(cc, number * BLOCK * tpf)
-            blocks.put(number, block)
-        if block is not None:
-            step = block.steps[(t - block.start) // tpf]
-            if step is not None:
-                return step
-    return _control_step(cc, t)
+    if t % tpf:
+        return None
+    blocks = cc.cache(STEP_BLOCKS)
+    number = t // (BLOCK * tpf)
+    block = blocks.lookup(number)
+    if block is None:
+        if "ego_half" not in vars(cc):
+            return None
+        block = step_block(cc, number * BLOCK * tpf)
+        blocks.put(number, block)
+    return block.steps[(t - block.start) // tpf]
 
 
 def step_block(cc: CorrectedContext, start: int) -> StepBlock:
@@ -166,9 +186,85 @@ def _control_step(cc: CorrectedContext, t: int) -> Step | tuple[str, int]:
     return step
 
 
+@dataclass(frozen=True)
+class FloorBlock:
+    """The control floors at ``start`` + i·tpf, i < :data:`BLOCK`, read for the log's
+    ``frames``; None where a floor frame is missing, its step is read on its own or a
+    difference is not finite (:func:`_control_floors` reads those)."""
+
+    start: int
+    frames: tuple[int, ...]
+    floors: list[tuple[Floor, Floor] | None]
+
+
+#: Floor blocks by block number (timestamp // (BLOCK · tpf)).
+FLOOR_BLOCKS: CacheName[FloorBlock] = CacheName("control_floor_blocks")
+
+
 def control_floors(cc: CorrectedContext, ts: int) -> tuple[Floor, Floor]:
     """Rule 8's speed and lateral floors at ts, from the control steps of its floor frames
-    (those with every input; the robust sigma of consecutive steps' differences)."""
+    (those with every input; the robust sigma of consecutive steps' differences): from
+    ts's block of floors where every floor frame has a silent step, else on its own."""
+    tpf = cc.tpf
+    if ts % tpf == 0 and "ego_half" in vars(cc):
+        blocks = cc.cache(FLOOR_BLOCKS)
+        number = ts // (BLOCK * tpf)
+        block = blocks.lookup(number)
+        if block is None or block.frames is not cc.log.frames:
+            block = floor_block(cc, number * BLOCK * tpf)
+            blocks.put(number, block)
+        found = block.floors[(ts - block.start) // tpf]
+        if found is not None:
+            return found
+    return _control_floors(cc, ts)
+
+
+def floor_block(cc: CorrectedContext, start: int) -> FloorBlock:
+    """The floors of a block of frames whose floor frames are all present with silent
+    steps: consecutive floor frames, so each frame's differences are a window of one
+    difference array, and all the robust sigmas are two sorts."""
+    tpf = cc.tpf
+    span = floor_span(cc.params, tpf)
+    length = span - window_frames(cc.params, tpf)  # floor frames per frame (L)
+    floors: list[tuple[Floor, Floor] | None] = [None] * BLOCK
+    block = FloorBlock(start, cc.log.frames, floors)
+    if length < 2:
+        return block
+    frames = cc.frame_set()
+    first = start - span * tpf
+    speed: list[float] = []
+    lateral: list[float] = []
+    ok: list[bool] = []
+    for k in range(BLOCK - 1 + length):
+        u = first + k * tpf
+        step = block_step(cc, u) if u in frames else None
+        ok.append(step is not None)
+        speed.append(step.speed if step is not None else math.nan)
+        lateral.append(step.lateral if step is not None else math.nan)
+    with np.errstate(invalid="ignore"):  # inf − inf: a NaN difference, not used
+        diffs = np.diff(np.array([speed, lateral]), axis=1)
+    windows = np.lib.stride_tricks.sliding_window_view(diffs, length - 1, axis=1)
+    missing = np.cumsum([0, *(not k for k in ok)])
+    full = (missing[length:] - missing[:-length] == 0) & np.isfinite(windows).all(axis=(0, 2))
+    use = np.flatnonzero(full)
+    if use.size == 0:
+        return block
+    count = length - 1
+    if count < max(int(cc.params.noise_floor_min_frames), 1):
+        for i in use.tolist():
+            floors[i] = (NO_FLOOR, NO_FLOOR)
+        return block
+    sigmas = robust_sigmas(windows[:, use]).tolist()
+    for n, i in enumerate(use.tolist()):
+        floors[i] = (
+            Floor(sigmas[0][n], count, BASIS_STEPS),
+            Floor(sigmas[1][n], count, BASIS_STEPS),
+        )
+    return block
+
+
+def _control_floors(cc: CorrectedContext, ts: int) -> tuple[Floor, Floor]:
+    """:func:`control_floors` read on its own (sliding from the last one read)."""
     found = cc.slide(CONTROL_STEP).read(floor_frames(cc, ts), lambda u: control_step(cc, u))
     steps = [s for s in found if isinstance(s, Step)]
     minimum = int(cc.params.noise_floor_min_frames)

@@ -105,6 +105,22 @@ def robust_sigma(values: Sequence[float] | FloatArray) -> float:
     return MAD_SIGMA * median(np.abs(spread - median(spread)))
 
 
+def robust_sigmas(rows: FloatArray) -> FloatArray:
+    """:func:`robust_sigma` of each row along the last axis (the same sorts and IEEE
+    operations, so the same values)."""
+    centre = _medians(np.sort(rows, axis=-1, kind="stable"))
+    spread = np.sort(np.abs(rows - centre[..., None]), axis=-1, kind="stable")
+    return MAD_SIGMA * _medians(spread)
+
+
+def _medians(ordered: FloatArray) -> FloatArray:
+    """The median of each sorted row (last axis, at least one value)."""
+    mid = ordered.shape[-1] // 2
+    if ordered.shape[-1] % 2:
+        return ordered[..., mid]
+    return 0.5 * (ordered[..., mid - 1] + ordered[..., mid])
+
+
 def actor_floor(
     cc: CorrectedContext, ts: int, sampler: Callable[[CorrectedContext, int], Samples]
 ) -> Floor:

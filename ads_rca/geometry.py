@@ -8,7 +8,7 @@ interfaces. An ego-frame offset (x, y) at ego yaw θ maps to the world as
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 
 import numpy as np
 import numpy.typing as npt
@@ -76,6 +76,51 @@ def axis_aligned_iou(a: FloatArray, b: FloatArray, nan_score: float = math.nan) 
         iou[empty[:n, None] | empty[n:]] = 0.0
         iou[nan[:n, None] | nan[n:]] = nan_score
     return iou
+
+
+def axis_aligned_ious(
+    a_sets: Sequence[FloatArray], b_sets: Sequence[FloatArray], nan_score: float = math.nan
+) -> list[FloatArray]:
+    """``axis_aligned_iou(a_sets[k], b_sets[k], nan_score)`` for every k, bit for bit.
+
+    Why: a run's frames each hold about ten boxes a side, so one frame's IoUs cost a dozen
+    numpy calls for a hundred pairs. Here every frame's pairs are laid end to end and each
+    pair gets the same IEEE operations in the same order, once for the whole batch.
+    """
+    n = np.array([len(a) for a in a_sets], dtype=np.intp)
+    m = np.array([len(b) for b in b_sets], dtype=np.intp)
+    a = np.concatenate([np.zeros((0, 4)), *a_sets]).reshape(-1, 4)
+    b = np.concatenate([np.zeros((0, 4)), *b_sets]).reshape(-1, 4)
+    a_coords, b_coords = a.T.copy(), b.T.copy()  # (4, boxes): x1, y1, x2, y2
+    a_low, a_high = np.minimum(a_coords[:2], a_coords[2:]), np.maximum(a_coords[:2], a_coords[2:])
+    b_low, b_high = np.minimum(b_coords[:2], b_coords[2:]), np.maximum(b_coords[:2], b_coords[2:])
+    a_side, b_side = a_high - a_low, b_high - b_low
+    a_area, b_area = a_side[0] * a_side[1], b_side[0] * b_side[1]
+    # frame k's pairs in row-major order: each a box repeated once per b box of its frame,
+    # against col: that frame's b boxes in order (np.repeat and np.take, not fancy indexing:
+    # several times faster on these sizes)
+    per_row = np.repeat(m, n)  # pairs of each a box
+    row_start = np.cumsum(per_row) - per_row  # its first pair
+    b_start = np.repeat(np.cumsum(m) - m, n)  # its frame's first b box
+    cols = np.arange(int(n @ m)) + np.repeat(b_start - row_start, per_row)
+    sides = np.minimum(np.repeat(a_high, per_row, axis=1), np.take(b_high, cols, axis=1))
+    sides -= np.maximum(np.repeat(a_low, per_row, axis=1), np.take(b_low, cols, axis=1))
+    inter = np.maximum(sides[0], 0.0) * np.maximum(sides[1], 0.0)  # (width, height) clipped
+    union = np.repeat(a_area, per_row) + np.take(b_area, cols) - inter
+    iou: FloatArray = np.zeros(union.shape)
+    np.divide(inter, union, out=iou, where=union > 0)
+    if not (np.logical_and.reduce(a_area > 0) and np.logical_and.reduce(b_area > 0)):
+        a_nan = np.logical_or.reduce(np.isnan(a_coords), axis=0)
+        b_nan = np.logical_or.reduce(np.isnan(b_coords), axis=0)
+        iou[np.repeat(a_area <= 0, per_row) | np.take(b_area <= 0, cols)] = 0.0
+        iou[np.repeat(a_nan, per_row) | np.take(b_nan, cols)] = nan_score
+    bounds = [0, *np.cumsum(n * m).tolist()]
+    return [
+        iou[start:stop].reshape(rows_k, cols_k)
+        for start, stop, rows_k, cols_k in zip(
+            bounds[:-1], bounds[1:], n.tolist(), m.tolist(), strict=True
+        )
+    ]
 
 
 #: Pair scores computed at once by the block-wise box matchers: a few arrays of this many

@@ -14,10 +14,11 @@ A dropout that tracking bridges never reaches the planner, so it is not blamed.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
-from ads_rca.geometry import FloatArray, axis_aligned_iou, overlap_blocks
+from ads_rca.geometry import FloatArray, axis_aligned_iou, axis_aligned_ious, overlap_blocks
 from ads_rca.model import Boxes
 from ads_rca.oracles.base import Metric, OracleResult, RunContext
 from ads_rca.oracles.corrected.assignment import best_matching
@@ -29,22 +30,76 @@ from ads_rca.oracles.corrected.common import (
     num,
     skipped,
 )
-from ads_rca.oracles.corrected.context import CorrectedContext, corrected_context
+from ads_rca.oracles.corrected.context import CacheName, CorrectedContext, corrected_context
 from ads_rca.oracles.corrected.floors import perception_floor
 from ads_rca.oracles.corrected.match3d import uses_3d
 from ads_rca.oracles.corrected.perception3d import perception3d
 
 #: Frames with at most this many detection x gt pairs are matched on the whole IoU matrix.
 DENSE_PAIRS = 1 << 18
+#: Frames whose IoU matrices are computed in one batch: the one judged and those after it.
+IOU_BATCH = 64
+#: Frames with more detection x gt pairs than this are scored alone, by :func:`match_boxes`.
+BATCH_PAIRS = 1024
+
+
+@dataclass(frozen=True)
+class FrameIoU:
+    """A frame's IoU matrix (NaN coordinates score 0) and the boxes it was computed from."""
+
+    det: Boxes
+    gt: Boxes
+    iou: FloatArray
+
+
+FRAME_IOUS: CacheName[FrameIoU] = CacheName("frame_ious")
+
+
+def frame_iou(cc: CorrectedContext, ts: int, det: Boxes, gt: Boxes) -> FloatArray | None:
+    """The IoU matrix of ``det`` x ``gt`` at ts (NaN coordinates score 0), or None where the
+    frame is too large (or empty) to batch.
+
+    Why: a frame's hundred pairs cost a dozen numpy calls; computed with the frames that
+    follow (diagnose and a live monitor judge them next) they cost a fraction of that. A
+    batch stops at the first frame missing, too large or already cached, so frames judged
+    backwards batch nothing; a cached matrix is used only for the very box objects it was
+    computed from, so a live window's late or replaced frames are scored afresh.
+    """
+    if not 0 < len(det) * len(gt) <= BATCH_PAIRS:
+        return None
+    cache = cc.cache(FRAME_IOUS)
+    hit = cache.lookup(ts)
+    if hit is not None and hit.det is det and hit.gt is gt:
+        return hit.iou
+    batch = [(ts, det, gt)]
+    detections, truths = cc.log.bboxes, cc.log.bboxes_gt
+    for u in range(ts + cc.tpf, ts + IOU_BATCH * cc.tpf, cc.tpf) if cc.tpf > 0 else ():
+        d, g = detections.get(u), truths.get(u)
+        if d is None or g is None or not 0 < len(d) * len(g) <= BATCH_PAIRS:
+            break
+        if cache.lookup(u) is not None:
+            break
+        batch.append((u, d, g))
+    ious = axis_aligned_ious(
+        [d.corners for _, d, _ in batch], [g.corners for _, _, g in batch], nan_score=0.0
+    )
+    for (u, d, g), iou in zip(batch, ious, strict=True):
+        cache.put(u, FrameIoU(d, g, iou))
+    return ious[0]
 
 
 def match_boxes(
-    detections: FloatArray, gts: FloatArray, threshold: float, dense_pairs: int = DENSE_PAIRS
+    detections: FloatArray,
+    gts: FloatArray,
+    threshold: float,
+    dense_pairs: int = DENSE_PAIRS,
+    iou: FloatArray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, FloatArray, FloatArray]:
     """Hungarian matching with IoU >= threshold.
 
     Returns matched detection rows (ascending), matched gt rows, their IoUs, and each gt
-    box's best IoU over all detections (NaN coordinates score 0).
+    box's best IoU over all detections (NaN coordinates score 0). ``iou``: the whole IoU
+    matrix (NaN coordinates scored 0) where it is already computed (:func:`frame_iou`).
 
     Up to ``dense_pairs`` pairs, one assignment on the whole matrix. Beyond, memory stays
     linear: IoUs are computed block by block (only boxes whose extents touch), only the
@@ -56,8 +111,9 @@ def match_boxes(
     if n == 0 or m == 0:
         empty = np.zeros(0, dtype=np.int64)
         return empty, empty, np.zeros(0), np.zeros(m)
-    if n * m <= dense_pairs or not threshold > 0:  # a threshold <= 0 makes every pair eligible
-        iou = axis_aligned_iou(detections, gts, nan_score=0.0)  # never infinite
+    if iou is not None or n * m <= dense_pairs or not threshold > 0:  # (<= 0: all eligible)
+        if iou is None:
+            iou = axis_aligned_iou(detections, gts, nan_score=0.0)  # never infinite
         rows, cols = best_matching(iou >= threshold, iou)
         return rows, cols, iou[rows, cols], np.maximum.reduce(iou, axis=0)
     best = np.zeros(m)
@@ -122,11 +178,11 @@ def _assign_groups(
 
 
 def detection_metrics(
-    det: Boxes, gt: Boxes, threshold: float
+    det: Boxes, gt: Boxes, threshold: float, iou: FloatArray | None = None
 ) -> tuple[dict[str, Metric], set[str]]:
     """Precision, recall, mean matched IoU, missed gt ids (best IoU), false positives;
-    and the matched gt ids."""
-    rows, cols, ious, best = match_boxes(det.corners, gt.corners, threshold)
+    and the matched gt ids (``iou``: as :func:`match_boxes` takes it)."""
+    rows, cols, ious, best = match_boxes(det.corners, gt.corners, threshold, iou=iou)
     n_det, n_gt, n_match = len(det), len(gt), len(rows)
     # a frame has about ten boxes a side: Python sets beat numpy masks at that size
     matched_rows, matched_cols = set(rows.tolist()), set(cols.tolist())
@@ -175,7 +231,7 @@ def perception(ctx: RunContext, ts: int) -> OracleResult:
     if absent:
         return skipped("perception", ts, f"missing {', '.join(absent)}", thresholds=thresholds)
     det, gt = cc.log.bboxes[ts], cc.log.bboxes_gt[ts]
-    metrics, matched_gt = detection_metrics(det, gt, p.perc_match_iou)
+    metrics, matched_gt = detection_metrics(det, gt, p.perc_match_iou, frame_iou(cc, ts, det, gt))
     partner = cc.partner_at(ts)
     in_view = partner is not None and partner in gt.ids
     unmatched = partner is not None and in_view and partner not in matched_gt

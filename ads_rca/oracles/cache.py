@@ -19,6 +19,9 @@ from typing import Generic, TypeVar
 K = TypeVar("K")
 V = TypeVar("V")
 
+#: What a missing key reads as (None may be a cached value).
+_ABSENT = object()
+
 #: Default size: enough for the corrected control horizon's plans plus slack.
 CACHE_SIZE = 64
 
@@ -32,21 +35,27 @@ class LRU(Generic[K, V]):
 
     def lookup(self, key: K) -> V | None:
         """The cached value, or None (no computation)."""
-        if key in self._data:
-            self._data.move_to_end(key)
-            return self._data[key]
-        return None
+        data = self._data
+        value = data.get(key, _ABSENT)
+        if value is _ABSENT:
+            return None
+        data.move_to_end(key)
+        return value  # type: ignore[return-value]
 
     def put(self, key: K, value: V) -> None:
-        self._data[key] = value
-        self._data.move_to_end(key)
-        if len(self._data) > self._size:
-            self._data.popitem(last=False)
+        data = self._data
+        if key in data:
+            data.move_to_end(key)
+        data[key] = value  # a new key goes last
+        if len(data) > self._size:
+            data.popitem(last=False)
 
     def get(self, key: K, compute: Callable[[], V]) -> V:
-        if key in self._data:
-            self._data.move_to_end(key)
-            return self._data[key]
+        data = self._data
+        found = data.get(key, _ABSENT)
+        if found is not _ABSENT:
+            data.move_to_end(key)
+            return found  # type: ignore[return-value]
         value = compute()
         self.put(key, value)
         return value

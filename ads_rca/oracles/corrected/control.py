@@ -84,6 +84,12 @@ def block_step(cc: CorrectedContext, t: int) -> Step | None:
     """The step at t from its block, None where it must be read on its own (it reports a
     problem, t is off the frame grid, or no plan was built yet: the first build reports
     an ego without extent, and must come first)."""
+    block = block_of(cc, t)
+    return None if block is None else block.steps[(t - block.start) // cc.tpf]
+
+
+def block_of(cc: CorrectedContext, t: int) -> StepBlock | None:
+    """The block of steps t belongs to (None off the frame grid or before any plan build)."""
     tpf = cc.tpf
     if t % tpf:
         return None
@@ -95,7 +101,7 @@ def block_step(cc: CorrectedContext, t: int) -> Step | None:
             return None
         block = step_block(cc, number * BLOCK * tpf)
         blocks.put(number, block)
-    return block.steps[(t - block.start) // tpf]
+    return block
 
 
 def step_block(cc: CorrectedContext, start: int) -> StepBlock:
@@ -277,8 +283,14 @@ def _control_floors(cc: CorrectedContext, ts: int) -> tuple[Floor, Floor]:
 def _steps(cc: CorrectedContext, ts: int) -> tuple[list[Step], str | None]:
     """The usable steps from ts, stopping at the first missing input, and why it stopped."""
     steps: list[Step] = []
+    tpf = cc.tpf
+    block: StepBlock | None = None
     for j in range(max(int(cc.params.control_horizon), 0)):
-        step = control_step(cc, ts + j * cc.tpf)
+        t = ts + j * tpf
+        if block is None or t - block.start >= BLOCK * tpf:  # a horizon spans two blocks
+            block = block_of(cc, t)
+        silent = None if block is None else block.steps[(t - block.start) // tpf]
+        step = silent if silent is not None else _control_step(cc, t)
         if not isinstance(step, Step):
             return steps, f"missing {step[0]} at {step[1]} ms"
         steps.append(step)

@@ -34,6 +34,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from itertools import pairwise
 
 import numpy as np
 
@@ -48,6 +49,7 @@ from ads_rca.oracles.corrected.context import (
 )
 from ads_rca.oracles.corrected.links import raw_links
 from ads_rca.oracles.corrected.match3d import frame_match, uses_3d
+from ads_rca.params import Params
 
 #: 1.4826 × MAD estimates a normal distribution's standard deviation.
 MAD_SIGMA = 1.4826
@@ -84,15 +86,63 @@ PREDICTION_SAMPLES: CacheName[Samples] = CacheName("prediction_samples")
 def floor_frames(cc: CorrectedContext, ts: int) -> list[int]:
     """The log's timestamps u with ts − (G + L)·tpf ≤ u < ts − G·tpf (ascending)."""
     tpf = cc.tpf
-    first, end = ts - floor_span(cc.params, tpf) * tpf, ts - window_frames(cc.params, tpf) * tpf
+    span, gap = floor_reach(cc.params, tpf)
+    first, end = ts - span * tpf, ts - gap * tpf
+    grid = frame_grid(cc)
+    if grid is not None:  # every tpf from lo to hi: the range's grid points inside it
+        lo, hi = grid
+        return [] if (first - lo) % tpf else list(range(max(first, lo), min(end, hi + tpf), tpf))
     frames = cc.frame_set()
     return [u for u in range(first, end, tpf) if u in frames]
+
+
+#: The parameters and frame period last asked, and their (W + L, W).
+_REACH: list[tuple[Params, int, tuple[int, int]]] = []
+
+
+def floor_reach(params: Params, tpf: int) -> tuple[int, int]:
+    """(W + L, W) in frames: the floor frames of ts lie from ts − (W + L)·tpf to before
+    ts − W·tpf (remembered for the last parameters: every frame asks)."""
+    if _REACH and _REACH[0][0] is params and _REACH[0][1] == tpf:
+        return _REACH[0][2]
+    reach = (floor_span(params, tpf), window_frames(params, tpf))
+    _REACH[:] = [(params, tpf, reach)]
+    return reach
+
+
+#: The frames tuple last checked and its first and last frame if it is a grid.
+FRAME_GRID: CacheName[tuple[tuple[int, ...], tuple[int, int] | None]] = CacheName("frame_grid")
+
+
+def frame_grid(cc: CorrectedContext) -> tuple[int, int] | None:
+    """The log's first and last frame when its frames are every tpf from one to the other,
+    each once (a run without gaps: floor frames are then a range), else None; checked once
+    per frames tuple (a live window's frames change)."""
+    frames = cc.log.frames
+    cache = cc.cache(FRAME_GRID)
+    found = cache.lookup(0)
+    if found is None or found[0] is not frames:
+        tpf = cc.tpf
+        grid = bool(frames) and all(b - a == tpf for a, b in pairwise(frames))
+        found = (frames, (frames[0], frames[-1]) if grid else None)
+        cache.put(0, found)
+    return found[1]
 
 
 def median(values: Sequence[float] | FloatArray) -> float:
     """The median (a stable sort, so equal values keep their order: the one picked is
     the plain-Python reading's)."""
     ordered = np.sort(np.asarray(values, dtype=np.float64), kind="stable")
+    mid = len(ordered) // 2
+    return float(ordered[mid] if len(ordered) % 2 else 0.5 * (ordered[mid - 1] + ordered[mid]))
+
+
+def list_median(values: list[float]) -> float:
+    """:func:`median` of a short list, sorted in plain Python (a numpy call costs more
+    than sorting ten values): the same stable order without NaN, so the same value."""
+    if any(math.isnan(v) for v in values):  # NaN: numpy's order (last) is not Python's
+        return median(values)
+    ordered = sorted(values)
     mid = len(ordered) // 2
     return float(ordered[mid] if len(ordered) % 2 else 0.5 * (ordered[mid - 1] + ordered[mid]))
 
@@ -127,7 +177,7 @@ def actor_floor(
     """The floor at ts from per-actor samples (others' median level, else the partner's
     own spread, else none); cached per timestamp and partner."""
     partner = cc.partner_at(ts)
-    cache = cc.cache(CacheName[tuple[str | None, Floor]](f"floor:{sampler.__name__}"))
+    cache = cc.cache(_names(sampler)[0])
     found = cache.lookup(ts)
     if found is None or found[0] != partner:
         found = (partner, _actor_floor(cc, ts, sampler, partner))
@@ -139,6 +189,19 @@ def actor_floor(
 #: others) and the partner's own sample (None without one).
 Level = tuple[float | None, float | None]
 
+#: The floor and level cache names of each sampler, by its name (made once, not per call).
+_NAMES: dict[str, tuple[CacheName[tuple[str | None, Floor]], CacheName[Level]]] = {}
+
+
+def _names(
+    sampler: Callable[[CorrectedContext, int], Samples],
+) -> tuple[CacheName[tuple[str | None, Floor]], CacheName[Level]]:
+    name = sampler.__name__
+    found = _NAMES.get(name)
+    if found is None:
+        found = _NAMES[name] = (CacheName(f"floor:{name}"), CacheName(f"level:{name}"))
+    return found
+
 
 def _actor_floor(
     cc: CorrectedContext,
@@ -146,14 +209,14 @@ def _actor_floor(
     sampler: Callable[[CorrectedContext, int], Samples],
     partner: str | None,
 ) -> Floor:
-    slide = cc.slide(CacheName[Level](f"level:{sampler.__name__}"))
+    slide = cc.slide(_names(sampler)[1])
     reduced = slide.read(
         floor_frames(cc, ts), lambda u: frame_level(sampler(cc, u), partner), partner
     )
     levels = [level for level, _ in reduced if level is not None]
     minimum = max(int(cc.params.noise_floor_min_frames), 1)
     if len(levels) >= minimum:
-        return Floor(median(levels), len(levels), BASIS_OTHERS)
+        return Floor(list_median(levels), len(levels), BASIS_OTHERS)
     own = [sample for _, sample in reduced if sample is not None]
     if len(own) >= minimum:
         return Floor(robust_sigma(own), len(own), BASIS_PARTNER)
@@ -164,7 +227,8 @@ def frame_level(samples: Samples, partner: str | None) -> Level:
     """One floor frame's part of the floor: the median of the actors other than the
     partner (None without any) and the partner's own sample (None without one)."""
     others = [v for a, v in samples.items() if a != partner]
-    return median(others) if others else None, None if partner is None else samples.get(partner)
+    own = None if partner is None else samples.get(partner)
+    return list_median(others) if others else None, own
 
 
 def perception_floor(cc: CorrectedContext, ts: int) -> Floor:

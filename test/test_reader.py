@@ -204,6 +204,35 @@ def test_string_that_is_not_a_number_reads_as_nan_and_names_the_field(log_dir: P
     assert math.isnan(log.actors[150].location[1, 0]) and log.actors[150].location[0, 0] == 1.5
 
 
+def test_a_list_in_place_of_every_number_is_reported_not_read_as_more_rows(
+    log_dir: Path,
+) -> None:
+    # Every number of a file a pair [a, b]: the whole-file array is then one dimension
+    # deeper but still a multiple of its width (2 actors x 9 numbers x 2 = 36 = 4 rows of
+    # 9), and used to be read as twice the rows, ids and numbers out of step.
+    actors = json.loads((log_dir / "actors/actors-100.json").read_text())
+    for actor in actors.values():
+        for part in ("location", "rotation", "extent"):
+            actor[part] = {axis: [1.0, 2.0] for axis in actor[part]}
+    (log_dir / "actors/actors-100.json").write_text(json.dumps(actors))
+    track = {str(k): {"x": [1.0, 2.0], "y": [3.0, 4.0], "z": [5.0, 6.0]} for k in range(3)}
+    _write(log_dir / "predictions/predictions-100.json", {"7": track})
+    plan = {str(i): {"x": [1.0, 2.0], "y": [3.0, 4.0], "speed": [5.0, 6.0]} for i in range(2)}
+    _write(log_dir / "waypoint/waypoints-100.json", plan)
+    log = read_run_log(log_dir)
+    assert log.actors[100].location.shape == (2, 3)
+    assert np.isnan(log.actors[100].location).all() and np.isnan(log.actors[100].extent).all()
+    assert log.predictions[100]["7"].offsets.shape == (3, 3)
+    assert np.isnan(log.predictions[100]["7"].offsets).all()
+    assert log.waypoints[100].xy.shape == (2, 2) and np.isnan(log.waypoints[100].speed).all()
+    issues = {(p.file, p.field): p.issue for p in log.problems}
+    # 2 actors x 9 fields, 3 steps x 3 fields, 2 points x 3 fields: 18 + 9 + 6 reports.
+    assert len(issues) == 33
+    assert issues[("actors/actors-100.json", "20.rotation.yaw")] == "[1.0, 2.0] is not a number"
+    assert issues[("predictions/predictions-100.json", "7.2.z")] == "[5.0, 6.0] is not a number"
+    assert issues[("waypoint/waypoints-100.json", "1.speed")] == "[5.0, 6.0] is not a number"
+
+
 def test_numbers_given_as_strings_are_accepted_everywhere(log_dir: Path) -> None:
     plan = json.loads((log_dir / "waypoint/waypoints-50.json").read_text())
     plan["1"]["x"] = "0.75"

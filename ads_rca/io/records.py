@@ -45,6 +45,8 @@ POSE_FIELDS = ("x", "y", "z", "roll", "pitch", "yaw", "speed")
 _NUMERIC_KINDS = "fiub"
 #: A prediction step's numbers, in a C loop (a predictions file holds thousands of steps).
 _STEP_XYZ = itemgetter("x", "y", "z")
+#: A box's corners and id.
+_BOUNDING_BOX, _ID = itemgetter("bounding_box"), itemgetter("id")
 
 
 class FieldReader:
@@ -177,7 +179,7 @@ def _actors_fast(document: Mapping[str, Any]) -> Actors | None:
         )
     except (KeyError, TypeError, ValueError, AttributeError):
         return None
-    if not _clean(table, 9):
+    if not _clean(table, 9, ndim=2):
         return None
     table = table.astype(np.float64).reshape(-1, 9)
     ids = tuple(str(k) for k in document)
@@ -224,20 +226,27 @@ def parse_boxes(document: Any, file: str, problems: ProblemLog, ts: int) -> Boxe
 
 def _boxes_fast(document: list[Any]) -> Boxes | None:
     try:
-        array = np.array([box["bounding_box"] for box in document])
-        raw_ids = [box["id"] for box in document]
-        extras = tuple(
-            {k: v for k, v in box.items() if k not in ("id", "bounding_box")} for box in document
-        )
+        array = np.array(list(map(_BOUNDING_BOX, document)))
+        raw_ids = list(map(_ID, document))
+        extras = tuple(map(_box_extras, document))
     except (KeyError, TypeError, ValueError, AttributeError):
         return None
     if document and array.shape != (len(document), 2, 2):
         return None
-    if not _clean(array, 4) or None in raw_ids:
+    if not _clean(array, 4, ndim=3) or None in raw_ids:
         return None
-    return Boxes(
-        tuple(_box_id(i) for i in raw_ids), array.astype(np.float64).reshape(-1, 4), extras
-    )
+    return Boxes(tuple(map(_box_id, raw_ids)), array.astype(np.float64).reshape(-1, 4), extras)
+
+
+def _box_extras(box: dict[str, Any]) -> dict[str, Any]:
+    """A box's other keys in file order: a copy less two keys (a C copy, not a loop), or a
+    new empty dict when it has none (a copy emptied keeps its table: 3000 boxes' worth
+    is more than test_memory's headroom)."""
+    if len(box) == 2:  # only id and bounding_box, both read before
+        return {}
+    extras = box.copy()
+    del extras["id"], extras["bounding_box"]
+    return extras
 
 
 def parse_predictions(
@@ -320,7 +329,7 @@ def parse_plan(document: Any, file: str, problems: ProblemLog, ts: int) -> Plan 
     keys = tuple(str(k) for k in document)
     try:
         table = np.array([(p["x"], p["y"], p["speed"]) for p in document.values()])
-        if _clean(table, 3):
+        if _clean(table, 3, ndim=2):
             table = table.astype(np.float64).reshape(-1, 3)
             return Plan(keys, table[:, :2].copy(), table[:, 2].copy())
     except (KeyError, TypeError, ValueError, AttributeError):
@@ -427,11 +436,13 @@ parse_objects_3d = _strict_file(_objects_3d)
 parse_control = _strict_file(_control)
 
 
-def _clean(array: np.ndarray, width: int) -> bool:
-    """True when a fast-path array is numeric, finite and of the expected width."""
+def _clean(array: np.ndarray, width: int, ndim: int = 1) -> bool:
+    """True when a fast-path array is numeric, finite, of the expected width and of
+    ``ndim`` dimensions (a list of numbers in place of every number makes one more: a
+    value that is not a number, to report)."""
     if array.size == 0:
         return True
-    if array.dtype.kind not in _NUMERIC_KINDS or array.size % width:
+    if array.dtype.kind not in _NUMERIC_KINDS or array.size % width or array.ndim != ndim:
         return False
     return bool(np.isfinite(array).all())
 

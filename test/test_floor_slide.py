@@ -1,16 +1,22 @@
 """The floors' incremental reads equal the naive ones: :class:`Slide` returns what computing
 every key would (windows sliding, jumping, shrinking, with gaps and a changed tag), and the
-stable-sort median and robust sigma pick exactly the plain-Python values."""
+stable-sort median and robust sigma pick exactly the plain-Python values (and the short-list
+median numpy's); floor frames read as a range equal those read through the frame set."""
 
 from __future__ import annotations
 
+import math
 import random
 from functools import partial
 
 import numpy as np
 
+from ads_rca.model import RunLog, RunMetadata
+from ads_rca.oracles.base import RunContext
 from ads_rca.oracles.cache import Slide
-from ads_rca.oracles.corrected.floors import median, robust_sigma
+from ads_rca.oracles.corrected.context import corrected_context
+from ads_rca.oracles.corrected.floors import floor_frames, list_median, median, robust_sigma
+from ads_rca.params import make_params
 
 
 def test_a_slide_reads_what_computing_every_key_gives() -> None:
@@ -68,3 +74,38 @@ def test_median_and_robust_sigma_are_the_plain_python_readings_bit_for_bit() -> 
         want = 1.4826 * plain_median([abs(v - centre) for v in listed])
         assert np.float64(robust_sigma(listed)).tobytes() == np.float64(want).tobytes()
         assert robust_sigma(values) == robust_sigma(listed)
+
+
+def test_the_short_list_median_is_numpys_bit_for_bit_nan_included() -> None:
+    # ties, signed zeros, infinities and NaN (numpy sorts NaN last; the list reading hands
+    # such lists to numpy): the plain-Python sort picks the same bits every time
+    rng = np.random.default_rng(8)
+    specials = [0.0, -0.0, math.inf, -math.inf, math.nan, 1.5]
+    for case in range(3000):
+        values = np.round(rng.normal(size=int(rng.integers(1, 15))), case % 3).tolist()
+        if case % 4 == 0:
+            values[int(rng.integers(len(values)))] = specials[case % len(specials)]
+        got, want = list_median(values), median(values)
+        assert np.float64(got).tobytes() == np.float64(want).tobytes(), values
+
+
+def test_floor_frames_of_a_run_without_gaps_are_the_ones_a_set_reads() -> None:
+    # every tpf from 0 (the range shortcut), then with a gap, a repeated frame and an
+    # off-grid frame (each read through the frame set): always the log's frames u with
+    # ts - 80 tpf <= u < ts - 20 tpf (W = 20, L = 60 at 50 ms)
+    log = RunLog(metadata=RunMetadata(50, (1.3, 0.0, 1.8), -1, 400), frames=())
+    cc = corrected_context(RunContext(log, make_params("corrected")))
+    regular = tuple(range(0, 200 * 50, 50))
+    for frames in (
+        regular,
+        regular[:90] + regular[91:],
+        regular[:90] + regular[89:],
+        (*regular[:90], 90 * 50 + 7, *regular[91:]),
+        regular[7:30],
+        (25, *regular[1:]),
+    ):
+        log.frames = frames
+        present = set(frames)
+        for ts in range(-100, 220 * 50, 25):
+            want = [u for u in range(ts - 80 * 50, ts - 20 * 50, 50) if u in present]
+            assert floor_frames(cc, ts) == want, (frames[:3], ts)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from functools import cached_property
+from functools import cached_property, lru_cache
 
 import numpy as np
 import numpy.typing as npt
@@ -125,35 +125,85 @@ _ORDER: LRU[tuple[tuple[str, ...], int], tuple[np.ndarray, np.ndarray]] = LRU(_K
 _NO_LIMIT = 1 << 62
 
 
+@dataclass(frozen=True)
+class _PlanLayout:
+    """Where a plan's points go, the same for every plan with the same keys and window."""
+
+    order: npt.NDArray[np.intp]  # rows of the integer steps >= 0, in step order
+    steps: npt.NDArray[np.int64]  # those steps
+    rows: dict[int, int]  # step -> row in that order (shared: read only)
+    nxt: npt.NDArray[np.intp]  # heading neighbours of the first m sorted points
+    prv: npt.NDArray[np.intp]
+    from_zero: bool  # the first sorted step is 0 (its heading is the pose yaw)
+    take: npt.NDArray[np.intp]  # the first m sorted points at horizon indices <= W
+    index: npt.NDArray[np.int64]  # their horizon indices
+
+
+def _plan_layout(keys: tuple[str, ...], window: int) -> _PlanLayout | None:
+    """The layout of plans with ``keys`` (None without an integer step), memoised: nearly
+    every plan of a log has the same keys, so only its values are new."""
+    memo_key = (keys, window)
+    found = _LAYOUTS.lookup(memo_key)
+    if found is None:
+        order, steps = step_order(keys, _NO_LIMIT)
+        if order.size == 0:
+            return None
+        # Boxes need indices 0..W, hence headings of the first W + 1 sorted points at most
+        # (their neighbours reach W + 2 points).
+        m = min(len(order), window + 2)
+        take = np.flatnonzero(steps[:m] <= window)
+        found = _PlanLayout(
+            order=order,
+            steps=steps,
+            rows={step: row for row, step in enumerate(steps.tolist())},
+            nxt=np.minimum(np.arange(1, m + 1), len(order) - 1),
+            prv=np.maximum(np.arange(-1, m - 1), 0),
+            from_zero=bool(steps[0] == 0),
+            take=take,
+            index=steps[take],
+        )
+        _LAYOUTS.put(memo_key, found)
+    return found
+
+
+_LAYOUTS: LRU[tuple[tuple[str, ...], int], _PlanLayout | None] = LRU(_KEY_STEPS_MAX)
+
+
 def build_plan(plan: Plan, pose: EgoPose, ego_half: FloatArray, window: int) -> PlanData | None:
     """Plan points in step order and the ego's plan boxes (heading along the path)."""
-    order, s_sorted = step_order(plan.keys, _NO_LIMIT)
-    if order.size == 0:
+    layout = _plan_layout(plan.keys, window)
+    if layout is None:
         return None
-    xy = plan.xy[order]
-    speed = plan.speed[order]
-    # Boxes need indices 0..W, hence headings of the first W + 1 sorted points at most
-    # (their neighbours reach W + 2 points).
-    m = min(len(order), window + 2)
+    xy = plan.xy[layout.order]
+    speed = plan.speed[layout.order]
     # Heading along P[j+1] - P[j-1] (P[j] - P[j-1] at the last point; pose yaw at j = 0).
-    nxt = np.minimum(np.arange(1, m + 1), len(order) - 1)
-    prv = np.maximum(np.arange(-1, m - 1), 0)
-    vec = xy[nxt] - xy[prv]
+    vec = xy[layout.nxt] - xy[layout.prv]
     heading = np.rad2deg(np.arctan2(vec[:, 1], vec[:, 0]))
     valid = vec[:, 0] * vec[:, 0] + vec[:, 1] * vec[:, 1] >= PLAN_HEADING_MIN_STEP**2
-    if s_sorted[0] == 0 or not valid[0]:
+    if layout.from_zero or not valid[0]:
         heading[0], valid[0] = pose.yaw, True
     if not valid.all():
         heading = forward_fill(heading, valid)
-    center = np.full((window + 1, 2), np.nan)
-    yaw = np.full(window + 1, np.nan)
-    speed_at = np.full(window + 1, np.nan)
-    inside = s_sorted[:m] <= window
-    idx = s_sorted[:m][inside]
-    center[idx], yaw[idx], speed_at[idx] = xy[:m][inside], heading[inside], speed[:m][inside]
+    center, yaw, speed_at = _nan_rows(window)
+    take, index = layout.take, layout.index
+    center[index], yaw[index], speed_at[index] = xy[take], heading[take], speed[take]
     boxes = Series(center, yaw, ego_half)
-    rows = {step: row for row, step in enumerate(s_sorted.tolist())}
-    return PlanData(s_sorted, xy, speed, boxes, speed_at, rows)
+    return PlanData(layout.steps, xy, speed, boxes, speed_at, layout.rows)
+
+
+def _nan_rows(window: int) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Fresh NaN arrays (W + 1, 2), (W + 1,) and (W + 1,): copies of a template."""
+    center, yaw, speed_at = _nan_templates(window)
+    return center.copy(), yaw.copy(), speed_at.copy()
+
+
+@lru_cache(maxsize=16)
+def _nan_templates(window: int) -> tuple[FloatArray, FloatArray, FloatArray]:
+    return (
+        np.full((window + 1, 2), np.nan),
+        np.full(window + 1, np.nan),
+        np.full(window + 1, np.nan),
+    )
 
 
 def build_predicted(

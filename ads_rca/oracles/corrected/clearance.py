@@ -14,13 +14,15 @@ the displacement threshold.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 import numpy.typing as npt
 
-from ads_rca.geometry import FloatArray, box_signed_distance
+from ads_rca.geometry import FloatArray, box_signed_distance, half_rows, signed_distance_rows
 from ads_rca.model import Predictions
 from ads_rca.oracles.corrected.boxes import PlanData, Series, braking_boxes
 from ads_rca.oracles.corrected.context import CacheName, CorrectedContext
@@ -46,8 +48,12 @@ class Clearance:
         return self.index >= 0
 
 
+@lru_cache(maxsize=8)
 def undefined_clearance(window: int) -> Clearance:
-    return Clearance(NAN, -1, np.full(window + 1, np.nan))
+    """The undefined clearance (one shared instance per window: its array is read-only)."""
+    per_index = np.full(window + 1, np.nan)
+    per_index.flags.writeable = False
+    return Clearance(NAN, -1, per_index)
 
 
 def clearances(
@@ -62,26 +68,60 @@ def pair_clearances(
 ) -> list[Clearance]:
     """The clearance of each (ego boxes, other boxes) pair, all in one vectorised call.
 
-    Indices where either box is missing give NaN distances, ignored by the minimum.
+    Indices where either box is missing give NaN distances, ignored by the minimum. A pair
+    given twice (the same two series, e.g. the reference that is the real boxes) is
+    measured once.
     """
-    out = [undefined_clearance(window) for _ in pairs]
-    given = [(n, a, b) for n, (a, b) in enumerate(pairs) if a is not None and b is not None]
-    if not given or window < 1:
-        return out
-    dist = index_distances(
-        np.stack([a.center for _, a, _ in given]),
-        np.array([a.half for _, a, _ in given]),
-        np.stack([a.yaw for _, a, _ in given]),
-        np.stack([b.center for _, _, b in given]),
-        np.array([b.half for _, _, b in given]),
-        np.stack([b.yaw for _, _, b in given]),
-    )
+    undefined = undefined_clearance(window)
+    rows: dict[tuple[int, int], int] = {}
+    given: list[tuple[Series, Series]] = []
+    row_of: list[int] = []
+    for a, b in pairs:
+        if a is None or b is None or window < 1:
+            row_of.append(-1)
+            continue
+        row = rows.setdefault((id(a), id(b)), len(given))
+        if row == len(given):
+            given.append((a, b))
+        row_of.append(row)
+    if not given:
+        return [undefined] * len(pairs)
+    dist = _pair_distances(given, window)
     low, first = lowest(dist)
-    per = np.full((len(given), window + 1), np.nan)
+    per = np.empty((len(given), window + 1))
+    per[:, 0] = np.nan
     per[:, 1:] = dist
-    for row, (n, _, _) in enumerate(given):
-        if np.isfinite(low[row]):
-            out[n] = Clearance(float(low[row]), int(first[row]) + 1, per[row])
+    found = [
+        Clearance(value, index + 1, per[row]) if math.isfinite(value) else undefined
+        for row, (value, index) in enumerate(zip(low.tolist(), first.tolist(), strict=True))
+    ]
+    return [undefined if row < 0 else found[row] for row in row_of]
+
+
+def _pair_distances(pairs: list[tuple[Series, Series]], window: int) -> FloatArray:
+    """Signed distances (N, W) of N pairs of series at indices 1..W (NaN where a box is
+    missing): every pair's boxes in one row, one distance call."""
+    if len(pairs) == 1:
+        ((a, b),) = pairs
+        a_center, a_yaw, b_center, b_yaw = a.center[1:], a.yaw[1:], b.center[1:], b.yaw[1:]
+    else:
+        a_center = np.concatenate([a.center[1:] for a, _ in pairs])
+        a_yaw = np.concatenate([a.yaw[1:] for a, _ in pairs])
+        b_center = np.concatenate([b.center[1:] for _, b in pairs])
+        b_yaw = np.concatenate([b.yaw[1:] for _, b in pairs])
+    halves = _halves(tuple((*a.half.tolist(), *b.half.tolist()) for a, b in pairs), window)
+    return signed_distance_rows(a_center, a_yaw, b_center, b_yaw, halves).reshape(
+        len(pairs), window
+    )
+
+
+@lru_cache(maxsize=64)
+def _halves(pairs: tuple[tuple[float, ...], ...], window: int) -> FloatArray:
+    """The pairs' half extents (each pair's A x, y and B x, y) repeated over their W
+    indices, as the distance takes them (memoised: the ego's and the partner's extents are
+    the same every frame; read-only)."""
+    out = np.repeat(half_rows(np.array(pairs, dtype=np.float64)), window, axis=1)
+    out.flags.writeable = False
     return out
 
 
@@ -109,9 +149,9 @@ def index_distances(
 def lowest(dist: FloatArray) -> tuple[FloatArray, npt.NDArray[np.int64]]:
     """Per row of ``dist`` (N, W), the minimum over defined indices (inf if none) and the
     earliest column reaching it (within :data:`TIE_TOLERANCE`)."""
-    masked = np.where(np.isnan(dist), np.inf, dist)
+    masked = np.fmin(dist, np.inf)  # NaN -> inf, every other value as it is
     low = masked.min(axis=1)
-    first = np.argmax(masked <= (low + TIE_TOLERANCE)[:, None], axis=1)
+    first = (masked <= (low + TIE_TOLERANCE)[:, None]).argmax(axis=1)
     return low, first
 
 
@@ -134,7 +174,7 @@ def path_length(real: Series | None) -> float:
     pts = real.center[real.present]
     if len(pts) < 2:
         return 0.0 if len(pts) == 1 else NAN
-    step = np.diff(pts, axis=0)
+    step = pts[1:] - pts[:-1]
     return float(np.hypot(step[:, 0], step[:, 1]).sum())
 
 

@@ -63,6 +63,11 @@ class CacheName(Generic[V]):
 #: absent.
 LOCATIONS: CacheName[FloatArray | None] = CacheName("locations")
 
+#: Each timestamp's real series (:meth:`CorrectedContext.real_series`) and whose it is.
+REAL_SERIES: CacheName[tuple[str, Series]] = CacheName("real_series")
+_NO_POINT = np.full((1, 2), np.nan)
+_NO_YAW = np.full(1, np.nan)
+
 #: A partner rule for frames judged without a known collision: (context, ts) -> actor id.
 PartnerRule = Callable[["CorrectedContext", int], "str | None"]
 
@@ -235,18 +240,32 @@ class CorrectedContext:
         return out
 
     def real_series(self, actor_id: str, ts: int) -> Series | None:
-        """The actor's real boxes at ts + i·tpf, i = 0..W (None without an extent)."""
+        """The actor's real boxes at ts + i·tpf, i = 0..W (None without an extent).
+
+        The previous frame's series of the same actor (kept per timestamp) lends the boxes
+        it had at the frames both read (its indices 1..W), so a frame reads one new state.
+        """
         extent = self.log.actor_extents.get(actor_id)
         if extent is None:
             return None
-        w = self.window
-        center = np.full((w + 1, 2), np.nan)
-        yaw = np.full(w + 1, np.nan)
-        for i in range(w + 1):
-            state = self.actor_state(actor_id, ts + i * self.tpf)
+        w, tpf = self.window, self.tpf
+        cache = self.cache(REAL_SERIES)
+        prev = cache.lookup(ts - tpf)
+        todo: list[int] | range
+        if prev is not None and prev[0] == actor_id:
+            center = np.concatenate((prev[1].center[1:], _NO_POINT))
+            yaw = np.concatenate((prev[1].yaw[1:], _NO_YAW))
+            absent = np.isnan(yaw[:w])  # no state there (or a NaN one): read again
+            todo = [*np.flatnonzero(absent).tolist(), w] if absent.any() else [w]
+        else:
+            center, yaw, todo = np.full((w + 1, 2), np.nan), np.full(w + 1, np.nan), range(w + 1)
+        for i in todo:
+            state = self.actor_state(actor_id, ts + i * tpf)
             if state is not None:
                 center[i], yaw[i] = state
-        return Series(center, yaw, np.asarray(extent[:2], dtype=np.float64))
+        series = Series(center, yaw, np.asarray(extent[:2], dtype=np.float64))
+        cache.put(ts, (actor_id, series))
+        return series
 
     def predicted_series(
         self, track: Track, pose: EgoPose, actor_id: str, ts: int

@@ -1,0 +1,187 @@
+"""The partner view's per-frame shortcuts give what the plain computation gives, bit for bit.
+
+The `corrected` oracles build a partner view every frame, where numpy's per-call cost
+dominates, so the view takes shortcuts: the distance core computes both boxes' (and both
+directions') quantities as rows of one array; a pair of series given twice is measured once;
+a frame's real series takes the boxes the previous frame's series already read; plans with
+the same keys share one layout. Each is pinned here against a plain, one-at-a-time
+transcription or a fresh computation.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from ads_rca.geometry import box_signed_distance
+from ads_rca.model import EgoPose, Plan, RunLog
+from ads_rca.oracles.base import RunContext
+from ads_rca.oracles.corrected.boxes import Series, build_plan
+from ads_rca.oracles.corrected.clearance import pair_clearances
+from ads_rca.oracles.corrected.context import corrected_context
+from ads_rca.params import make_params
+from ads_rca.synth import synthesise
+
+PARAMS = make_params("corrected")
+
+
+def one_pair(
+    ca: list[float], ha: list[float], ya: float, cb: list[float], hb: list[float], yb: float
+) -> float:
+    """The signed distance of one pair written out plainly (separating axes for the overlap,
+    the nearest vertex of either box to the other when apart), in the core's operation order;
+    maxima and minima are numpy's (the second of two equal zeros, NaN kept)."""
+    ta, tb = np.deg2rad(ya), np.deg2rad(yb)
+    c_a, s_a, c_b, s_b = np.cos(ta), np.sin(ta), np.cos(tb), np.sin(tb)
+    dx, dy = cb[0] - ca[0], cb[1] - ca[1]
+    cos_d, sin_d = c_a * c_b + s_a * s_b, s_b * c_a - c_b * s_a
+    ax, ay = dx * c_a + dy * s_a, -dx * s_a + dy * c_a
+    bx, by = dx * c_b + dy * s_b, -dx * s_b + dy * c_b
+    ac, as_ = abs(cos_d), abs(sin_d)
+    g1 = abs(ax) - ha[0] - hb[0] * ac - hb[1] * as_
+    g2 = abs(ay) - ha[1] - hb[0] * as_ - hb[1] * ac
+    g3 = abs(bx) - hb[0] - ha[0] * ac - ha[1] * as_
+    g4 = abs(by) - hb[1] - ha[0] * as_ - ha[1] * ac
+    gap = np.maximum(np.maximum(g1, g2), np.maximum(g3, g4))
+    if not gap > 0:
+        return float(gap)
+
+    def nearest(
+        lx: float, ly: float, cos: float, sin: float, hv: list[float], hbox: list[float]
+    ) -> float:
+        best = np.inf
+        for sx, sy in ((1.0, 1.0), (-1.0, 1.0), (-1.0, -1.0), (1.0, -1.0)):
+            vx = lx + sx * (cos * hv[0]) + sy * (-sin * hv[1])
+            vy = ly + sx * (sin * hv[0]) + sy * (cos * hv[1])
+            ex = np.maximum(abs(vx) - hbox[0], 0.0)
+            ey = np.maximum(abs(vy) - hbox[1], 0.0)
+            best = np.minimum(best, ex * ex + ey * ey)
+        return float(best)
+
+    to_b = nearest(ax, ay, cos_d, sin_d, hb, ha)  # B's vertices in A's frame
+    to_a = nearest(-bx, -by, cos_d, -sin_d, ha, hb)  # A's in B's
+    return float(np.sqrt(np.minimum(to_b, to_a)))
+
+
+def test_the_distance_core_gives_each_pair_what_one_pair_at_a_time_gives() -> None:
+    rng = np.random.default_rng(7)
+    for case in range(300):
+        n = int(rng.integers(1, 25))
+        ca, cb = rng.normal(size=(n, 2)) * 4, rng.normal(size=(n, 2)) * 4
+        ha, hb = rng.random((n, 2)) * 3, rng.random((n, 2)) * 3
+        ya, yb = rng.normal(size=n) * 90, rng.normal(size=n) * 90
+        if case % 3 == 0:  # axis-aligned boxes on a grid: touching and overlapping ones
+            ca, cb, ya, yb = (
+                np.round(ca),
+                np.round(cb),
+                np.round(ya / 90) * 90,
+                np.round(yb / 90) * 90,
+            )
+        got = box_signed_distance(ca, ha, ya, cb, hb, yb)
+        for i in range(n):
+            want = one_pair(list(ca[i]), list(ha[i]), ya[i], list(cb[i]), list(hb[i]), yb[i])
+            assert got[i] == want or (np.isnan(got[i]) and np.isnan(want)), (case, i)
+            assert np.signbit(got[i]) == np.signbit(want), (case, i)  # -0.0 stays -0.0
+
+
+def test_a_pair_given_twice_is_measured_once_with_the_clearance_of_each() -> None:
+    rng = np.random.default_rng(3)
+    w = 6
+    ego = Series(rng.normal(size=(w + 1, 2)), rng.normal(size=w + 1) * 40, np.array([2.0, 1.0]))
+    other = Series(
+        rng.normal(size=(w + 1, 2)) + 3.0, rng.normal(size=w + 1) * 40, np.array([1.5, 0.8])
+    )
+    other.center[2] = np.nan  # an index without a box is skipped
+    twice = pair_clearances([(ego, other), (ego, None), (ego, other)], w)
+    (alone,) = pair_clearances([(ego, other)], w)
+    for c in (twice[0], twice[2]):
+        assert (c.value, c.index) == (alone.value, alone.index)
+        assert c.per_index.tobytes() == alone.per_index.tobytes()
+    assert twice[1].index == -1 and np.isnan(twice[1].value)
+    # the measured distances are the plain ones, index by index (index 0 is never measured)
+    plain = [
+        one_pair(
+            list(ego.center[i]),
+            [2.0, 1.0],
+            ego.yaw[i],
+            list(other.center[i]),
+            [1.5, 0.8],
+            other.yaw[i],
+        )
+        for i in range(1, w + 1)
+    ]
+    assert np.array_equal(alone.per_index[1:], plain, equal_nan=True)
+    assert np.isnan(alone.per_index[0])
+
+
+def test_a_real_series_built_from_the_previous_frame_is_the_one_read_afresh() -> None:
+    log = synthesise("cut_in", "prediction", 1)
+    frames = sorted(log.actors)
+    partner = log.metadata.raw["synthesis"]["partner_id"]
+    # The partner leaves some frames' actors files, and some frames have no file at all.
+    gone = set(frames[20:60:7])
+    actors = {}
+    for n, ts in enumerate(frames):
+        if n % 11 == 3:
+            continue
+        frame = log.actors[ts]
+        if ts in gone:
+            keep = [r for r, a in enumerate(frame.ids) if a != partner]
+            frame = replace(
+                frame,
+                ids=tuple(frame.ids[r] for r in keep),
+                location=frame.location[keep],
+                rotation=frame.rotation[keep],
+                extent=frame.extent[keep],
+            )
+        actors[ts] = frame
+    holed: RunLog = replace(log, actors=actors)
+    cc = corrected_context(RunContext.create(holed, PARAMS))
+    for ts in frames:  # in order, as diagnose and the live monitors ask
+        got = cc.real_series(partner, ts)
+        fresh = corrected_context(RunContext.create(holed, PARAMS)).real_series(partner, ts)
+        assert got is not None and fresh is not None
+        assert got.center.tobytes() == fresh.center.tobytes(), ts
+        assert got.yaw.tobytes() == fresh.yaw.tobytes(), ts
+    assert any(np.isnan(cc.real_series(partner, ts).yaw).any() for ts in frames)  # holes seen
+
+
+def test_plans_with_the_same_keys_keep_their_own_points_and_headings() -> None:
+    keys = ("3", "0", "x", "1", "1", "2", "5")
+    pose = EgoPose(0.0, 0.0, 0.0, 0.0, 0.0, 30.0, 0.0)
+    half = np.array([2.0, 1.0])
+    first = build_plan(Plan(keys, np.arange(14.0).reshape(7, 2), np.arange(7.0)), pose, half, 4)
+    second = build_plan(
+        Plan(keys, -(np.arange(14.0).reshape(7, 2) ** 2), np.arange(7.0) + 10), pose, half, 4
+    )
+    assert first is not None and second is not None
+    # steps 0, 1, 2, 3, 5 in order; the repeated "1" keeps its first row; "x" is no step
+    assert first.steps.tolist() == second.steps.tolist() == [0, 1, 2, 3, 5]
+    assert first.xy[:, 0].tolist() == [2.0, 6.0, 10.0, 0.0, 12.0]
+    assert second.xy[:, 0].tolist() == [-4.0, -36.0, -100.0, -0.0, -144.0]
+    assert first.speed_at.tolist()[:4] == [1.0, 3.0, 5.0, 0.0] and np.isnan(first.speed_at[4])
+    assert second.speed_at.tolist()[:4] == [11.0, 13.0, 15.0, 10.0]
+    # step 0's heading is the pose's; step 1's is along step 2 − step 0:
+    # (10, 11) − (2, 3) = (8, 8), and (−100, −121) − (−4, −9) = (−96, −112)
+    assert first.boxes.yaw[0] == second.boxes.yaw[0] == 30.0
+    assert first.boxes.yaw[1] == np.rad2deg(np.arctan2(8.0, 8.0))
+    assert second.boxes.yaw[1] == np.rad2deg(np.arctan2(-112.0, -96.0))
+
+
+def test_a_frame_that_arrives_after_the_previous_series_is_read_then() -> None:
+    log = synthesise("cut_in", "prediction", 1)
+    frames = sorted(log.actors)
+    partner = log.metadata.raw["synthesis"]["partner_id"]
+    late = frames[30]  # its actors file arrives after frame 29's series was built
+    held = {ts: frame for ts, frame in log.actors.items() if ts != late}
+    growing: RunLog = replace(log, actors=held)
+    cc = corrected_context(RunContext.create(growing, PARAMS))
+    before = cc.real_series(partner, frames[29])
+    assert before is not None and np.isnan(before.yaw[1])
+    held[late] = log.actors[late]
+    after = cc.real_series(partner, frames[30])
+    fresh = corrected_context(RunContext.create(growing, PARAMS)).real_series(partner, late)
+    assert after is not None and fresh is not None and not np.isnan(after.yaw[0])
+    assert after.center.tobytes() == fresh.center.tobytes()
+    assert after.yaw.tobytes() == fresh.yaw.tobytes()

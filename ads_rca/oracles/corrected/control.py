@@ -38,6 +38,7 @@ from ads_rca.oracles.corrected.floors import (
     NO_FLOOR,
     Floor,
     floor_frames,
+    frame_grid,
     robust_sigmas,
     step_floor,
 )
@@ -236,19 +237,12 @@ def floor_block(cc: CorrectedContext, start: int) -> FloorBlock:
     block = FloorBlock(start, cc.log.frames, floors)
     if length < 2:
         return block
-    frames = cc.frame_set()
     first = start - span * tpf
-    speed: list[float] = []
-    lateral: list[float] = []
-    ok: list[bool] = []
-    for k in range(BLOCK - 1 + length):
-        u = first + k * tpf
-        step = block_step(cc, u) if u in frames else None
-        ok.append(step is not None)
-        speed.append(step.speed if step is not None else math.nan)
-        lateral.append(step.lateral if step is not None else math.nan)
+    found = _silent_steps(cc, first, BLOCK - 1 + length)
+    ok = [step is not None for step in found]
+    values = [(s.speed, s.lateral) if s is not None else (math.nan, math.nan) for s in found]
     with np.errstate(invalid="ignore"):  # inf − inf: a NaN difference, not used
-        diffs = np.diff(np.array([speed, lateral]), axis=1)
+        diffs = np.diff(np.array(values).T, axis=1)
     windows = np.lib.stride_tricks.sliding_window_view(diffs, length - 1, axis=1)
     missing = np.cumsum([0, *(not k for k in ok)])
     full = (missing[length:] - missing[:-length] == 0) & np.isfinite(windows).all(axis=(0, 2))
@@ -267,6 +261,27 @@ def floor_block(cc: CorrectedContext, start: int) -> FloorBlock:
             Floor(sigmas[1][n], count, BASIS_STEPS),
         )
     return block
+
+
+def _silent_steps(cc: CorrectedContext, first: int, count: int) -> list[Step | None]:
+    """The silent steps (:func:`block_step`) of the frames first + k·tpf, k < count, None
+    where that frame is not in the log or its step is read on its own."""
+    tpf = cc.tpf
+    out: list[Step | None] = []
+    while len(out) < count:
+        u = first + len(out) * tpf
+        block = block_of(cc, u)
+        if block is None:
+            out.append(None)
+            continue
+        i = (u - block.start) // tpf
+        out.extend(block.steps[i : i + count - len(out)])
+    grid = frame_grid(cc)
+    if grid is not None and grid[0] % tpf == 0:  # frames every tpf from lo to hi (as u)
+        lo, hi = grid
+        return [s if lo <= first + k * tpf <= hi else None for k, s in enumerate(out)]
+    frames = cc.frame_set()
+    return [s if first + k * tpf in frames else None for k, s in enumerate(out)]
 
 
 def _control_floors(cc: CorrectedContext, ts: int) -> tuple[Floor, Floor]:

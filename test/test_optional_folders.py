@@ -318,6 +318,20 @@ HOSTILE: list[tuple[str, str, str]] = [
     ),
     (json.dumps({"7": _object(score="0.5")}), "7.score", "'0.5' is not a number"),
     (json.dumps({"7": _object(label=3)}), "7.label", "3 is not text"),
+    # Values numpy would take for numbers (a boolean as 1 or 0, an infinite score as NaN
+    # is): the whole-file conversion must leave them to the value-by-value reader.
+    (json.dumps({"7": _object(score=False)}), "7.score", "False is not a number"),
+    (
+        json.dumps({"7": _object(velocity={"x": 1.0, "y": True, "z": 0})}),
+        "7.velocity.y",
+        "True is not a number",
+    ),
+    (
+        json.dumps({"7": _object(), "8": _object(score=math.inf)}),
+        "8.score",
+        "inf is not a finite number",
+    ),
+    (json.dumps({"7": _object(label=None)}), "7.label", "None is not text"),
     (json.dumps({"7": [1, 2]}), "7", "expected an object, found a list"),
     ("[1, 2]", "", "expected an object, found a list"),
 ]
@@ -340,6 +354,34 @@ def test_a_bad_value_skips_that_file_of_that_folder_only(
     assert ts not in back.detections_3d
     del log.detections_3d[ts]
     assert_logs_equal(log, back)  # every other folder, that frame included, as written
+
+
+def test_a_clean_file_reads_each_value_as_written(tmp_path: Path) -> None:
+    log = log_3d(6)
+    root = write_run_log(log, tmp_path / "log")
+    file = root / "detections_3d/detections_3d-100.json"
+    entries = {
+        "7": _object(),  # velocity y unknown (null), score null
+        "9": {  # integers, no velocity, score or label at all
+            "location": {"x": 3, "y": -4, "z": 0},
+            "rotation": {"yaw": -90},
+            "extent": {"x": 1, "y": 2, "z": 3},
+        },
+        "8": _object(velocity=None, score=0.25, label="PEDESTRIAN"),
+    }
+    file.write_text(json.dumps(entries))
+    back = read_run_log(root)
+    assert [p for p in back.problems if "detections_3d" in p.file] == []
+    objects = back.detections_3d[100]
+    assert objects.ids == ("7", "9", "8") and objects.labels == ("CAR", "", "PEDESTRIAN")
+    assert objects.location.tolist() == [[1.0, 2.0, 0.5], [3.0, -4.0, 0.0], [1.0, 2.0, 0.5]]
+    assert objects.yaw.tolist() == [10.0, -90.0, 10.0]
+    assert objects.extent.tolist() == [[2.0, 1.0, 0.8], [1.0, 2.0, 3.0], [2.0, 1.0, 0.8]]
+    velocity = objects.velocity
+    assert velocity[0, 0] == 1.0 and velocity[0, 2] == 0.0
+    assert np.isnan(velocity[0, 1]) and np.isnan(velocity[1:]).all()
+    assert np.isnan(objects.score[:2]).all() and objects.score[2] == 0.25
+    assert all(a.dtype == np.float64 and a.flags.c_contiguous for a in (objects.location, velocity))
 
 
 def test_control_files_are_strict_too(tmp_path: Path) -> None:

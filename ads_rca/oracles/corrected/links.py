@@ -25,7 +25,7 @@ def step0_offsets(tracks: Predictions, skip: str | None) -> tuple[list[str], Flo
     if not ids:
         return [], np.zeros((0, 2))
     keys = tracks[ids[0]].keys
-    if "0" in keys and all(tracks[i].keys == keys for i in ids):  # the usual case
+    if "0" in keys and [tracks[i].keys for i in ids].count(keys) == len(ids):  # the usual case
         row = keys.index("0")
         return ids, np.array([tracks[i].offsets[row, :2] for i in ids])
     found = [(i, tracks[i].offset("0")) for i in ids]

@@ -14,7 +14,6 @@ A dropout that tracking bridges never reaches the planner, so it is not blamed.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -43,14 +42,8 @@ IOU_BATCH = 64
 BATCH_PAIRS = 1024
 
 
-@dataclass(frozen=True)
-class FrameIoU:
-    """A frame's IoU matrix (NaN coordinates score 0) and the boxes it was computed from."""
-
-    det: Boxes
-    gt: Boxes
-    iou: FloatArray
-
+#: A frame's detections and gt boxes, and their IoU matrix (NaN coordinates score 0).
+FrameIoU = tuple[Boxes, Boxes, FloatArray]
 
 FRAME_IOUS: CacheName[FrameIoU] = CacheName("frame_ious")
 
@@ -69,8 +62,8 @@ def frame_iou(cc: CorrectedContext, ts: int, det: Boxes, gt: Boxes) -> FloatArra
         return None
     cache = cc.cache(FRAME_IOUS)
     hit = cache.lookup(ts)
-    if hit is not None and hit.det is det and hit.gt is gt:
-        return hit.iou
+    if hit is not None and hit[0] is det and hit[1] is gt:
+        return hit[2]
     batch = [(ts, det, gt)]
     detections, truths = cc.log.bboxes, cc.log.bboxes_gt
     for u in range(ts + cc.tpf, ts + IOU_BATCH * cc.tpf, cc.tpf) if cc.tpf > 0 else ():
@@ -84,7 +77,7 @@ def frame_iou(cc: CorrectedContext, ts: int, det: Boxes, gt: Boxes) -> FloatArra
         [d.corners for _, d, _ in batch], [g.corners for _, _, g in batch], nan_score=0.0
     )
     for (u, d, g), iou in zip(batch, ious, strict=True):
-        cache.put(u, FrameIoU(d, g, iou))
+        cache.put(u, (d, g, iou))
     return ious[0]
 
 

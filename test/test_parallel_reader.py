@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 import pytest
 from logcompare import assert_logs_equal
+from logfactory import add_3d, make_log
 
 from ads_rca.io import json_log
 from ads_rca.io.json_log import read_run_log
@@ -129,6 +130,20 @@ def test_missing_folders_and_metadata_read_the_same_in_workers(
     (root / "metadata.json").write_text('{"collision_frame": "64", "timesteps_per_frame": 50}')
     alone, shared = _read_both(root, monkeypatch)
     assert any(p.issue == "folder missing" for p in alone.problems)
+    assert_same_reading(alone, shared)
+
+
+def test_3d_objects_and_control_commands_read_the_same_in_workers(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # 3-D objects travel as columns of the chunk's one array (not pickled one by one):
+    # NaN velocities and scores, empty frames and each column's shape must come back.
+    root = write_run_log(add_3d(make_log(14, 7, 2, orphan_stamps=True), 2), tmp_path / "log")
+    alone, shared = _read_both(root, monkeypatch)
+    objects = [*alone.detections_3d.values(), *alone.tracks_3d.values()]
+    assert len(alone.detections_3d) > 5 and len(alone.tracks_3d) > 5 and alone.controls
+    assert any(len(o) == 0 for o in objects) and any(len(o) > 1 for o in objects)
+    assert any(np.isnan(o.velocity).any() or np.isnan(o.score).any() for o in objects)
     assert_same_reading(alone, shared)
 
 

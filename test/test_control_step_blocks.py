@@ -9,6 +9,7 @@ import random
 
 import numpy as np
 
+from ads_rca.geometry import world_to_ego
 from ads_rca.model import EgoPose, Plan, RunLog, RunMetadata
 from ads_rca.oracles.base import RunContext
 from ads_rca.oracles.corrected.context import corrected_context
@@ -19,6 +20,7 @@ from ads_rca.oracles.corrected.control import (
     _control_floors,
     _control_step,
     control_floors,
+    ego_offset,
     step_block,
 )
 from ads_rca.oracles.corrected.floors import Floor
@@ -116,3 +118,17 @@ def test_a_block_of_steps_is_each_frames_own_step_bit_for_bit() -> None:
                     checked += 1
         assert not block_cc.ctx.problems  # reading a block reports nothing
     assert checked > 1000  # the blocks did most of the work
+
+
+def test_the_partner_offset_is_world_to_egos_bit_for_bit() -> None:
+    # random points, poses and yaws (multiples of 90 degrees, huge and NaN included): the
+    # scalar reading gives world_to_ego's bits
+    rng = np.random.default_rng(5)
+    yaws = [0.0, 90.0, -180.0, 270.0, 1e6, math.nan]
+    for case in range(5000):
+        point = rng.normal(size=2) * 10.0 ** rng.integers(-2, 5)
+        x, y = (rng.normal(size=2) * 10.0 ** rng.integers(-2, 5)).tolist()
+        yaw = yaws[case % 6] if case % 3 == 0 else float(rng.uniform(-720, 720))
+        want = world_to_ego(point, np.array([x, y]), yaw)
+        got = ego_offset(point, x, y, yaw)
+        assert np.array(got).tobytes() == np.asarray(want, dtype=np.float64).tobytes()

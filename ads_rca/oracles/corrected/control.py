@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ads_rca.geometry import FloatArray, world_to_ego
+from ads_rca.geometry import FloatArray
 from ads_rca.oracles.base import Metric, OracleResult, RunContext
 from ads_rca.oracles.corrected.boxes import key_steps, step_order
 from ads_rca.oracles.corrected.common import REPORTED, skipped
@@ -357,7 +357,7 @@ def control(ctx: RunContext, ts: int) -> OracleResult:
         metrics["toward_partner"] = None
         return OracleResult("controller", ts, False, metrics, thresholds)
     pose = cc.log.pose[ts]
-    rx, ry = world_to_ego(state[0], np.array([pose.x, pose.y]), pose.yaw)
+    rx, ry = ego_offset(state[0], pose.x, pose.y, pose.yaw)
     toward = bool(
         (sum_v > thr_v and rx > 0)
         or (sum_v < -thr_v and rx < 0)
@@ -365,3 +365,13 @@ def control(ctx: RunContext, ts: int) -> OracleResult:
     )
     metrics.update(partner_rx=float(rx), partner_ry=float(ry), toward_partner=toward)
     return OracleResult("controller", ts, toward, metrics, thresholds, (partner,))
+
+
+def ego_offset(point: FloatArray, x: float, y: float, yaw_deg: float) -> tuple[float, float]:
+    """:func:`~ads_rca.geometry.world_to_ego` of one world point (2,) from the pose
+    (x, y, yaw): the same ufuncs and IEEE operations on scalars, so the same values,
+    without the array calls that cost more than the arithmetic."""
+    theta = np.deg2rad(yaw_deg)
+    c, s = np.cos(theta), np.sin(theta)
+    dx, dy = float(point[0]) - x, float(point[1]) - y
+    return float(dx * c + dy * s), float(-dx * s + dy * c)

@@ -25,6 +25,15 @@ Solver = Callable[[FloatArray], tuple[np.ndarray, np.ndarray]]
 def best_matching(eligible: np.ndarray, score: FloatArray) -> tuple[np.ndarray, np.ndarray]:
     """The matched (rows ascending, columns) maximising the summed ``score`` over the
     ``eligible`` pairs (boolean matrix); an ineligible pair is never matched."""
+    # more pairs than rows or than columns: some share one (and the test below would fail)
+    if np.count_nonzero(eligible) <= min(eligible.shape):
+        return _unshared(eligible, score)
+    return _solved(eligible, score)
+
+
+def _unshared(eligible: np.ndarray, score: FloatArray) -> tuple[np.ndarray, np.ndarray]:
+    """The eligible pairs themselves where none shares a row or a column with another and
+    each scores > 0 (then they are the optimum), else the solver's matching."""
     rows, cols = np.nonzero(eligible)  # row-major: rows ascending
     # pairs are few (about one a box): Python sets test them faster than np.unique
     row_list, col_list = rows.tolist(), cols.tolist()
@@ -34,6 +43,11 @@ def best_matching(eligible: np.ndarray, score: FloatArray) -> tuple[np.ndarray, 
         and all(value > 0 for value in score[rows, cols].tolist())  # False for NaN
     ):
         return rows, cols
+    return _solved(eligible, score)
+
+
+def _solved(eligible: np.ndarray, score: FloatArray) -> tuple[np.ndarray, np.ndarray]:
+    """The solver's optimal matching, ineligible pairs dropped."""
     rows, cols = solver()(np.where(eligible, -score, 0.0))
     keep = eligible[rows, cols]
     return rows[keep], cols[keep]

@@ -37,6 +37,8 @@ PLANNER_INPUTS = ("predictions", "predictions_with_perception")
 
 def time_to_collision(cc: CorrectedContext, c: Clearance) -> float:
     """Seconds to the first horizon index with contact (distance <= 0); NaN if none."""
+    if not c.value <= 0.0:  # the least distance is not contact (or there is none)
+        return math.nan
     contact = np.flatnonzero(c.per_index <= 0.0)
     return float(cc.seconds(int(contact[0]))) if contact.size else math.nan
 

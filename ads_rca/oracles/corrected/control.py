@@ -12,7 +12,10 @@ exact tracking never fires, and a real deviation fires at any speed.
 
 Each frame's horizon adds one step, and a step costs a handful of numpy calls on a ~30-point
 plan, so steps are read a block of frames at a time (one array pass over their plans), and
-only a step that reports a problem is read on its own.
+only a step that reports a problem is read on its own; so are the floors (rule 8): a block
+of frames whose floor frames all have such steps costs two sorts. A block reads only
+records present when it is made and lives in the context's caches, as every per-timestamp
+view does (a live monitor judges each window on a new context).
 """
 
 from __future__ import annotations

@@ -222,3 +222,19 @@ def test_a_frame_whose_real_boxes_grew_since_its_batch_is_measured_afresh() -> N
     fresh = partner_view(corrected_context(RunContext.create(growing, PARAMS)), nxt)
     assert np.isfinite(got.c_gt.per_index[w])  # the late frame is measured
     assert clearance_bits(got.c_gt) == clearance_bits(fresh.c_gt)
+
+
+def test_a_later_plan_with_a_key_that_is_no_step_is_reported_when_its_frame_is_judged() -> None:
+    """c_gt's batch does not build that plan early: the report keeps its place in the run's
+    problems (after those of the frames before it)."""
+    log = synthesise("cut_in", "prediction", 1)
+    frames = sorted(set(log.frames))
+    ts, later = frames[40], frames[43]
+    plan = log.waypoints[later]
+    odd = Plan((*plan.keys[:-1], "x"), plan.xy, plan.speed)
+    ctx = RunContext.create(replace(log, waypoints={**log.waypoints, later: odd}), PARAMS)
+    cc = corrected_context(ctx)
+    partner_view(cc, ts)
+    assert not [p for p in ctx.problems if "non-integer" in p.issue]
+    partner_view(cc, later)
+    assert [p.timestamp_ms for p in ctx.problems if "non-integer" in p.issue] == [later]

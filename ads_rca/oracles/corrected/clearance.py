@@ -24,7 +24,7 @@ import numpy.typing as npt
 
 from ads_rca.geometry import FloatArray, box_signed_distance, half_rows, signed_distance_rows
 from ads_rca.model import Predictions
-from ads_rca.oracles.corrected.boxes import PlanData, Series, braking_boxes
+from ads_rca.oracles.corrected.boxes import PlanData, Series, braking_boxes, key_steps
 from ads_rca.oracles.corrected.context import CacheName, CorrectedContext
 from ads_rca.oracles.corrected.floors import partner_object
 from ads_rca.oracles.corrected.links import raw_links
@@ -301,7 +301,8 @@ def _ground_truth(
     with the frames of ts's horizon after it and kept per frame with the plan and real
     boxes it was measured on: a frame takes it only for that very plan and the same real
     boxes (a frame read again since, in a live window, is measured afresh). A batch stops
-    at a frame without a plan or pose, or already measured."""
+    at a frame without a plan or pose, already measured, or whose plan has a key that is no
+    step (building it reports that, which stays with the frame judged)."""
     cache = cc.cache(GROUND_TRUTH)
     found = cache.lookup(ts)
     if found is not None and found[0] is plan and _same_boxes(found[1], real):
@@ -311,7 +312,10 @@ def _ground_truth(
     if log.metadata.collision_frame >= 0 and cc.tpf > 0:
         for k in range(1, cc.window + 1):
             u = ts + k * cc.tpf
-            if u not in log.waypoints or u not in log.pose or cache.lookup(u) is not None:
+            waypoints = log.waypoints.get(u)
+            if waypoints is None or u not in log.pose or cache.lookup(u) is not None:
+                break
+            if (key_steps(waypoints.keys) < 0).any():
                 break
             later, seen = cc.plan(u), cc.real_series(partner, u)
             if later is None or seen is None:

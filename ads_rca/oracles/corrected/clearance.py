@@ -317,7 +317,9 @@ def _ground_truth(
                 break
             if (key_steps(waypoints.keys) < 0).any():
                 break
-            later, seen = cc.plan(u), cc.real_series(partner, u)
+            # the real boxes from the batch's previous ones, kept only with this c_gt (they
+            # read frames past ts's horizon, which a frame judged later reads for itself)
+            later, seen = cc.plan(u), cc.real_series_after(partner, u, batch[-1][2])
             if later is None or seen is None:
                 break
             batch.append((u, later, seen))

@@ -243,18 +243,29 @@ class CorrectedContext:
         """The actor's real boxes at ts + i·tpf, i = 0..W (None without an extent).
 
         The previous frame's series of the same actor (kept per timestamp) lends the boxes
-        it had at the frames both read (its indices 1..W), so a frame reads one new state.
+        it had at the frames both read (:meth:`real_series_after`).
         """
+        cache = self.cache(REAL_SERIES)
+        prev = cache.lookup(ts - self.tpf)
+        series = self.real_series_after(
+            actor_id, ts, prev[1] if prev is not None and prev[0] == actor_id else None
+        )
+        if series is not None:
+            cache.put(ts, (actor_id, series))
+        return series
+
+    def real_series_after(self, actor_id: str, ts: int, prev: Series | None) -> Series | None:
+        """:meth:`real_series` at ts, taking the boxes ``prev`` (the actor's series at
+        ts − tpf) had at indices 1..W, so one new state is read (and again those it lacked:
+        a frame may have arrived since); kept nowhere."""
         extent = self.log.actor_extents.get(actor_id)
         if extent is None:
             return None
         w, tpf = self.window, self.tpf
-        cache = self.cache(REAL_SERIES)
-        prev = cache.lookup(ts - tpf)
         todo: list[int] | range
-        if prev is not None and prev[0] == actor_id:
-            center = np.concatenate((prev[1].center[1:], _NO_POINT))
-            yaw = np.concatenate((prev[1].yaw[1:], _NO_YAW))
+        if prev is not None:
+            center = np.concatenate((prev.center[1:], _NO_POINT))
+            yaw = np.concatenate((prev.yaw[1:], _NO_YAW))
             absent = np.isnan(yaw[:w])  # no state there (or a NaN one): read again
             todo = [*np.flatnonzero(absent).tolist(), w] if absent.any() else [w]
         else:
@@ -263,9 +274,7 @@ class CorrectedContext:
             state = self.actor_state(actor_id, ts + i * tpf)
             if state is not None:
                 center[i], yaw[i] = state
-        series = Series(center, yaw, np.asarray(extent[:2], dtype=np.float64))
-        cache.put(ts, (actor_id, series))
-        return series
+        return Series(center, yaw, np.asarray(extent[:2], dtype=np.float64))
 
     def predicted_series(
         self, track: Track, pose: EgoPose, actor_id: str, ts: int

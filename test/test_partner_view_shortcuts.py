@@ -238,3 +238,38 @@ def test_a_later_plan_with_a_key_that_is_no_step_is_reported_when_its_frame_is_j
     assert not [p for p in ctx.problems if "non-integer" in p.issue]
     partner_view(cc, later)
     assert [p.timestamp_ms for p in ctx.problems if "non-integer" in p.issue] == [later]
+
+
+def test_a_frame_takes_its_batch_real_boxes_only_while_it_reads_the_same_records() -> None:
+    """The batch's real boxes at a later frame stand in for the frame's own read while every
+    actors record they were read from is the one there now; a record replaced since (a live
+    window reading a frame again) is read afresh."""
+    log = synthesise("cut_in", "prediction", 1)
+    frames = sorted(set(log.frames))
+    w = max(int(PARAMS.prediction_window), 1)
+    ts, nxt, moved = frames[40], frames[41], frames[41 + w]  # moved: nxt's last index
+    held = dict(log.actors)
+    live: RunLog = replace(log, actors=held)
+    cc = corrected_context(RunContext.create(live, PARAMS))
+    partner = cc.partner_id
+    assert partner is not None
+    partner_view(cc, ts)  # measures nxt's real boxes and c_gt too
+    same = partner_view(cc, nxt)
+    again = partner_view(corrected_context(RunContext.create(live, PARAMS)), nxt)
+    assert same.real is not None and again.real is not None
+    assert same.real.center.tobytes() == again.real.center.tobytes()
+    assert clearance_bits(same.c_gt) == clearance_bits(again.c_gt)
+    # the same again, with the partner 1 m further along x at the moved frame
+    cc = corrected_context(RunContext.create(live, PARAMS))
+    partner_view(cc, ts)
+    old = held[moved]
+    row = old.index[partner]
+    location = old.location.copy()
+    location[row, 0] += 1.0
+    held[moved] = replace(old, location=location)
+    got = partner_view(cc, nxt)
+    fresh = partner_view(corrected_context(RunContext.create(live, PARAMS)), nxt)
+    assert got.real is not None and fresh.real is not None
+    assert got.real.center[w, 0] == old.location[row, 0] + 1.0
+    assert got.real.center.tobytes() == fresh.real.center.tobytes()
+    assert clearance_bits(got.c_gt) == clearance_bits(fresh.c_gt)

@@ -15,6 +15,7 @@ the displacement threshold.
 from __future__ import annotations
 
 import math
+import operator
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
@@ -237,8 +238,9 @@ def _build_view(cc: CorrectedContext, ts: int) -> PartnerView:
     in_pwp = None if pwp_file is None or partner is None else partner in pwp_file
     real = pwp = raw = None
     raw_id = None
+    measured = None if partner is None or plan is None else _measured(cc, ts, partner, plan)
     if partner is not None:
-        real = cc.real_series(partner, ts)
+        real = measured[0] if measured is not None else cc.real_series(partner, ts)
         if pose is not None and pwp_file is not None and partner in pwp_file:
             pwp = cc.predicted_series(pwp_file[partner], pose, partner, ts)
             if raw_file is not None:
@@ -258,7 +260,9 @@ def _build_view(cc: CorrectedContext, ts: int) -> PartnerView:
         p = cc.params
         brake = braking_boxes(plan, pose.yaw, plan.speed_of(0), p.max_decel, cc.tpf / 1000.0, w)
     c_gt = undefined_clearance(w)
-    if plan is not None and real is not None and partner is not None:
+    if measured is not None:
+        c_gt = measured[1]
+    elif plan is not None and real is not None and partner is not None:
         c_gt = _ground_truth(cc, ts, partner, plan, real)
     same = ref is real  # without pwp the reference is the real boxes: c_ref is c_gt
     pairs = [(ego, pwp), (ego, raw), (None if same else ego, ref), (brake, raw)]
@@ -290,8 +294,25 @@ def _build_view(cc: CorrectedContext, ts: int) -> PartnerView:
     )
 
 
-#: c_gt by timestamp, with the plan and real boxes it was measured on.
-GROUND_TRUTH: CacheName[tuple[PlanData, Series, Clearance]] = CacheName("c_gt")
+#: c_gt by timestamp, with the plan and real boxes it was measured on and what those real
+#: boxes were read from (:meth:`CorrectedContext.real_sources`).
+GROUND_TRUTH: CacheName[tuple[PlanData, Series, Clearance, tuple[object, ...]]] = CacheName("c_gt")
+
+
+def _measured(
+    cc: CorrectedContext, ts: int, partner: str, plan: PlanData
+) -> tuple[Series, Clearance] | None:
+    """The real boxes and c_gt a batch measured at ts, if measured on this very plan and on
+    the records a fresh read of the real boxes would read (the same objects), so the frame
+    neither rebuilds nor compares its real boxes; kept as ts's real series."""
+    found = cc.cache(GROUND_TRUTH).lookup(ts)
+    if found is None or found[0] is not plan:
+        return None
+    sources = cc.real_sources(partner, ts)
+    if len(sources) != len(found[3]) or not all(map(operator.is_, sources, found[3])):
+        return None
+    cc.keep_real_series(partner, ts, found[1])
+    return found[1], found[2]
 
 
 def _ground_truth(
@@ -325,7 +346,7 @@ def _ground_truth(
             batch.append((u, later, seen))
     measured = pair_clearances([(p.boxes, r) for _, p, r in batch], cc.window)
     for (u, p, r), c in zip(batch, measured, strict=True):
-        cache.put(u, (p, r, c))
+        cache.put(u, (p, r, c, cc.real_sources(partner, u)))
     return measured[0]
 
 

@@ -254,6 +254,19 @@ class CorrectedContext:
             cache.put(ts, (actor_id, series))
         return series
 
+    def keep_real_series(self, actor_id: str, ts: int, series: Series) -> None:
+        """Keep ``series`` as the actor's real series at ts (built elsewhere on the very
+        records :meth:`real_series` would read: :meth:`real_sources`)."""
+        self.cache(REAL_SERIES).put(ts, (actor_id, series))
+
+    def real_sources(self, actor_id: str, ts: int) -> tuple[object, ...]:
+        """What the actor's real series at ts is read from: the actor, its extent and the
+        actors records at ts, ts + tpf, …, ts + W·tpf (None where absent), compared by
+        identity: a series built on the same objects is the one a fresh read gives."""
+        actors, tpf = self.log.actors, self.tpf
+        records = [actors.get(ts + i * tpf) for i in range(self.window + 1)]
+        return (actor_id, self.log.actor_extents.get(actor_id), *records)
+
     def real_series_after(self, actor_id: str, ts: int, prev: Series | None) -> Series | None:
         """:meth:`real_series` at ts, taking the boxes ``prev`` (the actor's series at
         ts − tpf) had at indices 1..W, so one new state is read (and again those it lacked:

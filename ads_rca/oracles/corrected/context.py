@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from functools import cached_property
-from typing import Generic, TypeVar, cast
+from typing import Any, Generic, TypeVar, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -104,6 +104,7 @@ class CorrectedContext:
         self._frame_set: tuple[tuple[int, ...], frozenset[int]] | None = None
         #: A run-wide integer for every actor id seen so far (grows as frames are read).
         self._gid: dict[str, int] = {}
+        self._reported: dict[tuple[str, ...], dict[str, Any]] = {}
 
     @cached_property
     def ego_half(self) -> FloatArray:
@@ -117,6 +118,14 @@ class CorrectedContext:
             )
             return np.full(2, np.nan)
         return np.asarray(extent[:2], dtype=np.float64)
+
+    def reported(self, names: tuple[str, ...]) -> dict[str, Any]:
+        """A fresh ``{name: value}`` of the parameters ``names`` (the results' thresholds),
+        copied from one made per context (every result of every frame reports them)."""
+        found = self._reported.get(names)
+        if found is None:
+            found = self._reported[names] = self.params.values(names)
+        return dict(found)
 
     # -- identities -------------------------------------------------------------------------
     @property

@@ -319,7 +319,7 @@ def control(ctx: RunContext, ts: int) -> OracleResult:
     """Rule 5 at ts, with tracking-error metrics."""
     cc = corrected_context(ctx)
     p = cc.params
-    thresholds: dict[str, float] = p.values(REPORTED["controller"])
+    thresholds: dict[str, float] = cc.reported(REPORTED["controller"])
     steps, stop = _steps(cc, ts)
     if not steps:
         return skipped("controller", ts, stop or "no control step", thresholds=thresholds)

@@ -219,7 +219,7 @@ def perception(ctx: RunContext, ts: int) -> OracleResult:
     if uses_3d(cc):
         return perception3d(ctx, ts)
     p = cc.params
-    thresholds = p.values(REPORTED["perception"])
+    thresholds = cc.reported(REPORTED["perception"])
     absent = missing_inputs(cc, ts, ("bboxes", "bboxes_gt"), "perception check")
     if absent:
         return skipped("perception", ts, f"missing {', '.join(absent)}", thresholds=thresholds)

@@ -330,8 +330,7 @@ def _not_matched(cc: CorrectedContext, ts: int, thresholds: dict[str, float]) ->
 def perception3d(ctx: RunContext, ts: int) -> OracleResult:
     """Rule 2b at ts, with the bird's-eye detection metrics."""
     cc = corrected_context(ctx)
-    p = cc.params
-    thresholds = p.values(REPORTED_3D)
+    thresholds = cc.reported(REPORTED_3D)
     match = frame_match(cc, ts)
     if match is None:
         return _not_matched(cc, ts, thresholds)

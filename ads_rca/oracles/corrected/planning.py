@@ -67,7 +67,7 @@ def planning(ctx: RunContext, ts: int) -> OracleResult:
     """Rule 4 at ts, with clearance, TTC and plan-vs-realised metrics."""
     cc = corrected_context(ctx)
     p = cc.params
-    thresholds = p.values(REPORTED["planning"])
+    thresholds = cc.reported(REPORTED["planning"])
     absent = missing_inputs(cc, ts, ("pose", "waypoint"), "planning check")
     plan = None if absent else cc.plan(ts)
     if plan is None:

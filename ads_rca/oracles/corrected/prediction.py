@@ -185,7 +185,7 @@ def prediction(ctx: RunContext, ts: int) -> OracleResult:
     """Rule 3 at ts, with ADE/FDE/miss rate."""
     cc = corrected_context(ctx)
     p = cc.params
-    thresholds = {**p.values(REPORTED["prediction"]), "miss_distance": MISS_DISTANCE}
+    thresholds = {**cc.reported(REPORTED["prediction"]), "miss_distance": MISS_DISTANCE}
     if raw_without_pwp(cc):
         return raw_prediction(cc, ts, thresholds)
     absent = missing_inputs(cc, ts, ("pose", "predictions_with_perception"), "prediction check")

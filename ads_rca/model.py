@@ -220,6 +220,17 @@ class Track:
     keys: tuple[str, ...]
     offsets: FloatArray  # (K, 3)
 
+    @classmethod
+    def of(cls, keys: tuple[str, ...], offsets: FloatArray) -> Track:
+        """The track ``cls(keys, offsets)`` makes, its fields put in its ``__dict__`` directly
+        instead of by the frozen ``__init__``'s ``object.__setattr__`` per field: a large log
+        rebuilds hundreds of thousands (0.23 against 0.37 us each)."""
+        track = object.__new__(cls)
+        fields = track.__dict__
+        fields["keys"] = keys
+        fields["offsets"] = offsets
+        return track
+
     @cached_property
     def steps(self) -> npt.NDArray[np.int64]:
         """Integer value of each key; -1 where a key is not an integer."""

@@ -119,12 +119,9 @@ def unpack(packed: Packed) -> Iterable[tuple[str, int, Record]]:
             record = Boxes(ids, numbers[start : start + 4 * len(ids)].reshape(-1, 4), extras)
         elif kind == _PREDICTIONS:
             ids, keys, start = entry[3], entry[4], entry[5]
-            offsets = numbers[start : start + 3 * sum(map(len, keys))].reshape(-1, 3)
-            record = {}
-            row = 0
-            for obstacle_id, track_keys in zip(ids, keys, strict=True):
-                record[obstacle_id] = Track(track_keys, offsets[row : row + len(track_keys)])
-                row += len(track_keys)
+            record = dict(
+                zip(ids, map(Track.of, keys, _offsets(numbers, keys, start)), strict=True)
+            )
         elif kind == _PLAN:
             keys, start = entry[3], entry[4]
             size = len(keys)
@@ -135,6 +132,21 @@ def unpack(packed: Packed) -> Iterable[tuple[str, int, Record]]:
         else:
             record = entry[3]
         yield folder, ts, record
+
+
+def _offsets(
+    numbers: FloatArray, keys: tuple[tuple[str, ...], ...], start: int
+) -> list[FloatArray]:
+    """Each track's (K, 3) offsets, views of ``numbers`` from ``start`` on: when every track
+    has the same keys (a chunk shares equal tuples, so most files' tracks hold one object)
+    by iterating one (tracks, K, 3) view, a third of the cost of slicing each."""
+    count = len(keys)
+    if count and keys.count(keys[0]) == count:
+        size = len(keys[0])
+        return list(numbers[start : start + 3 * size * count].reshape(count, size, 3))
+    offsets = numbers[start : start + 3 * sum(map(len, keys))].reshape(-1, 3)
+    ends = np.cumsum([len(track_keys) for track_keys in keys]).tolist()
+    return [offsets[end - len(k) : end] for k, end in zip(keys, ends, strict=True)]
 
 
 def _objects_3d(

@@ -11,11 +11,18 @@ from functools import partial
 
 import numpy as np
 
-from ads_rca.model import RunLog, RunMetadata
+from ads_rca.model import RunLog, RunMetadata, Track
 from ads_rca.oracles.base import RunContext
 from ads_rca.oracles.cache import Slide
 from ads_rca.oracles.corrected.context import corrected_context
-from ads_rca.oracles.corrected.floors import floor_frames, list_median, median, robust_sigma
+from ads_rca.oracles.corrected.floors import (
+    _offset_displacement,
+    _shared_keys_displacements,
+    floor_frames,
+    list_median,
+    median,
+    robust_sigma,
+)
 from ads_rca.params import make_params
 
 
@@ -109,3 +116,31 @@ def test_floor_frames_of_a_run_without_gaps_are_the_ones_a_set_reads() -> None:
         for ts in range(-100, 220 * 50, 25):
             want = [u for u in range(ts - 80 * 50, ts - 20 * 50, 50) if u in present]
             assert floor_frames(cc, ts) == want, (frames[:3], ts)
+
+
+def test_linked_pairs_with_the_same_keys_give_each_pairs_own_displacement() -> None:
+    """Perception's samples take every linked pair at once when all tracks share their keys:
+    each actor's value is the pair's own max distance over the shared steps, bit for bit,
+    with NaN steps ignored and a pair without a finite distance (all NaN, or an infinite
+    one) left out."""
+    keys = ("2", "0", "x", "1", "1", "5")  # steps 0, 1, 2 below a window of 3; "1" twice
+    rng = np.random.default_rng(7)
+    raws = [Track(keys, rng.normal(size=(6, 3)) * 10) for _ in range(5)]
+    pwps = [Track(keys, rng.normal(size=(6, 3)) * 10) for _ in range(5)]
+    raws[1].offsets[0, 0] = np.nan  # step 2 of actor b has no distance: its others count
+    raws[2].offsets[:, 1] = np.nan  # no step of c has one: left out
+    raws[3].offsets[3, 0] = np.inf  # d's step 1 is infinitely far: left out
+    actors = ["a", "b", "c", "d", "e"]
+    got = _shared_keys_displacements(actors, raws, pwps, keys, 3)
+    want: dict[str, float] = {}
+    for actor, a, b in zip(actors, raws, pwps, strict=True):
+        value = _offset_displacement(a, b, 3)
+        if math.isfinite(value):
+            want[actor] = value
+    assert list(got) == list(want) == ["a", "b", "e"]
+    assert [np.float64(v).tobytes() for v in got.values()] == [
+        np.float64(v).tobytes() for v in want.values()
+    ]
+    # b by hand: steps 0 ("0", row 1) and 1 (row 3, the first "1"); step 2 is NaN
+    d = [float(np.hypot(*(raws[1].offsets[r, :2] - pwps[1].offsets[r, :2]))) for r in (1, 3)]
+    assert got["b"] == max(d)

@@ -255,12 +255,37 @@ def _perception_samples(cc: CorrectedContext, u: int) -> Samples:
     raw, pwp = cc.log.predictions.get(u), cc.log.predictions_with_perception.get(u)
     if raw is None or pwp is None:
         return {}
+    links = raw_links(raw, pwp, cc.ego_id)
+    if not links:
+        return {}
+    actors = list(links)
+    raws, pwps = [raw[links[a]] for a in actors], [pwp[a] for a in actors]
+    keys = raws[0].keys
+    if all(t.keys == keys for t in raws) and all(t.keys == keys for t in pwps):
+        return _shared_keys_displacements(actors, raws, pwps, keys, cc.window)
     out: Samples = {}
-    for actor, raw_id in raw_links(raw, pwp, cc.ego_id).items():
-        error = _offset_displacement(raw[raw_id], pwp[actor], cc.window)
+    for actor, a, b in zip(actors, raws, pwps, strict=True):
+        error = _offset_displacement(a, b, cc.window)
         if math.isfinite(error):
             out[actor] = error
     return out
+
+
+def _shared_keys_displacements(
+    actors: list[str], raws: list[Track], pwps: list[Track], keys: tuple[str, ...], window: int
+) -> Samples:
+    """:func:`_offset_displacement` of every linked pair at once when all tracks have the
+    same keys (the usual case: their shared steps are all steps): the same distances, and
+    each row's largest non-NaN one, kept where finite."""
+    rows, _ = step_order(keys, window)
+    if rows.size == 0:
+        return {}
+    diff = np.array([t.offsets for t in raws])[:, rows, :2]
+    diff -= np.array([t.offsets for t in pwps])[:, rows, :2]
+    dist = np.hypot(diff[..., 0], diff[..., 1])
+    some = np.isfinite(dist).any(axis=1).tolist()
+    top = np.where(np.isnan(dist), -np.inf, dist).max(axis=1).tolist()
+    return {a: v for a, v, k in zip(actors, top, some, strict=True) if k and math.isfinite(v)}
 
 
 def _offset_displacement(a: Track, b: Track, window: int) -> float:

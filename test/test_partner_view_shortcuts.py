@@ -17,7 +17,7 @@ import numpy as np
 from ads_rca.geometry import box_signed_distance
 from ads_rca.model import EgoPose, Plan, RunLog
 from ads_rca.oracles.base import RunContext
-from ads_rca.oracles.corrected.boxes import Series, build_plan
+from ads_rca.oracles.corrected.boxes import PlanData, Series, build_plan, build_plans
 from ads_rca.oracles.corrected.clearance import Clearance, pair_clearances, partner_view
 from ads_rca.oracles.corrected.context import corrected_context
 from ads_rca.params import make_params
@@ -273,3 +273,38 @@ def test_a_frame_takes_its_batch_real_boxes_only_while_it_reads_the_same_records
     assert got.real.center[w, 0] == old.location[row, 0] + 1.0
     assert got.real.center.tobytes() == fresh.real.center.tobytes()
     assert clearance_bits(got.c_gt) == clearance_bits(fresh.c_gt)
+
+
+def plan_bits(p: PlanData | None) -> object:
+    if p is None:
+        return None
+    arrays = (p.steps, p.xy, p.speed, p.boxes.center, p.boxes.yaw, p.boxes.half, p.speed_at)
+    return tuple(a.tobytes() for a in arrays), p.rows
+
+
+def test_plans_built_together_are_each_plan_built_alone() -> None:
+    """Plans with the same keys are built as rows of one array: bit for bit each plan's own
+    build, with the pose's yaw at step 0 (or where the first heading is too short), short
+    steps keeping the previous heading, and plans with other keys built alone."""
+    rng = np.random.default_rng(3)
+    half = np.array([2.0, 1.0])
+    for keys in [("0", "1", "2", "3", "4", "5", "6"), ("3", "1", "x", "2", "1", "7", "4")]:
+        plans, poses = [], []
+        for n in range(6):
+            xy = np.cumsum(rng.normal(size=(7, 2)), axis=0)
+            if n == 1:
+                xy[2] = xy[0]  # a heading from two equal points is too short
+            if n == 2:
+                xy[:] = xy[0]  # no heading anywhere: the pose's throughout
+            plans.append(Plan(keys, xy, rng.uniform(0, 10, 7)))
+            poses.append(EgoPose(0.0, 0.0, 0.0, 0.0, 0.0, float(rng.uniform(-180, 180)), 0.0))
+        for window in (3, 5, 9):
+            together = build_plans(plans, poses, half, window)
+            alone = [
+                build_plan(p, pose, half, window) for p, pose in zip(plans, poses, strict=True)
+            ]
+            assert [plan_bits(p) for p in together] == [plan_bits(p) for p in alone]
+    mixed = [plans[0], Plan(("0", "2", "1", "3", "4", "5", "6"), plans[1].xy, plans[1].speed)]
+    together = build_plans(mixed, poses[:2], half, 5)
+    alone = [build_plan(p, pose, half, 5) for p, pose in zip(mixed, poses[:2], strict=True)]
+    assert [plan_bits(p) for p in together] == [plan_bits(p) for p in alone]

@@ -63,6 +63,10 @@ class LRU(Generic[K, V]):
     def __len__(self) -> int:
         return len(self._data)
 
+    def __contains__(self, key: object) -> bool:
+        """Whether ``key`` is cached (its recency unchanged)."""
+        return key in self._data
+
 
 class Slide(Generic[V]):
     """The values of the last ascending run of keys read, reused where the next run overlaps

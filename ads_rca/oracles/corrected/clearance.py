@@ -331,6 +331,7 @@ def _ground_truth(
     batch = [(ts, plan, real)]
     log = cc.log
     if log.metadata.collision_frame >= 0 and cc.tpf > 0:
+        ahead: list[int] = []
         for k in range(1, cc.window + 1):
             u = ts + k * cc.tpf
             waypoints = log.waypoints.get(u)
@@ -338,6 +339,9 @@ def _ground_truth(
                 break
             if (key_steps(waypoints.keys) < 0).any():
                 break
+            ahead.append(u)
+        cc.plans_ahead(ahead)
+        for u in ahead:
             # the real boxes from the batch's previous ones, kept only with this c_gt (they
             # read frames past ts's horizon, which a frame judged later reads for itself)
             later, seen = cc.plan(u), cc.real_series_after(partner, u, batch[-1][2])

@@ -26,7 +26,14 @@ from ads_rca.geometry import FloatArray, box_signed_distance
 from ads_rca.model import FOLDERS, EgoPose, Record, RunLog, Track
 from ads_rca.oracles.base import RunContext
 from ads_rca.oracles.cache import CACHE_SIZE, LRU, Slide
-from ads_rca.oracles.corrected.boxes import PlanData, Series, build_plan, build_predicted, key_steps
+from ads_rca.oracles.corrected.boxes import (
+    PlanData,
+    Series,
+    build_plan,
+    build_plans,
+    build_predicted,
+    key_steps,
+)
 from ads_rca.params import Params
 
 V = TypeVar("V")
@@ -185,6 +192,29 @@ class CorrectedContext:
     def plan(self, ts: int) -> PlanData | None:
         """The plan at ts with the ego's plan boxes, or None without a usable plan or pose."""
         return self.plans.get(ts, lambda: self._build_plan(ts))
+
+    def plans_ahead(self, frames: list[int]) -> None:
+        """Build the plans of ``frames`` not built yet in one go (:func:`build_plans`): those
+        with a plan of integer keys and a pose (any other is left to :meth:`plan`, which
+        reports what it must)."""
+        plans = self.plans
+        waypoints, poses = self.log.waypoints, self.log.pose
+        todo = [
+            u
+            for u in frames
+            if u not in plans
+            and (plan := waypoints.get(u)) is not None
+            and len(plan) > 0
+            and u in poses
+            and not (key_steps(plan.keys) < 0).any()
+        ]
+        if len(todo) < 2:
+            return
+        built = build_plans(
+            [waypoints[u] for u in todo], [poses[u] for u in todo], self.ego_half, self.window
+        )
+        for u, data in zip(todo, built, strict=True):
+            plans.put(u, data)
 
     def _build_plan(self, ts: int) -> PlanData | None:
         plan, pose = self.log.waypoints.get(ts), self.log.pose.get(ts)

@@ -27,7 +27,7 @@ from ads_rca.io import json_log
 from ads_rca.io.json_log import read_run_log
 from ads_rca.io.json_writer import write_run_log
 from ads_rca.io.packing import Packer, unpack
-from ads_rca.model import ALL_FOLDERS, RunLog
+from ads_rca.model import ALL_FOLDERS, RunLog, Track
 from ads_rca.synth import synthesise
 
 
@@ -309,3 +309,67 @@ def test_tables_of_frames_sharing_one_ids_tuple_are_the_per_frame_ones(
                 assert a.dtype == b.dtype and np.array_equal(a, b, equal_nan=True), field.name
             else:
                 assert a == b, field.name
+
+
+def test_a_long_log_is_read_in_chunks_of_at_most_max_chunk_files() -> None:
+    # 2 workers x 4 chunks = 8; 70,000 files / 2,000 = 35 chunks (each 2,000 files, the
+    # last 0); 13,700 / 2,000 = 6.85 -> 7 < 8 keeps 8; 5 files make at most 5 chunks.
+    assert (json_log.CHUNKS_PER_WORKER, json_log.MAX_CHUNK_FILES) == (4, 2000)
+    assert json_log.chunk_count(70_000, 2) == 35
+    assert json_log.chunk_count(70_001, 2) == 36
+    assert json_log.chunk_count(13_700, 2) == 8
+    assert json_log.chunk_count(5, 2) == 5
+
+
+def test_a_log_in_many_small_chunks_reads_the_same_in_workers(
+    crash_log: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    alone = read_run_log(crash_log)
+    monkeypatch.setattr(json_log, "PARALLEL_MIN_FILES", 1)
+    monkeypatch.setattr(json_log, "MAX_CHUNK_FILES", 3)
+    assert json_log.chunk_count(len(list(crash_log.glob("*/*.json"))), 2) > 8
+    assert_same_reading(alone, read_run_log(crash_log, workers=2))
+
+
+def _track_rows(track: Track) -> tuple[tuple[str, ...], list[list[float]], bool]:
+    return track.keys, track.offsets.tolist(), track.offsets.flags.c_contiguous
+
+
+@pytest.mark.parametrize(
+    "keys",
+    [
+        [("0", "1"), ("0", "1"), ("0", "1")],  # every track the same steps: one 3-D view
+        [("0", "1"), ("0",), (), ("2", "0", "1")],  # different steps: a slice each
+        [(), ()],  # tracks without steps
+    ],
+)
+def test_packed_tracks_rebuild_as_views_of_the_numbers(keys: list[tuple[str, ...]]) -> None:
+    # Offsets numbered 0, 1, 2 ... through all tracks, so a track given the rows of another
+    # shows as wrong values.
+    rows = sum(map(len, keys))
+    numbers = np.arange(3.0 * rows).reshape(-1, 3)
+    ends = np.cumsum([0, *map(len, keys)])
+    record = {f"id{i}": Track(k, numbers[ends[i] : ends[i + 1]].copy()) for i, k in enumerate(keys)}
+    packer = Packer()
+    packer.add("predictions", 50, record)
+    packed = packer.packed()
+    [(folder, ts, rebuilt)] = list(unpack(packed))
+    assert (folder, ts) == ("predictions", 50)
+    assert isinstance(rebuilt, dict) and list(rebuilt) == list(record)
+    for obstacle_id, track in record.items():
+        copy = rebuilt[obstacle_id]
+        assert type(copy) is Track
+        assert _track_rows(copy) == _track_rows(track)
+        assert copy.offsets.shape == (len(track.keys), 3) and copy.offsets.dtype == np.float64
+        assert copy.offsets.size == 0 or np.shares_memory(copy.offsets, packed[0])
+
+
+def test_a_track_made_by_of_is_the_track_its_constructor_makes() -> None:
+    offsets = np.array([[1.0, 2.0, 0.0], [3.0, 4.0, 0.5]])
+    made, built = Track.of(("0", "x"), offsets), Track(("0", "x"), offsets)
+    assert type(made) is Track
+    assert made.keys == built.keys and made.offsets is built.offsets
+    assert made.steps.tolist() == built.steps.tolist() == [0, -1]  # "x" is no step
+    assert made.offset("x") is not None and made.offset("y") is None
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        made.keys = ()  # type: ignore[misc]

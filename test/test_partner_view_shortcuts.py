@@ -18,7 +18,13 @@ from ads_rca.geometry import box_signed_distance
 from ads_rca.model import EgoPose, Plan, RunLog
 from ads_rca.oracles.base import RunContext
 from ads_rca.oracles.corrected.boxes import PlanData, Series, build_plan, build_plans
-from ads_rca.oracles.corrected.clearance import Clearance, pair_clearances, partner_view
+from ads_rca.oracles.corrected.clearance import (
+    Clearance,
+    pair_clearances,
+    partner_view,
+    path_length,
+    path_lengths,
+)
 from ads_rca.oracles.corrected.context import corrected_context
 from ads_rca.params import make_params
 from ads_rca.synth import synthesise
@@ -308,3 +314,28 @@ def test_plans_built_together_are_each_plan_built_alone() -> None:
     together = build_plans(mixed, poses[:2], half, 5)
     alone = [build_plan(p, pose, half, 5) for p, pose in zip(mixed, poses[:2], strict=True)]
     assert [plan_bits(p) for p in together] == [plan_bits(p) for p in alone]
+
+
+def test_path_lengths_together_are_each_series_path_length() -> None:
+    """The batch's path lengths are each series' own, bit for bit (sums of 1 to 40 steps,
+    past numpy's 8-way blocks), and a series missing a box is left to path_length."""
+    rng = np.random.default_rng(5)
+    for points in (2, 3, 9, 11, 17, 31, 41):
+        series = [
+            Series(
+                np.cumsum(rng.normal(size=(points, 2)) * 7.0, axis=0),
+                rng.normal(size=points),
+                np.ones(2),
+            )
+            for _ in range(6)
+        ]
+        holed = Series(series[2].center.copy(), series[2].yaw.copy(), np.ones(2))
+        holed.yaw[points // 2] = np.nan
+        series[2] = holed
+        got = path_lengths(series)
+        assert got[2] is None
+        for n in (0, 1, 3, 4, 5):
+            assert np.float64(got[n]).tobytes() == np.float64(path_length(series[n])).tobytes()
+    # two steps by hand: (0,0) -> (3,4) -> (3,10) is 5 + 6
+    steps = Series(np.array([[0.0, 0.0], [3.0, 4.0], [3.0, 10.0]]), np.zeros(3), np.ones(2))
+    assert path_lengths([steps, steps]) == [11.0, 11.0]

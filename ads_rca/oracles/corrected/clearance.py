@@ -179,6 +179,21 @@ def path_length(real: Series | None) -> float:
     return float(np.hypot(step[:, 0], step[:, 1]).sum())
 
 
+def path_lengths(series: list[Series]) -> list[float | None]:
+    """:func:`path_length` of each series with a box at every index, in one array (the same
+    differences and distances; each row summed as one series is); None for the others."""
+    if len(series) < 2:
+        return [None] * len(series)
+    center = np.array([s.center for s in series])
+    yaw = np.array([s.yaw for s in series])
+    whole = np.isfinite(center).all(axis=(1, 2)) & np.isfinite(yaw).all(axis=1)
+    if center.shape[1] < 2 or not whole.any():
+        return [None] * len(series)
+    step = center[:, 1:] - center[:, :-1]
+    total = np.hypot(step[..., 0], step[..., 1]).sum(axis=1).tolist()
+    return [t if w else None for t, w in zip(total, whole.tolist(), strict=True)]
+
+
 def displacement_threshold(cc: CorrectedContext, travelled: float) -> float:
     """max(pred_abs_threshold, pred_score_threshold × distance travelled over the horizon)."""
     p = cc.params
@@ -239,6 +254,7 @@ def _build_view(cc: CorrectedContext, ts: int) -> PartnerView:
     real = pwp = raw = None
     raw_id = None
     measured = None if partner is None or plan is None else _measured(cc, ts, partner, plan)
+    travelled = None if measured is None else measured[2]
     if partner is not None:
         real = measured[0] if measured is not None else cc.real_series(partner, ts)
         if pose is not None and pwp_file is not None and partner in pwp_file:
@@ -269,7 +285,8 @@ def _build_view(cc: CorrectedContext, ts: int) -> PartnerView:
     c_pwp, c_raw, c_ref, c_brake = pair_clearances(pairs, w)
     if same:
         c_ref = c_gt
-    travelled = path_length(real)
+    if travelled is None:
+        travelled = path_length(real)
     return PartnerView(
         partner_id=partner,
         plan=plan,
@@ -294,15 +311,18 @@ def _build_view(cc: CorrectedContext, ts: int) -> PartnerView:
     )
 
 
-#: c_gt by timestamp, with the plan and real boxes it was measured on and what those real
-#: boxes were read from (:meth:`CorrectedContext.real_sources`).
-GROUND_TRUTH: CacheName[tuple[PlanData, Series, Clearance, tuple[object, ...]]] = CacheName("c_gt")
+#: c_gt by timestamp, with the plan and real boxes it was measured on, what those real
+#: boxes were read from (:meth:`CorrectedContext.real_sources`) and their path length (None
+#: where the batch left it to :func:`path_length`).
+GROUND_TRUTH: CacheName[tuple[PlanData, Series, Clearance, tuple[object, ...], float | None]] = (
+    CacheName("c_gt")
+)
 
 
 def _measured(
     cc: CorrectedContext, ts: int, partner: str, plan: PlanData
-) -> tuple[Series, Clearance] | None:
-    """The real boxes and c_gt a batch measured at ts, if measured on this very plan and on
+) -> tuple[Series, Clearance, float | None] | None:
+    """The real boxes, c_gt and path length a batch measured at ts, if on this very plan and on
     the records a fresh read of the real boxes would read (the same objects), so the frame
     neither rebuilds nor compares its real boxes; kept as ts's real series."""
     found = cc.cache(GROUND_TRUTH).lookup(ts)
@@ -312,7 +332,7 @@ def _measured(
     if len(sources) != len(found[3]) or not all(map(operator.is_, sources, found[3])):
         return None
     cc.keep_real_series(partner, ts, found[1])
-    return found[1], found[2]
+    return found[1], found[2], found[4]
 
 
 def _ground_truth(
@@ -349,8 +369,9 @@ def _ground_truth(
                 break
             batch.append((u, later, seen))
     measured = pair_clearances([(p.boxes, r) for _, p, r in batch], cc.window)
-    for (u, p, r), c in zip(batch, measured, strict=True):
-        cache.put(u, (p, r, c, cc.real_sources(partner, u)))
+    lengths = path_lengths([r for _, _, r in batch])
+    for (u, p, r), c, length in zip(batch, measured, lengths, strict=True):
+        cache.put(u, (p, r, c, cc.real_sources(partner, u), length))
     return measured[0]
 
 

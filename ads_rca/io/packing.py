@@ -12,6 +12,7 @@ travel as they are.
 from __future__ import annotations
 
 from collections.abc import Iterable
+from itertools import accumulate
 from typing import Any
 
 import numpy as np
@@ -145,7 +146,7 @@ def _offsets(
         size = len(keys[0])
         return list(numbers[start : start + 3 * size * count].reshape(count, size, 3))
     offsets = numbers[start : start + 3 * sum(map(len, keys))].reshape(-1, 3)
-    ends = np.cumsum([len(track_keys) for track_keys in keys]).tolist()
+    ends = accumulate(map(len, keys))
     return [offsets[end - len(k) : end] for k, end in zip(keys, ends, strict=True)]
 
 

@@ -339,3 +339,38 @@ def test_path_lengths_together_are_each_series_path_length() -> None:
     # two steps by hand: (0,0) -> (3,4) -> (3,10) is 5 + 6
     steps = Series(np.array([[0.0, 0.0], [3.0, 4.0], [3.0, 10.0]]), np.zeros(3), np.ones(2))
     assert path_lengths([steps, steps]) == [11.0, 11.0]
+
+
+def series_bits(s: Series | None) -> object:
+    return None if s is None else (s.center.tobytes(), s.yaw.tobytes(), s.half.tobytes())
+
+
+def test_a_run_of_real_series_read_at_once_is_the_chain_of_previous_frames() -> None:
+    """The batch's real series at ts + tpf, ts + 2·tpf, … are read at once: bit for bit what
+    building each from the one before gives, with frames missing from the log (read as
+    absent, and read again by each later series: one arriving after ts's series was built
+    is taken) and a state whose yaw is NaN."""
+    log = synthesise("cut_in", "prediction", 1)
+    frames = sorted(log.actors)
+    partner = log.metadata.raw["synthesis"]["partner_id"]
+    held = {t: f for t, f in log.actors.items() if t not in (frames[33], frames[45])}
+    odd = held[frames[38]]
+    rotation = odd.rotation.copy()
+    rotation[odd.index[partner], 2] = np.nan
+    held[frames[38]] = replace(odd, rotation=rotation)
+    holed: RunLog = replace(log, actors=held)
+    cc = corrected_context(RunContext.create(holed, PARAMS))
+    w = cc.window
+    for ts in (frames[28], frames[30], frames[36]):
+        real = cc.real_series(partner, ts)
+        assert real is not None
+        if ts == frames[30]:  # frame 33 arrives after ts's series was read
+            held[frames[33]] = log.actors[frames[33]]
+        run = cc.real_series_run(partner, ts, real, w)
+        chain: list[Series | None] = []
+        prev: Series | None = real
+        for k in range(1, w + 1):
+            prev = cc.real_series_after(partner, ts + k * cc.tpf, prev)
+            chain.append(prev)
+        assert [series_bits(s) for s in run] == [series_bits(s) for s in chain]
+    assert any(np.isnan(s.yaw).any() for s in run)  # the holes are in the run

@@ -361,11 +361,12 @@ def _ground_truth(
                 break
             ahead.append(u)
         cc.plans_ahead(ahead)
-        for u in ahead:
-            # the real boxes from the batch's previous ones, kept only with this c_gt (they
-            # read frames past ts's horizon, which a frame judged later reads for itself)
-            later, seen = cc.plan(u), cc.real_series_after(partner, u, batch[-1][2])
-            if later is None or seen is None:
+        # the real boxes from the batch's previous ones, kept only with this c_gt (they read
+        # frames past ts's horizon, which a frame judged later reads for itself)
+        run = cc.real_series_run(partner, ts, real, len(ahead))
+        for u, seen in zip(ahead, run, strict=False):
+            later = cc.plan(u)
+            if later is None:
                 break
             batch.append((u, later, seen))
     measured = pair_clearances([(p.boxes, r) for _, p, r in batch], cc.window)

@@ -306,6 +306,28 @@ class CorrectedContext:
         records = [actors.get(ts + i * tpf) for i in range(self.window + 1)]
         return (actor_id, self.log.actor_extents.get(actor_id), *records)
 
+    def real_series_run(self, actor_id: str, ts: int, real: Series, count: int) -> list[Series]:
+        """:meth:`real_series_after` at ts + tpf, …, ts + count·tpf, each from the one
+        before, starting from ``real`` (the series at ts), read at once: a frame's box is
+        ``real``'s where ``real`` has its yaw, else the state read now (``real``'s or none
+        without one); the series are read-only windows of one array."""
+        extent = self.log.actor_extents.get(actor_id)
+        if extent is None or count < 1:
+            return []
+        w, tpf = self.window, self.tpf
+        center = np.full((count + w + 1, 2), np.nan)
+        yaw = np.full(count + w + 1, np.nan)
+        center[: w + 1], yaw[: w + 1] = real.center, real.yaw
+        for i in (np.flatnonzero(np.isnan(yaw[1:])) + 1).tolist():
+            state = self.actor_state(actor_id, ts + i * tpf)
+            if state is not None:
+                center[i], yaw[i] = state
+        center.flags.writeable = yaw.flags.writeable = False
+        half = np.asarray(extent[:2], dtype=np.float64)
+        return [
+            Series(center[k : k + w + 1], yaw[k : k + w + 1], half) for k in range(1, count + 1)
+        ]
+
     def real_series_after(self, actor_id: str, ts: int, prev: Series | None) -> Series | None:
         """:meth:`real_series` at ts, taking the boxes ``prev`` (the actor's series at
         ts − tpf) had at indices 1..W, so one new state is read (and again those it lacked:

@@ -140,7 +140,7 @@ def median(values: Sequence[float] | FloatArray) -> float:
 def list_median(values: list[float]) -> float:
     """:func:`median` of a short list, sorted in plain Python (a numpy call costs more
     than sorting ten values): the same stable order without NaN, so the same value."""
-    if any(math.isnan(v) for v in values):  # NaN: numpy's order (last) is not Python's
+    if any(map(math.isnan, values)):  # NaN: numpy's order (last) is not Python's
         return median(values)
     ordered = sorted(values)
     mid = len(ordered) // 2

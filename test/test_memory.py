@@ -66,8 +66,12 @@ def write_log(folder: Path, boxes: int) -> int:
 def diagnose_limited(folder: Path, semantics: str, limit: int | None) -> tuple[dict[str, Any], int]:
     """``diagnose --json`` in a child, with an address-space limit; (JSON, its VmPeak)."""
     out = folder.with_suffix(f".{semantics}.json")
+    # The code a crowd loads (SciPy's optimize and sparse graphs, with their libraries: about
+    # 50 MB of address space) is loaded in every run, so the baseline has it too: the
+    # headroom is for the big frame's data.
     script = (
         "import sys, resource\n"
+        "import scipy.optimize, scipy.sparse.csgraph\n"
         "from ads_rca.cli import main\n"
         "code = main(sys.argv[1:])\n"
         "peak = [l.split()[1] for l in open('/proc/self/status') if l.startswith('VmPeak')]\n"

@@ -215,7 +215,8 @@ def test_monitor_killed_and_restarted_goes_stale_recovers_and_a_verdict_comes(
     offline = diagnose(read_run_log(log_dir), params).to_json()
     assert document["primary_root_cause"] == offline["primary_root_cause"]
     assert document["live"]["complete"] is False
-    assert any("lost" in why and "controller" in why for why in document["live"]["why_incomplete"])
+    reasons = document["live"]["why_incomplete"]
+    assert any("lost" in why and "controller" in why for why in reasons), document["live"]
     sessions = {r["session"] for r in jsonl(metrics) if r["module"] == "controller"}
     assert len(sessions) == 2  # results from before and after the restart
 

@@ -92,11 +92,16 @@ class PlanData:
         t = np.minimum(np.maximum((px * vec[:, 0] + py * vec[:, 1]) / length2, 0.0), 1.0)
         dx, dy = px - t * vec[:, 0], py - t * vec[:, 1]
         j = int(np.argmin(dx * dx + dy * dy))
-        ex, ey = float(dx[j]), float(dy[j])
-        theta = math.radians(yaw_deg)
-        side = -math.sin(theta) * ex + math.cos(theta) * ey
-        distance = math.hypot(ex, ey)
-        return -distance if side < 0 else distance
+        return signed_offset(float(dx[j]), float(dy[j]), yaw_deg)
+
+
+def signed_offset(ex: float, ey: float, yaw_deg: float) -> float:
+    """|(ex, ey)|, negative where (ex, ey) points to the right of heading ``yaw_deg``
+    (the sign of (−sin ψ, cos ψ)·(ex, ey)): a lateral offset from its nearest point."""
+    theta = math.radians(yaw_deg)
+    side = -math.sin(theta) * ex + math.cos(theta) * ey
+    distance = math.hypot(ex, ey)
+    return -distance if side < 0 else distance
 
 
 def forward_fill(values: FloatArray, valid: np.ndarray) -> FloatArray:

@@ -27,7 +27,7 @@ import numpy as np
 
 from ads_rca.geometry import FloatArray
 from ads_rca.oracles.base import Metric, OracleResult, RunContext
-from ads_rca.oracles.corrected.boxes import key_steps, step_order
+from ads_rca.oracles.corrected.boxes import key_steps, signed_offset, step_order
 from ads_rca.oracles.corrected.common import REPORTED, skipped
 from ads_rca.oracles.corrected.context import (
     CacheName,
@@ -161,13 +161,10 @@ def _lateral_offsets(xy: FloatArray, points: FloatArray, yaws: list[float]) -> l
     dx, dy = px - t * vec[..., 0], py - t * vec[..., 1]
     j = np.argmin(dx * dx + dy * dy, axis=1)
     rows = np.arange(len(j))
-    out = []
-    for ex, ey, yaw in zip(dx[rows, j].tolist(), dy[rows, j].tolist(), yaws, strict=True):
-        theta = math.radians(yaw)
-        side = -math.sin(theta) * ex + math.cos(theta) * ey
-        distance = math.hypot(ex, ey)
-        out.append(-distance if side < 0 else distance)
-    return out
+    return [
+        signed_offset(ex, ey, yaw)
+        for ex, ey, yaw in zip(dx[rows, j].tolist(), dy[rows, j].tolist(), yaws, strict=True)
+    ]
 
 
 def _control_step(cc: CorrectedContext, t: int) -> Step | tuple[str, int]:

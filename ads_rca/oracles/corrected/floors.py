@@ -132,9 +132,7 @@ def frame_grid(cc: CorrectedContext) -> tuple[int, int] | None:
 def median(values: Sequence[float] | FloatArray) -> float:
     """The median (a stable sort, so equal values keep their order: the one picked is
     the plain-Python reading's)."""
-    ordered = np.sort(np.asarray(values, dtype=np.float64), kind="stable")
-    mid = len(ordered) // 2
-    return float(ordered[mid] if len(ordered) % 2 else 0.5 * (ordered[mid - 1] + ordered[mid]))
+    return _middle(np.sort(np.asarray(values, dtype=np.float64), kind="stable"))
 
 
 def list_median(values: list[float]) -> float:
@@ -142,7 +140,11 @@ def list_median(values: list[float]) -> float:
     than sorting ten values): the same stable order without NaN, so the same value."""
     if any(map(math.isnan, values)):  # NaN: numpy's order (last) is not Python's
         return median(values)
-    ordered = sorted(values)
+    return _middle(sorted(values))
+
+
+def _middle(ordered: Sequence[float] | FloatArray) -> float:
+    """The median of values already sorted (at least one)."""
     mid = len(ordered) // 2
     return float(ordered[mid] if len(ordered) % 2 else 0.5 * (ordered[mid - 1] + ordered[mid]))
 

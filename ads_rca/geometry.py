@@ -261,35 +261,6 @@ def bev_iou(
     return iou
 
 
-_SX = np.array([[1.0], [-1.0], [-1.0], [1.0]])
-_SY = np.array([[1.0], [1.0], [-1.0], [-1.0]])
-
-
-def _vertices_to_box(
-    lx: FloatArray,
-    ly: FloatArray,
-    cos_d: FloatArray,
-    sin_d: FloatArray,
-    h_vert: FloatArray,
-    h_box: FloatArray,
-) -> FloatArray:
-    """Squared min distance (N,) from the 4 vertices of one box to another box that is
-    axis-aligned at the origin (zero for vertices inside).
-
-    (lx, ly): the first box's centre in the second's frame; (cos_d, sin_d): its rotation
-    there; ``h_vert``, ``h_box``: half extents (N, 2).
-    """
-    # Vertex offsets ±hx·u ± hy·v with u = (cos, sin), v = (-sin, cos), as (4, N).
-    hx, hy = h_vert[:, 0], h_vert[:, 1]
-    ax, ay, bx, by = cos_d * hx, sin_d * hx, -sin_d * hy, cos_d * hy
-    vx = lx + _SX * ax + _SY * bx
-    vy = ly + _SX * ay + _SY * by
-    ex = np.maximum(np.abs(vx) - h_box[:, 0], 0.0)
-    ey = np.maximum(np.abs(vy) - h_box[:, 1], 0.0)
-    out: FloatArray = (ex * ex + ey * ey).min(axis=0)
-    return out
-
-
 def box_signed_distance(
     center_a: npt.ArrayLike,
     half_a: npt.ArrayLike,
@@ -333,8 +304,9 @@ def signed_distance_rows(
     costs more than its arithmetic, and same-shape contiguous operands are the cheapest. So
     each quantity of the two boxes (or of the two directions, B's vertices in A's frame and
     A's in B's) is one row of 2N, and the vertices' four sign cases are written out; every
-    pair still sees the IEEE operations of :func:`_vertices_to_box` and the separating-axis
-    gap in the same order (negations and swapped operands of + and × are exact).
+    pair still sees the IEEE operations of a vertices-to-box distance per direction (the
+    form ``test_box_distance_both_directions_at_once`` checks it against) and the
+    separating-axis gap in the same order (negations and swapped operands of + and × are exact).
     """
     n = len(ya)
     m = 2 * n

@@ -6,7 +6,36 @@ from __future__ import annotations
 
 import numpy as np
 
-from ads_rca.geometry import _vertices_to_box, box_signed_distance
+from ads_rca.geometry import FloatArray, box_signed_distance
+
+#: The four vertices' signs along each box axis.
+_SX = np.array([[1.0], [-1.0], [-1.0], [1.0]])
+_SY = np.array([[1.0], [1.0], [-1.0], [-1.0]])
+
+
+def _vertices_to_box(
+    lx: FloatArray,
+    ly: FloatArray,
+    cos_d: FloatArray,
+    sin_d: FloatArray,
+    h_vert: FloatArray,
+    h_box: FloatArray,
+) -> FloatArray:
+    """Squared min distance (N,) from the 4 vertices of one box to another box that is
+    axis-aligned at the origin (zero for vertices inside): one direction, as the distance
+    was computed before it took both at once.
+
+    (lx, ly): the first box's centre in the second's frame; (cos_d, sin_d): its rotation
+    there; ``h_vert``, ``h_box``: half extents (N, 2).
+    """
+    hx, hy = h_vert[:, 0], h_vert[:, 1]
+    ax, ay, bx, by = cos_d * hx, sin_d * hx, -sin_d * hy, cos_d * hy
+    vx = lx + _SX * ax + _SY * bx
+    vy = ly + _SX * ay + _SY * by
+    ex = np.maximum(np.abs(vx) - h_box[:, 0], 0.0)
+    ey = np.maximum(np.abs(vy) - h_box[:, 1], 0.0)
+    out: FloatArray = (ex * ex + ey * ey).min(axis=0)
+    return out
 
 
 def two_calls(

@@ -12,11 +12,11 @@ travel as they are.
 from __future__ import annotations
 
 from collections.abc import Iterable
-from itertools import accumulate
 from typing import Any
 
 import numpy as np
 
+from ads_rca.io.records import track_offsets
 from ads_rca.model import Actors, Boxes, EgoPose, FloatArray, Objects3D, Plan, Record, Track
 
 #: What one packed record says: folder, timestamp, kind, then the kind's fields.
@@ -120,9 +120,8 @@ def unpack(packed: Packed) -> Iterable[tuple[str, int, Record]]:
             record = Boxes(ids, numbers[start : start + 4 * len(ids)].reshape(-1, 4), extras)
         elif kind == _PREDICTIONS:
             ids, keys, start = entry[3], entry[4], entry[5]
-            record = dict(
-                zip(ids, map(Track.of, keys, _offsets(numbers, keys, start)), strict=True)
-            )
+            rows = numbers[start : start + 3 * sum(map(len, keys))].reshape(-1, 3)
+            record = dict(zip(ids, map(Track.of, keys, track_offsets(rows, keys)), strict=True))
         elif kind == _PLAN:
             keys, start = entry[3], entry[4]
             size = len(keys)
@@ -133,21 +132,6 @@ def unpack(packed: Packed) -> Iterable[tuple[str, int, Record]]:
         else:
             record = entry[3]
         yield folder, ts, record
-
-
-def _offsets(
-    numbers: FloatArray, keys: tuple[tuple[str, ...], ...], start: int
-) -> list[FloatArray]:
-    """Each track's (K, 3) offsets, views of ``numbers`` from ``start`` on: when every track
-    has the same keys (a chunk shares equal tuples, so most files' tracks hold one object)
-    by iterating one (tracks, K, 3) view, a third of the cost of slicing each."""
-    count = len(keys)
-    if count and keys.count(keys[0]) == count:
-        size = len(keys[0])
-        return list(numbers[start : start + 3 * size * count].reshape(count, size, 3))
-    offsets = numbers[start : start + 3 * sum(map(len, keys))].reshape(-1, 3)
-    ends = accumulate(map(len, keys))
-    return [offsets[end - len(k) : end] for k, end in zip(keys, ends, strict=True)]
 
 
 def _objects_3d(

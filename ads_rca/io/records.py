@@ -301,11 +301,13 @@ def prediction_parts(document: Any) -> PredictionParts | None:
 
 
 def _predictions_fast(document: Mapping[str, Any]) -> Predictions | None:
-    """All tracks of a file in one array conversion (:func:`prediction_parts`), then split
-    (views, no copies)."""
+    """All tracks of a file in one array conversion (:func:`prediction_parts`), then split."""
     parts = prediction_parts(document)
-    if parts is None:
-        return None
+    return None if parts is None else predictions_of(parts)
+
+
+def predictions_of(parts: PredictionParts) -> Predictions:
+    """The tracks a file's :data:`PredictionParts` make (views of its offsets, no copies)."""
     ids, keys, flat = parts
     return dict(zip(ids, map(Track.of, keys, track_offsets(flat, keys)), strict=True))
 

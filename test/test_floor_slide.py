@@ -20,6 +20,7 @@ from ads_rca.oracles.corrected.floors import (
     _shared_keys_displacements,
     floor_frames,
     list_median,
+    list_robust_sigma,
     median,
     robust_sigma,
 )
@@ -81,6 +82,22 @@ def test_median_and_robust_sigma_are_the_plain_python_readings_bit_for_bit() -> 
         want = 1.4826 * plain_median([abs(v - centre) for v in listed])
         assert np.float64(robust_sigma(listed)).tobytes() == np.float64(want).tobytes()
         assert robust_sigma(values) == robust_sigma(listed)
+        assert np.float64(list_robust_sigma(listed)).tobytes() == np.float64(want).tobytes()
+
+
+def test_the_short_list_robust_sigma_is_numpys_bit_for_bit_nan_and_infinity_included() -> None:
+    # a NaN or an infinity (inf - inf is NaN, which Python's sort places anywhere) goes to
+    # numpy; every other list is sorted in plain Python and must give the same bits
+    rng = np.random.default_rng(9)
+    specials = [0.0, -0.0, math.inf, -math.inf, math.nan, 1e308, -1e308]
+    assert list_robust_sigma([]) == 0.0
+    for case in range(3000):
+        values = np.round(rng.normal(size=int(rng.integers(1, 15))), case % 3).tolist()
+        if case % 3 == 0:
+            values[int(rng.integers(len(values)))] = specials[case % len(specials)]
+        with np.errstate(invalid="ignore"):  # inf - inf in numpy's reading
+            got, want = list_robust_sigma(values), robust_sigma(values)
+        assert np.float64(got).tobytes() == np.float64(want).tobytes(), values
 
 
 def test_the_short_list_median_is_numpys_bit_for_bit_nan_included() -> None:

@@ -17,7 +17,14 @@ import numpy as np
 from ads_rca.geometry import box_signed_distance
 from ads_rca.model import EgoPose, Plan, RunLog
 from ads_rca.oracles.base import RunContext
-from ads_rca.oracles.corrected.boxes import PlanData, Series, build_plan, build_plans
+from ads_rca.oracles.corrected.boxes import (
+    PlanData,
+    Series,
+    all_steps,
+    build_plan,
+    build_plans,
+    key_steps,
+)
 from ads_rca.oracles.corrected.clearance import (
     Clearance,
     pair_clearances,
@@ -286,6 +293,14 @@ def plan_bits(p: PlanData | None) -> object:
         return None
     arrays = (p.steps, p.xy, p.speed, p.boxes.center, p.boxes.yaw, p.boxes.half, p.speed_at)
     return tuple(a.tobytes() for a in arrays), p.rows
+
+
+def test_keys_are_all_steps_exactly_when_each_reads_as_an_integer() -> None:
+    # the memoised answer is the array test's, asked again (the memo) or not
+    for keys in [("0", "1", "2"), ("2", "0"), ("0", "x"), ("1.5",), (), ("0", "-1"), ("0", "1")]:
+        want = not (key_steps(keys) < 0).any()
+        assert all_steps(keys) is want and all_steps(keys) is want, keys
+    assert all_steps(("0", "1")) and not all_steps(("0", "x")) and not all_steps(("0", "-1"))
 
 
 def test_plans_built_together_are_each_plan_built_alone() -> None:

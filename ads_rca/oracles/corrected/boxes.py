@@ -39,6 +39,19 @@ def key_steps(keys: tuple[str, ...]) -> npt.NDArray[np.int64]:
     return found
 
 
+_ALL_STEPS: LRU[tuple[str, ...], bool] = LRU(_KEY_STEPS_MAX)
+
+
+def all_steps(keys: tuple[str, ...]) -> bool:
+    """Whether every key is an integer step (:func:`key_steps` has no -1), memoised per key
+    tuple: asked of every plan, where the array test costs more than the lookup."""
+    found = _ALL_STEPS.lookup(keys)
+    if found is None:
+        found = not bool((key_steps(keys) < 0).any())
+        _ALL_STEPS.put(keys, found)
+    return found
+
+
 @dataclass(frozen=True)
 class Series:
     """One object's oriented boxes at horizon indices 0..W (NaN rows where it has none)."""

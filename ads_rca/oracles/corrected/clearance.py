@@ -25,7 +25,7 @@ import numpy.typing as npt
 
 from ads_rca.geometry import FloatArray, box_signed_distance, half_rows, signed_distance_rows
 from ads_rca.model import Predictions
-from ads_rca.oracles.corrected.boxes import PlanData, Series, braking_boxes, key_steps
+from ads_rca.oracles.corrected.boxes import PlanData, Series, all_steps, braking_boxes
 from ads_rca.oracles.corrected.context import CacheName, CorrectedContext
 from ads_rca.oracles.corrected.floors import partner_object
 from ads_rca.oracles.corrected.links import raw_links
@@ -197,7 +197,7 @@ def path_lengths(series: list[Series]) -> list[float | None]:
 def displacement_threshold(cc: CorrectedContext, travelled: float) -> float:
     """max(pred_abs_threshold, pred_score_threshold × distance travelled over the horizon)."""
     p = cc.params
-    scaled = p.pred_score_threshold * travelled if np.isfinite(travelled) else 0.0
+    scaled = p.pred_score_threshold * travelled if math.isfinite(travelled) else 0.0
     return float(max(p.pred_abs_threshold, scaled))
 
 
@@ -357,7 +357,7 @@ def _ground_truth(
             waypoints = log.waypoints.get(u)
             if waypoints is None or u not in log.pose or cache.lookup(u) is not None:
                 break
-            if (key_steps(waypoints.keys) < 0).any():
+            if not all_steps(waypoints.keys):
                 break
             ahead.append(u)
         cc.plans_ahead(ahead)

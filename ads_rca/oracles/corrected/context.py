@@ -29,10 +29,10 @@ from ads_rca.oracles.cache import CACHE_SIZE, LRU, Slide
 from ads_rca.oracles.corrected.boxes import (
     PlanData,
     Series,
+    all_steps,
     build_plan,
     build_plans,
     build_predicted,
-    key_steps,
 )
 from ads_rca.params import Params
 
@@ -206,7 +206,7 @@ class CorrectedContext:
             and (plan := waypoints.get(u)) is not None
             and len(plan) > 0
             and u in poses
-            and not (key_steps(plan.keys) < 0).any()
+            and all_steps(plan.keys)
         ]
         if len(todo) < 2:
             return
@@ -220,7 +220,7 @@ class CorrectedContext:
         plan, pose = self.log.waypoints.get(ts), self.log.pose.get(ts)
         if plan is None or pose is None or len(plan) == 0:
             return None
-        if (key_steps(plan.keys) < 0).any():
+        if not all_steps(plan.keys):
             self.ctx.report(
                 self.log.file_of("waypoint", ts), "keys", "non-integer plan key ignored", ts
             )

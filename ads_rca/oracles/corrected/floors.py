@@ -157,6 +157,18 @@ def robust_sigma(values: Sequence[float] | FloatArray) -> float:
     return MAD_SIGMA * median(np.abs(spread - median(spread)))
 
 
+def list_robust_sigma(values: list[float]) -> float:
+    """:func:`robust_sigma` of a short list in plain Python (a numpy call costs more than
+    its arithmetic): the same sorts and IEEE operations, so the same value; a list with a
+    NaN or an infinity goes to numpy (whose NaN order Python's sort does not share)."""
+    if not values:
+        return 0.0
+    if not all(map(math.isfinite, values)):
+        return robust_sigma(values)
+    centre = _middle(sorted(values))
+    return MAD_SIGMA * _middle(sorted([abs(v - centre) for v in values]))
+
+
 def robust_sigmas(rows: FloatArray) -> FloatArray:
     """:func:`robust_sigma` of each row along the last axis (the same sorts and IEEE
     operations, so the same values)."""
@@ -221,7 +233,7 @@ def _actor_floor(
         return Floor(list_median(levels), len(levels), BASIS_OTHERS)
     own = [sample for _, sample in reduced if sample is not None]
     if len(own) >= minimum:
-        return Floor(robust_sigma(own), len(own), BASIS_PARTNER)
+        return Floor(list_robust_sigma(own), len(own), BASIS_PARTNER)
     return NO_FLOOR
 
 

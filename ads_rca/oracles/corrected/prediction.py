@@ -142,6 +142,8 @@ def _prediction_samples(cc: CorrectedContext, u: int) -> Samples:
         if u not in cc.log.predictions_with_perception:
             return {}
         ids, err = pwp_errors(cc, u)
+    if not ids:  # no actor predicted (most frames of a quiet run): no array calls
+        return {}
     finite: list[bool] = np.asarray(np.isfinite(err).any(axis=1), dtype=bool).tolist()
     e = np.where(np.isfinite(err), err, -np.inf).max(axis=1)
     return {a: float(v) for a, v, k in zip(ids, e.tolist(), finite, strict=True) if k}

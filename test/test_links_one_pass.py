@@ -64,3 +64,13 @@ def test_a_shared_actor_goes_to_the_nearest_raw_id_then_the_earlier() -> None:
         "e": at(0.0, 150.0),
     }
     assert raw_links(raw, pwp, None) == {"p": "a", "q": "c"}
+
+
+def test_without_pwp_ids_no_raw_offset_is_read() -> None:
+    """No pwp id (an empty file, or only the ego): nothing links, and the raw tracks are not
+    read at all (most frames of a long log; a raw track with a key "0" but no rows would
+    raise IndexError if its offsets were read)."""
+    unreadable = {"r": Track(("0",), np.zeros((0, 3)))}
+    assert raw_links(unreadable, {}, None) == {}
+    ego_only = {"ego": Track(("0",), np.zeros((1, 3)))}
+    assert raw_links(unreadable, ego_only, "ego") == {}

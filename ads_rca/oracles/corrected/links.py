@@ -38,8 +38,10 @@ def step0_offsets(tracks: Predictions, skip: str | None) -> tuple[list[str], Flo
 def raw_links(raw: Predictions, pwp: Predictions, ego_id: str | None) -> dict[str, str]:
     """{pwp actor id: the raw id linked to it} for every actor some raw id links to."""
     pwp_ids, pwp_xy = step0_offsets(pwp, ego_id)
+    if not pwp_ids:  # most frames of a long log: no raw offsets to read
+        return {}
     raw_ids, raw_xy = step0_offsets(raw, None)
-    if not pwp_ids or not raw_ids:
+    if not raw_ids:
         return {}
     diff = raw_xy[:, None] - pwp_xy[None, :]  # (raw, pwp, 2)
     d = np.hypot(diff[..., 0], diff[..., 1])

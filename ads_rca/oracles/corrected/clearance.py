@@ -25,6 +25,7 @@ import numpy.typing as npt
 
 from ads_rca.geometry import FloatArray, box_signed_distance, half_rows, signed_distance_rows
 from ads_rca.model import Predictions
+from ads_rca.oracles.cache import CACHE_SIZE
 from ads_rca.oracles.corrected.boxes import PlanData, Series, all_steps, braking_boxes
 from ads_rca.oracles.corrected.context import CacheName, CorrectedContext
 from ads_rca.oracles.corrected.floors import partner_object
@@ -319,6 +320,14 @@ GROUND_TRUTH: CacheName[tuple[PlanData, Series, Clearance, tuple[object, ...], f
 )
 
 
+#: Frames after ts whose c_gt is measured with it (at least W): a batch costs a few dozen
+#: numpy calls whatever its length, so a longer one costs less per frame; half the plans
+#: cache (:data:`~ads_rca.oracles.cache.CACHE_SIZE`), so that its plans are still there
+#: when their frames are judged. Like control's step blocks, a batch reads the plans and
+#: poses present when it is made (a live monitor judges each window on a new context).
+BATCH_AHEAD = CACHE_SIZE // 2
+
+
 def _measured(
     cc: CorrectedContext, ts: int, partner: str, plan: PlanData
 ) -> tuple[Series, Clearance, float | None] | None:
@@ -339,11 +348,11 @@ def _ground_truth(
     cc: CorrectedContext, ts: int, partner: str, plan: PlanData, real: Series
 ) -> Clearance:
     """c_gt at ts. With a collision partner (the same every frame), measured in one call
-    with the frames of ts's horizon after it and kept per frame with the plan and real
-    boxes it was measured on: a frame takes it only for that very plan and the same real
-    boxes (a frame read again since, in a live window, is measured afresh). A batch stops
-    at a frame without a plan or pose, already measured, or whose plan has a key that is no
-    step (building it reports that, which stays with the frame judged)."""
+    with the :data:`BATCH_AHEAD` frames after it (W if longer) and kept per frame with the
+    plan and real boxes it was measured on: a frame takes it only for that very plan and the
+    same real boxes (a frame read again since, in a live window, is measured afresh). A batch
+    stops at a frame without a plan or pose, already measured, or whose plan has a key that
+    is no step (building it reports that, which stays with the frame judged)."""
     cache = cc.cache(GROUND_TRUTH)
     found = cache.lookup(ts)
     if found is not None and found[0] is plan and _same_boxes(found[1], real):
@@ -352,7 +361,7 @@ def _ground_truth(
     log = cc.log
     if log.metadata.collision_frame >= 0 and cc.tpf > 0:
         ahead: list[int] = []
-        for k in range(1, cc.window + 1):
+        for k in range(1, max(cc.window, BATCH_AHEAD) + 1):
             u = ts + k * cc.tpf
             waypoints = log.waypoints.get(u)
             if waypoints is None or u not in log.pose or cache.lookup(u) is not None:

@@ -50,10 +50,12 @@ def axis_aligned_iou(a: FloatArray, b: FloatArray, nan_score: float = math.nan) 
     Corners are normalised (min/max of the two points); a zero-area box scores 0 with
     everything. NaN coordinates give ``nan_score`` (NaN unless a matcher asks for 0).
 
-    Why it is laid out so: a frame has about ten boxes a side, where a numpy call costs more
-    than its arithmetic. Both sets are normalised at once, coordinate-major (contiguous rows
-    are the cheapest operands), and the masks are skipped when no box needs one; every pair
-    still sees the same IEEE operations in the same order.
+    Why it is laid out so: a frame has ten to fifty boxes a side, where a numpy call costs
+    more than its arithmetic. Both sets are normalised at once, coordinate-major (contiguous
+    rows are the cheapest operands); widths and heights are one (2, N, M) array, so each
+    step is one broadcast call for both axes, done in place; the guarded division and the
+    masks are skipped when no pair needs them. Every pair still sees the same IEEE
+    operations in the same order.
     """
     a = np.asarray(a, dtype=np.float64).reshape(-1, 4)
     b = np.asarray(b, dtype=np.float64).reshape(-1, 4)
@@ -63,12 +65,20 @@ def axis_aligned_iou(a: FloatArray, b: FloatArray, nan_score: float = math.nan) 
     high = np.maximum(coords[:2], coords[2:])  # normalised (x2, y2)
     side = high - low
     area = side[0] * side[1]
-    iw = np.minimum(high[0, :n, None], high[0, n:]) - np.maximum(low[0, :n, None], low[0, n:])
-    ih = np.minimum(high[1, :n, None], high[1, n:]) - np.maximum(low[1, :n, None], low[1, n:])
-    inter = np.maximum(iw, 0.0) * np.maximum(ih, 0.0)  # np.clip's result, without its wrapper
-    union = area[:n, None] + area[n:] - inter
-    iou: FloatArray = np.zeros(union.shape)
-    np.divide(inter, union, out=iou, where=union > 0)
+    # (width, height) of every pair's intersection, clipped at 0 (np.clip's result)
+    sides = np.minimum(high[:, :n, None], high[:, None, n:])
+    sides -= np.maximum(low[:, :n, None], low[:, None, n:])
+    np.maximum(sides, 0.0, out=sides)
+    inter = np.multiply(sides[0], sides[1], out=sides[0])
+    union = area[:n, None] + area[n:]
+    union -= inter
+    positive = union > 0
+    iou: FloatArray
+    if np.logical_and.reduce(positive, axis=None):  # the division needs no guard
+        iou = np.divide(inter, union, out=union)
+    else:
+        iou = np.zeros(union.shape)
+        np.divide(inter, union, out=iou, where=positive)
     # the masks are outer products of per-box flags, applied in place; with every area > 0
     # (so none NaN, so no NaN coordinate) there is nothing to mask
     if not np.logical_and.reduce(area > 0):

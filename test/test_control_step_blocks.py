@@ -19,6 +19,8 @@ from ads_rca.oracles.corrected.control import (
     Step,
     _control_floors,
     _control_step,
+    _steps,
+    _steps_one_by_one,
     control_floors,
     ego_offset,
     step_block,
@@ -132,3 +134,27 @@ def test_the_partner_offset_is_world_to_egos_bit_for_bit() -> None:
         want = world_to_ego(point, np.array([x, y]), yaw)
         got = ego_offset(point, x, y, yaw)
         assert np.array(got).tobytes() == np.asarray(want, dtype=np.float64).tobytes()
+
+
+def test_a_horizon_sliced_from_blocks_is_the_one_by_one_reading() -> None:
+    # 30 random logs x 128 frames (horizons of 1, 10 and 40 frames: within a block, across
+    # two, longer than one): the steps _steps returns (sliced from one or two blocks where
+    # every step is silent) are those the step-by-step loop of a fresh context returns, the
+    # same objects' bits, the same stop, and the same problems in the same order
+    sliced = 0
+    for seed in range(30):
+        log = hostile_log(seed, 4 * BLOCK, 0.05 if seed % 2 else 1.0)
+        params = make_params("corrected", {"control_horizon": (1, 10, 40)[seed % 3]})
+        horizon = int(params.control_horizon)
+        fast = corrected_context(RunContext(log, params))
+        slow = corrected_context(RunContext(log, params))
+        for cc in (fast, slow):
+            assert len(cc.ego_half) == 2  # the first plan build's report, in both
+        for ts in log.frames:
+            got, stop = _steps(fast, ts)
+            want, want_stop = _steps_one_by_one(slow, ts, horizon)
+            assert [bits(s) for s in got] == [bits(s) for s in want], (seed, ts)
+            assert stop == want_stop, (seed, ts)
+            sliced += stop is None and len(got) == horizon
+        assert list(fast.ctx.problems) == list(slow.ctx.problems), seed
+    assert sliced > 1000  # most horizons were whole

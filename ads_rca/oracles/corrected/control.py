@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
@@ -297,10 +298,28 @@ def _control_floors(cc: CorrectedContext, ts: int) -> tuple[Floor, Floor]:
 
 def _steps(cc: CorrectedContext, ts: int) -> tuple[list[Step], str | None]:
     """The usable steps from ts, stopping at the first missing input, and why it stopped."""
+    tpf = cc.tpf
+    horizon = max(int(cc.params.control_horizon), 0)
+    block = block_of(cc, ts)
+    if block is not None:  # the usual case: every step silent, sliced from one or two blocks
+        i = (ts - block.start) // tpf
+        silent = block.steps[i : i + horizon]
+        if len(silent) < horizon:
+            after = block_of(cc, block.start + BLOCK * tpf)
+            if after is not None:
+                silent = silent + after.steps[: horizon - len(silent)]
+        # (an identity test: ``None in`` would call Step.__eq__ on every step)
+        if len(silent) == horizon and all(step is not None for step in silent):
+            return cast("list[Step]", silent), None
+    return _steps_one_by_one(cc, ts, horizon)
+
+
+def _steps_one_by_one(cc: CorrectedContext, ts: int, horizon: int) -> tuple[list[Step], str | None]:
+    """:func:`_steps` where some step is read on its own (and may report a problem)."""
     steps: list[Step] = []
     tpf = cc.tpf
     block: StepBlock | None = None
-    for j in range(max(int(cc.params.control_horizon), 0)):
+    for j in range(horizon):
         t = ts + j * tpf
         if block is None or t - block.start >= BLOCK * tpf:  # a horizon spans two blocks
             block = block_of(cc, t)
@@ -320,8 +339,8 @@ def control(ctx: RunContext, ts: int) -> OracleResult:
     steps, stop = _steps(cc, ts)
     if not steps:
         return skipped("controller", ts, stop or "no control step", thresholds=thresholds)
-    sum_v = math.fsum(s.speed for s in steps)
-    sum_lat = math.fsum(s.lateral for s in steps)
+    speeds, laterals = [s.speed for s in steps], [s.lateral for s in steps]
+    sum_v, sum_lat = math.fsum(speeds), math.fsum(laterals)
     decels = [s.decel for s in steps if math.isfinite(s.decel)]
     max_decel = max(decels) if decels else math.nan
     speed_floor, lateral_floor = control_floors(cc, ts)
@@ -346,8 +365,8 @@ def control(ctx: RunContext, ts: int) -> OracleResult:
         **lateral_floor.metrics("lateral"),
         "max_commanded_decel": max_decel,
         "tracking_failure": bool(speed_fail or lateral_fail),
-        "speed_tracking_error": math.fsum(abs(s.speed) for s in steps) / len(steps),
-        "lateral_tracking_error": math.fsum(abs(s.lateral) for s in steps) / len(steps),
+        "speed_tracking_error": math.fsum(map(abs, speeds)) / len(steps),
+        "lateral_tracking_error": math.fsum(map(abs, laterals)) / len(steps),
         "first_step_speed_error": steps[0].speed,
         "first_step_lateral_error": steps[0].lateral,
     }

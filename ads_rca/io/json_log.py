@@ -35,7 +35,7 @@ from ads_rca.errors import InputError
 from ads_rca.io.errors import InvalidJson
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB, Unreadable, max_bytes, read_regular
 from ads_rca.io.openlane_annotation import parse_lanes, parse_predicted_lanes
-from ads_rca.io.packing import Packed, Packer, unpack
+from ads_rca.io.packing import Handed, Packer, unpack
 from ads_rca.io.prediction_text import prediction_parts_from_text
 from ads_rca.io.records import (
     as_float,
@@ -408,7 +408,7 @@ def chunk_count(files: int, workers: int) -> int:
     return min(files, max(workers * CHUNKS_PER_WORKER, -(-files // MAX_CHUNK_FILES)))
 
 
-def _parse_chunk(chunk: int) -> tuple[Packed, list[Problem], list[int]]:
+def _parse_chunk(chunk: int) -> tuple[Handed, list[Problem], list[int]]:
     """In a worker: parse every ``count``-th shared job from ``chunk`` on; its records
     packed, its problems and each problem's position in the chunk."""
     assert _SHARED_JOBS is not None
@@ -416,7 +416,7 @@ def _parse_chunk(chunk: int) -> tuple[Packed, list[Problem], list[int]]:
     owners: list[int] = []
     packer = Packer()
     _, problems = _parse_files(root, jobs[chunk::count], limit, owners=owners, packer=packer)
-    return packer.packed(), problems, owners
+    return packer.handed(), problems, owners
 
 
 #: What :func:`decode_file` returns for a file it reported as unusable.

@@ -7,10 +7,23 @@ so each is pickled once a chunk) and where its numbers start. The parent rebuild
 record as views of that one array: the same values, dtypes and shapes (each a contiguous
 block, as the parsers make them). Kinds without arrays (control commands, lane graphs)
 travel as they are.
+
+A chunk's numbers are megabytes (a 10,000-frame log's are 400 MB), and a pipe copies them
+five times: into the pickle, into the pipe and out of it 64 KiB at a time, into the
+received message, into the unpickled array. So a reader process hands a large chunk's
+numbers over in a file of shared memory (:class:`SharedNumbers`, in ``/dev/shm``): it
+writes them once, the parent reads them into its array in one call (one copy, from the
+page cache) and removes the file at once, so the shared memory (which other programs, a
+DDS transport say, may need) is held only in between. Where that directory is missing or
+full, the numbers go in the message as before. A file outlives the reading only if the
+parent is killed before it is received.
 """
 
 from __future__ import annotations
 
+import contextlib
+import os
+import tempfile
 from collections.abc import Iterable
 from typing import Any
 
@@ -23,6 +36,12 @@ from ads_rca.model import Actors, Boxes, EgoPose, FloatArray, Objects3D, Plan, R
 Entry = tuple[Any, ...]
 #: A chunk of records: their numbers end to end, and an entry per record.
 Packed = tuple[FloatArray, list[Entry]]
+#: A chunk as it travels: its numbers may wait in a shared-memory file.
+Handed = tuple["FloatArray | SharedNumbers", list[Entry]]
+#: Where reader processes leave their chunks' numbers (a tmpfs on Linux).
+SHARED_DIR = "/dev/shm"
+#: Chunks with fewer bytes of numbers travel in the message (a file costs a few syscalls).
+SHARED_MIN_BYTES = 1 << 20
 
 _POSE, _ACTORS, _BOXES, _PREDICTIONS, _PLAN, _OBJECTS_3D, _AS_IS = range(7)
 _POSE_WIDTH = 7
@@ -85,6 +104,16 @@ class Packer:
         numbers = np.concatenate(self._blocks) if self._blocks else np.zeros(0)
         return numbers.astype(np.float64, copy=False), self._entries
 
+    def handed(self) -> Handed:
+        """:meth:`packed`, its numbers in a shared-memory file when they are large (see
+        the module's docstring) and the file can be written."""
+        numbers, entries = self.packed()
+        if numbers.nbytes >= SHARED_MIN_BYTES:
+            shared = SharedNumbers.written(numbers)
+            if shared is not None:
+                return shared, entries
+        return numbers, entries
+
     def _put(self, *arrays: FloatArray) -> int:
         """Append the arrays' numbers (row-major); where the first one starts."""
         start = self._size
@@ -99,9 +128,74 @@ class Packer:
         return self._shared.setdefault(items, items)
 
 
-def unpack(packed: Packed) -> Iterable[tuple[str, int, Record]]:
+class SharedNumbers:
+    """A chunk's numbers left by a reader process in a shared-memory file, for the parent
+    to read (:meth:`taken`), which removes the file. One that reached the parent and was
+    never read (the reading stopped) removes its file when it is dropped."""
+
+    __slots__ = ("_mine", "count", "path")
+
+    def __init__(self, path: str, count: int, mine: bool = False) -> None:
+        self.path = path
+        self.count = count
+        self._mine = mine  # the receiving end's copy owns the file
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (_received, (self.path, self.count))
+
+    @classmethod
+    def written(cls, numbers: FloatArray) -> SharedNumbers | None:
+        """``numbers`` written to a new file of :data:`SHARED_DIR`; None (and no file)
+        when that fails (no such directory, not writable, full)."""
+        try:
+            fd, path = tempfile.mkstemp(prefix="ads-rca-chunk-", suffix=".f64", dir=SHARED_DIR)
+        except OSError:
+            return None
+        try:
+            with os.fdopen(fd, "wb") as file:
+                numbers.tofile(file)
+        except OSError:
+            _remove(path)
+            return None
+        return cls(path, numbers.size)
+
+    def taken(self) -> FloatArray:
+        """The numbers, read into an array of this process (one copy, from the page
+        cache); the file is removed, so the shared memory is held no longer."""
+        self._mine = False
+        numbers = np.empty(self.count, np.float64)
+        try:
+            with open(self.path, "rb", buffering=0) as file:
+                view = numbers.data.cast("B")
+                done = 0
+                while done < view.nbytes and (got := file.readinto(view[done:])):
+                    done += got
+                if done != view.nbytes or file.read(1):
+                    raise OSError(f"{self.path}: not the {view.nbytes} bytes written")
+        finally:
+            _remove(self.path)
+        return numbers
+
+    def __del__(self) -> None:
+        if self._mine:
+            _remove(self.path)
+
+
+def _received(path: str, count: int) -> SharedNumbers:
+    """A :class:`SharedNumbers` unpickled: the receiving end's, which owns the file."""
+    return SharedNumbers(path, count, mine=True)
+
+
+def _remove(path: str) -> None:
+    with contextlib.suppress(OSError):
+        os.unlink(path)
+
+
+def unpack(packed: Packed | Handed) -> Iterable[tuple[str, int, Record]]:
     """(folder, timestamp, record) of each packed record, in the order they were added."""
     numbers, entries = packed
+    if isinstance(numbers, SharedNumbers):
+        numbers = numbers.taken()
     for entry in entries:
         folder, ts, kind = entry[0], entry[1], entry[2]
         record: Record

@@ -1,0 +1,107 @@
+"""A reader process hands a large chunk's numbers over in a shared-memory file
+(io/packing.SharedNumbers) instead of the pipe message: the parent must rebuild exactly the
+records the message would have given, and no file may stay behind (mapped, dropped unread,
+or never written when the directory cannot take it)."""
+
+from __future__ import annotations
+
+import gc
+import pickle
+from pathlib import Path
+
+import numpy as np
+import pytest
+from logcompare import assert_logs_equal
+
+from ads_rca.io import json_log, packing
+from ads_rca.io.json_log import read_run_log
+from ads_rca.io.json_writer import write_run_log
+from ads_rca.io.packing import Packer, SharedNumbers, unpack
+from ads_rca.model import ALL_FOLDERS, Actors, Record, RunLog
+from ads_rca.synth import synthesise
+
+
+@pytest.fixture(scope="module")
+def crash_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    frames = synthesise("cut_in", "prediction", seed=2, frames=200)
+    return write_run_log(frames, tmp_path_factory.mktemp("shared") / "log")
+
+
+def packer_of(log: RunLog) -> Packer:
+    packer = Packer()
+    for folder in ALL_FOLDERS:
+        for ts, record in log.folder(folder).items():
+            packer.add(folder, ts, record)
+    return packer
+
+
+def rebuilt(log: RunLog, records: list[tuple[str, int, Record]]) -> RunLog:
+    by_folder = {f: {ts: r for g, ts, r in records if g == f} for f in ALL_FOLDERS}
+    return RunLog.from_folders(log.metadata, log.frames, by_folder)
+
+
+@pytest.fixture
+def shared_dir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """Every chunk handed over in a file of a directory of the test's own."""
+    directory = tmp_path / "shm"
+    directory.mkdir()
+    monkeypatch.setattr(packing, "SHARED_DIR", str(directory))
+    monkeypatch.setattr(packing, "SHARED_MIN_BYTES", 0)
+    return directory
+
+
+def test_a_chunk_sent_through_a_file_rebuilds_the_records_of_the_message(
+    crash_log: Path, shared_dir: Path
+) -> None:
+    log = read_run_log(crash_log)
+    packer = packer_of(log)
+    numbers, entries = packer.packed()
+    handed = packer.handed()
+    assert isinstance(handed[0], SharedNumbers) and handed[1] is entries
+    [written] = shared_dir.iterdir()
+    assert written.read_bytes() == numbers.tobytes()  # float64, row-major, end to end
+    # As the pipe carries it: pickled in the reader, unpickled here.
+    received = pickle.loads(pickle.dumps(handed))
+    del handed
+    gc.collect()
+    assert list(shared_dir.iterdir()) == [written]  # the sender's copy leaves the file
+    records = list(unpack(received))
+    assert list(shared_dir.iterdir()) == []  # read, then removed
+    assert_logs_equal(log, rebuilt(log, records), angle_tol=0.0)
+    assert_logs_equal(log, rebuilt(log, list(unpack((numbers, entries)))), angle_tol=0.0)
+    actors = next(r for f, _, r in records if f == "actors")
+    assert isinstance(actors, Actors)
+    assert actors.location.dtype == np.float64 and actors.location.flags.writeable
+
+
+def test_a_received_chunk_never_rebuilt_removes_its_file(crash_log: Path, shared_dir: Path) -> None:
+    handed = packer_of(read_run_log(crash_log)).handed()
+    received = pickle.loads(pickle.dumps(handed))
+    assert len(list(shared_dir.iterdir())) == 1
+    del received
+    gc.collect()
+    assert list(shared_dir.iterdir()) == []
+
+
+def test_small_chunks_and_an_unusable_directory_keep_the_numbers_in_the_message(
+    crash_log: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    packer = packer_of(read_run_log(crash_log))
+    numbers = packer.packed()[0]
+    monkeypatch.setattr(packing, "SHARED_MIN_BYTES", numbers.nbytes + 1)
+    assert isinstance(packer.handed()[0], np.ndarray)  # one byte short of the threshold
+    monkeypatch.setattr(packing, "SHARED_MIN_BYTES", 0)
+    monkeypatch.setattr(packing, "SHARED_DIR", str(tmp_path / "missing"))
+    small = packer.handed()[0]
+    assert isinstance(small, np.ndarray) and small.tobytes() == numbers.tobytes()
+
+
+def test_a_log_read_in_workers_through_files_equals_one_read_here(
+    crash_log: Path, shared_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The forked readers inherit the lowered threshold: every chunk goes through a file."""
+    monkeypatch.setattr(json_log, "PARALLEL_MIN_FILES", 1)
+    alone, shared = read_run_log(crash_log), read_run_log(crash_log, workers=2)
+    assert_logs_equal(alone, shared, angle_tol=0.0)
+    assert list(alone.problems) == list(shared.problems)
+    assert list(shared_dir.iterdir()) == []

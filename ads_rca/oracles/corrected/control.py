@@ -135,17 +135,30 @@ def step_block(cc: CorrectedContext, start: int) -> StepBlock:
             continue
         before = [pose[t] for t in times]
         after = [pose[t + tpf] for t in times]
+        # (np.array of same-shape arrays: np.stack's copy without its per-array Python work)
         lateral = _lateral_offsets(
-            np.stack([plans[t].xy for t in times])[:, order],
+            np.array([plans[t].xy for t in times])[:, order],
             np.array([[p.x, p.y] for p in after]),
             [p.yaw for p in before],
         )
-        speed = np.stack([plans[t].speed for t in times])[:, order]
+        speed = np.array([plans[t].speed for t in times])[:, order]
         v1 = speed[:, rows[1]].tolist()
         v0 = speed[:, rows[0]].tolist() if 0 in rows else [math.nan] * len(times)
         for n, i in enumerate(members):
-            steps[i] = Step(after[n].speed - v1[n], lateral[n], (v0[n] - v1[n]) / (tpf / 1000.0))
+            steps[i] = _step(after[n].speed - v1[n], lateral[n], (v0[n] - v1[n]) / (tpf / 1000.0))
     return StepBlock(start, steps)
+
+
+def _step(speed: float, lateral: float, decel: float) -> Step:
+    """The step ``Step(speed, lateral, decel)`` makes, its fields put in its ``__dict__``
+    directly instead of by the frozen ``__init__``'s ``object.__setattr__`` per field (a block
+    makes 32)."""
+    step = object.__new__(Step)
+    fields = step.__dict__
+    fields["speed"] = speed
+    fields["lateral"] = lateral
+    fields["decel"] = decel
+    return step
 
 
 def _lateral_offsets(xy: FloatArray, points: FloatArray, yaws: list[float]) -> list[float]:

@@ -253,14 +253,19 @@ def floor_block(cc: CorrectedContext, start: int) -> FloorBlock:
         return block
     first = start - span * tpf
     found = _silent_steps(cc, first, BLOCK - 1 + length)
-    ok = [step is not None for step in found]
-    values = [(s.speed, s.lateral) if s is not None else (math.nan, math.nan) for s in found]
+    values = np.array(
+        [
+            [math.nan if s is None else s.speed for s in found],
+            [math.nan if s is None else s.lateral for s in found],
+        ]
+    )
     with np.errstate(invalid="ignore"):  # inf − inf: a NaN difference, not used
-        diffs = np.diff(np.array(values).T, axis=1)
+        diffs = np.diff(values, axis=1)
     windows = np.lib.stride_tricks.sliding_window_view(diffs, length - 1, axis=1)
-    missing = np.cumsum([0, *(not k for k in ok)])
-    full = (missing[length:] - missing[:-length] == 0) & np.isfinite(windows).all(axis=(0, 2))
-    use = np.flatnonzero(full)
+    # Frame i reads steps i … i + L − 1 through differences i … i + L − 2; a missing step k
+    # there (NaN) makes difference k − 1 or k (one is in that range as L >= 2) NaN: so the
+    # frames whose every step is present are among those whose differences are all finite.
+    use = np.flatnonzero(np.isfinite(windows).all(axis=(0, 2)))
     if use.size == 0:
         return block
     count = length - 1
@@ -270,11 +275,19 @@ def floor_block(cc: CorrectedContext, start: int) -> FloorBlock:
         return block
     sigmas = robust_sigmas(windows[:, use]).tolist()
     for n, i in enumerate(use.tolist()):
-        floors[i] = (
-            Floor(sigmas[0][n], count, BASIS_STEPS),
-            Floor(sigmas[1][n], count, BASIS_STEPS),
-        )
+        floors[i] = (_floor(sigmas[0][n], count), _floor(sigmas[1][n], count))
     return block
+
+
+def _floor(value: float, frames: int) -> Floor:
+    """The floor ``Floor(value, frames, BASIS_STEPS)`` makes, its fields put in its
+    ``__dict__`` directly instead of by the frozen ``__init__`` (a block makes 64)."""
+    floor = object.__new__(Floor)
+    fields = floor.__dict__
+    fields["value"] = value
+    fields["frames"] = frames
+    fields["basis"] = BASIS_STEPS
+    return floor
 
 
 def _silent_steps(cc: CorrectedContext, first: int, count: int) -> list[Step | None]:

@@ -47,6 +47,7 @@ def shared_dir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     directory.mkdir()
     monkeypatch.setattr(packing, "SHARED_DIR", str(directory))
     monkeypatch.setattr(packing, "SHARED_MIN_BYTES", 0)
+    monkeypatch.setattr(packing, "SHARED_FREE_SHARE", 0.0)  # whatever the disk holds
     return directory
 
 
@@ -66,7 +67,7 @@ def test_a_chunk_sent_through_a_file_rebuilds_the_records_of_the_message(
     gc.collect()
     assert list(shared_dir.iterdir()) == [written]  # the sender's copy leaves the file
     records = list(unpack(received))
-    assert list(shared_dir.iterdir()) == []  # read, then removed
+    assert list(shared_dir.iterdir()) == []  # mapped, then removed
     assert_logs_equal(log, rebuilt(log, records), angle_tol=0.0)
     assert_logs_equal(log, rebuilt(log, list(unpack((numbers, entries)))), angle_tol=0.0)
     actors = next(r for f, _, r in records if f == "actors")
@@ -105,3 +106,19 @@ def test_a_log_read_in_workers_through_files_equals_one_read_here(
     assert_logs_equal(alone, shared, angle_tol=0.0)
     assert list(alone.problems) == list(shared.problems)
     assert list(shared_dir.iterdir()) == []
+
+
+def test_a_chunk_goes_to_shared_memory_only_while_half_of_it_stays_free(tmp_path: Path) -> None:
+    """The loaded records keep their pages in that file system: a chunk taking every free
+    byte and one more is never written, nor one leaving less than half of it free."""
+    import os
+
+    from ads_rca.io.packing import _room_for
+
+    if not os.path.isdir(packing.SHARED_DIR):
+        pytest.skip(f"no {packing.SHARED_DIR} here")
+    info = os.statvfs(packing.SHARED_DIR)
+    assert info.f_blocks > 0
+    assert not _room_for(info.f_bavail * info.f_frsize + 1)
+    if 2 * info.f_bavail > info.f_blocks + 2:  # more than half free: a byte fits
+        assert _room_for(1)

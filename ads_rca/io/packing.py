@@ -12,16 +12,19 @@ A chunk's numbers are megabytes (a 10,000-frame log's are 400 MB), and a pipe co
 five times: into the pickle, into the pipe and out of it 64 KiB at a time, into the
 received message, into the unpickled array. So a reader process hands a large chunk's
 numbers over in a file of shared memory (:class:`SharedNumbers`, in ``/dev/shm``): it
-writes them once, the parent reads them into its array in one call (one copy, from the
-page cache) and removes the file at once, so the shared memory (which other programs, a
-DDS transport say, may need) is held only in between. Where that directory is missing or
-full, the numbers go in the message as before. A file outlives the reading only if the
-parent is killed before it is received.
+writes them once; the parent maps the file copy-on-write and removes it at once, and its
+pages are the records' arrays (no copy: reading the file into an array of its own cost
+the parent more than the pipe did, fresh pages to fault in and the file's to free). The
+loaded records so hold their numbers in that file system, so a chunk goes there only
+while it leaves half of it free (other programs, a DDS transport say, use it too); else,
+or where the directory is missing or unwritable, the numbers go in the message as
+before. A file outlives the reading only if the parent is killed before receiving it.
 """
 
 from __future__ import annotations
 
 import contextlib
+import mmap
 import os
 import tempfile
 from collections.abc import Iterable
@@ -42,6 +45,8 @@ Handed = tuple["FloatArray | SharedNumbers", list[Entry]]
 SHARED_DIR = "/dev/shm"
 #: Chunks with fewer bytes of numbers travel in the message (a file costs a few syscalls).
 SHARED_MIN_BYTES = 1 << 20
+#: The share of that file system a chunk must leave free to go there.
+SHARED_FREE_SHARE = 0.5
 
 _POSE, _ACTORS, _BOXES, _PREDICTIONS, _PLAN, _OBJECTS_3D, _AS_IS = range(7)
 _POSE_WIDTH = 7
@@ -146,7 +151,10 @@ class SharedNumbers:
     @classmethod
     def written(cls, numbers: FloatArray) -> SharedNumbers | None:
         """``numbers`` written to a new file of :data:`SHARED_DIR`; None (and no file)
-        when that fails (no such directory, not writable, full)."""
+        when that fails (no such directory, not writable, full) or would leave less than
+        :data:`SHARED_FREE_SHARE` of its file system free."""
+        if not _room_for(numbers.nbytes):
+            return None
         try:
             fd, path = tempfile.mkstemp(prefix="ads-rca-chunk-", suffix=".f64", dir=SHARED_DIR)
         except OSError:
@@ -160,25 +168,33 @@ class SharedNumbers:
         return cls(path, numbers.size)
 
     def taken(self) -> FloatArray:
-        """The numbers, read into an array of this process (one copy, from the page
-        cache); the file is removed, so the shared memory is held no longer."""
+        """The numbers: the file's pages mapped copy-on-write (no copy; writable, as an
+        unpickled array is), the file removed (its pages go with the last view)."""
         self._mine = False
-        numbers = np.empty(self.count, np.float64)
         try:
-            with open(self.path, "rb", buffering=0) as file:
-                view = numbers.data.cast("B")
-                done = 0
-                while done < view.nbytes and (got := file.readinto(view[done:])):
-                    done += got
-                if done != view.nbytes or file.read(1):
-                    raise OSError(f"{self.path}: not the {view.nbytes} bytes written")
+            with open(self.path, "rb") as file:
+                size = os.fstat(file.fileno()).st_size
+                if size != 8 * self.count or size == 0:
+                    raise OSError(f"{self.path}: {size} bytes, not the {8 * self.count} written")
+                pages = mmap.mmap(file.fileno(), size, access=mmap.ACCESS_COPY)
         finally:
             _remove(self.path)
-        return numbers
+        return np.frombuffer(pages, np.float64)
 
     def __del__(self) -> None:
         if self._mine:
             _remove(self.path)
+
+
+def _room_for(size: int) -> bool:
+    """True when ``size`` more bytes leave :data:`SHARED_FREE_SHARE` of
+    :data:`SHARED_DIR`'s file system free (the loaded records keep their pages there)."""
+    try:
+        info = os.statvfs(SHARED_DIR)
+    except OSError:
+        return False
+    free = info.f_bavail * info.f_frsize - size
+    return free >= 0 and free >= SHARED_FREE_SHARE * info.f_blocks * info.f_frsize
 
 
 def _received(path: str, count: int) -> SharedNumbers:

@@ -36,7 +36,6 @@ from ads_rca.io.errors import InvalidJson
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB, Unreadable, max_bytes, read_regular
 from ads_rca.io.openlane_annotation import parse_lanes, parse_predicted_lanes
 from ads_rca.io.packing import Handed, Packer, unpack
-from ads_rca.io.prediction_text import prediction_parts_from_text
 from ads_rca.io.records import (
     as_float,
     parse_actors,
@@ -47,7 +46,6 @@ from ads_rca.io.records import (
     parse_pose,
     parse_predictions,
     prediction_parts,
-    predictions_of,
     show_value,
 )
 from ads_rca.io.validate import validate_run_log
@@ -331,17 +329,6 @@ def _parse_files(
         before = len(problems)
         file = f"{folder}/{name}"
         data = read_regular(base + file, limit)
-        parse = PARSERS[folder]
-        if (
-            parse is parse_predictions
-            and isinstance(data, bytes)
-            and (parts := prediction_parts_from_text(data)) is not None
-        ):
-            if packer is not None:
-                packer.add_predictions(folder, ts, *parts)
-            else:
-                parsed.append((folder, ts, predictions_of(parts)))
-            continue
         document = decode_file(data, file, problems, ts)
         too_deep = document is not UNUSABLE and kept_too_deep(folder, document, data)
         del data  # the text is not needed while parsing (a large file's text is megabytes)
@@ -349,18 +336,20 @@ def _parse_files(
             pass
         elif too_deep:
             problems.add(file, "", _too_deep_kept(), SKIPPED_FILE, timestamp_ms=ts)
-        elif (
-            packer is not None
-            and parse is parse_predictions
-            and (parts := prediction_parts(document)) is not None
-        ):
-            packer.add_predictions(folder, ts, *parts)
-        elif (record := parse(document, file, problems, ts)) is None:
-            pass
-        elif packer is not None:
-            packer.add(folder, ts, record)
         else:
-            parsed.append((folder, ts, record))
+            parse = PARSERS[folder]
+            if (
+                packer is not None
+                and parse is parse_predictions
+                and (parts := prediction_parts(document)) is not None
+            ):
+                packer.add_predictions(folder, ts, *parts)
+            elif (record := parse(document, file, problems, ts)) is None:
+                pass
+            elif packer is not None:
+                packer.add(folder, ts, record)
+            else:
+                parsed.append((folder, ts, record))
         if owners is not None:
             owners.extend([position] * (len(problems) - before))
     return parsed, list(problems)

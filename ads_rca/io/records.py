@@ -303,13 +303,11 @@ def prediction_parts(document: Any) -> PredictionParts | None:
 
 
 def _predictions_fast(document: Mapping[str, Any]) -> Predictions | None:
-    """All tracks of a file in one array conversion (:func:`prediction_parts`), then split."""
+    """All tracks of a file in one array conversion (:func:`prediction_parts`), then split
+    (views, no copies)."""
     parts = prediction_parts(document)
-    return None if parts is None else predictions_of(parts)
-
-
-def predictions_of(parts: PredictionParts) -> Predictions:
-    """The tracks a file's :data:`PredictionParts` make (views of its offsets, no copies)."""
+    if parts is None:
+        return None
     ids, keys, flat = parts
     return dict(zip(ids, map(Track.of, keys, track_offsets(flat, keys)), strict=True))
 

@@ -7,7 +7,9 @@ from __future__ import annotations
 
 import gc
 import pickle
+from collections.abc import Iterable
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 import pytest
@@ -19,6 +21,8 @@ from ads_rca.io.json_writer import write_run_log
 from ads_rca.io.packing import Packer, SharedNumbers, unpack
 from ads_rca.model import ALL_FOLDERS, Actors, Record, RunLog
 from ads_rca.synth import synthesise
+
+T = TypeVar("T")
 
 
 @pytest.fixture(scope="module")
@@ -122,3 +126,25 @@ def test_a_chunk_goes_to_shared_memory_only_while_half_of_it_stays_free(tmp_path
     assert not _room_for(info.f_bavail * info.f_frsize + 1)
     if 2 * info.f_bavail > info.f_blocks + 2:  # more than half free: a byte fits
         assert _room_for(1)
+
+
+def test_an_interrupted_reading_leaves_no_file_behind(crash_log: Path, shared_dir: Path) -> None:
+    """Ctrl-C after the first chunk: the workers have written other chunks' files that the
+    parent never receives; the reading removes them (its own prefix) as it stops."""
+
+    class Interrupted(Exception):
+        pass
+
+    def stop_after_first_chunk(items: Iterable[T]) -> Iterable[T]:
+        for done, item in enumerate(items):
+            if done:
+                raise Interrupted
+            yield item
+
+    with pytest.raises(Interrupted):
+        read_run_log(crash_log, workers=2, progress=stop_after_first_chunk)
+    assert not list(shared_dir.iterdir())
+    other = shared_dir / f"{packing.SHARED_PREFIX}99999-0-kept.f64"  # not this reading's
+    other.write_bytes(b"")
+    read_run_log(crash_log, workers=2)
+    assert [p.name for p in shared_dir.iterdir()] == [other.name]

@@ -35,7 +35,7 @@ from ads_rca.errors import InputError
 from ads_rca.io.errors import InvalidJson
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB, Unreadable, max_bytes, read_regular
 from ads_rca.io.openlane_annotation import parse_lanes, parse_predicted_lanes
-from ads_rca.io.packing import Handed, Packer, unpack
+from ads_rca.io.packing import Handed, Packer, reading_prefix, sweep_shared, unpack
 from ads_rca.io.records import (
     as_float,
     parse_actors,
@@ -355,9 +355,9 @@ def _parse_files(
     return parsed, list(problems)
 
 
-# The forked readers' work (set just before forking, cleared after): root, jobs, limit and
-# the number of chunks.
-_SHARED_JOBS: tuple[str, list[Job], int, int] | None = None
+# The forked readers' work (set just before forking, cleared after): root, jobs, limit, the
+# number of chunks and the prefix of the reading's shared-memory files.
+_SHARED_JOBS: tuple[str, list[Job], int, int, str] | None = None
 
 
 def _parse_in_workers(
@@ -377,7 +377,8 @@ def _parse_in_workers(
     advance = advancer(jobs, progress)
     parsed: list[tuple[str, int, Record]] = []
     found: list[tuple[int, Problem]] = []
-    _SHARED_JOBS = (root, jobs, limit, count)
+    prefix = reading_prefix()
+    _SHARED_JOBS = (root, jobs, limit, count, prefix)
     try:
         for chunk, (packed, problems, owners) in enumerate(
             map_forked(_parse_chunk, range(count), workers)
@@ -387,6 +388,7 @@ def _parse_in_workers(
             advance(len(range(chunk, len(jobs), count)))
     finally:
         _SHARED_JOBS = None
+        sweep_shared(prefix)  # chunks written but never received (an interrupted reading)
     found.sort(key=itemgetter(0))
     return parsed, [problem for _, problem in found]
 
@@ -401,11 +403,11 @@ def _parse_chunk(chunk: int) -> tuple[Handed, list[Problem], list[int]]:
     """In a worker: parse every ``count``-th shared job from ``chunk`` on; its records
     packed, its problems and each problem's position in the chunk."""
     assert _SHARED_JOBS is not None
-    root, jobs, limit, count = _SHARED_JOBS
+    root, jobs, limit, count, prefix = _SHARED_JOBS
     owners: list[int] = []
     packer = Packer()
     _, problems = _parse_files(root, jobs[chunk::count], limit, owners=owners, packer=packer)
-    return packer.handed(), problems, owners
+    return packer.handed(prefix), problems, owners
 
 
 #: What :func:`decode_file` returns for a file it reported as unusable.

@@ -18,12 +18,15 @@ the parent more than the pipe did, fresh pages to fault in and the file's to fre
 loaded records so hold their numbers in that file system, so a chunk goes there only
 while it leaves half of it free (other programs, a DDS transport say, use it too); else,
 or where the directory is missing or unwritable, the numbers go in the message as
-before. A file outlives the reading only if the parent is killed before receiving it.
+before. Each reading names its files with a prefix of its own and removes any left when
+it ends (an interrupted reading's unreceived chunks); a file outlives the reading only if
+the parent is killed outright.
 """
 
 from __future__ import annotations
 
 import contextlib
+import itertools
 import mmap
 import os
 import tempfile
@@ -47,6 +50,10 @@ SHARED_DIR = "/dev/shm"
 SHARED_MIN_BYTES = 1 << 20
 #: The share of that file system a chunk must leave free to go there.
 SHARED_FREE_SHARE = 0.5
+#: How the files are named (a reading gives its own longer prefix: :func:`sweep_shared`).
+SHARED_PREFIX = "ads-rca-chunk-"
+
+_READINGS = itertools.count()
 
 _POSE, _ACTORS, _BOXES, _PREDICTIONS, _PLAN, _OBJECTS_3D, _AS_IS = range(7)
 _POSE_WIDTH = 7
@@ -109,12 +116,12 @@ class Packer:
         numbers = np.concatenate(self._blocks) if self._blocks else np.zeros(0)
         return numbers.astype(np.float64, copy=False), self._entries
 
-    def handed(self) -> Handed:
-        """:meth:`packed`, its numbers in a shared-memory file when they are large (see
-        the module's docstring) and the file can be written."""
+    def handed(self, prefix: str = SHARED_PREFIX) -> Handed:
+        """:meth:`packed`, its numbers in a shared-memory file named ``prefix...`` when they
+        are large (see the module's docstring) and the file can be written."""
         numbers, entries = self.packed()
         if numbers.nbytes >= SHARED_MIN_BYTES:
-            shared = SharedNumbers.written(numbers)
+            shared = SharedNumbers.written(numbers, prefix)
             if shared is not None:
                 return shared, entries
         return numbers, entries
@@ -149,14 +156,14 @@ class SharedNumbers:
         return (_received, (self.path, self.count))
 
     @classmethod
-    def written(cls, numbers: FloatArray) -> SharedNumbers | None:
+    def written(cls, numbers: FloatArray, prefix: str = SHARED_PREFIX) -> SharedNumbers | None:
         """``numbers`` written to a new file of :data:`SHARED_DIR`; None (and no file)
         when that fails (no such directory, not writable, full) or would leave less than
         :data:`SHARED_FREE_SHARE` of its file system free."""
         if not _room_for(numbers.nbytes):
             return None
         try:
-            fd, path = tempfile.mkstemp(prefix="ads-rca-chunk-", suffix=".f64", dir=SHARED_DIR)
+            fd, path = tempfile.mkstemp(prefix=prefix, suffix=".f64", dir=SHARED_DIR)
         except OSError:
             return None
         try:
@@ -200,6 +207,20 @@ def _room_for(size: int) -> bool:
 def _received(path: str, count: int) -> SharedNumbers:
     """A :class:`SharedNumbers` unpickled: the receiving end's, which owns the file."""
     return SharedNumbers(path, count, mine=True)
+
+
+def reading_prefix() -> str:
+    """A file-name prefix of its own for one reading's chunks (this process and a count)."""
+    return f"{SHARED_PREFIX}{os.getpid()}-{next(_READINGS)}-"
+
+
+def sweep_shared(prefix: str) -> None:
+    """Remove what is left of a reading's files: chunks a worker wrote that the parent
+    never received (the reading was interrupted: Ctrl-C, an error in another chunk)."""
+    with contextlib.suppress(OSError):
+        for name in os.listdir(SHARED_DIR):
+            if name.startswith(prefix):
+                _remove(os.path.join(SHARED_DIR, name))
 
 
 def _remove(path: str) -> None:

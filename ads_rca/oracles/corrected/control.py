@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import cast
+from typing import TypeVar, cast
 
 import numpy as np
 
@@ -46,6 +46,8 @@ from ads_rca.oracles.corrected.floors import (
     robust_sigmas,
     step_floor,
 )
+
+_T = TypeVar("_T")
 
 
 @dataclass(frozen=True)
@@ -150,15 +152,16 @@ def step_block(cc: CorrectedContext, start: int) -> StepBlock:
 
 
 def _step(speed: float, lateral: float, decel: float) -> Step:
-    """The step ``Step(speed, lateral, decel)`` makes, its fields put in its ``__dict__``
-    directly instead of by the frozen ``__init__``'s ``object.__setattr__`` per field (a block
-    makes 32)."""
-    step = object.__new__(Step)
-    fields = step.__dict__
-    fields["speed"] = speed
-    fields["lateral"] = lateral
-    fields["decel"] = decel
-    return step
+    """``Step(speed, lateral, decel)`` (a block makes 32)."""
+    return _made(Step, speed=speed, lateral=lateral, decel=decel)
+
+
+def _made(cls: type[_T], **fields: object) -> _T:
+    """The instance ``cls(**fields)`` makes, its fields put in its ``__dict__`` directly
+    instead of by the frozen ``__init__``'s ``object.__setattr__`` per field."""
+    made = object.__new__(cls)
+    made.__dict__.update(fields)
+    return made
 
 
 def _lateral_offsets(xy: FloatArray, points: FloatArray, yaws: list[float]) -> list[float]:
@@ -280,14 +283,8 @@ def floor_block(cc: CorrectedContext, start: int) -> FloorBlock:
 
 
 def _floor(value: float, frames: int) -> Floor:
-    """The floor ``Floor(value, frames, BASIS_STEPS)`` makes, its fields put in its
-    ``__dict__`` directly instead of by the frozen ``__init__`` (a block makes 64)."""
-    floor = object.__new__(Floor)
-    fields = floor.__dict__
-    fields["value"] = value
-    fields["frames"] = frames
-    fields["basis"] = BASIS_STEPS
-    return floor
+    """``Floor(value, frames, BASIS_STEPS)`` (a block makes 64)."""
+    return _made(Floor, value=value, frames=frames, basis=BASIS_STEPS)
 
 
 def _silent_steps(cc: CorrectedContext, first: int, count: int) -> list[Step | None]:

@@ -397,7 +397,8 @@ def partner_object(cc: CorrectedContext, ts: int, actor_id: str) -> str | None:
 def step_floor(values: Sequence[float], minimum: int) -> Floor:
     """Control's floor from consecutive steps' innovations: the robust sigma of their
     differences (at least ``minimum`` differences, else none)."""
-    diffs = np.diff(np.asarray(values, dtype=np.float64))
+    with np.errstate(invalid="ignore"):  # inf − inf: a NaN difference, dropped next
+        diffs = np.diff(np.asarray(values, dtype=np.float64))
     diffs = diffs[np.isfinite(diffs)]
     if len(diffs) < max(minimum, 1):
         return NO_FLOOR

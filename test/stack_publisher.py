@@ -87,7 +87,9 @@ class Settings:
     wait_subscribers: int = 1
     #: Subscribers the collision topic must have before publishing starts (the monitors
     #: and the aggregator: an aggregator matched after the publisher left never hears the
-    #: latched collision, and waits for it forever).
+    #: latched collision, and waits for it forever); 0: as many as the data topics.
+    #: Given, it is the count there whatever the data topics' (a companion node, such as
+    #: a predictor, listens to the data topics only).
     wait_collision_subscribers: int = 0
 
     @property
@@ -389,8 +391,8 @@ def publish(schedule: Schedule, settings: Settings) -> int:
             for name in pubs
             if name != topics.CLOCK and name in carrying
         }
-        needed[settings.collision_name] = max(
-            settings.wait_subscribers, settings.wait_collision_subscribers
+        needed[settings.collision_name] = (
+            settings.wait_collision_subscribers or settings.wait_subscribers
         )
         if not _wait_for_subscribers(pubs, needed, settings.wait_subscribers):
             counts = {name: (pubs[name].get_subscription_count(), n) for name, n in needed.items()}

@@ -427,7 +427,9 @@ def test_a_predictor_node_beside_a_playing_scene_is_scored(
         },
         [
             *("--namespace", ros_env.namespace, "--offset-ms", "0", "--jitter-ms", "0"),
-            *("--wait-subscribers", "2"),
+            # the monitors, the aggregator and the predictor: a predictor matched late
+            # misses the first frames, and the monitors wait for their predictions
+            *("--wait-subscribers", "3"),
         ],
         companions={"predictor": predictor},
         after_publisher_s=90.0,

@@ -202,8 +202,12 @@ def parse_args(argv: Sequence[str]) -> Settings:
     args = parser.parse_args(list(argv))
     if args.offset_ms < 0:
         raise StackError(f"--offset-ms must be >= 0, not {args.offset_ms}")
-    if args.wait_subscribers < 0:
-        raise StackError(f"--wait-subscribers must be >= 0, not {args.wait_subscribers}")
+    for flag, count in (
+        ("--wait-subscribers", args.wait_subscribers),
+        ("--wait-collision-subscribers", args.wait_collision_subscribers),
+    ):
+        if count < 0:
+            raise StackError(f"{flag} must be >= 0, not {count}")
     drops = tuple(_drop_spec(text) for text in args.drop)
     if len({folder for folder, _ in drops}) != len(drops):
         raise StackError("--drop names a folder twice")

@@ -191,6 +191,10 @@ def run_publisher(ros_env: RosEnv, *options: str) -> subprocess.CompletedProcess
             "stack_publisher: --drop 'radar:0.1': folder must be one of " + ", ".join(FOLDERS),
         ),
         (
+            ["--synth", "cut_in:none:1", "--wait-collision-subscribers", "-1"],
+            "stack_publisher: --wait-collision-subscribers must be >= 0, not -1",
+        ),
+        (
             ["--synth", "cut_in:none:1", "--rate", "-1"],
             "stack_publisher: argument --rate: --rate must be a number >= 0.0, not '-1'",
         ),

@@ -380,3 +380,58 @@ def test_the_aggregator_holds_a_bounded_number_of_rows(
         core.add_ego_path(row(200, 1.0))
     core.add_ego_path(row(100, 2.0))  # a row held is still merged
     assert sorted(core.ego_paths) == [0, 100]
+
+
+def _judged_beside_a_model(table: Path, answered: int) -> tuple[RunLog, AggregatorCore]:
+    """The aggregator after every module judged every row, the model having answered the
+    first ``answered`` rows (its answers, as a model's, carry no realised path)."""
+    log = read_atmacup_table(table)
+    core = MonitorCore(MODULES, make_params("corrected"))
+    aggregator = AggregatorCore(make_params("corrected"), verdict_timeout_s=5.0)
+    play(log, core, aggregator)
+    for stamp in log.frames[:answered]:
+        document = ego_path_document(log, stamp)
+        assert document is not None
+        aggregator.add_ego_path(read_ego_path(loads_json(dumps_json(model_document(document)))))
+    for live in core.poll(1.0):
+        aggregator.add_result(live, 1.0)
+    return log, aggregator
+
+
+@pytest.mark.parametrize("answered", [0, 2])
+def test_the_verdict_waits_for_a_models_last_answers_only_when_a_model_answers(
+    table: Path, answered: int
+) -> None:
+    """No predicted path heard: no model, the verdict is due at once, nothing scored. A
+    model that answered rows 0 and 100: the verdict waits for row 200's answer (the
+    monitors' results came first, as they may over DDS) and then scores all three."""
+    log, aggregator = _judged_beside_a_model(table, answered)
+    if answered == 0:
+        outcome = aggregator.poll(1.1)
+        assert outcome is not None and outcome.complete
+        assert outcome.document[TRAJECTORY_SCORES_KEY]["scored"] == 0
+        return
+    assert aggregator.poll(1.1) is None and aggregator.poll(5.9) is None
+    last = ego_path_document(log, log.frames[-1])
+    assert last is not None
+    aggregator.add_ego_path(read_ego_path(model_document(last)))
+    outcome = aggregator.poll(6.0)
+    assert outcome is not None and outcome.complete
+    scores = outcome.document[TRAJECTORY_SCORES_KEY]
+    assert scores["submission"] == "shift-model" and scores["scored"] == 3
+    assert scores["per_row"]["ade"] == pytest.approx([1.0, 1.0, 1.0])
+
+
+def test_a_model_that_never_answers_a_row_makes_the_verdict_late_and_incomplete(
+    table: Path,
+) -> None:
+    """verdict_timeout_s after the last input the verdict comes without the missing row's
+    prediction, and says which row it waited for."""
+    _log, aggregator = _judged_beside_a_model(table, 2)
+    assert aggregator.poll(1.1) is None  # the horizon reached, the wait starts: 5 s
+    assert aggregator.poll(6.0) is None
+    outcome = aggregator.poll(6.2)
+    assert outcome is not None and not outcome.complete
+    why = outcome.document["live"]["why_incomplete"]
+    assert why == ["timed out waiting for the model's predicted paths: rows at 200 ms"], why
+    assert outcome.document[TRAJECTORY_SCORES_KEY]["scored"] == 2

@@ -17,6 +17,13 @@ forever: once the horizon is reached, after ``verdict_timeout_s`` without any ne
 before, after ``stall_timeout_s`` without any input once the run started; what is there is
 then attributed and the verdict says why it is incomplete.
 
+A snapshot table's run with a live model beside it (``run/ego_paths``): once any message
+with a predicted path was heard, the verdict also waits, within the same
+``verdict_timeout_s``, for a predicted path for every analysed row the player sent, so a
+model answering as it hears each row is scored in the verdict even when its last answer
+comes after the monitors' last results; a row still unanswered then is listed in why the
+verdict is incomplete. Without any predicted path the verdict does not wait (no model).
+
 Stack mode (``stack=True``, docs/live-graph.md): there are no frame markers. The frames are
 the ones the monitors judged (re-indexed here by stamp, so monitor processes started at
 different times agree), and a module is complete for collision N once its result marked
@@ -132,6 +139,8 @@ class AggregatorCore(FollowsRunEnd):
         #: A snapshot table's rows' future ego paths (``run/ego_paths``), merged per stamp:
         #: scored at the verdict as ``diagnose`` scores the table.
         self.ego_paths: dict[int, EgoPathRow] = {}
+        #: A predicted path was heard: a model is answering, the verdict waits for its rows.
+        self.model_heard = False
 
     # --- feeding ---------------------------------------------------------------------
 
@@ -198,6 +207,7 @@ class AggregatorCore(FollowsRunEnd):
                 f"{row.stamp_ms} ms is skipped"
             )
         self.ego_paths[row.stamp_ms] = merged(self.ego_paths.get(row.stamp_ms), row)
+        self.model_heard = self.model_heard or row.predicted is not None
 
     def set_finished(self, now: float, frames_published: int | None = None) -> None:
         """The player's end; effective once ``frames_published`` markers arrived (DDS does
@@ -373,6 +383,15 @@ class AggregatorCore(FollowsRunEnd):
                 why.append(f"timed out waiting for results: {_frames_text(awaited)}")
             if any(lost.values()):
                 why.append(f"results lost (a monitor restarted): {_frames_text(lost)}")
+            unanswered = self._unanswered_rows()
+            if unanswered:
+                if waiting:
+                    return None
+                shown = ", ".join(str(s) for s in unanswered[:8])
+                more = f" (+{len(unanswered) - 8})" if len(unanswered) > 8 else ""
+                why.append(
+                    f"timed out waiting for the model's predicted paths: rows at {shown}{more} ms"
+                )
         else:
             if not self.markers_received:  # the run has not started: nothing stalls yet
                 return None
@@ -380,6 +399,18 @@ class AggregatorCore(FollowsRunEnd):
                 return None
             why.append(f"inputs stalled for {self.stall_timeout_s:g} s before the horizon")
         return self._decide(now, why)
+
+    def _unanswered_rows(self) -> list[int]:
+        """Stamps of the analysed rows the player sent that no predicted path covers yet,
+        once a model answers (none before: a run without a model is not waited for)."""
+        if not self.model_heard:
+            return []
+        rows = self._rows(self.required())
+        return [
+            stamp
+            for stamp, got in rows.items()
+            if got.realised is not None and got.predicted is None
+        ]
 
     def _rows(self, required: list[_Expected]) -> dict[int, EgoPathRow]:
         """The snapshot rows of the verdict's frames (merged per stamp)."""

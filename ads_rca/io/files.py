@@ -114,7 +114,12 @@ def _too_large(limit: int) -> Unreadable:
 
 def _read_at_most(fd: int, size_hint: int, limit: int) -> bytes:
     """Up to ``limit + 1`` bytes: the stated size in one read, then until end of file (a
-    short read is not taken for the end: on FUSE or NFS a signal can cut a read short)."""
+    short read is not taken for the end: on FUSE or NFS a signal can cut a read short).
+
+    A first read that gives exactly the size ``fstat`` stated, fewer bytes than asked, is
+    the whole file without asking again (one system call a file, not two: a log is
+    thousands of small files): had it grown since, the read would have given more; cut
+    short by a signal at exactly that size, it is the file as ``fstat`` saw it."""
     parts: list[bytes] = []
     total = 0
     while total <= limit:
@@ -122,6 +127,8 @@ def _read_at_most(fd: int, size_hint: int, limit: int) -> bytes:
         chunk = os.read(fd, want)
         if not chunk:
             break
+        if not parts and len(chunk) == size_hint < want:
+            return chunk
         parts.append(chunk)
         total += len(chunk)
     return b"".join(parts)

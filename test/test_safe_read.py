@@ -1,0 +1,80 @@
+"""Reading one input file (``ads_rca/io/files.py``): regular files only, never more than the
+cap, the whole file whatever ``fstat`` said; a file read in one system call when its size
+is what ``fstat`` stated."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+from ads_rca.io import files
+from ads_rca.io.files import Unreadable, read_regular
+
+
+@pytest.fixture
+def reads(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """The sizes asked of each ``os.read`` the module makes (the real call is made)."""
+    asked: list[int] = []
+    real = os.read
+
+    def counted(fd: int, size: int) -> bytes:
+        asked.append(size)
+        return real(fd, size)
+
+    monkeypatch.setattr(files.os, "read", counted)
+    return asked
+
+
+@pytest.mark.parametrize("size", [0, 1, 18_249, 65_535, 65_536, 200_001])
+def test_a_regular_file_comes_whole(tmp_path: Path, size: int, reads: list[int]) -> None:
+    data = os.urandom(size)
+    path = tmp_path / "f.json"
+    path.write_bytes(data)
+    assert read_regular(path, 1 << 20) == data
+    assert len(reads) == 1  # its size as fstat stated it: no second read for the end
+
+
+def test_the_cap_is_kept(tmp_path: Path) -> None:
+    path = tmp_path / "f.json"
+    path.write_bytes(b"x" * 100)
+    assert read_regular(path, 100) == b"x" * 100
+    refused = read_regular(path, 99)
+    assert isinstance(refused, Unreadable) and "max_file_mb" in refused.issue
+
+
+@pytest.mark.parametrize("hint", [0, 50, 99, 101, 200, 70_000])
+def test_a_size_hint_gone_stale_still_reads_the_whole_file(tmp_path: Path, hint: int) -> None:
+    """A file that grew or shrank after ``fstat``: read to its end, never taken as ended
+    at the stale size."""
+    data = os.urandom(100)
+    path = tmp_path / "f.json"
+    path.write_bytes(data)
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        assert files._read_at_most(fd, hint, 1 << 20) == data
+    finally:
+        os.close(fd)
+
+
+def test_a_file_grown_past_the_cap_after_fstat_is_refused(tmp_path: Path) -> None:
+    path = tmp_path / "f.json"
+    path.write_bytes(b"y" * 300)
+    fd = os.open(path, os.O_RDONLY)
+    try:  # fstat said 10 bytes, the cap is 200: at most 201 are read, then refused
+        assert len(files._read_at_most(fd, 10, 200)) == 201
+    finally:
+        os.close(fd)
+
+
+def test_what_is_not_a_regular_file_is_never_read(tmp_path: Path) -> None:
+    fifo = tmp_path / "pose-100.json"
+    os.mkfifo(fifo)
+    link = tmp_path / "pose-200.json"
+    link.symlink_to("/dev/zero")
+    for path, kind in ((fifo, "FIFO"), (link, "character device"), (tmp_path, "a directory")):
+        got = read_regular(path, 1 << 20)
+        assert isinstance(got, Unreadable) and kind in got.issue, (path, got)
+    missing = read_regular(tmp_path / "missing.json", 1 << 20)
+    assert isinstance(missing, Unreadable) and "cannot read" in missing.issue

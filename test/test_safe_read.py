@@ -78,3 +78,45 @@ def test_what_is_not_a_regular_file_is_never_read(tmp_path: Path) -> None:
         assert isinstance(got, Unreadable) and kind in got.issue, (path, got)
     missing = read_regular(tmp_path / "missing.json", 1 << 20)
     assert isinstance(missing, Unreadable) and "cannot read" in missing.issue
+
+
+def test_a_file_listed_regular_is_opened_without_stat_and_a_symlink_there_is_checked(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Listed as a regular file: no ``stat`` before opening. A symlink found there instead
+    (swapped in after the listing) is not followed by that open: it goes through the full
+    check, so its target is read when regular and refused when a device."""
+    stats: list[object] = []
+    real_stat = os.stat
+    monkeypatch.setattr(files.os, "stat", lambda p, *a, **k: stats.append(p) or real_stat(p))
+    plain = tmp_path / "pose-1.json"
+    plain.write_bytes(b"{}")
+    assert read_regular(plain, 100, listed_regular=True) == b"{}" and stats == []
+    link = tmp_path / "pose-2.json"
+    link.symlink_to(plain)
+    assert read_regular(link, 100, listed_regular=True) == b"{}" and stats == [link]
+    device = tmp_path / "pose-3.json"
+    device.symlink_to("/dev/zero")
+    got = read_regular(device, 100, listed_regular=True)
+    assert isinstance(got, Unreadable) and "character device" in got.issue
+
+
+def test_a_log_folder_lists_its_irregular_entries_for_the_full_check(tmp_path: Path) -> None:
+    from ads_rca.io.json_log import _list_folder
+    from ads_rca.problems import ProblemLog
+
+    folder = tmp_path / "pose"
+    folder.mkdir()
+    (folder / "pose-100.json").write_bytes(b"{}")
+    (folder / "pose-200.json").symlink_to(folder / "pose-100.json")
+    os.mkfifo(folder / "pose-300.json")
+    (folder / "pose-400.json").mkdir()
+    irregular: set[str] = set()
+    listing = _list_folder(tmp_path, "pose", ProblemLog(), irregular)
+    assert sorted(listing) == [
+        (100, "pose-100.json"),
+        (200, "pose-200.json"),
+        (300, "pose-300.json"),
+        (400, "pose-400.json"),
+    ]
+    assert irregular == {"pose/pose-200.json", "pose/pose-300.json", "pose/pose-400.json"}

@@ -14,6 +14,7 @@ file: large, read record by record, so no cap unless one is given).
 
 from __future__ import annotations
 
+import errno
 import os
 import stat
 from dataclasses import dataclass
@@ -46,9 +47,17 @@ def max_bytes(max_file_mb: float) -> int:
     return int(max_file_mb * (1 << 20))
 
 
-def read_regular(path: str | os.PathLike[str], limit: int) -> bytes | Unreadable:
-    """The bytes of ``path`` if it is a regular file of at most ``limit`` bytes."""
-    opened = _open_checked(path, limit)
+def read_regular(
+    path: str | os.PathLike[str], limit: int, listed_regular: bool = False
+) -> bytes | Unreadable:
+    """The bytes of ``path`` if it is a regular file of at most ``limit`` bytes.
+
+    ``listed_regular``: its directory listing said a regular file, no symlink (the entry's
+    type, which costs no system call): then it is opened at once, with ``O_NOFOLLOW``, and
+    checked with ``fstat`` alone. Only root can put a device node in its place; a symlink
+    put there since is not followed but sent through the full check (``stat`` first), as a
+    file not listed so is."""
+    opened = _open_listed(path, limit) if listed_regular else _open_checked(path, limit)
     if isinstance(opened, Unreadable):
         return opened
     fd, size = opened
@@ -83,6 +92,23 @@ def _open_checked(path: str | os.PathLike[str], limit: int | None) -> tuple[int,
         fd = os.open(path, _OPEN_FLAGS)
     except OSError as error:
         return Unreadable(f"cannot read: {error.strerror}")
+    return _checked_descriptor(fd, limit)
+
+
+def _open_listed(path: str | os.PathLike[str], limit: int | None) -> tuple[int, int] | Unreadable:
+    """:func:`_open_checked` for a file listed as regular: no ``stat`` before opening."""
+    try:
+        fd = os.open(path, _OPEN_FLAGS | os.O_NOFOLLOW)
+    except OSError as error:
+        if error.errno in (errno.ELOOP, errno.EMLINK):  # a symlink now (Linux, BSD): the
+            # full check follows it
+            return _open_checked(path, limit)
+        return Unreadable(f"cannot read: {error.strerror}")
+    return _checked_descriptor(fd, limit)
+
+
+def _checked_descriptor(fd: int, limit: int | None) -> tuple[int, int] | Unreadable:
+    """``fd`` and its size if ``fstat`` says a regular file within ``limit`` (else closed)."""
     try:
         info = os.fstat(fd)
     except OSError as error:

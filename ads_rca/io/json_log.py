@@ -3,7 +3,7 @@
 Reading rules (rca-semantics.md, "Reading a log folder"): every ``*.json`` file of a folder
 is read whatever its prefix (dot-files and other extensions ignored); its timestamp is the
 decimal integer between the last ``-`` of its name and the next ``.``; when two files of a
-folder map to one timestamp, the one listed last by ``os.listdir`` wins; the analysed frames
+folder map to one timestamp, the one listed last (directory order) wins; the analysed frames
 are one per ``actors/`` file, ascending, duplicates kept.
 
 Nothing here raises on bad data: a missing folder, an unreadable or invalid JSON file, a
@@ -205,12 +205,13 @@ def read_run_log(
     if not root.is_dir():
         raise InputError(f"{root}: not a folder (a running log is a folder of JSON files)")
     problems = ProblemLog()
-    listings = {folder: _list_folder(root, folder, problems) for folder in FOLDERS}
+    irregular: set[str] = set()  # files not listed as regular: read with the full check
+    listings = {folder: _list_folder(root, folder, problems, irregular) for folder in FOLDERS}
     if not (root / "metadata.json").exists() and not listings["actors"]:
         raise InputError(f"{root}: not an ADS running log (no metadata.json, no actors/ files)")
     for folder in OPTIONAL_FOLDERS:  # our extension: absent means none, and says nothing
         if (root / folder).is_dir():
-            listings[folder] = _list_folder(root, folder, problems)
+            listings[folder] = _list_folder(root, folder, problems, irregular)
 
     # Only the winning file of each timestamp is read (the others are reported by validate).
     files = {folder: {ts: name for ts, name in listing} for folder, listing in listings.items()}
@@ -219,9 +220,11 @@ def read_run_log(
     ]
     records: dict[str, dict[int, Record]] = {folder: {} for folder in ALL_FOLDERS}
     if workers > 1 and len(jobs) >= PARALLEL_MIN_FILES and can_fork():
-        parsed, found = _parse_in_workers(str(root), jobs, limit, progress, workers)
+        parsed, found = _parse_in_workers(
+            str(root), jobs, limit, progress, workers, frozenset(irregular)
+        )
     else:
-        parsed, found = _parse_files(str(root), jobs, limit, progress)
+        parsed, found = _parse_files(str(root), jobs, limit, frozenset(irregular), progress)
     problems.extend(found)
     for folder, ts, record in parsed:
         records[folder][ts] = record
@@ -276,19 +279,27 @@ def check_max_file_mb(max_file_mb: float) -> int:
     return max_bytes(max_file_mb)
 
 
-def _list_folder(root: Path, folder: str, problems: ProblemLog) -> list[tuple[int, str]]:
-    """(timestamp, file name) of each log file, in directory-listing order."""
+def _list_folder(
+    root: Path, folder: str, problems: ProblemLog, irregular: set[str] | None = None
+) -> list[tuple[int, str]]:
+    """(timestamp, file name) of each log file, in directory-listing order. ``irregular``
+    gets ``folder/name`` of each listed as no regular file or as a symlink (the entry's
+    type: no system call where the file system gives it), which are read with the full
+    check (:func:`~ads_rca.io.files.read_regular`)."""
     directory = root / folder
     if not directory.is_dir():
         problems.add(f"{folder}/", "", "folder missing", "checks that need it are skipped")
         return []
     try:
-        names = os.listdir(directory)
+        with os.scandir(directory) as entries:
+            listed = [(entry.name, entry.is_file(follow_symlinks=False)) for entry in entries]
     except OSError as error:
         problems.add(f"{folder}/", "", f"cannot list: {error.strerror}", SKIPPED_FILE)
         return []
+    if irregular is not None:
+        irregular.update(f"{folder}/{name}" for name, regular in listed if not regular)
     listing: list[tuple[int, str]] = []
-    for name in names:
+    for name, _regular in listed:
         if not is_log_file(name):
             continue
         ts = timestamp_of(name)
@@ -313,6 +324,7 @@ def _parse_files(
     root: str,
     jobs: Sequence[Job],
     limit: int,
+    irregular: frozenset[str],
     progress: Progress | None = None,
     owners: list[int] | None = None,
     packer: Packer | None = None,
@@ -328,7 +340,7 @@ def _parse_files(
     for position, (folder, ts, name) in enumerate(tracked(jobs, progress)):
         before = len(problems)
         file = f"{folder}/{name}"
-        data = read_regular(base + file, limit)
+        data = read_regular(base + file, limit, file not in irregular)
         document = decode_file(data, file, problems, ts)
         too_deep = document is not UNUSABLE and kept_too_deep(folder, document, data)
         del data  # the text is not needed while parsing (a large file's text is megabytes)
@@ -356,12 +368,18 @@ def _parse_files(
 
 
 # The forked readers' work (set just before forking, cleared after): root, jobs, limit, the
-# number of chunks and the prefix of the reading's shared-memory files.
-_SHARED_JOBS: tuple[str, list[Job], int, int, str] | None = None
+# files listed as no regular file, the number of chunks and the prefix of the reading's
+# shared-memory files.
+_SHARED_JOBS: tuple[str, list[Job], int, frozenset[str], int, str] | None = None
 
 
 def _parse_in_workers(
-    root: str, jobs: list[Job], limit: int, progress: Progress | None, workers: int
+    root: str,
+    jobs: list[Job],
+    limit: int,
+    progress: Progress | None,
+    workers: int,
+    irregular: frozenset[str],
 ) -> tuple[list[tuple[str, int, Record]], list[Problem]]:
     """:func:`_parse_files` in forked workers, the same records and problems in the same
     order as read here.
@@ -378,7 +396,7 @@ def _parse_in_workers(
     parsed: list[tuple[str, int, Record]] = []
     found: list[tuple[int, Problem]] = []
     prefix = reading_prefix()
-    _SHARED_JOBS = (root, jobs, limit, count, prefix)
+    _SHARED_JOBS = (root, jobs, limit, irregular, count, prefix)
     try:
         for chunk, (packed, problems, owners) in enumerate(
             map_forked(_parse_chunk, range(count), workers)
@@ -403,10 +421,12 @@ def _parse_chunk(chunk: int) -> tuple[Handed, list[Problem], list[int]]:
     """In a worker: parse every ``count``-th shared job from ``chunk`` on; its records
     packed, its problems and each problem's position in the chunk."""
     assert _SHARED_JOBS is not None
-    root, jobs, limit, count, prefix = _SHARED_JOBS
+    root, jobs, limit, irregular, count, prefix = _SHARED_JOBS
     owners: list[int] = []
     packer = Packer()
-    _, problems = _parse_files(root, jobs[chunk::count], limit, owners=owners, packer=packer)
+    _, problems = _parse_files(
+        root, jobs[chunk::count], limit, irregular, owners=owners, packer=packer
+    )
     return packer.handed(prefix), problems, owners
 
 

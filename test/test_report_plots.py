@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from matplotlib import pyplot as plt
 from matplotlib.figure import Figure
 from matplotlib.patches import Polygon
 
@@ -112,6 +113,8 @@ def test_figures_hold_only_drawable_numbers(tmp_path: Path, kind: str, semantics
     series = {name for name, _ in skipped.counts}
     assert "scene, ego pose" in series and "scene, plan" in series
     assert all(n > 0 for n in skipped.counts.values())
+    for figure in [metrics, *scenes]:  # as the report does once a figure is encoded
+        plt.close(figure)
 
 
 def test_skipped_counts_each_reason() -> None:

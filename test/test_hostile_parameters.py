@@ -141,3 +141,25 @@ def test_an_unknown_parameter_stops_the_node_with_the_known_names(
     assert f"]: unknown parameter '{name}' (known: " in errors[0], output
     assert known in errors[0].split("(known: ")[1].rstrip(")").split(", "), output
     assert "Traceback" not in output, output
+
+
+@pytest.mark.parametrize(
+    ("assignment", "message"),
+    [
+        ("format:=nonsense", "format 'nonsense': expected one of auto, log, bag,"),
+        ("format:='{}'", "format '{}': expected one of auto, log, bag,"),
+        ("ego_agent:=" + "x" * 300, "ego_agent: expected an agent token or number"),
+        ("submission:=/nonexistent.csv", "--submission applies to atmaCup tables"),
+        ("predictions:=/nonexistent_dir", "--predictions applies to CARLA runs"),
+    ],
+)
+def test_a_hostile_source_parameter_stops_the_player_in_one_line(
+    ros_env: Any, tmp_path: Path, assignment: str, message: str
+) -> None:
+    """The player's source options (the CLI's --format, --ego-agent, --submission,
+    --predictions) as ROS parameters: refused as the CLI refuses them, one line, exit 2."""
+    code, output = _start("ads_rca.ros.player", assignment, ros_env, tmp_path)
+    assert code == 2, output
+    errors = [line for line in output.splitlines() if "[ERROR]" in line]
+    assert len(errors) == 1 and message in errors[0], output
+    assert "Traceback" not in output, output

@@ -24,7 +24,7 @@ from __future__ import annotations
 import json
 import math
 import re
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any, cast
 
 #: Top-level key of the annotation: JSON Pointer → "nan" | "inf" | "-inf".
@@ -59,16 +59,18 @@ def to_strict(document: object) -> Any:
     None plus the annotation; numpy scalars and arrays as Python values, tuples as lists,
     keys as strings. Always a new structure. Apply it once: its output has a top-level
     ``"$nonfinite"`` of its own, which a second pass would escape like a log's key."""
-    found: list[tuple[list[str], str]] = []
-    plain = _walk(document, [], found)
+    found: list[_Found] = []
+    plain = _walk(document, (), found)
     forced = isinstance(plain, dict) and NONFINITE_KEY in plain
     if not found and not forced:
         return plain
     if not isinstance(plain, dict):
-        annotation = {_pointer([VALUE_KEY, *path]): kind for path, kind in found}
-        return {VALUE_KEY: plain, NONFINITE_KEY: annotation}
+        return {VALUE_KEY: plain, NONFINITE_KEY: _annotation(found, "/" + VALUE_KEY)}
     out = {_escape(k): v for k, v in plain.items()}
-    out[NONFINITE_KEY] = {_pointer([_escape(p[0]), *p[1:]]): kind for p, kind in found}
+    annotation = _annotation(found, "")
+    if any(map(_RESERVED.match, plain)):  # the pointers name the keys as escaped
+        annotation = {_escape_first(p): kind for p, kind in annotation.items()}
+    out[NONFINITE_KEY] = annotation
     return out
 
 
@@ -100,69 +102,122 @@ def loads(text: str | bytes) -> Any:
     return from_strict(json.loads(text))
 
 
-#: Values the walk returns as they are (exact types: subclasses take the general path).
+#: Values the walk copies as they are (exact types: subclasses take the general path).
 _PLAIN = frozenset((str, int, bool, type(None)))
 
+#: A non-finite float the walk found: its container's JSON Pointer tokens, its own token
+#: (None when the tokens are its own: a value :func:`_general` was given), the value.
+_Found = tuple[tuple[str, ...], str | None, float]
 
-def _walk(value: object, path: list[str], found: list[tuple[list[str], str]]) -> Any:
+
+def _walk(value: object, path: tuple[str, ...], found: list[_Found]) -> Any:
     """The strict copy of ``value`` (``path``: its JSON Pointer tokens).
 
-    Containers go through :func:`_items`, which copies plain scalars without a call or a
-    path step each (a verdict is mostly numbers); anything else takes :func:`_general`.
+    A dict or list is copied at once (in C), then only its items that are not plain scalars
+    are replaced: a verdict is mostly numbers, and a module's row holds a few lists, dicts
+    and non-finite values among twenty. A non-finite value is recorded with its container's
+    path (one tuple, shared), so its pointer costs nothing until the annotation. A dict with
+    a key that is not a str is built by :func:`_pairs` instead. Anything else takes
+    :func:`_general`.
     """
     kind = type(value)
+    plain = _PLAIN
     if kind is dict:
-        return _items(cast("dict[Any, Any]", value).items(), path, found, True)
+        original = cast("dict[Any, Any]", value)
+        out = dict(original)
+        mark = len(found)
+        for key, item in out.items():
+            if type(key) is not str:
+                del found[mark:]  # _pairs finds them again, in the same order
+                return _pairs(original.items(), path, found)
+            kind = type(item)
+            if kind in plain or (kind is float and item - item == 0.0):  # 0: finite
+                continue
+            if kind is float:
+                found.append((path, key, item))
+                out[key] = None
+            elif (kind is dict or kind is list) and not item:
+                out[key] = kind()
+            else:
+                out[key] = _walk(item, (*path, key), found)
+        return out
     if kind is list or kind is tuple:
-        return _items(enumerate(cast("list[Any]", value)), path, found, False)
+        items = list(cast("list[Any]", value))
+        for index, item in enumerate(items):
+            kind = type(item)
+            if kind in plain or (kind is float and item - item == 0.0):
+                continue
+            if kind is float:
+                found.append((path, str(index), item))
+                items[index] = None
+            elif (kind is dict or kind is list) and not item:
+                items[index] = kind()
+            else:
+                items[index] = _walk(item, (*path, str(index)), found)
+        return items
     return _general(value, path, found)
 
 
-def _items(
-    pairs: Iterable[tuple[Any, Any]],
-    path: list[str],
-    found: list[tuple[list[str], str]],
-    mapping: bool,
-) -> Any:
+def _pairs(
+    pairs: Iterable[tuple[Any, Any]], path: tuple[str, ...], found: list[_Found]
+) -> dict[str, Any]:
+    """A mapping that is not a plain dict of str keys: each key as str, each value walked."""
     out: dict[str, Any] = {}
-    items: list[Any] = []
-    plain = _PLAIN
     for key, item in pairs:
-        kind = type(item)
-        value = item
-        if kind not in plain and not (kind is float and item - item == 0.0):  # 0: finite
-            path.append(str(key))
-            value = _walk(item, path, found)
-            path.pop()
-        if mapping:
-            out[key if type(key) is str else str(key)] = value
-        else:
-            items.append(value)
-    return out if mapping else items
+        token = key if type(key) is str else str(key)
+        out[token] = _walk(item, (*path, token), found)
+    return out
 
 
-def _general(value: object, path: list[str], found: list[tuple[list[str], str]]) -> Any:
+def _general(value: object, path: tuple[str, ...], found: list[_Found]) -> Any:
     if isinstance(value, float):
         if math.isfinite(value):
             return value
-        found.append((list(path), nonfinite_kind(value)))
+        found.append((path, None, value))
         return None
     if isinstance(value, str | int) or value is None:
         return value
     if isinstance(value, Mapping):
-        return _items(value.items(), path, found, True)
+        return _pairs(value.items(), path, found)
     if isinstance(value, list | tuple):
-        return _items(enumerate(value), path, found, False)
+        return _walk(list(value), path, found)
     if hasattr(value, "tolist") and callable(value.tolist):  # numpy scalar or array
         return _walk(value.tolist(), path, found)
     return value
+
+
+def _annotation(found: list[_Found], root: str) -> dict[str, str]:
+    """Pointer → kind for each value found, in document order (the map is written in it).
+
+    A container's values come one after another: its pointer is made once for them."""
+    out: dict[str, str] = {}
+    last: tuple[str, ...] | None = None
+    prefix = ""
+    for path, token, value in found:
+        if path is not last:
+            last = path
+            prefix = root + _pointer(path) + "/"
+        if token is None:
+            pointer = prefix[:-1]
+        elif "~" in token or "/" in token:
+            pointer = prefix[:-1] + _pointer((token,))
+        else:
+            pointer = prefix + token
+        out[pointer] = nonfinite_kind(value)
+    return out
 
 
 def _escape(key: str) -> str:
     return "$" + key if _RESERVED.match(key) else key
 
 
-def _pointer(tokens: list[str]) -> str:
+def _escape_first(pointer: str) -> str:
+    """The pointer with its first token escaped (a reserved key has no ``~`` nor ``/``)."""
+    first, slash, rest = pointer[1:].partition("/")
+    return "/" + _escape(first) + slash + rest
+
+
+def _pointer(tokens: Sequence[str]) -> str:
     joined = "/" + "/".join(tokens)
     if "~" not in joined and joined.count("/") == len(tokens):  # nothing to escape (usual)
         return joined

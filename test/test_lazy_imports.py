@@ -16,10 +16,12 @@ from ads_rca.synth import synthesise
 #: Top-level packages a diagnose of a log folder never needs.
 UNNEEDED = (
     "aiohttp",
+    "concurrent",
     "dask",
     "distributed",
     "matplotlib",
     "mcap",
+    "multiprocessing",
     "pyarrow",
     "rclpy",
     "rich",

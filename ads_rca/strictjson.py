@@ -25,7 +25,7 @@ import json
 import math
 import re
 from collections.abc import Iterable, Mapping, Sequence
-from typing import Any, cast
+from typing import Any
 
 #: Top-level key of the annotation: JSON Pointer → "nan" | "inf" | "-inf".
 NONFINITE_KEY = "$nonfinite"
@@ -110,7 +110,7 @@ _PLAIN = frozenset((str, int, bool, type(None)))
 _Found = tuple[tuple[str, ...], str | None, float]
 
 
-def _walk(value: object, path: tuple[str, ...], found: list[_Found]) -> Any:
+def _walk(value: Any, path: tuple[str, ...], found: list[_Found]) -> Any:
     """The strict copy of ``value`` (``path``: its JSON Pointer tokens).
 
     A dict or list is copied at once (in C), then only its items that are not plain scalars
@@ -123,13 +123,12 @@ def _walk(value: object, path: tuple[str, ...], found: list[_Found]) -> Any:
     kind = type(value)
     plain = _PLAIN
     if kind is dict:
-        original = cast("dict[Any, Any]", value)
-        out = dict(original)
+        out = dict(value)
         mark = len(found)
         for key, item in out.items():
             if type(key) is not str:
                 del found[mark:]  # _pairs finds them again, in the same order
-                return _pairs(original.items(), path, found)
+                return _pairs(value.items(), path, found)
             kind = type(item)
             if kind in plain or (kind is float and item - item == 0.0):  # 0: finite
                 continue
@@ -142,7 +141,7 @@ def _walk(value: object, path: tuple[str, ...], found: list[_Found]) -> Any:
                 out[key] = _walk(item, (*path, key), found)
         return out
     if kind is list or kind is tuple:
-        items = list(cast("list[Any]", value))
+        items = list(value)
         for index, item in enumerate(items):
             kind = type(item)
             if kind in plain or (kind is float and item - item == 0.0):

@@ -16,6 +16,7 @@ import numpy as np
 
 from ads_rca import __version__
 from ads_rca.annotations import ANNOTATIONS_KEY, annotations_from_document
+from ads_rca.indented_json import RenderedList
 from ads_rca.model import RunLog, frame_number
 from ads_rca.openlane_run_scores import OPENLANE_SCORES_KEY
 from ads_rca.openlane_run_scores import run_scores as lane_run_scores
@@ -60,6 +61,9 @@ class Diagnosis:
     ctx: RunContext
     frames: list[FrameResults]
     attribution: Attribution
+    #: The frames' part of the verdict JSON, made while they were judged (``diagnose(...,
+    #: render_frames=True)`` with workers): :meth:`to_json` puts it in place of the list.
+    rendered_frames: RenderedList | None = None
 
     @property
     def params(self) -> Params:
@@ -120,7 +124,7 @@ class Diagnosis:
             "evidence": {
                 m: a.modules[m].evidence for m in MODULES if a.modules[m].evidence is not None
             },
-            "frames": [frame_json(f) for f in self.frames] if include_frames else [],
+            "frames": self._frames_json() if include_frames else [],
             "input_problems": [p.to_dict() for p in self.problems],
         }
         # What a run says about itself (a CARLA run's events and figures), when it does.
@@ -139,6 +143,13 @@ class Diagnosis:
         if self.log.ego_snapshots is not None:  # a table of snapshots (atmaCup #18)
             document[TRAJECTORY_SCORES_KEY] = trajectory_scores(self.log.ego_snapshots)
         return dict(json_safe(document))
+
+    def _frames_json(self) -> list[dict[str, Any]] | RenderedList:
+        """The frames' part of the document: as made while judging when it was."""
+        rendered = self.rendered_frames
+        if rendered is not None and len(rendered) == len(self.frames):
+            return rendered
+        return [frame_json(f) for f in self.frames]
 
 
 def frame_json(frame: FrameResults) -> dict[str, Any]:
@@ -162,23 +173,28 @@ def diagnose(
     params: Params,
     progress: Callable[[Iterable[int]], Iterable[int]] | None = None,
     workers: int = 1,
+    render_frames: bool = False,
 ) -> Diagnosis:
     """Judge every analysed frame with the mode's oracles, then attribute the crash.
 
     ``progress`` may wrap the timestamp iterable (a progress bar). ``workers`` > 1 judges
     slices of frames in forked processes (the oracles are pure per-frame functions, and a
     fork shares the loaded log without copying it); results are the same, in frame order.
+    ``render_frames``: the verdict JSON will be written: with workers, the frames' text is
+    made as their slices come back (:attr:`Diagnosis.rendered_frames`).
     """
     semantics = semantics_for(params)
     ctx = RunContext.create(log, params)
     oracles = semantics.judging_oracles(log)
     timestamps = semantics.analysed_frames(log)
+    rendered = None
     if workers > 1 and len(timestamps) >= PARALLEL_MIN_FRAMES and can_fork():
-        frames = _judge_in_workers(ctx, oracles, timestamps, workers, progress)
+        rendered = RenderedList("frames") if render_frames else None
+        frames = _judge_in_workers(ctx, oracles, timestamps, workers, progress, rendered)
     else:
         stamps: Iterable[int] = progress(timestamps) if progress is not None else timestamps
         frames = [evaluate_frame(ctx, oracles, ts) for ts in stamps]
-    return Diagnosis(log, ctx, frames, semantics.attribute(frames, ctx))
+    return Diagnosis(log, ctx, frames, semantics.attribute(frames, ctx), rendered)
 
 
 # The forked workers read the run and its timestamps from here (set just before forking,
@@ -202,7 +218,10 @@ def _judge_in_workers(
     timestamps: tuple[int, ...],
     workers: int,
     progress: Callable[[Iterable[int]], Iterable[int]] | None,
+    rendered: RenderedList | None,
 ) -> list[FrameResults]:
+    """The frames judged in slices by forked workers; each slice's text made into
+    ``rendered`` (when given) while the workers judge the next."""
     global _SHARED  # noqa: PLW0603 - inherited by the forked workers, never written there
     chunk = max(50, len(timestamps) // (workers * 8))
     slices = [(i, min(i + chunk, len(timestamps))) for i in range(0, len(timestamps), chunk)]
@@ -215,6 +234,8 @@ def _judge_in_workers(
         ):
             frames.extend(judged)
             ctx.merge(problems)
+            if rendered is not None:
+                rendered.extend([frame_json(f) for f in judged])
             advance(stop - start)
     finally:
         _SHARED = None

@@ -32,6 +32,8 @@ from typing import Any, TextIO
 import numpy as np
 import orjson
 
+from ads_rca.strictjson import NonFinite, StrictValue, strict_items
+
 #: Items of a long top-level value converted at a time: bounds the text held at once.
 BATCH_ITEMS = 250
 _NEWLINE, _SPACE = 0x0A, 0x20
@@ -69,7 +71,9 @@ def iter_indented(document: Any, batch_items: int = BATCH_ITEMS) -> Iterator[str
     yield "{"
     for index, (key, value) in enumerate(document.items()):
         yield f"{',' if index else ''}\n {json.dumps(key)}: "
-        if isinstance(value, list | dict) and len(value) > batch_items:
+        if isinstance(value, RenderedList):
+            yield from value.pieces()
+        elif isinstance(value, list | dict) and len(value) > batch_items:
             yield from _in_batches(value, batch_items)
         else:
             yield _text(value).replace("\n", "\n ")
@@ -83,9 +87,53 @@ def _in_batches(value: list[Any] | dict[Any, Any], batch_items: int) -> Iterator
     yield "[" if as_list else "{"
     for start in range(0, len(items), batch_items):
         part = items[start : start + batch_items]
-        body = _text(part if as_list else dict(part))[2:-2]  # without the bracket lines
-        yield ("," if start else "") + "\n " + body.replace("\n", "\n ")
+        yield _items_text(part if as_list else dict(part), bool(start))
     yield "\n ]" if as_list else "\n }"
+
+
+def _items_text(part: list[Any] | dict[str, Any], after: bool) -> str:
+    """Consecutive items of a long value one level down, as they are written there
+    (``after`` items before them: a comma first)."""
+    body = _text(part)[2:-2]  # without the bracket lines
+    return ("," if after else "") + "\n " + body.replace("\n", "\n ")
+
+
+class RenderedList(StrictValue):
+    """A long list value of a top-level key (a verdict's frames), made strict and
+    written as :func:`iter_indented` writes such a list, part by part as its items come.
+
+    Why: the frames of a long run are judged in forked workers, and their text made after
+    the judging took a tenth of a diagnosis with one core idle; made in the parent as each
+    slice comes back, it takes the time the workers leave free. ``to_strict`` takes it as
+    it is (its pointers were found as it was made), ``len()`` is its item count.
+    """
+
+    def __init__(self, key: str) -> None:
+        self.key = key
+        self.count = 0
+        self.nonfinite: NonFinite = []
+        self._parts: list[str] = []
+
+    def __len__(self) -> int:
+        return self.count
+
+    def extend(self, items: list[Any]) -> None:
+        """The next items (strict copies are made of them, their non-finite pointers kept)."""
+        if not items:
+            return
+        plain, found = strict_items(items, self.key, self.count)
+        self._parts.append(_items_text(plain, bool(self.count)))
+        self.nonfinite.extend(found)
+        self.count += len(items)
+
+    def pieces(self) -> Iterator[str]:
+        """The list's text, one level down in its document."""
+        if not self.count:
+            yield "[]"
+            return
+        yield "["
+        yield from self._parts
+        yield "\n ]"
 
 
 def _text(value: Any) -> str:

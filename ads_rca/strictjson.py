@@ -108,6 +108,24 @@ _PLAIN = frozenset((str, int, bool, type(None)))
 #: A non-finite float the walk found: its container's JSON Pointer tokens, its own token
 #: (None when the tokens are its own: a value :func:`_general` was given), the value.
 _Found = tuple[tuple[str, ...], str | None, float]
+#: The non-finite floats found in a part of a document, in document order.
+NonFinite = list[_Found]
+
+
+class StrictValue:
+    """A value of a document made strict already, where it sits (:func:`strict_items`):
+    :func:`to_strict` takes it as it is, with the non-finite values found in it
+    (``nonfinite``, pointers from the document's root) in its place in the annotation."""
+
+    nonfinite: NonFinite
+
+
+def strict_items(items: list[Any], key: str, first: int) -> tuple[list[Any], NonFinite]:
+    """Items ``first``, ``first + 1``... of the list under the top-level ``key`` of a
+    document, made strict as :func:`to_strict` makes them there, and the non-finite values
+    found in them (for a :class:`StrictValue` holding the list, made part by part)."""
+    found: NonFinite = []
+    return _walk_items(list(items), (key,), found, first), found
 
 
 def _walk(value: Any, path: tuple[str, ...], found: list[_Found]) -> Any:
@@ -141,20 +159,28 @@ def _walk(value: Any, path: tuple[str, ...], found: list[_Found]) -> Any:
                 out[key] = _walk(item, (*path, key), found)
         return out
     if kind is list or kind is tuple:
-        items = list(value)
-        for index, item in enumerate(items):
-            kind = type(item)
-            if kind in plain or (kind is float and item - item == 0.0):
-                continue
-            if kind is float:
-                found.append((path, str(index), item))
-                items[index] = None
-            elif (kind is dict or kind is list) and not item:
-                items[index] = kind()
-            else:
-                items[index] = _walk(item, (*path, str(index)), found)
-        return items
+        return _walk_items(list(value), path, found)
     return _general(value, path, found)
+
+
+def _walk_items(
+    items: list[Any], path: tuple[str, ...], found: list[_Found], first: int = 0
+) -> list[Any]:
+    """``items`` (a copy, replaced in place) made strict: items ``first``, ``first + 1``...
+    of the list at ``path``."""
+    plain = _PLAIN
+    for index, item in enumerate(items):
+        kind = type(item)
+        if kind in plain or (kind is float and item - item == 0.0):
+            continue
+        if kind is float:
+            found.append((path, str(first + index), item))
+            items[index] = None
+        elif (kind is dict or kind is list) and not item:
+            items[index] = kind()
+        else:
+            items[index] = _walk(item, (*path, str(first + index)), found)
+    return items
 
 
 def _pairs(
@@ -169,6 +195,9 @@ def _pairs(
 
 
 def _general(value: object, path: tuple[str, ...], found: list[_Found]) -> Any:
+    if isinstance(value, StrictValue):
+        found.extend(value.nonfinite)
+        return value
     if isinstance(value, float):
         if math.isfinite(value):
             return value

@@ -175,3 +175,37 @@ def test_judging_in_worker_processes_gives_the_same_diagnosis(
     shared = diagnose(read_run_log(log_dir), params, workers=2).to_json()
     assert len(alone["frames"]) >= 400  # long enough to be split between the workers
     assert shared == alone
+
+
+@pytest.mark.parametrize("semantics", ["reference", "corrected"])
+def test_frames_written_as_their_slices_come_back_are_the_same_bytes(
+    semantics: str, tmp_path: Path
+) -> None:
+    """``diagnose --json`` with workers makes the frames' text as each judged slice comes
+    back: the file is byte for byte the one written from the whole document, non-finite
+    pointers (in the frames and around them) in the same order; the summary counts the
+    frames alike."""
+    log = synthesise("cruise", "none", seed=5, frames=450, actors=6)
+    log_dir = write_run_log(log, tmp_path / "log")
+    (log_dir / "pose" / "pose-5000.json").write_text("{")  # a problem found while judging
+    outputs = []
+    for workers in ("1", "2"):
+        out = tmp_path / f"v{workers}.json"
+        done = run_cli(
+            "diagnose",
+            str(log_dir),
+            "--semantics",
+            semantics,
+            "--workers",
+            workers,
+            "--json",
+            str(out),
+        )
+        outputs.append((out.read_bytes(), done.stdout))
+    (alone, alone_summary), (shared, shared_summary) = outputs
+    assert shared == alone
+    assert shared_summary.replace("v2.json", "v1.json") == alone_summary
+    document = json.loads(alone)
+    assert len(document["frames"]) >= 400  # long enough to be split between the workers
+    assert any(p.startswith("/frames/") for p in document.get("$nonfinite", {})), semantics
+    assert alone == (json.dumps(document, indent=1) + "\n").encode()

@@ -146,3 +146,35 @@ def test_deep_nesting_within_the_json_modules_reach_is_identical() -> None:
     for _ in range(min(200, sys.getrecursionlimit() // 4)):
         document = {"k": document}
     assert dumps_indented(document) == json_module(document)
+
+
+with_nonfinite = st.recursive(
+    scalars | st.sampled_from([math.nan, math.inf, -math.inf]),
+    lambda inner: st.lists(inner, max_size=5) | st.dictionaries(keys, inner, max_size=5),
+    max_leaves=30,
+)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(with_nonfinite, max_size=12), st.lists(st.integers(1, 5), max_size=12))
+def test_a_list_rendered_part_by_part_is_the_whole_documents_text(
+    items: list[Any], cuts: list[int]
+) -> None:
+    """A top-level list made strict and written part by part as its items come (a verdict's
+    frames as their slices come back): the document's text and its non-finite pointers,
+    in order, are those of the document with the whole list in place."""
+    from ads_rca.indented_json import RenderedList
+    from ads_rca.strictjson import to_strict
+
+    rendered = RenderedList("frames")
+    start = 0
+    for size in [*cuts, len(items)]:
+        rendered.extend(items[start : start + size])
+        start += size
+    assert len(rendered) == len(items)
+    around = {"$nonfinite": math.nan, "before": [math.inf, items[:1]]}
+    whole = to_strict({**around, "frames": items, "after": {"x": -math.inf}})
+    parts = to_strict({**around, "frames": rendered, "after": {"x": -math.inf}})
+    assert list(parts) == list(whole) and parts["$nonfinite"] == whole["$nonfinite"]
+    assert list(parts["$nonfinite"]) == list(whole["$nonfinite"])  # the same order
+    assert dumps_indented(parts) == json_module(whole)

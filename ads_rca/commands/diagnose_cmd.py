@@ -171,7 +171,9 @@ def _judge_and_write(
     one: a blank line first); its verdict JSON."""
     if not semantics_for(params).analysed_frames(log):
         raise InputError(f"{args.path}: no frame to analyse (no readable actors/ file)")
-    result = diagnose(log, params, terminal_bar("judging"), workers=workers)
+    result = diagnose(
+        log, params, terminal_bar("judging"), workers=workers, render_frames=bool(args.json_out)
+    )
     document = result.to_json()
     # The files first: they never depend on stdout (``| head`` may close it early).
     if args.json_out:

@@ -44,8 +44,14 @@ def requested() -> bool:
 
 def exit_now(status: int) -> NoReturn:
     """Flush the standard streams and end the process with ``status``, freeing nothing."""
-    for stream in (sys.stdout, sys.stderr):
-        # a reader gone or a stream closed: there is nothing left to keep
-        with contextlib.suppress(OSError, ValueError):
-            stream.flush()
+    flush_standard_streams()
     os._exit(status)
+
+
+def flush_standard_streams() -> None:
+    """What stdout and stderr hold written out, before an ``os._exit`` or a fork (whose
+    child would write it again)."""
+    for stream in (sys.stdout, sys.stderr):
+        # a reader gone, a stream closed or none at all: there is nothing left to keep
+        with contextlib.suppress(OSError, ValueError, AttributeError):
+            stream.flush()

@@ -32,6 +32,7 @@ from contextlib import contextmanager
 from typing import Generic, NoReturn, TypeVar
 
 from ads_rca.errors import InputError
+from ads_rca.quick_exit import flush_standard_streams
 
 _T = TypeVar("_T")
 _R = TypeVar("_R")
@@ -135,7 +136,7 @@ class _Pool(Generic[_T, _R]):
         """Fork ``count`` workers, the tickets they take written as far as the pipe holds."""
         if count <= 0:
             return
-        _flush_standard_streams()  # else each worker would write what is buffered again
+        flush_standard_streams()  # else each worker would write what is buffered again
         takes, self._tickets = os.pipe()
         try:
             os.set_blocking(self._tickets, False)
@@ -306,7 +307,7 @@ def _serve(function: Callable[[_T], _R], items: Sequence[_T], takes: int, out: i
 
             traceback.print_exc()
     finally:
-        _flush_standard_streams()
+        flush_standard_streams()
         os._exit(status)
 
 
@@ -364,12 +365,6 @@ def _worker_error(body: bytearray) -> BaseException:
         error = RuntimeError(f"in a worker process: {line}")
     error.__cause__ = WorkerTraceback(text)
     return error
-
-
-def _flush_standard_streams() -> None:
-    for stream in (sys.stdout, sys.stderr):
-        with contextlib.suppress(OSError, ValueError, AttributeError):  # closed, or none
-            stream.flush()
 
 
 #: How many :func:`loaded_objects_frozen` blocks are open (the collector has one frozen set).

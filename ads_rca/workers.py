@@ -31,7 +31,7 @@ from collections.abc import Callable, Generator, Iterator, Sequence
 from contextlib import contextmanager
 from typing import Generic, NoReturn, TypeVar
 
-from ads_rca.errors import InputError
+from ads_rca.errors import AdsRcaError, InputError
 from ads_rca.quick_exit import flush_standard_streams
 
 _T = TypeVar("_T")
@@ -345,7 +345,7 @@ def _pickled_error(error: BaseException) -> bytes:
     return pickle.dumps((text, f"{type(error).__name__}: {error}", pickled), _PROTOCOL)
 
 
-class WorkerTraceback(Exception):
+class WorkerTraceback(AdsRcaError):
     """The cause of an exception raised in a worker process: the traceback there (the
     exception unpickled here has none of its own)."""
 

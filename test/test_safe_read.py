@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -23,7 +24,7 @@ def reads(monkeypatch: pytest.MonkeyPatch) -> list[int]:
         asked.append(size)
         return real(fd, size)
 
-    monkeypatch.setattr(files.os, "read", counted)
+    monkeypatch.setattr("ads_rca.io.files.os.read", counted)
     return asked
 
 
@@ -88,7 +89,12 @@ def test_a_file_listed_regular_is_opened_without_stat_and_a_symlink_there_is_che
     check, so its target is read when regular and refused when a device."""
     stats: list[object] = []
     real_stat = os.stat
-    monkeypatch.setattr(files.os, "stat", lambda p, *a, **k: stats.append(p) or real_stat(p))
+
+    def counted(path: Any) -> os.stat_result:
+        stats.append(path)
+        return real_stat(path)
+
+    monkeypatch.setattr("ads_rca.io.files.os.stat", counted)
     plain = tmp_path / "pose-1.json"
     plain.write_bytes(b"{}")
     assert read_regular(plain, 100, listed_regular=True) == b"{}" and stats == []

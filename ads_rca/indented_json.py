@@ -16,7 +16,8 @@ the json module's (tests compare the two on random documents):
 
 An object's long values (a verdict's frames and ``$nonfinite`` map) are converted a batch of
 items at a time, so the text is written piece by piece, never held whole
-(``bench/bench_verdict_json.py``).
+(``bench/bench_verdict_json.py``); a :class:`RenderedList` (the frames made while they
+were judged) is held as its text instead of as a document, a fraction of its size.
 What orjson refuses (integers beyond 64 bits, non-string keys, numpy values, lone
 surrogates) is written by the json module. The document must be strict already
 (:func:`ads_rca.strictjson.to_strict`): orjson writes NaN and infinity as ``null``.

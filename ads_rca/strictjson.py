@@ -150,13 +150,7 @@ def _walk(value: Any, path: tuple[str, ...], found: list[_Found]) -> Any:
             kind = type(item)
             if kind in plain or (kind is float and item - item == 0.0):  # 0: finite
                 continue
-            if kind is float:
-                found.append((path, key, item))
-                out[key] = None
-            elif (kind is dict or kind is list) and not item:
-                out[key] = kind()
-            else:
-                out[key] = _walk(item, (*path, key), found)
+            out[key] = _replaced(item, kind, path, key, found)
         return out
     if kind is list or kind is tuple:
         return _walk_items(list(value), path, found)
@@ -173,14 +167,20 @@ def _walk_items(
         kind = type(item)
         if kind in plain or (kind is float and item - item == 0.0):
             continue
-        if kind is float:
-            found.append((path, str(first + index), item))
-            items[index] = None
-        elif (kind is dict or kind is list) and not item:
-            items[index] = kind()
-        else:
-            items[index] = _walk(item, (*path, str(first + index)), found)
+        items[index] = _replaced(item, kind, path, str(first + index), found)
     return items
+
+
+def _replaced(item: Any, kind: type, path: tuple[str, ...], token: str, found: list[_Found]) -> Any:
+    """The strict value of a container's item that is no plain scalar (``kind``: its
+    type, ``token``: its key or index there): a non-finite float as None (recorded), an
+    empty dict or list as a new one, anything else walked."""
+    if kind is float:
+        found.append((path, token, item))
+        return None
+    if (kind is dict or kind is list) and not item:
+        return kind()
+    return _walk(item, (*path, token), found)
 
 
 def _pairs(

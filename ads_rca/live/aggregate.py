@@ -387,10 +387,9 @@ class AggregatorCore(FollowsRunEnd):
             if unanswered:
                 if waiting:
                     return None
-                shown = ", ".join(str(s) for s in unanswered[:8])
-                more = f" (+{len(unanswered) - 8})" if len(unanswered) > 8 else ""
                 why.append(
-                    f"timed out waiting for the model's predicted paths: rows at {shown}{more} ms"
+                    "timed out waiting for the model's predicted paths: rows at "
+                    f"{_first_few(unanswered)} ms"
                 )
         else:
             if not self.markers_received:  # the run has not started: nothing stalls yet
@@ -505,7 +504,11 @@ def _frames_text(by_module: Mapping[Module, list[int]]) -> str:
     parts = []
     for module, indices in by_module.items():
         if indices:
-            shown = ", ".join(str(i) for i in indices[:8])
-            more = f" (+{len(indices) - 8})" if len(indices) > 8 else ""
-            parts.append(f"{module} frames {shown}{more}")
+            parts.append(f"{module} frames {_first_few(indices)}")
     return "; ".join(parts)
+
+
+def _first_few(numbers: list[int]) -> str:
+    """``3, 5, 9`` or, beyond eight, the first eight and ``(+N)`` more."""
+    more = f" (+{len(numbers) - 8})" if len(numbers) > 8 else ""
+    return ", ".join(map(str, numbers[:8])) + more

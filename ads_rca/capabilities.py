@@ -68,13 +68,15 @@ def input_status(log: RunLog) -> dict[str, InputStatus]:
     (:func:`held_status`)."""
     if log.inputs:
         return complete(log.inputs)
-    return held_status({field for field in INPUT_FIELDS.values() if getattr(log, field)})
+    held = {field for field in INPUT_FIELDS.values() if getattr(log, field)}
+    return held_status(held, log.metadata.collision_known)
 
 
-def held_status(fields: Collection[str]) -> dict[str, InputStatus]:
+def held_status(fields: Collection[str], collision_known: bool = True) -> dict[str, InputStatus]:
     """The statuses of a running log whose RunLog ``fields`` hold records: those real, the
-    others absent; the collision comes from metadata.json. The live aggregator, which holds
-    no records, asks it with the folders the player's frame markers listed."""
+    others absent; the collision comes from metadata.json (absent when it gives no usable
+    ``collision_frame``). The live aggregator, which holds no records, asks it with the
+    folders the player's frame markers listed."""
     out: dict[str, InputStatus] = {}
     for name in MODEL_INPUTS:
         field = INPUT_FIELDS.get(name)
@@ -82,7 +84,11 @@ def held_status(fields: Collection[str]) -> dict[str, InputStatus]:
             out[name] = (
                 InputStatus("real") if field in fields else InputStatus("absent", "", "no records")
             )
-    out["collision"] = InputStatus("real", "metadata.json", "")
+    out["collision"] = (
+        InputStatus("real", "metadata.json", "")
+        if collision_known
+        else InputStatus("absent", "", "metadata.json gives no usable collision_frame")
+    )
     out["clock"] = InputStatus("absent", "", "a log folder has no clock")
     return {name: out[name] for name in MODEL_INPUTS}
 

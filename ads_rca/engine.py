@@ -8,14 +8,17 @@ depends on the mode (oracles, analysed frames, ego, window, attribution) is aske
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Mapping
+import traceback
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any
 
 import numpy as np
 
 from ads_rca import __version__
 from ads_rca.annotations import ANNOTATIONS_KEY, annotations_from_document
+from ads_rca.conclusion import Conclusion, conclude
 from ads_rca.indented_json import RenderedList
 from ads_rca.model import RunLog, frame_number
 from ads_rca.openlane_run_scores import OPENLANE_SCORES_KEY
@@ -24,7 +27,7 @@ from ads_rca.oracles.base import MODULES, Module, OracleResult, RunContext
 from ads_rca.oracles.semantics import Oracle, Semantics, semantics_for
 from ads_rca.params import Params
 from ads_rca.prediction_scores import SCORES_KEY, run_scores
-from ads_rca.problems import CHECK_SKIPPED, Problem, ProblemLog
+from ads_rca.problems import Problem, ProblemLog
 from ads_rca.progress import advancer
 from ads_rca.run_figures import FIGURES_KEY, figures_from_document
 from ads_rca.trajectory_scores import TRAJECTORY_SCORES_KEY, trajectory_scores
@@ -33,7 +36,10 @@ from ads_rca.workers import can_fork, collector_paused, map_forked
 
 
 def evaluate_frame(ctx: RunContext, oracles: Mapping[Module, Oracle], ts: int) -> FrameResults:
-    """All oracles at one frame. An unexpected error in one oracle is reported, not raised.
+    """All oracles at one frame. An oracle never raises on bad input (it reports it), so an
+    exception is a bug in our code: that module's result says ``internal_error`` (never an
+    input problem) and its first traceback is kept on ``ctx`` for the command to print;
+    the other modules are still judged (docs/verdicts.md).
 
     Numbers from a log may be as large as a double goes (1.7e308): their products and
     differences overflow to infinity and NaN, which every rule judges as its semantics
@@ -45,12 +51,20 @@ def evaluate_frame(ctx: RunContext, oracles: Mapping[Module, Oracle], ts: int) -
             try:
                 results[module] = oracle(ctx, ts)
             except Exception as error:
-                issue = f"{module} check failed on this frame: {type(error).__name__}: {error}"
-                ctx.problems.add(
-                    ctx.log.file_of("actors", ts), module, issue, CHECK_SKIPPED, "error", ts
-                )
-                results[module] = OracleResult(module, ts, failed=False, skipped=issue)
+                results[module] = internal_error_result(ctx, module, ts, error)
     return FrameResults(ts, frame_number(ts, ctx.tpf), results)
+
+
+def internal_error_result(
+    ctx: RunContext, module: Module, ts: int, error: Exception
+) -> OracleResult:
+    """The result of an oracle that raised at ts: not judged, the error named, its first
+    traceback per module kept on ``ctx`` (:attr:`RunContext.tracebacks`)."""
+    text = f"{type(error).__name__}: {error}"
+    ctx.tracebacks.setdefault(module, "".join(traceback.format_exception(error)))
+    return OracleResult(
+        module, ts, failed=False, skipped=f"internal error ({text})", internal_error=text
+    )
 
 
 @dataclass
@@ -64,6 +78,8 @@ class Diagnosis:
     #: The frames' part of the verdict JSON, made while they were judged (``diagnose(...,
     #: render_frames=True)`` with workers): :meth:`to_json` puts it in place of the list.
     rendered_frames: RenderedList | None = None
+    #: Why a live verdict came before all its results (each a reason it is inconclusive).
+    incomplete: Sequence[str] = ()
 
     @property
     def params(self) -> Params:
@@ -83,18 +99,20 @@ class Diagnosis:
         """Input problems: the reader's, then those found while judging."""
         return ProblemLog([*self.log.problems, *self.ctx.problems])
 
+    @cached_property
+    def conclusion(self) -> Conclusion:
+        """What the evidence lets the verdict claim (docs/verdicts.md)."""
+        return conclude(self.semantics, self.params, self.log, self.frames, self.incomplete)
+
     @property
     def verdict_text(self) -> str:
-        a = self.attribution
-        if a.primary_root_cause is None:
-            return f"no fault found ({a.reason})"
-        extra = f" (contributing: {', '.join(a.contributing)})" if a.contributing else ""
-        return f"{a.primary_root_cause}{extra}"
+        return self.conclusion.verdict_text(self.attribution)
 
     @collector_paused()  # a new dict or list for every value of every frame, in no cycle
     def to_json(self, include_frames: bool = True) -> dict[str, Any]:
         """The machine contract of ``ads-rca diagnose --json`` (see ads_rca.verdict)."""
         a = self.attribution
+        conclusion = self.conclusion
         document: dict[str, Any] = {
             "tool": "ads_rca",
             "version": __version__,
@@ -105,7 +123,7 @@ class Diagnosis:
             "window_frames": self.window_frames,
             "effect_window": self.semantics.effect_window(self.params, self.log.tpf),
             "ego_id": self.ctx.ego_id,
-            "modules_judged": self.semantics.judged(self.log),
+            "modules_judged": conclusion.modules,
             "partner_id": a.partner_id,
             "modules": {
                 m: {
@@ -119,8 +137,9 @@ class Diagnosis:
             "primary_root_cause": a.primary_root_cause,
             "contributing": list(a.contributing),
             "attribution_basis": a.attribution_basis,
-            "reason": a.reason,
-            "verdict": self.verdict_text,
+            "reason": conclusion.reason(a),
+            "verdict": conclusion.verdict_text(a),
+            **conclusion.to_document(),
             "evidence": {
                 m: a.modules[m].evidence for m in MODULES if a.modules[m].evidence is not None
             },
@@ -158,6 +177,8 @@ def frame_json(frame: FrameResults) -> dict[str, Any]:
         out[module] = {
             "failed": result.failed,
             **({"skipped": result.skipped} if result.skipped else {}),
+            **({"missing_input": True} if result.missing_input else {}),
+            **({"internal_error": result.internal_error} if result.internal_error else {}),
             **({"ids": list(result.ids)} if result.ids else {}),
             **result.metrics,
         }
@@ -202,14 +223,17 @@ def diagnose(
 _SHARED: tuple[RunContext, Mapping[Module, Oracle], tuple[int, ...]] | None = None
 
 
-def _judge_slice(bounds: tuple[int, int]) -> tuple[list[FrameResults], list[Problem]]:
-    """In a worker: judge one slice; return its results and the problems it reported."""
+def _judge_slice(
+    bounds: tuple[int, int],
+) -> tuple[list[FrameResults], list[Problem], dict[Module, str]]:
+    """In a worker: judge one slice; return its results, the problems it reported and the
+    tracebacks of the oracles that raised."""
     assert _SHARED is not None
     ctx, oracles, timestamps = _SHARED
     start, stop = bounds
     before = len(ctx.problems)
     frames = [evaluate_frame(ctx, oracles, ts) for ts in timestamps[start:stop]]
-    return frames, list(ctx.problems)[before:]
+    return frames, list(ctx.problems)[before:], dict(ctx.tracebacks)
 
 
 def _judge_in_workers(
@@ -229,11 +253,13 @@ def _judge_in_workers(
     frames: list[FrameResults] = []
     _SHARED = (ctx, oracles, timestamps)
     try:
-        for (start, stop), (judged, problems) in zip(
+        for (start, stop), (judged, problems, tracebacks) in zip(
             slices, map_forked(_judge_slice, slices, workers), strict=True
         ):
             frames.extend(judged)
             ctx.merge(problems)
+            for module, text in tracebacks.items():
+                ctx.tracebacks.setdefault(module, text)
             if rendered is not None:
                 rendered.extend([frame_json(f) for f in judged])
             advance(stop - start)

@@ -11,6 +11,10 @@ status 2.
 
 from __future__ import annotations
 
+#: Exit status of a command that finished its outputs although our own code raised while
+#: judging (sysexits' EX_SOFTWARE): the verdict is inconclusive, the bug is printed.
+EXIT_INTERNAL_ERROR = 70
+
 
 class AdsRcaError(Exception):
     """Base of every error ads_rca raises on purpose."""

@@ -127,6 +127,9 @@ class RunMetadata:
     total_frames: int
     #: The file's content as read, so that writers reproduce keys we do not interpret.
     raw: Mapping[str, Any] = field(default_factory=dict, compare=False)
+    #: The source gave a usable collision frame (-1 included: known to be none); False when
+    #: it gave none and -1 stands in for it: the collision is unknown (docs/verdicts.md).
+    collision_known: bool = True
 
     @property
     def has_collision(self) -> bool:
@@ -146,7 +149,10 @@ class RunMetadata:
         camera["camera_loc"] = list(self.camera_loc)
         ego_config["camera"] = camera
         out["ego_config"] = ego_config
-        out["collision_frame"] = self.collision_frame
+        if self.collision_known:
+            out["collision_frame"] = self.collision_frame
+        else:  # written as the source gave it: no collision frame, so read back unknown
+            out.pop("collision_frame", None)
         out["total_frames"] = self.total_frames
         return out
 

@@ -10,6 +10,7 @@ from typing import Any
 
 from ads_rca.annotations import annotations_from_document
 from ads_rca.capabilities import JUDGED
+from ads_rca.conclusion import COLLISION_UNKNOWN_STATE
 from ads_rca.openlane_run_scores import OPENLANE_SCORES_KEY
 from ads_rca.openlane_run_scores import summary_lines as openlane_lines
 from ads_rca.oracles.base import MODULES
@@ -21,14 +22,15 @@ from ads_rca.text import printable
 from ads_rca.trajectory_scores import TRAJECTORY_SCORES_KEY
 
 
-def collision_text(collision_frame: int) -> str:
-    """How the summary and the report name the run's collision frame: -1 is none, a frame
-    below it is before the run (the reference counts every failure as a collision then)."""
+def collision_text(collision_frame: int, known: bool = True) -> str:
+    """How the summary and the report name the run's collision frame: -1 is none (unknown
+    when the run has no collision source: never "no collision" then), a frame below it is
+    before the run (the reference counts every failure as a collision then)."""
     if collision_frame >= 0:
         return f"collision at frame {collision_frame}"
     if collision_frame < -1:
         return f"collision frame {collision_frame}: before the run"
-    return "no collision in this run"
+    return "no collision in this run" if known else "collision unknown (no collision source)"
 
 
 def summary_text(document: dict[str, Any], max_problems: int = 10, how: str = "judged") -> str:
@@ -44,7 +46,7 @@ def summary_text(document: dict[str, Any], max_problems: int = 10, how: str = "j
     collision = document.get("collision_frame", -1)
     collision = collision if isinstance(collision, int) else -1
     partner = document.get("partner_id")
-    text = collision_text(collision)
+    text = collision_text(collision, document.get("collision") != COLLISION_UNKNOWN_STATE)
     lines.append(f"{text} with actor {partner}" if partner and collision >= 0 else text)
     lines.append(window_text(document.get("effect_window")))
     (counted, other), legend = count_columns(document.get("semantics"))
@@ -61,9 +63,12 @@ def summary_text(document: dict[str, Any], max_problems: int = 10, how: str = "j
     if legend:
         lines.append(legend)
     lines.append(f"verdict: {document.get('verdict')}  [{document.get('attribution_basis')}]")
-    unjudged = [f"{m} {judged[m]}" for m in MODULES if judged.get(m, JUDGED) != JUDGED]
-    if unjudged:
-        lines.append("  only the judged modules could be blamed; " + "; ".join(unjudged))
+    why = document.get("why_inconclusive")
+    if isinstance(why, list) and why:
+        lines.append("  inconclusive because:")
+        lines.extend(f"    {reason}" for reason in why[:max_problems])
+        if len(why) > max_problems:
+            lines.append(f"    ... {len(why) - max_problems} more")
     evidence = document.get("evidence") or {}
     lines.extend(
         f"  {module}: " + ", ".join(_flat(evidence[module])[:10])

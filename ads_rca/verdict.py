@@ -39,6 +39,10 @@ BASIS_FALLBACK = "consequence beyond the judged horizon"
 
 NO_COLLISION = "no collision"
 NO_MODULE_FAILED = "no module failed"
+#: ``reason`` of a verdict that finds no root cause but may not say "no fault found"
+#: (docs/verdicts.md): something it needed was not judged, or the collision is unknown.
+INCONCLUSIVE = "inconclusive"
+COLLISION_UNKNOWN = "collision unknown"
 
 
 @dataclass(frozen=True)
@@ -53,6 +57,13 @@ class OracleResult:
     ids: tuple[str, ...] = ()
     #: Why the check could not run (missing input), else None.
     skipped: str | None = None
+    #: The check lacked an input the run should hold at this frame (a missing or unreadable
+    #: file or message, reported as an input problem): the frame is not judged on full
+    #: inputs (docs/verdicts.md "partly judged").
+    missing_input: bool = False
+    #: Our own code raised while judging this frame: ``"<type>: <message>"`` (a bug, never
+    #: an input problem; docs/verdicts.md "internal error").
+    internal_error: str | None = None
 
 
 @dataclass

@@ -98,7 +98,14 @@ def test_a_recording_without_a_plan_says_no_module_was_judged_at_any_frame() -> 
         assert {f[module]["skipped"] for f in document["frames"]} == {why}
     # No problem per frame for the absent plan: the modules were simply not judged.
     assert not [p for p in document["input_problems"] if "waypoint" in p["file"]]
-    assert document["verdict"] == "no fault found (no module failed)"
+    # Nothing was judged, so nothing may be said to be at fault or not (docs/verdicts.md).
+    reasons = [f"{m} {why}" for m in ("perception", "prediction", "planning", "controller")]
+    assert document["verdict"] == "inconclusive: " + "; ".join(reasons)
+    assert document["conclusive"] is False
+    assert document["primary_root_cause"] is None
+    assert document["reason"] == "inconclusive"
+    assert document["why_inconclusive"] == reasons
     text = summary_text(document)
     assert f"planning             0      0  {why}" in text
-    assert f"only the judged modules could be blamed; perception {why}; " in text
+    assert "no fault found" not in text
+    assert f"  inconclusive because:\n    perception {why}\n" in text

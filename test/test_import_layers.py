@@ -52,7 +52,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("ads_rca.contract",),
     ("ads_rca.io", "ads_rca.synth", "ads_rca.profiles"),
     ("ads_rca.oracles",),
-    ("ads_rca.engine", "ads_rca.summary", "ads_rca.compare"),
+    ("ads_rca.conclusion", "ads_rca.engine", "ads_rca.summary", "ads_rca.compare"),
     ("ads_rca.live", "ads_rca.report"),
     ("ads_rca.remote", "ads_rca.batch"),
     ("ads_rca.ros",),

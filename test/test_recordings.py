@@ -96,7 +96,11 @@ def test_reference_mode_says_what_it_cannot_judge_on_a_3d_stack(bags: dict[str, 
         in done.stdout
     )
     assert "prediction           0      0  not judged (no predictions_gt)" in done.stdout
-    assert "only the judged modules could be blamed; perception not judged" in done.stdout
+    # The reference has no 3-D rule: with perception and prediction unjudged the verdict
+    # names what was judged and why it cannot conclude (docs/verdicts.md).
+    verdict = next(line for line in done.stdout.splitlines() if line.startswith("verdict: "))
+    assert "inconclusive: perception not judged (no detections_2d, ground_truth_2d)" in verdict
+    assert "no fault found" not in done.stdout
 
 
 def test_inspect_lists_topics_inputs_and_the_modules_each_mode_can_judge(

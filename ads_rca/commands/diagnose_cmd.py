@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 from dataclasses import fields
 from pathlib import Path
 from typing import Any
@@ -21,7 +22,7 @@ from ads_rca.commands.outputs import check_output_file
 from ads_rca.commands.progress_bar import terminal_bar
 from ads_rca.compare import why_modes_differ
 from ads_rca.engine import Diagnosis, diagnose
-from ads_rca.errors import ConfigError, InputError
+from ads_rca.errors import EXIT_INTERNAL_ERROR, ConfigError, InputError
 from ads_rca.indented_json import write_indented
 from ads_rca.io import open_run
 from ads_rca.io.yaml_files import load_config
@@ -161,7 +162,8 @@ def run(args: argparse.Namespace) -> int:
     if both:
         print(printable(why_modes_differ(documents)))
     keep_until_exit(log, documents)  # every file is written and closed
-    return 0
+    raised = any(document.get("internal_errors") for document in documents)
+    return EXIT_INTERNAL_ERROR if raised else 0
 
 
 def _judge_and_write(
@@ -187,8 +189,26 @@ def _judge_and_write(
         print(printable(f"verdict JSON: {args.json_out}"))
     if args.report:
         print(printable(f"HTML report: {args.report}"))
+    report_internal_errors(result, "diagnose")
     keep_until_exit(result)  # its judging caches too
     return document
+
+
+def report_internal_errors(result: Diagnosis, command: str) -> None:
+    """Each module whose oracle raised: its first traceback and one line on stderr (a bug
+    in ads_rca, never the input's fault; the outputs say the module was not judged)."""
+    for error in result.conclusion.internal_errors:
+        sys.stdout.flush()
+        print(result.ctx.tracebacks.get(error.module, ""), end="", file=sys.stderr)
+        print(
+            printable(
+                f"ads-rca {command}: internal error: the {error.module} check raised on "
+                f"{error.frames} frame(s), first at frame {error.first_frame} ({error.error}); "
+                "this is a bug in ads_rca, not in the input: please report it with the "
+                "traceback above"
+            ),
+            file=sys.stderr,
+        )
 
 
 def _write_report(result: Diagnosis, path: Path) -> None:

@@ -61,6 +61,7 @@ def metadata_from_document(document: dict[str, Any]) -> RunMetadata:
         ),
         total_frames=bounded_int(document.get("total_frames", 0), "total_frames", 0, MAX_FRAME),
         raw=document,
+        collision_known="collision_frame" in document,
     )
 
 

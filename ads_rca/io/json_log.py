@@ -481,19 +481,24 @@ def read_metadata(
         problems.add(file, "", "expected an object", USED_DEFAULT)
         document = {}
 
+    defaulted: set[str] = set()
+
     def field(name: str, value: Any, default: float, integral: bool) -> float:
         if value is None:
             if data is not None:
                 problems.add(file, name, "missing", f"{USED_DEFAULT}: {default:g}")
+            defaulted.add(name)
             return default
         shown = show_value(value)
         try:
             number = as_float(value)
         except (TypeError, ValueError):
             problems.add(file, name, f"{shown} is not a number", f"{USED_DEFAULT}: {default:g}")
+            defaulted.add(name)
             return default
         if not math.isfinite(number) or (integral and not number.is_integer()):
             problems.add(file, name, f"{shown} is not an integer", f"{USED_DEFAULT}: {default:g}")
+            defaulted.add(name)
             return default
         if isinstance(value, str | bool):
             kind = "a string" if isinstance(value, str) else "a boolean"
@@ -547,7 +552,8 @@ def read_metadata(
             f"{USED_DEFAULT}: {last_frame}",
         )
         total = last_frame
-    return RunMetadata(tpf, camera_loc, collision, total, raw=document)
+    known = "collision_frame" not in defaulted  # else -1 stands in: the collision is unknown
+    return RunMetadata(tpf, camera_loc, collision, total, raw=document, collision_known=known)
 
 
 def _camera_loc(

@@ -450,13 +450,13 @@ class AggregatorCore(FollowsRunEnd):
                 m: self.results.result(m, e.index) for m in MODULES if self.results.has(m, e.index)
             }
             frames.append(FrameResults(e.stamp_ms, frame_number(e.stamp_ms, tpf), results))
+        held = {FOLDER_FIELDS[f] for f in self.folders_sent if f in FOLDER_FIELDS}
         log = RunLog(
             metadata=metadata,
             frames=tuple(e.stamp_ms for e in required),
             source=self.source,
             problems=ProblemLog([*self.input_problems, *self.problems]),
-            inputs=self.recorded_inputs
-            or held_status({FOLDER_FIELDS[f] for f in self.folders_sent if f in FOLDER_FIELDS}),
+            inputs=self.recorded_inputs or held_status(held, metadata.collision_known),
             ego_snapshots=snapshots_from_rows(rows) if (rows := self._rows(required)) else None,
         )
         # The engine's attribution; its context reports nothing we keep (no records here).
@@ -465,8 +465,16 @@ class AggregatorCore(FollowsRunEnd):
         )
         if self.semantics.uses_partner:
             attribution.partner_id = self.partner_id if self.collision_frame >= 0 else None
+        incomplete = self.results.incomplete()
+        why_incomplete = why + (
+            [f"{len(incomplete)} results judged with incomplete inputs"] if incomplete else []
+        )
         diagnosis = Diagnosis(
-            log, RunContext(log, self.params, ego_id=self.ego_id), frames, attribution
+            log,
+            RunContext(log, self.params, ego_id=self.ego_id),
+            frames,
+            attribution,
+            incomplete=[f"incomplete: {reason}" for reason in why_incomplete],
         )
         document = diagnosis.to_json(include_frames=window_start is None)
         if window_start is not None:  # the frames that decide: the effect window's
@@ -474,12 +482,10 @@ class AggregatorCore(FollowsRunEnd):
                 json_safe(frame_json(f)) for f in frames if f.timestamp_ms >= window_start
             ]
         last = max((e.arrived for e in required), default=now)
-        incomplete = self.results.incomplete()
         document["verdict_latency_s"] = round(max(0.0, now - last), 6)
         document["live"] = {
             "complete": not why and not incomplete,
-            "why_incomplete": why
-            + ([f"{len(incomplete)} results judged with incomplete inputs"] if incomplete else []),
+            "why_incomplete": why_incomplete,
             "collision_source": self.collision_source,
             **(
                 {"collision_number": self.collision_number, "derived": self.collision_derived}
@@ -488,7 +494,12 @@ class AggregatorCore(FollowsRunEnd):
             ),
             "frames_expected": len(required),
             "results_received": dict(self.received),
-            "incomplete_results": [[m, i] for m, i in incomplete[:50]],
+            "incomplete_results": [
+                [m, frame_number(int(self.expected.columns["stamp_ms"][i]), tpf)]
+                if self.expected.has(i)
+                else [m, None]
+                for m, i in incomplete[:50]
+            ],
         }
         return VerdictOutcome(diagnosis, document, not why and not incomplete, why)
 

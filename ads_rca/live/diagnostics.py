@@ -152,7 +152,10 @@ def result_status(live: LiveResult, semantics: str, hardware_id: str) -> Status:
     """One judged frame: ERROR failed, STALE when the run has no data for the module (its
     inputs are absent: never OK), WARN skipped or judged with incomplete inputs, else OK."""
     r = live.result
-    if r.failed:
+    if r.internal_error:
+        level = ERROR
+        message = f"frame {live.frame}: internal error in the {r.module} check ({r.internal_error})"
+    elif r.failed:
         level, message = ERROR, f"frame {live.frame}: {r.module} failed"
     elif r.skipped and r.skipped.startswith(NOT_JUDGED) and r.metrics.get("scored_ids"):
         level = OK  # a predictor's tracks scored against the realised future
@@ -179,7 +182,7 @@ def result_status(live: LiveResult, semantics: str, hardware_id: str) -> Status:
         )
     elif r.skipped and r.skipped.startswith(NOT_JUDGED):
         level, message = STALE, f"frame {live.frame}: no data: {r.skipped}"
-    elif r.skipped or live.incomplete:
+    elif r.skipped or live.incomplete or r.missing_input:
         level = WARN
         message = f"frame {live.frame}: " + (
             f"check skipped: {r.skipped}" if r.skipped else "judged with incomplete inputs"
@@ -221,14 +224,18 @@ def simple_status(
 
 
 def verdict_status(document: Mapping[str, Any], hardware_id: str) -> Status:
-    """The verdict: ERROR naming the primary root cause (OK when no fault was found)."""
+    """The verdict (docs/verdicts.md): ERROR naming the primary root cause or an internal
+    error, WARN when inconclusive without one, OK only for a conclusive "no fault found"."""
     primary = document.get("primary_root_cause")
-    level = ERROR if primary else OK
+    found = bool(primary or document.get("internal_errors"))
+    level = ERROR if found else (OK if document.get("conclusive") is True else WARN)
     message = f"root cause: {document.get('verdict')}" if primary else str(document["verdict"])
     head = {
         k: document.get(k)
         for k in (
             "semantics",
+            "conclusive",
+            "collision",
             "primary_root_cause",
             "contributing",
             "root_causes",
@@ -239,6 +246,7 @@ def verdict_status(document: Mapping[str, Any], hardware_id: str) -> Status:
             "partner_id",
             "ego_id",
             "verdict_latency_s",
+            "why_inconclusive",
         )
     }
     live = document.get("live") or {}

@@ -103,6 +103,8 @@ class LiveResult:
             "frame": self.frame,
             "failed": r.failed,
             "skipped": r.skipped,
+            **({"missing_input": True} if r.missing_input else {}),
+            **({"internal_error": r.internal_error} if r.internal_error else {}),
             "ids": list(r.ids),
             "metrics": plain(r.metrics),
             "thresholds": plain(r.thresholds),
@@ -143,6 +145,8 @@ class LiveResult:
             {str(k): v for k, v in (d.get("thresholds") or {}).items()},
             tuple(str(i) for i in d.get("ids") or ()),
             d.get("skipped"),
+            d.get("missing_input") is True,
+            _text_or_none(d.get("internal_error")),
         )
         return cls(
             index=bounded_int(d["index"], "index", -1, MAX_FRAME),
@@ -165,6 +169,11 @@ class LiveResult:
             ),
             tpf_ms=bounded_int(d.get("tpf_ms", 0), "tpf_ms", 0, MAX_STAMP),
         )
+
+
+def _text_or_none(value: object) -> str | None:
+    """A wire field that is text when present (anything else: absent)."""
+    return value if isinstance(value, str) and value else None
 
 
 def collision_frame(document: Mapping[str, Any], runs: RunFilter) -> int | None:

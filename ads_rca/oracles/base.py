@@ -47,6 +47,9 @@ class RunContext:
     #: The OpenLane-V2 frames' matches the segment figures pool (a live monitor gives every
     #: context of its run the same one; :mod:`ads_rca.openlane_run_scores`).
     lane_matches: LaneMatches = field(default_factory=LaneMatches, repr=False)
+    #: Per module, the traceback of the first exception its oracle raised (a bug in our
+    #: code: the command prints it; the verdict names the module's internal error).
+    tracebacks: dict[Module, str] = field(default_factory=dict, repr=False)
 
     @classmethod
     def create(cls, log: RunLog, params: Params) -> RunContext:

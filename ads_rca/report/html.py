@@ -24,6 +24,8 @@ from typing import Any
 from matplotlib.figure import Figure
 
 from ads_rca.annotations import annotations_from_document
+from ads_rca.capabilities import JUDGED
+from ads_rca.conclusion import COLLISION_UNKNOWN_STATE
 from ads_rca.engine import Diagnosis
 from ads_rca.oracles.base import MODULES
 from ads_rca.report.figures import (
@@ -118,10 +120,11 @@ def render(result: Diagnosis) -> str:
     metrics = _img(metrics_figure(result, skipped), "metrics over time")
     ends = [end.line() for end in series_ends(result)]
     unplotted = skipped.lines()
+    conclusion = result.conclusion
     rows = [_row("th", "module", "collision", "safe", "first failure")]
     rows += [
-        _row("td", m, v.collision, v.safe, v.first_failure_frame)
-        for m, v in ((m, a.modules[m]) for m in MODULES)
+        _row("td", m, v.collision, v.safe, _first_failure(v.first_failure_frame, status))
+        for m, v, status in ((m, a.modules[m], conclusion.modules.get(m, JUDGED)) for m in MODULES)
     ]
     evidence = [
         join([el("h3", m), value_table(a.modules[m].evidence or {})]) for m in a.root_causes
@@ -134,13 +137,18 @@ def render(result: Diagnosis) -> str:
             " \N{EM DASH} semantics ",
             el("b", result.params.semantics),
             f", {len(result.frames)} frames judged ({result.log.tpf} ms each), ",
-            collision_text(meta.collision_frame),
+            collision_text(meta.collision_frame, conclusion.collision != COLLISION_UNKNOWN_STATE),
             ", ego ",
             result.ctx.ego_id,
             ", partner ",
             a.partner_id,
         ),
-        el("p", "Verdict: ", result.verdict_text, class_="verdict"),
+        el("p", "Verdict: ", conclusion.verdict_text(a), class_="verdict"),
+        *(
+            [el("p", "Inconclusive because:"), el("ul", *(el("li", r) for r in conclusion.reasons))]
+            if conclusion.reasons
+            else []
+        ),
         el("p", "Attribution basis: ", a.attribution_basis),
         el("p", window_text(result.semantics.effect_window(result.params, result.log.tpf))),
         el("table", *rows),
@@ -217,6 +225,11 @@ def _cell(value: Any, depth: int) -> Html:
     if _is_number(value):
         return el("td", _text(value), class_="num")
     return el("td", _text(value))
+
+
+def _first_failure(frame: int | float | None, status: str) -> object:
+    """The table's last cell: the module's status when it was not fully judged."""
+    return frame if status == JUDGED else status
 
 
 def _row(cell: str, *values: object) -> Html:

@@ -65,8 +65,30 @@ def skipped(
     reason: str,
     metrics: dict[str, Metric] | None = None,
     thresholds: dict[str, float] | None = None,
+    missing_input: bool = False,
 ) -> OracleResult:
-    """A result whose check could not run (no failure)."""
+    """A result whose check could not run (no failure); ``missing_input``: because an input
+    the run should hold at ts is missing (reported), not because the rule has nothing to
+    judge there."""
     return OracleResult(
-        module, ts, False, dict(metrics or {}), dict(thresholds or {}), (), skipped=reason
+        module,
+        ts,
+        False,
+        dict(metrics or {}),
+        dict(thresholds or {}),
+        (),
+        skipped=reason,
+        missing_input=missing_input,
     )
+
+
+def missing_skip(
+    module: Module,
+    ts: int,
+    absent: Iterable[str],
+    metrics: dict[str, Metric] | None = None,
+    thresholds: dict[str, float] | None = None,
+) -> OracleResult:
+    """A check that could not run because the run lacks ``absent`` (folders) at ts: a
+    frame not judged on full inputs (:attr:`OracleResult.missing_input`)."""
+    return skipped(module, ts, f"missing {', '.join(absent)}", metrics, thresholds, True)

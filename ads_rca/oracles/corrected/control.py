@@ -319,7 +319,12 @@ def _control_floors(cc: CorrectedContext, ts: int) -> tuple[Floor, Floor]:
     )
 
 
-def _steps(cc: CorrectedContext, ts: int) -> tuple[list[Step], str | None]:
+#: Steps read from ts, why they stopped (None: the whole horizon) and whether the stop was
+#: an input the run should hold (inside it), not the end of the recording.
+Steps = tuple[list[Step], str | None, bool]
+
+
+def _steps(cc: CorrectedContext, ts: int) -> Steps:
     """The usable steps from ts, stopping at the first missing input, and why it stopped."""
     tpf = cc.tpf
     horizon = max(int(cc.params.control_horizon), 0)
@@ -333,11 +338,11 @@ def _steps(cc: CorrectedContext, ts: int) -> tuple[list[Step], str | None]:
                 silent = silent + after.steps[: horizon - len(silent)]
         # (an identity test: ``None in`` would call Step.__eq__ on every step)
         if len(silent) == horizon and all(step is not None for step in silent):
-            return cast("list[Step]", silent), None
+            return cast("list[Step]", silent), None, False
     return _steps_one_by_one(cc, ts, horizon)
 
 
-def _steps_one_by_one(cc: CorrectedContext, ts: int, horizon: int) -> tuple[list[Step], str | None]:
+def _steps_one_by_one(cc: CorrectedContext, ts: int, horizon: int) -> Steps:
     """:func:`_steps` where some step is read on its own (and may report a problem)."""
     steps: list[Step] = []
     tpf = cc.tpf
@@ -349,9 +354,9 @@ def _steps_one_by_one(cc: CorrectedContext, ts: int, horizon: int) -> tuple[list
         silent = None if block is None else block.steps[(t - block.start) // tpf]
         step = silent if silent is not None else _control_step(cc, t)
         if not isinstance(step, Step):
-            return steps, f"missing {step[0]} at {step[1]} ms"
+            return steps, f"missing {step[0]} at {step[1]} ms", cc.in_log(step[1])
         steps.append(step)
-    return steps, None
+    return steps, None, False
 
 
 def control(ctx: RunContext, ts: int) -> OracleResult:
@@ -359,9 +364,10 @@ def control(ctx: RunContext, ts: int) -> OracleResult:
     cc = corrected_context(ctx)
     p = cc.params
     thresholds: dict[str, float] = cc.reported(REPORTED["controller"])
-    steps, stop = _steps(cc, ts)
+    steps, stop, missing = _steps(cc, ts)
     if not steps:
-        return skipped("controller", ts, stop or "no control step", thresholds=thresholds)
+        reason = stop or "no control step"
+        return skipped("controller", ts, reason, thresholds=thresholds, missing_input=missing)
     speeds, laterals = [s.speed for s in steps], [s.lateral for s in steps]
     sum_v, sum_lat = math.fsum(speeds), math.fsum(laterals)
     decels = [s.decel for s in steps if math.isfinite(s.decel)]
@@ -397,7 +403,7 @@ def control(ctx: RunContext, ts: int) -> OracleResult:
     state = cc.actor_state(partner, ts) if partner is not None else None
     if partner is None or state is None:
         metrics["toward_partner"] = None
-        return OracleResult("controller", ts, False, metrics, thresholds)
+        return OracleResult("controller", ts, False, metrics, thresholds, missing_input=missing)
     pose = cc.log.pose[ts]
     rx, ry = ego_offset(state[0], pose.x, pose.y, pose.yaw)
     toward = bool(
@@ -406,7 +412,9 @@ def control(ctx: RunContext, ts: int) -> OracleResult:
         or (lateral_fail and sum_lat * ry > 0)
     )
     metrics.update(partner_rx=float(rx), partner_ry=float(ry), toward_partner=toward)
-    return OracleResult("controller", ts, toward, metrics, thresholds, (partner,))
+    return OracleResult(
+        "controller", ts, toward, metrics, thresholds, (partner,), missing_input=missing
+    )
 
 
 def ego_offset(point: FloatArray, x: float, y: float, yaw_deg: float) -> tuple[float, float]:

@@ -26,8 +26,8 @@ from ads_rca.oracles.corrected.common import (
     REPORTED,
     clearance_metrics,
     missing_inputs,
+    missing_skip,
     num,
-    skipped,
 )
 from ads_rca.oracles.corrected.context import CacheName, CorrectedContext, corrected_context
 from ads_rca.oracles.corrected.floors import perception_floor
@@ -222,7 +222,7 @@ def perception(ctx: RunContext, ts: int) -> OracleResult:
     thresholds = cc.reported(REPORTED["perception"])
     absent = missing_inputs(cc, ts, ("bboxes", "bboxes_gt"), "perception check")
     if absent:
-        return skipped("perception", ts, f"missing {', '.join(absent)}", thresholds=thresholds)
+        return missing_skip("perception", ts, absent, thresholds=thresholds)
     det, gt = cc.log.bboxes[ts], cc.log.bboxes_gt[ts]
     metrics, matched_gt = detection_metrics(det, gt, p.perc_match_iou, frame_iou(cc, ts, det, gt))
     partner = cc.partner_at(ts)
@@ -242,7 +242,7 @@ def perception(ctx: RunContext, ts: int) -> OracleResult:
     needed = ("pose", "waypoint", "predictions", "predictions_with_perception")
     absent = missing_inputs(cc, ts, needed, "perception degradation check")
     if absent:
-        return skipped("perception", ts, f"missing {', '.join(absent)}", metrics, thresholds)
+        return missing_skip("perception", ts, absent, metrics, thresholds)
     view = partner_view(cc, ts)
     floor = perception_floor(cc, ts)
     allowance = p.noise_floor_factor * floor.value

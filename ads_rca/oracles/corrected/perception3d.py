@@ -37,6 +37,7 @@ from ads_rca.oracles.corrected.common import (
     FLOOR_PARAMETERS,
     clearance_metrics,
     missing_inputs,
+    missing_skip,
     num,
     skipped,
 )
@@ -313,9 +314,11 @@ def _not_matched(cc: CorrectedContext, ts: int, thresholds: dict[str, float]) ->
     """Rule 2b cannot run at ts: say which input is missing (reported once per file)."""
     name, frames = source(cc)
     field = "tracks_3d" if name == "tracked" else "detections_3d"
+    missing = True
     if ts not in frames:
         why = f"missing {field}"
-        if cc.in_log(ts):
+        missing = cc.in_log(ts)
+        if missing:
             cc.ctx.report(field, "", "missing (3-D perception check)", ts)
     elif ts not in cc.log.actors:
         why = "missing actors"
@@ -323,8 +326,8 @@ def _not_matched(cc: CorrectedContext, ts: int, thresholds: dict[str, float]) ->
         why = "no ego position"
         cc.ctx.report(cc.log.file_of("actors", ts), "ego", "no ego box (3-D perception)", ts)
     else:
-        why = "no match"
-    return skipped("perception", ts, why, thresholds=thresholds)
+        why, missing = "no match", False
+    return skipped("perception", ts, why, thresholds=thresholds, missing_input=missing)
 
 
 def perception3d(ctx: RunContext, ts: int) -> OracleResult:
@@ -375,7 +378,7 @@ def perception3d(ctx: RunContext, ts: int) -> OracleResult:
         return OracleResult("perception", ts, False, metrics, thresholds, ids)
     absent = missing_inputs(cc, ts, ("pose", "waypoint"), "3-D perception check (clearances)")
     if absent:
-        return skipped("perception", ts, f"missing {', '.join(absent)}", metrics, thresholds)
+        return missing_skip("perception", ts, absent, metrics, thresholds)
     view = partner_view(cc, ts)
     metrics.update(
         real_conflict=view.real_conflict,

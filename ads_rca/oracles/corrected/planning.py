@@ -24,6 +24,7 @@ from ads_rca.oracles.corrected.common import (
     REPORTED,
     clearance_metrics,
     missing_inputs,
+    missing_skip,
     num,
     skipped,
 )
@@ -74,7 +75,7 @@ def planning(ctx: RunContext, ts: int) -> OracleResult:
         reason = f"missing {', '.join(absent)}" if absent else "empty plan"
         if not absent:
             cc.ctx.report(cc.log.file_of("waypoint", ts), "", "plan has no usable point", ts)
-        return skipped("planning", ts, reason, thresholds=thresholds)
+        return skipped("planning", ts, reason, thresholds=thresholds, missing_input=True)
     metrics: dict[str, Metric] = realised_error(cc, ts, plan)
     partner = cc.partner_at(ts)
     if partner is None:
@@ -82,7 +83,7 @@ def planning(ctx: RunContext, ts: int) -> OracleResult:
     needed = ("predictions",) if raw_without_pwp(cc) else PLANNER_INPUTS
     absent = missing_inputs(cc, ts, needed, "planning check (planner inputs)")
     if absent:
-        return skipped("planning", ts, f"missing {', '.join(absent)}", metrics, thresholds)
+        return missing_skip("planning", ts, absent, metrics, thresholds)
     view = partner_view(cc, ts)
     metrics.update(
         partner_in_planner_inputs=view.raw is not None,

@@ -32,6 +32,7 @@ from ads_rca.oracles.corrected.common import (
     REPORTED,
     clearance_metrics,
     missing_inputs,
+    missing_skip,
     num,
     skipped,
 )
@@ -192,7 +193,7 @@ def prediction(ctx: RunContext, ts: int) -> OracleResult:
         return raw_prediction(cc, ts, thresholds)
     absent = missing_inputs(cc, ts, ("pose", "predictions_with_perception"), "prediction check")
     if absent:
-        return skipped("prediction", ts, f"missing {', '.join(absent)}", thresholds=thresholds)
+        return missing_skip("prediction", ts, absent, thresholds=thresholds)
     metrics = displacement_metrics(cc, *pwp_errors(cc, ts))
     partner = cc.partner_at(ts)
     if partner is None:
@@ -227,7 +228,9 @@ def prediction(ctx: RunContext, ts: int) -> OracleResult:
     if ts not in cc.log.waypoints:
         cc.missing("waypoint", ts, "prediction check needs the plan for clearances")
         reason = "missing waypoint"
-    return OracleResult("prediction", ts, failed, metrics, thresholds, (partner,), reason)
+    return OracleResult(
+        "prediction", ts, failed, metrics, thresholds, (partner,), reason, reason is not None
+    )
 
 
 def raw_prediction(cc: CorrectedContext, ts: int, thresholds: dict[str, float]) -> OracleResult:
@@ -237,7 +240,7 @@ def raw_prediction(cc: CorrectedContext, ts: int, thresholds: dict[str, float]) 
     its own model as pwp would."""
     absent = missing_inputs(cc, ts, ("pose", "predictions"), "prediction check (raw)")
     if absent:
-        return skipped("prediction", ts, f"missing {', '.join(absent)}", thresholds=thresholds)
+        return missing_skip("prediction", ts, absent, thresholds=thresholds)
     pose = cc.log.pose[ts]
     raw = by_actor(cc, ts, cc.log.predictions[ts])
     metrics = displacement_metrics(cc, *errors(cc, ts, raw, pose))

@@ -83,7 +83,10 @@ def _skip(
     """Report the input problem that would crash the reference and skip this check."""
     ctx.report(file, field_name, f"{issue} ({_STOPS})", ts)
     where = f"{file}: {field_name}" if field_name else file
-    return OracleResult(module, ts, False, thresholds=thresholds, skipped=f"{where}: {issue}")
+    skipped = f"{where}: {issue}"
+    return OracleResult(
+        module, ts, False, thresholds=thresholds, skipped=skipped, missing_input=True
+    )
 
 
 def _first(mask: BoolArray) -> int:
@@ -512,7 +515,9 @@ def perception(ctx: RunContext, ts: int) -> OracleResult:
             ctx.report(log.file_of(name, ts), "", f"file missing ({_STOPS})", ts)
         skipped = f"{log.file_of(missing[0], ts)}: file missing"
         thresholds = ctx.params.values(REPORTED["perception"])
-        return OracleResult("perception", ts, False, thresholds=thresholds, skipped=skipped)
+        return OracleResult(
+            "perception", ts, False, thresholds=thresholds, skipped=skipped, missing_input=True
+        )
     dropped = _tables(log).dropped
     if dropped:
         for name in ("bboxes", "bboxes_gt"):
@@ -871,7 +876,9 @@ def control(ctx: RunContext, ts: int) -> OracleResult:
         return _skip(ctx, "controller", ts, file, "", "file missing", thresholds)
     if len(plan) == 0:
         # The reference never gets here (planning stopped on the empty plan); no failure.
-        return OracleResult("controller", ts, False, thresholds=thresholds, skipped="empty plan")
+        return OracleResult(  # the reference has crashed in planning on it already
+            "controller", ts, False, thresholds=thresholds, skipped="empty plan", missing_input=True
+        )
     if ts + tpf > log.metadata.end_ms:
         return OracleResult("controller", ts, False, {"beyond_end": True}, thresholds)
     row = plan.index.get("1")

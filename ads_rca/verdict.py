@@ -11,9 +11,12 @@ The contract (stable; later tools parse it)::
      "safe", "first_failure_frame"}}, "root_causes", "primary_root_cause", "frames",
      "input_problems", ...}
 
-plus, additively, ``contributing``, ``attribution_basis``, ``reason`` (why no fault was
-found), ``evidence`` per blamed module, ``partner_id``, ``ego_id`` and ``modules_judged``
-(per module ``judged`` or ``not judged (no <input>)``: :mod:`ads_rca.capabilities`).
+plus, additively, ``contributing``, ``attribution_basis``, ``reason`` (why no root cause
+was named), ``evidence`` per blamed module, ``partner_id``, ``ego_id``, ``modules_judged``
+(per module ``judged``, ``not judged (no <input>)``, ``partly judged (...)`` or an internal
+error) and what the evidence lets the verdict claim (:mod:`ads_rca.conclusion`,
+docs/verdicts.md): ``conclusive``, ``why_inconclusive``, ``collision`` and
+``internal_errors``.
 NaN and infinity are written as null, each named in the top-level ``"$nonfinite"`` map
 (JSON Pointer → "nan", "inf" or "-inf"; :mod:`ads_rca.strictjson`), so the document is
 strict JSON.

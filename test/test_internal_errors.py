@@ -7,7 +7,10 @@ workers and the live graph's monitors included, runs the broken oracles. Then:
 - ``diagnose`` writes its JSON, names the module "not judged: internal error (...) at frame
   N", files no input problem about it, never says "no fault found", prints the traceback on
   stderr and exits 70, with one module or all four raising, in both modes, alone or with
-  ``--workers 2`` on a log long enough to be judged in forked workers.
+  ``--workers 2`` on a log long enough to be judged in forked workers;
+- ``replay``: the same verdict, the module's ``/diagnostics`` status ERROR "internal
+  error", the monitor's logged traceback on stderr, exit 70;
+- a monitor's batch whose latest frame passed is still ERROR when an earlier one raised.
 """
 
 from __future__ import annotations
@@ -17,15 +20,24 @@ import os
 import subprocess
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pytest
 
 from ads_rca.engine import PARALLEL_MIN_FRAMES
 from ads_rca.errors import EXIT_INTERNAL_ERROR
 from ads_rca.io.json_writer import write_run_log
+from ads_rca.live import diagnostics as diag
+from ads_rca.live.results import LiveResult
 from ads_rca.oracles.base import MODULES
+from ads_rca.ros.launcher import ManagedProcess
 from ads_rca.synth import synthesise
+from ads_rca.verdict import OracleResult
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from conftest import RosEnv
 
 SITE = Path(__file__).resolve().parent / "raising_oracles"
 #: What the broken oracles raise (sitecustomize.MESSAGE), as every output names it.
@@ -112,3 +124,48 @@ def test_diagnose_in_forked_workers_says_the_same(tmp_path: Path, modules: str) 
         outputs.append(document)
     assert outputs[0]["internal_errors"] == outputs[1]["internal_errors"]
     assert outputs[0]["verdict"] == outputs[1]["verdict"]
+
+
+def test_replay_says_internal_error_on_diagnostics_and_exits_70(
+    ros_env: RosEnv, tmp_path: Path, log_dirs: Callable[[str, str], Path]
+) -> None:
+    """The monitors inherit the broken oracle from replay's environment. Played at half
+    speed (4 s): /diagnostics is volatile, and the probe hears the monitors only once
+    discovery matched them (up to ~2.5 s, docs of test_live_graph)."""
+    from test_live_graph import jsonl, start_probe
+
+    diag_file = tmp_path / "diag.jsonl"
+    probe = start_probe(ros_env, diag_file)
+    out = tmp_path / "verdict.json"
+    argv = [sys.executable, "-m", "ads_rca.cli", "replay", str(log_dirs("cut_in", "planning"))]
+    argv += ["--json", str(out), "--domain-id", str(ros_env.domain_id), "--rate", "0.5"]
+    replay = ManagedProcess("replay", argv, raising_env("planning", ros_env.env))
+    try:
+        code = replay.wait(120)
+    finally:
+        probe.stop()
+    assert code == EXIT_INTERNAL_ERROR, replay.output
+    document = json.loads(out.read_text())
+    assert document["live"]["complete"], document["live"]
+    assert_internal_errors(document, ("planning",))
+    planning = [r for r in jsonl(diag_file) if r["name"] == diag.status_name("planning")]
+    assert planning and all(r["level"] == diag.ERROR for r in planning), planning
+    assert all(diag.internal_error_head("planning") in r["message"] for r in planning)
+    verdict = [r for r in jsonl(diag_file) if r["name"] == diag.VERDICT_NAME]
+    assert verdict and verdict[-1]["level"] == diag.ERROR, verdict
+    # The monitor's traceback, logged once, is on replay's stderr, then replay's line.
+    assert replay.output.count("Traceback (most recent call last)") == 1, replay.output
+    assert ERROR in replay.output
+    assert "ads-rca replay: internal error: the planning check raised on" in replay.output
+
+
+def _live(frame: int, error: str | None = None, failed: bool = False) -> LiveResult:
+    result = OracleResult("planning", frame * 50, failed, internal_error=error)
+    return LiveResult(index=frame, result=result, frame=frame, collision_frame=-1)
+
+
+def test_a_batch_whose_latest_frame_passed_is_error_when_one_raised() -> None:
+    status = diag.batch_status([_live(1, ERROR), _live(2)], "corrected", "hw")
+    assert status.level == diag.ERROR
+    assert f"internal error in the planning check at frame 1 ({ERROR})" in status.message
+    assert diag.batch_status([_live(1), _live(2)], "corrected", "hw").level == diag.OK

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+from collections.abc import Mapping
 from dataclasses import fields
 from pathlib import Path
 from typing import Any
@@ -200,15 +201,18 @@ def report_internal_errors(result: Diagnosis, command: str) -> None:
     for error in result.conclusion.internal_errors:
         sys.stdout.flush()
         print(result.ctx.tracebacks.get(error.module, ""), end="", file=sys.stderr)
-        print(
-            printable(
-                f"ads-rca {command}: internal error: the {error.module} check raised on "
-                f"{error.frames} frame(s), first at frame {error.first_frame} ({error.error}); "
-                "this is a bug in ads_rca, not in the input: please report it with the "
-                "traceback above"
-            ),
-            file=sys.stderr,
-        )
+        print(internal_error_line(command, error.to_dict()), file=sys.stderr)
+
+
+def internal_error_line(command: str, error: Mapping[str, object]) -> str:
+    """The line ``diagnose`` and ``replay`` print on stderr after a module's traceback
+    (``error``: an entry of the verdict JSON's ``internal_errors``)."""
+    return printable(
+        f"ads-rca {command}: internal error: the {error.get('module')} check raised on "
+        f"{error.get('frames')} frame(s), first at frame {error.get('first_frame')} "
+        f"({error.get('error')}); this is a bug in ads_rca, not in the input: please report "
+        "it with the traceback above"
+    )
 
 
 def _write_report(result: Diagnosis, path: Path) -> None:

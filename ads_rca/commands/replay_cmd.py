@@ -11,19 +11,26 @@ at its collision (as recorded crashes do) the verdict equals ``ads-rca diagnose`
 from __future__ import annotations
 
 import argparse
+import itertools
 import os
+import re
 import shutil
 import signal
 import subprocess
 import sys
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager, suppress
 from pathlib import Path
 from types import FrameType
 from typing import TYPE_CHECKING, Any
 
-from ads_rca.commands.diagnose_cmd import add_engine_arguments, params_from_args, write_json
+from ads_rca.commands.diagnose_cmd import (
+    add_engine_arguments,
+    internal_error_line,
+    params_from_args,
+    write_json,
+)
 from ads_rca.commands.input_args import (
     add_bag_arguments,
     add_reader_arguments,
@@ -39,7 +46,7 @@ from ads_rca.commands.playback_args import (
     choose_domain_id,
 )
 from ads_rca.commands.zenoh_args import add_zenoh_arguments, zenoh_params_from_args
-from ads_rca.errors import AdsRcaError, InputError
+from ads_rca.errors import EXIT_INTERNAL_ERROR, AdsRcaError, InputError
 from ads_rca.params import Params
 from ads_rca.profiles import BUILTIN_PROFILES
 from ads_rca.ros.env import discovery_note, ros_environment
@@ -272,7 +279,40 @@ def _replay(
                 f"MCAP recording: {record} (verdict JSON beside it: {record / 'verdict.json'})"
             )
         )
-    return 0
+    return EXIT_INTERNAL_ERROR if report_internal_errors(document, outputs) else 0
+
+
+#: A line a node's logger starts (rcutils' console format): the end of a logged traceback.
+_LOG_LINE = re.compile(r"\[(DEBUG|INFO|WARN|ERROR|FATAL)\] ")
+
+
+def report_internal_errors(document: dict[str, Any], outputs: Mapping[str, str]) -> bool:
+    """As ``diagnose`` does, after every output is written: each module whose oracle raised
+    in a monitor, the traceback that monitor logged and one line, on stderr. True when any
+    did (``replay`` then exits :data:`EXIT_INTERNAL_ERROR`)."""
+    errors = [e for e in document.get("internal_errors") or () if isinstance(e, dict)]
+    for error in errors:
+        sys.stdout.flush()
+        trace = logged_traceback(outputs, str(error.get("module")))
+        if trace:
+            print(printable_lines(trace), file=sys.stderr)
+        print(internal_error_line("replay", error), file=sys.stderr)
+    return bool(errors)
+
+
+def logged_traceback(outputs: Mapping[str, str], module: str) -> str:
+    """The traceback a monitor logged for ``module`` (``ros/monitor.py``: one error line
+    naming it, the traceback on the lines after), from the nodes' outputs; '' if none."""
+    from ads_rca.live.diagnostics import internal_error_head
+
+    head = f"]: {internal_error_head(module)};"
+    for text in outputs.values():
+        lines = text.splitlines()
+        start = next((i for i, line in enumerate(lines) if head in line), None)
+        if start is not None:
+            block = itertools.takewhile(lambda x: not _LOG_LINE.match(x), lines[start + 1 :])
+            return "\n".join(block)
+    return ""
 
 
 def wait_bridge(graph: Graph, linger_s: float) -> None:

@@ -67,6 +67,12 @@ def status_name(module: str) -> str:
     return f"ads_rca/{module}"
 
 
+def internal_error_head(module: str) -> str:
+    """How the live outputs name a module's internal error (a bug in our code): its status
+    message and the monitor's logged traceback, which ``replay`` finds by it."""
+    return f"internal error in the {module} check"
+
+
 def heartbeat_name(module: str) -> str:
     """The status a monitor sends periodically to say it is alive."""
     return f"{status_name(module)}/monitor"
@@ -108,6 +114,13 @@ def batch_status(results: Sequence[LiveResult], semantics: str, hardware_id: str
     if failed and not latest.result.failed:
         message += f" ({failed} of {len(results)} frames since the last status failed)"
     level = status.level
+    raised = next((r for r in results if r.result.internal_error), None)
+    if raised is not None and not latest.result.internal_error:  # never hidden by a pass
+        level = ERROR
+        message += (
+            f"; {internal_error_head(raised.module)} at frame {raised.frame} "
+            f"({raised.result.internal_error})"
+        )
     close = near_miss(results, semantics)
     if close:
         message = close if level == OK else f"{message}; {close}"
@@ -154,7 +167,7 @@ def result_status(live: LiveResult, semantics: str, hardware_id: str) -> Status:
     r = live.result
     if r.internal_error:
         level = ERROR
-        message = f"frame {live.frame}: internal error in the {r.module} check ({r.internal_error})"
+        message = f"frame {live.frame}: {internal_error_head(r.module)} ({r.internal_error})"
     elif r.failed:
         level, message = ERROR, f"frame {live.frame}: {r.module} failed"
     elif r.skipped and r.skipped.startswith(NOT_JUDGED) and r.metrics.get("scored_ids"):

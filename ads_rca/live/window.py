@@ -161,6 +161,9 @@ class MonitorCore(FollowsRunEnd):
         #: An OpenLane-V2 segment's scored frames' matches, kept for the segment figures
         #: (a frame is matched when judged, never again; :mod:`ads_rca.openlane_run_scores`).
         self.lane_matches = LaneMatches()
+        #: Per module, the traceback of the first exception its oracle raised in any
+        #: window (a bug in our code: the node logs it once; the result says which error).
+        self.tracebacks: dict[Module, str] = {}
 
     # --- feeding ---------------------------------------------------------------------
 
@@ -414,6 +417,7 @@ class MonitorCore(FollowsRunEnd):
             ctx = RunContext.create(log, self.params)
             self.ego_id, self.ego_resolved = ctx.ego_id, True
         ctx.lane_matches = self.lane_matches  # the segment so far: every judged frame's
+        ctx.tracebacks = self.tracebacks  # the first per module, of every window
         if self.judge_without_collision and self.collision_frame < 0:
             self.semantics.judge_without_collision(ctx)
         return ctx
@@ -514,6 +518,7 @@ class MonitorCore(FollowsRunEnd):
             ego_snapshots=snapshots_from_rows({stamp: judged.paths}) if judged.paths else None,
         )
         ctx = RunContext(log, self.params, ego_id=last.ego_id)
+        ctx.tracebacks = self.tracebacks
         started = time.perf_counter()
         result = evaluate_frame(ctx, {"planning": self.oracles["planning"]}, stamp).results
         spent = time.perf_counter() - started

@@ -283,6 +283,7 @@ class MonitorUnit:
             node.core = self.core
             node.skipped = self.skipped
         self.logger = first.get_logger()
+        self.logged_errors: set[Module] = set()  # modules whose traceback was logged
         self.poll_period = first.poll_period
         self.last_poll = 0.0
         first.create_timer(self.poll_period, self.poll)
@@ -299,6 +300,18 @@ class MonitorUnit:
             by_module.setdefault(result.module, []).append(result)
         for module, results in by_module.items():
             self.nodes[module].publish(results)
+        self._log_internal_errors()
+
+    def _log_internal_errors(self) -> None:
+        """Each module whose oracle raised: its first traceback, once, on its node's log (a
+        bug in ads_rca; its results and /diagnostics name the error at every frame)."""
+        for module, text in self.core.tracebacks.items():
+            if module not in self.logged_errors:
+                self.logged_errors.add(module)
+                self.nodes[module].get_logger().error(
+                    f"{diag.internal_error_head(module)}; this is a bug in ads_rca, not in the "
+                    f"input: please report it with this traceback:\n{text.rstrip()}"
+                )
 
     def on_marker(self, now: float) -> None:
         if now - self.last_poll >= self.poll_period:

@@ -2,8 +2,11 @@
 
 A row is built from the ``diagnose --json`` document of the run (the same contract, so a
 batch row and ``ads-rca diagnose`` never disagree), or stands for a run that could not be
-diagnosed: then ``error`` says why and the verdict columns are empty. :data:`COLUMNS` fixes
-every column's name and type, the same in every row, part and file.
+diagnosed: then ``error`` says why and the verdict columns are empty. A run whose diagnosis
+hit an internal error (our own code raised: docs/verdicts.md) keeps its verdict columns but
+is no clean row: ``internal_error`` names the bug and ``error`` is set too, so a run counts
+as failed exactly when ``error`` is set, as ``diagnose`` exits non-zero for it.
+:data:`COLUMNS` fixes every column's name and type, the same in every row, part and file.
 """
 
 from __future__ import annotations
@@ -16,8 +19,10 @@ from ads_rca.oracles.base import MODULES
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import Params
 
-#: Column types: "str", "int" (nullable), "float" (NaN when unknown).
-STR, INT, FLOAT = "str", "int", "float"
+#: Column types: "str", "int" (nullable), "float" (NaN when unknown), "bool" (nullable).
+STR, INT, FLOAT, BOOL = "str", "int", "float", "bool"
+#: ``error`` of a run whose diagnosis raised in our own code starts with it.
+INTERNAL_ERROR = "internal error"
 
 #: (name, type, meaning), in the files' order.
 COLUMN_DOCS: tuple[tuple[str, str, str], ...] = (
@@ -28,12 +33,15 @@ COLUMN_DOCS: tuple[tuple[str, str, str], ...] = (
     ("semantics", STR, "oracle semantics"),
     ("scenario", STR, "scenario family (metadata synthesis.scenario), when known"),
     ("injected_fault", STR, "the synthesiser's injected fault, when known"),
-    ("collision_frame", INT, "frame of the collision (-1: none)"),
+    ("collision_frame", INT, "frame of the collision (-1: none or unknown)"),
+    ("collision", STR, "whether the run collided: yes, no or unknown (no collision source)"),
     ("primary_root_cause", STR, "the module blamed first ('' when none)"),
     ("root_causes", STR, "every root cause, ';'-separated"),
     ("contributing", STR, "contributing modules, ';'-separated"),
     ("attribution_basis", STR, "how the verdict was reached"),
     ("verdict", STR, "the verdict sentence"),
+    ("conclusive", BOOL, "the evidence let the verdict conclude (empty: no verdict)"),
+    ("why_inconclusive", STR, "why it could not, '; '-separated ('' when conclusive)"),
     *(
         column
         for m in MODULES
@@ -51,7 +59,8 @@ COLUMN_DOCS: tuple[tuple[str, str, str], ...] = (
     ("input_problems", INT, "input problems the reader reported"),
     ("diagnose_seconds", FLOAT, "wall time of reading and judging the run"),
     ("worker", STR, "host:pid of the process that diagnosed it"),
-    ("error", STR, "why the run has no verdict ('' when it has one)"),
+    ("error", STR, "why the run failed: no verdict, or an internal error ('' when none)"),
+    ("internal_error", STR, "our own code raised: per module, its error, first frame, count"),
 )
 COLUMNS: tuple[str, ...] = tuple(name for name, _, _ in COLUMN_DOCS)
 TYPES: dict[str, str] = {name: kind for name, kind, _ in COLUMN_DOCS}
@@ -80,8 +89,36 @@ def error_row(run_id: str, path: str, error: str, **known: Any) -> Row:
     """A run without a verdict: ``error`` (one line) says why."""
     row = empty_row(run_id, path)
     row.update({k: v for k, v in known.items() if k in TYPES})
-    row["error"] = " ".join(str(error).split())[:2000] or "failed"
+    row["error"] = _one_line(str(error)) or "failed"
     return row
+
+
+def internal_error_row(run_id: str, path: str, error: Exception, **known: Any) -> Row:
+    """A run whose diagnosis raised in our own code before any verdict: a bug in ads_rca,
+    never reported as bad input."""
+    text = _one_line(f"{type(error).__name__}: {error}")
+    return error_row(run_id, path, f"{INTERNAL_ERROR}: {text}", internal_error=text, **known)
+
+
+def _one_line(text: str) -> str:
+    return " ".join(text.split())[:2000]
+
+
+def internal_errors_text(document: Mapping[str, Any]) -> str:
+    """``internal_errors`` of a verdict document in words: per module, its first error,
+    where, and on how many frames (``''``: none)."""
+    errors = document.get("internal_errors")
+    if not isinstance(errors, list):
+        return ""
+    return _one_line(
+        "; ".join(
+            f"{e.get('module')}: {e.get('error')} at frame {e.get('first_frame')} "
+            f"({e.get('frames')} frames)"
+            if isinstance(e, Mapping)
+            else str(e)
+            for e in errors
+        )
+    )
 
 
 def row_from_document(
@@ -94,6 +131,7 @@ def row_from_document(
     """The row of a diagnosed run, from its ``diagnose --json`` document."""
     row = empty_row(run_id, path)
     row.update({k: v for k, v in known.items() if k in TYPES})
+    bug = internal_errors_text(document)
     row.update(
         semantics=str(document.get("semantics") or ""),
         collision_frame=_int(document.get("collision_frame")),
@@ -102,10 +140,15 @@ def row_from_document(
         contributing=";".join(map(str, document.get("contributing") or [])),
         attribution_basis=str(document.get("attribution_basis") or ""),
         verdict=str(document.get("verdict") or ""),
+        collision=str(document.get("collision") or ""),
+        # A document that does not say so never reads as conclusive (docs/verdicts.md).
+        conclusive=document.get("conclusive") is True,
+        why_inconclusive="; ".join(map(str, document.get("why_inconclusive") or [])),
         frames=len(document.get("frames") or []),
         window_frames=_int(document.get("window_frames")),
         input_problems=len(document.get("input_problems") or []),
-        error="",
+        internal_error=bug,
+        error=f"{INTERNAL_ERROR}: {bug}" if bug else "",
     )
     modules = document.get("modules") or {}
     frames: Sequence[Mapping[str, Any]] = document.get("frames") or []
@@ -144,7 +187,11 @@ def _int(value: Any) -> int | None:
 
 
 def _missing(kind: str) -> Any:
-    return math.nan if kind == FLOAT else (None if kind == INT else "")
+    return math.nan if kind == FLOAT else ("" if kind == STR else None)
+
+
+#: A bool column's CSV cells.
+_BOOL_TEXT = {True: "true", False: "false"}
 
 
 def from_text(name: str, text: str) -> Any:
@@ -154,11 +201,17 @@ def from_text(name: str, text: str) -> Any:
         return text
     if text == "":
         return _missing(kind)
+    if kind == BOOL:
+        if text not in ("true", "false"):
+            raise ValueError(f"{name}: {text!r} is not true or false")
+        return text == "true"
     return int(text) if kind == INT else float(text)
 
 
 def to_text(name: str, value: Any) -> str:
-    """A value as its CSV cell (empty for a missing number)."""
+    """A value as its CSV cell (empty for a missing number or bool)."""
     if value is None or (isinstance(value, float) and math.isnan(value)):
         return ""
+    if isinstance(value, bool):
+        return _BOOL_TEXT[value]
     return repr(value) if isinstance(value, float) else str(value)

@@ -25,7 +25,17 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any, TextIO
 
-from ads_rca.batch.rows import COLUMNS, FLOAT, INT, TYPES, Row, from_text, storable, to_text
+from ads_rca.batch.rows import (
+    BOOL,
+    COLUMNS,
+    FLOAT,
+    INT,
+    TYPES,
+    Row,
+    from_text,
+    storable,
+    to_text,
+)
 from ads_rca.errors import InputError
 from ads_rca.text import printable
 
@@ -135,7 +145,7 @@ def write_parquet(path: Path, rows: Iterable[Row]) -> None:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    kinds = {INT: pa.int64(), FLOAT: pa.float64()}
+    kinds = {INT: pa.int64(), FLOAT: pa.float64(), BOOL: pa.bool_()}
     schema = pa.schema([(name, kinds.get(TYPES[name], pa.string())) for name in COLUMNS])
     listed = list(rows)
     table = pa.table({name: [row[name] for row in listed] for name in COLUMNS}, schema=schema)

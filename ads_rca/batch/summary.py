@@ -1,7 +1,9 @@
-"""What a finished batch says: the printed summary and the self-contained HTML summary.
+"""What a finished batch says: the printed and the self-contained HTML summary.
 
 Both are built from the rows alone (:mod:`ads_rca.batch.rows`), so a resumed batch summarises
-its old rows and new ones alike. The HTML page follows the run report's rules
+its old rows and new ones alike. Following docs/verdicts.md, an inconclusive verdict is
+counted on its own and never as "no fault found", and a run whose diagnosis hit an internal
+error counts as failed. The HTML page follows the run report's rules
 (:mod:`ads_rca.report.html`): one file, figures as embedded PNGs, every text from a row
 escaped by construction, no script and no link.
 """
@@ -11,6 +13,7 @@ from __future__ import annotations
 import math
 from collections import Counter
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -18,40 +21,86 @@ from ads_rca.batch.rows import Row
 from ads_rca.oracles.base import MODULES
 from ads_rca.text import printable
 
-#: A run whose primary root cause is empty: no collision, or no module failed.
-NONE = "(none)"
+#: A conclusive verdict without a root cause: no collision, or no module failed.
+NONE = "(no fault found)"
+#: A verdict without a root cause that could not conclude: never "no fault found".
+INCONCLUSIVE = "(inconclusive)"
 #: Failures and slowest runs listed.
 LISTED = 10
 FAILED = "(failed)"
+#: How to see an internal error's traceback (a batch row holds one line).
+INTERNAL_HINT = "a bug in ads_rca, not in the input: `ads-rca diagnose PATH` prints its traceback"
 
 
 def cause(row: Row) -> str:
+    """The row's place in the root-cause counts."""
     if row["error"]:
         return FAILED
-    return str(row["primary_root_cause"] or NONE)
+    if row["primary_root_cause"]:
+        return str(row["primary_root_cause"])
+    return NONE if row["conclusive"] is True else INCONCLUSIVE
+
+
+@dataclass(frozen=True)
+class Counts:
+    """How a batch's runs ended: what both summaries say and the exit status reads."""
+
+    runs: int
+    diagnosed: int
+    inconclusive: int
+    failed: int
+    internal_errors: int
+
+    @classmethod
+    def of(cls, rows: Sequence[Row]) -> Counts:
+        diagnosed = [r for r in rows if not r["error"]]
+        return cls(
+            runs=len(rows),
+            diagnosed=len(diagnosed),
+            # A row that does not say conclusive (None) is not.
+            inconclusive=sum(r["conclusive"] is not True for r in diagnosed),
+            failed=len(rows) - len(diagnosed),
+            internal_errors=sum(bool(r["internal_error"]) for r in rows),
+        )
+
+    def lines(self) -> list[str]:
+        """The counts in words: runs, diagnosed, failed, then what each holds."""
+        lines = [f"{self.runs} runs, {self.diagnosed} diagnosed, {self.failed} failed"]
+        if self.diagnosed:
+            conclusive = self.diagnosed - self.inconclusive
+            lines.append(
+                f"of the diagnosed: {conclusive} conclusive, {self.inconclusive} inconclusive"
+            )
+        if self.internal_errors:
+            lines.append(
+                f"of the failed: {self.internal_errors} by an internal error ({INTERNAL_HINT})"
+            )
+        return lines
 
 
 def summary_text(rows: Sequence[Row], out: str = "", interrupted: bool = False) -> str:
     """Counts by root cause, by scenario family when known, and the failures."""
     failed = [r for r in rows if r["error"]]
     state = "interrupted" if interrupted else "done"
-    lines = [
-        f"batch {state}: {len(rows)} runs, {len(rows) - len(failed)} diagnosed, "
-        f"{len(failed)} failed" + (f" ({out})" if out else "")
-    ]
+    first, *more = Counts.of(rows).lines()
+    lines = [f"batch {state}: {first}" + (f" ({out})" if out else "")]
+    lines.extend(f"  {line}" for line in more)
     causes = Counter(cause(r) for r in rows)
+    width = max(len(name) for name in causes) + 2 if causes else 14
     lines.append("by primary root cause:")
-    lines.extend(f"  {name:<14}{count:>7}" for name, count in _ordered(causes))
+    lines.extend(f"  {name:<{width}}{count:>7}" for name, count in _ordered(causes))
     families = sorted({str(r["scenario"]) for r in rows if r["scenario"]})
     if families:
         columns = [c for c, _ in _ordered(causes)]
+        column = max(13, width)
         lines.append("by scenario family:")
-        lines.append(f"  {'scenario':<22}{'runs':>6}" + "".join(f"{c:>13}" for c in columns))
+        lines.append(f"  {'scenario':<22}{'runs':>6}" + "".join(f"{c:>{column}}" for c in columns))
         for family in families:
             of = [r for r in rows if r["scenario"] == family]
             counts = Counter(cause(r) for r in of)
             lines.append(
-                f"  {family[:21]:<22}{len(of):>6}" + "".join(f"{counts[c]:>13}" for c in columns)
+                f"  {family[:21]:<22}{len(of):>6}"
+                + "".join(f"{counts[c]:>{column}}" for c in columns)
             )
     if failed:
         lines.append(f"failures ({len(failed)}):")
@@ -62,7 +111,7 @@ def summary_text(rows: Sequence[Row], out: str = "", interrupted: bool = False) 
 
 
 def _ordered(counts: Counter[str]) -> list[tuple[str, int]]:
-    order = {name: i for i, name in enumerate((*MODULES, NONE, FAILED))}
+    order = {name: i for i, name in enumerate((*MODULES, NONE, INCONCLUSIVE, FAILED))}
     return sorted(counts.items(), key=lambda item: (order.get(item[0], -1), item[0]))
 
 
@@ -122,6 +171,7 @@ def render_html(rows: Sequence[Row], title: str = "") -> str:
         )
 
     failed = [r for r in rows if r["error"]]
+    inconclusive = [r for r in rows if not r["error"] and r["conclusive"] is not True]
     slow = sorted(rows, key=lambda r: -(_numbers([r], "diagnose_seconds") or [0.0])[0])[:LISTED]
     families = sorted({str(r["scenario"]) for r in rows if r["scenario"]})
     cause_names = [c for c, _ in causes]
@@ -132,7 +182,7 @@ def render_html(rows: Sequence[Row], title: str = "") -> str:
     ]
     body = [
         el("h1", "Batch diagnosis", f": {title}" if title else ""),
-        el("p", f"{len(rows)} runs, {len(rows) - len(failed)} diagnosed, {len(failed)} failed"),
+        *(el("p", line) for line in Counts.of(rows).lines()),
         el("h2", "By primary root cause"),
         table(["root cause", "runs"], causes),
         *(
@@ -149,6 +199,11 @@ def render_html(rows: Sequence[Row], title: str = "") -> str:
                 [r["run_id"], r["path"], f"{r['diagnose_seconds']:.2f}", r["frames"], r["error"]]
                 for r in slow
             ],
+        ),
+        el("h2", f"Inconclusive verdicts ({len(inconclusive)})"),
+        table(
+            ["run id", "path", "verdict", "why inconclusive"],
+            [[r["run_id"], r["path"], r["verdict"], r["why_inconclusive"]] for r in inconclusive],
         ),
         el("h2", f"Failures ({len(failed)})"),
         table(["run id", "path", "error"], [[r["run_id"], r["path"], r["error"]] for r in failed]),

@@ -5,7 +5,9 @@ forked for the run (``os.fork``: the worker's modules are already imported, so a
 a few milliseconds), and the worker thread only waits for its answer on a pipe:
 
 - a run that raises (an unreadable or corrupt log, no frame to analyse) gives a row with the
-  error;
+  error; one whose diagnosis raised in our own code (an oracle, the engine) gives a row with
+  its ``internal_error`` (a bug, never reported as bad input), and its verdict JSON when the
+  engine still made one;
 - a run still going after ``timeout`` seconds is killed (SIGKILL) and gives a row
   "timed out"; a thread could not be stopped, a process can;
 - a child that dies (a segfault in a library, the out-of-memory killer) gives a row naming
@@ -32,7 +34,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from ads_rca.batch.rows import Row, error_row, row_from_document
+from ads_rca.batch.rows import Row, error_row, internal_error_row, row_from_document
 from ads_rca.errors import AdsRcaError
 from ads_rca.indented_json import dumps_indented
 from ads_rca.io.bag_options import BagOptions
@@ -192,11 +194,12 @@ def run_job(job: Job, worker: str = "") -> Outcome:
     except AdsRcaError as error:
         known["diagnose_seconds"] = time.monotonic() - started
         return Outcome(error_row(job.run_id, job.path, str(error), **known), None)
-    except Exception as error:
+    except Exception as error:  # a bug in ads_rca, never the input's fault
         known["diagnose_seconds"] = time.monotonic() - started
-        message = f"internal error: {type(error).__name__}: {error}"
-        return Outcome(error_row(job.run_id, job.path, message, **known), None)
+        return Outcome(internal_error_row(job.run_id, job.path, error, **known), None)
     known["diagnose_seconds"] = time.monotonic() - started
+    # An oracle that raised leaves a verdict (inconclusive) and its internal_errors: the
+    # row keeps both and counts as failed, as `diagnose` exits 70 for it.
     row = row_from_document(job.run_id, job.path, document, job.params, **known)
     return Outcome(row, text.encode("utf-8"))
 

@@ -3,7 +3,8 @@
 Pure parts first: a row carries ``conclusive``, ``why_inconclusive``, ``collision`` and the
 internal error of its verdict; the summaries count inconclusive verdicts on their own, never
 as "no fault found", and a run whose diagnosis raised in our code as failed. Then real
-batches on a local Dask cluster on 127.0.0.1 (no mocks): one where a run's planning oracle
+batches on a local Dask cluster on 127.0.0.1 (no mocks): one where every run fails exits
+with its own status and prints each failure's path once; one where a run's planning oracle
 raises (injected by a ``sitecustomize.py`` on the workers' PYTHONPATH, no hook in the
 product) gives that run a row with its error and its verdict JSON, beside a clean run and an
 inconclusive one.
@@ -29,8 +30,9 @@ from ads_rca.batch.rows import (
     row_from_document,
     to_text,
 )
-from ads_rca.batch.store import read_csv
+from ads_rca.batch.store import read_csv, read_parquet
 from ads_rca.batch.summary import FAILED, INCONCLUSIVE, NONE, Counts, render_html, summary_text
+from ads_rca.commands.batch_cmd import EXIT_NONE_DIAGNOSED
 from ads_rca.params import make_params
 
 pytest.importorskip("distributed")
@@ -104,6 +106,13 @@ def test_a_bool_column_round_trips_through_the_csv() -> None:
         from_text("conclusive", "True")  # read_csv drops such a line, --resume redoes it
 
 
+def test_an_error_row_names_the_run_s_path_once() -> None:
+    row = error_row("x", "/runs/a", "/runs/a: no frame to analyse")
+    assert row["error"] == "no frame to analyse"
+    assert error_row("x", "/runs/a", "/runs/a/metadata.json: bad")["error"] == "metadata.json: bad"
+    assert error_row("x", "/runs/a", "timed out after 2 s")["error"] == "timed out after 2 s"
+
+
 def test_summaries_count_inconclusive_verdicts_apart_and_internal_errors_as_failed() -> None:
     no_fault = {
         **INCONCLUSIVE_DOCUMENT,
@@ -134,6 +143,7 @@ def test_summaries_count_inconclusive_verdicts_apart_and_internal_errors_as_fail
     counts = dict(line.strip().rsplit(None, 1) for line in table)
     assert counts == {"perception": "2", NONE: "1", INCONCLUSIVE: "1", FAILED: "2"}, text
     assert "  raised /runs/raised: internal error: planning: E: x at frame 3" in text
+    assert text.count("/runs/failed") == 1  # the path once, its error without it
     html = render_html(rows)
     assert "2 conclusive, 2 inconclusive" in html and "Inconclusive verdicts (2)" in html
     assert "perception not judged (no x)" in html
@@ -155,6 +165,26 @@ def batch(*args: str, env: dict[str, str]) -> subprocess.CompletedProcess[str]:
         env=env,
         check=False,
     )
+
+
+def test_a_batch_where_every_run_fails_exits_3_and_names_each_path_once(tmp_path: Path) -> None:
+    runs = []
+    for name in ("a", "b", "c"):
+        run = tmp_path / name
+        run.mkdir()
+        (run / "metadata.json").write_text("{}")  # no actors/: no frame to analyse
+        runs.append(run)
+    out = tmp_path / "out"
+    done = batch(*map(str, runs), "--out", str(out), "--workers", "2", env=_env())
+    assert done.returncode == EXIT_NONE_DIAGNOSED == 3, done.stderr
+    assert "batch done: 3 runs, 0 diagnosed, 3 failed" in done.stdout
+    for run in runs:
+        assert done.stdout.count(str(run.resolve())) == 1, done.stdout
+    assert done.stderr.splitlines()[-1] == "ads-rca batch: no run could be diagnosed (3 failed)"
+    assert "Traceback" not in done.stderr
+    rows = read_csv(out / "results.csv")  # every output is still written
+    assert len(rows) == 3 and all(r["error"].startswith("no frame to analyse") for r in rows)
+    assert (out / "summary.html").exists() and len(read_parquet(out / "results.parquet")) == 3
 
 
 #: Wraps the corrected planning oracle so that it raises on any run whose path names

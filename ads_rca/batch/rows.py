@@ -89,7 +89,7 @@ def error_row(run_id: str, path: str, error: str, **known: Any) -> Row:
     """A run without a verdict: ``error`` (one line) says why."""
     row = empty_row(run_id, path)
     row.update({k: v for k, v in known.items() if k in TYPES})
-    row["error"] = _one_line(str(error)) or "failed"
+    row["error"] = _one_line(_without_path(str(error), path)) or "failed"
     return row
 
 
@@ -102,6 +102,15 @@ def internal_error_row(run_id: str, path: str, error: Exception, **known: Any) -
 
 def _one_line(text: str) -> str:
     return " ".join(text.split())[:2000]
+
+
+def _without_path(error: str, path: str) -> str:
+    """The error without the run's path in front (the row's ``path`` holds it): each
+    failure's path is printed once. A file inside the run keeps its relative name."""
+    for lead in (f"{path}: ", f"{path}/"):
+        if path and error.startswith(lead):
+            return error[len(lead) :]
+    return error
 
 
 def internal_errors_text(document: Mapping[str, Any]) -> str:

@@ -7,7 +7,9 @@ Without ``--scheduler`` a local cluster of ``--workers`` processes is started on
 (its dashboard on a random loopback port); with ``--scheduler tcp://host:port`` the same
 tasks go to an existing cluster, which must see the inputs at the same paths
 (docs/scaling.md). Every exit path closes the client and the cluster; Ctrl-C keeps every
-finished row and exits 130.
+finished row and exits 130. A batch in which no run could be diagnosed exits
+:data:`EXIT_NONE_DIAGNOSED` once every output is written: a script must not read "all runs
+failed" as success.
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ from typing import Any
 from ads_rca.batch.inputs import expand_inputs
 from ads_rca.batch.rows import error_row
 from ads_rca.batch.store import CSV_NAME, PARQUET_NAME, RUNS_DIR, ResultStore
-from ads_rca.batch.summary import summary_text, write_html
+from ads_rca.batch.summary import Counts, summary_text, write_html
 from ads_rca.batch.work import Job, Outcome, diagnose_job
 from ads_rca.commands.diagnose_cmd import add_engine_arguments, params_from_args
 from ads_rca.commands.input_args import (
@@ -42,6 +44,8 @@ from ads_rca.text import printable
 from ads_rca.workers import checked_workers
 
 EXIT_INTERRUPTED = 130
+#: Every run failed (no verdict, or an internal error): as ``watch``'s "no verdict".
+EXIT_NONE_DIAGNOSED = 3
 HTML_NAME = "summary.html"
 #: Seconds to wait for ``--scheduler`` to answer.
 CONNECT_TIMEOUT = 15
@@ -152,6 +156,10 @@ def run(args: argparse.Namespace) -> int:
     write_html(rows, out / HTML_NAME, str(out))
     print(printable(f"results: {out / PARQUET_NAME}, {out / CSV_NAME}, {out / RUNS_DIR}/"))
     print(printable(f"HTML summary: {out / HTML_NAME}"))
+    counts = Counts.of(rows)
+    if counts.runs and not counts.diagnosed:
+        print(f"ads-rca batch: no run could be diagnosed ({counts.failed} failed)", file=sys.stderr)
+        return EXIT_NONE_DIAGNOSED
     return 0
 
 

@@ -8,7 +8,7 @@ from collections import Counter
 from pathlib import Path
 from typing import Any
 
-from ads_rca.capabilities import input_status, statuses_to_document
+from ads_rca.capabilities import input_status, present, statuses_to_document
 from ads_rca.commands.input_args import (
     add_bag_arguments,
     add_reader_arguments,
@@ -18,6 +18,7 @@ from ads_rca.commands.input_args import (
     source_options_from_args,
 )
 from ads_rca.commands.progress_bar import terminal_bar
+from ads_rca.conclusion import COLLISION_NO, COLLISION_UNKNOWN_STATE, collision_state
 from ads_rca.io import open_run
 from ads_rca.io.bag_options import BagOptions
 from ads_rca.io.bag_reader import BagContents, load_bag, read_bag
@@ -52,6 +53,7 @@ def summary(log: RunLog, contents: BagContents | None = None) -> dict[str, Any]:
         "source": log.source,
         "timesteps_per_frame": meta.timesteps_per_frame,
         "collision_frame": meta.collision_frame,
+        "collision": collision_state(log, present(statuses["collision"])),
         "total_frames": meta.total_frames,
         "analysed_frames": len(log.frames),
         "unique_frames": len(log.unique_frames),
@@ -97,7 +99,7 @@ def text_lines(info: dict[str, Any]) -> list[str]:
     lines = [
         f"{info['source']}: {info['analysed_frames']} analysed frames "
         f"({info['unique_frames']} timestamps) at {info['timesteps_per_frame']} ms, "
-        f"{info['actors']} actors, collision frame {info['collision_frame']}, "
+        f"{info['actors']} actors, {_collision_words(info)}, "
         f"total_frames {info['total_frames']}",
     ]
     if "topics" in info:
@@ -121,6 +123,15 @@ def text_lines(info: dict[str, Any]) -> list[str]:
     for mode, judged in info["modules_judged"].items():
         lines.append(f"{mode}: " + "; ".join(f"{m} {v}" for m, v in judged.items()))
     return lines
+
+
+def _collision_words(info: dict[str, Any]) -> str:
+    """``collision frame N``, ``no collision`` (the run's source says none) or ``collision
+    unknown`` (it has none): never -1, which reads as none (docs/verdicts.md)."""
+    state = info["collision"]
+    if state == COLLISION_UNKNOWN_STATE:
+        return "collision unknown"
+    return "no collision" if state == COLLISION_NO else f"collision frame {info['collision_frame']}"
 
 
 def run(args: argparse.Namespace) -> int:

@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
+from ads_rca.capabilities import input_status, present
 from ads_rca.contract.rosmsg import referenced_types
 from ads_rca.errors import ConfigError
 from ads_rca.io.bag_writer import STORAGES
@@ -756,12 +757,16 @@ def predicted_points(keys: tuple[str, ...], offsets: FloatArray, pose: EgoPose) 
 
 def topics_written(log: RunLog, profile: str) -> dict[str, tuple[str, str]]:
     """The (topic, type) per input a recording of ``log`` has: every input the log holds,
-    the clock, and the collision topic even without a collision (the bridge offers it)."""
+    the clock, and the collision topic even without a collision (the bridge offers it) when
+    the run's collision is known. A run whose collision is unknown (no collision frame in
+    its metadata, no collision input) gets no collision topic: read back, it is unknown
+    still, where an empty topic would say "no collision" (docs/verdicts.md)."""
     held = _held(log)
+    known = present(input_status(log)["collision"])
     return {
         name: spec
         for name, spec in profile_topics(profile).items()
-        if name in ("clock", "collision") or held[name]
+        if name == "clock" or (known if name == "collision" else bool(held[name]))
     }
 
 

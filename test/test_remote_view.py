@@ -2,7 +2,10 @@
 
 Pure: no Zenoh here (the sessions are tested in test_zenoh_bridge, test_watch and
 test_dashboard). Keys: samples end in ``.json``, queryable replies do not, raw CDR keys are
-neither; a run's counts survive re-judged frames and restart with a new run id.
+neither; a run's counts survive re-judged frames and restart with a new run id. Verdicts
+(docs/verdicts.md): conclusion fields of the wrong type are refused, an inconclusive or
+unstated verdict never reads as "no fault found", and each module's state is the verdict's
+when it was not judged.
 """
 
 from __future__ import annotations
@@ -12,7 +15,25 @@ from typing import Any
 
 import pytest
 
-from ads_rca.remote.view import MAX_RUNS, DashboardModel, parse_key
+from ads_rca.capabilities import JUDGED, NOT_JUDGED
+from ads_rca.conclusion import PARTLY_JUDGED
+from ads_rca.remote.view import (
+    FAILING,
+    INCOMPLETE,
+    INCONCLUSIVE,
+    INTERNAL_ERROR,
+    MAX_RUNS,
+    NO_FAULT_FOUND,
+    OK,
+    ROOT_CAUSE,
+    SKIPPED,
+    UNSTATED,
+    WAITING,
+    DashboardModel,
+    module_state,
+    parse_key,
+    read_verdict,
+)
 
 
 def result(index: int, module: str = "planning", failed: bool = False, **extra: Any) -> str:
@@ -122,3 +143,122 @@ def test_runs_are_bounded_and_one_prefix_can_be_watched_alone() -> None:
     only = DashboardModel(prefix="car1")
     assert only.apply("car2/ads_rca/status.json", b"{}", 1.0) is None and only.problems == 0
     assert only.apply("car1/ads_rca/status.json", b"{}", 1.0) is not None
+
+
+#: A live verdict as the aggregator gives it when the run lacks detections and a collision
+#: source (docs/verdicts.md): no root cause, inconclusive.
+INCONCLUSIVE_VERDICT: dict[str, Any] = {
+    "primary_root_cause": None,
+    "verdict": "inconclusive: collision unknown (no source); perception not judged (no x)",
+    "reason": "collision unknown",
+    "conclusive": False,
+    "why_inconclusive": ["collision unknown (no source)", "perception not judged (no x)"],
+    "collision": "unknown",
+    "collision_frame": -1,
+    "internal_errors": [],
+    "modules_judged": {
+        "perception": "not judged (no x)",
+        "prediction": "partly judged (2 of 21 window frames: missing y at frames 70, 71)",
+        "planning": "not judged: internal error (ZeroDivisionError: boom) at frame 3",
+        "controller": "judged",
+    },
+    "live": {"run": "r1"},
+}
+
+
+@pytest.mark.parametrize(
+    "change",
+    [
+        {"conclusive": "true"},
+        {"conclusive": 1},
+        {"conclusive": None},
+        {"why_inconclusive": "collision unknown"},
+        {"why_inconclusive": [1]},
+        {"collision": "maybe"},
+        {"collision": False},
+        {"internal_errors": "planning"},
+        {"modules_judged": {"perception": 3}},
+        {"modules_judged": ["judged"]},
+        {"conclusive": True},  # yet it lists why not
+        {"conclusive": True, "why_inconclusive": [], "internal_errors": [{"module": "x"}]},
+    ],
+)
+def test_a_verdict_with_unreadable_conclusion_fields_is_counted_and_dropped(
+    change: dict[str, Any],
+) -> None:
+    model = DashboardModel()
+    document = {**INCONCLUSIVE_VERDICT, **change}
+    assert model.apply("c/ads_rca/verdict.json", json.dumps(document), 1.0) is None
+    assert model.problems == 1 and "verdict" in model.last_problem
+    assert all(view.verdict is None for view in model.runs.values())
+
+
+def test_an_inconclusive_verdict_reads_inconclusive_and_its_modules_as_the_verdict_says() -> None:
+    model = DashboardModel()
+    model.apply("c/ads_rca/modules/controller.json", result(0, "controller"), 1.0)
+    model.apply("c/ads_rca/modules/planning.json", result(0), 1.0)
+    event = model.apply("c/ads_rca/verdict.json", json.dumps(INCONCLUSIVE_VERDICT), 1.0)
+    assert event is not None and event["conclusive"] is False
+    reading = read_verdict(INCONCLUSIVE_VERDICT)
+    assert (reading.kind, reading.conclusive, reading.stated) == (INCONCLUSIVE, False, True)
+    assert reading.collision == "unknown" and reading.text == INCONCLUSIVE_VERDICT["verdict"]
+    assert reading.reasons == tuple(INCONCLUSIVE_VERDICT["why_inconclusive"])
+    modules = model.summary(2.0)["runs"][0]["modules"]
+    states = {m: (e["state"], e["detail"]) for m, e in modules.items()}
+    judged = INCONCLUSIVE_VERDICT["modules_judged"]
+    assert states == {
+        "perception": (NOT_JUDGED, judged["perception"]),
+        "prediction": (PARTLY_JUDGED, judged["prediction"]),
+        "planning": (INTERNAL_ERROR, judged["planning"]),  # its latest result passed
+        "controller": (OK, ""),
+    }
+
+
+def test_a_verdict_that_does_not_say_conclusive_is_not_shown_conclusive() -> None:
+    """An older bridge's verdict: its "no fault found" was never checked against its
+    evidence, so it reads as inconclusive, never as "no fault found"."""
+    old = {
+        "primary_root_cause": None,
+        "verdict": "no fault found (no module failed)",
+        "reason": "no module failed",
+        "collision_frame": -1,
+    }
+    model = DashboardModel()
+    event = model.apply("c/ads_rca/verdict.json", json.dumps(old), 1.0)
+    assert event is not None and event["conclusive"] is False  # accepted, not conclusive
+    reading = read_verdict(old)
+    assert (reading.kind, reading.conclusive, reading.stated) == (INCONCLUSIVE, False, False)
+    assert reading.text == f"inconclusive: {UNSTATED}" and reading.reasons == (UNSTATED,)
+    assert reading.collision == "unknown"
+    blamed = read_verdict({**old, "primary_root_cause": "planning", "verdict": "planning"})
+    assert (blamed.kind, blamed.conclusive, blamed.text) == (ROOT_CAUSE, False, "planning")
+    assert read_verdict({**old, "collision_frame": 81}).collision == "yes"
+
+
+def test_only_a_conclusive_verdict_without_a_root_cause_is_no_fault_found() -> None:
+    conclusive = {
+        **INCONCLUSIVE_VERDICT,
+        "verdict": "no fault found (no collision)",
+        "conclusive": True,
+        "why_inconclusive": [],
+        "collision": "no",
+    }
+    reading = read_verdict(conclusive)
+    assert (reading.kind, reading.conclusive, reading.reasons) == (NO_FAULT_FOUND, True, ())
+    # Inconclusive, yet its sentence says otherwise: the sentence shown never does.
+    lying = {**INCONCLUSIVE_VERDICT, "verdict": "no fault found (no collision)"}
+    assert read_verdict(lying).text == "inconclusive: " + "; ".join(
+        INCONCLUSIVE_VERDICT["why_inconclusive"]
+    )
+
+
+def test_a_latest_result_that_raised_or_was_not_judged_is_shown_as_such() -> None:
+    assert module_state(None, None) == (WAITING, "")
+    raised = {"failed": False, "skipped": "internal error (E: x)", "internal_error": "E: x"}
+    assert module_state(raised, None) == (INTERNAL_ERROR, "internal error (E: x)")
+    unjudged = {"failed": False, "skipped": "not judged (no detections_2d)"}
+    assert module_state(unjudged, JUDGED) == (NOT_JUDGED, "not judged (no detections_2d)")
+    assert module_state({"skipped": "missing pose"}, None) == (SKIPPED, "missing pose")
+    assert module_state({"missing_input": True}, None) == (INCOMPLETE, "")
+    assert module_state({"failed": True}, "judged") == (FAILING, "")
+    assert module_state({"failed": False}, None) == (OK, "")

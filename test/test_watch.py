@@ -31,6 +31,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from test_remote_core import free_port
+from unsure_run import unsure_copy
 
 from ads_rca.remote.config import session_config
 from ads_rca.remote.session import close_session
@@ -88,10 +89,10 @@ def _wait(predicate: Callable[[], bool], timeout: float, what: Callable[[], str]
 class Feed:
     """test/remote_feed.py in its own process; its READY / VERDICT lines read on a thread."""
 
-    def __init__(self, endpoint: str, *extra: str) -> None:
+    def __init__(self, endpoint: str, *extra: str, log: Path = EXAMPLE) -> None:
         self.process = subprocess.Popen(
             [
-                *(sys.executable, str(REPO / "test" / "remote_feed.py"), str(EXAMPLE)),
+                *(sys.executable, str(REPO / "test" / "remote_feed.py"), str(log)),
                 *("--listen", endpoint, "--prefix", "car1", "--hold", "60", *extra),
             ],
             stdout=subprocess.PIPE,
@@ -126,8 +127,8 @@ class Feed:
 
 
 @contextmanager
-def feed(endpoint: str, *extra: str) -> Iterator[Feed]:
-    running = Feed(endpoint, *extra)
+def feed(endpoint: str, *extra: str, log: Path = EXAMPLE) -> Iterator[Feed]:
+    running = Feed(endpoint, *extra, log=log)
     try:
         yield running
     finally:
@@ -170,9 +171,11 @@ class Terminal:
         )
         return done.stdout
 
-    def screen(self) -> str:
-        """What the pane shows, scrollback included, wrapped lines joined."""
-        return self._tmux("capture-pane", "-p", "-J", "-S", "-", "-t", "watch")
+    def screen(self, colours: bool = False) -> str:
+        """What the pane shows, scrollback included, wrapped lines joined (``colours``:
+        with its SGR escapes)."""
+        escapes = ("-e",) if colours else ()
+        return self._tmux("capture-pane", "-p", "-J", *escapes, "-S", "-", "-t", "watch")
 
     def wait_for(self, *texts: str, timeout: float = 30.0) -> str:
         _wait(lambda: all(t in self.screen() for t in texts), timeout, self.screen)
@@ -262,6 +265,42 @@ def test_watch_started_after_the_verdict_catches_up_and_ctrl_c_exits_130() -> No
     assert status == 130, after
     assert took < 5.0
     assert "Traceback" not in after and "KeyboardInterrupt" not in after
+
+
+def test_an_inconclusive_verdict_shows_as_inconclusive_with_its_reasons(tmp_path: Path) -> None:
+    """docs/verdicts.md: never green, never "no fault found"; the module that was not
+    judged and the unknown collision shown as such, on the screen and in ``--json``."""
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    with feed(endpoint, log=unsure_copy(tmp_path / "unsure")) as running:
+        running.expect("VERDICT")
+        command = watch_command("--connect", endpoint, "--exit-on-verdict", "--timeout", "60")
+        with terminal(command) as term:
+            status = term.exit_status()
+            screen, coloured = term.screen(), term.screen(colours=True)
+        watcher = spawn_watch(*command[4:], "--json")
+        out, err = watcher.communicate(timeout=60)
+    assert status == 0 and watcher.returncode == 0, (screen, err)
+    assert "verdict: inconclusive: collision unknown (metadata.json gives no usable" in screen
+    assert "conclusive: no" in screen
+    assert "· perception not judged (no detections_2d)" in screen
+    assert "collision: unknown   collision frame: -1" in screen
+    assert "no fault found" not in screen and "Traceback" not in screen
+    assert re.search(r"^perception\s+not judged\s+81\s+0\s+81\s+not judged \(no", screen, re.M)
+    (verdict_line,) = [t for t in coloured.splitlines() if "inconclusive: collision" in t]
+    assert verdict_line.count("33m") >= 2, repr(verdict_line)  # the sentence in yellow, its
+    assert "32m" not in verdict_line, repr(verdict_line)  # border too; no green
+    events = [_strict(text) for text in out.splitlines()]
+    (verdict,) = [e for e in events if e["kind"] == "verdict"]
+    (final,) = [e for e in events if e["kind"] == "final"]
+    assert verdict["conclusive"] is False and verdict["verdict"]["conclusive"] is False
+    assert final["conclusive"] is False and final["collision"] == "unknown"
+    assert final["verdict"] == verdict["verdict"]["verdict"]
+    assert final["why_inconclusive"] == [
+        "collision unknown (metadata.json gives no usable collision_frame)",
+        "perception not judged (no detections_2d)",
+    ]
+    assert final["modules"]["perception"]["state"] == "not judged"
+    assert final["modules"]["planning"]["state"] == "ok"
 
 
 def _strict(text: str) -> Any:
@@ -408,6 +447,14 @@ _FIELDS = st.sampled_from(
         "reason",
         "partner_id",
         "attribution_basis",
+        "verdict",
+        "conclusive",
+        "why_inconclusive",
+        "collision",
+        "internal_errors",
+        "modules_judged",
+        "internal_error",
+        "missing_input",
     ]
 )
 

@@ -7,6 +7,14 @@ Nothing from the wire is trusted: a key that is not one of ours, a payload that 
 not strict JSON or not an object, or a module that is not one of ours is counted as a
 problem and dropped; kept documents are bounded in number. Drawing code must still escape
 every string (they come from logs).
+
+A verdict is read as docs/verdicts.md says (:func:`read_verdict`, :func:`module_state`): an
+inconclusive verdict is never drawn as "no fault found", a module not judged, partly judged
+or whose check raised is drawn as such, and a verdict whose conclusion fields have the wrong
+type is refused like any malformed sample (:func:`check_verdict`). A verdict that does not
+say ``conclusive`` at all (a bridge older than the rule) is read as not conclusive: nothing
+checked that its evidence was whole, and "no fault found" is the one answer a diagnosis
+must not give by default.
 """
 
 from __future__ import annotations
@@ -19,6 +27,13 @@ from typing import Any
 
 import orjson
 
+from ads_rca.capabilities import JUDGED, NOT_JUDGED
+from ads_rca.conclusion import (
+    COLLISION_NO,
+    COLLISION_UNKNOWN_STATE,
+    COLLISION_YES,
+    PARTLY_JUDGED,
+)
 from ads_rca.contract.errors import MalformedMessage
 from ads_rca.oracles.base import MODULES
 from ads_rca.remote.keys import DASHBOARD_ROOT, SAMPLE_SUFFIX
@@ -39,6 +54,18 @@ DEFAULT_MARGIN = 0.5
 MAX_RUNS = 64
 #: Wall-clock span over which the frame rate is measured (s).
 RATE_SPAN = 5.0
+#: ``collision`` of a verdict (docs/verdicts.md).
+COLLISION_STATES = (COLLISION_YES, COLLISION_NO, COLLISION_UNKNOWN_STATE)
+#: What a verdict says, as every dashboard names it: a root cause named (conclusive or
+#: not), a conclusive "no fault found", or inconclusive without a root cause.
+ROOT_CAUSE, NO_FAULT_FOUND, INCONCLUSIVE = "root cause", "no fault found", "inconclusive"
+#: The reason given for a verdict that does not say whether it is conclusive.
+UNSTATED = "the verdict does not say whether it is conclusive (an ads_rca older than the rule)"
+#: A module's state in a dashboard's table (:func:`module_state`; also ``NOT_JUDGED`` and
+#: ``PARTLY_JUDGED``).
+WAITING, OK, FAILING, SKIPPED = "waiting", "ok", "failing", "skipped"
+INCOMPLETE = "incomplete inputs"
+INTERNAL_ERROR = "internal error"
 
 
 def parse_key(key: str) -> tuple[str, str, str | None] | None:
@@ -102,6 +129,118 @@ def run_of(kind: str, document: Mapping[str, Any]) -> str:
     else:
         found = document.get("run")
     return found[:100] if isinstance(found, str) else ""
+
+
+def _texts(value: object) -> bool:
+    return isinstance(value, list) and all(isinstance(item, str) for item in value)
+
+
+def check_verdict(document: Mapping[str, Any]) -> None:
+    """Refuse (:class:`MalformedMessage`) a verdict a dashboard cannot read safely: no
+    ``primary_root_cause``, or conclusion fields (docs/verdicts.md) of the wrong type or
+    contradicting each other. A missing conclusion field is no error (:func:`read_verdict`)."""
+    if "primary_root_cause" not in document:
+        raise MalformedMessage("verdict without primary_root_cause")
+    conclusive = document.get("conclusive")
+    if "conclusive" in document and not isinstance(conclusive, bool):
+        raise MalformedMessage("verdict: conclusive is not true or false")
+    if "why_inconclusive" in document and not _texts(document["why_inconclusive"]):
+        raise MalformedMessage("verdict: why_inconclusive is not a list of texts")
+    if "collision" in document and document["collision"] not in COLLISION_STATES:
+        raise MalformedMessage("verdict: collision is not yes, no or unknown")
+    errors = document.get("internal_errors", [])
+    if not isinstance(errors, list) or not all(isinstance(e, dict) for e in errors):
+        raise MalformedMessage("verdict: internal_errors is not a list of objects")
+    judged = document.get("modules_judged", {})
+    if not isinstance(judged, dict) or not all(isinstance(v, str) for v in judged.values()):
+        raise MalformedMessage("verdict: modules_judged is not an object of texts")
+    if conclusive is True and (document.get("why_inconclusive") or errors):
+        raise MalformedMessage("verdict: conclusive, yet it lists why not or internal errors")
+
+
+@dataclass(frozen=True)
+class VerdictReading:
+    """What a dashboard may say of a checked verdict (docs/verdicts.md)."""
+
+    #: :data:`ROOT_CAUSE`, :data:`NO_FAULT_FOUND` or :data:`INCONCLUSIVE`.
+    kind: str
+    conclusive: bool
+    #: The verdict says whether it is conclusive (False: an older bridge's verdict).
+    stated: bool
+    #: Why it is not conclusive, in words (empty when it is).
+    reasons: tuple[str, ...]
+    #: ``yes``, ``no`` or ``unknown``.
+    collision: str
+    #: The verdict sentence to show: never "no fault found" unless conclusive.
+    text: str
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "kind": self.kind,
+            "conclusive": self.conclusive,
+            "stated": self.stated,
+            "reasons": list(self.reasons),
+            "collision": self.collision,
+            "text": self.text,
+        }
+
+
+def read_verdict(document: Mapping[str, Any]) -> VerdictReading:
+    """How a verdict :func:`check_verdict` accepted is shown. Without ``conclusive`` it is
+    not conclusive (:data:`UNSTATED`); without ``collision``, a collision frame other than
+    -1 is a collision and -1 is unknown (an older verdict said "no collision" unchecked)."""
+    stated = isinstance(document.get("conclusive"), bool)
+    conclusive = document.get("conclusive") is True
+    reasons = tuple(document.get("why_inconclusive") or ()) if stated else (UNSTATED,)
+    if not conclusive and not reasons:
+        reasons = ("the verdict gives no reason",)
+    collision = document.get("collision")
+    if collision not in COLLISION_STATES:
+        frame = document.get("collision_frame")
+        known = isinstance(frame, int) and not isinstance(frame, bool) and frame != -1
+        collision = COLLISION_YES if known else COLLISION_UNKNOWN_STATE
+    primary = document.get("primary_root_cause")
+    sent = document.get("verdict")
+    text = sent if isinstance(sent, str) else ""
+    if primary:
+        kind = ROOT_CAUSE
+        text = text or str(primary)
+    elif conclusive:
+        kind = NO_FAULT_FOUND
+        text = text or NO_FAULT_FOUND
+    else:
+        kind = INCONCLUSIVE
+        if not text.startswith(INCONCLUSIVE):  # an older verdict's "no fault found"
+            text = f"{INCONCLUSIVE}: {'; '.join(reasons)}"
+    return VerdictReading(kind, conclusive, stated, () if conclusive else reasons, collision, text)
+
+
+def module_state(latest: Mapping[str, Any] | None, verdict_status: object) -> tuple[str, str]:
+    """A module's ``(state, detail)`` in a dashboard's table: the verdict's status when it
+    is not ``judged`` (not judged, partly judged, internal error: final for the run), else
+    its latest result's (waiting, failing, internal error, not judged, skipped, judged on
+    incomplete inputs, ok). ``detail`` is the status in words (a skip: its reason)."""
+    if isinstance(verdict_status, str) and verdict_status != JUDGED:
+        if f"{INTERNAL_ERROR} (" in verdict_status:
+            return INTERNAL_ERROR, verdict_status
+        if verdict_status.startswith(PARTLY_JUDGED):
+            return PARTLY_JUDGED, verdict_status
+        return NOT_JUDGED, verdict_status
+    if latest is None:
+        return WAITING, ""
+    error = latest.get("internal_error")
+    if isinstance(error, str) and error:
+        return INTERNAL_ERROR, f"{INTERNAL_ERROR} ({error})"
+    if latest.get("failed") is True:
+        return FAILING, ""
+    skipped = latest.get("skipped")
+    if isinstance(skipped, str) and skipped.startswith(NOT_JUDGED):
+        return NOT_JUDGED, skipped
+    if skipped is not None and skipped is not False and skipped != "":
+        return SKIPPED, skipped if isinstance(skipped, str) else str(skipped)
+    if latest.get("missing_input") is True:
+        return INCOMPLETE, ""
+    return OK, ""
 
 
 @dataclass
@@ -185,11 +324,15 @@ class RunView:
     def summary(self, now: float) -> dict[str, Any]:
         """A JSON-ready digest: what a dashboard draws (every float finite or None)."""
         modules = {}
+        judged = (self.verdict or {}).get("modules_judged") or {}
         for module in MODULES:
             latest = self.modules.get(module)
+            state, detail = module_state(latest, judged.get(module))
             modules[module] = {
                 "judged": self.judged.get(module, 0),
                 "failed_frames": self.failures.get(module, 0),
+                "state": state,
+                "detail": detail,
                 "latest": None
                 if latest is None
                 else {
@@ -197,6 +340,8 @@ class RunView:
                     "frame": latest.get("frame"),
                     "failed": latest.get("failed") is True,
                     "skipped": latest.get("skipped"),
+                    "internal_error": latest.get("internal_error"),
+                    "missing_input": latest.get("missing_input") is True,
                     "metrics": latest.get("metrics"),
                 },
             }
@@ -266,11 +411,12 @@ class DashboardModel:
             if kind == "frames":
                 return self._frames(view, document, now)
             if kind == "verdict":
-                if "primary_root_cause" not in document:
-                    raise MalformedMessage("verdict without primary_root_cause")
+                check_verdict(document)
                 view.verdict = document
-            else:
-                view.status = document
+                view.updated = now
+                conclusive = read_verdict(document).conclusive
+                return {"run": prefix, "kind": kind, kind: document, "conclusive": conclusive}
+            view.status = document
             view.updated = now
             return {"run": prefix, "kind": kind, kind: document}
         except MalformedMessage as error:

@@ -34,11 +34,24 @@ from rich.rule import Rule
 from rich.table import Table
 from rich.text import Text
 
+from ads_rca.capabilities import NOT_JUDGED
+from ads_rca.conclusion import PARTLY_JUDGED
 from ads_rca.oracles.base import MODULES
 from ads_rca.remote.client import RemoteClient
 from ads_rca.remote.config import DEFAULT_ENDPOINT
 from ads_rca.remote.keys import SAMPLE_SUFFIX, check_prefix
-from ads_rca.remote.view import DashboardModel
+from ads_rca.remote.view import (
+    FAILING,
+    INCOMPLETE,
+    INTERNAL_ERROR,
+    NO_FAULT_FOUND,
+    OK,
+    ROOT_CAUSE,
+    SKIPPED,
+    WAITING,
+    DashboardModel,
+    read_verdict,
+)
 from ads_rca.summary import count_columns
 from ads_rca.text import printable
 
@@ -70,6 +83,22 @@ KEY_METRICS: Mapping[str, tuple[str, ...]] = {
     ),
 }
 METRICS_SHOWN = 4
+#: How the module table names each module state (``view.module_state``), and its style:
+#: nothing but a judged, passing result is green.
+STATE_LABELS: Mapping[str, tuple[str, str]] = {
+    OK: ("OK", "green"),
+    FAILING: ("FAILED", "bold red"),
+    SKIPPED: ("skipped", "yellow"),
+    WAITING: ("no data", "dim"),
+    NOT_JUDGED: ("not judged", "yellow"),
+    PARTLY_JUDGED: ("partly judged", "yellow"),
+    INTERNAL_ERROR: ("INTERNAL ERROR", "bold red"),
+    INCOMPLETE: ("incomplete inputs", "yellow"),
+}
+#: The verdict panel's colour for what the verdict says: never green unless conclusive.
+VERDICT_STYLES: Mapping[str, str] = {ROOT_CAUSE: "red", NO_FAULT_FOUND: "green"}
+#: Reasons listed under an inconclusive verdict (the rest are counted).
+REASONS_SHOWN = 6
 #: Thresholds named in the verdict panel (the rest are counted).
 THRESHOLDS_SHOWN = (
     "safety_margin",
@@ -204,14 +233,8 @@ def progress_line(run: Mapping[str, Any], now: float) -> Text:
 
 
 def module_status(entry: Mapping[str, Any]) -> Text:
-    latest = entry.get("latest")
-    if not isinstance(latest, Mapping):
-        return Text("no data", style="dim")
-    if latest.get("failed"):
-        return Text("FAILED", style="bold red")
-    if latest.get("skipped"):
-        return Text("skipped", style="yellow")
-    return Text("OK", style="green")
+    label, style = STATE_LABELS.get(str(entry.get("state")), STATE_LABELS[WAITING])
+    return Text(label, style=style)
 
 
 def key_metrics(module: str, latest: Mapping[str, Any]) -> Text:
@@ -261,9 +284,18 @@ def module_table(modules: Mapping[str, Any]) -> Table:
             cell(entry.get("judged", 0)),
             cell(failed, "red" if failed else ""),
             cell(latest.get("frame")) if latest else Text("—"),
-            key_metrics(module, latest) if latest else Text(""),
+            module_detail(module, entry, latest),
         )
     return table
+
+
+def module_detail(module: str, entry: Mapping[str, Any], latest: Mapping[str, Any]) -> Text:
+    """Why a module is not judged, partly judged or raised (the verdict's words, else its
+    latest result's); otherwise the latest result's key metrics."""
+    detail = entry.get("detail")
+    if detail and entry.get("state") in (NOT_JUDGED, PARTLY_JUDGED, INTERNAL_ERROR):
+        return cell(detail, STATE_LABELS[str(entry["state"])][1], limit=2 * TEXT_LIMIT)
+    return key_metrics(module, latest) if latest else Text("")
 
 
 def near_miss_lines(near_misses: Sequence[Any]) -> list[Text]:
@@ -288,21 +320,37 @@ def near_miss_lines(near_misses: Sequence[Any]) -> list[Text]:
 
 
 def verdict_panel(verdict: Mapping[str, Any]) -> Panel:
-    """The verdict: its cause, basis, collision, partner and the semantics mode it came
-    from (named in the title and beside its thresholds)."""
+    """The verdict: what it concludes (or why it cannot: docs/verdicts.md), its cause,
+    basis, collision, partner and the semantics mode it came from (named in the title and
+    beside its thresholds)."""
     semantics = verdict.get("semantics")
     primary = verdict.get("primary_root_cause")
+    reading = read_verdict(verdict)
+    style = VERDICT_STYLES.get(reading.kind, "yellow")
     contributing = verdict.get("contributing")
     if isinstance(contributing, list):
         contributing_text = ", ".join(safe(c, 40) for c in contributing) or "none"
     else:
         contributing_text = safe(contributing)
     body: list[Text] = [
+        labelled("verdict: ", cell(reading.text, f"bold {style}", 3 * TEXT_LIMIT)),
+        conclusive_line(reading.conclusive, reading.stated),
+        *(
+            labelled("  · ", cell(reason, "yellow", 2 * TEXT_LIMIT))
+            for reason in reading.reasons[:REASONS_SHOWN]
+        ),
+        *(
+            [Text(f"  (+{len(reading.reasons) - REASONS_SHOWN} more)", style="dim")]
+            if len(reading.reasons) > REASONS_SHOWN
+            else []
+        ),
         line("primary root cause: ", (primary if primary else "none", "bold red")),
         line("contributing: ", (contributing_text, "")),
         line("attribution basis: ", (verdict.get("attribution_basis"), "")),
         line(
-            "collision frame: ",
+            "collision: ",
+            (reading.collision, "yellow" if reading.collision == "unknown" else ""),
+            "   collision frame: ",
             (verdict.get("collision_frame"), ""),
             "   partner: ",
             (verdict.get("partner_id"), "cyan"),
@@ -327,7 +375,20 @@ def verdict_panel(verdict: Mapping[str, Any]) -> Panel:
         )
     title = Text("verdict · ", style="bold")
     title.append(f"{safe(semantics, 30)} semantics", style="bold magenta")
-    return Panel(Group(*body), title=title, title_align="left", border_style="red", expand=False)
+    return Panel(Group(*body), title=title, title_align="left", border_style=style, expand=False)
+
+
+def labelled(label: str, value: Text) -> Text:
+    """Our bold label, then a wire value already made safe (:func:`cell`)."""
+    text = Text(label, style="bold")
+    text.append_text(value)
+    return text
+
+
+def conclusive_line(conclusive: bool, stated: bool) -> Text:
+    if conclusive:
+        return line("conclusive: ", ("yes", "green"))
+    return line("conclusive: ", ("no" if stated else "not stated: read as no", "bold yellow"))
 
 
 def counts_line(verdict: Mapping[str, Any]) -> Text:
@@ -505,10 +566,15 @@ class Watcher:
             return None
         summary = view.summary(self.clock())
         verdict = view.verdict
+        reading = read_verdict(verdict)
         return {
             "run": run,
             "kind": "final",
             "semantics": verdict.get("semantics"),
+            "verdict": reading.text,
+            "conclusive": reading.conclusive,
+            "why_inconclusive": list(reading.reasons),
+            "collision": reading.collision,
             "primary_root_cause": verdict.get("primary_root_cause"),
             "contributing": verdict.get("contributing"),
             "attribution_basis": verdict.get("attribution_basis"),
@@ -517,7 +583,7 @@ class Watcher:
             "last_index": summary["last_index"],
             "last_frame": summary["last_frame"],
             "modules": {
-                m: {"judged": e["judged"], "failed_frames": e["failed_frames"]}
+                m: {"judged": e["judged"], "failed_frames": e["failed_frames"], "state": e["state"]}
                 for m, e in summary["modules"].items()
             },
             "near_misses": len(summary["near_misses"]),

@@ -30,6 +30,7 @@ from typing import Any
 import orjson
 import pytest
 from test_remote_core import free_port
+from unsure_run import unsure_copy
 
 from ads_rca.oracles.base import MODULES
 from ads_rca.remote.client import RemoteClient
@@ -95,10 +96,12 @@ class Feed:
 
 
 @contextmanager
-def feed(prefix: str, pace: float = 0.0, start_after: float = 0.0) -> Iterator[Feed]:
-    """``remote_feed.py`` playing the bundled crash onto Zenoh under ``prefix``."""
+def feed(
+    prefix: str, pace: float = 0.0, start_after: float = 0.0, log: Path = EXAMPLE
+) -> Iterator[Feed]:
+    """``remote_feed.py`` playing ``log`` (the bundled crash) onto Zenoh under ``prefix``."""
     endpoint = f"tcp/127.0.0.1:{free_port()}"
-    argv = [sys.executable, str(FEED), str(EXAMPLE), "--listen", endpoint, "--prefix", prefix]
+    argv = [sys.executable, str(FEED), str(log), "--listen", endpoint, "--prefix", prefix]
     argv += ["--pace", str(pace), "--start-after", str(start_after), "--hold", "90"]
     process = subprocess.Popen(argv, stdout=subprocess.PIPE, text=True, env=_env())
     try:
@@ -261,6 +264,57 @@ def test_the_page_follows_a_live_replay_without_reload(browser: Any) -> None:
         assert headers["x-content-type-options"] == "nosniff"
         assert requested and all(url.startswith(board.url) for url in requested)
         page.close()
+
+
+#: The page's colours (app.css): good (green) is for a passing module or a conclusive
+#: "no fault found" only; warn for what could not be judged.
+GOOD, WARN = "rgb(30, 123, 52)", "rgb(154, 103, 0)"
+
+
+def test_an_inconclusive_verdict_shows_inconclusive_with_its_reasons_never_green(
+    browser: Any, tmp_path: Path
+) -> None:
+    """docs/verdicts.md: a live verdict without the evidence (no detections, no collision
+    source), fed by a real Zenoh peer: inconclusive with its reasons, the module not judged
+    and the collision unknown shown as such; nothing says "no fault found" or is green."""
+    with feed("unsure", log=unsure_copy(tmp_path / "unsure")) as car:
+        car.lines.wait_for("^VERDICT")
+        sent = feed_verdict(car.endpoint, "unsure")
+        with dashboard(car.endpoint) as board:
+            page = browser.new_page()
+            page.goto(board.url)
+            page.wait_for_function(
+                "() => document.getElementById('verdict-outcome').textContent !== ''"
+            )
+            page.wait_for_function("() => document.getElementById('index').textContent === '80'")
+            outcome = page.locator("#verdict-outcome")
+            assert outcome.text_content() == sent["verdict"]
+            assert sent["verdict"].startswith("inconclusive: collision unknown")
+            assert outcome.get_attribute("class") == "outcome outcome-inconclusive"
+            assert outcome.evaluate("node => getComputedStyle(node).color") == WARN
+            assert page.text_content("#verdict-conclusive") == "no"
+            reasons = page.eval_on_selector_all(
+                "#verdict-reasons li", "els => els.map(e => e.textContent)"
+            )
+            assert reasons == sent["why_inconclusive"] and len(reasons) == 2
+            facts = page.text_content("#verdict-facts")
+            assert "conclusiveno" in facts and "collisionunknown" in facts
+            assert page.text_content("#runs tbody tr[data-run='unsure'] td:last-child") == (
+                "inconclusive"
+            )
+            # Read in one evaluation: the rows are redrawn with every event.
+            cell = page.eval_on_selector(
+                "#modules tr[data-module=perception] .status",
+                "node => [node.textContent, getComputedStyle(node).color]",
+            )
+            assert cell == ["not judged (no detections_2d)", WARN]
+            assert "no fault found" not in page.text_content("body")
+            green = page.eval_on_selector_all(
+                "#verdict *, #runs td, #modules tr[data-module=perception] td",
+                f"els => els.filter(e => getComputedStyle(e).color === {GOOD!r}).length",
+            )
+            assert green == 0
+            page.close()
 
 
 @contextmanager

@@ -40,7 +40,7 @@ from aiohttp import web
 from ads_rca.errors import ConfigError, InputError
 from ads_rca.remote.client import RemoteClient
 from ads_rca.remote.keys import SAMPLE_SUFFIX
-from ads_rca.remote.view import RATE_SPAN, DashboardModel, RunView, margin_of
+from ads_rca.remote.view import RATE_SPAN, DashboardModel, RunView, margin_of, read_verdict
 
 #: Least time between two events to one browser (s): at most ~10 updates a second.
 MIN_INTERVAL = 0.1
@@ -125,10 +125,12 @@ def _nonfinite(document: dict[str, Any] | None, under: str) -> dict[str, Any]:
 
 
 def verdict_digest(verdict: dict[str, Any] | None) -> dict[str, Any] | None:
-    """What the page shows of a verdict: all of it but the per-frame list (counted)."""
+    """What the page shows of a verdict: all of it but the per-frame list (counted), and
+    ``outcome``, how it reads (``view.read_verdict``: the page never decides that itself)."""
     if verdict is None:
         return None
     digest = {k: v for k, v in verdict.items() if k not in ("frames", "$nonfinite")}
+    digest["outcome"] = read_verdict(verdict).to_dict()
     frames = verdict.get("frames")
     digest["frames_count"] = len(frames) if isinstance(frames, list) else None
     problems = verdict.get("input_problems")

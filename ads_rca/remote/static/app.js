@@ -151,7 +151,7 @@
         el("td", {}, fmt(d.last_frame)),
         el("td", {}, fmt(d.rate)),
         el("td", {}, String(d.near_misses.length)),
-        el("td", {}, state.verdict ? fmt(state.verdict.primary_root_cause) : "—")
+        el("td", {}, state.verdict ? verdictLabel(state.verdict) : "—")
       );
       row.dataset.run = name;
       if (name === selected) row.className = "selected";
@@ -172,11 +172,33 @@
     render();
   }
 
-  function moduleStatus(latest) {
-    if (!latest) return "waiting";
-    if (latest.failed) return "failing";
-    if (latest.skipped !== null && latest.skipped !== undefined && latest.skipped !== false) return "skipped";
-    return "ok";
+  // How a verdict reads, as the server decided it (docs/verdicts.md): an inconclusive
+  // verdict is never "no fault found", and one that does not say is not conclusive.
+  function outcomeOf(v) {
+    const o = v && v.outcome && typeof v.outcome === "object" ? v.outcome : {};
+    return {
+      kind: typeof o.kind === "string" ? o.kind : "inconclusive",
+      conclusive: o.conclusive === true,
+      stated: o.stated === true,
+      reasons: Array.isArray(o.reasons) ? o.reasons : [],
+      collision: typeof o.collision === "string" ? o.collision : "unknown",
+      text: typeof o.text === "string" ? o.text : "inconclusive",
+    };
+  }
+
+  function verdictLabel(v) {
+    const o = outcomeOf(v);
+    if (o.kind === "root cause") return fmt(v.primary_root_cause) + (o.conclusive ? "" : "; inconclusive");
+    return o.kind === "no fault found" && o.conclusive ? "no fault found" : "inconclusive";
+  }
+
+  // A module's state and why, as the server decided it (view.module_state).
+  function moduleStatus(m) {
+    const state = typeof m.state === "string" ? m.state : "waiting";
+    const detail = typeof m.detail === "string" ? m.detail : "";
+    // The detail is the status in words ("not judged (no detections_2d)"); a skip's is
+    // only its reason.
+    return { state: state, text: state === "skipped" ? "skipped: " + detail : detail || state };
   }
 
   function renderRun(state) {
@@ -191,20 +213,18 @@
 
     const rows = MODULES.map((module) => {
       const m = d.modules[module] || { judged: 0, failed_frames: 0, latest: null, nonfinite: {} };
-      const status = moduleStatus(m.latest);
+      const status = moduleStatus(m);
       const metrics = [];
       if (m.latest && m.latest.metrics && typeof m.latest.metrics === "object") {
         for (const [key, value] of Object.entries(m.latest.metrics)) {
           metrics.push(key + " " + fmt(value, m.nonfinite, "/metrics/" + pointerToken(key)));
         }
       }
-      let statusText = status;
-      if (status === "skipped") statusText = "skipped: " + fmt(m.latest.skipped);
       const row = el(
         "tr",
         {},
         el("td", {}, module),
-        el("td", { class: "status status-" + status }, statusText),
+        el("td", { class: "status status-" + status.state.replace(/[^a-z]+/g, "-") }, status.text),
         el("td", { class: "judged" }, String(m.judged)),
         el("td", { class: "failed" }, String(m.failed_frames)),
         el("td", {}, m.latest ? fmt(m.latest.frame) : "—"),
@@ -245,6 +265,12 @@
     $("verdict").hidden = !v;
     if (!v) return;
     const nf = v.nonfinite || {};
+    const o = outcomeOf(v);
+    const outcome = $("verdict-outcome");
+    outcome.textContent = o.text;
+    outcome.className = "outcome outcome-" + (o.conclusive || o.kind === "root cause" ? o.kind : "inconclusive").replace(/[^a-z]+/g, "-");
+    $("verdict-conclusive").textContent = o.conclusive ? "yes" : o.stated ? "no" : "not stated: read as no";
+    $("verdict-reasons").replaceChildren(...o.reasons.map((reason) => el("li", {}, fmt(reason))));
     $("verdict-primary").textContent = fmt(v.primary_root_cause);
     $("download").setAttribute("href", "/api/runs/" + runSegment(state.digest) + "/verdict.json");
     $("verdict-semantics").textContent = fmt(v.semantics);
@@ -255,6 +281,8 @@
       ["root causes", list(v.root_causes)],
       ["attribution basis", fmt(v.attribution_basis)],
       ["reason", fmt(v.reason)],
+      ["conclusive", o.conclusive ? "yes" : "no"],
+      ["collision", o.collision],
       ["collision frame", fmt(v.collision_frame)],
       ["partner", fmt(v.partner_id)],
       ["ego", fmt(v.ego_id)],

@@ -26,6 +26,7 @@ from ads_rca.engine import Diagnosis, diagnose
 from ads_rca.errors import EXIT_INTERNAL_ERROR, ConfigError, InputError
 from ads_rca.indented_json import write_indented
 from ads_rca.io import open_run
+from ads_rca.io.formats import no_frame_message
 from ads_rca.io.yaml_files import load_config
 from ads_rca.model import RunLog
 from ads_rca.oracles.semantics import semantics_for
@@ -173,7 +174,9 @@ def _judge_and_write(
     """Judge ``log`` in one mode, write its files, print its summary (``after`` another
     one: a blank line first); its verdict JSON."""
     if not semantics_for(params).analysed_frames(log):
-        raise InputError(f"{args.path}: no frame to analyse (no readable actors/ file)")
+        source = source_options_from_args(args)
+        bag = bag_options_from_args(args)
+        raise InputError(no_frame_message(args.path, log, source.source_format, bag))
     result = diagnose(
         log, params, terminal_bar("judging"), workers=workers, render_frames=bool(args.json_out)
     )

@@ -15,6 +15,7 @@ from ads_rca.io.formats import (
     BAG,
     CARLA,
     DLP,
+    FORMAT_NAMES,
     LOG,
     OPENLANE,
     SourceOptions,
@@ -50,14 +51,7 @@ def open_run(
     if not os.path.lexists(path):
         raise InputError(f"{os.fspath(path)}: no such log folder or bag")
     fmt = resolved_format(path, source_format)
-    kind = {
-        BAG: "a bag",
-        LOG: "a running log",
-        CARLA: "a CARLA run",
-        DLP: "a DLP scene",
-        OPENLANE: "an OpenLane-V2 segment",
-        ATMACUP: "an atmaCup table",
-    }[fmt]
+    kind = FORMAT_NAMES[fmt]
     if derived_collision and fmt not in (CARLA, DLP):
         raise InputError(
             f"{os.fspath(path)}: the derived collision check applies to CARLA runs and DLP "

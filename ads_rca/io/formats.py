@@ -12,10 +12,14 @@ import os
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ads_rca.errors import InputError
 from ads_rca.io.bag_paths import is_bag
+
+if TYPE_CHECKING:
+    from ads_rca.io.bag_options import BagOptions
+    from ads_rca.model import RunLog
 
 AUTO = "auto"
 #: An ADS running-log folder (seed 000: metadata.json and per-frame JSON folders).
@@ -37,6 +41,15 @@ ATMACUP = "atmacup"
 
 #: Every name ``--format`` takes, ``auto`` first.
 FORMATS = (AUTO, LOG, BAG, CARLA, DLP, ATMACUP, OPENLANE)
+#: What each format is, as messages name it.
+FORMAT_NAMES = {
+    BAG: "a bag",
+    LOG: "a running log",
+    CARLA: "a CARLA run",
+    DLP: "a DLP scene",
+    OPENLANE: "an OpenLane-V2 segment",
+    ATMACUP: "an atmaCup table",
+}
 
 #: Files whose presence makes a folder a CARLA experiment-client run.
 CARLA_TELEMETRY = ("telemetry.json", "telemetry.csv")
@@ -177,3 +190,34 @@ def resolved_format(path: str | os.PathLike[str], name: str = AUTO) -> str:
     """``name`` checked, with ``auto`` replaced by what :func:`detect_format` finds."""
     name = checked_format(name)
     return detect_format(path) if name == AUTO else name
+
+
+def no_frame_message(
+    path: str | os.PathLike[str],
+    log: RunLog,
+    source_format: str = AUTO,
+    bag: BagOptions | None = None,
+) -> str:
+    """Why ``log``, read from ``path`` (a bag with ``bag``'s options), gives no frame to
+    analyse, in terms of what the input is (``diagnose`` and the player refuse it in this
+    one line): a running log its own ``actors/`` files; a bag read through a stack's profile
+    the input whose messages make the frames (actors) and why it gave none; a bag of this
+    project's contract its frame markers and actors topic; another dataset its actors."""
+    where = os.fspath(path)
+    fmt = resolved_format(path, source_format)
+    if fmt == LOG:
+        return f"{where}: no frame to analyse (no readable actors/ file)"
+    actors = log.inputs.get("actors")
+    why = "" if actors is None else ", ".join(x for x in (actors.source, actors.reason) if x)
+    if fmt == BAG and bag is not None and not bag.contract:
+        profile = log.metadata.raw.get("source_profile") or bag.profile
+        return (
+            f"{where}: no frame to analyse: the frames are the {profile} profile's actors "
+            f"messages, and its actors input gave none ({why or 'no message'})"
+        )
+    if fmt == BAG:
+        return (
+            f"{where}: no frame to analyse: the bag has no run/frame marker and no actors message"
+        )
+    detail = f" (actors: {why})" if why else ""
+    return f"{where}: no frame to analyse in {FORMAT_NAMES[fmt]}{detail}"

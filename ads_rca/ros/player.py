@@ -45,10 +45,10 @@ from ads_rca.contract.playback import (
     status_message,
     timeline,
 )
-from ads_rca.errors import AdsRcaError, ConfigError
+from ads_rca.errors import AdsRcaError, ConfigError, InputError
 from ads_rca.io.bag_options import BagOptions
 from ads_rca.io.files import DEFAULT_MAX_FILE_MB
-from ads_rca.io.formats import AUTO, FORMATS, SOURCE_PARAMS, SourceOptions
+from ads_rca.io.formats import AUTO, FORMATS, SOURCE_PARAMS, SourceOptions, no_frame_message
 from ads_rca.live.runid import checked_run_id, new_run_id
 from ads_rca.model import RunLog
 from ads_rca.paramspec import MAX_FILE_MB, RATE, SECONDS, Range
@@ -286,14 +286,12 @@ class Player(Node):
             raise ConfigError("parameter log_path is required (a running-log folder)")
         if not Path(log_path).exists():
             raise ConfigError(f"{log_path}: no such log folder")
-        log = open_run(
-            log_path,
-            max_file_mb=self.max_file_mb,
-            bag=bag,
-            source=SourceOptions.from_values({k: self._param(k) for k in SOURCE_PARAMS}),
-        )
+        source = SourceOptions.from_values({k: self._param(k) for k in SOURCE_PARAMS})
+        log = open_run(log_path, max_file_mb=self.max_file_mb, bag=bag, source=source)
         for problem in log.problems:
             self.get_logger().warning(str(problem))
+        if not log.frames:  # nothing to play: refused as diagnose refuses it
+            raise InputError(no_frame_message(log_path, log, source.source_format, bag))
         self.get_logger().info(
             printable(
                 f"{log_path}: {len(log.frames)} analysed frames, tpf {log.tpf} ms, "

@@ -1,0 +1,103 @@
+"""Messages name what the input is (issue 34 item 7).
+
+- A run that yields no frame is refused in one line naming what exists for that input: a
+  bag read through a stack's profile names the profile and its actors input (never "no
+  readable actors/ file", a log folder's words), a bag of our contract its frame markers
+  and actors; ``diagnose`` and the player (so ``replay``) say the same.
+- ``metadata.json``'s ``timesteps_per_frame`` that is not the actors timestamps' step, and
+  a ``total_frames`` more than one frame from the last actors file's frame, are input
+  problems naming the file and field; the value is kept and the run still diagnosed. The
+  synthesiser's logs (consistent metadata) get none.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import pytest
+
+from ads_rca.ros.launcher import ManagedProcess
+from ads_rca.synth import synthesise
+from ads_rca.synth.recording import write_recording
+
+if TYPE_CHECKING:
+    from conftest import RosEnv
+
+#: A profile of the ego alone: its frames (the actors input's messages) never come.
+EGO_ONLY = """\
+profile: ego_only
+reference: ego
+inputs:
+  ego: {topic: /carla/ego_vehicle/odometry, type: nav_msgs/msg/Odometry, frame: map}
+metadata:
+  camera_loc: [1.5, 0.0, 2.4]
+"""
+EGO_ONLY_REFUSAL = (
+    "no frame to analyse: the frames are the ego_only profile's actors messages, and its "
+    "actors input gave none (the profile names no topic for it)"
+)
+
+
+def cli(*argv: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "ads_rca.cli", *argv],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+
+
+@pytest.fixture(scope="module")
+def ego_only_bag(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """A carla-autoware recording and a profile that reads only its ego odometry."""
+    root = tmp_path_factory.mktemp("ego_only")
+    write_recording(synthesise("lead_braking", "planning", 1), root / "bag", "carla-autoware")
+    (root / "ego_only.yaml").write_text(EGO_ONLY, encoding="utf-8")
+    return root / "bag", root / "ego_only.yaml"
+
+
+def test_a_bag_read_through_a_profile_without_frames_names_its_actors_input(
+    ego_only_bag: tuple[Path, Path],
+) -> None:
+    bag, profile = ego_only_bag
+    done = cli("diagnose", str(bag), "--profile", str(profile))
+    assert done.returncode == 2, done.stdout
+    assert EGO_ONLY_REFUSAL in done.stderr and "actors/ file" not in done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1 and "Traceback" not in done.stderr
+
+
+def test_a_contract_bag_without_frames_names_its_markers_and_actors(tmp_path: Path) -> None:
+    folder = tmp_path / "log"
+    folder.mkdir()
+    (folder / "metadata.json").write_text('{"timesteps_per_frame": 50, "collision_frame": -1}')
+    bag = tmp_path / "empty.mcap"
+    assert cli("convert", str(folder), str(bag)).returncode == 0
+    done = cli("diagnose", str(bag))
+    assert done.returncode == 2
+    assert (
+        f"{bag}: no frame to analyse: the bag has no run/frame marker and no actors message"
+        in done.stderr
+    )
+    assert "actors/ file" not in done.stderr
+    # A log folder is told about its own files, as before.
+    done = cli("diagnose", str(folder))
+    assert done.returncode == 2
+    assert f"{folder}: no frame to analyse (no readable actors/ file)" in done.stderr
+
+
+def test_replay_of_a_bag_without_frames_is_refused_by_the_player(
+    ros_env: RosEnv, ego_only_bag: tuple[Path, Path]
+) -> None:
+    """Not a verdict over no frame: the player refuses the run as diagnose does."""
+    bag, profile = ego_only_bag
+    argv = [sys.executable, "-m", "ads_rca.cli", "replay", str(bag), "--profile", str(profile)]
+    argv += ["--domain-id", str(ros_env.domain_id), "--timeout", "60"]
+    replay = ManagedProcess("replay", argv, ros_env.env)
+    assert replay.wait(90) == 2, replay.output
+    line = next(x for x in replay.lines if "no verdict" in x)
+    assert "player exited early (status 2)" in line and EGO_ONLY_REFUSAL in line
+    assert "no fault found" not in replay.output and "no collision" not in replay.output

@@ -1,4 +1,5 @@
-"""Messages name what the input is (issue 34 item 7).
+"""Messages name what the input is, and metadata that disagrees with the data is a problem
+(issue 34 item 7).
 
 - A run that yields no frame is refused in one line naming what exists for that input: a
   bag read through a stack's profile names the profile and its actors input (never "no
@@ -12,6 +13,7 @@
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -19,6 +21,8 @@ from typing import TYPE_CHECKING
 
 import pytest
 
+from ads_rca.io.json_log import read_run_log
+from ads_rca.io.json_writer import write_run_log
 from ads_rca.ros.launcher import ManagedProcess
 from ads_rca.synth import synthesise
 from ads_rca.synth.recording import write_recording
@@ -101,3 +105,52 @@ def test_replay_of_a_bag_without_frames_is_refused_by_the_player(
     line = next(x for x in replay.lines if "no verdict" in x)
     assert "player exited early (status 2)" in line and EGO_ONLY_REFUSAL in line
     assert "no fault found" not in replay.output and "no collision" not in replay.output
+
+
+def _log_with_metadata(folder: Path, **fields: int) -> Path:
+    """A synthesised crash (50 ms frames 1 to 78) with metadata.json fields replaced."""
+    log_dir = write_run_log(synthesise("lead_braking", "planning", 1), folder)
+    metadata = json.loads((log_dir / "metadata.json").read_text())
+    metadata.update(fields)
+    (log_dir / "metadata.json").write_text(json.dumps(metadata))
+    return log_dir
+
+
+def _metadata_problems(log_dir: Path) -> list[str]:
+    return [str(p) for p in read_run_log(log_dir).problems if p.file == "metadata.json"]
+
+
+def test_a_frame_period_other_than_the_timestamps_step_is_a_problem(tmp_path: Path) -> None:
+    log_dir = _log_with_metadata(tmp_path / "log", timesteps_per_frame=100, collision_frame=39)
+    found = _metadata_problems(log_dir)
+    assert (
+        "error: metadata.json: timesteps_per_frame: 100 ms, but the actors timestamps step "
+        "by 50 ms (their most common step) (value kept)"
+    ) in found, found
+    out = tmp_path / "v.json"
+    done = cli("diagnose", str(log_dir), "--json", str(out))  # diagnosed all the same
+    assert done.returncode == 0, done.stderr
+    document = json.loads(out.read_text())
+    assert document["collision_frame"] == 39 and len(document["frames"]) == 78
+    assert any(p["field"] == "timesteps_per_frame" for p in document["input_problems"])
+
+
+@pytest.mark.parametrize(
+    ("total", "reported"), [(200, True), (10, True), (80, True), (79, False), (77, False)]
+)
+def test_total_frames_far_from_the_last_frame_is_a_problem(
+    tmp_path: Path, total: int, reported: bool
+) -> None:
+    """The last actors file is frame 78: one frame either way is a counting convention."""
+    found = _metadata_problems(_log_with_metadata(tmp_path / "log", total_frames=total))
+    expected = (
+        f"warning: metadata.json: total_frames: {total}, but the last actors file is frame 78 "
+        "(3900 ms): more than one frame apart (value kept)"
+    )
+    assert (expected in found) is reported, found
+    assert len(found) == int(reported), found
+
+
+def test_consistent_metadata_is_no_problem(tmp_path: Path) -> None:
+    """The synthesiser's logs (test_golden_outputs pins every one) get no new problem."""
+    assert _metadata_problems(_log_with_metadata(tmp_path / "log")) == []

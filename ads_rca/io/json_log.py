@@ -516,6 +516,8 @@ def read_metadata(
         issue = "is not positive" if tpf <= 0 else f"is past the largest read ({MAX_TIMESTAMP_MS})"
         problems.add(file, "timesteps_per_frame", f"{tpf} {issue}", USED_DEFAULT)
         tpf = _infer_tpf(timestamps)
+    elif "timesteps_per_frame" not in defaulted and len(timestamps) > 1:
+        _check_step(file, tpf, timestamps, problems)
     camera_loc = _camera_loc(document, file, problems)
     collision = int(field("collision_frame", document.get("collision_frame"), -1, True))
     if abs(collision) > MAX_FRAME:  # judges as the absurd frame did (see MAX_FRAME)
@@ -552,8 +554,40 @@ def read_metadata(
             f"{USED_DEFAULT}: {last_frame}",
         )
         total = last_frame
+    elif "total_frames" not in defaulted and timestamps:
+        _check_total(file, total, tpf, timestamps[-1], problems)
     known = "collision_frame" not in defaulted  # else -1 stands in: the collision is unknown
     return RunMetadata(tpf, camera_loc, collision, total, raw=document, collision_known=known)
+
+
+def _check_step(file: str, tpf: int, timestamps: list[int], problems: ProblemLog) -> None:
+    """A ``timesteps_per_frame`` that is not the actors timestamps' step (their most common
+    one, what a missing value defaults to) numbers every frame and places the collision and
+    the effect window wrongly: an input problem; the value is kept, as the reference does."""
+    step = _infer_tpf(timestamps)
+    if step != tpf:
+        problems.add(
+            file,
+            "timesteps_per_frame",
+            f"{tpf} ms, but the actors timestamps step by {step} ms (their most common step)",
+            KEPT_VALUE,
+        )
+
+
+def _check_total(file: str, total: int, tpf: int, last_ms: int, problems: ProblemLog) -> None:
+    """A ``total_frames`` more than one frame from the last actors file's frame (one off
+    is either counting convention: frames from 0 or from 1) disagrees with the data; the
+    reference looks ahead up to it, so it is kept and reported."""
+    last = last_ms // tpf
+    if abs(total - last) > 1:
+        problems.add(
+            file,
+            "total_frames",
+            f"{total}, but the last actors file is frame {last} ({last_ms} ms): more than one "
+            "frame apart",
+            KEPT_VALUE,
+            "warning",
+        )
 
 
 def _camera_loc(

@@ -30,7 +30,7 @@ def collision_text(collision_frame: int, known: bool = True) -> str:
         return f"collision at frame {collision_frame}"
     if collision_frame < -1:
         return f"collision frame {collision_frame}: before the run"
-    return "no collision in this run" if known else "collision unknown (no collision source)"
+    return "no collision in this run" if known else "collision unknown"
 
 
 def summary_text(document: dict[str, Any], max_problems: int = 10, how: str = "judged") -> str:

@@ -190,7 +190,9 @@ def test_every_module_is_not_judged_in_both_modes(table: Path) -> None:
     for mode in ("reference", "corrected"):
         document = diagnose(read(table), make_params(mode)).to_json()
         assert all(v.startswith("not judged") for v in document["modules_judged"].values())
-        assert document["verdict"].startswith("no fault found (no collision)")
+        # Naturalistic driving records no collision: unknown, never "no collision".
+        assert document["verdict"].startswith("inconclusive: collision unknown (")
+        assert document["collision"] == "unknown" and document["conclusive"] is False
 
 
 # --- scores ------------------------------------------------------------------------------------

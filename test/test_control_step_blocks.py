@@ -151,10 +151,10 @@ def test_a_horizon_sliced_from_blocks_is_the_one_by_one_reading() -> None:
         for cc in (fast, slow):
             assert len(cc.ego_half) == 2  # the first plan build's report, in both
         for ts in log.frames:
-            got, stop = _steps(fast, ts)
-            want, want_stop = _steps_one_by_one(slow, ts, horizon)
+            got, stop, missing = _steps(fast, ts)
+            want, want_stop, want_missing = _steps_one_by_one(slow, ts, horizon)
             assert [bits(s) for s in got] == [bits(s) for s in want], (seed, ts)
-            assert stop == want_stop, (seed, ts)
+            assert (stop, missing) == (want_stop, want_missing), (seed, ts)
             sliced += stop is None and len(got) == horizon
         assert list(fast.ctx.problems) == list(slow.ctx.problems), seed
     assert sliced > 1000  # most horizons were whole

@@ -111,7 +111,11 @@ def test_the_capability_record(scene: Path) -> None:
     assert set(absent) == set(states) - {"ego", "actors"}
     document = diagnose(log, make_params("corrected")).to_json()
     assert all(v.startswith("not judged") for v in document["modules_judged"].values())
-    assert document["verdict"] == "no fault found (no collision)"
+    # A DLP scene records no collision: unknown, never "no collision" (docs/verdicts.md).
+    assert document["verdict"].startswith(
+        "inconclusive: collision unknown (naturalistic data: no collision recorded)"
+    )
+    assert document["collision"] == "unknown" and document["conclusive"] is False
 
 
 def test_auto_detects_a_scene_file_and_its_folder(scene: Path) -> None:

@@ -412,8 +412,12 @@ def test_a_negative_collision_frame_other_than_minus_one(tmp_path: Path, semanti
         }
         assert before["root_causes"] == [m for m, n in failures.items() if n]
     else:
-        assert before["primary_root_cause"] is None and before["reason"] == "no collision"
+        # A collision said to be before the run cannot be explained from the run: never
+        # "no fault found (no collision)" (docs/verdicts.md).
+        assert before["primary_root_cause"] is None and before["reason"] == "inconclusive"
+        assert before["why_inconclusive"] == ["no frame of the effect window is in the run"]
         assert before["modules"] == none["modules"]
+    assert before["collision"] == "yes" and before["conclusive"] is False
     report = tmp_path / "report.html"
     done = run_cli("diagnose", str(log_dir), "--semantics", semantics, "--report", str(report))
     assert "collision frame -5: before the run" in done.stdout

@@ -184,7 +184,11 @@ def test_the_capability_record_and_metadata(segment: Path) -> None:
     assert raw["segment"]["first_timestamp"] == NS_START
     document = diagnose(log, make_params("corrected")).to_json()
     assert all(v.startswith("not judged") for v in document["modules_judged"].values())
-    assert document["verdict"] == "no fault found (no collision)"
+    # A perception benchmark records no collision: unknown, never "no collision".
+    assert document["verdict"].startswith(
+        "inconclusive: collision unknown (a perception benchmark: no collision recorded)"
+    )
+    assert document["collision"] == "unknown" and document["conclusive"] is False
     assert document["input_problems"] == []
 
 
@@ -275,7 +279,11 @@ def test_reference_mode_judges_perception_on_predicted_elements(
     log = read_openlane_segment(segment, source=SourceOptions(predictions=str(folder)))
     document = diagnose(log, make_params("reference")).to_json()
     assert document["modules_judged"]["perception"] == "judged"
-    assert document["verdict"] == "no fault found (no collision)"
+    # A perception benchmark records no collision: unknown, never "no collision".
+    assert document["verdict"].startswith(
+        "inconclusive: collision unknown (a perception benchmark: no collision recorded)"
+    )
+    assert document["collision"] == "unknown" and document["conclusive"] is False
 
 
 def test_bad_result_files_are_reported_and_the_rest_read(segment: Path, tmp_path: Path) -> None:
@@ -509,7 +517,8 @@ def test_diagnose_a_segment_on_the_command_line(segment: Path) -> None:
     result = run("diagnose", str(segment))
     assert result.returncode == 0, result.stderr
     out = result.stdout
-    assert "6 frames judged" in out and "no fault found (no collision)" in out
+    assert "6 frames judged" in out and "verdict: inconclusive: collision unknown (" in out
+    assert "no fault found" not in out
     assert "perception" in out and "not judged (no actors" in out
     assert "input problems: 0" in out
 

@@ -21,6 +21,7 @@ view does (a live monitor judges each window on a new context).
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import TypeVar, cast
 
@@ -369,7 +370,7 @@ def control(ctx: RunContext, ts: int) -> OracleResult:
         reason = stop or "no control step"
         return skipped("controller", ts, reason, thresholds=thresholds, missing_input=missing)
     speeds, laterals = [s.speed for s in steps], [s.lateral for s in steps]
-    sum_v, sum_lat = math.fsum(speeds), math.fsum(laterals)
+    sum_v, sum_lat = exact_sum(speeds), exact_sum(laterals)
     decels = [s.decel for s in steps if math.isfinite(s.decel)]
     max_decel = max(decels) if decels else math.nan
     speed_floor, lateral_floor = control_floors(cc, ts)
@@ -394,8 +395,8 @@ def control(ctx: RunContext, ts: int) -> OracleResult:
         **lateral_floor.metrics("lateral"),
         "max_commanded_decel": max_decel,
         "tracking_failure": bool(speed_fail or lateral_fail),
-        "speed_tracking_error": math.fsum(map(abs, speeds)) / len(steps),
-        "lateral_tracking_error": math.fsum(map(abs, laterals)) / len(steps),
+        "speed_tracking_error": exact_sum(map(abs, speeds)) / len(steps),
+        "lateral_tracking_error": exact_sum(map(abs, laterals)) / len(steps),
         "first_step_speed_error": steps[0].speed,
         "first_step_lateral_error": steps[0].lateral,
     }
@@ -415,6 +416,18 @@ def control(ctx: RunContext, ts: int) -> OracleResult:
     return OracleResult(
         "controller", ts, toward, metrics, thresholds, (partner,), missing_input=missing
     )
+
+
+def exact_sum(values: Iterable[float]) -> float:
+    """``math.fsum`` (signed sums cancel exactly), or where a partial sum passes the float
+    range (a log's numbers may be as large as a double goes) what plain addition gives:
+    ±infinity, or NaN when both signs overflow, which the rules judge as they say."""
+    items = list(values)
+    try:
+        return math.fsum(items)
+    except OverflowError:
+        with np.errstate(over="ignore", invalid="ignore"):
+            return float(np.sum(np.asarray(items, dtype=np.float64)))
 
 
 def ego_offset(point: FloatArray, x: float, y: float, yaw_deg: float) -> tuple[float, float]:

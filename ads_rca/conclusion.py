@@ -194,10 +194,10 @@ def _partly_judged(
         gaps = [f for f in unique if _lacked(f, module)]
         if gaps:
             first = gaps[0].results.get(module)
-            why = (first.skipped if first is not None and first.skipped else "") or "no result"
+            why = "no result" if first is None else first.skipped or "an input missing"
             out[module] = (
                 f"{PARTLY_JUDGED} ({len(gaps)} of {len(unique)} window frames: {why} at "
-                f"{_frames_text([f.frame for f in gaps])})"
+                f"{frames_text([f.frame for f in gaps])})"
             )
     return out
 
@@ -208,25 +208,40 @@ def _lacked(frame: FrameResults, module: Module) -> bool:
 
 
 def _missing_frames(log: RunLog, window: _Window) -> list[str]:
-    """Frames of the window the run does not hold: between two frames it holds, or after
-    its last one up to the collision (before its first frame, the run had not begun)."""
-    held = sorted({ts for ts in log.frames if window.start_ms <= ts <= window.end_ms})
-    tpf = window.tpf
-    missing: list[int | float] = []
-    if not held:
+    """The reason naming the frames of the window the run does not hold (none: [])."""
+    if not any(window.start_ms <= ts <= window.end_ms for ts in log.frames):
         return ["no frame of the effect window is in the run"] if log.frames else []
-    for before, after in pairwise(held):
-        gap = round((after - before) / tpf) - 1
-        missing.extend(frame_number(before + k * tpf, tpf) for k in range(1, gap + 1))
-    after_last = round((window.end_ms - held[-1]) / tpf)
-    missing.extend(frame_number(held[-1] + k * tpf, tpf) for k in range(1, after_last + 1))
+    missing = missing_window_frames(log.frames, window.start_ms, window.end_ms, window.tpf)
     if not missing:
         return []
     verb = "is" if len(missing) == 1 else "are"
-    return [f"{_frames_text(missing)} of the effect window {verb} missing from the run"]
+    return [f"{frames_text(missing)} of the effect window {verb} missing from the run"]
 
 
-def _frames_text(frames: Sequence[int | float]) -> str:
+def missing_window_frames(
+    frames_ms: Iterable[int], start_ms: int, end_ms: int, tpf: int
+) -> list[int | float]:
+    """Frame numbers in [``start_ms``, ``end_ms``] that ``frames_ms`` lacks: between two
+    frames it holds (the last one before the window counts: a run that began earlier and
+    lost the window's first frames lost them), or after its last one up to ``end_ms``.
+    Before its first frame the run had not begun. The live aggregator names the frames a
+    stack's monitors never judged with it."""
+    stamps = sorted(set(frames_ms))
+    held = [ts for ts in stamps if start_ms <= ts <= end_ms]
+    if not held:
+        return []
+    earlier = [ts for ts in stamps if ts < start_ms][-1:]
+    missing: list[int | float] = []
+    for before, after in pairwise([*earlier, *held]):
+        gap = round((after - before) / tpf) - 1
+        stamps_between = (before + k * tpf for k in range(1, gap + 1))
+        missing.extend(frame_number(ts, tpf) for ts in stamps_between if ts >= start_ms)
+    after_last = round((end_ms - held[-1]) / tpf)
+    missing.extend(frame_number(held[-1] + k * tpf, tpf) for k in range(1, after_last + 1))
+    return missing
+
+
+def frames_text(frames: Sequence[int | float]) -> str:
     """``frame 70``, ``70, 71`` or the first few and ``(+N)``."""
     shown = ", ".join(str(f) for f in frames[:SHOWN_FRAMES])
     more = f" (+{len(frames) - SHOWN_FRAMES})" if len(frames) > SHOWN_FRAMES else ""

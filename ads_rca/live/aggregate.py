@@ -30,18 +30,25 @@ different times agree), and a module is complete for collision N once its result
 ``closes_collision`` N arrived (a collision it did not hear itself, its latched event gone
 before it matched, is taken from the first such result: ``collision_source`` "monitors").
 A run can collide several times: the collisions are taken in order, a verdict each, numbered.
+A stack-mode verdict is complete only when every frame of the effect window was judged on
+full inputs: a window frame no monitor judged (its reference message lost, late, or the
+stack down), a result judged without an input its module reads, or an input no frame of
+the window had, each makes it incomplete, naming the frames by frame number; an input no
+window frame had is absent in the verdict's inputs, so the modules needing it are "not
+judged (no <input>)".
 """
 
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
-from ads_rca.capabilities import held_status
+from ads_rca.capabilities import INPUT_FIELDS, held_status
+from ads_rca.conclusion import frames_text, missing_window_frames
 from ads_rca.contract.ego_paths import EgoPathRow, merged, snapshots_from_rows
 from ads_rca.contract.errors import MalformedMessage
 from ads_rca.engine import Diagnosis, frame_json
@@ -54,7 +61,15 @@ from ads_rca.live.results import (
     RunEnd,
 )
 from ads_rca.live.stack_config import StackConfig
-from ads_rca.model import FOLDER_FIELDS, InputStatus, RunLog, RunMetadata, frame_number, read_inputs
+from ads_rca.model import (
+    FOLDER_FIELDS,
+    FOLDERS,
+    InputStatus,
+    RunLog,
+    RunMetadata,
+    frame_number,
+    read_inputs,
+)
 from ads_rca.oracles.base import MODULES, Module, OracleResult, RunContext
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import Params
@@ -380,9 +395,9 @@ class AggregatorCore(FollowsRunEnd):
             if any(awaited.values()):
                 if waiting:
                     return None
-                why.append(f"timed out waiting for results: {_frames_text(awaited)}")
+                why.append(f"timed out waiting for results: {self._frames_text(awaited)}")
             if any(lost.values()):
-                why.append(f"results lost (a monitor restarted): {_frames_text(lost)}")
+                why.append(f"results lost (a monitor restarted): {self._frames_text(lost)}")
             unanswered = self._unanswered_rows()
             if unanswered:
                 if waiting:
@@ -433,6 +448,16 @@ class AggregatorCore(FollowsRunEnd):
             self._start_collision(*self._queued.popleft())
         return outcome
 
+    def _frames_text(self, by_module: Mapping[Module, list[int]]) -> str:
+        """``perception frames 70, 71`` per module: stack mode's indices are internal (a
+        margin before the first stamp heard), so they are named by frame number."""
+        if not self.stack or self.metadata is None:
+            return _frames_text(by_module)
+        tpf = self.metadata.timesteps_per_frame
+        stamps = self.expected.columns["stamp_ms"]
+        number = {i: frame_number(int(stamps[i]), tpf) for got in by_module.values() for i in got}
+        return _frames_text({m: [number[i] for i in got] for m, got in by_module.items()})
+
     def _verdict(self, now: float, why: list[str]) -> VerdictOutcome:
         assert self.metadata is not None
         metadata = replace(self.metadata, collision_frame=self.collision_frame)
@@ -446,17 +471,26 @@ class AggregatorCore(FollowsRunEnd):
         else:
             required_full = required
         for e in required_full:
-            results = {
-                m: self.results.result(m, e.index) for m in MODULES if self.results.has(m, e.index)
-            }
+            results = {m: self._result(m, e.index) for m in MODULES if self.results.has(m, e.index)}
             frames.append(FrameResults(e.stamp_ms, frame_number(e.stamp_ms, tpf), results))
         held = {FOLDER_FIELDS[f] for f in self.folders_sent if f in FOLDER_FIELDS}
+        inputs = dict(self.recorded_inputs or held_status(held, metadata.collision_known))
+        # Stack mode: only the effect window's frames decide whether the verdict is complete.
+        among = np.array([e.index for e in required_full], dtype=np.int64)
+        incomplete = self.results.incomplete(among if window_start is not None else None)
+        unheard = self._unheard(among) if window_start is not None else {}
+        inputs.update(unheard.values())
+        why_incomplete = [
+            *why,
+            *(status.reason for _, status in unheard.values()),
+            *([f"{len(incomplete)} results judged with incomplete inputs"] if incomplete else []),
+        ]
         log = RunLog(
             metadata=metadata,
             frames=tuple(e.stamp_ms for e in required),
             source=self.source,
             problems=ProblemLog([*self.input_problems, *self.problems]),
-            inputs=self.recorded_inputs or held_status(held, metadata.collision_known),
+            inputs=inputs,
             ego_snapshots=snapshots_from_rows(rows) if (rows := self._rows(required)) else None,
         )
         # The engine's attribution; its context reports nothing we keep (no records here).
@@ -465,10 +499,6 @@ class AggregatorCore(FollowsRunEnd):
         )
         if self.semantics.uses_partner:
             attribution.partner_id = self.partner_id if self.collision_frame >= 0 else None
-        incomplete = self.results.incomplete()
-        why_incomplete = why + (
-            [f"{len(incomplete)} results judged with incomplete inputs"] if incomplete else []
-        )
         diagnosis = Diagnosis(
             log,
             RunContext(log, self.params, ego_id=self.ego_id),
@@ -476,6 +506,9 @@ class AggregatorCore(FollowsRunEnd):
             attribution,
             incomplete=[f"incomplete: {reason}" for reason in why_incomplete],
         )
+        if window_start is not None:
+            # Said by the conclusion too ("... missing from the run"): not passed to it.
+            why_incomplete += self._never_judged(required, window_start)
         document = diagnosis.to_json(include_frames=window_start is None)
         if window_start is not None:  # the frames that decide: the effect window's
             document["frames"] = [
@@ -483,8 +516,9 @@ class AggregatorCore(FollowsRunEnd):
             ]
         last = max((e.arrived for e in required), default=now)
         document["verdict_latency_s"] = round(max(0.0, now - last), 6)
+        complete = not why_incomplete
         document["live"] = {
-            "complete": not why and not incomplete,
+            "complete": complete,
             "why_incomplete": why_incomplete,
             "collision_source": self.collision_source,
             **(
@@ -501,7 +535,56 @@ class AggregatorCore(FollowsRunEnd):
                 for m, i in incomplete[:50]
             ],
         }
-        return VerdictOutcome(diagnosis, document, not why and not incomplete, why)
+        return VerdictOutcome(diagnosis, document, complete, why)
+
+    def _result(self, module: Module, index: int) -> OracleResult:
+        """A held result as the conclusion reads it: one the monitor judged without an
+        input (or look-ahead) it reads lacked an input there (docs/verdicts.md)."""
+        result = self.results.result(module, index)
+        if self.results.is_incomplete(module, index) and not result.missing_input:
+            return replace(result, missing_input=True)
+        return result
+
+    def _unheard(self, among: np.ndarray) -> dict[str, tuple[str, InputStatus]]:
+        """Stack mode: the provided inputs no frame of the window had (every result of every
+        module reading one was judged without it): folder -> (model input, its status)."""
+        config = self.stack_config
+        if config is None or not among.size:
+            return {}
+        input_of = {field_name: name for name, field_name in INPUT_FIELDS.items()}
+        out: dict[str, tuple[str, InputStatus]] = {}
+        for folder in FOLDERS:
+            if folder not in config.inputs:
+                continue
+            bit = 1 << FOLDERS.index(folder)
+            readers = [m for m in MODULES if folder in self.semantics.folders(m)]
+            lacking = [self.results.lacking(m, among) for m in readers]
+            held = [bits for bits in lacking if bits is not None]
+            if held and all(bits & bit for bits in held):
+                topic = config.inputs[folder].topic
+                reason = f"no {folder} message on {topic} for any frame of the effect window"
+                status = InputStatus("absent", topic, reason)
+                out[folder] = (input_of[FOLDER_FIELDS[folder]], status)
+        return out
+
+    def _never_judged(self, required: list[_Expected], window_start: int) -> list[str]:
+        """Stack mode: the window's frames no monitor judged (their reference message lost,
+        dropped as late by the stamp sync, or the stack down), by frame number."""
+        assert self.metadata is not None
+        horizon = self.horizon_ms()
+        if horizon is None:
+            return []
+        tpf = self.metadata.timesteps_per_frame
+        stamps = [e.stamp_ms for e in required]
+        if not any(window_start <= stamp <= horizon for stamp in stamps):
+            return ["no frame of the effect window was judged"]
+        missing = missing_window_frames(stamps, window_start, horizon, tpf)
+        if not missing:
+            return []
+        return [
+            f"{frames_text(missing)} of the effect window never judged (no frame released "
+            "there: its reference message was lost, came late, or the stack was down)"
+        ]
 
 
 #: Stack mode: results this many frames before the first one heard are still placed.
@@ -511,7 +594,7 @@ STACK_MARGIN = 4096
 MAX_ROWS = 1 << 17
 
 
-def _frames_text(by_module: Mapping[Module, list[int]]) -> str:
+def _frames_text(by_module: Mapping[Module, Sequence[int | float]]) -> str:
     parts = []
     for module, indices in by_module.items():
         if indices:
@@ -519,7 +602,7 @@ def _frames_text(by_module: Mapping[Module, list[int]]) -> str:
     return "; ".join(parts)
 
 
-def _first_few(numbers: list[int]) -> str:
+def _first_few(numbers: Sequence[int | float]) -> str:
     """``3, 5, 9`` or, beyond eight, the first eight and ``(+N)`` more."""
     more = f" (+{len(numbers) - 8})" if len(numbers) > 8 else ""
     return ", ".join(map(str, numbers[:8])) + more

@@ -20,7 +20,7 @@ import numpy as np
 from ads_rca.contract.errors import DOCUMENT_ERRORS, MalformedMessage
 from ads_rca.contract.topics import TOPIC_FOLDERS
 from ads_rca.live.runid import RunFilter, document_run
-from ads_rca.model import MAX_FRAME, MAX_TIMESTAMP_MS, bounded_int
+from ads_rca.model import FOLDERS, MAX_FRAME, MAX_TIMESTAMP_MS, bounded_int
 from ads_rca.oracles.base import MODULES, Module, OracleResult
 from ads_rca.problems import Problem, problems_from_list
 
@@ -93,6 +93,11 @@ class LiveResult:
     @property
     def stamp_ms(self) -> int:
         return self.result.timestamp_ms
+
+    @property
+    def missing_folders(self) -> list[str]:
+        """The input folders this result was judged without."""
+        return missing_folders(self.incomplete)
 
     def to_document(self) -> dict[str, Any]:
         r = self.result
@@ -169,6 +174,25 @@ class LiveResult:
             ),
             tpf_ms=bounded_int(d.get("tpf_ms", 0), "tpf_ms", 0, MAX_STAMP),
         )
+
+
+#: How a result names an input it was judged without: ``no <folder> record``.
+_NO_RECORD = ("no ", " record")
+
+
+def missing_folders(incomplete: tuple[str, ...]) -> list[str]:
+    """The input folders a result's ``incomplete`` reasons say it was judged without."""
+    head, tail = _NO_RECORD
+    return [
+        reason[len(head) : -len(tail)]
+        for reason in incomplete
+        if reason.startswith(head) and reason.endswith(tail)
+    ]
+
+
+def no_record(folder: str) -> str:
+    """The ``incomplete`` reason of a result judged without ``folder``'s record."""
+    return f"{_NO_RECORD[0]}{folder}{_NO_RECORD[1]}"
 
 
 def _text_or_none(value: object) -> str | None:
@@ -312,6 +336,7 @@ class ResultStore:
                 revision=np.int64,
                 collision=np.int64,
                 incomplete=np.bool_,
+                missing=np.int64,
                 failed=np.bool_,
                 offset=np.int64,
                 length=np.int64,
@@ -335,6 +360,7 @@ class ResultStore:
             revision=result.revision,
             collision=result.collision_frame,
             incomplete=bool(result.incomplete),
+            missing=folder_bits(result.missing_folders),
             failed=result.result.failed,
             offset=self._end,
             length=len(data),
@@ -361,22 +387,45 @@ class ResultStore:
     def failed_among(self, module: Module, indices: np.ndarray) -> np.ndarray:
         """Those of ``indices`` where ``module``'s held result failed (from the columns)."""
         columns = self._modules[module]
-        inside = indices[indices < len(columns.present)]
-        held = inside[columns.present[inside]]
+        held = self._held(columns, indices)
         failed: np.ndarray = held[columns.columns["failed"][held]]
         return failed
 
-    def incomplete(self) -> list[tuple[Module, int]]:
-        """(module, index) of the held results judged with incomplete inputs."""
+    def incomplete(self, among: np.ndarray | None = None) -> list[tuple[Module, int]]:
+        """(module, index) of the held results judged with incomplete inputs (of the
+        indices ``among`` only, when given)."""
         out: list[tuple[Module, int]] = []
         for module, columns in self._modules.items():
-            rows = columns.indices()
+            rows = columns.indices() if among is None else self._held(columns, among)
             flagged = rows[columns.columns["incomplete"][rows]]
             out.extend((module, int(i)) for i in flagged)
         return sorted(out)
 
+    def is_incomplete(self, module: Module, index: int) -> bool:
+        return bool(self._modules[module].get("incomplete", index))
+
+    def lacking(self, module: Module, among: np.ndarray) -> int | None:
+        """The folder bits (:func:`folder_bits`) of the inputs every held result of
+        ``module`` among ``among`` was judged without (None: none held)."""
+        columns = self._modules[module]
+        rows = self._held(columns, among)
+        if not rows.size:
+            return None
+        return int(np.bitwise_and.reduce(columns.columns["missing"][rows]))
+
+    @staticmethod
+    def _held(columns: Columns, among: np.ndarray) -> np.ndarray:
+        inside = among[among < len(columns.present)]
+        held: np.ndarray = inside[columns.present[inside]]
+        return held
+
     def close(self) -> None:
         self._file.close()
+
+
+def folder_bits(folders: list[str]) -> int:
+    """One bit per input folder (model.FOLDERS order) of ``folders``."""
+    return sum(1 << FOLDERS.index(f) for f in set(folders) if f in FOLDERS)
 
 
 def _shared_keys(value: object) -> Any:

@@ -49,7 +49,7 @@ import numpy as np
 from ads_rca.capabilities import JUDGED, complete, judged_modules
 from ads_rca.contract.ego_paths import EgoPathRow, snapshots_from_rows
 from ads_rca.engine import evaluate_frame
-from ads_rca.live.results import FollowsRunEnd, FrameMarker, LiveResult, RunEnd
+from ads_rca.live.results import FollowsRunEnd, FrameMarker, LiveResult, RunEnd, no_record
 from ads_rca.live.row_paths import JudgedRow, RowPaths, rescored_incomplete
 from ads_rca.model import (
     Actors,
@@ -66,6 +66,9 @@ from ads_rca.oracles.base import MODULES, Module, RunContext
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import Params
 from ads_rca.problems import Problem, ProblemLog, new_problems
+
+#: A snapshot row's paths, awaited by the planning module like an input folder.
+EGO_PATHS = "ego_paths"
 
 
 @dataclass
@@ -122,6 +125,9 @@ class MonitorCore(FollowsRunEnd):
         self.semantics = semantics_for(params)
         self.oracles = {m: self.semantics.oracles[m] for m in self.modules}
         self.folders = self.semantics.module_folders(self.modules)
+        #: Per module, the folders it reads: a result names only the missing ones of those
+        #: (a shared window's frame lacking the 2-D boxes is not the controller's gap).
+        self.reads = {m: frozenset(self.semantics.folders(m)) for m in self.modules}
         self.needs_ego = any(self.semantics.reads_ego(m) for m in self.modules)
         self.metadata: RunMetadata | None = None
         self.input_problems: tuple[Problem, ...] = ()
@@ -155,6 +161,8 @@ class MonitorCore(FollowsRunEnd):
         #: a judged row given a later path is scored again (:mod:`ads_rca.live.row_paths`).
         self.row_paths = RowPaths(max_held=2 * self.settings.max_pending_frames + 64)
         self.wants_paths = "planning" in self.modules and self.semantics.scores_predictions
+        if self.wants_paths:
+            self.reads["planning"] |= {EGO_PATHS}
         #: Planning is not judged by its rules on this run's inputs: its result of a row reads
         #: the row's paths only, so a later path re-scores it (set with the metadata).
         self.rescores_rows = False
@@ -299,7 +307,7 @@ class MonitorCore(FollowsRunEnd):
             wanted = [f for f in self.folders if f in entry.marker.folders]
             missing = tuple(f for f in wanted if stamp not in self.records[f])
             if self.wants_paths and entry.marker.snapshot and not self.row_paths.has(stamp):
-                missing += ("ego_paths",)
+                missing += (EGO_PATHS,)
             if missing and not stalled and now - entry.arrived < timeout and not self.stack:
                 break
             entry.settled, entry.missing = True, missing
@@ -371,8 +379,7 @@ class MonitorCore(FollowsRunEnd):
                 if len(self.pending) - len(ready) <= self.settings.max_pending_frames:
                     break
                 blockers.append("pending queue full")
-            incomplete = tuple(blockers) + tuple(f"no {f} record" for f in entry.missing)
-            ready.append((entry, incomplete))
+            ready.append((entry, tuple(blockers)))
         if not ready:
             return []
         results = self._judge(ready, now)
@@ -445,18 +452,25 @@ class MonitorCore(FollowsRunEnd):
         before = [s for s in self.analysed.values() if s <= cf_ms]
         return max(before) if before else None
 
+    def _missing(self, entry: _Entry, module: Module) -> tuple[str, ...]:
+        """Why ``module``'s result of the frame lacks inputs: the folders it reads that did
+        not come (and a snapshot row's paths, for planning)."""
+        reads = self.reads[module]
+        return tuple(no_record(f) for f in entry.missing if f in reads)
+
     def _judge_on(
         self, log: RunLog, ready: list[tuple[_Entry, tuple[str, ...]]], now: float
     ) -> list[LiveResult]:
         ctx = self._context(log)
         closing = self._closing_stamp()
         out = []
-        for entry, incomplete in ready:
+        for entry, blockers in ready:
             stamp = entry.marker.stamp_ms
             partner = self._partner(ctx, stamp)
             self.stats.evaluated += 1
-            self.stats.incomplete += bool(incomplete)
+            self.stats.incomplete += bool(blockers or entry.missing)
             for module, oracle in self.oracles.items():
+                incomplete = blockers + self._missing(entry, module)
                 started = time.perf_counter()
                 result = evaluate_frame(ctx, {module: oracle}, stamp).results[module]
                 spent = time.perf_counter() - started

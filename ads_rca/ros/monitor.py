@@ -70,11 +70,7 @@ from ads_rca.ros.nodeparams import (
     declare_node_parameters,
     log_in_force,
 )
-from ads_rca.ros.stack_subscriber import (
-    StackSubscriber,
-    listen_for_collisions,
-    missing_inputs,
-)
+from ads_rca.ros.stack_subscriber import StackSubscriber, listen_for_collisions
 
 #: Longest a stopping monitor waits for its subscribers to acknowledge its last results.
 CLOSE_FLUSH_S = 3.0
@@ -200,7 +196,7 @@ class Monitor(Node):
         if core is None or not core.stack:
             return status
         reads = set(semantics_for(self.params).folders(self.module))
-        missing = [f for f in missing_inputs(latest.incomplete) if f in reads]
+        missing = [f for f in latest.missing_folders if f in reads]
         if not missing:
             return status
         text = f"frame {latest.frame}: not judged on full inputs: no {', '.join(missing)} input"

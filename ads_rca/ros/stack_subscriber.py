@@ -211,13 +211,4 @@ def listen_for_collisions(
     return node.create_subscription(String, name, on_collision, live_topics.latched_qos())
 
 
-def missing_inputs(results_incomplete: tuple[str, ...]) -> list[str]:
-    """The input folders a result was judged without ("no <folder> record")."""
-    return [
-        reason[3 : -len(" record")]
-        for reason in results_incomplete
-        if reason.startswith("no ") and reason.endswith(" record")
-    ]
-
-
-__all__ = ["FACTS_STATUS", "StackSubscriber", "listen_for_collisions", "missing_inputs"]
+__all__ = ["FACTS_STATUS", "StackSubscriber", "listen_for_collisions"]

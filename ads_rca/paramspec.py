@@ -273,6 +273,9 @@ SPECS: dict[str, ParamSpec] = {
 MAX_FILE_MB = Range(0.001, 1_048_576.0, unit="MB")
 #: A node's timeout or period, in seconds (up to an hour).
 SECONDS = Range(0.0, 3600.0, unit="s")
+#: Stack mode's ``episode_rewind_s``: how far the reference stamps may go back before a new
+#: episode begins (0: never; up to a day).
+EPISODE_REWIND = Range(0.0, 86_400.0, unit="s")
 #: Playback speed relative to log time (the player's ``rate``, ``--rate``; 0 = no clock).
 RATE = Range(0.0, 1000.0)
 #: ``replay`` / ``demo --timeout``: seconds to wait for the verdict (at most a week).

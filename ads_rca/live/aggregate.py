@@ -35,7 +35,7 @@ full inputs: a window frame no monitor judged (its reference message lost, late,
 stack down), a result judged without an input its module reads, or an input no frame of
 the window had, each makes it incomplete, naming the frames by frame number; an input no
 window frame had is absent in the verdict's inputs, so the modules needing it are "not
-judged (no <input>)".
+judged (no <input>)". One core serves one episode (:mod:`ads_rca.live.episodes`).
 """
 
 from __future__ import annotations
@@ -156,6 +156,13 @@ class AggregatorCore(FollowsRunEnd):
         self.ego_paths: dict[int, EgoPathRow] = {}
         #: A predicted path was heard: a model is answering, the verdict waits for its rows.
         self.model_heard = False
+        #: Stack mode: the episode this core judges (:mod:`ads_rca.live.episodes`), when
+        #: a later one began (None: still running), the collision frames its results were
+        #: judged with, and those it took (being decided, queued or decided).
+        self.episode = 1
+        self.ended_at: float | None = None
+        self.collisions_judged: set[int] = set()
+        self.collisions_taken: set[int] = set()
 
     # --- feeding ---------------------------------------------------------------------
 
@@ -188,10 +195,24 @@ class AggregatorCore(FollowsRunEnd):
         known = [self.collision_frame, *(q[0] for q in self._queued)]
         if frame in known or frame < self.collision_frame:
             return
+        self.collisions_taken.add(frame)
         if self.collision_frame >= 0 and self.outcome is None:
             self._queued.append((frame, source, derived, now))
             return
         self._start_collision(frame, source, derived, now)
+
+    @property
+    def deciding(self) -> bool:
+        """Stack mode: a collision is heard and its verdict not given yet."""
+        return (self.collision_frame >= 0 and self.outcome is None) or bool(self._queued)
+
+    def decide_now(self, now: float, why: str) -> list[VerdictOutcome]:
+        """Every collision still being decided, decided now on what arrived (its episode
+        is closed), each verdict saying ``why`` it is incomplete."""
+        out = []
+        while self.metadata is not None and self.deciding:
+            out.append(self._decide(now, [why]))
+        return out
 
     def _start_collision(self, frame: int, source: str, derived: bool, now: float) -> None:
         self.collision_frame, self.collision_source = frame, source
@@ -375,7 +396,7 @@ class AggregatorCore(FollowsRunEnd):
             return None
         why: list[str] = []
         if self.stack and not self.horizon_reached():
-            budget = self._stack_budget_s()
+            budget = self.stack_budget_s()
             if self.collision_at is None or now - self.collision_at < budget:
                 return None
             open_modules = [m for m in MODULES if self.closed.get(m, -1) != self.collision_frame]
@@ -432,7 +453,7 @@ class AggregatorCore(FollowsRunEnd):
             e.stamp_ms: self.ego_paths[e.stamp_ms] for e in required if e.stamp_ms in self.ego_paths
         }
 
-    def _stack_budget_s(self) -> float:
+    def stack_budget_s(self) -> float:
         """Stack mode: how long after a collision the verdict waits for the monitors. A
         monitor may hold the collision frame ``input_timeout_s`` for its inputs before it
         judges up to it (docs/live-graph.md), so the wait is that plus ``verdict_timeout_s``:
@@ -447,6 +468,11 @@ class AggregatorCore(FollowsRunEnd):
         if self._queued:
             self._start_collision(*self._queued.popleft())
         return outcome
+
+    def frame_stamps(self) -> list[int]:
+        """The stamps of every frame results came for, ascending."""
+        indices = self.expected.indices()
+        return [int(s) for s in self.expected.columns["stamp_ms"][indices]]
 
     def _frames_text(self, by_module: Mapping[Module, list[int]]) -> str:
         """``perception frames 70, 71`` per module: stack mode's indices are internal (a
@@ -522,7 +548,11 @@ class AggregatorCore(FollowsRunEnd):
             "why_incomplete": why_incomplete,
             "collision_source": self.collision_source,
             **(
-                {"collision_number": self.collision_number, "derived": self.collision_derived}
+                {
+                    "episode": self.episode,
+                    "collision_number": self.collision_number,
+                    "derived": self.collision_derived,
+                }
                 if self.stack
                 else {}
             ),

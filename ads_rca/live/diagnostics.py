@@ -264,6 +264,9 @@ def verdict_status(document: Mapping[str, Any], hardware_id: str) -> Status:
     }
     live = document.get("live") or {}
     head["complete"] = live.get("complete")
+    for key in ("episode", "collision_number"):  # stack mode: which episode, which crash
+        if key in live:
+            head[key] = live[key]
     if live.get(RUN_KEY):
         head[RUN_KEY] = live[RUN_KEY]
     modules = {m: dict(v) for m, v in (document.get("modules") or {}).items()}

@@ -24,6 +24,7 @@ from ads_rca.oracles.base import MODULES, Module
 from ads_rca.params import Params
 
 if TYPE_CHECKING:
+    from ads_rca.live.episodes import EpisodeReport
     from ads_rca.live.stack_config import StackConfig
     from ads_rca.live.stack_feed import SkipReport, StackFeed
 
@@ -42,6 +43,8 @@ class LiveRun:
     #: Stack mode: every verdict, in order, and the feed (its sync's counts).
     verdicts: list[VerdictOutcome] = field(default_factory=list)
     feed: StackFeed | None = None
+    #: Stack mode: each episode that ended (a later one began), in order.
+    episodes: list[EpisodeReport] = field(default_factory=list)
 
 
 def run_live(
@@ -244,47 +247,88 @@ def run_stack(
     ``skipped`` hears of every message that could not be read; not ``aggregator_hears``:
     the announcements reach the monitors only (the aggregator matched the latched event
     too late)."""
+    from ads_rca.live.episodes import EpisodeAggregator, EpisodeReport
     from ads_rca.live.stack_feed import StackFeed
 
     core = MonitorCore(MODULES, params, settings, stack=True)
     feed = StackFeed(config, core, skipped or (lambda folder, error: None))
-    aggregator = AggregatorCore(params, stack=config)
+    aggregator = EpisodeAggregator(lambda: AggregatorCore(params, stack=config), stack=True)
     run = LiveRun(results={m: [] for m in MODULES}, monitors={m: core for m in MODULES})
     run.feed = feed
 
     def pump(now: float) -> None:
-        feed.poll(now)
-        for result in core.poll(now):
+        ended = feed.poll(now)  # an ended episode's last results, then the current one's
+        for result in ended + feed.core.poll(now):
             run.results[result.module].append(result)
             aggregator.add_result(result, now)
         for module in core.modules:
             run.max_held_records[module] = max(
-                run.max_held_records.get(module, 0), core.held_records()
+                run.max_held_records.get(module, 0), feed.core.held_records()
             )
-        outcome = aggregator.poll(now)
-        if outcome is not None:
-            run.verdicts.append(outcome)
-            run.outcome = run.outcome or outcome
+        for event in aggregator.poll(now):
+            if isinstance(event, EpisodeReport):
+                run.episodes.append(event)
+                continue
+            run.verdicts.append(event)
+            run.outcome = run.outcome or event
 
     if collisions is None:
         collisions = []
         if stream.collision_s is not None:
             collisions = [(stream.collision_s, log.metadata.collision_frame)]
     due = deque(sorted(collisions))
+
+    def collide(frame: int, at: float) -> None:
+        feed.set_collision(frame, at)
+        if aggregator_hears:
+            aggregator.set_collision(frame, at)
+
     now = 0.0
     for message in stream.messages:
         now = message.arrival_s
         while due and now >= due[0][0]:
             at, frame = due.popleft()
-            announce([core], aggregator if aggregator_hears else None, frame, at)
+            collide(frame, at)
         if message.folder in feed.decoders:
             feed.add(message.folder, message.payload, now)
         pump(now)
     for at, frame in due:
         now = max(now, at)
-        announce([core], aggregator if aggregator_hears else None, frame, now)
+        collide(frame, now)
     deadline = now + drain_s
-    while now < deadline and (len(run.verdicts) < len(collisions) or core.pending):
+    while now < deadline and (
+        len(run.verdicts) < len(collisions) or feed.core.pending or feed.ending is not None
+    ):
         now += 0.05
         pump(now)
     return run
+
+
+def stack_episodes(
+    logs: Sequence[RunLog], gap_s: float = 1.0, **stream: Any
+) -> tuple[StackStream, list[tuple[float, int]]]:
+    """Several runs sent one after the other as one stack does when its simulator restarts:
+    each run's own stamps (so they go back at each new episode), its messages arriving
+    ``gap_s`` after the previous run's last message or collision announcement (negative:
+    its first messages overlap the previous run's last ones); ``stream``:
+    :func:`stack_stream`'s options. The stream and the collision announcements (arrival s,
+    frame), in order."""
+    messages: list[StackMessage] = []
+    collisions: list[tuple[float, int]] = []
+    dropped: dict[str, list[int]] = {}
+    offsets: dict[str, int] = {}
+    start = 0.0
+    for log in logs:
+        one = stack_stream(log, **stream)
+        shift = start - min((m.arrival_s for m in one.messages), default=0.0)
+        messages += [replace(m, arrival_s=m.arrival_s + shift) for m in one.messages]
+        if one.collision_s is not None:
+            collisions.append((one.collision_s + shift, log.metadata.collision_frame))
+        for folder, stamps in one.dropped.items():
+            dropped.setdefault(folder, []).extend(stamps)
+        offsets = one.offsets_ms
+        start = max(m.arrival_s for m in messages) + gap_s
+        if collisions:
+            start = max(start, collisions[-1][0] + gap_s)
+    messages.sort(key=lambda m: m.arrival_s)
+    return StackStream(messages, offsets, dropped, None), collisions

@@ -22,7 +22,7 @@ from ads_rca.contract.stack_layouts import CONTRACT, Layout, layout
 from ads_rca.errors import ConfigError
 from ads_rca.live.stamp_sync import SyncSettings
 from ads_rca.model import FOLDER_FIELDS, FOLDERS, INPUTS_KEY, InputStatus, RunMetadata
-from ads_rca.paramspec import Range
+from ads_rca.paramspec import EPISODE_REWIND, Range
 from ads_rca.text import printable
 
 #: ``stack_mode`` values: ``stack`` (a stack's topics), ``player`` (the player's contract) or
@@ -66,6 +66,12 @@ STACK_PARAMETERS: dict[str, tuple[Any, str] | tuple[Any, str, Range]] = {
     "camera_loc.x": (0.0, "Stack mode: camera location x on the ego (m).", _METRES),
     "camera_loc.y": (0.0, "Stack mode: camera location y on the ego (m).", _METRES),
     "camera_loc.z": (0.0, "Stack mode: camera location z on the ego (m).", _METRES),
+    "episode_rewind_s": (
+        1.0,
+        "Stack mode: the reference input's header stamps going back by more than this start "
+        "a new episode (a stack or simulator restarted; 0: never).",
+        EPISODE_REWIND,
+    ),
     "inputs_best_effort": (
         False,
         "Stack mode: subscribe BEST_EFFORT (a stack publishing best effort; reliable "
@@ -108,6 +114,8 @@ class StackConfig:
     mode: str = "auto"
     best_effort: bool = False
     not_provided: tuple[str, ...] = field(default=())
+    #: Stamps going back by more than this begin a new episode (0: never).
+    episode_rewind_s: float = 1.0
 
     def __post_init__(self) -> None:
         if self.mode not in STACK_MODES:
@@ -163,6 +171,7 @@ class StackConfig:
             mode=str(values.get("stack_mode", "auto")),
             best_effort=bool(values.get("inputs_best_effort", False)),
             not_provided=tuple(absent),
+            episode_rewind_s=float(values.get("episode_rewind_s", 1.0)),
         )
 
     def sync_settings(self, folders: Iterable[str], reference: str = "") -> SyncSettings:

@@ -114,6 +114,8 @@ class SyncCounts:
     overflow: int = 0  #: frames released early because too many were held
     dropped: int = 0  #: messages dropped because too many were held on their topic
     incomplete: int = 0
+    #: messages of an episode that had ended (stack mode's episodes, live/episodes.py)
+    ended_episode: int = 0
 
     def text(self) -> str:
         """The non-zero counts, one line ('' when nothing was dropped)."""
@@ -128,6 +130,7 @@ COUNT_LABELS = {
     "overflow": "frames released early (too many held)",
     "dropped": "messages dropped (too many held)",
     "incomplete": "frames released incomplete",
+    "ended_episode": "messages of an ended episode dropped",
 }
 
 
@@ -213,7 +216,7 @@ class StampSync(Generic[P]):
                     self.period_ms = self.measured_ms
 
     def _add_input(self, topic: str, stamp: int, payload: P) -> None:
-        if self._is_late(stamp):
+        if self.is_late(stamp):
             self.counts.late += 1
             return
         held = self._held[topic]
@@ -224,8 +227,9 @@ class StampSync(Generic[P]):
             held.take(0)
             self.counts.dropped += 1
 
-    def _is_late(self, stamp: int) -> bool:
-        """Whether the frame nearest to ``stamp`` was already released."""
+    def is_late(self, stamp: int) -> bool:
+        """Whether the frame nearest to ``stamp`` was already released (a message of
+        another input stamped so is dropped as late)."""
         last = self.released_ms
         if last is None or stamp > last + self.slop_ms:
             return False

@@ -147,6 +147,8 @@ class MonitorCore(FollowsRunEnd):
         self._reported: set[tuple[str, str, str]] = set()
         self.session = uuid.uuid4().hex[:8]
         self.run = ""  # the run being judged, stamped on every result (set by the shell)
+        #: Stack mode: the episode judged, stamped on every result (set by the feed).
+        self.episode = 1
         self.stats = _Stats()
         #: Stack mode (docs/live-graph.md): frames come whole from the stamp sync, a
         #: collision closes the frames up to it (look-ahead and view cut at the collision).
@@ -492,6 +494,7 @@ class MonitorCore(FollowsRunEnd):
                         run=self.run,
                         closes_collision=self.collision_frame if stamp == closing else -1,
                         tpf_ms=log.tpf if self.stack else 0,
+                        episode=self.episode,
                         extra={"derived": list(self.derived)} if self.derived else {},
                     )
                 )

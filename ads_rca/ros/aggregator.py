@@ -8,6 +8,10 @@ logs the one-line verdict. It also watches the monitors' heartbeats: a monitor s
 ``stale_timeout_s`` while the run goes on is reported STALE on ``/diagnostics`` under its
 module's status name (a dead process cannot report itself).
 
+Stack mode keeps each episode apart (:mod:`ads_rca.live.episodes`): results are keyed by
+the episode the monitors numbered, a verdict says its episode (``live.episode``), and an
+episode that ended is reported on ``/diagnostics`` (status ``ads_rca/episode``).
+
 ``metrics_log`` (optional) receives every result as it arrives, one JSON line each, for the
 determinism test and the benchmark.
 
@@ -44,6 +48,7 @@ from ads_rca.indented_json import dumps_indented
 from ads_rca.live import diagnostics as diag
 from ads_rca.live.aggregate import AggregatorCore, VerdictOutcome
 from ads_rca.live.collision_feed import CollisionFeed, collision_document
+from ads_rca.live.episodes import EpisodeAggregator, EpisodeReport
 from ads_rca.live.results import FrameMarker, LiveResult, collision_frame
 from ads_rca.live.runid import RUN_KEY, RunFilter, checked_run_id
 from ads_rca.live.stack_config import STACK_PARAMETERS, StackConfig
@@ -108,6 +113,8 @@ PARAMETERS: dict[str, NodeParameter] = {
     ),
 }
 _REPORTER = "aggregator"
+#: Status name of the episodes (stack mode: an episode ended, a later one began).
+EPISODE_STATUS = "ads_rca/episode"
 
 
 class Aggregator(Node):
@@ -130,7 +137,7 @@ class Aggregator(Node):
         self.stack_config = StackConfig.from_values(p, ns, float(p["input_timeout_s"]))
         self.timeouts = (float(p["verdict_timeout_s"]), float(p["stall_timeout_s"]))
         stack = self.stack_config if self.stack_config.mode == "stack" else None
-        self.core = AggregatorCore(self.params, *self.timeouts, stack=stack)
+        self.episodes = self._episodes(stack)
         self.verdicts_published = 0
         self._metrics_log: TextIO | None = None
         if p["metrics_log"]:
@@ -200,7 +207,23 @@ class Aggregator(Node):
         )
         self.create_timer(0.02, self._poll)
         self.create_timer(0.5, self._watch_monitors)
+        #: Stack mode: the last episode that ended (said on /diagnostics every second).
+        self.episode_report: EpisodeReport | None = None
+        self.create_timer(1.0, self._say_episode)
         log_in_force(self, p, self.params)
+
+    def _episodes(self, stack: StackConfig | None) -> EpisodeAggregator:
+        """One core per episode (a player's run: one core)."""
+        return EpisodeAggregator(
+            lambda: AggregatorCore(self.params, *self.timeouts, stack=stack),
+            stack is not None,
+            grace_s=self.timeouts[0],
+        )
+
+    @property
+    def core(self) -> AggregatorCore:
+        """The current episode's core (a player's run has one)."""
+        return self.episodes.current
 
     # --- inputs ----------------------------------------------------------------------
 
@@ -284,7 +307,7 @@ class Aggregator(Node):
                 f"(ego box overlaps actor {document['actor_id']!r} by {collision.depth_m:.2f} m)"
             )
             self._stack_mode()
-            self.core.set_collision(int(document["frame"]), time.monotonic(), derived=True)
+            self.episodes.set_collision(int(document["frame"]), time.monotonic(), derived=True)
             self.collision_pub.publish(String(data=json.dumps(document)))
 
     def _stack_mode(self) -> None:
@@ -293,7 +316,7 @@ class Aggregator(Node):
         if self.core.stack or self.core.metadata is not None or self.stack_config.mode == "player":
             return
         self.get_logger().info("no player on the graph: stack mode")
-        self.core = AggregatorCore(self.params, *self.timeouts, stack=self.stack_config)
+        self.episodes = self._episodes(self.stack_config)
 
     def _on_result(self, msg: String) -> None:
         now = time.monotonic()
@@ -312,11 +335,14 @@ class Aggregator(Node):
             self.get_logger().info(f"first result from the {result.module} monitor")
         if result.tpf_ms > 0:
             self._stack_mode()
-        known = self.core.collision_frame
-        self.core.add_result(result, now)
-        if self.core.collision_frame != known and self.core.collision_source == "monitors":
+        before = self.episodes.cores.get(result.episode)
+        known = before.collision_frame if before is not None else -1
+        core = self.episodes.add_result(result, now)
+        if core is None:
+            self._skip("metrics", f"a result of episode {result.episode}, already closed", now)
+        elif core.collision_frame != known and core.collision_source == "monitors":
             self.get_logger().info(
-                f"collision at frame {self.core.collision_frame} taken from the "
+                f"collision at frame {core.collision_frame} taken from the "
                 f"{result.module} monitor's result (its event was not heard here)"
             )
         if self._metrics_log is not None:
@@ -342,7 +368,7 @@ class Aggregator(Node):
         self._stack_mode()  # a collision and no player heard: a stack's run
         if frame != self.core.collision_frame:  # said once: a graph without a verdict shows it
             self.get_logger().info(f"collision announced at frame {frame}")
-        self.core.set_collision(frame, time.monotonic())
+        self.episodes.set_collision(frame, time.monotonic())
         if forward:
             self.collision_pub.publish(String(data=json.dumps({"frame": frame})))
 
@@ -390,9 +416,33 @@ class Aggregator(Node):
         now = time.monotonic()
         if self.detection is not None:
             self._detected(self.detection.poll(now))
-        outcome = self.core.poll(now)
-        if outcome is not None:
-            self._publish(outcome)
+        for event in self.episodes.poll(now):
+            if isinstance(event, EpisodeReport):
+                self._publish_episode(event)
+            else:
+                self._publish(event)
+
+    def _publish_episode(self, report: EpisodeReport) -> None:
+        """An episode ended (a later one began): said in the log and on /diagnostics."""
+        self.episode_report = report
+        self.get_logger().info(report.text())
+        self._say_episode()
+
+    def _say_episode(self) -> None:
+        """Stack mode, once results came: the episode judged and, once one ended, what it
+        held, on /diagnostics at once and every second (a late subscriber, or a diagnostics
+        aggregator that marks a status not repeated stale, still sees it)."""
+        episodes = self.episodes
+        if not episodes.stack or episodes.current.last_input is None:
+            return
+        report = self.episode_report
+        values: dict[str, object] = {"episode": episodes.number, RUN_KEY: self.runs.run or ""}
+        if report is not None:
+            ended = report.to_document()
+            values |= {f"ended.{k}": v for k, v in ended.items() if k != "next_episode"}
+        text = report.text() if report is not None else f"episode {episodes.number}"
+        status = diag.simple_status(EPISODE_STATUS, diag.OK, text, self.hardware_id, values)
+        self.diag_pub.publish(diagnostic_array(self.get_clock().now().to_msg(), [status]))
 
     def _publish(self, outcome: VerdictOutcome) -> None:
         document = outcome.document
@@ -418,8 +468,14 @@ class Aggregator(Node):
             if outcome.complete
             else "INCOMPLETE: " + "; ".join(document["live"]["why_incomplete"])
         )
+        live = document["live"]
+        which = (
+            f" (episode {live['episode']}, collision {live['collision_number']})"
+            if "episode" in live
+            else ""
+        )
         self.get_logger().info(
-            f"verdict: {document['verdict']} [{document['attribution_basis']}] "
+            f"verdict{which}: {document['verdict']} [{document['attribution_basis']}] "
             f"latency {document['verdict_latency_s']:.3f} s, {state}"
         )
         if self._metrics_log is not None:

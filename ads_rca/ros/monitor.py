@@ -224,6 +224,7 @@ class Monitor(Node):
                     "held_records": core.held_records(),
                     "finished": core.finished,
                     "skipped_messages": self.skipped.total,
+                    **({"episode": core.episode} if core.stack else {}),
                 },
             )
         ]
@@ -291,11 +292,15 @@ class MonitorUnit:
     def poll(self) -> None:
         """Publish the results of every frame that became ready."""
         self.last_poll = now = time.monotonic()
+        self.publish(self.core.poll(now))
+
+    def publish(self, results: list[LiveResult]) -> None:
+        """Each module's results on its node (one /diagnostics status per module)."""
         by_module: dict[Module, list[LiveResult]] = {}
-        for result in self.core.poll(now):
+        for result in results:
             by_module.setdefault(result.module, []).append(result)
-        for module, results in by_module.items():
-            self.nodes[module].publish(results)
+        for module, batch in by_module.items():
+            self.nodes[module].publish(batch)
         self._log_internal_errors()
 
     def _log_internal_errors(self) -> None:
@@ -308,6 +313,12 @@ class MonitorUnit:
                     f"{diag.internal_error_head(module)}; this is a bug in ads_rca, not in the "
                     f"input: please report it with this traceback:\n{text.rstrip()}"
                 )
+
+    def use_core(self, core: MonitorCore) -> None:
+        """Judge ``core`` from now on (stack mode: a new episode's window)."""
+        self.core = core
+        for node in self.nodes.values():
+            node.core = core
 
     def on_marker(self, now: float) -> None:
         if now - self.last_poll >= self.poll_period:

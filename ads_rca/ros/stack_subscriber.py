@@ -3,7 +3,9 @@
 The thin rclpy shell of :class:`~ads_rca.live.stack_feed.StackFeed`: one subscription per
 input the stack provides, of the type its layout names (CDR bytes for our contract's types,
 message objects for the others), the collision topic, and a timer that releases what timed
-out and judges what became ready. On ``/diagnostics`` it says what the stack does not give:
+out and judges what became ready (and the last frames of an episode that ended: the stamps
+went back, :mod:`ads_rca.live.episodes`). On ``/diagnostics`` it says what the stack does
+not give:
 a module whose inputs the stack does not provide, or stopped providing, is STALE with the
 reason (never OK), and a run fact found wrong (an ``ego_id`` never among the actors) is a
 WARN status ``ads_rca/run_facts``.
@@ -120,7 +122,9 @@ class StackSubscriber:
         feed = self.feed = StackFeed(config, unit.core, self._skip)
         namespace = next(iter(unit.nodes.values())).namespace
         self.subscriptions.append(
-            listen_for_collisions(self.node, unit, namespace, self.runs, self._skip)
+            listen_for_collisions(
+                self.node, unit, namespace, self.runs, self._skip, collide=feed.set_collision
+            )
         )
         self.node.create_timer(unit.poll_period, self._poll)
         self.node.get_logger().info(
@@ -145,6 +149,8 @@ class StackSubscriber:
             now = time.monotonic()
             if self.feed is not None:
                 self.feed.add(folder, msg, now)
+                if self.feed.core is not self.unit.core:  # a new episode began
+                    self._follow()
                 return
             self.waiting.append((folder, msg, now))
             if folder == self.config.reference and self.decide is not None and self.decide():
@@ -155,7 +161,9 @@ class StackSubscriber:
     def _poll(self) -> None:
         assert self.feed is not None
         now = time.monotonic()
-        self.feed.poll(now)
+        ended = self.feed.poll(now)  # an ended episode's last results: before the new one's
+        self._follow()
+        self.unit.publish(ended)
         self.unit.poll()
         self._say_facts()
         if now - self._sync_at >= 1.0:  # what the sync dropped: at most a line a second
@@ -163,6 +171,16 @@ class StackSubscriber:
             news = self.feed.sync_news()
             if news is not None:
                 self.node.get_logger().warning(news)
+
+    def _follow(self) -> None:
+        """The unit judges the current episode's core; what the feed says of episodes is
+        logged."""
+        assert self.feed is not None
+        if self.feed.core is not self.unit.core:
+            self.unit.use_core(self.feed.core)
+        for line in self.feed.news:
+            self.node.get_logger().info(line)
+        self.feed.news.clear()
 
     def _skip(self, folder: str, error: str) -> None:
         topic = self.config.inputs[folder].topic if folder in self.config.inputs else folder
@@ -194,9 +212,11 @@ def listen_for_collisions(
     namespace: str,
     runs: RunFilter,
     skip: Callable[[str, str], None],
+    collide: Callable[[int, float], bool] | None = None,
 ) -> Subscription[String]:
-    """Subscribe to ``run/collision``: each collision goes to the unit's core (which judges
-    the held frames again, said once); an unreadable document is skipped and said."""
+    """Subscribe to ``run/collision``: each collision goes to ``collide`` (stack mode: the
+    feed, which finds its episode), else the unit's core (which judges the held frames
+    again, said once); an unreadable document is skipped and said."""
 
     def on_collision(msg: String) -> None:
         try:
@@ -204,7 +224,10 @@ def listen_for_collisions(
         except MalformedMessage as error:
             skip(live_topics.COLLISION, str(error))
             return
-        if frame is not None and unit.core.set_collision(frame, time.monotonic()):
+        if frame is None:
+            return
+        now = time.monotonic()
+        if collide(frame, now) if collide is not None else unit.core.set_collision(frame, now):
             unit.logger.info(f"collision at frame {frame}: judging held frames again")
 
     name = topics.topic_name(live_topics.COLLISION, namespace)

@@ -1,0 +1,179 @@
+"""Stack mode over real DDS beside an independent stack that misbehaves (issue 34, items 4, 5).
+
+The ``monitors`` and ``aggregator`` nodes, each its own process, run from
+``config/stack_carla.yaml`` beside test/independent_stack.py: a publisher written from the
+docs alone (no ads_rca import) that sends synthesised runs as a CARLA ROS bridge stack
+does, and can leave an input out, stop one mid-run, restart as a new process with a gap,
+and restart its simulator (stamps back to the start: a second episode). The verdicts must
+say what they could not judge, never "no fault found", and keep two episodes apart.
+In process, the same rules: test_stack_completeness.py and test_stack_episodes.py.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pytest
+from conftest import RosEnv
+from rosrun import wait_for
+from stackgraph import crash, offline
+
+from ads_rca.io.json_writer import write_run_log
+from ads_rca.ros.graph import AGGREGATOR, GROUP, MONITOR
+from ads_rca.ros.launcher import Launcher, ParamValue, ros_args
+
+pytestmark = pytest.mark.timeout(240)
+
+HERE = Path(__file__).resolve().parent
+STACK = HERE / "independent_stack.py"
+PROBE = HERE / "diag_probe.py"
+CARLA = HERE.parent / "config" / "stack_carla.yaml"
+CASE = ("lead_braking", "prediction")  # collision at frame 78
+FIRST = ("cut_in", "perception")  # collision at frame 103, its partner another actor
+
+
+@dataclass
+class Graph:
+    verdicts: list[dict[str, Any]]
+    diagnostics: list[dict[str, Any]]
+    outputs: dict[str, str]
+
+
+def log_folder(tmp: Path, case: tuple[str, str]) -> str:
+    """The synthesised run, written as a running-log folder (what the stack reads)."""
+    return str(write_run_log(crash(*case), tmp / "_".join(case)))
+
+
+def statuses(path: Path) -> list[dict[str, Any]]:
+    text = path.read_text() if path.exists() else ""
+    return [json.loads(line) for line in text.splitlines() if line.strip()]
+
+
+def run_beside(
+    ros_env: RosEnv,
+    tmp: Path,
+    stacks: list[list[str]],
+    params: dict[str, ParamValue],
+    verdicts: int,
+    said: str = "",
+) -> Graph:
+    """Monitors and aggregator, then each stack process in turn (a restart: the next one
+    starts once the one before exited); wait for ``verdicts`` verdict files and, on
+    /diagnostics, a status whose message holds ``said``."""
+    diag = tmp / "diag.jsonl"
+    shared: dict[str, ParamValue] = {"topic_namespace": ros_env.namespace, **params}
+    aggregator_params = {**shared, "verdict_json": str(tmp / "verdict.json"), "collision_topic": ""}
+    python = sys.executable
+    with Launcher(ros_env.env, echo=sys.stderr) as launcher:
+        probe = launcher.start("diag_probe", [python, str(PROBE), str(diag)])
+        monitors = launcher.start(
+            "monitors", [python, "-m", MONITOR, GROUP, *ros_args(shared, CARLA)]
+        )
+        aggregator = launcher.start(
+            "aggregator", [python, "-m", AGGREGATOR, *ros_args(aggregator_params, CARLA)]
+        )
+        for n, argv in enumerate(stacks):
+            stack = launcher.start(
+                f"stack{n}", [python, str(STACK), "--namespace", ros_env.namespace, *argv]
+            )
+            assert stack.wait(120.0) == 0, stack.output
+
+        def done() -> bool:
+            files = list(tmp.glob("verdict*.json"))
+            heard = not said or any(said in s["message"] for s in statuses(diag))
+            return len(files) >= verdicts and heard
+
+        wait_for(done, 60.0, f"{verdicts} verdicts and {said!r} on /diagnostics")
+        outputs = {"aggregator": aggregator.output, "monitors": monitors.output}
+        for process in (aggregator, monitors, probe):
+            process.stop(timeout=10.0)
+    files = sorted(tmp.glob("verdict*.json"), key=lambda p: (len(p.name), p.name))
+    return Graph([json.loads(p.read_text()) for p in files], statuses(diag), outputs)
+
+
+def test_inputs_left_out_or_stopped_are_said_never_no_fault_found(
+    ros_env: RosEnv, tmp_path: Path
+) -> None:
+    """One input never sent, another stopping inside the effect window (frame 75 of 78)."""
+    stack = ["--log", log_folder(tmp_path, CASE), "--seed", "2"]
+    stack += ["--drop-input", "predictions_with_perception", "--stop-input", "bboxes:75"]
+    graph = run_beside(
+        ros_env,
+        tmp_path,
+        [stack],
+        {"semantics": "reference", "input_timeout_s": 1.0},
+        verdicts=1,
+        said="no predictions_with_perception input",
+    )
+    [verdict] = graph.verdicts
+    assert verdict["conclusive"] is False and verdict["live"]["complete"] is False
+    assert "no fault found" not in verdict["verdict"]
+    judged = verdict["modules_judged"]
+    assert judged["prediction"] == judged["planning"] == "not judged (no predictions_gt)"
+    assert judged["perception"].startswith("partly judged (4 of 11 window frames")
+    assert judged["controller"] == "judged"
+    assert any(
+        "/prediction/objects_with_perception for any frame" in why
+        for why in verdict["live"]["why_incomplete"]
+    )
+    stale = {s["name"] for s in graph.diagnostics if s["level"] == 3}
+    assert {"ads_rca/prediction", "ads_rca/planning"} <= stale
+
+
+def test_frames_lost_to_a_restart_make_the_verdict_incomplete(
+    ros_env: RosEnv, tmp_path: Path
+) -> None:
+    """The stack's process stops after frame 56 and a new one (a new participant) goes on
+    from frame 61: frames 58 to 60 of the effect window (58 to 78) are never judged."""
+    log = log_folder(tmp_path, CASE)
+    graph = run_beside(
+        ros_env,
+        tmp_path,
+        [["--log", log, "--frames", ":56"], ["--log", log, "--frames", "61:"]],
+        {"semantics": "corrected", "input_timeout_s": 1.0},
+        verdicts=1,
+    )
+    [verdict] = graph.verdicts
+    assert verdict["conclusive"] is False and verdict["live"]["complete"] is False
+    missing = "frames 58, 59, 60 of the effect window are missing from the run"
+    assert missing in verdict["why_inconclusive"]
+    never = "frames 58, 59, 60 of the effect window never judged"
+    assert any(why.startswith(never) for why in verdict["live"]["why_incomplete"])
+    # A restart that goes on with later stamps is the same episode, the same collision.
+    assert (verdict["live"]["episode"], verdict["collision_frame"]) == (1, 78)
+
+
+def test_a_simulator_restart_is_a_new_episode_with_its_own_verdict(
+    ros_env: RosEnv, tmp_path: Path
+) -> None:
+    """Two crashes, the second's stamps from the start again: two verdicts, each on its own
+    episode's data (its partner, its window), and /diagnostics says episode 2 began."""
+    stack = ["--log", log_folder(tmp_path, FIRST), "--log", log_folder(tmp_path, CASE)]
+    graph = run_beside(
+        ros_env,
+        tmp_path,
+        [[*stack, "--seed", "4", "--episode-gap-s", "0.2"]],
+        {"semantics": "corrected", "input_timeout_s": 2.0},
+        verdicts=2,
+        said="episode 2 began",
+    )
+    for verdict, case, episode in zip(graph.verdicts, (FIRST, CASE), (1, 2), strict=True):
+        want = offline(*case, "corrected").to_json()
+        log = crash(*case)
+        assert verdict["live"]["episode"] == episode
+        assert verdict["live"]["complete"] is True, verdict["live"]
+        assert verdict["collision_frame"] == log.metadata.collision_frame
+        for key in ("partner_id", "primary_root_cause"):
+            assert verdict[key] == want[key], key
+        cf_ms = log.metadata.collision_frame * log.tpf
+        start = cf_ms - verdict["window_frames"] * log.tpf
+        window = [s for s in log.unique_frames if start <= s <= cf_ms]
+        assert [f["timestamp_ms"] for f in verdict["frames"]] == window
+    said = {s["message"] for s in graph.diagnostics if s["name"] == "ads_rca/episode"}
+    ended = "episode 2 began (the stamps went back); episode 1 ended: frames 1 to 103, 1 collision"
+    assert any(message.startswith(ended) for message in said), said
+    assert "episode 2 began: the pose stamps went back" in graph.outputs["monitors"]

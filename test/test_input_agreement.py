@@ -74,6 +74,19 @@ def test_a_bag_read_through_a_profile_without_frames_names_its_actors_input(
     assert len(done.stderr.strip().splitlines()) == 1 and "Traceback" not in done.stderr
 
 
+def test_a_batch_row_names_the_profile_s_actors_input_too(ego_only_bag: tuple[Path, Path]) -> None:
+    from ads_rca.batch.work import Job, run_job
+    from ads_rca.io.bag_options import BagOptions
+    from ads_rca.params import make_params
+
+    bag, profile = ego_only_bag
+    options = BagOptions(str(profile))
+    job = Job("run", str(bag), make_params("corrected"), 100.0, options, timeout=60.0)
+    outcome = run_job(job)
+    assert outcome.json is None
+    assert EGO_ONLY_REFUSAL in outcome.row["error"] and "actors/ file" not in outcome.row["error"]
+
+
 def test_a_contract_bag_without_frames_names_its_markers_and_actors(tmp_path: Path) -> None:
     folder = tmp_path / "log"
     folder.mkdir()

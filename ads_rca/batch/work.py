@@ -173,6 +173,7 @@ def run_job(job: Job, worker: str = "") -> Outcome:
     """Read and judge the run in this process (the child's work; no timeout here)."""
     from ads_rca.engine import diagnose
     from ads_rca.io import open_run
+    from ads_rca.io.formats import no_frame_message
     from ads_rca.oracles.semantics import semantics_for
     from ads_rca.workers import loaded_objects_frozen
 
@@ -187,7 +188,7 @@ def run_job(job: Job, worker: str = "") -> Outcome:
         )
         known.update(_labels(log.metadata.raw))
         if not semantics_for(job.params).analysed_frames(log):
-            raise AdsRcaError(f"{job.path}: no frame to analyse (no readable actors/ file)")
+            raise AdsRcaError(no_frame_message(job.path, log, job.source.source_format, job.bag))
         with loaded_objects_frozen():  # the loaded run, out of the collector's sight
             document = diagnose(log, job.params, None, workers=1).to_json()
             text = dumps_indented(document) + "\n"

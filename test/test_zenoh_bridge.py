@@ -298,7 +298,9 @@ def test_watch_started_before_a_rate_limited_replay_ends_with_every_frame_counte
     assert final["semantics"] == "corrected"
     for module in MODULES:
         failed = sum(bool(f[module]["failed"]) for f in offline["frames"])
-        assert final["modules"][module] == {"judged": frames, "failed_frames": failed}, module
+        counts = {k: final["modules"][module][k] for k in ("judged", "failed_frames")}
+        assert counts == {"judged": frames, "failed_frames": failed}, module
+        assert final["modules"][module]["state"] in ("ok", "failing", "skipped"), module
 
 
 def test_the_bridge_starts_from_its_config_file(ros_env: RosEnv) -> None:

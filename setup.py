@@ -29,7 +29,7 @@ setup(
     package_data={
         PACKAGE: [
             "py.typed",
-            "profiles/builtin/*.yaml",
+            "sources/bag/profiles/builtin/*.yaml",
             "synth/msgs/README.md",
             "synth/msgs/*/LICENSE",
             "synth/msgs/*/msg/*.msg",

@@ -16,10 +16,11 @@ import signal
 import sys
 from collections.abc import Sequence
 
-from ads_rca import __version__, quick_exit
+from ads_rca import __version__
 from ads_rca.commands import command_modules
 from ads_rca.errors import AdsRcaError
-from ads_rca.text import printable
+from ads_rca.foundation import quick_exit
+from ads_rca.foundation.text import printable
 
 
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:
@@ -63,7 +64,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def entry() -> None:
     """The ``ads-rca`` program: :func:`main`, then the end of the process (at once, when the
-    command kept what it loaded: :mod:`ads_rca.quick_exit`)."""
+    command kept what it loaded: :mod:`ads_rca.foundation.quick_exit`)."""
     quick_exit.allow()
     status = main()
     if quick_exit.requested():

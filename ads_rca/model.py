@@ -18,10 +18,10 @@ from typing import TYPE_CHECKING, Any, TypedDict, cast
 import numpy as np
 import numpy.typing as npt
 
-from ads_rca.ego_snapshots import EgoSnapshots
-from ads_rca.lanes import LaneGraph
+from ads_rca.foundation.text import short_repr
 from ads_rca.problems import ProblemLog
-from ads_rca.text import short_repr
+from ads_rca.sources.atmacup.snapshots import EgoSnapshots
+from ads_rca.sources.openlane.lanes import LaneGraph
 
 if TYPE_CHECKING:
     from typing import Unpack  # Python 3.11; annotations only (the package runs on 3.10)
@@ -431,7 +431,8 @@ class RunLog:
     lanes: dict[int, LaneGraph] = field(default_factory=dict)
     lanes_predicted: dict[int, LaneGraph] = field(default_factory=dict)
     #: A table of independent snapshots (atmaCup #18): each row's vehicle state, realised
-    #: and predicted future ego paths (``ads_rca.ego_snapshots``); None for other sources.
+    #: and predicted future ego paths (``ads_rca.sources.atmacup.snapshots``); None for other
+    # sources.
     ego_snapshots: EgoSnapshots | None = None
 
     @classmethod

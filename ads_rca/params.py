@@ -13,8 +13,8 @@ from dataclasses import dataclass, fields, replace
 from typing import Any, Literal
 
 from ads_rca.errors import ConfigError
+from ads_rca.foundation.text import short_repr
 from ads_rca.paramspec import SPECS, check_value
-from ads_rca.text import short_repr
 
 Semantics = Literal["reference", "corrected"]
 SEMANTICS: tuple[Semantics, ...] = ("reference", "corrected")

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ads_rca.errors import ConfigError
-from ads_rca.text import short_repr
+from ads_rca.foundation.text import short_repr
 
 
 @dataclass(frozen=True)

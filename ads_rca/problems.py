@@ -12,7 +12,7 @@ from collections.abc import Iterable, Iterator
 from dataclasses import asdict, dataclass
 from typing import Any, Literal
 
-from ads_rca.text import printable
+from ads_rca.foundation.text import printable
 
 Severity = Literal["error", "warning"]
 

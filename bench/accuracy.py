@@ -1,7 +1,8 @@
 """Attribution accuracy of the `corrected` semantics on synthesised closed-loop logs.
 
 For every scenario × fault over N seeds: synthesise a log, diagnose it with
-:func:`ads_rca.engine.diagnose` (corrected mode, exactly what ``ads-rca diagnose`` runs), and
+:func:`ads_rca.diagnosis.engine.diagnose` (corrected mode, exactly what ``ads-rca diagnose`` runs),
+and
 compare the primary root cause with the module of the injected fault its
 ``metadata.json["synthesis"]`` label names ("none" expects "no fault found"; a perception
 variant such as ``perception:shifted`` expects ``perception``). Prints the confusion table,
@@ -42,11 +43,12 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ads_rca.engine import diagnose as diagnose_log
+from ads_rca.diagnosis.engine import diagnose as diagnose_log
+from ads_rca.diagnosis.verdict import Attribution
 from ads_rca.errors import ConfigError
 from ads_rca.model import RunLog
 from ads_rca.params import Params, make_params
-from ads_rca.profiles.recording import read_recording
+from ads_rca.sources.bag.profiles.recording import read_recording
 from ads_rca.synth import (
     ALL_FAULTS,
     FAULTS,
@@ -59,7 +61,6 @@ from ads_rca.synth import (
 )
 from ads_rca.synth.noise import LEVELS
 from ads_rca.synth.recording import PROFILES, write_recording
-from ads_rca.verdict import Attribution
 
 #: A fault is named by its module, as the verdict names it.
 LABELS = list(FAULTS)

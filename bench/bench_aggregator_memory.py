@@ -23,7 +23,7 @@ from dataclasses import replace
 
 
 def one_run(frames: int, semantics: str) -> dict[str, float]:
-    from ads_rca.engine import diagnose
+    from ads_rca.diagnosis.engine import diagnose
     from ads_rca.live.aggregate import AggregatorCore
     from ads_rca.live.results import FrameMarker, LiveResult
     from ads_rca.params import make_params

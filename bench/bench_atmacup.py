@@ -2,7 +2,7 @@
 
     python bench/bench_atmacup.py [--rows 43371] [--dir out/bench_atmacup] [--rounds 3]
 
-A synthesised train table (ads_rca/synth/atmacup_tables.py ``big_table``: scenes of 40
+A synthesised train table (test/writers/atmacup_tables.py ``big_table``: scenes of 40
 rows, a green light on every other row, an empty list on the rest) of ``--rows`` rows is
 written to ``--dir`` with one traffic-light file per row, and a submission of every row.
 Each phase is timed in this process, the median of ``--rounds`` rounds:
@@ -31,17 +31,22 @@ from __future__ import annotations
 import argparse
 import shutil
 import statistics
+import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
 
-from ads_rca.engine import diagnose
-from ads_rca.io import open_run
-from ads_rca.io.formats import SourceOptions
+# The dataset writers live with the tests (not in the installed package).
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "test"))
+
+from writers.atmacup_tables import TRAIN, big_table, write_submission, write_table
+
+from ads_rca.diagnosis.engine import diagnose
 from ads_rca.model import RunLog
 from ads_rca.params import make_params
-from ads_rca.synth.atmacup_tables import TRAIN, big_table, write_submission, write_table
-from ads_rca.trajectory_scores import trajectory_scores
+from ads_rca.sources.atmacup.trajectory_scores import trajectory_scores
+from ads_rca.sources.formats import SourceOptions
+from ads_rca.sources.registry import open_run
 
 
 def timed(rounds: int, work: Callable[[], object]) -> float:

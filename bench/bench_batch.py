@@ -32,7 +32,7 @@ FAULTS = ("none", "perception", "prediction", "planning", "controller")
 
 def _make(args: tuple[int, int, str]) -> str:
     i, frames, root = args
-    from ads_rca.io.json_writer import write_run_log
+    from ads_rca.sources.log.writer import write_run_log
     from ads_rca.synth import synthesise
 
     scenario = SCENARIOS[i % len(SCENARIOS)]

@@ -28,9 +28,9 @@ def one_run(
     """Synthesise, write, load and diagnose one log (in this process)."""
     from bench_memory import write_frames_log
 
-    from ads_rca.engine import diagnose
-    from ads_rca.io.json_log import read_run_log
+    from ads_rca.diagnosis.engine import diagnose
     from ads_rca.params import make_params
+    from ads_rca.sources.log.reader import read_run_log
 
     write_frames_log(folder, frames, actors)
     start = time.perf_counter()

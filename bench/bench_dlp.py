@@ -2,13 +2,13 @@
 
     python bench/bench_dlp.py [--frames 10000 100000] [--agents 10] [--dir out/bench_dlp]
 
-For each size a synthesised scene (ads_rca/synth/dlp_scenes.py: the three scripted agents,
+For each size a synthesised scene (test/writers/dlp_scenes.py: the three scripted agents,
 ``--agents - 3`` more cars, one parked car) of N frames is written to ``--dir``, so it holds
 about N x agents instances. Each row is one process (its peak resident set from ``wait4``:
 the interpreter and libraries are counted):
 
 * ``stream``: ``open_run`` of the scene, the instances and frames files streamed
-  (ads_rca/io/json_stream.py) into typed arrays, then the per-frame model built;
+  (ads_rca/sources/json_stream.py) into typed arrays, then the per-frame model built;
 * ``json.load``: only ``json.load`` of the instances file, what reading it whole costs
   before any model is built (the naive way, for comparison).
 
@@ -30,10 +30,13 @@ import sys
 import time
 from pathlib import Path
 
-from ads_rca.synth.dlp_scenes import STEM, write_dlp_scene
+# The dataset writers live with the tests (not in the installed package).
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "test"))
+
+from writers.dlp_scenes import STEM, write_dlp_scene
 
 STREAM = (
-    "from ads_rca.io import open_run; import sys; log = open_run(sys.argv[1]); "
+    "from ads_rca.sources.registry import open_run; import sys; log = open_run(sys.argv[1]); "
     "print(len(log.frames))"
 )
 WHOLE = "import json, sys; d = json.load(open(sys.argv[1])); print(len(d))"

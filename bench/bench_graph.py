@@ -28,11 +28,11 @@ from typing import Any
 
 import numpy as np
 
-from ads_rca.io.json_writer import write_run_log
 from ads_rca.oracles.base import MODULES
 from ads_rca.params import make_params
 from ads_rca.ros.env import pick_domain_id, ros_environment
 from ads_rca.ros.graph import Graph, GraphSpec
+from ads_rca.sources.log.writer import write_run_log
 from ads_rca.synth import synthesise
 
 

@@ -15,8 +15,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from ads_rca.io.json_log import read_run_log
-from ads_rca.io.json_writer import write_run_log
+from ads_rca.sources.log.reader import read_run_log
+from ads_rca.sources.log.writer import write_run_log
 from ads_rca.synth import synthesise
 
 

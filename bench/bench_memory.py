@@ -28,8 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ads_rca.io.json_writer import write_run_log
 from ads_rca.model import Boxes, RunLog
+from ads_rca.sources.log.writer import write_run_log
 from ads_rca.synth import synthesise
 
 

@@ -29,10 +29,10 @@ from typing import Any
 
 from ads_rca.contract.playback import timeline
 from ads_rca.contract.topics import decode_record, frame_messages, frame_payloads
-from ads_rca.io.json_writer import write_run_log
 from ads_rca.model import RunLog
 from ads_rca.ros.env import pick_domain_id, ros_environment
 from ads_rca.ros.launcher import Launcher, node_command
+from ads_rca.sources.log.writer import write_run_log
 
 
 def make_log(frames: int, actors: int, seed: int) -> tuple[RunLog, str]:

@@ -22,11 +22,11 @@ from typing import Any
 
 from ads_rca.contract import rosmsg, topics
 from ads_rca.contract.assembler import RunLogAssembler
-from ads_rca.io.bag_reader import iter_bag
-from ads_rca.io.json_writer import write_run_log
-from ads_rca.io.mcap_writer import COMPRESSIONS, McapBagWriter
 from ads_rca.ros.env import pick_domain_id, ros_environment
 from ads_rca.ros.launcher import Launcher, node_command
+from ads_rca.sources.bag.mcap_writer import COMPRESSIONS, McapBagWriter
+from ads_rca.sources.bag.reader import iter_bag
+from ads_rca.sources.log.writer import write_run_log
 
 
 def record(log_dir: Path, bag: Path, work: Path, compression: str) -> dict[str, Any]:

@@ -14,10 +14,10 @@ import time
 from pathlib import Path
 
 import ads_rca
-from ads_rca.engine import diagnose
-from ads_rca.io import open_run
+from ads_rca.diagnosis.engine import diagnose
 from ads_rca.params import SEMANTICS, make_params
 from ads_rca.report.html import render
+from ads_rca.sources.registry import open_run
 
 EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "cut_in_perception"
 

@@ -20,9 +20,9 @@ from typing import Any
 
 import orjson
 
-from ads_rca.io.files import DEFAULT_MAX_FILE_MB, max_bytes, read_regular
-from ads_rca.io.json_log import kept_too_deep
-from ads_rca.io.json_writer import write_run_log
+from ads_rca.foundation.files import DEFAULT_MAX_FILE_MB, max_bytes, read_regular
+from ads_rca.sources.log.reader import kept_too_deep
+from ads_rca.sources.log.writer import write_run_log
 from ads_rca.synth import synthesise
 
 

@@ -30,7 +30,7 @@ from stackgraph import (
     same_verdict,
 )
 
-from ads_rca.engine import diagnose
+from ads_rca.diagnosis.engine import diagnose
 from ads_rca.params import make_params
 from ads_rca.ros.env import pick_domain_id, ros_environment
 from ads_rca.ros.launcher import ParamValue

@@ -23,8 +23,8 @@ from typing import Any
 
 from bench_memory import cruise_crashing_at_the_end
 
-from ads_rca.engine import diagnose
-from ads_rca.indented_json import write_indented
+from ads_rca.diagnosis.engine import diagnose
+from ads_rca.foundation.indented_json import write_indented
 from ads_rca.params import make_params
 
 WRITERS: dict[str, Callable[[Any, Any], None]] = {

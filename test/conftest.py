@@ -69,7 +69,7 @@ def log_dirs(tmp_path_factory: pytest.TempPathFactory) -> Callable[[str, str], P
     """Synthesised log folders by (scenario, fault), written once per session."""
     from test_live_window import synth
 
-    from ads_rca.io.json_writer import write_run_log
+    from ads_rca.sources.log.writer import write_run_log
 
     def get(scenario: str, fault: str) -> Path:
         key = (scenario, fault)

@@ -19,7 +19,7 @@ import numpy as np
 
 from ads_rca.contract import topics
 from ads_rca.contract.convert import message_stamp_ms
-from ads_rca.geometry import world_to_ego
+from ads_rca.foundation.geometry import world_to_ego
 from ads_rca.model import Actors, EgoPose, Track
 
 WAIT_S = 60.0

@@ -31,8 +31,8 @@ import sys
 import tempfile
 from pathlib import Path
 
-from ads_rca.io.json_writer import write_run_log
 from ads_rca.params import SEMANTICS
+from ads_rca.sources.log.writer import write_run_log
 from ads_rca.synth import FAULTS, SCENARIOS, synthesise
 
 ROOT = Path(__file__).resolve().parent.parent

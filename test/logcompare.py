@@ -14,7 +14,6 @@ from typing import TypeVar
 import numpy as np
 import numpy.typing as npt
 
-from ads_rca.lanes import LaneGraph
 from ads_rca.model import (
     ALL_FOLDERS,
     Actors,
@@ -26,6 +25,7 @@ from ads_rca.model import (
     Predictions,
     RunLog,
 )
+from ads_rca.sources.openlane.lanes import LaneGraph
 
 R = TypeVar("R")
 

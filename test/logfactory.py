@@ -13,7 +13,6 @@ import zlib
 
 import numpy as np
 
-from ads_rca.lanes import LaneGraph
 from ads_rca.model import (
     Actors,
     Boxes,
@@ -25,6 +24,7 @@ from ads_rca.model import (
     RunMetadata,
     Track,
 )
+from ads_rca.sources.openlane.lanes import LaneGraph
 
 TPF = 50
 

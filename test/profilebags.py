@@ -20,7 +20,7 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
 from ads_rca.contract.errors import MalformedMessage
-from ads_rca.io.bag_storage import BagMessage
+from ads_rca.sources.bag.storage import BagMessage
 
 MSGS = Path(__file__).resolve().parents[1] / "ads_rca" / "synth" / "msgs"
 _NUMPY = {

@@ -18,11 +18,11 @@ import time
 from pathlib import Path
 
 from ads_rca.contract.jsontext import dumps_json
-from ads_rca.io.json_log import read_run_log
 from ads_rca.live.simulate import run_live
 from ads_rca.params import make_params
 from ads_rca.remote.publisher import ZenohPublisher
 from ads_rca.remote.state import RemoteState
+from ads_rca.sources.log.reader import read_run_log
 
 
 def main() -> int:

@@ -238,7 +238,7 @@ def load_run(settings: Settings) -> RunLog:
         from ads_rca.synth import synthesise
 
         return synthesise(*settings.synth)
-    from ads_rca.io import open_run
+    from ads_rca.sources.registry import open_run
 
     assert settings.log is not None
     return open_run(settings.log)
@@ -450,7 +450,7 @@ def _wait_for_subscribers(pubs: dict[str, Any], needed: dict[str, int], clock: i
 
 
 def main(argv: Sequence[str]) -> int:
-    from ads_rca.text import printable
+    from ads_rca.foundation.text import printable
 
     try:
         settings = parse_args(argv)

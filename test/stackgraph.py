@@ -15,7 +15,7 @@ from typing import Any
 from golden_outputs import first_difference as _first_difference
 
 from ads_rca.contract.jsontext import dumps_json, loads_json
-from ads_rca.engine import Diagnosis, diagnose
+from ads_rca.diagnosis.engine import Diagnosis, diagnose
 from ads_rca.live.results import LiveResult, plain
 from ads_rca.model import RunLog
 from ads_rca.params import make_params

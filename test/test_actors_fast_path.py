@@ -16,11 +16,11 @@ import numpy as np
 import pytest
 from logcompare import assert_logs_equal
 
-from ads_rca.io.json_log import read_run_log
-from ads_rca.io.json_writer import write_run_log
-from ads_rca.io.records import _actors_fast, _clean, parse_actors
 from ads_rca.model import Actors
 from ads_rca.problems import ProblemLog
+from ads_rca.sources.log.reader import read_run_log
+from ads_rca.sources.log.records import _actors_fast, _clean, parse_actors
+from ads_rca.sources.log.writer import write_run_log
 from ads_rca.synth import synthesise
 
 

@@ -75,7 +75,7 @@ def test_competing_pairs_load_the_solver_alone() -> None:
     matched, modules, later = done.stdout.strip().splitlines()
     gts = np.array([[0, 0, 10, 10], [1, 0, 11, 10], [2, 0, 12, 10]], float)
     dets = np.array([[0.5, 0, 10.5, 10], [1.5, 0, 11.5, 10]], float)
-    from ads_rca.geometry import axis_aligned_iou
+    from ads_rca.foundation.geometry import axis_aligned_iou
 
     iou = axis_aligned_iou(dets, gts)
     want = scipy_matching(iou >= 0.5, iou)

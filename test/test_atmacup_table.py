@@ -1,5 +1,5 @@
 """atmaCup #18 tables (seed 003, issue #20): every field of the synthesised rows
-(ads_rca/synth/atmacup_tables.py) as worked out by hand, the mirrored paths, traffic lights
+(test/writers/atmacup_tables.py) as worked out by hand, the mirrored paths, traffic lights
 (empty and not), the capability record, a submission's scores computed by hand (order- and
 ID-matched), hostile tables, traffic-light files and submissions, format detection, and
 ``ads-rca diagnose`` printing the scores.
@@ -17,25 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pytest
-
-from ads_rca.contract import topics
-from ads_rca.contract.ego_paths import (
-    ego_path_document,
-    merged,
-    read_ego_path,
-    snapshots_from_rows,
-)
-from ads_rca.contract.errors import MalformedMessage
-from ads_rca.contract.jsontext import dumps_json, loads_json
-from ads_rca.engine import diagnose
-from ads_rca.errors import InputError
-from ads_rca.io import open_run
-from ads_rca.io.atmacup_table import read_atmacup_table
-from ads_rca.io.formats import ATMACUP, LOG, SourceOptions, detect_format
-from ads_rca.model import RunLog
-from ads_rca.params import make_params
-from ads_rca.ros.launcher import ManagedProcess
-from ads_rca.synth.atmacup_tables import (
+from writers.atmacup_tables import (
     LIGHTS,
     ROWS,
     SCENE_A,
@@ -46,7 +28,25 @@ from ads_rca.synth.atmacup_tables import (
     write_submission,
     write_table,
 )
-from ads_rca.trajectory_scores import TRAJECTORY_SCORES_KEY, trajectory_scores
+
+from ads_rca.contract import topics
+from ads_rca.contract.ego_paths import (
+    ego_path_document,
+    merged,
+    read_ego_path,
+    snapshots_from_rows,
+)
+from ads_rca.contract.errors import MalformedMessage
+from ads_rca.contract.jsontext import dumps_json, loads_json
+from ads_rca.diagnosis.engine import diagnose
+from ads_rca.errors import InputError
+from ads_rca.model import RunLog
+from ads_rca.params import make_params
+from ads_rca.ros.launcher import ManagedProcess
+from ads_rca.sources.atmacup.reader import read_atmacup_table
+from ads_rca.sources.atmacup.trajectory_scores import TRAJECTORY_SCORES_KEY, trajectory_scores
+from ads_rca.sources.formats import ATMACUP, LOG, SourceOptions, detect_format
+from ads_rca.sources.registry import open_run
 
 if TYPE_CHECKING:
     from conftest import RosEnv
@@ -448,7 +448,7 @@ def test_format_detection_by_names(tmp_path: Path) -> None:
 
 
 def test_submission_elsewhere_is_one_line(tmp_path: Path) -> None:
-    from ads_rca.synth.carla_runs import write_carla_run
+    from writers.carla_runs import write_carla_run
 
     sub = write_submission(tmp_path / "sub.csv", hand_paths())
     done = run("diagnose", str(write_carla_run(tmp_path / "run")), "--submission", str(sub))
@@ -474,7 +474,7 @@ def test_diagnose_prints_the_scores_and_writes_them_in_the_json(table: Path) -> 
 
 def test_a_batch_job_diagnoses_a_table_and_names_its_format(table: Path) -> None:
     from ads_rca.batch.work import Job, run_job
-    from ads_rca.io.bag_options import BagOptions
+    from ads_rca.sources.bag.options import BagOptions
 
     job = Job("t1", str(table), make_params("corrected"), 64.0, BagOptions(), 60.0)
     outcome = run_job(job)

@@ -20,9 +20,9 @@ from typing import TYPE_CHECKING, Any
 import yaml
 from mcap.reader import make_reader
 
-from ads_rca.io.mcap_writer import BAG_VERSION, TYPES_DISTRO, McapBagWriter
 from ads_rca.ros.env import ros_distro
 from ads_rca.ros.launcher import Launcher, ParamValue, node_command
+from ads_rca.sources.bag.mcap_writer import BAG_VERSION, TYPES_DISTRO, McapBagWriter
 
 if TYPE_CHECKING:
     from conftest import RosEnv

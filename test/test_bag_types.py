@@ -18,9 +18,9 @@ from rosbags.typesys.store import Typestore
 
 from ads_rca.contract.errors import MalformedMessage
 from ads_rca.errors import InputError
-from ads_rca.io.bag_reader import load_bag
-from ads_rca.io.bag_storage import MAX_DEFINITION_BYTES
-from ads_rca.io.bag_types import MAX_NESTING, BagTypes
+from ads_rca.sources.bag.message_types import MAX_NESTING, BagTypes
+from ads_rca.sources.bag.reader import load_bag
+from ads_rca.sources.bag.storage import MAX_DEFINITION_BYTES
 
 SYNTH_MSGS = Path(__file__).resolve().parents[1] / "ads_rca" / "synth" / "msgs"
 DETECTED = "autoware_perception_msgs/msg/DetectedObjects"

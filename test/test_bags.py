@@ -17,12 +17,12 @@ from ads_rca.cli import main as cli
 from ads_rca.contract import rosmsg, topics
 from ads_rca.contract.playback import metadata_message
 from ads_rca.contract.topics import frame_messages
-from ads_rca.io import open_run
-from ads_rca.io.bag_reader import is_bag, iter_mcap_stream, read_bag
-from ads_rca.io.bag_writer import contract_qos_yaml, playback_messages, write_bag
-from ads_rca.io.json_log import read_run_log
-from ads_rca.io.json_writer import write_run_log
-from ads_rca.io.mcap_writer import McapBagWriter
+from ads_rca.sources.bag.mcap_writer import McapBagWriter
+from ads_rca.sources.bag.reader import is_bag, iter_mcap_stream, read_bag
+from ads_rca.sources.bag.writer import contract_qos_yaml, playback_messages, write_bag
+from ads_rca.sources.log.reader import read_run_log
+from ads_rca.sources.log.writer import write_run_log
+from ads_rca.sources.registry import open_run
 
 if TYPE_CHECKING:
     from conftest import RosEnv
@@ -72,7 +72,7 @@ def test_a_bag_keeps_the_logs_reader_problems(tmp_path: Path) -> None:
     """Values the reader read as NaN stay reported in the bag, so it is judged the same."""
     from test_live_window import write_log_with_unreadable_values
 
-    from ads_rca.engine import diagnose
+    from ads_rca.diagnosis.engine import diagnose
     from ads_rca.params import make_params
 
     log_dir = write_log_with_unreadable_values(tmp_path / "log")

@@ -28,7 +28,7 @@ from ads_rca.batch.inputs import run_id
 from ads_rca.batch.rows import COLUMNS
 from ads_rca.batch.store import read_csv, read_parquet
 from ads_rca.cli import main
-from ads_rca.io.json_writer import write_run_log
+from ads_rca.sources.log.writer import write_run_log
 from ads_rca.synth import synthesise
 
 pytest.importorskip("distributed")

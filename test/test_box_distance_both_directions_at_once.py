@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ads_rca.geometry import FloatArray, box_signed_distance
+from ads_rca.foundation.geometry import FloatArray, box_signed_distance
 
 #: The four vertices' signs along each box axis.
 _SX = np.array([[1.0], [-1.0], [-1.0], [1.0]])

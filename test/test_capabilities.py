@@ -10,11 +10,11 @@ from ads_rca.capabilities import (
     recorded,
     statuses_to_document,
 )
-from ads_rca.engine import diagnose
+from ads_rca.diagnosis.engine import diagnose
+from ads_rca.diagnosis.summary import summary_text
 from ads_rca.model import InputStatus, read_inputs
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import Params
-from ads_rca.summary import summary_text
 from ads_rca.synth import synthesise
 
 

@@ -1,5 +1,5 @@
 """CARLA experiment-client runs (seed 001, issue #19): every field mapped as worked out by
-hand on the synthesised straight-road scene (ads_rca/synth/carla_runs.py), both telemetry
+hand on the synthesised straight-road scene (test/writers/carla_runs.py), both telemetry
 schema versions and the CSV, the capability record, annotations, the run's own figures, the
 format choice, hostile files, and the live graph (a real replay over DDS: the same verdict
 as diagnose, the annotation on its topic, the modules without data STALE).
@@ -18,18 +18,18 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pytest
+from writers.carla_runs import write_carla_run
 
-from ads_rca.annotations import MAX_TEXT, annotations_from_document
-from ads_rca.engine import diagnose
+from ads_rca.diagnosis.engine import diagnose
+from ads_rca.diagnosis.summary import summary_text
 from ads_rca.errors import InputError
-from ads_rca.io import open_run
-from ads_rca.io.carla_run import read_carla_run
-from ads_rca.io.formats import detect_format
 from ads_rca.params import make_params
 from ads_rca.ros.launcher import ManagedProcess
-from ads_rca.run_figures import ActorRows, EgoTrack, run_figures, world_velocity
-from ads_rca.summary import summary_text
-from ads_rca.synth.carla_runs import write_carla_run
+from ads_rca.sources.carla.annotations import MAX_TEXT, annotations_from_document
+from ads_rca.sources.carla.figures import ActorRows, EgoTrack, run_figures, world_velocity
+from ads_rca.sources.carla.reader import read_carla_run
+from ads_rca.sources.formats import detect_format
+from ads_rca.sources.registry import open_run
 
 if TYPE_CHECKING:
     from conftest import RosEnv
@@ -514,8 +514,8 @@ def test_replay_of_a_carla_run_equals_diagnose_with_its_annotation_and_no_data(
 
 def test_a_batch_job_diagnoses_a_carla_run_and_names_its_format(tmp_path: Path) -> None:
     from ads_rca.batch.work import Job, run_job
-    from ads_rca.io.bag_options import BagOptions
-    from ads_rca.io.formats import SourceOptions
+    from ads_rca.sources.bag.options import BagOptions
+    from ads_rca.sources.formats import SourceOptions
 
     root = write_carla_run(tmp_path / "run", lead_gap_m=6.0)
     params = make_params("corrected")

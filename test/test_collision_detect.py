@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from ads_rca.errors import ConfigError
-from ads_rca.geometry import box_signed_distance
+from ads_rca.foundation.geometry import box_signed_distance
 from ads_rca.live.collision_detect import Collision, CollisionDetector, detect_collisions
 from ads_rca.model import Actors, EgoPose
 from ads_rca.synth import FAULTS, SCENARIOS, synthesise_run

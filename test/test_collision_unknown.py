@@ -19,9 +19,9 @@ from typing import TYPE_CHECKING, Any
 
 import pytest
 
-from ads_rca.io.json_writer import write_run_log
-from ads_rca.profiles.profile import builtin_path
 from ads_rca.ros.launcher import ManagedProcess
+from ads_rca.sources.bag.profiles.profile import builtin_path
+from ads_rca.sources.log.writer import write_run_log
 from ads_rca.synth import synthesise
 from ads_rca.synth.recording import write_recording
 

@@ -14,15 +14,15 @@ from typing import Any
 
 import pytest
 
-from ads_rca.conclusion import conclude
-from ads_rca.engine import diagnose
+from ads_rca.diagnosis.conclusion import conclude
+from ads_rca.diagnosis.engine import diagnose
+from ads_rca.diagnosis.summary import summary_text
+from ads_rca.diagnosis.verdict import MODULES
 from ads_rca.live import diagnostics as diag
 from ads_rca.model import InputStatus, RunLog
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import make_params
-from ads_rca.summary import summary_text
 from ads_rca.synth import synthesise
-from ads_rca.verdict import MODULES
 
 MODES = ("reference", "corrected")
 

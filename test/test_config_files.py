@@ -9,7 +9,7 @@ from typing import Any
 
 import pytest
 
-from ads_rca.io.yaml_files import load_config
+from ads_rca.foundation.yaml_files import load_config
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import SEMANTICS, make_params
 

@@ -9,7 +9,7 @@ import random
 
 import numpy as np
 
-from ads_rca.geometry import world_to_ego
+from ads_rca.foundation.geometry import world_to_ego
 from ads_rca.model import EgoPose, Plan, RunLog, RunMetadata
 from ads_rca.oracles.base import RunContext
 from ads_rca.oracles.corrected.context import corrected_context

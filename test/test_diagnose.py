@@ -11,13 +11,13 @@ from typing import Any
 
 import pytest
 
-from ads_rca.engine import diagnose
-from ads_rca.io.json_writer import write_run_log
+from ads_rca.diagnosis.engine import diagnose
+from ads_rca.diagnosis.verdict import NO_COLLISION, NO_MODULE_FAILED
 from ads_rca.oracles.base import MODULES
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import make_params
+from ads_rca.sources.log.writer import write_run_log
 from ads_rca.synth import FAULTS, SCENARIOS, synthesise
-from ads_rca.verdict import NO_COLLISION, NO_MODULE_FAILED
 
 EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "cut_in_perception"
 CRASH_SCENARIOS = [s for s in SCENARIOS if s != "cruise"]
@@ -168,7 +168,7 @@ def test_judging_in_worker_processes_gives_the_same_diagnosis(
     log_dir = write_run_log(log, tmp_path / "log")
     (log_dir / "pose" / "pose-5000.json").write_text("{")  # a problem found while judging
     (log_dir / "waypoint" / "waypoints-9000.json").unlink()
-    from ads_rca.io.json_log import read_run_log
+    from ads_rca.sources.log.reader import read_run_log
 
     params = make_params(semantics)
     alone = diagnose(read_run_log(log_dir), params).to_json()

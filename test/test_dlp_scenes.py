@@ -1,5 +1,5 @@
 """Dragon Lake Parking scenes (seed 002, issue #19): every field of the synthesised scene
-(ads_rca/synth/dlp_scenes.py) as worked out by hand, mirrored headings, the reversing car's
+(test/writers/dlp_scenes.py) as worked out by hand, mirrored headings, the reversing car's
 signed speed, the ego's choice, timestamps along the linked list, the capability record,
 streaming, hostile files (a broken or looping list, missing and cut files, bad instances),
 and a real replay over DDS equal to diagnose.
@@ -16,16 +16,16 @@ from typing import TYPE_CHECKING, Any
 import dlp_predictor
 import numpy as np
 import pytest
+from writers.dlp_scenes import STEM, frame_token, scene_agents, write_dlp_scene
+from writers.predictor_files import write_predictions
 
-from ads_rca.engine import diagnose
+from ads_rca.diagnosis.engine import diagnose
 from ads_rca.errors import InputError
-from ads_rca.io import open_run
-from ads_rca.io.dlp_scene import read_dlp_scene
-from ads_rca.io.formats import SourceOptions, detect_format
 from ads_rca.params import make_params
 from ads_rca.ros.launcher import ManagedProcess
-from ads_rca.synth.dlp_scenes import STEM, frame_token, scene_agents, write_dlp_scene
-from ads_rca.synth.predictor_files import write_predictions
+from ads_rca.sources.dlp.reader import read_dlp_scene
+from ads_rca.sources.formats import SourceOptions, detect_format
+from ads_rca.sources.registry import open_run
 
 if TYPE_CHECKING:
     from conftest import RosEnv
@@ -246,7 +246,7 @@ def test_an_unusable_scene_is_one_line(scene: Path, damage: str, expected: str) 
 
 
 def test_ego_agent_elsewhere_is_one_line(tmp_path: Path) -> None:
-    from ads_rca.synth.carla_runs import write_carla_run
+    from writers.carla_runs import write_carla_run
 
     done = run("diagnose", str(write_carla_run(tmp_path / "run")), "--ego-agent", "1")
     assert done.returncode == 2 and "ego_agent applies to DLP scenes" in done.stderr
@@ -493,7 +493,7 @@ def test_convert_writes_a_scene_as_a_bag_that_diagnoses_the_same(
 
 def test_a_batch_job_diagnoses_a_scene_and_names_its_format(scene: Path) -> None:
     from ads_rca.batch.work import Job, run_job
-    from ads_rca.io.bag_options import BagOptions
+    from ads_rca.sources.bag.options import BagOptions
 
     job = Job("s1", str(scene), make_params("corrected"), 64.0, BagOptions(), 60.0)
     outcome = run_job(job)

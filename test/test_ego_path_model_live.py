@@ -14,10 +14,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import pytest
+from writers.atmacup_tables import ROWS, write_table
 
 from ads_rca.ros.launcher import ManagedProcess
-from ads_rca.synth.atmacup_tables import ROWS, write_table
-from ads_rca.trajectory_scores import TRAJECTORY_SCORES_KEY
+from ads_rca.sources.atmacup.trajectory_scores import TRAJECTORY_SCORES_KEY
 
 if TYPE_CHECKING:
     from conftest import RosEnv
@@ -64,9 +64,9 @@ def replay_beside(
     """The graph (recorder, aggregator, monitors, player) playing the table (no submission:
     the player's rows carry no predicted path), its player waiting for the test model too;
     the model, the bag and the verdict JSON."""
-    from ads_rca.io.formats import SourceOptions
     from ads_rca.params import make_params
     from ads_rca.ros.graph import Graph, GraphSpec
+    from ads_rca.sources.formats import SourceOptions
 
     table = tmp_path / "data"
     write_table(table)

@@ -38,10 +38,10 @@ from ads_rca.contract.errors import (
     UnknownTopic,
 )
 from ads_rca.errors import AdsRcaError, ConfigError, InputError
-from ads_rca.io.errors import InvalidJson, OutputExists
-from ads_rca.io.json_log import decode_json, read_run_log
-from ads_rca.io.mcap_writer import McapBagWriter
 from ads_rca.live.results import FrameMarker, LiveResult
+from ads_rca.sources.bag.mcap_writer import McapBagWriter
+from ads_rca.sources.errors import InvalidJson, OutputExists
+from ads_rca.sources.log.reader import decode_json, read_run_log
 
 PACKAGE = Path(ads_rca.__file__).resolve().parent
 ROOT = PACKAGE.parent

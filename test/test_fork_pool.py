@@ -1,4 +1,4 @@
-"""The forked map (:func:`ads_rca.workers.map_forked`) with real forks: results in order
+"""The forked map (:func:`ads_rca.foundation.workers.map_forked`) with real forks: results in order
 whatever the items cost, a worker's exception raised in the parent, a dead worker an error
 rather than a hang, workers killed and reaped when the caller stops early, no descriptor
 left open, large results whole."""
@@ -17,7 +17,7 @@ from types import FrameType
 import pytest
 
 from ads_rca.errors import InputError
-from ads_rca.workers import WorkerTraceback, can_fork, map_forked
+from ads_rca.foundation.workers import WorkerTraceback, can_fork, map_forked
 
 # Not can_fork(): the suite's ROS tests load rclpy into this process, and the map itself
 # forks wherever it is asked to (its callers ask can_fork() first).
@@ -246,7 +246,7 @@ def test_buffered_output_is_written_once_and_nothing_is_imported_for_the_pool() 
     concurrent.futures (each costs milliseconds to import)."""
     code = (
         "import sys\n"
-        "from ads_rca.workers import can_fork, map_forked\n"
+        "from ads_rca.foundation.workers import can_fork, map_forked\n"
         "def square(n): return n * n\n"
         "print('before', end='')\n"
         "assert can_fork() and list(map_forked(square, range(4), 2)) == [0, 1, 4, 9]\n"

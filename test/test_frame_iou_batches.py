@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ads_rca.geometry import axis_aligned_iou, axis_aligned_ious
+from ads_rca.foundation.geometry import axis_aligned_iou, axis_aligned_ious
 from ads_rca.model import Boxes, RunLog, RunMetadata
 from ads_rca.oracles.base import RunContext
 from ads_rca.oracles.corrected.context import CorrectedContext, corrected_context

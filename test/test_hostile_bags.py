@@ -24,10 +24,10 @@ from test_recorder import start_player, start_recorder
 from ads_rca.cli import main as cli
 from ads_rca.contract import topics
 from ads_rca.errors import InputError
-from ads_rca.io.bag_reader import iter_mcap_stream, load_bag, read_bag
-from ads_rca.io.mcap_writer import McapBagWriter
 from ads_rca.model import RunLog
 from ads_rca.ros.launcher import Launcher
+from ads_rca.sources.bag.mcap_writer import McapBagWriter
+from ads_rca.sources.bag.reader import iter_mcap_stream, load_bag, read_bag
 
 if TYPE_CHECKING:
     from conftest import RosEnv

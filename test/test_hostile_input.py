@@ -25,8 +25,8 @@ from typing import TYPE_CHECKING, Any
 
 import pytest
 
-from ads_rca.io.json_writer import write_run_log
 from ads_rca.model import MAX_FRAME
+from ads_rca.sources.log.writer import write_run_log
 from ads_rca.synth import synthesise
 
 if TYPE_CHECKING:
@@ -233,7 +233,7 @@ def test_a_box_extra_nested_at_the_kept_limit_is_judged_by_depth_not_by_brackets
     MAX_KEPT_DEPTH (200) brackets. An extra nested 199 levels inside a box inside the list
     is a document 201 deep: its fewest brackets are 1 + 1 + 199 = 201, walked and reported;
     198 levels (1 + 1 + 198 = 200 brackets, not walked) is within the limit either way."""
-    from ads_rca.io.json_log import MAX_KEPT_DEPTH, read_run_log
+    from ads_rca.sources.log.reader import MAX_KEPT_DEPTH, read_run_log
 
     assert MAX_KEPT_DEPTH == 200
     target = _one(log_dir / "bboxes")
@@ -621,7 +621,7 @@ def test_ids_and_field_values_from_a_log_are_escaped(log_dir: Path) -> None:
 
 
 def test_printable_escapes_every_control_and_keeps_text() -> None:
-    from ads_rca.text import printable
+    from ads_rca.foundation.text import printable
 
     assert printable("a\nb\r\t\x00\x7f\x85\x9b") == "a\\x0ab\\x0d\\x09\\x00\\x7f\\x85\\x9b"
     assert printable("\u2028\u2029\u202e\u2066\u200f") == "\\u2028\\u2029\\u202e\\u2066\\u200f"

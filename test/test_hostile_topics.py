@@ -36,12 +36,12 @@ from ads_rca.contract.errors import CdrError, JsonTextError, MalformedMessage, N
 from ads_rca.contract.jsontext import loads_json
 from ads_rca.contract.malformed import SkippedMessages
 from ads_rca.errors import InputError
-from ads_rca.io.bag_reader import iter_mcap_stream, read_bag
-from ads_rca.io.json_log import read_run_log
-from ads_rca.io.mcap_writer import McapBagWriter
 from ads_rca.live import diagnostics as diag
 from ads_rca.ros.graph import GROUP, MONITORS
 from ads_rca.ros.launcher import ManagedProcess, ParamValue, ros_args
+from ads_rca.sources.bag.mcap_writer import McapBagWriter
+from ads_rca.sources.bag.reader import iter_mcap_stream, read_bag
+from ads_rca.sources.log.reader import read_run_log
 
 if TYPE_CHECKING:
     from conftest import RosEnv
@@ -623,7 +623,7 @@ def test_a_log_with_an_absurd_collision_frame_replays_to_diagnoses_verdict(
     die on it (OverflowError in its result callback) and the replay gave no verdict."""
     from test_live_window import assert_close, failed_flags, verdict_keys
 
-    from ads_rca.engine import diagnose
+    from ads_rca.diagnosis.engine import diagnose
     from ads_rca.params import make_params
 
     log_dir = Path(shutil.copytree(EXAMPLE, tmp_path / "log"))
@@ -646,8 +646,9 @@ def test_a_log_with_an_absurd_collision_frame_replays_to_diagnoses_verdict(
 
 def _lane_markers(tmp_path: Path) -> Any:
     """A synthesised OpenLane-V2 segment's first ground-truth lane graph as a MarkerArray."""
-    from ads_rca.io import open_run
-    from ads_rca.synth.openlane_segments import write_openlane_segment
+    from writers.openlane_segments import write_openlane_segment
+
+    from ads_rca.sources.registry import open_run
 
     log = open_run(write_openlane_segment(tmp_path))
     data = topics.frame_payloads(log, log.frames[0])[topics.LANES]

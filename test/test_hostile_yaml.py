@@ -18,8 +18,8 @@ from pathlib import Path
 import pytest
 
 from ads_rca.errors import ConfigError
-from ads_rca.profiles.profile import load_profile
-from ads_rca.text import short_repr
+from ads_rca.foundation.text import short_repr
+from ads_rca.sources.bag.profiles.profile import load_profile
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "cut_in_perception"
 #: A billion-laughs value: nine levels of nine aliases of the level below.

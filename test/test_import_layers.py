@@ -1,6 +1,6 @@
 """The layers import downwards only: the pure packages load no ROS (issue #13 item 1).
 
-``contract/`` (topic table, conversion, CDR codec, playback, assembler), ``io/``, ``live/``,
+``contract/`` (topic table, conversion, CDR codec, playback, assembler), ``sources/``, ``live/``,
 the oracles and the engine must work where no ROS runtime is installed or wanted (offline
 diagnosis, bag conversion, simulation). Checks: importing every module of those packages
 in a fresh interpreter loads no rclpy or message package; none of them names
@@ -26,33 +26,29 @@ PACKAGE = Path(ads_rca.__file__).resolve().parent
 #: The layers, bottom first: a module may import its own layer's modules and lower layers'
 #: only. Entries are module names or packages (a package holds all its submodules).
 LAYERS: tuple[tuple[str, ...], ...] = (
-    (
-        "ads_rca",
-        "ads_rca.errors",
-        "ads_rca.text",
-        "ads_rca.strictjson",
-        "ads_rca.indented_json",
-        "ads_rca.geometry",
-        "ads_rca.progress",
-        "ads_rca.workers",
-        "ads_rca.quick_exit",
-    ),
+    ("ads_rca", "ads_rca.errors", "ads_rca.foundation"),
     ("ads_rca.problems", "ads_rca.paramspec", "ads_rca.params"),
-    ("ads_rca.model", "ads_rca.lanes", "ads_rca.ego_snapshots"),
+    ("ads_rca.model", "ads_rca.sources.openlane.lanes", "ads_rca.sources.atmacup.snapshots"),
     (
-        "ads_rca.verdict",
+        "ads_rca.diagnosis",
+        "ads_rca.diagnosis.verdict",
         "ads_rca.capabilities",
-        "ads_rca.annotations",
-        "ads_rca.run_figures",
-        "ads_rca.prediction_scores",
-        "ads_rca.openlane_scores",
-        "ads_rca.openlane_run_scores",
-        "ads_rca.trajectory_scores",
+        "ads_rca.sources.carla.annotations",
+        "ads_rca.sources.carla.figures",
+        "ads_rca.sources.predictor.scores",
+        "ads_rca.sources.openlane.scores",
+        "ads_rca.sources.openlane.run_scores",
+        "ads_rca.sources.atmacup.trajectory_scores",
     ),
     ("ads_rca.contract",),
-    ("ads_rca.io", "ads_rca.synth", "ads_rca.profiles"),
+    ("ads_rca.sources", "ads_rca.synth"),
     ("ads_rca.oracles",),
-    ("ads_rca.conclusion", "ads_rca.engine", "ads_rca.summary", "ads_rca.compare"),
+    (
+        "ads_rca.diagnosis.conclusion",
+        "ads_rca.diagnosis.engine",
+        "ads_rca.diagnosis.summary",
+        "ads_rca.diagnosis.compare",
+    ),
     ("ads_rca.live", "ads_rca.report"),
     ("ads_rca.remote", "ads_rca.batch"),
     ("ads_rca.ros",),
@@ -88,8 +84,8 @@ print(json.dumps({{"imported": names, "loaded": sorted(sys.modules)}}))
 
 
 def _pure_files() -> list[Path]:
-    files = [PACKAGE / "engine.py"]
-    for sub in ("contract", "io", "live", "oracles", "profiles"):
+    files = [PACKAGE / "diagnosis/engine.py"]
+    for sub in ("foundation", "diagnosis", "contract", "sources", "live", "oracles"):
         files.extend(sorted((PACKAGE / sub).rglob("*.py")))
     return files
 
@@ -104,7 +100,7 @@ def test_pure_packages_load_no_ros_module() -> None:
     )
     result = json.loads(out.stdout)
     assert "ads_rca.contract.cdr" in result["imported"]  # the walk reached the submodules
-    assert "ads_rca.io.bag_reader" in result["imported"]
+    assert "ads_rca.sources.bag.reader" in result["imported"]
     ros = [m for m in result["loaded"] if m.split(".")[0] in ROS_MODULES]
     assert ros == []
 

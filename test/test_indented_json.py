@@ -12,7 +12,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ads_rca.indented_json import dumps_indented, iter_indented, write_indented
+from ads_rca.foundation.indented_json import dumps_indented, iter_indented, write_indented
 
 
 def json_module(document: Any) -> str:
@@ -163,8 +163,8 @@ def test_a_list_rendered_part_by_part_is_the_whole_documents_text(
     """A top-level list made strict and written part by part as its items come (a verdict's
     frames as their slices come back): the document's text and its non-finite pointers,
     in order, are those of the document with the whole list in place."""
-    from ads_rca.indented_json import RenderedList
-    from ads_rca.strictjson import to_strict
+    from ads_rca.foundation.indented_json import RenderedList
+    from ads_rca.foundation.strictjson import to_strict
 
     rendered = RenderedList("frames")
     start = 0

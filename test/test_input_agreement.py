@@ -21,9 +21,9 @@ from typing import TYPE_CHECKING
 
 import pytest
 
-from ads_rca.io.json_log import read_run_log
-from ads_rca.io.json_writer import write_run_log
 from ads_rca.ros.launcher import ManagedProcess
+from ads_rca.sources.log.reader import read_run_log
+from ads_rca.sources.log.writer import write_run_log
 from ads_rca.synth import synthesise
 from ads_rca.synth.recording import write_recording
 
@@ -76,8 +76,8 @@ def test_a_bag_read_through_a_profile_without_frames_names_its_actors_input(
 
 def test_a_batch_row_names_the_profile_s_actors_input_too(ego_only_bag: tuple[Path, Path]) -> None:
     from ads_rca.batch.work import Job, run_job
-    from ads_rca.io.bag_options import BagOptions
     from ads_rca.params import make_params
+    from ads_rca.sources.bag.options import BagOptions
 
     bag, profile = ego_only_bag
     options = BagOptions(str(profile))

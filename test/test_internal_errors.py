@@ -24,15 +24,15 @@ from typing import TYPE_CHECKING, Any
 
 import pytest
 
-from ads_rca.engine import PARALLEL_MIN_FRAMES
+from ads_rca.diagnosis.engine import PARALLEL_MIN_FRAMES
+from ads_rca.diagnosis.verdict import OracleResult
 from ads_rca.errors import EXIT_INTERNAL_ERROR
-from ads_rca.io.json_writer import write_run_log
 from ads_rca.live import diagnostics as diag
 from ads_rca.live.results import LiveResult
 from ads_rca.oracles.base import MODULES
 from ads_rca.ros.launcher import ManagedProcess
+from ads_rca.sources.log.writer import write_run_log
 from ads_rca.synth import synthesise
-from ads_rca.verdict import OracleResult
 
 if TYPE_CHECKING:
     from collections.abc import Callable

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ads_rca.geometry import axis_aligned_iou
+from ads_rca.foundation.geometry import axis_aligned_iou
 
 
 def where_form(a: np.ndarray, b: np.ndarray) -> np.ndarray:

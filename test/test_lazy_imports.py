@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from ads_rca.io.json_writer import write_run_log
+from ads_rca.sources.log.writer import write_run_log
 from ads_rca.synth import synthesise
 
 #: Top-level packages a diagnose of a log folder never needs.
@@ -57,7 +57,7 @@ def test_a_batch_child_imports_nothing_the_worker_did_not(tmp_path: Path) -> Non
     code = (
         "import json, sys\n"
         "from ads_rca.batch.work import Job, run_job, warm_up\n"
-        "from ads_rca.io.bag_options import BagOptions\n"
+        "from ads_rca.sources.bag.options import BagOptions\n"
         "from ads_rca.params import make_params\n"
         "warm_up()\n"
         "before = set(sys.modules)\n"

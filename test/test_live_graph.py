@@ -30,12 +30,12 @@ from test_live_window import (
     write_log_with_unreadable_values,
 )
 
-from ads_rca.engine import diagnose
-from ads_rca.io.json_log import read_run_log
+from ads_rca.diagnosis.engine import diagnose
 from ads_rca.oracles.base import MODULES
 from ads_rca.params import make_params
 from ads_rca.ros.graph import MONITORS_SEPARATE, Graph, GraphSpec
 from ads_rca.ros.launcher import ManagedProcess, ros_args
+from ads_rca.sources.log.reader import read_run_log
 
 if TYPE_CHECKING:
     from conftest import RosEnv

@@ -15,9 +15,7 @@ import pytest
 from logfactory import make_log
 
 from ads_rca.contract.jsontext import dumps_json, loads_json
-from ads_rca.engine import diagnose
-from ads_rca.io.json_log import read_run_log
-from ads_rca.io.json_writer import write_run_log
+from ads_rca.diagnosis.engine import diagnose
 from ads_rca.live.aggregate import AggregatorCore
 from ads_rca.live.results import FrameMarker, LiveResult
 from ads_rca.live.simulate import run_live
@@ -26,6 +24,8 @@ from ads_rca.model import RunLog
 from ads_rca.oracles.base import MODULES
 from ads_rca.params import make_params
 from ads_rca.problems import Problem
+from ads_rca.sources.log.reader import read_run_log
+from ads_rca.sources.log.writer import write_run_log
 from ads_rca.synth import FAULTS, SCENARIOS, synthesise
 
 #: Every scenario and every fault kind at least once.

@@ -21,18 +21,18 @@ from hypothesis import strategies as st
 from logfactory import make_log
 from scipy.optimize import linear_sum_assignment
 
-from ads_rca.engine import diagnose
-from ads_rca.geometry import axis_aligned_iou
-from ads_rca.io.json_writer import write_run_log
+from ads_rca.diagnosis.engine import diagnose
+from ads_rca.diagnosis.verdict import FrameResults, json_safe
+from ads_rca.foundation.geometry import axis_aligned_iou
+from ads_rca.foundation.strictjson import NONFINITE_KEY
 from ads_rca.live.aggregate import AggregatorCore
 from ads_rca.live.results import FrameMarker, LiveResult
 from ads_rca.model import Boxes
 from ads_rca.oracles import reference
 from ads_rca.oracles.corrected.perception import match_boxes
 from ads_rca.params import make_params
-from ads_rca.strictjson import NONFINITE_KEY
+from ads_rca.sources.log.writer import write_run_log
 from ads_rca.synth import synthesise
-from ads_rca.verdict import FrameResults, json_safe
 
 BIG = 3000  # detections and gt boxes in the big frame
 #: Address space the big frame may add to a small log's: the all-pairs matching needed

@@ -16,13 +16,13 @@ from typing import Any
 
 import pytest
 
-from ads_rca.compare import why_modes_differ
-from ads_rca.engine import diagnose
-from ads_rca.io import open_run
+from ads_rca.diagnosis.compare import why_modes_differ
+from ads_rca.diagnosis.engine import diagnose
+from ads_rca.diagnosis.summary import summary_text
+from ads_rca.diagnosis.verdict import MODULES
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import SEMANTICS, make_params
-from ads_rca.summary import summary_text
-from ads_rca.verdict import MODULES
+from ads_rca.sources.registry import open_run
 
 EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "cut_in_perception"
 CLI = [sys.executable, "-m", "ads_rca.cli"]

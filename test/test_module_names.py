@@ -19,14 +19,14 @@ import pytest
 
 from ads_rca.cli import build_parser
 from ads_rca.contract import live_topics
-from ads_rca.engine import diagnose
-from ads_rca.io import open_run
+from ads_rca.diagnosis.engine import diagnose
+from ads_rca.diagnosis.summary import summary_text
+from ads_rca.diagnosis.verdict import MODULES
 from ads_rca.live import diagnostics
 from ads_rca.params import SEMANTICS, make_params
 from ads_rca.ros.graph import MONITORS
-from ads_rca.summary import summary_text
+from ads_rca.sources.registry import open_run
 from ads_rca.synth import fault_module, synthesise
-from ads_rca.verdict import MODULES
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = ROOT / "examples" / "cut_in_perception"

@@ -14,7 +14,7 @@ from functools import cache
 import numpy as np
 import pytest
 
-from ads_rca.engine import diagnose
+from ads_rca.diagnosis.engine import diagnose
 from ads_rca.model import RunLog
 from ads_rca.oracles.base import RunContext, earliest_ego
 from ads_rca.oracles.corrected import SEMANTICS

@@ -14,10 +14,10 @@ from functools import partial
 from pathlib import Path
 
 import ads_rca
-from ads_rca import verdict
 from ads_rca.contract import topics
 from ads_rca.contract.jsontext import loads_json
 from ads_rca.contract.playback import Tick, frame_marker
+from ads_rca.diagnosis import verdict
 from ads_rca.live.aggregate import AggregatorCore
 from ads_rca.live.results import FollowsRunEnd, FrameMarker, LiveResult, collision_frame
 from ads_rca.live.runid import RunFilter
@@ -80,7 +80,7 @@ def test_the_player_numbers_frames_as_the_verdict_does() -> None:
         assert sent == (frame_number(stamp, tpf) if tpf > 0 else None)
     # The rule is the model's (time ↔ frame); the contract no longer reaches up to verdict.
     assert not hasattr(verdict, "frame_number")
-    assert "ads_rca.verdict" not in (PACKAGE / "contract" / "playback.py").read_text()
+    assert "ads_rca.diagnosis.verdict" not in (PACKAGE / "contract" / "playback.py").read_text()
 
 
 def test_one_collision_event_rule_for_the_monitors_and_the_aggregator() -> None:

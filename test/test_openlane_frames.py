@@ -1,5 +1,5 @@
 """OpenLane-V2 segments (seed 004, issue #20): every field of the synthesised segments
-(ads_rca/synth/openlane_segments.py) as worked out by hand — nanosecond and microsecond
+(test/writers/openlane_segments.py) as worked out by hand — nanosecond and microsecond
 timestamps, integer and text ids, the mirrored pose and its angles, the derived speed, the
 traffic elements as boxes, lanes mirrored with their topology — a model's per-frame results,
 format detection, hostile files and entries, and the command line.
@@ -18,21 +18,21 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pytest
-
-from ads_rca.engine import diagnose
-from ads_rca.errors import InputError
-from ads_rca.io import open_run
-from ads_rca.io.formats import SourceOptions, detect_format
-from ads_rca.io.openlane_frames import ego_poses, read_openlane_segment, timestamp_unit
-from ads_rca.model import RunLog
-from ads_rca.params import make_params
-from ads_rca.synth.openlane_segments import (
+from writers.openlane_segments import (
     NS_START,
     US_START,
     rotation,
     write_openlane_predictions,
     write_openlane_segment,
 )
+
+from ads_rca.diagnosis.engine import diagnose
+from ads_rca.errors import InputError
+from ads_rca.model import RunLog
+from ads_rca.params import make_params
+from ads_rca.sources.formats import SourceOptions, detect_format
+from ads_rca.sources.openlane.reader import ego_poses, read_openlane_segment, timestamp_unit
+from ads_rca.sources.registry import open_run
 
 if TYPE_CHECKING:
     from conftest import RosEnv
@@ -534,7 +534,7 @@ def test_inspect_lists_the_capability_record(segment: Path, tmp_path: Path) -> N
 
 def test_a_batch_job_diagnoses_a_segment_and_names_its_format(segment: Path) -> None:
     from ads_rca.batch.work import Job, run_job
-    from ads_rca.io.bag_options import BagOptions
+    from ads_rca.sources.bag.options import BagOptions
 
     job = Job("s1", str(segment), make_params("corrected"), 64.0, BagOptions(), 60.0)
     outcome = run_job(job)
@@ -547,8 +547,8 @@ def test_lane_graphs_survive_a_bag_and_a_log_folder(segment: Path, tmp_path: Pat
     lanes_predicted/) → the same graphs, exactly."""
     from logcompare import assert_logs_equal
 
-    from ads_rca.io.bag_reader import read_bag
-    from ads_rca.io.json_log import read_run_log
+    from ads_rca.sources.bag.reader import read_bag
+    from ads_rca.sources.log.reader import read_run_log
 
     folder = write_openlane_predictions(tmp_path / "pred", segment, "missing_sign")
     bag, out = tmp_path / "bag", tmp_path / "folder"
@@ -576,8 +576,8 @@ def test_replay_of_a_segment_equals_diagnose_and_records_its_lanes(
     and the recording's map/lanes and map/lanes_predicted give the graphs back."""
     from logcompare import assert_logs_equal
 
-    from ads_rca.io.bag_reader import read_bag
     from ads_rca.ros.launcher import ManagedProcess
+    from ads_rca.sources.bag.reader import read_bag
 
     folder = write_openlane_predictions(tmp_path / "pred", segment, "perfect")
     bag, out = tmp_path / "bag", tmp_path / "verdict.json"

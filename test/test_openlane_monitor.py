@@ -3,7 +3,7 @@ each frame's figures and the segment's so far in the not-judged perception resul
 mode), the segment's in the verdict JSON and the summary, the monitor's ``/diagnostics``
 status, and a real DDS replay giving what diagnose gives.
 
-The segment (7 frames, ads_rca/synth/openlane_segments.py) gets a model's results that vary
+The segment (7 frames, test/writers/openlane_segments.py) gets a model's results that vary
 frame by frame: 0 perfect, 1 without the sign, 2 nothing at all (no annotation, no result:
 nothing to score), 3 an empty result, 4 lane B 1.5 m to the left at confidence 0.6, 5 lane C
 with a NaN point (the reader drops it), 6 no result (ground truth only).
@@ -22,16 +22,23 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pytest
+from writers.openlane_segments import (
+    predicted_annotation,
+    write_openlane_predictions,
+    write_openlane_segment,
+)
 
-from ads_rca.engine import diagnose
-from ads_rca.io.formats import SourceOptions
-from ads_rca.io.openlane_frames import read_openlane_segment
-from ads_rca.lanes import LaneGraph
+from ads_rca.diagnosis.engine import diagnose
+from ads_rca.diagnosis.summary import summary_text
 from ads_rca.live.diagnostics import OK, STALE, result_status
 from ads_rca.live.results import LiveResult
 from ads_rca.live.simulate import run_live
 from ads_rca.model import RunLog
-from ads_rca.openlane_run_scores import (
+from ads_rca.params import make_params
+from ads_rca.sources.formats import SourceOptions
+from ads_rca.sources.openlane.lanes import LaneGraph
+from ads_rca.sources.openlane.reader import read_openlane_segment
+from ads_rca.sources.openlane.run_scores import (
     BOTH,
     FRAME_KEY,
     INPUTS_KEY,
@@ -44,14 +51,7 @@ from ads_rca.openlane_run_scores import (
     figures_text,
     frame_scores,
 )
-from ads_rca.openlane_scores import score_frames
-from ads_rca.params import make_params
-from ads_rca.summary import summary_text
-from ads_rca.synth.openlane_segments import (
-    predicted_annotation,
-    write_openlane_predictions,
-    write_openlane_segment,
-)
+from ads_rca.sources.openlane.scores import score_frames
 
 if TYPE_CHECKING:
     from conftest import RosEnv

@@ -1,4 +1,4 @@
-"""OpenLane-V2's metrics on frames worked out by hand (ads_rca.openlane_scores)."""
+"""OpenLane-V2's metrics on frames worked out by hand (ads_rca.sources.openlane.scores)."""
 
 from __future__ import annotations
 
@@ -11,8 +11,8 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from ads_rca.lanes import LaneGraph
-from ads_rca.openlane_scores import (
+from ads_rca.sources.openlane.lanes import LaneGraph
+from ads_rca.sources.openlane.scores import (
     UNMATCHED_LINK,
     average_precision,
     frechet_distance,

@@ -26,10 +26,6 @@ from test_ros_convert import play_through_assembler
 
 from ads_rca.contract import playback, topics
 from ads_rca.contract.errors import MalformedMessage
-from ads_rca.io.bag_reader import iter_bag, read_bag
-from ads_rca.io.bag_writer import write_bag
-from ads_rca.io.json_log import read_run_log
-from ads_rca.io.json_writer import write_run_log
 from ads_rca.model import (
     ALL_FOLDERS,
     OPTIONAL_FOLDERS,
@@ -38,6 +34,10 @@ from ads_rca.model import (
     Objects3D,
     RunLog,
 )
+from ads_rca.sources.bag.reader import iter_bag, read_bag
+from ads_rca.sources.bag.writer import write_bag
+from ads_rca.sources.log.reader import read_run_log
+from ads_rca.sources.log.writer import write_run_log
 
 if TYPE_CHECKING:
     from conftest import RosEnv

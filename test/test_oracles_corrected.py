@@ -21,7 +21,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from shapely.geometry import Polygon
 
-from ads_rca.geometry import (
+from ads_rca.diagnosis.verdict import (
+    BASIS_FALLBACK,
+    BASIS_JUDGED,
+    NO_COLLISION,
+    NO_MODULE_FAILED,
+    FrameResults,
+    json_safe,
+)
+from ads_rca.foundation.geometry import (
     box_corners,
     box_signed_distance,
     polyline_nearest,
@@ -35,14 +43,6 @@ from ads_rca.oracles.corrected.boxes import Series, build_plan
 from ads_rca.oracles.corrected.clearance import clearances, partner_view
 from ads_rca.oracles.corrected.context import corrected_context, floor_span
 from ads_rca.params import make_params
-from ads_rca.verdict import (
-    BASIS_FALLBACK,
-    BASIS_JUDGED,
-    NO_COLLISION,
-    NO_MODULE_FAILED,
-    FrameResults,
-    json_safe,
-)
 
 TPF = 50
 DT = TPF / 1000.0

@@ -1,7 +1,8 @@
 """Reading a log in forked workers gives exactly the log and problems of reading it here.
 
 ``read_run_log(..., workers=N)`` parses interleaved chunks of the files (every n-th file) in
-worker processes, rebuilds their records from packed arrays (``io/packing.py``) and puts the
+worker processes, rebuilds their records from packed arrays (``sources/log/packing.py``) and puts
+the
 problems back in file order. On hostile folders
 (duplicated timestamps, corrupt and empty files, strings where numbers belong, a missing
 folder, a FIFO, files without a timestamp, records dropped, nesting too deep, a file over the
@@ -23,11 +24,11 @@ import pytest
 from logcompare import assert_logs_equal
 from logfactory import add_3d, make_log
 
-from ads_rca.io import json_log
-from ads_rca.io.json_log import read_run_log
-from ads_rca.io.json_writer import write_run_log
-from ads_rca.io.packing import Packer, unpack
 from ads_rca.model import ALL_FOLDERS, RunLog, Track
+from ads_rca.sources.log import reader as log_reader
+from ads_rca.sources.log.packing import Packer, unpack
+from ads_rca.sources.log.reader import read_run_log
+from ads_rca.sources.log.writer import write_run_log
 from ads_rca.synth import synthesise
 
 
@@ -77,8 +78,8 @@ def damage(root: Path) -> None:
 
 def _read_both(root: Path, monkeypatch: pytest.MonkeyPatch) -> tuple[RunLog, RunLog]:
     alone = read_run_log(root, max_file_mb=0.03)
-    monkeypatch.setattr(json_log, "PARALLEL_MIN_FILES", 1)
-    monkeypatch.setattr(json_log, "CHUNKS_PER_WORKER", 7)
+    monkeypatch.setattr(log_reader, "PARALLEL_MIN_FILES", 1)
+    monkeypatch.setattr(log_reader, "CHUNKS_PER_WORKER", 7)
     shared = read_run_log(root, max_file_mb=0.03, workers=3)
     return alone, shared
 
@@ -176,8 +177,8 @@ def test_a_predictions_file_packed_in_pieces_is_packed_as_its_record(document: A
     """The readers pack a clean predictions file's pieces without making its tracks; what
     they send must be what packing the record parse_predictions makes sends: the same
     numbers (integers as floats) and the same entry."""
-    from ads_rca.io.records import parse_predictions, prediction_parts
     from ads_rca.problems import ProblemLog
+    from ads_rca.sources.log.records import parse_predictions, prediction_parts
 
     problems = ProblemLog()
     record = parse_predictions(document, "predictions/p-50.json", problems, 50)
@@ -195,7 +196,7 @@ def test_a_predictions_file_packed_in_pieces_is_packed_as_its_record(document: A
 def test_the_collector_is_paused_while_reading_and_restored_after(tmp_path: Path) -> None:
     import gc
 
-    from ads_rca.workers import collector_paused
+    from ads_rca.foundation.workers import collector_paused
 
     for enabled in (True, False):
         (gc.enable if enabled else gc.disable)()
@@ -219,7 +220,7 @@ def test_what_a_paused_stretch_allocated_skips_the_young_collections() -> None:
     pause is still freed by a full collection."""
     import gc
 
-    from ads_rca.workers import collector_paused, loaded_objects_frozen
+    from ads_rca.foundation.workers import collector_paused, loaded_objects_frozen
 
     class Node:
         pass
@@ -250,7 +251,7 @@ def test_frozen_blocks_nest_and_only_the_outermost_unfreezes() -> None:
     the inner block's end must not hand the run back to the collector."""
     import gc
 
-    from ads_rca.workers import loaded_objects_frozen, map_forked
+    from ads_rca.foundation.workers import loaded_objects_frozen, map_forked
 
     assert gc.get_freeze_count() == 0
     loaded = [{"record": i} for i in range(1000)]
@@ -314,20 +315,20 @@ def test_tables_of_frames_sharing_one_ids_tuple_are_the_per_frame_ones(
 def test_a_long_log_is_read_in_chunks_of_at_most_max_chunk_files() -> None:
     # 2 workers x 4 chunks = 8; 70,000 files / 2,000 = 35 chunks (each 2,000 files, the
     # last 0); 13,700 / 2,000 = 6.85 -> 7 < 8 keeps 8; 5 files make at most 5 chunks.
-    assert (json_log.CHUNKS_PER_WORKER, json_log.MAX_CHUNK_FILES) == (4, 2000)
-    assert json_log.chunk_count(70_000, 2) == 35
-    assert json_log.chunk_count(70_001, 2) == 36
-    assert json_log.chunk_count(13_700, 2) == 8
-    assert json_log.chunk_count(5, 2) == 5
+    assert (log_reader.CHUNKS_PER_WORKER, log_reader.MAX_CHUNK_FILES) == (4, 2000)
+    assert log_reader.chunk_count(70_000, 2) == 35
+    assert log_reader.chunk_count(70_001, 2) == 36
+    assert log_reader.chunk_count(13_700, 2) == 8
+    assert log_reader.chunk_count(5, 2) == 5
 
 
 def test_a_log_in_many_small_chunks_reads_the_same_in_workers(
     crash_log: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     alone = read_run_log(crash_log)
-    monkeypatch.setattr(json_log, "PARALLEL_MIN_FILES", 1)
-    monkeypatch.setattr(json_log, "MAX_CHUNK_FILES", 3)
-    assert json_log.chunk_count(len(list(crash_log.glob("*/*.json"))), 2) > 8
+    monkeypatch.setattr(log_reader, "PARALLEL_MIN_FILES", 1)
+    monkeypatch.setattr(log_reader, "MAX_CHUNK_FILES", 3)
+    assert log_reader.chunk_count(len(list(crash_log.glob("*/*.json"))), 2) > 8
     assert_same_reading(alone, read_run_log(crash_log, workers=2))
 
 

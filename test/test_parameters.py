@@ -17,13 +17,13 @@ from typing import Any
 
 import pytest
 
-from ads_rca.engine import diagnose
-from ads_rca.io.json_log import read_run_log
+from ads_rca.diagnosis.engine import diagnose
+from ads_rca.diagnosis.summary import summary_text
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import SEMANTICS, Params, make_params, parameters_markdown
 from ads_rca.paramspec import SPECS
 from ads_rca.report.html import write_report
-from ads_rca.summary import summary_text
+from ads_rca.sources.log.reader import read_run_log
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = ROOT / "examples" / "cut_in_perception"

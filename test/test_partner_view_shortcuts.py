@@ -14,7 +14,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ads_rca.geometry import box_signed_distance
+from ads_rca.foundation.geometry import box_signed_distance
 from ads_rca.model import EgoPose, Plan, RunLog
 from ads_rca.oracles.base import RunContext
 from ads_rca.oracles.corrected.boxes import (

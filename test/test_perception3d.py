@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 import shapely
 
-from ads_rca.engine import diagnose
+from ads_rca.diagnosis.engine import diagnose
 from ads_rca.errors import ConfigError
-from ads_rca.geometry import FloatArray, bev_iou, box_corners, world_to_ego
+from ads_rca.foundation.geometry import FloatArray, bev_iou, box_corners, world_to_ego
 from ads_rca.model import Actors, Boxes, EgoPose, Objects3D, Plan, RunLog, RunMetadata, Track
 from ads_rca.oracles.base import Module, OracleResult, RunContext
 from ads_rca.oracles.corrected import ORACLES

@@ -21,17 +21,22 @@ from ads_rca.capabilities import MODEL_INPUTS
 from ads_rca.contract import topics
 from ads_rca.contract.errors import MalformedMessage
 from ads_rca.errors import ConfigError, InputError
-from ads_rca.io.bag_reader import load_bag
 from ads_rca.model import EgoPose, InputStatus
-from ads_rca.profiles import decoders, frames
-from ads_rca.profiles.decoders import PredictedPaths
-from ads_rca.profiles.profile import (
+from ads_rca.sources.bag.profiles import decoders, frames
+from ads_rca.sources.bag.profiles.decoders import PredictedPaths
+from ads_rca.sources.bag.profiles.profile import (
     BUILTIN_NAMES,
     builtin_path,
     contract_type,
     load_profile,
 )
-from ads_rca.profiles.reader import read_profiled, sample_plan, track_offsets, travel_times
+from ads_rca.sources.bag.profiles.reader import (
+    read_profiled,
+    sample_plan,
+    track_offsets,
+    travel_times,
+)
+from ads_rca.sources.bag.reader import load_bag
 
 pytestmark = pytest.mark.timeout(120)
 

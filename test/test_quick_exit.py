@@ -1,6 +1,6 @@
 """The ``ads-rca`` program ends a diagnosis without freeing what it loaded, and loses nothing.
 
-The quick exit (:mod:`ads_rca.quick_exit`) skips the interpreter's teardown: at-exit
+The quick exit (:mod:`ads_rca.foundation.quick_exit`) skips the interpreter's teardown: at-exit
 handlers do not run. These tests tell it happened by an at-exit handler's line, and check
 that everything the command writes (stdout through a pipe, the JSON, the report) is
 complete when it does; ``main`` called in-process never ends the process or keeps objects.
@@ -13,8 +13,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-from ads_rca import quick_exit
 from ads_rca.cli import main
+from ads_rca.foundation import quick_exit
 
 EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "cut_in_perception"
 #: The program as its console script runs it, with an at-exit handler that says it ran.

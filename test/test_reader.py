@@ -18,11 +18,11 @@ import numpy as np
 import pytest
 
 from ads_rca.errors import InputError
-from ads_rca.io import json_log
-from ads_rca.io.json_log import read_run_log, timestamp_of
-from ads_rca.io.json_writer import write_run_log
 from ads_rca.model import FOLDERS
 from ads_rca.problems import Problem
+from ads_rca.sources.log import reader as log_reader
+from ads_rca.sources.log.reader import read_run_log, timestamp_of
+from ads_rca.sources.log.writer import write_run_log
 
 TPF = 50
 
@@ -305,7 +305,7 @@ def test_unknown_ids_are_counted_frame_by_frame_when_frames_repeat_them(
     actors = json.loads((log_dir / "actors/actors-150.json").read_text())
     for ts in (150, 300):  # the car '20' is not in these two frames
         _write(log_dir / f"actors/actors-{ts}.json", {"10": actors["10"]})
-    monkeypatch.setattr(json_log, "PARALLEL_MIN_FILES", 1)
+    monkeypatch.setattr(log_reader, "PARALLEL_MIN_FILES", 1)
     issues = [
         (p.file, p.issue)
         for p in read_run_log(log_dir, workers=workers).problems
@@ -328,7 +328,7 @@ def test_unknown_ids_are_reported_in_file_order_whatever_the_hash_seed(log_dir: 
         [{"id": i, "bounding_box": [[1, 2], [3, 4]]} for i in ids],
     )
     script = (
-        "import json, sys; from ads_rca.io.json_log import read_run_log; "
+        "import json, sys; from ads_rca.sources.log.reader import read_run_log; "
         "print(json.dumps([p.issue for p in read_run_log(sys.argv[1]).problems]))"
     )
     outputs = {

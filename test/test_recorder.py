@@ -22,10 +22,10 @@ from logfactory import make_log
 
 from ads_rca.contract import rosmsg, topics
 from ads_rca.contract.assembler import RunLogAssembler
-from ads_rca.io.bag_reader import is_bag, iter_mcap_stream, read_bag
-from ads_rca.io.json_log import read_run_log
-from ads_rca.io.json_writer import write_run_log
 from ads_rca.ros.launcher import Launcher, ManagedProcess, ParamValue, node_command
+from ads_rca.sources.bag.reader import is_bag, iter_mcap_stream, read_bag
+from ads_rca.sources.log.reader import read_run_log
+from ads_rca.sources.log.writer import write_run_log
 
 if TYPE_CHECKING:
     from conftest import RosEnv

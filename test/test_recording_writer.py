@@ -24,8 +24,8 @@ from rosbags.interfaces import MessageDefinitionFormat
 
 from ads_rca.cli import main
 from ads_rca.errors import ConfigError
-from ads_rca.io.errors import OutputExists
 from ads_rca.model import Actors, ControlCommand, Objects3D, RunLog
+from ads_rca.sources.errors import OutputExists
 from ads_rca.synth import synthesise_run
 from ads_rca.synth.recording import (
     EPOCH_NS,

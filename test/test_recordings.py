@@ -18,12 +18,12 @@ from typing import TYPE_CHECKING
 import pytest
 from test_live_window import assert_close, failed_flags, verdict_keys
 
-from ads_rca.engine import diagnose
-from ads_rca.io import open_run
-from ads_rca.io.bag_options import BagOptions
+from ads_rca.diagnosis.engine import diagnose
 from ads_rca.params import make_params
-from ads_rca.profiles.profile import builtin_path
 from ads_rca.ros.launcher import ManagedProcess
+from ads_rca.sources.bag.options import BagOptions
+from ads_rca.sources.bag.profiles.profile import builtin_path
+from ads_rca.sources.registry import open_run
 from ads_rca.synth import synthesise
 from ads_rca.synth.recording import MSG_DIR, write_recording
 

@@ -8,12 +8,12 @@ import socket
 
 import pytest
 
+from ads_rca.diagnosis.verdict import Metric, Module
 from ads_rca.errors import ConfigError
 from ads_rca.remote.config import session_config
 from ads_rca.remote.history import History, parse_since
 from ads_rca.remote.keys import check_prefix, dashboard_key, ros_key, sample_key
 from ads_rca.remote.rate import RateLimiter
-from ads_rca.verdict import Metric, Module
 
 
 def test_ros_keys_follow_the_zenoh_bridge_ros2dds_convention() -> None:
@@ -120,7 +120,7 @@ def test_a_loopback_peer_and_client_exchange_a_sample() -> None:
 
 
 def result_text(index: int, module: Module = "perception", failed: bool = False) -> str:
-    from ads_rca import strictjson
+    from ads_rca.foundation import strictjson
     from ads_rca.live.results import LiveResult
     from ads_rca.oracles.base import OracleResult
 
@@ -130,7 +130,7 @@ def result_text(index: int, module: Module = "perception", failed: bool = False)
 
 
 def test_remote_state_forwards_results_and_answers_late_dashboards() -> None:
-    from ads_rca import strictjson
+    from ads_rca.foundation import strictjson
     from ads_rca.remote.state import RemoteState
 
     state = RemoteState("car1", capacity=3, rates={"modules": 10.0})
@@ -173,7 +173,7 @@ def test_the_verdict_waits_for_the_results_it_counts() -> None:
     aggregator had every result) went out with 81 planning results still queued, and a
     dashboard stopping at the verdict never saw them. It now waits for as many results per
     module as its ``live.results_received`` counts, at most VERDICT_HOLD_S."""
-    from ads_rca import strictjson
+    from ads_rca.foundation import strictjson
     from ads_rca.remote.state import VERDICT_HOLD_S, RemoteState
 
     verdict = {

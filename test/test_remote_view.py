@@ -16,7 +16,7 @@ from typing import Any
 import pytest
 
 from ads_rca.capabilities import JUDGED, NOT_JUDGED
-from ads_rca.conclusion import PARTLY_JUDGED
+from ads_rca.diagnosis.conclusion import PARTLY_JUDGED
 from ads_rca.remote.view import (
     FAILING,
     INCOMPLETE,

@@ -19,8 +19,7 @@ import pytest
 from matplotlib.figure import Figure
 from matplotlib.patches import Polygon
 
-from ads_rca.engine import Diagnosis, diagnose
-from ads_rca.io import open_run
+from ads_rca.diagnosis.engine import Diagnosis, diagnose
 from ads_rca.oracles.base import MODULES
 from ads_rca.oracles.semantics import MODES, semantics_for
 from ads_rca.params import make_params
@@ -33,6 +32,7 @@ from ads_rca.report.figures import (
     series_ends,
 )
 from ads_rca.report.html import render, value_table
+from ads_rca.sources.registry import open_run
 
 EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "cut_in_perception"
 PARTNER, EGO = "2486", "1323"

@@ -18,12 +18,12 @@ from typing import Any
 
 import pytest
 
-from ads_rca.engine import diagnose
-from ads_rca.io import open_run
-from ads_rca.io.json_writer import write_run_log
+from ads_rca.diagnosis.engine import diagnose
 from ads_rca.model import FILE_PREFIX, FOLDERS
 from ads_rca.params import make_params
 from ads_rca.report.html import render
+from ads_rca.sources.log.writer import write_run_log
+from ads_rca.sources.registry import open_run
 from ads_rca.synth import synthesise
 
 #: Elements and attributes the report itself writes; nothing else may appear.

@@ -18,9 +18,7 @@ from matplotlib import pyplot as plt
 from matplotlib.figure import Figure
 from matplotlib.patches import Polygon
 
-from ads_rca.engine import Diagnosis, diagnose
-from ads_rca.io import open_run
-from ads_rca.io.json_writer import write_run_log
+from ads_rca.diagnosis.engine import Diagnosis, diagnose
 from ads_rca.params import make_params
 from ads_rca.report.figures import (
     NON_FINITE,
@@ -31,6 +29,8 @@ from ads_rca.report.figures import (
     scene_figure,
     scene_frames,
 )
+from ads_rca.sources.log.writer import write_run_log
+from ads_rca.sources.registry import open_run
 from ads_rca.synth import synthesise
 
 #: Pose values as the log writes them (strings): infinite once read, or finite but absurd.

@@ -29,7 +29,6 @@ from ads_rca.contract import cdr, convert, playback, topics
 from ads_rca.contract.assembler import RunLogAssembler
 from ads_rca.contract.cdr_decode import decode_clock, decode_string
 from ads_rca.contract.topics import decode_record, stamp_ms
-from ads_rca.lanes import LaneGraph
 from ads_rca.live import diagnostics as diag
 from ads_rca.model import (
     OPTIONAL_FOLDERS,
@@ -44,6 +43,7 @@ from ads_rca.model import (
     Track,
 )
 from ads_rca.ros.diagnostics import array as diagnostic_array
+from ads_rca.sources.openlane.lanes import LaneGraph
 
 if TYPE_CHECKING:
     from conftest import RosEnv
@@ -398,8 +398,8 @@ def test_fast_and_object_paths_interoperate_across_processes(
 ) -> None:
     from rosrun import run_pair
 
-    from ads_rca.io.json_log import read_run_log
-    from ads_rca.io.json_writer import write_run_log
+    from ads_rca.sources.log.reader import read_run_log
+    from ads_rca.sources.log.writer import write_run_log
 
     log_dir = write_run_log(make_log(10, 7, 9, duplicate_frame=True), tmp_path / "log")
     out = tmp_path / "rebuilt"

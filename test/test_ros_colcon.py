@@ -18,7 +18,7 @@ from logfactory import make_log
 from rosrun import run_pair
 
 from ads_rca.contract import topics
-from ads_rca.io.json_writer import write_run_log
+from ads_rca.sources.log.writer import write_run_log
 
 if TYPE_CHECKING:
     from conftest import RosEnv
@@ -125,7 +125,7 @@ def test_installed_stack_mode_with_the_stack_file_gives_the_verdict(
     ``config/stack_contract.yaml``, beside a stack: the verdict is ``diagnose``'s."""
     from stackgraph import run_stack_graph
 
-    from ads_rca.engine import diagnose
+    from ads_rca.diagnosis.engine import diagnose
     from ads_rca.params import make_params
     from ads_rca.synth import synthesise
 

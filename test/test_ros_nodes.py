@@ -17,9 +17,9 @@ from logfactory import make_log
 from rosrun import run_pair
 
 from ads_rca.contract import topics
-from ads_rca.io.json_log import read_run_log
-from ads_rca.io.json_writer import write_run_log
 from ads_rca.ros.launcher import ManagedProcess, ParamValue, node_command
+from ads_rca.sources.log.reader import read_run_log
+from ads_rca.sources.log.writer import write_run_log
 
 if TYPE_CHECKING:
     from conftest import RosEnv

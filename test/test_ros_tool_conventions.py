@@ -25,12 +25,12 @@ from rosrun import wait_for
 from ads_rca.contract import cdr, topics
 from ads_rca.contract.camera import Intrinsics, camera_intrinsics, camera_mount
 from ads_rca.contract.jsontext import loads_json
-from ads_rca.io.json_log import read_run_log
 from ads_rca.live import diagnostics as diag
 from ads_rca.live.numeric import HEAD, NumericLayout
 from ads_rca.live.results import LiveResult
 from ads_rca.oracles.base import MODULES, OracleResult
 from ads_rca.ros.launcher import ManagedProcess, node_command
+from ads_rca.sources.log.reader import read_run_log
 
 pytestmark = pytest.mark.timeout(180)
 

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from writers.atmacup_tables import ROWS, write_submission, write_table
 
 from ads_rca.contract.ego_paths import (
     EgoPathRow,
@@ -23,9 +24,8 @@ from ads_rca.contract.ego_paths import (
 )
 from ads_rca.contract.errors import MalformedMessage
 from ads_rca.contract.jsontext import dumps_json, loads_json
-from ads_rca.engine import diagnose
-from ads_rca.io.atmacup_table import read_atmacup_table
-from ads_rca.io.formats import SourceOptions
+from ads_rca.diagnosis.engine import diagnose
+from ads_rca.diagnosis.verdict import OracleResult
 from ads_rca.live.aggregate import AggregatorCore
 from ads_rca.live.results import FrameMarker, LiveResult
 from ads_rca.live.row_paths import NO_PATHS, RowPaths, same_row
@@ -33,9 +33,9 @@ from ads_rca.live.window import MonitorCore, WindowSettings
 from ads_rca.model import ALL_FOLDERS, RunLog, RunMetadata
 from ads_rca.oracles.base import MODULES
 from ads_rca.params import make_params
-from ads_rca.synth.atmacup_tables import ROWS, write_submission, write_table
-from ads_rca.trajectory_scores import TRAJECTORY_SCORES_KEY
-from ads_rca.verdict import OracleResult
+from ads_rca.sources.atmacup.reader import read_atmacup_table
+from ads_rca.sources.atmacup.trajectory_scores import TRAJECTORY_SCORES_KEY
+from ads_rca.sources.formats import SourceOptions
 
 IDS = [row.ident for row in ROWS]
 SHIFT = np.array([1.0, 0.0, 0.0])  # the model: the realised path 1 m further in x

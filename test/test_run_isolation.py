@@ -27,16 +27,16 @@ from rosrun import wait_for
 from test_live_window import assert_close, failed_flags, synth, verdict_keys
 
 from ads_rca.contract import topics
-from ads_rca.engine import diagnose
-from ads_rca.io import open_run
-from ads_rca.io.json_log import read_run_log
-from ads_rca.io.json_writer import write_run_log
+from ads_rca.diagnosis.engine import diagnose
 from ads_rca.live import diagnostics as diag
 from ads_rca.live.runid import RunFilter, writer_prefix
 from ads_rca.params import make_params
 from ads_rca.ros.domains import domains_in_use, free_domain_id
 from ads_rca.ros.graph import Graph, GraphSpec
 from ads_rca.ros.launcher import ManagedProcess, node_command
+from ads_rca.sources.log.reader import read_run_log
+from ads_rca.sources.log.writer import write_run_log
+from ads_rca.sources.registry import open_run
 
 if TYPE_CHECKING:
     from conftest import RosEnv

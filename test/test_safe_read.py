@@ -1,4 +1,4 @@
-"""Reading one input file (``ads_rca/io/files.py``): regular files only, never more than the
+"""Reading one input file (``ads_rca/foundation/files.py``): regular files only, never more than the
 cap, the whole file whatever ``fstat`` said; a file read in one system call when its size
 is what ``fstat`` stated."""
 
@@ -10,8 +10,8 @@ from typing import Any
 
 import pytest
 
-from ads_rca.io import files
-from ads_rca.io.files import Unreadable, read_regular
+from ads_rca.foundation import files
+from ads_rca.foundation.files import Unreadable, read_regular
 
 
 @pytest.fixture
@@ -24,7 +24,7 @@ def reads(monkeypatch: pytest.MonkeyPatch) -> list[int]:
         asked.append(size)
         return real(fd, size)
 
-    monkeypatch.setattr("ads_rca.io.files.os.read", counted)
+    monkeypatch.setattr("ads_rca.foundation.files.os.read", counted)
     return asked
 
 
@@ -94,7 +94,7 @@ def test_a_file_listed_regular_is_opened_without_stat_and_a_symlink_there_is_che
         stats.append(path)
         return real_stat(path)
 
-    monkeypatch.setattr("ads_rca.io.files.os.stat", counted)
+    monkeypatch.setattr("ads_rca.foundation.files.os.stat", counted)
     plain = tmp_path / "pose-1.json"
     plain.write_bytes(b"{}")
     assert read_regular(plain, 100, listed_regular=True) == b"{}" and stats == []
@@ -108,8 +108,8 @@ def test_a_file_listed_regular_is_opened_without_stat_and_a_symlink_there_is_che
 
 
 def test_a_log_folder_lists_its_irregular_entries_for_the_full_check(tmp_path: Path) -> None:
-    from ads_rca.io.json_log import _list_folder
     from ads_rca.problems import ProblemLog
+    from ads_rca.sources.log.reader import _list_folder
 
     folder = tmp_path / "pose"
     folder.mkdir()

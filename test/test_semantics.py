@@ -19,7 +19,7 @@ from typing import Any, cast
 import pytest
 
 import ads_rca
-from ads_rca.engine import diagnose
+from ads_rca.diagnosis.engine import diagnose
 from ads_rca.live.window import MonitorCore
 from ads_rca.model import ALL_FOLDERS, FOLDERS
 from ads_rca.oracles import semantics as registry
@@ -61,7 +61,7 @@ def test_no_code_outside_the_parameter_layers_branches_on_the_mode_name() -> Non
 
 
 def test_the_pattern_finds_the_branches_it_forbids(tmp_path: Path) -> None:
-    (tmp_path / "engine.py").write_text(
+    (tmp_path / "diagnosis/engine.py").write_text(
         'if params.semantics == "reference":\n'
         'x = a if "corrected" != mode else b\n'
         'y = mode in ("reference", "corrected")\n'
@@ -147,8 +147,11 @@ def test_a_third_mode_is_one_module_and_one_registry_entry(
 
 
 def test_the_verdict_types_do_not_import_the_oracles() -> None:
-    """verdict.py holds the types; the modes' attributions (in oracles/) fill them."""
-    code = "import sys, ads_rca.verdict; print(sorted(m for m in sys.modules if 'oracles' in m))"
+    """diagnosis/verdict.py holds the types; the modes' attributions (in oracles/) fill them."""
+    code = (
+        "import sys, ads_rca.diagnosis.verdict; "
+        "print(sorted(m for m in sys.modules if 'oracles' in m))"
+    )
     loaded = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, check=True
     ).stdout

@@ -1,5 +1,5 @@
 """A reader process hands a large chunk's numbers over in a shared-memory file
-(io/packing.SharedNumbers) instead of the pipe message: the parent must rebuild exactly the
+(sources/packing.SharedNumbers) instead of the pipe message: the parent must rebuild exactly the
 records the message would have given, and no file may stay behind (mapped, dropped unread,
 or never written when the directory cannot take it)."""
 
@@ -15,11 +15,12 @@ import numpy as np
 import pytest
 from logcompare import assert_logs_equal
 
-from ads_rca.io import json_log, packing
-from ads_rca.io.json_log import read_run_log
-from ads_rca.io.json_writer import write_run_log
-from ads_rca.io.packing import Packer, SharedNumbers, unpack
 from ads_rca.model import ALL_FOLDERS, Actors, Record, RunLog
+from ads_rca.sources.log import packing
+from ads_rca.sources.log import reader as log_reader
+from ads_rca.sources.log.packing import Packer, SharedNumbers, unpack
+from ads_rca.sources.log.reader import read_run_log
+from ads_rca.sources.log.writer import write_run_log
 from ads_rca.synth import synthesise
 
 T = TypeVar("T")
@@ -105,7 +106,7 @@ def test_a_log_read_in_workers_through_files_equals_one_read_here(
     crash_log: Path, shared_dir: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """The forked readers inherit the lowered threshold: every chunk goes through a file."""
-    monkeypatch.setattr(json_log, "PARALLEL_MIN_FILES", 1)
+    monkeypatch.setattr(log_reader, "PARALLEL_MIN_FILES", 1)
     alone, shared = read_run_log(crash_log), read_run_log(crash_log, workers=2)
     assert_logs_equal(alone, shared, angle_tol=0.0)
     assert list(alone.problems) == list(shared.problems)
@@ -117,7 +118,7 @@ def test_a_chunk_goes_to_shared_memory_only_while_half_of_it_stays_free(tmp_path
     byte and one more is never written, nor one leaving less than half of it free."""
     import os
 
-    from ads_rca.io.packing import _room_for
+    from ads_rca.sources.log.packing import _room_for
 
     if not os.path.isdir(packing.SHARED_DIR):
         pytest.skip(f"no {packing.SHARED_DIR} here")

@@ -21,13 +21,13 @@ import pytest
 from stackgraph import crash
 from test_stack_mode import config
 
-from ads_rca.engine import diagnose
-from ads_rca.io import open_run
-from ads_rca.io.json_writer import write_run_log
+from ads_rca.diagnosis.engine import diagnose
 from ads_rca.live.aggregate import AggregatorCore
 from ads_rca.live.simulate import LiveRun, StackMessage, StackStream, run_stack, stack_stream
 from ads_rca.live.window import WindowSettings
 from ads_rca.params import make_params
+from ads_rca.sources.log.writer import write_run_log
+from ads_rca.sources.registry import open_run
 
 CASE = ("lead_braking", "prediction")  # collision at frame 78
 WHOLE_HISTORY = WindowSettings(input_timeout_s=1.0, history_frames=400)

@@ -18,10 +18,10 @@ import pytest
 from conftest import RosEnv
 from stackgraph import latest_results, metrics_difference, run_stack_graph, same_verdict
 
-from ads_rca.engine import diagnose
+from ads_rca.diagnosis.engine import diagnose
+from ads_rca.diagnosis.verdict import MODULES
 from ads_rca.params import make_params
 from ads_rca.synth import synthesise
-from ads_rca.verdict import MODULES
 
 pytestmark = pytest.mark.timeout(240)
 

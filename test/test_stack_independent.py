@@ -22,9 +22,9 @@ from conftest import RosEnv
 from rosrun import wait_for
 from stackgraph import crash, offline
 
-from ads_rca.io.json_writer import write_run_log
 from ads_rca.ros.graph import AGGREGATOR, GROUP, MONITOR
 from ads_rca.ros.launcher import Launcher, ParamValue, ros_args
+from ads_rca.sources.log.writer import write_run_log
 
 pytestmark = pytest.mark.timeout(240)
 

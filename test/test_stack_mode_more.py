@@ -19,7 +19,8 @@ import pytest
 from stackgraph import crash, offline
 
 from ads_rca.contract import stack_inputs
-from ads_rca.engine import Diagnosis, diagnose
+from ads_rca.diagnosis.engine import Diagnosis, diagnose
+from ads_rca.diagnosis.verdict import OracleResult
 from ads_rca.live.results import LiveResult
 from ads_rca.live.simulate import LiveRun, StackMessage, StackStream, run_stack, stack_stream
 from ads_rca.live.stack_config import STACK_PARAMETERS, StackConfig
@@ -28,7 +29,6 @@ from ads_rca.model import FOLDERS, RunLog
 from ads_rca.oracles.base import MODULES, Module
 from ads_rca.params import make_params
 from ads_rca.synth import FAULTS, SCENARIOS
-from ads_rca.verdict import OracleResult
 
 #: Every crash of the grid: 4 crash scenarios x 4 faults, seed 1.
 CRASHES = [(s, f) for s in SCENARIOS if s != "cruise" for f in FAULTS if f != "none"]

@@ -33,13 +33,13 @@ from stack_publisher import (
 
 from ads_rca.contract import live_topics, topics
 from ads_rca.contract.jsontext import loads_json
-from ads_rca.io.json_writer import write_run_log
 from ads_rca.live.results import collision_frame
 from ads_rca.live.runid import RunFilter
 from ads_rca.live.stack_config import STACK_PARAMETERS
 from ads_rca.model import FOLDERS
 from ads_rca.ros.aggregator import PARAMETERS as AGGREGATOR_PARAMETERS
 from ads_rca.ros.launcher import Launcher
+from ads_rca.sources.log.writer import write_run_log
 from ads_rca.synth import synthesise
 
 HERE = Path(__file__).resolve().parent

@@ -31,17 +31,24 @@ from ads_rca.contract.cdr_decode import decode_string
 from ads_rca.contract.jsontext import dumps_json, loads_json
 from ads_rca.contract.playback import METADATA_DOCUMENT_KEY, metadata_message, read_document
 from ads_rca.contract.rosmsg import deserialize
-from ads_rca.engine import diagnose
-from ads_rca.io import open_run
-from ads_rca.io.bag_reader import iter_bag
-from ads_rca.io.json_log import read_run_log
-from ads_rca.io.json_writer import write_run_log
+from ads_rca.diagnosis.engine import diagnose
+from ads_rca.foundation.strictjson import (
+    NONFINITE_KEY,
+    VALUE_KEY,
+    dumps,
+    from_strict,
+    loads,
+    to_strict,
+)
 from ads_rca.live.results import LiveResult
 from ads_rca.model import RunLog, RunMetadata
 from ads_rca.oracles.base import OracleResult
 from ads_rca.params import make_params
 from ads_rca.ros.launcher import ManagedProcess
-from ads_rca.strictjson import NONFINITE_KEY, VALUE_KEY, dumps, from_strict, loads, to_strict
+from ads_rca.sources.bag.reader import iter_bag
+from ads_rca.sources.log.reader import read_run_log
+from ads_rca.sources.log.writer import write_run_log
+from ads_rca.sources.registry import open_run
 from ads_rca.synth import synthesise
 
 if TYPE_CHECKING:

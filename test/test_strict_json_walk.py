@@ -1,6 +1,7 @@
 """The strict walk's shortcuts give what the plain per-item walk gave, object for object.
 
-:func:`ads_rca.strictjson.to_strict` copies a dict or list in C and replaces only its items
+:func:`ads_rca.foundation.strictjson.to_strict` copies a dict or list in C and replaces only its
+items
 that are not plain scalars, records a non-finite value with its container's shared path,
 and makes the annotation's pointers once per container. The reference below is the walk it
 replaced (one Python step per item, a path list copied for each non-finite value), kept
@@ -23,7 +24,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ads_rca.strictjson import NONFINITE_KEY, VALUE_KEY, from_strict, to_strict
+from ads_rca.foundation.strictjson import NONFINITE_KEY, VALUE_KEY, from_strict, to_strict
 
 NAN, INF = math.nan, math.inf
 

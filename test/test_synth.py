@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ads_rca.io.json_writer import write_run_log
 from ads_rca.model import FOLDERS, RunLog
+from ads_rca.sources.log.writer import write_run_log
 from ads_rca.synth import (
     FAULTS,
     SCENARIOS,

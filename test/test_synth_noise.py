@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from ads_rca.cli import main
-from ads_rca.io.json_writer import write_run_log
 from ads_rca.model import RunLog
+from ads_rca.sources.log.writer import write_run_log
 from ads_rca.synth import Noise, SynthesisError, SynthesisSummary, synthesise, synthesise_run
 from ads_rca.synth.geometry import FloatArray, to_world
 

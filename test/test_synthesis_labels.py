@@ -21,11 +21,11 @@ import pytest
 from golden_outputs import SEED, cases
 from test_live_window import verdict_keys
 
-from ads_rca.engine import diagnose
-from ads_rca.io.json_log import read_run_log
-from ads_rca.io.json_writer import write_run_log
+from ads_rca.diagnosis.engine import diagnose
 from ads_rca.params import SEMANTICS, make_params
 from ads_rca.ros.launcher import ManagedProcess
+from ads_rca.sources.log.reader import read_run_log
+from ads_rca.sources.log.writer import write_run_log
 from ads_rca.synth import synthesise
 
 if TYPE_CHECKING:

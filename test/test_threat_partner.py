@@ -16,7 +16,8 @@ from typing import Any
 import pytest
 
 from ads_rca.contract.jsontext import dumps_json
-from ads_rca.engine import diagnose, evaluate_frame, frame_json
+from ads_rca.diagnosis.engine import diagnose, evaluate_frame, frame_json
+from ads_rca.diagnosis.verdict import FrameResults, OracleResult, json_safe
 from ads_rca.live.diagnostics import OK, WARN, batch_status
 from ads_rca.live.results import LiveResult
 from ads_rca.live.simulate import run_live
@@ -27,7 +28,6 @@ from ads_rca.oracles.corrected.context import corrected_context
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import make_params
 from ads_rca.synth import FAULTS, SCENARIOS, synthesise
-from ads_rca.verdict import FrameResults, OracleResult, json_safe
 
 PARAMS = make_params("corrected")
 SEMANTICS = semantics_for(PARAMS)

@@ -218,9 +218,9 @@ def module_rows(screen: str) -> dict[str, tuple[str, int, int]]:
 def expected_run() -> tuple[str, dict[str, set[int]]]:
     """What the feed puts, computed here the way it does: the verdict's primary root
     cause and each module's judged frame indices."""
-    from ads_rca.io.json_log import read_run_log
     from ads_rca.live.simulate import run_live
     from ads_rca.params import make_params
+    from ads_rca.sources.log.reader import read_run_log
 
     run = run_live(read_run_log(EXAMPLE), make_params("corrected"))
     assert run.outcome is not None

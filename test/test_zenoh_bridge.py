@@ -28,13 +28,13 @@ from rosrun import wait_for
 from test_live_window import failed_flags, verdict_keys
 from test_remote_core import free_port
 
-from ads_rca import strictjson
 from ads_rca.contract.live_topics import metrics_qos
-from ads_rca.engine import diagnose
-from ads_rca.io.json_log import read_run_log
+from ads_rca.diagnosis.engine import diagnose
+from ads_rca.foundation import strictjson
 from ads_rca.oracles.base import MODULES
 from ads_rca.params import make_params
 from ads_rca.ros.launcher import ManagedProcess, ros_args
+from ads_rca.sources.log.reader import read_run_log
 
 if TYPE_CHECKING:
     from conftest import RosEnv

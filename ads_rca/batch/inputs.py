@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ads_rca.errors import InputError
-from ads_rca.text import printable
+from ads_rca.foundation.text import printable
 
 #: Suffixes of single-file bags (a run by themselves, never a paths file).
 BAG_SUFFIXES = (".mcap", ".db3")

@@ -37,7 +37,7 @@ from ads_rca.batch.rows import (
     to_text,
 )
 from ads_rca.errors import InputError
-from ads_rca.text import printable
+from ads_rca.foundation.text import printable
 
 CSV_NAME = "results.csv"
 PARQUET_NAME = "results.parquet"

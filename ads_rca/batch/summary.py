@@ -18,8 +18,8 @@ from pathlib import Path
 from typing import Any
 
 from ads_rca.batch.rows import Row
+from ads_rca.foundation.text import printable
 from ads_rca.oracles.base import MODULES
-from ads_rca.text import printable
 
 #: A conclusive verdict without a root cause: no collision, or no module failed.
 NONE = "(no fault found)"

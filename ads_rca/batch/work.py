@@ -36,10 +36,10 @@ from typing import Any
 
 from ads_rca.batch.rows import Row, error_row, internal_error_row, row_from_document
 from ads_rca.errors import AdsRcaError
-from ads_rca.indented_json import dumps_indented
-from ads_rca.io.bag_options import BagOptions
-from ads_rca.io.formats import SourceOptions
+from ads_rca.foundation.indented_json import dumps_indented
 from ads_rca.params import Params
+from ads_rca.sources.bag.options import BagOptions
+from ads_rca.sources.formats import SourceOptions
 
 #: prctl(2): a signal to get when the parent dies.
 _PR_SET_PDEATHSIG = 1
@@ -121,7 +121,12 @@ def warm_up() -> None:
 
     import ads_rca.oracles
 
-    names = ["ads_rca.engine", "ads_rca.io", "ads_rca.io.json_log", "ads_rca.io.bag_reader"]
+    names = [
+        "ads_rca.diagnosis.engine",
+        "ads_rca.sources.registry",
+        "ads_rca.sources.log.reader",
+        "ads_rca.sources.bag.reader",
+    ]
     names += ["ads_rca.capabilities"]
     # The corrected matching of crowds imports SciPy's packages on first need (0.4 s).
     names += ["scipy.optimize", "scipy.sparse.csgraph"]
@@ -171,11 +176,11 @@ def _orphan_ends(timeout: float) -> None:
 
 def run_job(job: Job, worker: str = "") -> Outcome:
     """Read and judge the run in this process (the child's work; no timeout here)."""
-    from ads_rca.engine import diagnose
-    from ads_rca.io import open_run
-    from ads_rca.io.formats import no_frame_message
+    from ads_rca.diagnosis.engine import diagnose
+    from ads_rca.foundation.workers import loaded_objects_frozen
     from ads_rca.oracles.semantics import semantics_for
-    from ads_rca.workers import loaded_objects_frozen
+    from ads_rca.sources.formats import no_frame_message
+    from ads_rca.sources.registry import open_run
 
     started = time.monotonic()
     known: dict[str, Any] = {"worker": worker, **_format(job)}
@@ -205,7 +210,7 @@ def run_job(job: Job, worker: str = "") -> Outcome:
     return Outcome(row, text.encode("utf-8"))
 
 
-#: The format column's words for each reader (``ads_rca.io.formats``).
+#: The format column's words for each reader (``ads_rca.sources.formats``).
 FORMAT_NAMES = {
     "bag": "bag",
     "carla": "CARLA run",
@@ -218,7 +223,7 @@ FORMAT_NAMES = {
 
 def _format(job: Job) -> dict[str, str]:
     from ads_rca.errors import AdsRcaError
-    from ads_rca.io.formats import resolved_format
+    from ads_rca.sources.formats import resolved_format
 
     try:
         found = resolved_format(job.path, job.source.source_format)

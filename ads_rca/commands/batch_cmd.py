@@ -39,9 +39,9 @@ from ads_rca.commands.input_args import (
 )
 from ads_rca.commands.outputs import check_output_dir
 from ads_rca.errors import InputError
-from ads_rca.io.bag_options import BagOptions
-from ads_rca.text import printable
-from ads_rca.workers import checked_workers
+from ads_rca.foundation.text import printable
+from ads_rca.foundation.workers import checked_workers
+from ads_rca.sources.bag.options import BagOptions
 
 EXIT_INTERRUPTED = 130
 #: Every run failed (no verdict, or an internal error): as ``watch``'s "no verdict".

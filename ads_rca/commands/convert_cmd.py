@@ -2,8 +2,8 @@
 
 The direction follows the input: a log folder becomes a bag directory (MCAP or sqlite3)
 holding what the player would publish; a bag (directory, ``.mcap`` or ``.db3``, e.g. from the
-``recorder`` node) becomes a log folder. A thin shell over :mod:`ads_rca.io.bag_writer`,
-:mod:`ads_rca.io.bag_reader` and :mod:`ads_rca.io.json_writer`.
+``recorder`` node) becomes a log folder. A thin shell over :mod:`ads_rca.sources.bag.writer`,
+:mod:`ads_rca.sources.bag.reader` and :mod:`ads_rca.sources.log.writer`.
 """
 
 from __future__ import annotations
@@ -22,14 +22,14 @@ from ads_rca.commands.input_args import (
 from ads_rca.commands.outputs import check_output_dir
 from ads_rca.contract import topics
 from ads_rca.errors import InputError
-from ads_rca.io import open_run
-from ads_rca.io.bag_reader import read_bag
-from ads_rca.io.bag_writer import STORAGES, McapOptions, write_bag
-from ads_rca.io.formats import BAG, resolved_format
-from ads_rca.io.json_writer import write_run_log
-from ads_rca.io.mcap_writer import COMPRESSIONS, DEFAULT_CHUNK_SIZE
+from ads_rca.foundation.text import printable
 from ads_rca.model import RunLog
-from ads_rca.text import printable
+from ads_rca.sources.bag.mcap_writer import COMPRESSIONS, DEFAULT_CHUNK_SIZE
+from ads_rca.sources.bag.reader import read_bag
+from ads_rca.sources.bag.writer import STORAGES, McapOptions, write_bag
+from ads_rca.sources.formats import BAG, resolved_format
+from ads_rca.sources.log.writer import write_run_log
+from ads_rca.sources.registry import open_run
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:

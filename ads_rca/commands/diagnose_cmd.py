@@ -21,13 +21,15 @@ from ads_rca.commands.input_args import (
 )
 from ads_rca.commands.outputs import check_output_file
 from ads_rca.commands.progress_bar import terminal_bar
-from ads_rca.compare import why_modes_differ
-from ads_rca.engine import Diagnosis, diagnose
+from ads_rca.diagnosis.compare import why_modes_differ
+from ads_rca.diagnosis.engine import Diagnosis, diagnose
+from ads_rca.diagnosis.summary import summary_text
 from ads_rca.errors import EXIT_INTERNAL_ERROR, ConfigError, InputError
-from ads_rca.indented_json import write_indented
-from ads_rca.io import open_run
-from ads_rca.io.formats import no_frame_message
-from ads_rca.io.yaml_files import load_config
+from ads_rca.foundation.indented_json import write_indented
+from ads_rca.foundation.quick_exit import keep_until_exit
+from ads_rca.foundation.text import printable
+from ads_rca.foundation.workers import checked_workers, loaded_objects_frozen
+from ads_rca.foundation.yaml_files import load_config
 from ads_rca.model import RunLog
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import (
@@ -38,10 +40,8 @@ from ads_rca.params import (
     params_from_sources,
 )
 from ads_rca.params import parse_assignments as parse_p
-from ads_rca.quick_exit import keep_until_exit
-from ads_rca.summary import summary_text
-from ads_rca.text import printable
-from ads_rca.workers import checked_workers, loaded_objects_frozen
+from ads_rca.sources.formats import no_frame_message
+from ads_rca.sources.registry import open_run
 
 #: ``--semantics both``: judge in every mode and say why the verdicts differ.
 BOTH = "both"
@@ -231,7 +231,7 @@ def write_json(document: dict[str, Any], path: Path) -> None:
     """The verdict JSON (the contract; NaN and infinity are already null).
 
     The same bytes as ``json.dumps(document, indent=1)`` plus a newline, written by
-    :mod:`ads_rca.indented_json` (1.6 to 4.5 times faster) piece by piece.
+    :mod:`ads_rca.foundation.indented_json` (1.6 to 4.5 times faster) piece by piece.
     The path was checked before the work started; a write that fails all the same (disk
     full, a file that refuses data) is still one line, not a traceback.
     """

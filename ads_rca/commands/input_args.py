@@ -15,13 +15,13 @@ from pathlib import Path
 from typing import Any
 
 from ads_rca.errors import InputError
-from ads_rca.io.bag_options import BagOptions
-from ads_rca.io.files import DEFAULT_MAX_FILE_MB
-from ads_rca.io.formats import AUTO, FORMATS, SOURCE_PARAMS, SourceOptions
-from ads_rca.io.yaml_files import load_config
+from ads_rca.foundation.files import DEFAULT_MAX_FILE_MB
+from ads_rca.foundation.yaml_files import load_config
 from ads_rca.params import parse_assignments
 from ads_rca.paramspec import MAX_FILE_MB, check_number
-from ads_rca.profiles import BUILTIN_PROFILES, DEFAULT_PROFILE
+from ads_rca.sources.bag.options import BagOptions
+from ads_rca.sources.bag.profiles import BUILTIN_PROFILES, DEFAULT_PROFILE
+from ads_rca.sources.formats import AUTO, FORMATS, SOURCE_PARAMS, SourceOptions
 
 #: The reader's parameter names (popped from ``-p`` / config before the engine sees them).
 READER_PARAMS = ("max_file_mb", *SOURCE_PARAMS)
@@ -143,7 +143,7 @@ def bag_options_from_args(args: argparse.Namespace) -> BagOptions:
     """The bag options given on the command line, each checked before any work."""
     remap = getattr(args, "remap", None) or getattr(args, "bag_remap", None)
     if remap:
-        from ads_rca.io.yaml_files import load_yaml
+        from ads_rca.foundation.yaml_files import load_yaml
 
         load_yaml(remap, "remapping")  # a FIFO, /dev/zero, bad YAML: refused before any work
     msg_path = tuple(getattr(args, "msg_path", None) or ())

@@ -18,15 +18,15 @@ from ads_rca.commands.input_args import (
     source_options_from_args,
 )
 from ads_rca.commands.progress_bar import terminal_bar
-from ads_rca.conclusion import COLLISION_NO, COLLISION_UNKNOWN_STATE, collision_state
-from ads_rca.io import open_run
-from ads_rca.io.bag_options import BagOptions
-from ads_rca.io.bag_reader import BagContents, load_bag, read_bag
-from ads_rca.io.formats import BAG, resolved_format
+from ads_rca.diagnosis.conclusion import COLLISION_NO, COLLISION_UNKNOWN_STATE, collision_state
+from ads_rca.foundation.strictjson import dumps
+from ads_rca.foundation.text import printable
 from ads_rca.model import FOLDERS, RunLog
 from ads_rca.oracles.semantics import MODES, semantics_for
-from ads_rca.strictjson import dumps
-from ads_rca.text import printable
+from ads_rca.sources.bag.options import BagOptions
+from ads_rca.sources.bag.reader import BagContents, load_bag, read_bag
+from ads_rca.sources.formats import BAG, resolved_format
+from ads_rca.sources.registry import open_run
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -88,7 +88,7 @@ def _load(path: str, args: argparse.Namespace) -> tuple[RunLog, BagContents | No
     contents = load_bag(path)
     if bag.contract:
         return read_bag(path, remap=bag.remap, progress=progress, contents=contents), contents
-    from ads_rca.profiles.recording import read_recording
+    from ads_rca.sources.bag.profiles.recording import read_recording
 
     log = read_recording(path, bag.profile, bag.msg_path, progress, contents=contents)
     return log, contents

@@ -11,7 +11,7 @@ import sys
 from collections.abc import Iterable, Sized
 from typing import TypeVar
 
-from ads_rca.progress import Progress
+from ads_rca.foundation.progress import Progress
 
 T = TypeVar("T")
 

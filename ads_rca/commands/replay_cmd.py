@@ -46,15 +46,15 @@ from ads_rca.commands.playback_args import (
     choose_domain_id,
 )
 from ads_rca.commands.zenoh_args import add_zenoh_arguments, zenoh_params_from_args
+from ads_rca.diagnosis.summary import summary_text
 from ads_rca.errors import EXIT_INTERNAL_ERROR, AdsRcaError, InputError
+from ads_rca.foundation.text import printable, printable_lines
 from ads_rca.params import Params
-from ads_rca.profiles import BUILTIN_PROFILES
 from ads_rca.ros.env import discovery_note, ros_environment
 from ads_rca.ros.graph import LAUNCH_ARGUMENTS, exit_status
 from ads_rca.ros.launcher import ParamValue
 from ads_rca.ros.lifeline import PARENT_VARIABLE
-from ads_rca.summary import summary_text
-from ads_rca.text import printable, printable_lines
+from ads_rca.sources.bag.profiles import BUILTIN_PROFILES
 
 if TYPE_CHECKING:
     from ads_rca.ros.graph import Graph, GraphSpec

@@ -2,9 +2,9 @@
 or with ``--profile`` as a rosbag2 recording of a stack publishing that profile's topics.
 
 A thin shell over :func:`ads_rca.synth.synthesise_run` and
-:func:`ads_rca.io.json_writer.write_run_log` (a log folder),
+:func:`ads_rca.sources.log.writer.write_run_log` (a log folder),
 :func:`ads_rca.synth.recording.write_recording` (a real stack's recording) or
-:func:`ads_rca.io.bag_writer.write_bag` (``--profile ads_rca``: this project's contract).
+:func:`ads_rca.sources.bag.writer.write_bag` (``--profile ads_rca``: this project's contract).
 """
 
 from __future__ import annotations
@@ -13,14 +13,14 @@ import argparse
 
 from ads_rca.commands.outputs import check_output_dir
 from ads_rca.errors import ConfigError
-from ads_rca.io.bag_writer import STORAGES, write_bag
-from ads_rca.io.json_writer import write_run_log
+from ads_rca.foundation.text import printable
 from ads_rca.model import RunLog
 from ads_rca.paramspec import check_number
+from ads_rca.sources.bag.writer import STORAGES, write_bag
+from ads_rca.sources.log.writer import write_run_log
 from ads_rca.synth import ALL_FAULTS, SCENARIOS, SynthesisSummary, canonical_fault, synthesise_run
 from ads_rca.synth.noise import LEVELS
 from ads_rca.synth.recording import PROFILES, write_recording
-from ads_rca.text import printable
 
 #: ``--profile`` values: this project's contract and the real stacks' recordings.
 BAG_PROFILES = ("ads_rca", *PROFILES)

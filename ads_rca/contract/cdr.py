@@ -46,8 +46,8 @@ from ads_rca.contract.convert import (
     step_ms,
 )
 from ads_rca.contract.jsontext import dumps_json
-from ads_rca.lanes import LaneGraph
 from ads_rca.model import Actors, Boxes, ControlCommand, EgoPose, Objects3D, Plan, Predictions
+from ads_rca.sources.openlane.lanes import LaneGraph
 
 #: Encapsulation header: representation CDR_LE (0x0001), options 0.
 ENCAPSULATION = b"\x00\x01\x00\x00"

@@ -43,7 +43,6 @@ from ads_rca.contract.convert import (
     track_keys,
 )
 from ads_rca.contract.errors import CdrError, MalformedMessage, NoStamp
-from ads_rca.lanes import LaneGraph
 from ads_rca.model import (
     Actors,
     Boxes,
@@ -54,6 +53,7 @@ from ads_rca.model import (
     Predictions,
     Track,
 )
+from ads_rca.sources.openlane.lanes import LaneGraph
 
 _P = ParamSpec("_P")
 _R = TypeVar("_R")

@@ -27,8 +27,8 @@ from typing import Any, Generic, TypeVar
 
 from ads_rca.contract import cdr, cdr_decode, convert
 from ads_rca.contract.convert import MarkerStyle
-from ads_rca.lanes import LaneGraph
 from ads_rca.model import Actors, Boxes, ControlCommand, EgoPose, Objects3D, Plan, Predictions
+from ads_rca.sources.openlane.lanes import LaneGraph
 
 R = TypeVar("R")
 

@@ -26,7 +26,7 @@ import numpy.typing as npt
 
 from ads_rca.contract.errors import MalformedMessage, NoStamp
 from ads_rca.contract.jsontext import dumps_json, loads_json
-from ads_rca.lanes import LaneGraph
+from ads_rca.foundation.text import short_repr
 from ads_rca.model import (
     Actors,
     Boxes,
@@ -38,7 +38,7 @@ from ads_rca.model import (
     Predictions,
     Track,
 )
-from ads_rca.text import short_repr
+from ads_rca.sources.openlane.lanes import LaneGraph
 
 if TYPE_CHECKING:
     from builtin_interfaces.msg import Duration, Time

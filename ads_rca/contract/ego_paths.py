@@ -1,6 +1,7 @@
 """``run/ego_paths``: one snapshot row's future ego paths, as JSON on a ``std_msgs/String``.
 
-A table of independent snapshots (atmaCup #18, ``ads_rca.ego_snapshots``) has, per row, a
+A table of independent snapshots (atmaCup #18, ``ads_rca.sources.atmacup.snapshots``) has, per row,
+a
 realised future ego path and perhaps a model's predicted one; neither fits a per-frame
 topic of the seed format (a plan has no z and points into other rows). The player sends,
 with each row's frame and before its ``run/frame`` marker, one message:
@@ -14,7 +15,8 @@ moment: y mirrored, metres) or null where there is none. A live trajectory-predi
 ``run`` it answers (the player's messages name it). The messages of one stamp are merged,
 a path given later replacing an earlier one (:func:`merged`): the aggregator scores the
 run's rows so at its verdict as ``diagnose`` scores the table
-(``ads_rca.trajectory_scores``), and the planning monitor scores each row frame by frame;
+(``ads_rca.sources.atmacup.trajectory_scores``), and the planning monitor scores each row frame by
+frame;
 a model usually answers after it heard the frame, so when its path comes after the monitor
 judged the row, the row's planning result is published again with ``revision`` + 1
 (``ads_rca.live.row_paths``: the rule and its bounds). A message of another run is dropped;
@@ -30,9 +32,9 @@ from typing import Any
 import numpy as np
 
 from ads_rca.contract.errors import MalformedMessage
-from ads_rca.ego_snapshots import HORIZONS_S, EgoSnapshots
-from ads_rca.geometry import FloatArray
+from ads_rca.foundation.geometry import FloatArray
 from ads_rca.model import MAX_TIMESTAMP_MS, RunLog
+from ads_rca.sources.atmacup.snapshots import HORIZONS_S, EgoSnapshots
 
 #: The longest row ID or submission name a message may carry.
 MAX_TEXT = 256

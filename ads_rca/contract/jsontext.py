@@ -1,7 +1,8 @@
 """JSON text for the contract's String payloads and Marker ``text`` fields: strict, lossless.
 
 Strict: no NaN/Infinity literals (any JSON parser reads every payload); non-finite numbers
-travel as ``null`` with the ``"$nonfinite"`` annotation of :mod:`ads_rca.strictjson`, which
+travel as ``null`` with the ``"$nonfinite"`` annotation of :mod:`ads_rca.foundation.strictjson`,
+which
 :func:`loads_json` undoes, so subscribers get back exactly the values that were sent.
 orjson is fast and keeps key order but cannot hold integers beyond 64 bits (writing them
 fails, reading them gives floats); those documents go through the json module. Texts with
@@ -23,7 +24,7 @@ from typing import Any
 import orjson
 
 from ads_rca.contract.errors import JsonTextError
-from ads_rca.strictjson import NONFINITE_KEY, all_finite, from_strict, to_strict
+from ads_rca.foundation.strictjson import NONFINITE_KEY, all_finite, from_strict, to_strict
 
 #: 19 digits in a row: maybe an integer orjson cannot hold (in a string too: then harmless).
 _LONG_DIGITS = re.compile(r"[0-9]{19}")

@@ -28,7 +28,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from ads_rca.contract.topics import topic_name
-from ads_rca.verdict import MODULES, Module
+from ads_rca.diagnosis.verdict import MODULES, Module
 
 if TYPE_CHECKING:
     from rclpy.qos import QoSProfile

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from collections import Counter
 
-from ads_rca.text import printable
+from ads_rca.foundation.text import printable
 
 
 class SkippedMessages:

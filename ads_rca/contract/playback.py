@@ -14,12 +14,12 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from ads_rca.annotations import Annotation, annotations_from_document
 from ads_rca.contract import topics
 from ads_rca.contract.convert import carried_plan_rows
 from ads_rca.contract.jsontext import dumps_json, loads_json
 from ads_rca.model import ALL_FOLDERS, RunLog, frame_number
 from ads_rca.problems import Problem, problems_from_list
+from ads_rca.sources.carla.annotations import Annotation, annotations_from_document
 
 if TYPE_CHECKING:
     from std_msgs.msg import String

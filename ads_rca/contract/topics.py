@@ -26,12 +26,12 @@ from dataclasses import dataclass
 from functools import cache
 from typing import TYPE_CHECKING, Any
 
-from ads_rca.annotations import annotations_from_document
 from ads_rca.contract import codec
 from ads_rca.contract.codec import Codec
 from ads_rca.contract.convert import MarkerStyle
 from ads_rca.contract.errors import UnknownTopic
 from ads_rca.model import RunLog
+from ads_rca.sources.carla.annotations import annotations_from_document
 
 if TYPE_CHECKING:
     from rclpy.qos import QoSProfile

@@ -5,7 +5,8 @@ anything itself. It gathers the four modules' per-frame results, keyed by analys
 index (reference judges a duplicated timestamp twice; corrected once, the first index), and
 when the verdict's horizon is covered it calls the mode's
 :meth:`~ads_rca.oracles.semantics.Semantics.attribute` on them (as the engine does) and
-renders :meth:`~ads_rca.engine.Diagnosis.to_json` (the ``diagnose --json`` contract) plus a
+renders :meth:`~ads_rca.diagnosis.engine.Diagnosis.to_json` (the ``diagnose --json`` contract) plus
+a
 ``live`` section.
 
 The horizon is the collision frame (from the run metadata, or a later collision event): the
@@ -48,10 +49,11 @@ from typing import Any
 import numpy as np
 
 from ads_rca.capabilities import INPUT_FIELDS, held_status
-from ads_rca.conclusion import frames_text, missing_window_frames
 from ads_rca.contract.ego_paths import EgoPathRow, merged, snapshots_from_rows
 from ads_rca.contract.errors import MalformedMessage
-from ads_rca.engine import Diagnosis, frame_json
+from ads_rca.diagnosis.conclusion import frames_text, missing_window_frames
+from ads_rca.diagnosis.engine import Diagnosis, frame_json
+from ads_rca.diagnosis.verdict import FrameResults, json_safe
 from ads_rca.live.results import (
     Columns,
     FollowsRunEnd,
@@ -74,7 +76,6 @@ from ads_rca.oracles.base import MODULES, Module, OracleResult, RunContext
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import Params
 from ads_rca.problems import Problem, ProblemLog, new_problems
-from ads_rca.verdict import FrameResults, json_safe
 
 
 @dataclass

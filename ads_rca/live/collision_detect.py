@@ -4,7 +4,8 @@ A stack publishes no collision frame, so stack mode (issue #15 item 4) can detec
 what the simulator reports. The ego box is built as the oracles build it: centre and yaw
 from the ego pose, half extent from the ego actor's record; every other actor's box is its
 location, yaw and half extent in the same record. A pair collides when the signed distance
-of :func:`ads_rca.geometry.box_signed_distance` (the corrected oracles' clearance) is below
+of :func:`ads_rca.foundation.geometry.box_signed_distance` (the corrected oracles' clearance) is
+below
 zero, which is the synthesiser's rule too (its separating-axis gap is that distance's
 negative branch), so a synthesised crash is detected at its logged collision frame.
 
@@ -22,7 +23,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ads_rca.errors import ConfigError
-from ads_rca.geometry import FloatArray, box_signed_distance
+from ads_rca.foundation.geometry import FloatArray, box_signed_distance
 from ads_rca.model import Actors, EgoPose, RunLog, frame_number
 from ads_rca.oracles.base import ego_row
 

@@ -33,11 +33,11 @@ from ads_rca.contract.cdr import CdrWriter
 from ads_rca.contract.cdr_decode import CdrReader
 from ads_rca.contract.errors import CdrError
 from ads_rca.contract.jsontext import dumps_json
+from ads_rca.foundation.text import printable
 from ads_rca.live.results import LiveResult, plain
 from ads_rca.live.runid import RUN_KEY
-from ads_rca.openlane_run_scores import FRAME_KEY, SEGMENT_KEY, figures_text
 from ads_rca.params import make_params
-from ads_rca.text import printable
+from ads_rca.sources.openlane.run_scores import FRAME_KEY, SEGMENT_KEY, figures_text
 
 #: diagnostic_msgs/DiagnosticStatus levels (a ``byte`` field).
 OK = 0

@@ -1,6 +1,6 @@
 """A planning monitor's snapshot rows' paths, and when a row is scored again.
 
-Why: a snapshot table's row (``ads_rca.ego_snapshots``) is scored frame by frame by the
+Why: a snapshot table's row (``ads_rca.sources.atmacup.snapshots``) is scored frame by frame by the
 planning module's not-judged result (``trajectory_scores.frame_scores``). The player sends
 the row's paths on ``run/ego_paths`` with its frame, and a live trajectory-prediction model
 (any node of the run, in its own process) may send its own ``predicted`` path for the row.
@@ -40,7 +40,7 @@ import numpy as np
 
 from ads_rca.contract.ego_paths import EgoPathRow, merged
 from ads_rca.contract.errors import MalformedMessage
-from ads_rca.geometry import FloatArray
+from ads_rca.foundation.geometry import FloatArray
 from ads_rca.live.results import LiveResult
 
 #: Judged rows remembered for a later path (a model answering within this many rows).

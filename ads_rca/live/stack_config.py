@@ -20,10 +20,10 @@ from ads_rca.capabilities import INPUT_FIELDS, source_statuses
 from ads_rca.contract import live_topics, topics
 from ads_rca.contract.stack_layouts import CONTRACT, Layout, layout
 from ads_rca.errors import ConfigError
+from ads_rca.foundation.text import printable
 from ads_rca.live.stamp_sync import SyncSettings
 from ads_rca.model import FOLDER_FIELDS, FOLDERS, INPUTS_KEY, InputStatus, RunMetadata
 from ads_rca.paramspec import EPISODE_REWIND, Range
-from ads_rca.text import printable
 
 #: ``stack_mode`` values: ``stack`` (a stack's topics), ``player`` (the player's contract) or
 #: ``auto`` (stack when nobody publishes ``run/metadata``). Not on/off: YAML reads those as

@@ -48,7 +48,7 @@ import numpy as np
 
 from ads_rca.capabilities import JUDGED, complete, judged_modules
 from ads_rca.contract.ego_paths import EgoPathRow, snapshots_from_rows
-from ads_rca.engine import evaluate_frame
+from ads_rca.diagnosis.engine import evaluate_frame
 from ads_rca.live.results import FollowsRunEnd, FrameMarker, LiveResult, RunEnd, no_record
 from ads_rca.live.row_paths import JudgedRow, RowPaths, rescored_incomplete
 from ads_rca.model import (
@@ -61,11 +61,11 @@ from ads_rca.model import (
     frame_number,
     read_inputs,
 )
-from ads_rca.openlane_run_scores import LaneMatches
 from ads_rca.oracles.base import MODULES, Module, RunContext
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import Params
 from ads_rca.problems import Problem, ProblemLog, new_problems
+from ads_rca.sources.openlane.run_scores import LaneMatches
 
 #: A snapshot row's paths, awaited by the planning module like an input folder.
 EGO_PATHS = "ego_paths"
@@ -169,7 +169,8 @@ class MonitorCore(FollowsRunEnd):
         #: the row's paths only, so a later path re-scores it (set with the metadata).
         self.rescores_rows = False
         #: An OpenLane-V2 segment's scored frames' matches, kept for the segment figures
-        #: (a frame is matched when judged, never again; :mod:`ads_rca.openlane_run_scores`).
+        #: (a frame is matched when judged, never again;
+        # :mod:`ads_rca.sources.openlane.run_scores`).
         self.lane_matches = LaneMatches()
         #: Per module, the traceback of the first exception its oracle raised in any
         #: window (a bug in our code: the node logs it once; the result says which error).

@@ -13,12 +13,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ads_rca.diagnosis.verdict import MODULES, Metric, Module, OracleResult
 from ads_rca.model import Actors, EgoPose, RunLog
-from ads_rca.openlane_run_scores import LaneMatches
 from ads_rca.oracles.semantics import EGO_ID_TIMESTAMP_MS, semantics_for
 from ads_rca.params import Params
 from ads_rca.problems import CHECK_SKIPPED, Problem, ProblemLog, new_problems
-from ads_rca.verdict import MODULES, Metric, Module, OracleResult
+from ads_rca.sources.openlane.run_scores import LaneMatches
 
 # The per-frame result types live with the verdict (they are its contract); oracles name
 # them from here.
@@ -45,7 +45,7 @@ class RunContext:
     problems: ProblemLog = field(default_factory=ProblemLog)
     _reported: set[tuple[str, str, str]] = field(default_factory=set, repr=False)
     #: The OpenLane-V2 frames' matches the segment figures pool (a live monitor gives every
-    #: context of its run the same one; :mod:`ads_rca.openlane_run_scores`).
+    #: context of its run the same one; :mod:`ads_rca.sources.openlane.run_scores`).
     lane_matches: LaneMatches = field(default_factory=LaneMatches, repr=False)
     #: Per module, the traceback of the first exception its oracle raised (a bug in our
     #: code: the command prints it; the verdict names the module's internal error).

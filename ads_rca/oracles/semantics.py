@@ -20,9 +20,9 @@ from dataclasses import dataclass, field
 from functools import partial
 from typing import TYPE_CHECKING, Any
 
+from ads_rca.diagnosis.verdict import Attribution, FrameResults, Metric, Module, OracleResult
 from ads_rca.model import ALL_FOLDERS, FOLDERS, InputStatus, Record, RunLog
 from ads_rca.params import Params
-from ads_rca.verdict import Attribution, FrameResults, Metric, Module, OracleResult
 
 if TYPE_CHECKING:
     from ads_rca.oracles.base import RunContext
@@ -85,7 +85,7 @@ class Semantics:
     #: later collision re-judges the frames in the window, and the verdict names the partner.
     uses_partner: bool = False
     #: A predictor's tracks are scored against the realised future where the prediction
-    #: module cannot be judged (:mod:`ads_rca.prediction_scores`); its look-ahead must cover
+    #: module cannot be judged (:mod:`ads_rca.sources.predictor.scores`); its look-ahead must cover
     #: ``prediction_window`` frames and its folders the raw predictions, actors and pose.
     scores_predictions: bool = False
     #: Per module, what a report plots over time (the first whose first key is present wins).
@@ -259,22 +259,22 @@ def not_judged(module: Module, why: str, scores: bool, ctx: RunContext, ts: int)
     """The result of a module the run's inputs do not let be judged (see
     :meth:`Semantics.judging_oracles`); with ``scores`` (:attr:`Semantics.scores_predictions`)
     a predictor's tracks are still scored against the realised future
-    (:mod:`ads_rca.prediction_scores`), an OpenLane-V2 model's lane graphs against the
-    ground truth (:mod:`ads_rca.openlane_run_scores`)."""
+    (:mod:`ads_rca.sources.predictor.scores`), an OpenLane-V2 model's lane graphs against the
+    ground truth (:mod:`ads_rca.sources.openlane.run_scores`)."""
     metrics: dict[str, Metric] = {}
     if scores and module == "prediction":
-        from ads_rca.prediction_scores import frame_scores
+        from ads_rca.sources.predictor.scores import frame_scores
 
         metrics = frame_scores(ctx.log, ts, ctx.params.prediction_window)
     elif scores and module == "perception" and (ctx.log.lanes or ctx.log.lanes_predicted):
-        from ads_rca.openlane_run_scores import THRESHOLDS
-        from ads_rca.openlane_run_scores import frame_scores as lane_scores
+        from ads_rca.sources.openlane.run_scores import THRESHOLDS
+        from ads_rca.sources.openlane.run_scores import frame_scores as lane_scores
 
         metrics = lane_scores(ctx.log, ts, ctx.lane_matches)  # an OpenLane-V2 segment's
         if metrics:
             return OracleResult(module, ts, False, metrics, dict(THRESHOLDS), skipped=why)
     elif scores and module == "planning" and ctx.log.ego_snapshots is not None:
-        from ads_rca.trajectory_scores import frame_scores as row_scores
+        from ads_rca.sources.atmacup.trajectory_scores import frame_scores as row_scores
 
         metrics = dict(row_scores(ctx.log, ts))  # a snapshot table's row's predicted path
     return OracleResult(module, ts, failed=False, metrics=metrics, skipped=why)

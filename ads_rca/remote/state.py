@@ -22,8 +22,8 @@ from typing import Any
 
 import orjson
 
-from ads_rca import strictjson
 from ads_rca.contract.errors import DOCUMENT_ERRORS, MalformedMessage
+from ads_rca.foundation import strictjson
 from ads_rca.live.results import LiveResult
 from ads_rca.oracles.base import MODULES
 from ads_rca.remote.history import History, parse_since

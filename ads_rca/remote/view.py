@@ -28,13 +28,13 @@ from typing import Any
 import orjson
 
 from ads_rca.capabilities import JUDGED, NOT_JUDGED
-from ads_rca.conclusion import (
+from ads_rca.contract.errors import MalformedMessage
+from ads_rca.diagnosis.conclusion import (
     COLLISION_NO,
     COLLISION_UNKNOWN_STATE,
     COLLISION_YES,
     PARTLY_JUDGED,
 )
-from ads_rca.contract.errors import MalformedMessage
 from ads_rca.oracles.base import MODULES
 from ads_rca.remote.keys import DASHBOARD_ROOT, SAMPLE_SUFFIX
 

@@ -35,7 +35,9 @@ from rich.table import Table
 from rich.text import Text
 
 from ads_rca.capabilities import NOT_JUDGED
-from ads_rca.conclusion import PARTLY_JUDGED
+from ads_rca.diagnosis.conclusion import PARTLY_JUDGED
+from ads_rca.diagnosis.summary import count_columns
+from ads_rca.foundation.text import printable
 from ads_rca.oracles.base import MODULES
 from ads_rca.remote.client import RemoteClient
 from ads_rca.remote.config import DEFAULT_ENDPOINT
@@ -52,8 +54,6 @@ from ads_rca.remote.view import (
     DashboardModel,
     read_verdict,
 )
-from ads_rca.summary import count_columns
-from ads_rca.text import printable
 
 #: Exit status when ``--timeout`` passes without a verdict.
 EXIT_NO_VERDICT = 3

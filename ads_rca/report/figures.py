@@ -33,12 +33,12 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.patches import Polygon
 
-from ads_rca.annotations import annotations_from_document
-from ads_rca.engine import Diagnosis
-from ads_rca.geometry import box_corners, ego_to_world
+from ads_rca.diagnosis.engine import Diagnosis
+from ads_rca.diagnosis.verdict import FrameResults
+from ads_rca.foundation.geometry import box_corners, ego_to_world
 from ads_rca.oracles.base import MODULES, Module
 from ads_rca.oracles.semantics import Headline
-from ads_rca.verdict import FrameResults
+from ads_rca.sources.carla.annotations import annotations_from_document
 
 #: Largest magnitude drawn. Beyond it no log quantity (metres, ms, scores) means anything,
 #: and near float's limit matplotlib's transforms overflow (1.7e308 fails to draw).

@@ -23,10 +23,10 @@ from typing import Any
 
 from matplotlib.figure import Figure
 
-from ads_rca.annotations import annotations_from_document
 from ads_rca.capabilities import JUDGED
-from ads_rca.conclusion import COLLISION_UNKNOWN_STATE
-from ads_rca.engine import Diagnosis
+from ads_rca.diagnosis.conclusion import COLLISION_UNKNOWN_STATE
+from ads_rca.diagnosis.engine import Diagnosis
+from ads_rca.diagnosis.summary import collision_text, window_text
 from ads_rca.oracles.base import MODULES
 from ads_rca.report.figures import (
     Skipped,
@@ -37,8 +37,8 @@ from ads_rca.report.figures import (
     scene_frames,
     series_ends,
 )
-from ads_rca.run_figures import figures_from_document
-from ads_rca.summary import collision_text, window_text
+from ads_rca.sources.carla.annotations import annotations_from_document
+from ads_rca.sources.carla.figures import figures_from_document
 
 #: Nested evidence deeper than this is shown as text, not as tables within tables.
 TABLE_DEPTH = 3

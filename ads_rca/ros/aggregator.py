@@ -43,8 +43,9 @@ from ads_rca.contract.playback import (
     read_document,
     read_input_problems,
 )
+from ads_rca.diagnosis.summary import window_text
 from ads_rca.errors import AdsRcaError
-from ads_rca.indented_json import dumps_indented
+from ads_rca.foundation.indented_json import dumps_indented
 from ads_rca.live import diagnostics as diag
 from ads_rca.live.aggregate import AggregatorCore, VerdictOutcome
 from ads_rca.live.collision_feed import CollisionFeed, collision_document
@@ -63,7 +64,6 @@ from ads_rca.ros.nodeparams import (
     declare_node_parameters,
     log_in_force,
 )
-from ads_rca.summary import window_text
 
 PARAMETERS: dict[str, NodeParameter] = {
     "topic_namespace": (topics.DEFAULT_NAMESPACE, "Namespace of the contract topics."),

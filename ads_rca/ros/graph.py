@@ -32,15 +32,15 @@ from typing import Any, TextIO
 
 from ads_rca.contract import topics
 from ads_rca.errors import InputError
-from ads_rca.io.files import DEFAULT_MAX_FILE_MB
-from ads_rca.io.formats import AUTO, FORMATS, SOURCE_PARAMS, SourceOptions
-from ads_rca.io.yaml_files import load_config
+from ads_rca.foundation.files import DEFAULT_MAX_FILE_MB
+from ads_rca.foundation.yaml_files import load_config
 from ads_rca.live.runid import new_run_id
 from ads_rca.oracles.base import MODULES, Module
 from ads_rca.params import SEMANTICS, Params, params_from_sources
 from ads_rca.paramspec import MAX_FILE_MB, RATE, SECONDS, check_number
-from ads_rca.profiles import BUILTIN_PROFILES
 from ads_rca.ros.launcher import Launcher, ManagedProcess, ParamValue, ros_args
+from ads_rca.sources.bag.profiles import BUILTIN_PROFILES
+from ads_rca.sources.formats import AUTO, FORMATS, SOURCE_PARAMS, SourceOptions
 
 PLAYER = "ads_rca.ros.player"
 AGGREGATOR = "ads_rca.ros.aggregator"

@@ -40,9 +40,9 @@ from rclpy.subscription import RCLError, Subscription
 
 from ads_rca.contract import live_topics, topics
 from ads_rca.errors import AdsRcaError
+from ads_rca.foundation.text import printable
 from ads_rca.ros.env import domain_id_problem, node_warnings, use_node_profile
 from ads_rca.ros.lifeline import die_with_parent
-from ads_rca.text import printable
 
 #: SIGINT/SIGTERM received by this process (see the module docstring).
 _SIGNALS: list[int] = []

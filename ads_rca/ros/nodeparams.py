@@ -31,10 +31,10 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from ads_rca.errors import ConfigError
+from ads_rca.foundation.text import printable
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import DEFAULT_SEMANTICS, SEMANTICS, Params, make_params
 from ads_rca.paramspec import SPECS, Choice, Range, check_number
-from ads_rca.text import printable
 
 ENGINE_NAMES: tuple[str, ...] = tuple(f.name for f in fields(Params) if f.name != "semantics")
 #: Parameters rclpy declares on every node itself.

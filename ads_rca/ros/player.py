@@ -46,13 +46,11 @@ from ads_rca.contract.playback import (
     timeline,
 )
 from ads_rca.errors import AdsRcaError, ConfigError, InputError
-from ads_rca.io.bag_options import BagOptions
-from ads_rca.io.files import DEFAULT_MAX_FILE_MB
-from ads_rca.io.formats import AUTO, FORMATS, SOURCE_PARAMS, SourceOptions, no_frame_message
+from ads_rca.foundation.files import DEFAULT_MAX_FILE_MB
+from ads_rca.foundation.text import printable
 from ads_rca.live.runid import checked_run_id, new_run_id
 from ads_rca.model import RunLog
 from ads_rca.paramspec import MAX_FILE_MB, RATE, SECONDS, Range
-from ads_rca.profiles import BUILTIN_PROFILES, DEFAULT_PROFILE
 from ads_rca.ros.nodemain import (
     ignore_stop_signals,
     keep_running,
@@ -61,7 +59,9 @@ from ads_rca.ros.nodemain import (
     wait_for_acks,
 )
 from ads_rca.ros.nodeparams import NodeParameter, declare_node_parameters, log_in_force
-from ads_rca.text import printable
+from ads_rca.sources.bag.options import BagOptions
+from ads_rca.sources.bag.profiles import BUILTIN_PROFILES, DEFAULT_PROFILE
+from ads_rca.sources.formats import AUTO, FORMATS, SOURCE_PARAMS, SourceOptions, no_frame_message
 
 #: A tick may carry a few extra stamps; 40 frames stay far below the 100-message history.
 MAX_ACK_EVERY = 40
@@ -280,7 +280,7 @@ class Player(Node):
         return BagOptions(profile, remap or None, dirs)
 
     def _load(self, log_path: str, bag: BagOptions) -> RunLog:
-        from ads_rca.io import open_run
+        from ads_rca.sources.registry import open_run
 
         if not log_path:
             raise ConfigError("parameter log_path is required (a running-log folder)")

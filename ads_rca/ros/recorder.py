@@ -1,7 +1,8 @@
 """``recorder`` node: records the contract topics (and more) into a rosbag2 MCAP bag.
 
 ``ros2 bag record`` is not available here, and the replay/demo graphs need a recording that
-survives a crash of the stack. A thin shell over :class:`ads_rca.io.mcap_writer.McapBagWriter`:
+survives a crash of the stack. A thin shell over
+:class:`ads_rca.sources.bag.mcap_writer.McapBagWriter`:
 raw subscriptions hand the serialised bytes straight to the writer (no deserialisation,
 log time = reception time, publish time = the sender's timestamp), with lossless QoS
 (RELIABLE + KEEP_ALL, latched topics TRANSIENT_LOCAL) so a player at rate 0 waits for us.
@@ -37,8 +38,6 @@ from ads_rca.contract.assembler import RunLogAssembler
 from ads_rca.contract.errors import UnknownMessageType
 from ads_rca.contract.jsontext import loads_json
 from ads_rca.errors import AdsRcaError, ConfigError
-from ads_rca.io.bag_writer import contract_qos_yaml
-from ads_rca.io.mcap_writer import COMPRESSIONS, DEFAULT_CHUNK_SIZE, McapBagWriter, qos_yaml
 from ads_rca.live.diagnostics import status_runs
 from ads_rca.live.runid import checked_run_id, document_run, writer_prefix
 from ads_rca.paramspec import SECONDS, Range
@@ -52,6 +51,13 @@ from ads_rca.ros.nodemain import (
 )
 from ads_rca.ros.nodeparams import NodeParameter, declare_node_parameters, log_in_force
 from ads_rca.ros.qos_match import offered_qos
+from ads_rca.sources.bag.mcap_writer import (
+    COMPRESSIONS,
+    DEFAULT_CHUNK_SIZE,
+    McapBagWriter,
+    qos_yaml,
+)
+from ads_rca.sources.bag.writer import contract_qos_yaml
 
 PARAMETERS: dict[str, NodeParameter] = {
     "output": ("", "Bag directory to create (required; must be new or empty)."),

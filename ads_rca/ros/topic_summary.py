@@ -25,6 +25,7 @@ from ads_rca.contract.assembler import RunLogAssembler
 from ads_rca.contract.errors import ContractError, MalformedMessage
 from ads_rca.contract.malformed import SkippedMessages
 from ads_rca.errors import AdsRcaError
+from ads_rca.foundation.strictjson import to_strict
 from ads_rca.paramspec import Range
 from ads_rca.ros.nodemain import (
     ignore_stop_signals,
@@ -34,7 +35,6 @@ from ads_rca.ros.nodemain import (
     stop_requested,
 )
 from ads_rca.ros.nodeparams import NodeParameter, declare_node_parameters, log_in_force
-from ads_rca.strictjson import to_strict
 
 PARAMETERS: dict[str, NodeParameter] = {
     "topic_namespace": (topics.DEFAULT_NAMESPACE, "Namespace of the contract topics."),
@@ -143,7 +143,7 @@ class TopicSummary(Node):
             counts = to_strict(self.counts())  # strict JSON, NaN/inf named (docs/topics.md)
             path.write_bytes(orjson.dumps(counts, option=orjson.OPT_INDENT_2))
         if self.get_parameter("output_json").value:
-            from ads_rca.io.json_writer import write_run_log
+            from ads_rca.sources.log.writer import write_run_log
 
             out = Path(str(self.get_parameter("output_dir").value))
             try:

@@ -17,7 +17,8 @@ partner (its planner braked for it), so the fault is what turns a near miss into
 - ``planning``: the planner ignores the partner and keeps speed through the conflict.
 - ``controller``: the brake realises only ``BRAKE_GAIN`` of the commanded deceleration.
 
-A fault is named by the module it hits, as the verdict names it (:data:`ads_rca.verdict.MODULES`),
+A fault is named by the module it hits, as the verdict names it
+(:data:`ads_rca.diagnosis.verdict.MODULES`),
 so a label compares with a verdict without translation; a variant is ``module:variant``
 (:func:`fault_module` gives its module). ``control``, the controller fault's former name,
 is still accepted (:func:`canonical_fault`).

@@ -6,7 +6,7 @@ edges. The CARLA world is left-handed (x forward, y right), but a yaw ψ still m
 offset (x, y) to the world as (x cos ψ − y sin ψ, x sin ψ + y cos ψ), exactly as the
 format's rotation rule says, so no special handling is needed in 2-D.
 
-These helpers are general; they are meant to move to a shared ``ads_rca/geometry.py``.
+These helpers are general; they are meant to move to a shared ``ads_rca/foundation/geometry.py``.
 """
 
 from __future__ import annotations

@@ -11,7 +11,7 @@ The types come from the ``.msg`` files shipped in ``ads_rca/synth/msgs`` (the st
 published text) on top of rosbags' Kilted store, and each topic's stored definition is
 that text, concatenated as rosbag2 does (the type's file, then each dependency after a
 ``MSG:`` separator, depth first), so a bag carries its types as a real recording does.
-Geometry goes through :mod:`ads_rca.profiles.frames` (CARLA world → ROS ``map``). Header
+Geometry goes through :mod:`ads_rca.sources.bag.profiles.frames` (CARLA world → ROS ``map``). Header
 stamps and log times are the frame timestamps after :data:`EPOCH_NS`, so no reader can
 rely on time starting at zero.
 """
@@ -35,16 +35,16 @@ import numpy.typing as npt
 from ads_rca.capabilities import input_status, present
 from ads_rca.contract.rosmsg import referenced_types
 from ads_rca.errors import ConfigError
-from ads_rca.io.bag_writer import STORAGES
-from ads_rca.io.errors import OutputExists
 from ads_rca.model import Boxes, ControlCommand, EgoPose, Objects3D, Plan, RunLog, Track
-from ads_rca.profiles.frames import (
+from ads_rca.sources.bag.profiles.frames import (
     carla_rpy_to_quaternion,
     carla_to_map_xyz,
     rpy_to_quaternion,
     world_to_body,
 )
-from ads_rca.profiles.profile import load_profile
+from ads_rca.sources.bag.profiles.profile import load_profile
+from ads_rca.sources.bag.writer import STORAGES
+from ads_rca.sources.errors import OutputExists
 from ads_rca.synth.errors import SynthesisError
 from ads_rca.synth.geometry import FloatArray, to_world
 
@@ -52,7 +52,7 @@ if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore
 
 #: The profiles a synthesised run can be written in (``ads_rca``, this project's own
-#: contract, is :func:`ads_rca.io.bag_writer.write_bag`).
+#: contract, is :func:`ads_rca.sources.bag.writer.write_bag`).
 PROFILES = ("carla-autoware", "vision_msgs")
 #: Header stamp of timestamp 0 ms: 2023-11-14, a realistic wall-clock epoch.
 EPOCH_NS = 1_700_000_000 * 1_000_000_000
@@ -72,7 +72,7 @@ _NS_PER_MS = 1_000_000
 
 def profile_topics(profile: str) -> dict[str, tuple[str, str]]:
     """Model input → (topic, type) of a built-in profile: what the reader expects is what
-    the writer writes (one table, ``ads_rca/profiles/builtin/<profile>.yaml``)."""
+    the writer writes (one table, ``ads_rca/sources/bag/profiles/builtin/<profile>.yaml``)."""
     return {name: (spec.topic, spec.type) for name, spec in load_profile(profile).inputs.items()}
 
 

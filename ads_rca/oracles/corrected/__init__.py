@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 
+from ads_rca.diagnosis.verdict import Attribution, FrameResults
 from ads_rca.model import FOLDERS, Record
 from ads_rca.oracles.base import Module, OracleResult, RunContext, earliest_ego
 from ads_rca.oracles.corrected.attribution import attribute_corrected
@@ -27,7 +28,6 @@ from ads_rca.oracles.corrected.prediction import prediction
 from ads_rca.oracles.corrected.threat import most_threatening
 from ads_rca.oracles.semantics import Headline, Semantics
 from ads_rca.params import Params
-from ads_rca.verdict import Attribution, FrameResults
 
 ORACLES: dict[Module, Callable[[RunContext, int], OracleResult]] = {
     "perception": perception,
@@ -190,7 +190,7 @@ class CorrectedSemantics(Semantics):
         """Every folder of the seed format, and for the partner-reading rules the 3-D
         objects of a recording (rule 2b, and the 3-D link of prediction and planning);
         perception also an OpenLane-V2 segment's lane graphs, which its not-judged result
-        scores (:mod:`ads_rca.openlane_run_scores`)."""
+        scores (:mod:`ads_rca.sources.openlane.run_scores`)."""
         if module == "controller":
             return FOLDERS
         lanes = ("lanes", "lanes_predicted") if module == "perception" else ()

@@ -19,10 +19,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from ads_rca.oracles.base import MODULES, Metric, Module, OracleResult, RunContext
-from ads_rca.oracles.corrected.context import corrected_context, window_frames
-from ads_rca.params import Params
-from ads_rca.verdict import (
+from ads_rca.diagnosis.verdict import (
     BASIS_FALLBACK,
     BASIS_JUDGED,
     NO_COLLISION,
@@ -31,6 +28,9 @@ from ads_rca.verdict import (
     FrameResults,
     ModuleVerdict,
 )
+from ads_rca.oracles.base import MODULES, Metric, Module, OracleResult, RunContext
+from ads_rca.oracles.corrected.context import corrected_context, window_frames
+from ads_rca.params import Params
 
 #: Modules with an unconditioned test, for the fallback (pipeline order).
 FALLBACK_MODULES: tuple[Module, ...] = ("perception", "prediction")

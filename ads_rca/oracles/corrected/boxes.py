@@ -17,7 +17,7 @@ from functools import cached_property, lru_cache
 import numpy as np
 import numpy.typing as npt
 
-from ads_rca.geometry import FloatArray, along_polyline, ego_to_world
+from ads_rca.foundation.geometry import FloatArray, along_polyline, ego_to_world
 from ads_rca.model import EgoPose, Plan, Track, step_value
 from ads_rca.oracles.cache import LRU
 

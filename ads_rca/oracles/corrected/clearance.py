@@ -23,7 +23,12 @@ from functools import lru_cache
 import numpy as np
 import numpy.typing as npt
 
-from ads_rca.geometry import FloatArray, box_signed_distance, half_rows, signed_distance_rows
+from ads_rca.foundation.geometry import (
+    FloatArray,
+    box_signed_distance,
+    half_rows,
+    signed_distance_rows,
+)
 from ads_rca.model import Predictions
 from ads_rca.oracles.cache import CACHE_SIZE
 from ads_rca.oracles.corrected.boxes import PlanData, Series, all_steps, braking_boxes

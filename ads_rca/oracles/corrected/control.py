@@ -27,7 +27,7 @@ from typing import TypeVar, cast
 
 import numpy as np
 
-from ads_rca.geometry import FloatArray
+from ads_rca.foundation.geometry import FloatArray
 from ads_rca.oracles.base import Metric, OracleResult, RunContext
 from ads_rca.oracles.corrected.boxes import key_steps, signed_offset, step_order
 from ads_rca.oracles.corrected.common import REPORTED, skipped
@@ -431,7 +431,7 @@ def exact_sum(values: Iterable[float]) -> float:
 
 
 def ego_offset(point: FloatArray, x: float, y: float, yaw_deg: float) -> tuple[float, float]:
-    """:func:`~ads_rca.geometry.world_to_ego` of one world point (2,) from the pose
+    """:func:`~ads_rca.foundation.geometry.world_to_ego` of one world point (2,) from the pose
     (x, y, yaw): the same ufuncs and IEEE operations on scalars, so the same values,
     without the array calls that cost more than the arithmetic."""
     theta = np.deg2rad(yaw_deg)

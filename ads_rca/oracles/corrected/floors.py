@@ -38,7 +38,7 @@ from itertools import pairwise
 
 import numpy as np
 
-from ads_rca.geometry import FloatArray
+from ads_rca.foundation.geometry import FloatArray
 from ads_rca.model import Track
 from ads_rca.oracles.corrected.boxes import step_order
 from ads_rca.oracles.corrected.context import (

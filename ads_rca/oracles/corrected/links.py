@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from ads_rca.geometry import FloatArray
+from ads_rca.foundation.geometry import FloatArray
 from ads_rca.model import Predictions
 
 #: The reference's linking rule only considers step-"0" offsets closer than this.

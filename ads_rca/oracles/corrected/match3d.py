@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from ads_rca.geometry import FloatArray, bev_iou
+from ads_rca.foundation.geometry import FloatArray, bev_iou
 from ads_rca.model import Objects3D
 from ads_rca.oracles.corrected.assignment import best_matching
 from ads_rca.oracles.corrected.context import CacheName, CorrectedContext, ego_box, other_rows

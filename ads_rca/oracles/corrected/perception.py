@@ -17,7 +17,12 @@ import math
 
 import numpy as np
 
-from ads_rca.geometry import FloatArray, axis_aligned_iou, axis_aligned_ious, overlap_blocks
+from ads_rca.foundation.geometry import (
+    FloatArray,
+    axis_aligned_iou,
+    axis_aligned_ious,
+    overlap_blocks,
+)
 from ads_rca.model import Boxes
 from ads_rca.oracles.base import Metric, OracleResult, RunContext
 from ads_rca.oracles.corrected.assignment import best_matching

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ads_rca.geometry import FloatArray
+from ads_rca.foundation.geometry import FloatArray
 from ads_rca.oracles.base import Metric, OracleResult, RunContext
 from ads_rca.oracles.corrected.boxes import Series, build_plan, key_steps
 from ads_rca.oracles.corrected.clearance import (

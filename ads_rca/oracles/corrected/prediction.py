@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from ads_rca.geometry import FloatArray, ego_to_world
+from ads_rca.foundation.geometry import FloatArray, ego_to_world
 from ads_rca.model import EgoPose, Predictions
 from ads_rca.oracles.base import Metric, OracleResult, RunContext
 from ads_rca.oracles.corrected.boxes import Series, step_order

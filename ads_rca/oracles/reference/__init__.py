@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
+from ads_rca.diagnosis.verdict import Attribution, FrameResults
 from ads_rca.model import Record
 from ads_rca.oracles.base import EGO_ID_TIMESTAMP_MS, Module, RunContext, earliest_ego, ego_at
 from ads_rca.oracles.reference.attribution import attribute_reference
@@ -23,7 +24,6 @@ from ads_rca.oracles.reference.oracles import (
 )
 from ads_rca.oracles.semantics import Headline, Semantics
 from ads_rca.params import Params
-from ads_rca.verdict import Attribution, FrameResults
 
 #: The folders each reference oracle reads.
 FOLDERS_READ: dict[Module, tuple[str, ...]] = {

@@ -1,6 +1,6 @@
 """The reference verdict: failures counted in and before the reference's (unbounded) window.
 
-Moved here from ``verdict.py`` so the verdict types do not depend on the oracles; the
+Moved here from ``diagnosis/verdict.py`` so the verdict types do not depend on the oracles; the
 rule is unchanged (docs/semantics-reference.md, "Attribution").
 """
 
@@ -8,8 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from ads_rca.oracles.base import MODULES, RunContext
-from ads_rca.verdict import (
+from ads_rca.diagnosis.verdict import (
     BASIS_REFERENCE,
     NO_COLLISION,
     NO_MODULE_FAILED,
@@ -17,6 +16,7 @@ from ads_rca.verdict import (
     FrameResults,
     ModuleVerdict,
 )
+from ads_rca.oracles.base import MODULES, RunContext
 
 #: The one collision frame that means "no collision" to the reference (``== -1``).
 NO_COLLISION_FRAME = -1

@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from ads_rca.geometry import BLOCK_PAIRS, overlap_blocks
+from ads_rca.foundation.geometry import BLOCK_PAIRS, overlap_blocks
 from ads_rca.model import Boxes, Plan, Predictions, RunLog, Track
 from ads_rca.oracles.base import Metric, Module, OracleResult, RunContext
 from ads_rca.oracles.cache import LRU
@@ -394,7 +394,7 @@ def _norm(x: FloatArray, y: FloatArray) -> FloatArray:
 def _match_scores(a: FloatArray, b: FloatArray) -> FloatArray:
     """IoU (N, M) where it can match (> 0), else 0.
 
-    The float operations of :func:`ads_rca.geometry.axis_aligned_iou` (corners normalised
+    The float operations of :func:`ads_rca.foundation.geometry.axis_aligned_iou` (corners normalised
     by min/max, union = area_a + area_b - intersection). A zero-area box has intersection
     0, so IoU 0 (or 0/0 = NaN when both are empty); NaN coordinates give NaN; neither is
     > 0, so neither can match: the masks axis_aligned_iou applies change no match. Dense over
@@ -427,7 +427,7 @@ def greedy_match(
     For each detection in order, the unused gt box with the largest IoU strictly above 0;
     ties keep the earlier gt; NaN IoUs never match. Block by block of detections (at most
     ``max_pairs`` scores at once, only gt boxes whose extent touches the block's: see
-    :func:`~ads_rca.geometry.overlap_blocks`), so memory stays linear in the boxes.
+    :func:`~ads_rca.foundation.geometry.overlap_blocks`), so memory stays linear in the boxes.
     Used gt boxes score 0 in later blocks, which leaves every other row's first maximum where
     it was. Vectorised: when every detection's best gt in a block is distinct, that IS the
     greedy answer; otherwise rows are resolved in order, recomputing only those whose best

@@ -1,0 +1,485 @@
+"""A real stack's bag, read through a profile, into a :class:`RunLog`.
+
+The stack's messages carry header stamps, not frame numbers, so the frames are made here:
+the profile's reference input (actors, else ego, else the clock) times them. Its period is
+the median stamp difference rounded to whole milliseconds, frame f = round((stamp − t0) /
+period), timestamp f·period ms, so the model's frame grid holds. Every other message goes
+to the frame nearest its stamp, if within half a period of the reference's first-to-last
+span (else it is reported and dropped); two messages on one frame keep the later and report
+the earlier. The collision frame is the frame nearest the first collision event (the later
+one on a tie). Predictions become offsets in the ego's body frame of their frame, so they
+are kept only where the ego pose is known.
+
+Nothing here reads storage or types: the caller gives the bag's contents and ``decode``
+(message, type) → rosbags object (the bag's own definitions), so this stays pure and the
+same for MCAP and sqlite3. Every defect is a Problem naming the topic (and the message's
+log time and field); only a bag with no usable reference message raises InputError.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, TypeVar, cast
+
+import numpy as np
+
+from ads_rca.capabilities import INPUT_FIELDS, MODEL_INPUTS
+from ads_rca.contract.errors import MalformedMessage
+from ads_rca.contract.rosmsg import normalise_type
+from ads_rca.errors import ConfigError, InputError
+from ads_rca.foundation.geometry import world_to_ego
+from ads_rca.foundation.progress import Progress, tracked
+from ads_rca.model import (
+    ControlCommand,
+    EgoPose,
+    FloatArray,
+    InputStatus,
+    Objects3D,
+    Plan,
+    Predictions,
+    RunLog,
+    RunMetadata,
+    Track,
+)
+from ads_rca.problems import DROPPED_RECORD, USED_DEFAULT, Problem, ProblemLog
+from ads_rca.sources.bag.profiles.decoders import (
+    CollisionEvent,
+    PredictedPaths,
+    TimedPlan,
+    decoder_for,
+)
+from ads_rca.sources.bag.profiles.profile import InputSpec, Profile
+from ads_rca.sources.bag.storage import BagMessage
+
+if TYPE_CHECKING:
+    from ads_rca.sources.bag.reader import BagContents
+
+R = TypeVar("R")
+
+#: The frame period when the reference has a single stamp (nothing to measure).
+DEFAULT_PERIOD_MS = 50
+_SKIPPED = "message skipped"
+_NS_PER_MS = 1_000_000
+#: The inputs read into per-frame folders of the model as decoded, by folder (the field of
+#: each is the folder's name), and the prediction inputs, resampled per frame, to theirs.
+_FOLDERS = {
+    INPUT_FIELDS[name]: name for name in ("ego", "actors", "detections_2d", "ground_truth_2d")
+}
+_PREDICTION_FOLDERS = {name: INPUT_FIELDS[name] for name in ("predictions", "predictions_gt")}
+
+
+@dataclass(frozen=True, slots=True)
+class Stamped:
+    """One decoded message: its stamp and log time (ns), where it came from, its record."""
+
+    stamp_ns: int
+    log_time_ns: int
+    file: str
+    record: object
+
+
+@dataclass(frozen=True, slots=True)
+class Grid:
+    """The frames the reference input makes: first stamp, period (ns), first/last frame."""
+
+    t0_ns: int
+    period_ns: int
+    last: int
+
+    def nearest(self, stamp_ns: int) -> int:
+        """The frame nearest a stamp (the later one on a tie)."""
+        return math.floor((stamp_ns - self.t0_ns) / self.period_ns + 0.5)
+
+    def on_grid(self, stamp_ns: int) -> bool:
+        """Within half a period of the reference's first-to-last span."""
+        offset = stamp_ns - self.t0_ns
+        return -self.period_ns / 2 <= offset <= (self.last + 0.5) * self.period_ns
+
+    def frame_ns(self, frame: int) -> int:
+        return self.t0_ns + frame * self.period_ns
+
+    @property
+    def period_ms(self) -> int:
+        return self.period_ns // _NS_PER_MS
+
+
+def read_profiled(
+    contents: BagContents,
+    profile: Profile,
+    decode: Callable[[BagMessage, str], Any],
+    source: str,
+    progress: Progress | None = None,
+) -> RunLog:
+    """The run a bag carries in ``profile``'s layout (see the module docstring).
+
+    ``decode`` gives the rosbags object of a message as the named type (MalformedMessage
+    when it cannot; ``progress`` sees every message); ``source`` names the bag in problems,
+    errors and ``RunLog.source``."""
+    if profile.contract:
+        raise ConfigError(
+            f"{profile.file}: the {profile.name} profile is read by the contract reader"
+        )
+    problems = list(contents.problems)
+    inputs = {
+        name: InputStatus("absent", "", "the profile names no topic for it")
+        for name in MODEL_INPUTS
+    }
+    usable = _usable_inputs(contents.topics, profile, inputs, source, problems)
+    decoded = _decode_all(contents.messages, usable, decode, problems, progress)
+    reference = profile.inputs[profile.reference]
+    if not decoded.get(profile.reference):
+        why = inputs[profile.reference].reason
+        if profile.reference in usable:
+            count = sum(m.topic == reference.topic for m in contents.messages)
+            why = f"none of its {count} messages could be used (see the problems)"
+        raise InputError(
+            f"{source}: no usable message on the reference input {profile.reference} "
+            f"({reference.topic}): {why}"
+        )
+    grid = _grid(decoded[profile.reference], reference, problems)
+    framed = {
+        name: _to_frames(stamped, usable[name], grid, problems)
+        for name, stamped in decoded.items()
+        if name not in ("collision", "clock")
+    }
+    _mark_read(inputs, usable, framed, decoded)
+    folders: dict[str, dict[int, Any]] = {
+        folder: {ts: s.record for ts, s in framed.get(name, {}).items()}
+        for folder, name in _FOLDERS.items()
+    }
+    poses = cast("dict[int, EgoPose]", folders["pose"])
+    for name, folder in _PREDICTION_FOLDERS.items():
+        if name in framed:
+            folders[folder] = _predictions(framed[name], usable[name], poses, grid, problems)
+    if "plan" in framed:
+        folders["waypoint"] = _plans(framed["plan"], usable["plan"], grid, problems)
+    return RunLog.from_folders(
+        _metadata(profile, grid, decoded.get("collision", []), problems),
+        tuple(sorted(folders["actors"])),
+        folders,
+        problems=ProblemLog(problems),
+        source=source,
+        detections_3d=_records(framed.get("detections_3d", {}), Objects3D),
+        tracks_3d=_records(framed.get("tracked_objects", {}), Objects3D),
+        controls=_records(framed.get("control", {}), ControlCommand),
+        inputs=inputs,
+    )
+
+
+def _mark_read(
+    inputs: dict[str, InputStatus],
+    usable: dict[str, InputSpec],
+    framed: dict[str, dict[int, Stamped]],
+    decoded: dict[str, list[Stamped]],
+) -> None:
+    """Each usable input real when a message of it was placed on a frame (the clock: when
+    one was decoded; the collision always: a topic without events means none happened)."""
+    for name, spec in usable.items():
+        placed = framed.get(name) or (name == "clock" and decoded["clock"])
+        if placed or name == "collision":
+            inputs[name] = InputStatus("real", spec.source)
+        else:
+            inputs[name] = InputStatus("absent", spec.source, f"no usable message on {spec.topic}")
+
+
+def _metadata(
+    profile: Profile, grid: Grid, collisions: list[Stamped], problems: list[Problem]
+) -> RunMetadata:
+    """The run facts: the grid's period and length, the collision, the profile's camera."""
+    collision_frame, partner = _collision(collisions, grid, problems)
+    raw: dict[str, Any] = {"source_profile": profile.name, "ego_role": profile.ego_role}
+    if partner is not None:
+        raw["collision_partner"] = partner
+    camera_loc = profile.camera_loc
+    if camera_loc is None:
+        camera_loc = (0.0, 0.0, 0.0)
+        problems.append(
+            Problem(
+                profile.file,
+                "metadata.camera_loc",
+                "not given",
+                f"{USED_DEFAULT}: [0, 0, 0]",
+                "warning",
+            )
+        )
+    return RunMetadata(grid.period_ms, camera_loc, collision_frame, grid.last + 1, raw=raw)
+
+
+def _records(framed: dict[int, Stamped], kind: type[R]) -> dict[int, R]:
+    """The records of a framed input, as the type its decoder makes."""
+    return {ts: cast("R", s.record) for ts, s in framed.items()}
+
+
+def _usable_inputs(
+    stored: dict[str, str],
+    profile: Profile,
+    inputs: dict[str, InputStatus],
+    source: str,
+    problems: list[Problem],
+) -> dict[str, InputSpec]:
+    """Input → spec for the profile's topics the bag holds with the profile's type; the
+    others are absent, said in ``inputs`` and as a Problem."""
+    usable: dict[str, InputSpec] = {}
+    for name, spec in profile.inputs.items():
+        if spec.topic not in stored:
+            reason = f"topic {spec.topic} not in the bag"
+            inputs[name] = InputStatus("absent", spec.source, reason)
+            problems.append(Problem(source, spec.topic, reason, f"{name} absent", "warning"))
+        elif normalise_type(stored[spec.topic]) != normalise_type(spec.type):
+            reason = f"stored type {stored[spec.topic]}, the profile's {name} is {spec.type}"
+            inputs[name] = InputStatus("absent", spec.source, reason)
+            problems.append(Problem(source, spec.topic, reason, f"topic skipped; {name} absent"))
+        else:
+            usable[name] = spec
+    return usable
+
+
+def _decode_all(
+    messages: list[BagMessage],
+    usable: dict[str, InputSpec],
+    decode: Callable[[BagMessage, str], Any],
+    problems: list[Problem],
+    progress: Progress | None = None,
+) -> dict[str, list[Stamped]]:
+    """Input → its decoded messages (log-time order); each unusable one is a Problem."""
+    by_topic = {spec.topic: spec for spec in usable.values()}
+    out: dict[str, list[Stamped]] = {name: [] for name in usable}
+    for message in tracked(messages, progress):
+        spec = by_topic.get(message.topic)
+        if spec is None:
+            continue
+        decoder = decoder_for(spec.type)
+        if decoder is None:  # a contract profile: not this reader's
+            continue
+        try:
+            msg = decode(message, spec.type)
+            stamp = decoder.stamp(msg)
+            record = decoder.decode(msg, spec.frame)
+        except MalformedMessage as error:
+            problems.append(
+                Problem(
+                    message.source or message.topic,
+                    message.topic,
+                    f"message at log time {message.log_time_ns} ns: cannot use this "
+                    f"{spec.type}: {error}",
+                    _SKIPPED,
+                )
+            )
+            continue
+        out[spec.input].append(
+            Stamped(stamp, message.log_time_ns, message.source or message.topic, record)
+        )
+    return out
+
+
+def _grid(reference: list[Stamped], spec: InputSpec, problems: list[Problem]) -> Grid:
+    """The frame grid of the reference's stamps (see the module docstring)."""
+    stamps = np.unique(np.array([s.stamp_ns for s in reference], dtype=np.int64))
+    t0 = int(stamps[0])
+    if len(stamps) > 1:
+        period_ms = max(1, round(float(np.median(np.diff(stamps))) / _NS_PER_MS))
+    else:
+        period_ms = DEFAULT_PERIOD_MS
+        problems.append(
+            Problem(
+                spec.topic,
+                "header.stamp",
+                "one stamp only: no frame period to measure",
+                f"{USED_DEFAULT}: {DEFAULT_PERIOD_MS} ms",
+                "warning",
+            )
+        )
+    period_ns = period_ms * _NS_PER_MS
+    last = math.floor((int(stamps[-1]) - t0) / period_ns + 0.5)
+    return Grid(t0, period_ns, last)
+
+
+def _to_frames(
+    stamped: list[Stamped], spec: InputSpec, grid: Grid, problems: list[Problem]
+) -> dict[int, Stamped]:
+    """Timestamp (ms) → the message of each frame (see the module docstring)."""
+    out: dict[int, Stamped] = {}
+    tpf = grid.period_ms
+    for item in sorted(stamped, key=lambda s: (s.stamp_ns, s.log_time_ns)):
+        where = f"message at log time {item.log_time_ns} ns, stamp {item.stamp_ns} ns"
+        if not grid.on_grid(item.stamp_ns):
+            problems.append(
+                Problem(
+                    item.file,
+                    spec.topic,
+                    f"{where}: outside the frames of {grid.t0_ns} ns + [0, {grid.last}] × "
+                    f"{tpf} ms by more than half a period",
+                    _SKIPPED,
+                )
+            )
+            continue
+        ts = grid.nearest(item.stamp_ns) * tpf
+        earlier = out.get(ts)
+        if earlier is not None:
+            problems.append(
+                Problem(
+                    earlier.file,
+                    spec.topic,
+                    f"message at log time {earlier.log_time_ns} ns, stamp {earlier.stamp_ns} "
+                    f"ns: frame {ts // tpf} has a later message ({item.stamp_ns} ns)",
+                    "earlier message dropped",
+                    "warning",
+                    ts,
+                )
+            )
+        out[ts] = item
+    return out
+
+
+def _predictions(
+    framed: dict[int, Stamped],
+    spec: InputSpec,
+    poses: dict[int, EgoPose],
+    grid: Grid,
+    problems: list[Problem],
+) -> dict[int, Predictions]:
+    """Each frame's predicted paths as the model's keyed offsets in the ego body frame:
+    key k is the position (k+1)·tpf after the frame's time, linearly interpolated along the
+    path, for as long as the path lasts."""
+    out: dict[int, Predictions] = {}
+    tpf = grid.period_ms
+    for ts, item in sorted(framed.items()):
+        pose = poses.get(ts)
+        if pose is None:
+            problems.append(
+                Problem(
+                    item.file,
+                    spec.topic,
+                    f"frame {ts // tpf}: no ego pose to put the predictions in its body frame",
+                    DROPPED_RECORD,
+                    timestamp_ms=ts,
+                )
+            )
+            continue
+        paths = cast("PredictedPaths", item.record)
+        if len(set(paths.ids)) < len(paths.ids):
+            problems.append(
+                Problem(
+                    item.file,
+                    spec.topic,
+                    f"frame {ts // tpf}: {len(paths.ids) - len(set(paths.ids))} objects repeat "
+                    "an object_id",
+                    "the last object of each id kept",
+                    timestamp_ms=ts,
+                )
+            )
+        delay_s = (grid.frame_ns(ts // tpf) - item.stamp_ns) / 1e9
+        out[ts] = track_offsets(paths, delay_s, tpf / 1000.0, pose)
+    return out
+
+
+def _plans(
+    framed: dict[int, Stamped], spec: InputSpec, grid: Grid, problems: list[Problem]
+) -> dict[int, Plan]:
+    """Each frame's trajectory as the model's plan: key i is the point ``i``·tpf after the
+    frame's time (``time_from_start`` from the message's stamp), x, y and speed linearly
+    interpolated, for as long as the trajectory lasts. A trajectory whose times are not
+    filled (all zero) is timed by its points' spacing and speeds, and that is said once."""
+    out: dict[int, Plan] = {}
+    tpf = grid.period_ms
+    said = False
+    for ts, item in sorted(framed.items()):
+        timed = cast("TimedPlan", item.record)
+        times = timed.times_s
+        if len(times) > 1 and times[-1] <= 0.0:
+            times = travel_times(timed.xy, timed.speed)
+            if not said:
+                problems.append(
+                    Problem(
+                        item.file,
+                        spec.topic,
+                        f"frame {ts // tpf}: time_from_start not filled",
+                        "times derived from the points' spacing and speeds",
+                        severity="warning",
+                        timestamp_ms=ts,
+                    )
+                )
+                said = True
+        delay_s = (grid.frame_ns(ts // tpf) - item.stamp_ns) / 1e9
+        out[ts] = sample_plan(times, timed.xy, timed.speed, delay_s, tpf / 1000.0)
+    return out
+
+
+def travel_times(xy: FloatArray, speed: FloatArray) -> FloatArray:
+    """Seconds to each point along a path driven at its points' speeds (the mean of the
+    two ends per segment, at least 0.1 m/s so a stop point is reached)."""
+    step = np.hypot(*np.diff(xy, axis=0).T)
+    mean_speed = np.maximum((speed[1:] + speed[:-1]) / 2.0, 0.1)
+    out: FloatArray = np.concatenate([[0.0], np.cumsum(step / mean_speed)])
+    return out
+
+
+def sample_plan(
+    times: FloatArray, xy: FloatArray, speed: FloatArray, delay_s: float, tpf_s: float
+) -> Plan:
+    """The plan of keys "0", "1", ...: the trajectory at ``delay_s + i·tpf_s`` seconds from
+    its start, while inside it (a point exactly at a sample time is taken as is)."""
+    if len(times) == 0:
+        return Plan((), np.zeros((0, 2)), np.zeros(0))
+    count = int(np.floor((times[-1] - delay_s) / tpf_s + 1e-9)) + 1 if times[-1] >= delay_s else 1
+    at = np.clip(delay_s + np.arange(count) * tpf_s, times[0], times[-1])
+    points = np.column_stack([np.interp(at, times, xy[:, 0]), np.interp(at, times, xy[:, 1])])
+    return Plan(tuple(str(i) for i in range(count)), points, np.interp(at, times, speed))
+
+
+def track_offsets(
+    paths: PredictedPaths, delay_s: float, tpf_s: float, pose: EgoPose
+) -> Predictions:
+    """The model's predictions of one frame from world paths: key k at ``delay_s + (k+1)·
+    tpf_s`` seconds after the message stamp, while within the path; offsets are world
+    points minus the ego position, rotated into the ego's body frame (x forward, y right).
+
+    Objects whose paths have the same length and step are interpolated together."""
+    groups: dict[tuple[int, float], list[int]] = {}
+    for row, (points, step) in enumerate(zip(paths.points, paths.step_s, strict=True)):
+        groups.setdefault((len(points), step), []).append(row)
+    tracks: dict[int, Track] = {}
+    origin = np.array([pose.x, pose.y])
+    for (length, step), rows in groups.items():
+        span = (length - 1) * step
+        count = 0 if length < 2 else max(0, math.floor((span - delay_s) / tpf_s + 1e-9))
+        query = delay_s + tpf_s * np.arange(1, count + 1)
+        query = query[(query >= 0) & (query <= span + 1e-9)]
+        keys = tuple(str(k) for k in range(len(query)))
+        points = np.stack([paths.points[row] for row in rows])  # (M, P, 3)
+        if len(query):
+            where = query / step
+            j = np.minimum(np.floor(where).astype(np.int64), length - 2)
+            w = (where - j)[None, :, None]
+            world = points[:, j] * (1.0 - w) + points[:, j + 1] * w  # (M, K, 3)
+        else:
+            world = np.zeros((len(rows), 0, 3))
+        xy = world_to_ego(world[..., :2], origin, pose.yaw)
+        offsets = np.concatenate([xy, world[..., 2:] - pose.z], axis=-1)
+        for i, row in enumerate(rows):
+            tracks[row] = Track(keys, offsets[i])
+    return {paths.ids[row]: tracks[row] for row in range(len(paths.ids))}
+
+
+def _collision(
+    events: list[Stamped], grid: Grid, problems: list[Problem]
+) -> tuple[int, str | None]:
+    """The frame of the first collision event and the other actor's id (-1, None: none)."""
+    if not events:
+        return -1, None
+    first = min(events, key=lambda s: (s.stamp_ns, s.log_time_ns))
+    frame = grid.nearest(first.stamp_ns)
+    if not grid.on_grid(first.stamp_ns):
+        problems.append(
+            Problem(
+                first.file,
+                "collision",
+                f"first collision at stamp {first.stamp_ns} ns is frame {frame}, outside the "
+                f"reference's frames 0..{grid.last}",
+                "value kept",
+                "warning",
+            )
+        )
+    return frame, cast("CollisionEvent", first.record).other_actor_id

@@ -1,0 +1,1 @@
+"""A Dragon Lake Parking scene: one agent taken as the ego."""

@@ -1,0 +1,2 @@
+"""A predictor's tracks scored against the realised future, where the verdict rules cannot
+judge prediction."""

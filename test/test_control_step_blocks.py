@@ -85,8 +85,8 @@ def test_a_block_of_control_floors_is_each_frames_own_floor_bit_for_bit() -> Non
         )
         fast = corrected_context(RunContext(log, params))
         slow = corrected_context(RunContext(log, params))
-        for cc in (fast, slow):
-            assert len(cc.ego_half) == 2  # the first plan build's report, in both
+        for judging in (fast, slow):
+            assert len(judging.ego_half) == 2  # the first plan build's report, in both
         for ts in log.frames:
             got, want = control_floors(fast, ts), _control_floors(slow, ts)
             assert floor_bits(got) == floor_bits(want), (seed, ts)
@@ -104,9 +104,9 @@ def test_a_block_of_steps_is_each_frames_own_step_bit_for_bit() -> None:
     for seed in range(40):
         log = hostile_log(seed)
         params = make_params("corrected")
-        block_cc = corrected_context(RunContext(log, params))
+        block_judging = corrected_context(RunContext(log, params))
         for start in range(0, 3 * BLOCK * TPF, BLOCK * TPF):
-            block = step_block(block_cc, start)
+            block = step_block(block_judging, start)
             for i, got in enumerate(block.steps):
                 ctx = RunContext(log, params)
                 want = _control_step(corrected_context(ctx), start + i * TPF)
@@ -118,7 +118,7 @@ def test_a_block_of_steps_is_each_frames_own_step_bit_for_bit() -> None:
                     assert isinstance(want, Step)
                     assert bits(got) == bits(want), (seed, start + i * TPF)
                     checked += 1
-        assert not block_cc.ctx.problems  # reading a block reports nothing
+        assert not block_judging.ctx.problems  # reading a block reports nothing
     assert checked > 1000  # the blocks did most of the work
 
 
@@ -148,8 +148,8 @@ def test_a_horizon_sliced_from_blocks_is_the_one_by_one_reading() -> None:
         horizon = int(params.control_horizon)
         fast = corrected_context(RunContext(log, params))
         slow = corrected_context(RunContext(log, params))
-        for cc in (fast, slow):
-            assert len(cc.ego_half) == 2  # the first plan build's report, in both
+        for judging in (fast, slow):
+            assert len(judging.ego_half) == 2  # the first plan build's report, in both
         for ts in log.frames:
             got, stop, missing = _steps(fast, ts)
             want, want_stop, want_missing = _steps_one_by_one(slow, ts, horizon)

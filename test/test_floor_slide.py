@@ -118,7 +118,7 @@ def test_floor_frames_of_a_run_without_gaps_are_the_ones_a_set_reads() -> None:
     # off-grid frame (each read through the frame set): always the log's frames u with
     # ts - 80 tpf <= u < ts - 20 tpf (W = 20, L = 60 at 50 ms)
     log = RunLog(metadata=RunMetadata(50, (1.3, 0.0, 1.8), -1, 400), frames=())
-    cc = corrected_context(RunContext(log, make_params("corrected")))
+    judging = corrected_context(RunContext(log, make_params("corrected")))
     regular = tuple(range(0, 200 * 50, 50))
     for frames in (
         regular,
@@ -132,7 +132,7 @@ def test_floor_frames_of_a_run_without_gaps_are_the_ones_a_set_reads() -> None:
         present = set(frames)
         for ts in range(-100, 220 * 50, 25):
             want = [u for u in range(ts - 80 * 50, ts - 20 * 50, 50) if u in present]
-            assert floor_frames(cc, ts) == want, (frames[:3], ts)
+            assert floor_frames(judging, ts) == want, (frames[:3], ts)
 
 
 def test_linked_pairs_with_the_same_keys_give_each_pairs_own_displacement() -> None:

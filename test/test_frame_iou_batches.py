@@ -65,38 +65,38 @@ def test_the_first_frame_asked_scores_the_frames_after_it() -> None:
     """Frame 0: the detection (0, 0, 2, 2) and gt (1, 0, 3, 2) overlap 1 x 2 = 2 of a union
     4 + 4 - 2 = 6: IoU 1/3; the NaN detection scores 0. Frames 1 .. 63 are cached too, not
     frame 64 (a batch is 64 frames)."""
-    log, cc = context(100)
-    iou = frame_iou(cc, 0, log.bboxes[0], log.bboxes_gt[0])
+    log, judging = context(100)
+    iou = frame_iou(judging, 0, log.bboxes[0], log.bboxes_gt[0])
     assert iou is not None and iou.tolist() == [[1 / 3], [0.0]]
-    cache = cc.cache(FRAME_IOUS)
+    cache = judging.cache(FRAME_IOUS)
     assert cache.lookup(63 * TPF) is not None and cache.lookup(64 * TPF) is None
-    cached = frame_iou(cc, 10 * TPF, log.bboxes[10 * TPF], log.bboxes_gt[10 * TPF])
+    cached = frame_iou(judging, 10 * TPF, log.bboxes[10 * TPF], log.bboxes_gt[10 * TPF])
     assert cached is not None and cached.tolist() == [[1 / 3], [0.0]]
 
 
 def test_a_frame_replaced_since_its_batch_is_scored_afresh() -> None:
     """Frame 5's detection becomes the gt box itself (IoU 1) after frame 0's batch scored it
     (1/3): the new boxes are scored, not the cached matrix."""
-    log, cc = context(10)
-    frame_iou(cc, 0, log.bboxes[0], log.bboxes_gt[0])
+    log, judging = context(10)
+    frame_iou(judging, 0, log.bboxes[0], log.bboxes_gt[0])
     ts = 5 * TPF
     log.bboxes[ts] = boxes([[6, 0, 8, 2]])
-    iou = frame_iou(cc, ts, log.bboxes[ts], log.bboxes_gt[ts])
+    iou = frame_iou(judging, ts, log.bboxes[ts], log.bboxes_gt[ts])
     assert iou is not None and iou.tolist() == [[1.0]]
 
 
 def test_frames_judged_backwards_and_large_frames_are_scored_alone() -> None:
     """A batch stops at a frame already cached (frame 9, then 8 alone) and at a frame with
     more pairs than BATCH_PAIRS (frame 2: frames 0 and 1 only); that frame is not batched."""
-    log, cc = context(10)
-    cache = cc.cache(FRAME_IOUS)
-    frame_iou(cc, 9 * TPF, log.bboxes[9 * TPF], log.bboxes_gt[9 * TPF])
+    log, judging = context(10)
+    cache = judging.cache(FRAME_IOUS)
+    frame_iou(judging, 9 * TPF, log.bboxes[9 * TPF], log.bboxes_gt[9 * TPF])
     nine = cache.lookup(9 * TPF)
-    frame_iou(cc, 8 * TPF, log.bboxes[8 * TPF], log.bboxes_gt[8 * TPF])
+    frame_iou(judging, 8 * TPF, log.bboxes[8 * TPF], log.bboxes_gt[8 * TPF])
     assert nine is not None and cache.lookup(9 * TPF) is nine  # not scored again
     assert cache.lookup(7 * TPF) is None
     big = boxes(np.tile([2.0, 0.0, 4.0, 2.0], (BATCH_PAIRS + 1, 1)))
     log.bboxes[2 * TPF] = big
-    frame_iou(cc, 0, log.bboxes[0], log.bboxes_gt[0])
+    frame_iou(judging, 0, log.bboxes[0], log.bboxes_gt[0])
     assert cache.lookup(TPF) is not None and cache.lookup(2 * TPF) is None
-    assert frame_iou(cc, 2 * TPF, big, log.bboxes_gt[2 * TPF]) is None
+    assert frame_iou(judging, 2 * TPF, big, log.bboxes_gt[2 * TPF]) is None

@@ -42,8 +42,8 @@ def noisy(scenario: str, fault: str, seed: int, level: float) -> RunLog:
 def clean_context(**overrides: float) -> tuple[RunContext, str]:
     log = synthesise("lead_braking", "planning", 0)
     ctx = RunContext.create(log, make_params("corrected", overrides))
-    cc = corrected_context(ctx)
-    partner = cc.partner_id
+    judging = corrected_context(ctx)
+    partner = judging.partner_id
     assert partner is not None
     return ctx, partner
 
@@ -63,52 +63,52 @@ def test_robust_sigma_and_the_step_floor_by_hand() -> None:
 
 def test_floor_frames_end_one_effect_window_before_ts() -> None:
     ctx, _ = clean_context(noise_floor_s=1.0)
-    cc = corrected_context(ctx)
-    tpf = cc.tpf
+    judging = corrected_context(ctx)
+    tpf = judging.tpf
     ts = 90 * tpf
-    frames = floor_frames(cc, ts)
+    frames = floor_frames(judging, ts)
     # W = 20 frames (window_s 1 s at 20 Hz), L = 20 frames: frames 50 … 69
     assert frames == [n * tpf for n in range(50, 70)]
-    assert floor_frames(cc, 10 * tpf) == []  # before the run's first frame
+    assert floor_frames(judging, 10 * tpf) == []  # before the run's first frame
 
 
 def test_the_floor_is_the_others_median_then_the_partners_spread_then_none() -> None:
     ctx, partner = clean_context()
-    cc = corrected_context(ctx)
-    ts = max(cc.log.frames)
+    judging = corrected_context(ctx)
+    ts = max(judging.log.frames)
 
-    def others(_cc: object, u: int) -> dict[str, float]:
+    def others(_judging: object, u: int) -> dict[str, float]:
         # per frame: others 1 and 3 (median 2) or 2 and 6 (median 4); the partner far off
         return {"a": 1.0, "b": 3.0, partner: 50.0} if u % 100 else {"a": 2.0, "b": 6.0}
 
-    floor = actor_floor(cc, ts, others)
-    frames = floor_frames(cc, ts)
+    floor = actor_floor(judging, ts, others)
+    frames = floor_frames(judging, ts)
     assert floor.basis == BASIS_OTHERS and floor.frames == len(frames) == 60
     assert floor.value == pytest.approx(float(np.median([2.0 if u % 100 else 4.0 for u in frames])))
 
-    def alone(_cc: object, u: int) -> dict[str, float]:
-        return {partner: 5.0 + (0.2 if (u // cc.tpf) % 2 else -0.2)}  # a bias and a jitter
+    def alone(_judging: object, u: int) -> dict[str, float]:
+        return {partner: 5.0 + (0.2 if (u // judging.tpf) % 2 else -0.2)}  # a bias and a jitter
 
-    floor = actor_floor(cc, ts, alone)
+    floor = actor_floor(judging, ts, alone)
     assert floor.basis == BASIS_PARTNER
     assert floor.value == pytest.approx(1.4826 * 0.2)  # the jitter, not the 5 m bias
 
-    def short(_cc: object, u: int) -> dict[str, float]:
-        return {"a": 1.0} if u == floor_frames(cc, ts)[0] else {}
+    def short(_judging: object, u: int) -> dict[str, float]:
+        return {"a": 1.0} if u == floor_frames(judging, ts)[0] else {}
 
-    assert actor_floor(cc, ts, short).basis == BASIS_NONE
-    assert actor_floor(cc, ts, short).value == 0.0
+    assert actor_floor(judging, ts, short).basis == BASIS_NONE
+    assert actor_floor(judging, ts, short).value == 0.0
 
 
 def floors_at(level: float) -> tuple[float, float, int]:
     """Perception's and control's lateral floor ten frames before the crash, and the
     control floor's step count (lead_braking, planning fault, seed 0)."""
     log = noisy("lead_braking", "planning", 0, level)
-    cc = corrected_context(RunContext.create(log, make_params("corrected")))
+    judging = corrected_context(RunContext.create(log, make_params("corrected")))
     ts = max(log.frames) - 10 * log.tpf
-    perception = perception_floor(cc, ts)
+    perception = perception_floor(judging, ts)
     assert perception.basis == BASIS_OTHERS and perception.frames >= 55
-    _speed, lateral = control_floors(cc, ts)
+    _speed, lateral = control_floors(judging, ts)
     return perception.value, lateral.value, lateral.frames
 
 

@@ -150,10 +150,10 @@ def test_a_real_series_built_from_the_previous_frame_is_the_one_read_afresh() ->
             )
         actors[ts] = frame
     holed: RunLog = replace(log, actors=actors)
-    cc = corrected_context(RunContext.create(holed, PARAMS))
+    judging = corrected_context(RunContext.create(holed, PARAMS))
     holes = 0
     for ts in frames:  # in order, as diagnose and the live monitors ask
-        got = cc.real_series(partner, ts)
+        got = judging.real_series(partner, ts)
         fresh = corrected_context(RunContext.create(holed, PARAMS)).real_series(partner, ts)
         assert got is not None and fresh is not None
         assert got.center.tobytes() == fresh.center.tobytes(), ts
@@ -191,11 +191,11 @@ def test_a_frame_that_arrives_after_the_previous_series_is_read_then() -> None:
     late = frames[30]  # its actors file arrives after frame 29's series was built
     held = {ts: frame for ts, frame in log.actors.items() if ts != late}
     growing: RunLog = replace(log, actors=held)
-    cc = corrected_context(RunContext.create(growing, PARAMS))
-    before = cc.real_series(partner, frames[29])
+    judging = corrected_context(RunContext.create(growing, PARAMS))
+    before = judging.real_series(partner, frames[29])
     assert before is not None and np.isnan(before.yaw[1])
     held[late] = log.actors[late]
-    after = cc.real_series(partner, frames[30])
+    after = judging.real_series(partner, frames[30])
     fresh = corrected_context(RunContext.create(growing, PARAMS)).real_series(partner, late)
     assert after is not None and fresh is not None and not np.isnan(after.yaw[0])
     assert after.center.tobytes() == fresh.center.tobytes()
@@ -209,15 +209,15 @@ def clearance_bits(c: Clearance) -> tuple[bytes, int, bytes]:
 def test_c_gt_measured_with_the_frames_after_it_is_c_gt_measured_alone() -> None:
     log = synthesise("cut_in", "prediction", 1)
     frames = sorted(set(log.frames))
-    cc = corrected_context(RunContext.create(log, PARAMS))
-    partner = cc.partner_id
+    judging = corrected_context(RunContext.create(log, PARAMS))
+    partner = judging.partner_id
     assert partner is not None
     for ts in frames[:: 1 if len(frames) < 400 else 2] + frames[:40][::-1]:
-        view = partner_view(cc, ts)
-        plan = cc.plan(ts)
+        view = partner_view(judging, ts)
+        plan = judging.plan(ts)
         if plan is None or view.real is None:
             continue
-        (alone,) = pair_clearances([(plan.boxes, view.real)], cc.window)
+        (alone,) = pair_clearances([(plan.boxes, view.real)], judging.window)
         assert clearance_bits(view.c_gt) == clearance_bits(alone), ts
 
 
@@ -228,10 +228,10 @@ def test_a_frame_whose_real_boxes_grew_since_its_batch_is_measured_afresh() -> N
     ts, nxt, late = frames[40], frames[41], frames[41 + w]  # late: nxt's last horizon index
     held = {t: frame for t, frame in log.actors.items() if t != late}
     growing: RunLog = replace(log, actors=held)
-    cc = corrected_context(RunContext.create(growing, PARAMS))
-    partner_view(cc, ts)  # measures nxt's c_gt too, without the late frame
+    judging = corrected_context(RunContext.create(growing, PARAMS))
+    partner_view(judging, ts)  # measures nxt's c_gt too, without the late frame
     held[late] = log.actors[late]
-    got = partner_view(cc, nxt)
+    got = partner_view(judging, nxt)
     fresh = partner_view(corrected_context(RunContext.create(growing, PARAMS)), nxt)
     assert np.isfinite(got.c_gt.per_index[w])  # the late frame is measured
     assert clearance_bits(got.c_gt) == clearance_bits(fresh.c_gt)
@@ -246,10 +246,10 @@ def test_a_later_plan_with_a_key_that_is_no_step_is_reported_when_its_frame_is_j
     plan = log.waypoints[later]
     odd = Plan((*plan.keys[:-1], "x"), plan.xy, plan.speed)
     ctx = RunContext.create(replace(log, waypoints={**log.waypoints, later: odd}), PARAMS)
-    cc = corrected_context(ctx)
-    partner_view(cc, ts)
+    judging = corrected_context(ctx)
+    partner_view(judging, ts)
     assert not [p for p in ctx.problems if "non-integer" in p.issue]
-    partner_view(cc, later)
+    partner_view(judging, later)
     assert [p.timestamp_ms for p in ctx.problems if "non-integer" in p.issue] == [later]
 
 
@@ -263,24 +263,24 @@ def test_a_frame_takes_its_batch_real_boxes_only_while_it_reads_the_same_records
     ts, nxt, moved = frames[40], frames[41], frames[41 + w]  # moved: nxt's last index
     held = dict(log.actors)
     live: RunLog = replace(log, actors=held)
-    cc = corrected_context(RunContext.create(live, PARAMS))
-    partner = cc.partner_id
+    judging = corrected_context(RunContext.create(live, PARAMS))
+    partner = judging.partner_id
     assert partner is not None
-    partner_view(cc, ts)  # measures nxt's real boxes and c_gt too
-    same = partner_view(cc, nxt)
+    partner_view(judging, ts)  # measures nxt's real boxes and c_gt too
+    same = partner_view(judging, nxt)
     again = partner_view(corrected_context(RunContext.create(live, PARAMS)), nxt)
     assert same.real is not None and again.real is not None
     assert same.real.center.tobytes() == again.real.center.tobytes()
     assert clearance_bits(same.c_gt) == clearance_bits(again.c_gt)
     # the same again, with the partner 1 m further along x at the moved frame
-    cc = corrected_context(RunContext.create(live, PARAMS))
-    partner_view(cc, ts)
+    judging = corrected_context(RunContext.create(live, PARAMS))
+    partner_view(judging, ts)
     old = held[moved]
     row = old.index[partner]
     location = old.location.copy()
     location[row, 0] += 1.0
     held[moved] = replace(old, location=location)
-    got = partner_view(cc, nxt)
+    got = partner_view(judging, nxt)
     fresh = partner_view(corrected_context(RunContext.create(live, PARAMS)), nxt)
     assert got.real is not None and fresh.real is not None
     assert got.real.center[w, 0] == old.location[row, 0] + 1.0
@@ -374,18 +374,18 @@ def test_a_run_of_real_series_read_at_once_is_the_chain_of_previous_frames() -> 
     rotation[odd.index[partner], 2] = np.nan
     held[frames[38]] = replace(odd, rotation=rotation)
     holed: RunLog = replace(log, actors=held)
-    cc = corrected_context(RunContext.create(holed, PARAMS))
-    w = cc.window
+    judging = corrected_context(RunContext.create(holed, PARAMS))
+    w = judging.window
     for ts in (frames[28], frames[30], frames[36]):
-        real = cc.real_series(partner, ts)
+        real = judging.real_series(partner, ts)
         assert real is not None
         if ts == frames[30]:  # frame 33 arrives after ts's series was read
             held[frames[33]] = log.actors[frames[33]]
-        run = cc.real_series_run(partner, ts, real, w)
+        run = judging.real_series_run(partner, ts, real, w)
         chain: list[Series | None] = []
         prev: Series | None = real
         for k in range(1, w + 1):
-            prev = cc.real_series_after(partner, ts + k * cc.tpf, prev)
+            prev = judging.real_series_after(partner, ts + k * judging.tpf, prev)
             chain.append(prev)
         assert [series_bits(s) for s in run] == [series_bits(s) for s in chain]
     assert any(np.isnan(s.yaw).any() for s in run)  # the holes are in the run

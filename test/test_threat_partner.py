@@ -69,20 +69,20 @@ def test_the_most_threatening_actor_is_the_partner_before_the_crash() -> None:
         log = crash(scenario, fault)
         truth = log.metadata.raw["synthesis"]["partner_id"]
         ctx = threat_context(hidden(log))
-        cc = corrected_context(ctx)
+        judging = corrected_context(ctx)
         frames = last_second(log)
         assert len(frames) == 20
         named = [SEMANTICS.partner_at(ctx, t) for t in frames]
         assert all(who == truth for who in named[-5:]), (scenario, fault, named)
         for t, who in zip(frames, named, strict=True):
-            view = partner_view(cc, t)
+            view = partner_view(judging, t)
             assert view.partner_id == who  # the oracles' cached view follows partner_at
             if view.c_gt.defined:
                 defined += 1
                 agree += who == truth
                 if who != truth:
                     wrong.append((scenario, fault, frames.index(t)))
-        assert not partner_view(cc, frames[-1]).c_gt.defined
+        assert not partner_view(judging, frames[-1]).c_gt.defined
     assert (agree, defined) == (302, 304)
     assert wrong == [("left_turn", "controller", 0), ("left_turn", "controller", 1)]
 

@@ -200,9 +200,9 @@ def path_lengths(series: list[Series]) -> list[float | None]:
     return [t if w else None for t, w in zip(total, whole.tolist(), strict=True)]
 
 
-def displacement_threshold(cc: CorrectedContext, travelled: float) -> float:
+def displacement_threshold(judging: CorrectedContext, travelled: float) -> float:
     """max(pred_abs_threshold, pred_score_threshold × distance travelled over the horizon)."""
-    p = cc.params
+    p = judging.params
     scaled = p.pred_score_threshold * travelled if math.isfinite(travelled) else 0.0
     return float(max(p.pred_abs_threshold, scaled))
 
@@ -236,21 +236,21 @@ class PartnerView:
 PARTNER_VIEW: CacheName[PartnerView] = CacheName("partner_view")
 
 
-def partner_view(cc: CorrectedContext, ts: int) -> PartnerView:
+def partner_view(judging: CorrectedContext, ts: int) -> PartnerView:
     """The partner's view at ts (cached per timestamp, rebuilt should the partner at ts
     change: a collision announced after a provisional partner was judged)."""
-    cache = cc.cache(PARTNER_VIEW)
+    cache = judging.cache(PARTNER_VIEW)
     view = cache.lookup(ts)
-    if view is None or view.partner_id != cc.partner_at(ts):
-        view = _build_view(cc, ts)
+    if view is None or view.partner_id != judging.partner_at(ts):
+        view = _build_view(judging, ts)
         cache.put(ts, view)
     return view
 
 
-def _build_view(cc: CorrectedContext, ts: int) -> PartnerView:
-    log, w = cc.log, cc.window
-    partner = cc.partner_at(ts)
-    plan = cc.plan(ts)
+def _build_view(judging: CorrectedContext, ts: int) -> PartnerView:
+    log, w = judging.log, judging.window
+    partner = judging.partner_at(ts)
+    plan = judging.plan(ts)
     pose = log.pose.get(ts)
     gt = log.bboxes_gt.get(ts)
     pwp_file = log.predictions_with_perception.get(ts)
@@ -259,33 +259,35 @@ def _build_view(cc: CorrectedContext, ts: int) -> PartnerView:
     in_pwp = None if pwp_file is None or partner is None else partner in pwp_file
     real = pwp = raw = None
     raw_id = None
-    measured = None if partner is None or plan is None else _measured(cc, ts, partner, plan)
+    measured = None if partner is None or plan is None else _measured(judging, ts, partner, plan)
     travelled = None if measured is None else measured[2]
     if partner is not None:
-        real = measured[0] if measured is not None else cc.real_series(partner, ts)
+        real = measured[0] if measured is not None else judging.real_series(partner, ts)
         if pose is not None and pwp_file is not None and partner in pwp_file:
-            pwp = cc.predicted_series(pwp_file[partner], pose, partner, ts)
+            pwp = judging.predicted_series(pwp_file[partner], pose, partner, ts)
             if raw_file is not None:
-                raw_id = link_raw(cc, ts, raw_file, pwp_file, partner)
+                raw_id = link_raw(judging, ts, raw_file, pwp_file, partner)
                 if raw_id is not None:
-                    raw = cc.predicted_series(raw_file[raw_id], pose, partner, ts)
-        elif pose is not None and raw_file is not None and raw_without_pwp(cc):
-            raw_id = partner_object(cc, ts, partner)  # rule 2b's match stands in for pwp
+                    raw = judging.predicted_series(raw_file[raw_id], pose, partner, ts)
+        elif pose is not None and raw_file is not None and raw_without_pwp(judging):
+            raw_id = partner_object(judging, ts, partner)  # rule 2b's match stands in for pwp
             if raw_id is not None and raw_id in raw_file:
-                raw = cc.predicted_series(raw_file[raw_id], pose, partner, ts)
+                raw = judging.predicted_series(raw_file[raw_id], pose, partner, ts)
             else:
                 raw_id = None
     ref = _reference(pwp, real)
     ego = plan.boxes if plan else None
     brake = None
     if plan is not None and raw is not None and pose is not None:
-        p = cc.params
-        brake = braking_boxes(plan, pose.yaw, plan.speed_of(0), p.max_decel, cc.tpf / 1000.0, w)
+        p = judging.params
+        brake = braking_boxes(
+            plan, pose.yaw, plan.speed_of(0), p.max_decel, judging.tpf / 1000.0, w
+        )
     c_gt = undefined_clearance(w)
     if measured is not None:
         c_gt = measured[1]
     elif plan is not None and real is not None and partner is not None:
-        c_gt = _ground_truth(cc, ts, partner, plan, real)
+        c_gt = _ground_truth(judging, ts, partner, plan, real)
     same = ref is real  # without pwp the reference is the real boxes: c_ref is c_gt
     pairs = [(ego, pwp), (ego, raw), (None if same else ego, ref), (brake, raw)]
     c_pwp, c_raw, c_ref, c_brake = pair_clearances(pairs, w)
@@ -309,11 +311,11 @@ def _build_view(cc: CorrectedContext, ts: int) -> PartnerView:
         e_pwp=displacement(pwp, real),
         raw_displacement=displacement(raw, ref),
         travelled=travelled,
-        threshold=displacement_threshold(cc, travelled),
+        threshold=displacement_threshold(judging, travelled),
         in_view=in_view,
         in_pwp=in_pwp,
         raw_file=raw_file is not None,
-        real_conflict=bool(c_gt.value < cc.params.safety_margin),
+        real_conflict=bool(c_gt.value < judging.params.safety_margin),
     )
 
 
@@ -334,23 +336,23 @@ BATCH_AHEAD = CACHE_SIZE // 2
 
 
 def _measured(
-    cc: CorrectedContext, ts: int, partner: str, plan: PlanData
+    judging: CorrectedContext, ts: int, partner: str, plan: PlanData
 ) -> tuple[Series, Clearance, float | None] | None:
     """The real boxes, c_gt and path length a batch measured at ts, if on this very plan and on
     the records a fresh read of the real boxes would read (the same objects), so the frame
     neither rebuilds nor compares its real boxes; kept as ts's real series."""
-    found = cc.cache(GROUND_TRUTH).lookup(ts)
+    found = judging.cache(GROUND_TRUTH).lookup(ts)
     if found is None or found[0] is not plan:
         return None
-    sources = cc.real_sources(partner, ts)
+    sources = judging.real_sources(partner, ts)
     if len(sources) != len(found[3]) or not all(map(operator.is_, sources, found[3])):
         return None
-    cc.keep_real_series(partner, ts, found[1])
+    judging.keep_real_series(partner, ts, found[1])
     return found[1], found[2], found[4]
 
 
 def _ground_truth(
-    cc: CorrectedContext, ts: int, partner: str, plan: PlanData, real: Series
+    judging: CorrectedContext, ts: int, partner: str, plan: PlanData, real: Series
 ) -> Clearance:
     """c_gt at ts. With a collision partner (the same every frame), measured in one call
     with the :data:`BATCH_AHEAD` frames after it (W if longer) and kept per frame with the
@@ -358,35 +360,35 @@ def _ground_truth(
     same real boxes (a frame read again since, in a live window, is measured afresh). A batch
     stops at a frame without a plan or pose, already measured, or whose plan has a key that
     is no step (building it reports that, which stays with the frame judged)."""
-    cache = cc.cache(GROUND_TRUTH)
+    cache = judging.cache(GROUND_TRUTH)
     found = cache.lookup(ts)
     if found is not None and found[0] is plan and _same_boxes(found[1], real):
         return found[2]
     batch = [(ts, plan, real)]
-    log = cc.log
-    if log.metadata.collision_frame >= 0 and cc.tpf > 0:
+    log = judging.log
+    if log.metadata.collision_frame >= 0 and judging.tpf > 0:
         ahead: list[int] = []
-        for k in range(1, max(cc.window, BATCH_AHEAD) + 1):
-            u = ts + k * cc.tpf
+        for k in range(1, max(judging.window, BATCH_AHEAD) + 1):
+            u = ts + k * judging.tpf
             waypoints = log.waypoints.get(u)
             if waypoints is None or u not in log.pose or cache.lookup(u) is not None:
                 break
             if not all_steps(waypoints.keys):
                 break
             ahead.append(u)
-        cc.plans_ahead(ahead)
+        judging.plans_ahead(ahead)
         # the real boxes from the batch's previous ones, kept only with this c_gt (they read
         # frames past ts's horizon, which a frame judged later reads for itself)
-        run = cc.real_series_run(partner, ts, real, len(ahead))
+        run = judging.real_series_run(partner, ts, real, len(ahead))
         for u, seen in zip(ahead, run, strict=False):
-            later = cc.plan(u)
+            later = judging.plan(u)
             if later is None:
                 break
             batch.append((u, later, seen))
-    measured = pair_clearances([(p.boxes, r) for _, p, r in batch], cc.window)
+    measured = pair_clearances([(p.boxes, r) for _, p, r in batch], judging.window)
     lengths = path_lengths([r for _, _, r in batch])
     for (u, p, r), c, length in zip(batch, measured, lengths, strict=True):
-        cache.put(u, (p, r, c, cc.real_sources(partner, u), length))
+        cache.put(u, (p, r, c, judging.real_sources(partner, u), length))
     return measured[0]
 
 
@@ -411,7 +413,7 @@ def _reference(pwp: Series | None, real: Series | None) -> Series | None:
 
 
 def link_raw(
-    cc: CorrectedContext, ts: int, raw: Predictions, pwp: Predictions, partner: str
+    judging: CorrectedContext, ts: int, raw: Predictions, pwp: Predictions, partner: str
 ) -> str | None:
     """The raw id linked to the partner by the reference's linking rule.
 
@@ -419,10 +421,10 @@ def link_raw(
     between the unrotated step-"0" offsets, strictly below 100 m, earlier id on ties. If
     several raw ids link to the partner: the one nearest the partner's pwp step "0".
     """
-    if partner == cc.ego_id or partner not in pwp or pwp[partner].offset("0") is None:
+    if partner == judging.ego_id or partner not in pwp or pwp[partner].offset("0") is None:
         return None
     if any(track.offset("0") is None for track in raw.values()):
-        cc.ctx.report(
-            cc.log.file_of("predictions", ts), "step 0", "a raw id has no step 0; ignored", ts
+        judging.ctx.report(
+            judging.log.file_of("predictions", ts), "step 0", "a raw id has no step 0; ignored", ts
         )
-    return raw_links(raw, pwp, cc.ego_id).get(partner)
+    return raw_links(raw, pwp, judging.ego_id).get(partner)

@@ -51,11 +51,13 @@ def clearance_metrics(prefix: str, c: Clearance) -> dict[str, Metric]:
     return {prefix: num(c.value), f"{prefix}_index": c.index if c.defined else None}
 
 
-def missing_inputs(cc: CorrectedContext, ts: int, folders: Iterable[str], why: str) -> list[str]:
+def missing_inputs(
+    judging: CorrectedContext, ts: int, folders: Iterable[str], why: str
+) -> list[str]:
     """The folders with no record at ts among ``folders``; each is reported as a problem."""
-    absent = [f for f in folders if ts not in cc.folders[f]]
+    absent = [f for f in folders if ts not in judging.folders[f]]
     for folder in absent:
-        cc.missing(folder, ts, why)
+        judging.missing(folder, ts, why)
     return absent
 
 

@@ -79,7 +79,7 @@ _NO_YAW = np.full(1, np.nan)
 PartnerRule = Callable[["CorrectedContext", int], "str | None"]
 
 
-def no_partner(cc: CorrectedContext, ts: int) -> None:
+def no_partner(judging: CorrectedContext, ts: int) -> None:
     """Without a collision nobody is the partner (``ads-rca diagnose``, and live by default)."""
     return None
 
@@ -368,19 +368,19 @@ class CorrectedContext:
         )
 
 
-def find_partner(cc: CorrectedContext) -> str | None:
+def find_partner(judging: CorrectedContext) -> str | None:
     """The non-ego actor with the smallest signed box distance to the ego at collision_frame.
 
     Boxes from location, rotation yaw and first-appearance half extents (the ego's from its
     actor entry, its pose where it has none); ties go to the earlier actor in file order.
     Without an actors file at the collision frame, the latest earlier analysed frame.
     """
-    log = cc.log
-    cf_ms = log.metadata.collision_frame * cc.tpf
+    log = judging.log
+    cf_ms = log.metadata.collision_frame * judging.tpf
     ts = cf_ms
     if ts not in log.actors:
         earlier = [t for t in log.unique_frames if t < cf_ms and t in log.actors]
-        cc.ctx.report(
+        judging.ctx.report(
             log.file_of("actors", cf_ms),
             "collision partner",
             "no actors file at collision_frame; used the latest earlier analysed frame",
@@ -389,47 +389,47 @@ def find_partner(cc: CorrectedContext) -> str | None:
         if not earlier:
             return None
         ts = earlier[-1]
-    ego = ego_box(cc, ts)
+    ego = ego_box(judging, ts)
     if ego is None:
-        cc.ctx.report(log.file_of("actors", ts), "collision partner", "no ego box", ts)
+        judging.ctx.report(log.file_of("actors", ts), "collision partner", "no ego box", ts)
         return None
-    return nearest_actor(cc, ts, ego)
+    return nearest_actor(judging, ts, ego)
 
 
-def ego_box(cc: CorrectedContext, ts: int) -> tuple[FloatArray, float] | None:
+def ego_box(judging: CorrectedContext, ts: int) -> tuple[FloatArray, float] | None:
     """The ego's box centre (2,) and yaw at ts: its actor entry, else its pose."""
-    state = cc.actor_state(cc.ego_id, ts) if cc.ego_id is not None else None
+    state = judging.actor_state(judging.ego_id, ts) if judging.ego_id is not None else None
     if state is not None:
         return state
-    pose = cc.log.pose.get(ts)
+    pose = judging.log.pose.get(ts)
     return None if pose is None else (np.array([pose.x, pose.y]), pose.yaw)
 
 
-def other_rows(cc: CorrectedContext, ts: int) -> list[int]:
+def other_rows(judging: CorrectedContext, ts: int) -> list[int]:
     """Rows of the actors file at ts the partner is chosen from: non-ego actors with an
     extent, each id's first row, in file order (ties go to the earlier one)."""
-    actors = cc.log.actors.get(ts)
+    actors = judging.log.actors.get(ts)
     if actors is None:
         return []
-    extents = cc.log.actor_extents
+    extents = judging.log.actor_extents
     return [
         r
         for r, actor_id in enumerate(actors.ids)
-        if actor_id != cc.ego_id and actor_id in extents and actors.index[actor_id] == r
+        if actor_id != judging.ego_id and actor_id in extents and actors.index[actor_id] == r
     ]
 
 
-def nearest_actor(cc: CorrectedContext, ts: int, ego: tuple[FloatArray, float]) -> str | None:
+def nearest_actor(judging: CorrectedContext, ts: int, ego: tuple[FloatArray, float]) -> str | None:
     """The non-ego actor with the smallest signed box distance to the ego box at ts."""
-    rows = other_rows(cc, ts)
+    rows = other_rows(judging, ts)
     if not rows:
         return None
-    actors = cc.log.actors[ts]
-    extents = cc.log.actor_extents
+    actors = judging.log.actors[ts]
+    extents = judging.log.actor_extents
     half = np.array([extents[actors.ids[r]][:2] for r in rows])
     dist = box_signed_distance(
         ego[0],
-        cc.ego_half,
+        judging.ego_half,
         np.asarray(ego[1]),
         actors.location[rows, :2],
         half,

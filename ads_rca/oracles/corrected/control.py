@@ -81,42 +81,42 @@ class StepBlock:
 STEP_BLOCKS: CacheName[StepBlock] = CacheName("control_step_blocks")
 
 
-def control_step(cc: CorrectedContext, t: int) -> Step | tuple[str, int]:
+def control_step(judging: CorrectedContext, t: int) -> Step | tuple[str, int]:
     """The step at t, or the first missing input: from t's block of steps where it could
     be read silently, else on its own (cached: overlapping horizons share it)."""
-    step = block_step(cc, t)
-    return step if step is not None else _control_step(cc, t)
+    step = block_step(judging, t)
+    return step if step is not None else _control_step(judging, t)
 
 
-def block_step(cc: CorrectedContext, t: int) -> Step | None:
+def block_step(judging: CorrectedContext, t: int) -> Step | None:
     """The step at t from its block, None where it must be read on its own (it reports a
     problem, t is off the frame grid, or no plan was built yet: the first build reports
     an ego without extent, and must come first)."""
-    block = block_of(cc, t)
-    return None if block is None else block.steps[(t - block.start) // cc.tpf]
+    block = block_of(judging, t)
+    return None if block is None else block.steps[(t - block.start) // judging.tpf]
 
 
-def block_of(cc: CorrectedContext, t: int) -> StepBlock | None:
+def block_of(judging: CorrectedContext, t: int) -> StepBlock | None:
     """The block of steps t belongs to (None off the frame grid or before any plan build)."""
-    tpf = cc.tpf
+    tpf = judging.tpf
     if t % tpf:
         return None
-    blocks = cc.cache(STEP_BLOCKS)
+    blocks = judging.cache(STEP_BLOCKS)
     number = t // (BLOCK * tpf)
     block = blocks.lookup(number)
     if block is None:
-        if "ego_half" not in vars(cc):
+        if "ego_half" not in vars(judging):
             return None
-        block = step_block(cc, number * BLOCK * tpf)
+        block = step_block(judging, number * BLOCK * tpf)
         blocks.put(number, block)
     return block
 
 
-def step_block(cc: CorrectedContext, start: int) -> StepBlock:
+def step_block(judging: CorrectedContext, start: int) -> StepBlock:
     """The steps of the frames start + i·tpf, i < :data:`BLOCK`, in one pass per key layout:
     the same IEEE operations as :meth:`PlanData.lateral_offset`, so the same values."""
-    tpf = cc.tpf
-    pose, plans = cc.log.pose, cc.log.waypoints
+    tpf = judging.tpf
+    pose, plans = judging.log.pose, judging.log.waypoints
     groups: dict[tuple[str, ...], list[int]] = {}
     for i in range(BLOCK):
         t = start + i * tpf
@@ -185,25 +185,25 @@ def _lateral_offsets(xy: FloatArray, points: FloatArray, yaws: list[float]) -> l
     ]
 
 
-def _control_step(cc: CorrectedContext, t: int) -> Step | tuple[str, int]:
+def _control_step(judging: CorrectedContext, t: int) -> Step | tuple[str, int]:
     """The step at t read on its own (reporting what is missing), cached."""
-    cache = cc.cache(CONTROL_STEP)
+    cache = judging.cache(CONTROL_STEP)
     found = cache.lookup(t)
     if found is not None:
         return found
-    tpf = cc.tpf
+    tpf = judging.tpf
     checks = (("pose", t), ("waypoint", t), ("pose", t + tpf))
-    absent = [(folder, at) for folder, at in checks if at not in cc.folders[folder]]
-    plan = None if absent else cc.plan(t)
+    absent = [(folder, at) for folder, at in checks if at not in judging.folders[folder]]
+    plan = None if absent else judging.plan(t)
     if plan is None or 1 not in plan.rows:
         if not absent:
-            cc.ctx.report(cc.log.file_of("waypoint", t), "1", "plan has no step 1", t)
+            judging.ctx.report(judging.log.file_of("waypoint", t), "1", "plan has no step 1", t)
             return ("waypoint", t)
         for folder, at in absent:
-            if cc.in_log(at):
-                cc.missing(folder, at, "control tracking")
+            if judging.in_log(at):
+                judging.missing(folder, at, "control tracking")
         return absent[0]
-    before, after = cc.log.pose[t], cc.log.pose[t + tpf]
+    before, after = judging.log.pose[t], judging.log.pose[t + tpf]
     v1 = plan.speed_of(1)
     lateral = plan.lateral_offset(after.x, after.y, before.yaw)
     step = Step(after.speed - v1, lateral, (plan.speed_of(0) - v1) / (tpf / 1000.0))
@@ -226,37 +226,37 @@ class FloorBlock:
 FLOOR_BLOCKS: CacheName[FloorBlock] = CacheName("control_floor_blocks")
 
 
-def control_floors(cc: CorrectedContext, ts: int) -> tuple[Floor, Floor]:
+def control_floors(judging: CorrectedContext, ts: int) -> tuple[Floor, Floor]:
     """Rule 8's speed and lateral floors at ts, from the control steps of its floor frames
     (those with every input; the robust sigma of consecutive steps' differences): from
     ts's block of floors where every floor frame has a silent step, else on its own."""
-    tpf = cc.tpf
-    if ts % tpf == 0 and "ego_half" in vars(cc):
-        blocks = cc.cache(FLOOR_BLOCKS)
+    tpf = judging.tpf
+    if ts % tpf == 0 and "ego_half" in vars(judging):
+        blocks = judging.cache(FLOOR_BLOCKS)
         number = ts // (BLOCK * tpf)
         block = blocks.lookup(number)
-        if block is None or block.frames is not cc.log.frames:
-            block = floor_block(cc, number * BLOCK * tpf)
+        if block is None or block.frames is not judging.log.frames:
+            block = floor_block(judging, number * BLOCK * tpf)
             blocks.put(number, block)
         found = block.floors[(ts - block.start) // tpf]
         if found is not None:
             return found
-    return _control_floors(cc, ts)
+    return _control_floors(judging, ts)
 
 
-def floor_block(cc: CorrectedContext, start: int) -> FloorBlock:
+def floor_block(judging: CorrectedContext, start: int) -> FloorBlock:
     """The floors of a block of frames whose floor frames are all present with silent
     steps: consecutive floor frames, so each frame's differences are a window of one
     difference array, and all the robust sigmas are two sorts."""
-    tpf = cc.tpf
-    span = floor_span(cc.params, tpf)
-    length = span - window_frames(cc.params, tpf)  # floor frames per frame (L)
+    tpf = judging.tpf
+    span = floor_span(judging.params, tpf)
+    length = span - window_frames(judging.params, tpf)  # floor frames per frame (L)
     floors: list[tuple[Floor, Floor] | None] = [None] * BLOCK
-    block = FloorBlock(start, cc.log.frames, floors)
+    block = FloorBlock(start, judging.log.frames, floors)
     if length < 2:
         return block
     first = start - span * tpf
-    found = _silent_steps(cc, first, BLOCK - 1 + length)
+    found = _silent_steps(judging, first, BLOCK - 1 + length)
     values = np.array(
         [
             [math.nan if s is None else s.speed for s in found],
@@ -273,7 +273,7 @@ def floor_block(cc: CorrectedContext, start: int) -> FloorBlock:
     if use.size == 0:
         return block
     count = length - 1
-    if count < max(int(cc.params.noise_floor_min_frames), 1):
+    if count < max(int(judging.params.noise_floor_min_frames), 1):
         for i in use.tolist():
             floors[i] = (NO_FLOOR, NO_FLOOR)
         return block
@@ -288,32 +288,34 @@ def _floor(value: float, frames: int) -> Floor:
     return _made(Floor, value=value, frames=frames, basis=BASIS_STEPS)
 
 
-def _silent_steps(cc: CorrectedContext, first: int, count: int) -> list[Step | None]:
+def _silent_steps(judging: CorrectedContext, first: int, count: int) -> list[Step | None]:
     """The silent steps (:func:`block_step`) of the frames first + k·tpf, k < count, None
     where that frame is not in the log or its step is read on its own."""
-    tpf = cc.tpf
+    tpf = judging.tpf
     out: list[Step | None] = []
     while len(out) < count:
         u = first + len(out) * tpf
-        block = block_of(cc, u)
+        block = block_of(judging, u)
         if block is None:
             out.append(None)
             continue
         i = (u - block.start) // tpf
         out.extend(block.steps[i : i + count - len(out)])
-    grid = frame_grid(cc)
+    grid = frame_grid(judging)
     if grid is not None and grid[0] % tpf == 0:  # frames every tpf from lo to hi (as u)
         lo, hi = grid
         return [s if lo <= first + k * tpf <= hi else None for k, s in enumerate(out)]
-    frames = cc.frame_set()
+    frames = judging.frame_set()
     return [s if first + k * tpf in frames else None for k, s in enumerate(out)]
 
 
-def _control_floors(cc: CorrectedContext, ts: int) -> tuple[Floor, Floor]:
+def _control_floors(judging: CorrectedContext, ts: int) -> tuple[Floor, Floor]:
     """:func:`control_floors` read on its own (sliding from the last one read)."""
-    found = cc.slide(CONTROL_STEP).read(floor_frames(cc, ts), lambda u: control_step(cc, u))
+    found = judging.slide(CONTROL_STEP).read(
+        floor_frames(judging, ts), lambda u: control_step(judging, u)
+    )
     steps = [s for s in found if isinstance(s, Step)]
-    minimum = int(cc.params.noise_floor_min_frames)
+    minimum = int(judging.params.noise_floor_min_frames)
     return (
         step_floor([s.speed for s in steps], minimum),
         step_floor([s.lateral for s in steps], minimum),
@@ -325,47 +327,47 @@ def _control_floors(cc: CorrectedContext, ts: int) -> tuple[Floor, Floor]:
 Steps = tuple[list[Step], str | None, bool]
 
 
-def _steps(cc: CorrectedContext, ts: int) -> Steps:
+def _steps(judging: CorrectedContext, ts: int) -> Steps:
     """The usable steps from ts, stopping at the first missing input, and why it stopped."""
-    tpf = cc.tpf
-    horizon = max(int(cc.params.control_horizon), 0)
-    block = block_of(cc, ts)
+    tpf = judging.tpf
+    horizon = max(int(judging.params.control_horizon), 0)
+    block = block_of(judging, ts)
     if block is not None:  # the usual case: every step silent, sliced from one or two blocks
         i = (ts - block.start) // tpf
         silent = block.steps[i : i + horizon]
         if len(silent) < horizon:
-            after = block_of(cc, block.start + BLOCK * tpf)
+            after = block_of(judging, block.start + BLOCK * tpf)
             if after is not None:
                 silent = silent + after.steps[: horizon - len(silent)]
         # (an identity test: ``None in`` would call Step.__eq__ on every step)
         if len(silent) == horizon and all(step is not None for step in silent):
             return cast("list[Step]", silent), None, False
-    return _steps_one_by_one(cc, ts, horizon)
+    return _steps_one_by_one(judging, ts, horizon)
 
 
-def _steps_one_by_one(cc: CorrectedContext, ts: int, horizon: int) -> Steps:
+def _steps_one_by_one(judging: CorrectedContext, ts: int, horizon: int) -> Steps:
     """:func:`_steps` where some step is read on its own (and may report a problem)."""
     steps: list[Step] = []
-    tpf = cc.tpf
+    tpf = judging.tpf
     block: StepBlock | None = None
     for j in range(horizon):
         t = ts + j * tpf
         if block is None or t - block.start >= BLOCK * tpf:  # a horizon spans two blocks
-            block = block_of(cc, t)
+            block = block_of(judging, t)
         silent = None if block is None else block.steps[(t - block.start) // tpf]
-        step = silent if silent is not None else _control_step(cc, t)
+        step = silent if silent is not None else _control_step(judging, t)
         if not isinstance(step, Step):
-            return steps, f"missing {step[0]} at {step[1]} ms", cc.in_log(step[1])
+            return steps, f"missing {step[0]} at {step[1]} ms", judging.in_log(step[1])
         steps.append(step)
     return steps, None, False
 
 
 def control(ctx: RunContext, ts: int) -> OracleResult:
     """Rule 5 at ts, with tracking-error metrics."""
-    cc = corrected_context(ctx)
-    p = cc.params
-    thresholds: dict[str, float] = cc.reported(REPORTED["controller"])
-    steps, stop, missing = _steps(cc, ts)
+    judging = corrected_context(ctx)
+    p = judging.params
+    thresholds: dict[str, float] = judging.reported(REPORTED["controller"])
+    steps, stop, missing = _steps(judging, ts)
     if not steps:
         reason = stop or "no control step"
         return skipped("controller", ts, reason, thresholds=thresholds, missing_input=missing)
@@ -373,7 +375,7 @@ def control(ctx: RunContext, ts: int) -> OracleResult:
     sum_v, sum_lat = exact_sum(speeds), exact_sum(laterals)
     decels = [s.decel for s in steps if math.isfinite(s.decel)]
     max_decel = max(decels) if decels else math.nan
-    speed_floor, lateral_floor = control_floors(cc, ts)
+    speed_floor, lateral_floor = control_floors(judging, ts)
     # rule 8: the summed noise of n steps grows as sqrt(n); 2 sigma of it is not a fault
     spread = p.noise_floor_factor * 2.0 * math.sqrt(len(steps))
     thr_v = max(p.control_speed_threshold, spread * speed_floor.value)
@@ -400,12 +402,12 @@ def control(ctx: RunContext, ts: int) -> OracleResult:
         "first_step_speed_error": steps[0].speed,
         "first_step_lateral_error": steps[0].lateral,
     }
-    partner = cc.partner_at(ts)
-    state = cc.actor_state(partner, ts) if partner is not None else None
+    partner = judging.partner_at(ts)
+    state = judging.actor_state(partner, ts) if partner is not None else None
     if partner is None or state is None:
         metrics["toward_partner"] = None
         return OracleResult("controller", ts, False, metrics, thresholds, missing_input=missing)
-    pose = cc.log.pose[ts]
+    pose = judging.log.pose[ts]
     rx, ry = ego_offset(state[0], pose.x, pose.y, pose.yaw)
     toward = bool(
         (sum_v > thr_v and rx > 0)

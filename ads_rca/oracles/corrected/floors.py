@@ -83,16 +83,16 @@ PERCEPTION_SAMPLES: CacheName[Samples] = CacheName("perception_samples")
 PREDICTION_SAMPLES: CacheName[Samples] = CacheName("prediction_samples")
 
 
-def floor_frames(cc: CorrectedContext, ts: int) -> list[int]:
+def floor_frames(judging: CorrectedContext, ts: int) -> list[int]:
     """The log's timestamps u with ts − (G + L)·tpf ≤ u < ts − G·tpf (ascending)."""
-    tpf = cc.tpf
-    span, gap = floor_reach(cc.params, tpf)
+    tpf = judging.tpf
+    span, gap = floor_reach(judging.params, tpf)
     first, end = ts - span * tpf, ts - gap * tpf
-    grid = frame_grid(cc)
+    grid = frame_grid(judging)
     if grid is not None:  # every tpf from lo to hi: the range's grid points inside it
         lo, hi = grid
         return [] if (first - lo) % tpf else list(range(max(first, lo), min(end, hi + tpf), tpf))
-    frames = cc.frame_set()
+    frames = judging.frame_set()
     return [u for u in range(first, end, tpf) if u in frames]
 
 
@@ -114,15 +114,15 @@ def floor_reach(params: Params, tpf: int) -> tuple[int, int]:
 FRAME_GRID: CacheName[tuple[tuple[int, ...], tuple[int, int] | None]] = CacheName("frame_grid")
 
 
-def frame_grid(cc: CorrectedContext) -> tuple[int, int] | None:
+def frame_grid(judging: CorrectedContext) -> tuple[int, int] | None:
     """The log's first and last frame when its frames are every tpf from one to the other,
     each once (a run without gaps: floor frames are then a range), else None; checked once
     per frames tuple (a live window's frames change)."""
-    frames = cc.log.frames
-    cache = cc.cache(FRAME_GRID)
+    frames = judging.log.frames
+    cache = judging.cache(FRAME_GRID)
     found = cache.lookup(0)
     if found is None or found[0] is not frames:
-        tpf = cc.tpf
+        tpf = judging.tpf
         grid = bool(frames) and all(b - a == tpf for a, b in pairwise(frames))
         found = (frames, (frames[0], frames[-1]) if grid else None)
         cache.put(0, found)
@@ -186,15 +186,15 @@ def _medians(ordered: FloatArray) -> FloatArray:
 
 
 def actor_floor(
-    cc: CorrectedContext, ts: int, sampler: Callable[[CorrectedContext, int], Samples]
+    judging: CorrectedContext, ts: int, sampler: Callable[[CorrectedContext, int], Samples]
 ) -> Floor:
     """The floor at ts from per-actor samples (others' median level, else the partner's
     own spread, else none); cached per timestamp and partner."""
-    partner = cc.partner_at(ts)
-    cache = cc.cache(_names(sampler)[0])
+    partner = judging.partner_at(ts)
+    cache = judging.cache(_names(sampler)[0])
     found = cache.lookup(ts)
     if found is None or found[0] != partner:
-        found = (partner, _actor_floor(cc, ts, sampler, partner))
+        found = (partner, _actor_floor(judging, ts, sampler, partner))
         cache.put(ts, found)
     return found[1]
 
@@ -218,17 +218,17 @@ def _names(
 
 
 def _actor_floor(
-    cc: CorrectedContext,
+    judging: CorrectedContext,
     ts: int,
     sampler: Callable[[CorrectedContext, int], Samples],
     partner: str | None,
 ) -> Floor:
-    slide = cc.slide(_names(sampler)[1])
+    slide = judging.slide(_names(sampler)[1])
     reduced = slide.read(
-        floor_frames(cc, ts), lambda u: frame_level(sampler(cc, u), partner), partner
+        floor_frames(judging, ts), lambda u: frame_level(sampler(judging, u), partner), partner
     )
     levels = [level for level, _ in reduced if level is not None]
-    minimum = max(int(cc.params.noise_floor_min_frames), 1)
+    minimum = max(int(judging.params.noise_floor_min_frames), 1)
     if len(levels) >= minimum:
         return Floor(list_median(levels), len(levels), BASIS_OTHERS)
     own = [sample for _, sample in reduced if sample is not None]
@@ -245,41 +245,41 @@ def frame_level(samples: Samples, partner: str | None) -> Level:
     return list_median(others) if others else None, own
 
 
-def perception_floor(cc: CorrectedContext, ts: int) -> Floor:
+def perception_floor(judging: CorrectedContext, ts: int) -> Floor:
     """Perception's displacement floor at ts (m)."""
-    return actor_floor(cc, ts, perception_samples)
+    return actor_floor(judging, ts, perception_samples)
 
 
-def velocity_floor(cc: CorrectedContext, ts: int) -> Floor:
+def velocity_floor(judging: CorrectedContext, ts: int) -> Floor:
     """Rule 2b's velocity-error floor at ts (m/s)."""
-    return actor_floor(cc, ts, velocity_samples)
+    return actor_floor(judging, ts, velocity_samples)
 
 
 # -- samples --------------------------------------------------------------------------------
-def perception_samples(cc: CorrectedContext, u: int) -> Samples:
+def perception_samples(judging: CorrectedContext, u: int) -> Samples:
     """Perception's error per actor at u (cached): rule 2's raw displacement (2-D: each
     actor's linked raw prediction against its pwp, max over the horizon) or rule 2b's (3-D:
     each matched actor's perceived against its real box, both at constant velocity)."""
-    return cc.cache(PERCEPTION_SAMPLES).get(u, lambda: _perception_samples(cc, u))
+    return judging.cache(PERCEPTION_SAMPLES).get(u, lambda: _perception_samples(judging, u))
 
 
-def _perception_samples(cc: CorrectedContext, u: int) -> Samples:
-    if uses_3d(cc):
-        return _perception3d_samples(cc, u)
-    raw, pwp = cc.log.predictions.get(u), cc.log.predictions_with_perception.get(u)
+def _perception_samples(judging: CorrectedContext, u: int) -> Samples:
+    if uses_3d(judging):
+        return _perception3d_samples(judging, u)
+    raw, pwp = judging.log.predictions.get(u), judging.log.predictions_with_perception.get(u)
     if raw is None or pwp is None:
         return {}
-    links = raw_links(raw, pwp, cc.ego_id)
+    links = raw_links(raw, pwp, judging.ego_id)
     if not links:
         return {}
     actors = list(links)
     raws, pwps = [raw[links[a]] for a in actors], [pwp[a] for a in actors]
     keys = raws[0].keys
     if all(t.keys == keys for t in raws) and all(t.keys == keys for t in pwps):
-        return _shared_keys_displacements(actors, raws, pwps, keys, cc.window)
+        return _shared_keys_displacements(actors, raws, pwps, keys, judging.window)
     out: Samples = {}
     for actor, a, b in zip(actors, raws, pwps, strict=True):
-        error = _offset_displacement(a, b, cc.window)
+        error = _offset_displacement(a, b, judging.window)
         if math.isfinite(error):
             out[actor] = error
     return out
@@ -315,38 +315,39 @@ def _offset_displacement(a: Track, b: Track, window: int) -> float:
     return float(np.nanmax(dist)) if np.isfinite(dist).any() else math.nan
 
 
-def _perception3d_samples(cc: CorrectedContext, u: int) -> Samples:
-    offsets = perceived_offsets(cc, u)
-    t = np.array([1, cc.window])  # the offset is linear in time: its max is at an end
+def _perception3d_samples(judging: CorrectedContext, u: int) -> Samples:
+    offsets = perceived_offsets(judging, u)
+    t = np.array([1, judging.window])  # the offset is linear in time: its max is at an end
     return {a: float(np.hypot(*off[t].T).max()) for a, off in offsets.items()}
 
 
-def velocity_samples(cc: CorrectedContext, u: int) -> Samples:
+def velocity_samples(judging: CorrectedContext, u: int) -> Samples:
     """Rule 2b's velocity error |perceived − real| (m/s) of every matched in-range actor at
     u (the perceived velocity standing in for itself when unknown gives 0)."""
-    dt = cc.tpf / 1000.0
+    dt = judging.tpf / 1000.0
     return {
-        a: float(np.hypot(*(off[1] - off[0]))) / dt for a, off in perceived_offsets(cc, u).items()
+        a: float(np.hypot(*(off[1] - off[0]))) / dt
+        for a, off in perceived_offsets(judging, u).items()
     }
 
 
 PERCEIVED_OFFSETS: CacheName[dict[str, np.ndarray]] = CacheName("perceived_offsets")
 
 
-def perceived_offsets(cc: CorrectedContext, u: int) -> dict[str, np.ndarray]:
+def perceived_offsets(judging: CorrectedContext, u: int) -> dict[str, np.ndarray]:
     """Rule 2b's state error of every matched in-range actor at u (cached): perceived −
     real centre at indices 0..W, both moved at constant velocity (the perceived velocity,
     else the real one); actors with a NaN error are left out."""
-    return cc.cache(PERCEIVED_OFFSETS).get(u, lambda: _perceived_offsets(cc, u))
+    return judging.cache(PERCEIVED_OFFSETS).get(u, lambda: _perceived_offsets(judging, u))
 
 
-def _perceived_offsets(cc: CorrectedContext, u: int) -> dict[str, np.ndarray]:
-    match = frame_match(cc, u)
+def _perceived_offsets(judging: CorrectedContext, u: int) -> dict[str, np.ndarray]:
+    match = frame_match(judging, u)
     if match is None or match.rows.size == 0:
         return {}
     ids = [match.actor_ids[c] for c in match.cols.tolist()]
-    states = cc.states_over(cc.gids(ids), [u - cc.tpf, u, u + cc.tpf])[:, :, :2]
-    dt = cc.tpf / 1000.0
+    states = judging.states_over(judging.gids(ids), [u - judging.tpf, u, u + judging.tpf])[:, :, :2]
+    dt = judging.tpf / 1000.0
     ahead = (states[:, 2] - states[:, 1]) / dt
     behind = (states[:, 1] - states[:, 0]) / dt
     ahead_known = np.asarray(np.isfinite(ahead).all(axis=1), dtype=bool)
@@ -355,25 +356,25 @@ def _perceived_offsets(cc: CorrectedContext, u: int) -> dict[str, np.ndarray]:
     seen_known = np.asarray(np.isfinite(seen_v).all(axis=1), dtype=bool)
     seen_v = np.where(seen_known[:, None], seen_v, real_v)
     dp = match.objects.location[match.rows, :2] - match.actor_center[match.cols]
-    t = cc.seconds(np.arange(cc.window + 1))
+    t = judging.seconds(np.arange(judging.window + 1))
     moved = dp[:, None, :] + t[None, :, None] * (seen_v - real_v)[:, None, :]  # (N, W + 1, 2)
     keep = match.actor_in_range[match.cols] & np.isfinite(moved).all(axis=(1, 2))
     return {a: moved[n] for n, a in enumerate(ids) if keep[n]}
 
 
-def partner_row(cc: CorrectedContext, ts: int, actor_id: str) -> tuple[int | None, bool]:
+def partner_row(judging: CorrectedContext, ts: int, actor_id: str) -> tuple[int | None, bool]:
     """The perceived object row that stands for ``actor_id`` at ts, and whether only the
     noise allowance paired them: rule 2b's match; else (rule 8) the nearest in-range object
     no actor matched whose centre lies within ``perc3d_match_distance`` plus the allowance
     (``noise_floor_factor`` × the perception floor) of the actor's; else None."""
-    match = frame_match(cc, ts)
+    match = frame_match(judging, ts)
     if match is None or actor_id not in match.actor_ids:
         return None, False
     row = match.object_of(actor_id)
     if row is not None:
         return row, False
-    p = cc.params
-    reach = p.perc3d_match_distance + p.noise_floor_factor * perception_floor(cc, ts).value
+    p = judging.params
+    reach = p.perc3d_match_distance + p.noise_floor_factor * perception_floor(judging, ts).value
     free = np.ones(len(match.objects.ids), dtype=bool)
     free[match.rows] = False
     free &= match.object_in_range
@@ -386,11 +387,11 @@ def partner_row(cc: CorrectedContext, ts: int, actor_id: str) -> tuple[int | Non
     return (nearest, True) if d[nearest] <= reach else (None, False)
 
 
-def partner_object(cc: CorrectedContext, ts: int, actor_id: str) -> str | None:
+def partner_object(judging: CorrectedContext, ts: int, actor_id: str) -> str | None:
     """The id of :func:`partner_row`'s object (the actor's raw track when tracked objects
     share their ids with the predictions)."""
-    row, _ = partner_row(cc, ts, actor_id)
-    match = frame_match(cc, ts)
+    row, _ = partner_row(judging, ts, actor_id)
+    match = frame_match(judging, ts)
     return None if row is None or match is None else match.objects.ids[row]
 
 

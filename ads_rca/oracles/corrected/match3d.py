@@ -26,31 +26,31 @@ from ads_rca.params import Params
 IntArray = npt.NDArray[np.intp]
 
 
-def uses_3d(cc: CorrectedContext) -> bool:
+def uses_3d(judging: CorrectedContext) -> bool:
     """Whether rule 2b judges perception (``perception_check``; ``auto``: the log has no
     2-D detections with 2-D ground truth, and has 3-D objects)."""
-    check = cc.params.perception_check
+    check = judging.params.perception_check
     if check != "auto":
         return check == "3d"
-    log = cc.log
+    log = judging.log
     if log.bboxes and log.bboxes_gt:
         return False
     return bool(log.tracks_3d or log.detections_3d)
 
 
-def source(cc: CorrectedContext) -> tuple[str, dict[int, Objects3D]]:
+def source(judging: CorrectedContext) -> tuple[str, dict[int, Objects3D]]:
     """The perceived objects rule 2b judges: ``("tracked", tracks_3d)`` or ``("detected",
     detections_3d)`` (``perception_3d_source``; ``auto``: tracked objects when there are)."""
-    chosen = cc.params.perception_3d_source
-    if chosen == "detected" or (chosen == "auto" and not cc.log.tracks_3d):
-        return "detected", cc.log.detections_3d
-    return "tracked", cc.log.tracks_3d
+    chosen = judging.params.perception_3d_source
+    if chosen == "detected" or (chosen == "auto" and not judging.log.tracks_3d):
+        return "detected", judging.log.detections_3d
+    return "tracked", judging.log.tracks_3d
 
 
-def raw_without_pwp(cc: CorrectedContext) -> bool:
+def raw_without_pwp(judging: CorrectedContext) -> bool:
     """Whether prediction and planning read the raw predictions linked through the 3-D
     match: the log has no prediction on ground truth at all and rule 2b is in force."""
-    return not cc.log.predictions_with_perception and uses_3d(cc)
+    return not judging.log.predictions_with_perception and uses_3d(judging)
 
 
 def match_objects(
@@ -117,19 +117,19 @@ class Match3D:
 MATCH: CacheName[Match3D | None] = CacheName("match3d")
 
 
-def frame_match(cc: CorrectedContext, ts: int) -> Match3D | None:
+def frame_match(judging: CorrectedContext, ts: int) -> Match3D | None:
     """The match at ts (cached); None without an actors file, perceived objects or an ego
     position at ts."""
-    return cc.cache(MATCH).get(ts, lambda: _match(cc, ts))
+    return judging.cache(MATCH).get(ts, lambda: _match(judging, ts))
 
 
-def _match(cc: CorrectedContext, ts: int) -> Match3D | None:
-    name, frames = source(cc)
-    objects, actors, ego = frames.get(ts), cc.log.actors.get(ts), ego_box(cc, ts)
+def _match(judging: CorrectedContext, ts: int) -> Match3D | None:
+    name, frames = source(judging)
+    objects, actors, ego = frames.get(ts), judging.log.actors.get(ts), ego_box(judging, ts)
     if objects is None or actors is None or ego is None:
         return None
-    rows = other_rows(cc, ts)
-    extents = cc.log.actor_extents
+    rows = other_rows(judging, ts)
+    extents = judging.log.actor_extents
     ids = tuple(actors.ids[r] for r in rows)
     center = actors.location[rows, :2].reshape(-1, 2)
     half = np.array([extents[a][:2] for a in ids], dtype=np.float64).reshape(-1, 2)
@@ -137,9 +137,9 @@ def _match(cc: CorrectedContext, ts: int) -> Match3D | None:
     obj_center = objects.location[:, :2].reshape(-1, 2)
     obj_half = objects.extent[:, :2].reshape(-1, 2)
     matched, cols, iou, best = match_objects(
-        (obj_center, obj_half, objects.yaw), (center, half, yaw), cc.params
+        (obj_center, obj_half, objects.yaw), (center, half, yaw), judging.params
     )
-    reach = cc.params.perc3d_range
+    reach = judging.params.perc3d_range
     origin = ego[0]
     with np.errstate(invalid="ignore"):
         actor_in = np.hypot(*(center - origin).T) <= reach

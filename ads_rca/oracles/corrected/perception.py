@@ -53,7 +53,7 @@ FrameIoU = tuple[Boxes, Boxes, FloatArray]
 FRAME_IOUS: CacheName[FrameIoU] = CacheName("frame_ious")
 
 
-def frame_iou(cc: CorrectedContext, ts: int, det: Boxes, gt: Boxes) -> FloatArray | None:
+def frame_iou(judging: CorrectedContext, ts: int, det: Boxes, gt: Boxes) -> FloatArray | None:
     """The IoU matrix of ``det`` x ``gt`` at ts (NaN coordinates score 0), or None where the
     frame is too large (or empty) to batch.
 
@@ -65,13 +65,17 @@ def frame_iou(cc: CorrectedContext, ts: int, det: Boxes, gt: Boxes) -> FloatArra
     """
     if not 0 < len(det) * len(gt) <= BATCH_PAIRS:
         return None
-    cache = cc.cache(FRAME_IOUS)
+    cache = judging.cache(FRAME_IOUS)
     hit = cache.lookup(ts)
     if hit is not None and hit[0] is det and hit[1] is gt:
         return hit[2]
     batch = [(ts, det, gt)]
-    detections, truths = cc.log.bboxes, cc.log.bboxes_gt
-    for u in range(ts + cc.tpf, ts + IOU_BATCH * cc.tpf, cc.tpf) if cc.tpf > 0 else ():
+    detections, truths = judging.log.bboxes, judging.log.bboxes_gt
+    for u in (
+        range(ts + judging.tpf, ts + IOU_BATCH * judging.tpf, judging.tpf)
+        if judging.tpf > 0
+        else ()
+    ):
         d, g = detections.get(u), truths.get(u)
         if d is None or g is None or not 0 < len(d) * len(g) <= BATCH_PAIRS:
             break
@@ -199,14 +203,14 @@ def detection_metrics(
     return metrics, {gt.ids[c] for c in matched_cols}
 
 
-def degraded(cc: CorrectedContext, view: PartnerView, allowance: float = 0.0) -> bool:
+def degraded(judging: CorrectedContext, view: PartnerView, allowance: float = 0.0) -> bool:
     """The planner's input about the partner is degraded (rule 2's third condition), by
     more than the noise ``allowance`` (rule 8) on the fixed thresholds."""
     if view.raw is None:
         return True
-    understated = view.c_raw.value - view.c_ref.value > cc.params.understate_min + allowance
+    understated = view.c_raw.value - view.c_ref.value > judging.params.understate_min + allowance
     # an error within the noise floor hides nothing: the stack's ordinary state
-    hidden = view.c_raw.value >= cc.params.safety_margin and (
+    hidden = view.c_raw.value >= judging.params.safety_margin and (
         allowance == 0 or view.raw_displacement > allowance
     )
     return bool(understated and (displaced(view, allowance) or hidden))
@@ -220,17 +224,19 @@ def displaced(view: PartnerView, allowance: float) -> bool:
 
 def perception(ctx: RunContext, ts: int) -> OracleResult:
     """Rule 2 at ts, with the standard detection metrics (rule 2b for 3-D perception)."""
-    cc = corrected_context(ctx)
-    if uses_3d(cc):
+    judging = corrected_context(ctx)
+    if uses_3d(judging):
         return perception3d(ctx, ts)
-    p = cc.params
-    thresholds = cc.reported(REPORTED["perception"])
-    absent = missing_inputs(cc, ts, ("bboxes", "bboxes_gt"), "perception check")
+    p = judging.params
+    thresholds = judging.reported(REPORTED["perception"])
+    absent = missing_inputs(judging, ts, ("bboxes", "bboxes_gt"), "perception check")
     if absent:
         return missing_skip("perception", ts, absent, thresholds=thresholds)
-    det, gt = cc.log.bboxes[ts], cc.log.bboxes_gt[ts]
-    metrics, matched_gt = detection_metrics(det, gt, p.perc_match_iou, frame_iou(cc, ts, det, gt))
-    partner = cc.partner_at(ts)
+    det, gt = judging.log.bboxes[ts], judging.log.bboxes_gt[ts]
+    metrics, matched_gt = detection_metrics(
+        det, gt, p.perc_match_iou, frame_iou(judging, ts, det, gt)
+    )
+    partner = judging.partner_at(ts)
     in_view = partner is not None and partner in gt.ids
     unmatched = partner is not None and in_view and partner not in matched_gt
     best = metrics["missed"]
@@ -245,13 +251,13 @@ def perception(ctx: RunContext, ts: int) -> OracleResult:
     if not unmatched:
         return OracleResult("perception", ts, False, metrics, thresholds, ids)
     needed = ("pose", "waypoint", "predictions", "predictions_with_perception")
-    absent = missing_inputs(cc, ts, needed, "perception degradation check")
+    absent = missing_inputs(judging, ts, needed, "perception degradation check")
     if absent:
         return missing_skip("perception", ts, absent, metrics, thresholds)
-    view = partner_view(cc, ts)
-    floor = perception_floor(cc, ts)
+    view = partner_view(judging, ts)
+    floor = perception_floor(judging, ts)
     allowance = p.noise_floor_factor * floor.value
-    is_degraded = degraded(cc, view, allowance)
+    is_degraded = degraded(judging, view, allowance)
     metrics.update(
         # the fallback's test is the error alone: missed by the planner, or displaced
         unconditioned=bool(view.raw is None or displaced(view, allowance)),

@@ -172,29 +172,29 @@ MISLED_MAX_S = 10.0
 PARTNER: CacheName[PartnerPerception | None] = CacheName("partner_perception")
 
 
-def partner_perception(cc: CorrectedContext, ts: int) -> PartnerPerception | None:
+def partner_perception(judging: CorrectedContext, ts: int) -> PartnerPerception | None:
     """The partner's perception at ts (cached per partner); None without a partner, or
     without a match at ts (no actors, perceived objects or ego position)."""
-    cache = cc.cache(PARTNER)
+    cache = judging.cache(PARTNER)
     found = cache.lookup(ts)
-    partner = cc.partner_at(ts)
+    partner = judging.partner_at(ts)
     if found is None or found.partner_id != partner:
-        found = _assess(cc, ts, partner)
+        found = _assess(judging, ts, partner)
         cache.put(ts, found)
     return found
 
 
-def real_velocity(cc: CorrectedContext, actor_id: str, ts: int) -> FloatArray:
+def real_velocity(judging: CorrectedContext, actor_id: str, ts: int) -> FloatArray:
     """The actor's world velocity (2,) at ts: its displacement to ts + tpf over one frame
     (from ts − tpf when ts + tpf has none); NaN when neither."""
-    now = cc.actor_state(actor_id, ts)
-    dt = cc.tpf / 1000.0
+    now = judging.actor_state(actor_id, ts)
+    dt = judging.tpf / 1000.0
     if now is None:
         return np.full(2, np.nan)
-    later = cc.actor_state(actor_id, ts + cc.tpf)
+    later = judging.actor_state(actor_id, ts + judging.tpf)
     if later is not None:
         return np.asarray((later[0] - now[0]) / dt, dtype=np.float64)
-    earlier = cc.actor_state(actor_id, ts - cc.tpf)
+    earlier = judging.actor_state(actor_id, ts - judging.tpf)
     if earlier is not None:
         return np.asarray((now[0] - earlier[0]) / dt, dtype=np.float64)
     return np.full(2, np.nan)
@@ -210,34 +210,34 @@ class Motion:
     yaw: float  # degrees
     half: FloatArray  # (2,) half extents
 
-    def boxes(self, cc: CorrectedContext, horizon: int) -> Series:
+    def boxes(self, judging: CorrectedContext, horizon: int) -> Series:
         """Boxes at indices 0..``horizon`` (index i is i frames after ts)."""
-        t = cc.seconds(np.arange(horizon + 1))
+        t = judging.seconds(np.arange(horizon + 1))
         moved = self.center[None, :] + t[:, None] * self.velocity[None, :]
         return Series(moved, np.full(len(t), self.yaw), self.half)
 
 
-def _assess(cc: CorrectedContext, ts: int, partner: str | None) -> PartnerPerception | None:
-    match = frame_match(cc, ts)
+def _assess(judging: CorrectedContext, ts: int, partner: str | None) -> PartnerPerception | None:
+    match = frame_match(judging, ts)
     if partner is None or match is None:
         return None
     if partner not in match.actor_ids:
-        none = undefined_clearance(cc.window)
+        none = undefined_clearance(judging.window)
         return PartnerPerception(
             partner, False, None, math.nan, math.nan, NAN2, math.nan, none, none, False
         )
     col = match.actor_ids.index(partner)
-    row, by_allowance = partner_row(cc, ts, partner)
-    velocity = real_velocity(cc, partner, ts)
+    row, by_allowance = partner_row(judging, ts, partner)
+    velocity = real_velocity(judging, partner, ts)
     real = Motion(
         match.actor_center[col], velocity, float(match.actor_yaw[col]), match.actor_half[col]
     )
-    plan = cc.plan(ts)
+    plan = judging.plan(ts)
     ego = plan.boxes if plan else None
     in_range = bool(match.actor_in_range[col])
     if row is None:
-        (c_true,) = pair_clearances([(ego, real.boxes(cc, cc.window))], cc.window)
-        none = undefined_clearance(cc.window)
+        (c_true,) = pair_clearances([(ego, real.boxes(judging, judging.window))], judging.window)
+        none = undefined_clearance(judging.window)
         return PartnerPerception(
             partner, in_range, None, math.nan, math.nan, NAN2, math.nan, c_true, none, False
         )
@@ -250,12 +250,15 @@ def _assess(cc: CorrectedContext, ts: int, partner: str | None) -> PartnerPercep
         float(objects.yaw[row]),
         objects.extent[row, :2],
     )
-    real_boxes, seen_boxes = real.boxes(cc, cc.window), seen.boxes(cc, cc.window)
-    c_true, c_perc = pair_clearances([(ego, real_boxes), (ego, seen_boxes)], cc.window)
+    real_boxes, seen_boxes = (
+        real.boxes(judging, judging.window),
+        seen.boxes(judging, judging.window),
+    )
+    c_true, c_perc = pair_clearances([(ego, real_boxes), (ego, seen_boxes)], judging.window)
     displaced = displacement(seen_boxes, real_boxes)
-    threshold = displacement_threshold(cc, path_length(real_boxes))
-    p = cc.params
-    floor, v_floor = perception_floor(cc, ts), velocity_floor(cc, ts)
+    threshold = displacement_threshold(judging, path_length(real_boxes))
+    p = judging.params
+    floor, v_floor = perception_floor(judging, ts), velocity_floor(judging, ts)
     allowance = p.noise_floor_factor * floor.value  # rule 8
     hidden = c_perc.value >= p.safety_margin > c_true.value  # the error hid the conflict
     overstated = c_perc.value - c_true.value >= p.understate_min + allowance and (
@@ -265,7 +268,7 @@ def _assess(cc: CorrectedContext, ts: int, partner: str | None) -> PartnerPercep
     velocity_error = float(np.hypot(*(o_velocity - velocity))) if known else math.nan
     v_limit = p.perc3d_velocity_error + p.noise_floor_factor * v_floor.value
     velocity_wrong = velocity_error > v_limit  # False for NaN
-    misled = _misled(cc, ts, real, seen, allowance) if velocity_wrong else None
+    misled = _misled(judging, ts, real, seen, allowance) if velocity_wrong else None
     return PartnerPerception(
         partner_id=partner,
         in_range=in_range,
@@ -290,41 +293,45 @@ def _assess(cc: CorrectedContext, ts: int, partner: str | None) -> PartnerPercep
 
 
 def _misled(
-    cc: CorrectedContext, ts: int, real: Motion, seen: Motion, allowance: float
+    judging: CorrectedContext, ts: int, real: Motion, seen: Motion, allowance: float
 ) -> Misled | None:
     """The velocity test at ts over every step of the stack's plan at ts (at most
     ``MISLED_MAX_S``), optimistic by ``understate_min`` plus the noise ``allowance``; None
     without a plan with a step beyond 0 or a pose at ts."""
-    plan, pose = cc.log.waypoints.get(ts), cc.log.pose.get(ts)
+    plan, pose = judging.log.waypoints.get(ts), judging.log.pose.get(ts)
     if plan is None or pose is None:
         return None
-    horizon = min(int(key_steps(plan.keys).max(initial=-1)), round(MISLED_MAX_S * 1000 / cc.tpf))
-    built = build_plan(plan, pose, cc.ego_half, horizon) if horizon >= 1 else None
+    horizon = min(
+        int(key_steps(plan.keys).max(initial=-1)), round(MISLED_MAX_S * 1000 / judging.tpf)
+    )
+    built = build_plan(plan, pose, judging.ego_half, horizon) if horizon >= 1 else None
     if built is None:
         return None
     c_true, c_perc = pair_clearances(
-        [(built.boxes, real.boxes(cc, horizon)), (built.boxes, seen.boxes(cc, horizon))],
+        [(built.boxes, real.boxes(judging, horizon)), (built.boxes, seen.boxes(judging, horizon))],
         horizon,
     )
-    optimistic = bool(c_perc.value - c_true.value >= cc.params.understate_min + allowance)
+    optimistic = bool(c_perc.value - c_true.value >= judging.params.understate_min + allowance)
     return Misled(horizon, c_true.value, c_perc.value, optimistic)
 
 
-def _not_matched(cc: CorrectedContext, ts: int, thresholds: dict[str, float]) -> OracleResult:
+def _not_matched(judging: CorrectedContext, ts: int, thresholds: dict[str, float]) -> OracleResult:
     """Rule 2b cannot run at ts: say which input is missing (reported once per file)."""
-    name, frames = source(cc)
+    name, frames = source(judging)
     field = "tracks_3d" if name == "tracked" else "detections_3d"
     missing = True
     if ts not in frames:
         why = f"missing {field}"
-        missing = cc.in_log(ts)
+        missing = judging.in_log(ts)
         if missing:
-            cc.ctx.report(field, "", "missing (3-D perception check)", ts)
-    elif ts not in cc.log.actors:
+            judging.ctx.report(field, "", "missing (3-D perception check)", ts)
+    elif ts not in judging.log.actors:
         why = "missing actors"
-    elif ego_box(cc, ts) is None:
+    elif ego_box(judging, ts) is None:
         why = "no ego position"
-        cc.ctx.report(cc.log.file_of("actors", ts), "ego", "no ego box (3-D perception)", ts)
+        judging.ctx.report(
+            judging.log.file_of("actors", ts), "ego", "no ego box (3-D perception)", ts
+        )
     else:
         why, missing = "no match", False
     return skipped("perception", ts, why, thresholds=thresholds, missing_input=missing)
@@ -332,14 +339,14 @@ def _not_matched(cc: CorrectedContext, ts: int, thresholds: dict[str, float]) ->
 
 def perception3d(ctx: RunContext, ts: int) -> OracleResult:
     """Rule 2b at ts, with the bird's-eye detection metrics."""
-    cc = corrected_context(ctx)
-    thresholds = cc.reported(REPORTED_3D)
-    match = frame_match(cc, ts)
+    judging = corrected_context(ctx)
+    thresholds = judging.reported(REPORTED_3D)
+    match = frame_match(judging, ts)
     if match is None:
-        return _not_matched(cc, ts, thresholds)
+        return _not_matched(judging, ts, thresholds)
     metrics: dict[str, Metric] = {"check": "3d", "source": match.source}
     metrics.update(object_metrics(match))
-    seen = partner_perception(cc, ts)
+    seen = partner_perception(judging, ts)
     if seen is None:
         metrics["unconditioned"] = False
         return OracleResult("perception", ts, False, metrics, thresholds)
@@ -376,10 +383,10 @@ def perception3d(ctx: RunContext, ts: int) -> OracleResult:
     metrics["unconditioned"] = bool(degraded or (seen.in_range and seen.velocity_wrong))
     if not seen.in_range:
         return OracleResult("perception", ts, False, metrics, thresholds, ids)
-    absent = missing_inputs(cc, ts, ("pose", "waypoint"), "3-D perception check (clearances)")
+    absent = missing_inputs(judging, ts, ("pose", "waypoint"), "3-D perception check (clearances)")
     if absent:
         return missing_skip("perception", ts, absent, metrics, thresholds)
-    view = partner_view(cc, ts)
+    view = partner_view(judging, ts)
     metrics.update(
         real_conflict=view.real_conflict,
         overstated=seen.overstated,

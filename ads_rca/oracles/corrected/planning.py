@@ -36,18 +36,18 @@ from ads_rca.oracles.corrected.match3d import raw_without_pwp
 PLANNER_INPUTS = ("predictions", "predictions_with_perception")
 
 
-def time_to_collision(cc: CorrectedContext, c: Clearance) -> float:
+def time_to_collision(judging: CorrectedContext, c: Clearance) -> float:
     """Seconds to the first horizon index with contact (distance <= 0); NaN if none."""
     if not c.value <= 0.0:  # the least distance is not contact (or there is none)
         return math.nan
     contact = np.flatnonzero(c.per_index <= 0.0)
-    return float(cc.seconds(int(contact[0]))) if contact.size else math.nan
+    return float(judging.seconds(int(contact[0]))) if contact.size else math.nan
 
 
-def realised_error(cc: CorrectedContext, ts: int, plan: PlanData) -> dict[str, Metric]:
+def realised_error(judging: CorrectedContext, ts: int, plan: PlanData) -> dict[str, Metric]:
     """Plan point i vs the realised pose at ts + i·tpf, i = 1..W: mean, max and last."""
-    poses = cc.log.pose
-    after = [poses.get(ts + i * cc.tpf) for i in range(1, cc.window + 1)]
+    poses = judging.log.pose
+    after = [poses.get(ts + i * judging.tpf) for i in range(1, judging.window + 1)]
     real = np.array([_NOWHERE if p is None else (p.x, p.y) for p in after], dtype=np.float64)
     diff = plan.boxes.center[1:] - real
     err = np.hypot(diff[:, 0], diff[:, 1])
@@ -66,37 +66,39 @@ _NOWHERE = (math.nan, math.nan)
 
 def planning(ctx: RunContext, ts: int) -> OracleResult:
     """Rule 4 at ts, with clearance, TTC and plan-vs-realised metrics."""
-    cc = corrected_context(ctx)
-    p = cc.params
-    thresholds = cc.reported(REPORTED["planning"])
-    absent = missing_inputs(cc, ts, ("pose", "waypoint"), "planning check")
-    plan = None if absent else cc.plan(ts)
+    judging = corrected_context(ctx)
+    p = judging.params
+    thresholds = judging.reported(REPORTED["planning"])
+    absent = missing_inputs(judging, ts, ("pose", "waypoint"), "planning check")
+    plan = None if absent else judging.plan(ts)
     if plan is None:
         reason = f"missing {', '.join(absent)}" if absent else "empty plan"
         if not absent:
-            cc.ctx.report(cc.log.file_of("waypoint", ts), "", "plan has no usable point", ts)
+            judging.ctx.report(
+                judging.log.file_of("waypoint", ts), "", "plan has no usable point", ts
+            )
         return skipped("planning", ts, reason, thresholds=thresholds, missing_input=True)
-    metrics: dict[str, Metric] = realised_error(cc, ts, plan)
-    partner = cc.partner_at(ts)
+    metrics: dict[str, Metric] = realised_error(judging, ts, plan)
+    partner = judging.partner_at(ts)
     if partner is None:
         return OracleResult("planning", ts, False, metrics, thresholds)
-    needed = ("predictions",) if raw_without_pwp(cc) else PLANNER_INPUTS
-    absent = missing_inputs(cc, ts, needed, "planning check (planner inputs)")
+    needed = ("predictions",) if raw_without_pwp(judging) else PLANNER_INPUTS
+    absent = missing_inputs(judging, ts, needed, "planning check (planner inputs)")
     if absent:
         return missing_skip("planning", ts, absent, metrics, thresholds)
-    view = partner_view(cc, ts)
+    view = partner_view(judging, ts)
     metrics.update(
         partner_in_planner_inputs=view.raw is not None,
         **clearance_metrics("c_plan", view.c_raw),
         **clearance_metrics("c_gt", view.c_gt),
-        ttc_pred=time_to_collision(cc, view.c_raw),
-        ttc_gt=time_to_collision(cc, view.c_gt),
+        ttc_pred=time_to_collision(judging, view.c_raw),
+        ttc_gt=time_to_collision(judging, view.c_gt),
     )
     ids = (partner,) if view.raw_id is None else (partner, view.raw_id)
     if view.raw is None or not view.c_raw.defined:
         return OracleResult("planning", ts, False, metrics, thresholds, ids)
     i_star = view.c_raw.index
-    t_star = float(cc.seconds(i_star))
+    t_star = float(judging.seconds(i_star))
     v0 = plan.speed_of(0)
     v_star = float(plan.speed_at[i_star])
     limit = max(0.0, v0 - (p.max_decel - p.decel_tolerance) * t_star) + p.standstill_speed

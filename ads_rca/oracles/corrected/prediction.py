@@ -46,10 +46,10 @@ MISS_DISTANCE = 2.0
 
 
 def displacement_metrics(
-    cc: CorrectedContext, ids: list[str], err: FloatArray
+    judging: CorrectedContext, ids: list[str], err: FloatArray
 ) -> dict[str, Metric]:
     """ADE, FDE per actor and overall, and the miss rate, from :func:`errors`' distances."""
-    w = cc.window
+    w = judging.window
     out: dict[str, Metric] = {
         "ade": math.nan,
         "fde": math.nan,
@@ -77,7 +77,7 @@ def displacement_metrics(
 
 
 def errors(
-    cc: CorrectedContext,
+    judging: CorrectedContext,
     ts: int,
     tracks_by_actor: Predictions,
     pose: EgoPose,
@@ -86,8 +86,8 @@ def errors(
     """Non-ego actor ids and their |predicted − reference| centre distance (A, W) at
     indices 1..W (NaN where undefined): the reference is the real position, moved by
     ``offsets[actor]`` (indices 0..W) where given."""
-    w, tpf = cc.window, cc.tpf
-    ids = [a for a in tracks_by_actor if a != cc.ego_id]
+    w, tpf = judging.window, judging.tpf
+    ids = [a for a in tracks_by_actor if a != judging.ego_id]
     if not ids:
         return [], np.zeros((0, w))
     tracks = [tracks_by_actor[a] for a in ids]
@@ -104,7 +104,7 @@ def errors(
             order, k = step_order(track.keys, w)
             if order.size:
                 predicted[n, k] = ego_to_world(track.offsets[order, :2], anchor, pose.yaw)
-    real = cc.locations_over(cc.gids(ids), [ts + (j + 1) * tpf for j in range(w)])
+    real = judging.locations_over(judging.gids(ids), [ts + (j + 1) * tpf for j in range(w)])
     if offsets is not None:
         shift = np.array([offsets.get(a, np.full((w + 1, 2), np.nan))[1:] for a in ids])
         real = real + shift
@@ -115,34 +115,39 @@ def errors(
 PWP_ERRORS: CacheName[tuple[list[str], FloatArray]] = CacheName("pwp_errors")
 
 
-def pwp_errors(cc: CorrectedContext, ts: int) -> tuple[list[str], FloatArray]:
+def pwp_errors(judging: CorrectedContext, ts: int) -> tuple[list[str], FloatArray]:
     """:func:`errors` of the pwp file at ts (cached: the frame's metrics and, later, its
     rule-8 samples read it); the caller has checked that the pwp and pose files exist."""
-    return cc.cache(PWP_ERRORS).get(
-        ts, lambda: errors(cc, ts, cc.log.predictions_with_perception[ts], cc.log.pose[ts])
+    return judging.cache(PWP_ERRORS).get(
+        ts,
+        lambda: errors(
+            judging, ts, judging.log.predictions_with_perception[ts], judging.log.pose[ts]
+        ),
     )
 
 
-def prediction_samples(cc: CorrectedContext, u: int) -> Samples:
+def prediction_samples(judging: CorrectedContext, u: int) -> Samples:
     """Prediction's error per actor at u, rule 8's samples (cached): e, the max over the
     horizon of |predicted − real| centre, of every non-ego actor's pwp track; without pwp
     (rule 2b's reading), of every raw track rule 2b matched, against reality as perceived."""
-    return cc.cache(PREDICTION_SAMPLES).get(u, lambda: _prediction_samples(cc, u))
+    return judging.cache(PREDICTION_SAMPLES).get(u, lambda: _prediction_samples(judging, u))
 
 
-def _prediction_samples(cc: CorrectedContext, u: int) -> Samples:
-    pose = cc.log.pose.get(u)
+def _prediction_samples(judging: CorrectedContext, u: int) -> Samples:
+    pose = judging.log.pose.get(u)
     if pose is None:
         return {}
-    if raw_without_pwp(cc):
-        raw = cc.log.predictions.get(u)
+    if raw_without_pwp(judging):
+        raw = judging.log.predictions.get(u)
         if raw is None:
             return {}
-        ids, err = errors(cc, u, by_actor(cc, u, raw), pose, perceived_offsets(cc, u))
+        ids, err = errors(
+            judging, u, by_actor(judging, u, raw), pose, perceived_offsets(judging, u)
+        )
     else:
-        if u not in cc.log.predictions_with_perception:
+        if u not in judging.log.predictions_with_perception:
             return {}
-        ids, err = pwp_errors(cc, u)
+        ids, err = pwp_errors(judging, u)
     if not ids:  # no actor predicted (most frames of a quiet run): no array calls
         return {}
     finite: list[bool] = np.asarray(np.isfinite(err).any(axis=1), dtype=bool).tolist()
@@ -154,7 +159,7 @@ PREDICTION_SAMPLES: CacheName[Samples] = CacheName("prediction_samples")
 
 
 def judge(
-    cc: CorrectedContext,
+    judging: CorrectedContext,
     c_pred: Clearance,
     c_gt: Clearance,
     e: float,
@@ -164,7 +169,7 @@ def judge(
     """Rule 3's tests on a predicted clearance and displacement error, each fixed threshold
     raised by the noise ``allowance`` (rule 8): (e over the threshold, understated by more
     than understate_min, conflict hidden, judged failing)."""
-    p = cc.params
+    p = judging.params
     e_over = e > view.threshold + allowance
     understated = c_pred.value - c_gt.value > p.understate_min + allowance
     # an error within the noise floor hides nothing: the stack's ordinary state
@@ -172,9 +177,9 @@ def judge(
     return e_over, understated, hidden, understated and (e_over or hidden)
 
 
-def by_actor(cc: CorrectedContext, ts: int, raw: Predictions) -> Predictions:
+def by_actor(judging: CorrectedContext, ts: int, raw: Predictions) -> Predictions:
     """The raw tracks rule 2b matched to an actor at ts, keyed by that actor (file order)."""
-    match = frame_match(cc, ts)
+    match = frame_match(judging, ts)
     if match is None:
         return {}
     actor_of = {
@@ -186,26 +191,28 @@ def by_actor(cc: CorrectedContext, ts: int, raw: Predictions) -> Predictions:
 
 def prediction(ctx: RunContext, ts: int) -> OracleResult:
     """Rule 3 at ts, with ADE/FDE/miss rate."""
-    cc = corrected_context(ctx)
-    p = cc.params
-    thresholds = {**cc.reported(REPORTED["prediction"]), "miss_distance": MISS_DISTANCE}
-    if raw_without_pwp(cc):
-        return raw_prediction(cc, ts, thresholds)
-    absent = missing_inputs(cc, ts, ("pose", "predictions_with_perception"), "prediction check")
+    judging = corrected_context(ctx)
+    p = judging.params
+    thresholds = {**judging.reported(REPORTED["prediction"]), "miss_distance": MISS_DISTANCE}
+    if raw_without_pwp(judging):
+        return raw_prediction(judging, ts, thresholds)
+    absent = missing_inputs(
+        judging, ts, ("pose", "predictions_with_perception"), "prediction check"
+    )
     if absent:
         return missing_skip("prediction", ts, absent, thresholds=thresholds)
-    metrics = displacement_metrics(cc, *pwp_errors(cc, ts))
-    partner = cc.partner_at(ts)
+    metrics = displacement_metrics(judging, *pwp_errors(judging, ts))
+    partner = judging.partner_at(ts)
     if partner is None:
         metrics["unconditioned"] = False
         return OracleResult("prediction", ts, False, metrics, thresholds)
-    view = partner_view(cc, ts)
+    view = partner_view(judging, ts)
     thresholds["displacement_threshold"] = view.threshold
     absent_from_pwp = bool(view.in_view) and view.in_pwp is False
-    floor = actor_floor(cc, ts, prediction_samples)
+    floor = actor_floor(judging, ts, prediction_samples)
     allowance = p.noise_floor_factor * floor.value
     e_over, understated, hidden, judged = judge(
-        cc, view.c_pwp, view.c_gt, view.e_pwp, view, allowance
+        judging, view.c_pwp, view.c_gt, view.e_pwp, view, allowance
     )
     metrics.update(
         **floor.metrics("prediction"),
@@ -225,42 +232,44 @@ def prediction(ctx: RunContext, ts: int) -> OracleResult:
     )
     failed = bool(view.real_conflict and (judged or absent_from_pwp))
     reason = None
-    if ts not in cc.log.waypoints:
-        cc.missing("waypoint", ts, "prediction check needs the plan for clearances")
+    if ts not in judging.log.waypoints:
+        judging.missing("waypoint", ts, "prediction check needs the plan for clearances")
         reason = "missing waypoint"
     return OracleResult(
         "prediction", ts, failed, metrics, thresholds, (partner,), reason, reason is not None
     )
 
 
-def raw_prediction(cc: CorrectedContext, ts: int, thresholds: dict[str, float]) -> OracleResult:
+def raw_prediction(
+    judging: CorrectedContext, ts: int, thresholds: dict[str, float]
+) -> OracleResult:
     """Rule 3 without predictions on ground truth (rule 2b's reading): the partner's raw
     track, linked by the 3-D match, judged only where the partner was perceived correctly
     at ts, against reality as perceived (:func:`perceived_reality`), so that it answers for
     its own model as pwp would."""
-    absent = missing_inputs(cc, ts, ("pose", "predictions"), "prediction check (raw)")
+    absent = missing_inputs(judging, ts, ("pose", "predictions"), "prediction check (raw)")
     if absent:
         return missing_skip("prediction", ts, absent, thresholds=thresholds)
-    pose = cc.log.pose[ts]
-    raw = by_actor(cc, ts, cc.log.predictions[ts])
-    metrics = displacement_metrics(cc, *errors(cc, ts, raw, pose))
+    pose = judging.log.pose[ts]
+    raw = by_actor(judging, ts, judging.log.predictions[ts])
+    metrics = displacement_metrics(judging, *errors(judging, ts, raw, pose))
     metrics["basis"] = "raw"
-    if cc.partner_at(ts) is None:
+    if judging.partner_at(ts) is None:
         metrics["unconditioned"] = False
         return OracleResult("prediction", ts, False, metrics, thresholds)
-    seen = partner_perception(cc, ts)
+    seen = partner_perception(judging, ts)
     if seen is None or not seen.correct:
         why = "perception of the partner not correct at ts"
         return skipped("prediction", ts, why, metrics, thresholds)
-    view = partner_view(cc, ts)
+    view = partner_view(judging, ts)
     if view.raw is None:
         return skipped("prediction", ts, "no raw prediction of the partner", metrics, thresholds)
     thresholds["displacement_threshold"] = view.threshold
-    ref, c_ref = perceived_reality(cc, ts, view, seen)
+    ref, c_ref = perceived_reality(judging, ts, view, seen)
     e = displacement(view.raw, ref)
-    floor = actor_floor(cc, ts, prediction_samples)
-    allowance = cc.params.noise_floor_factor * floor.value
-    e_over, understated, hidden, judged = judge(cc, view.c_raw, c_ref, e, view, allowance)
+    floor = actor_floor(judging, ts, prediction_samples)
+    allowance = judging.params.noise_floor_factor * floor.value
+    e_over, understated, hidden, judged = judge(judging, view.c_raw, c_ref, e, view, allowance)
     metrics.update(
         **floor.metrics("prediction"),
         noise_allowance=allowance,
@@ -281,15 +290,15 @@ def raw_prediction(cc: CorrectedContext, ts: int, thresholds: dict[str, float]) 
     )
     failed = bool(view.real_conflict and judged)
     reason = None
-    if ts not in cc.log.waypoints:
-        cc.missing("waypoint", ts, "prediction check needs the plan for clearances")
+    if ts not in judging.log.waypoints:
+        judging.missing("waypoint", ts, "prediction check needs the plan for clearances")
         reason = "missing waypoint"
     ids = (seen.partner_id,) if view.raw_id is None else (seen.partner_id, view.raw_id)
     return OracleResult("prediction", ts, failed, metrics, thresholds, ids, reason)
 
 
 def perceived_reality(
-    cc: CorrectedContext, ts: int, view: PartnerView, seen: PartnerPerception
+    judging: CorrectedContext, ts: int, view: PartnerView, seen: PartnerPerception
 ) -> tuple[Series | None, Clearance]:
     """The reference of a raw prediction: the partner's real boxes moved by the state error
     perception made at ts (and rule 2b accepted), so prediction answers only for its own
@@ -297,6 +306,6 @@ def perceived_reality(
     if view.real is None or seen.offset is None:
         return view.real, view.c_gt
     ref = Series(view.real.center + seen.offset, view.real.yaw, view.real.half)
-    plan = cc.plan(ts)
-    (c_ref,) = pair_clearances([(plan.boxes if plan else None, ref)], cc.window)
+    plan = judging.plan(ts)
+    (c_ref,) = pair_clearances([(plan.boxes if plan else None, ref)], judging.window)
     return ref, c_ref

@@ -27,33 +27,33 @@ from ads_rca.oracles.corrected.context import (
 THREAT: CacheName[str | None] = CacheName("threat")
 
 
-def most_threatening(cc: CorrectedContext, ts: int) -> str | None:
+def most_threatening(judging: CorrectedContext, ts: int) -> str | None:
     """The provisional partner at ts (cached per timestamp); None without actors."""
-    return cc.cache(THREAT).get(ts, lambda: _choose(cc, ts))
+    return judging.cache(THREAT).get(ts, lambda: _choose(judging, ts))
 
 
-def _choose(cc: CorrectedContext, ts: int) -> str | None:
-    rows = other_rows(cc, ts)
+def _choose(judging: CorrectedContext, ts: int) -> str | None:
+    rows = other_rows(judging, ts)
     if not rows:
         return None
-    ids = [cc.log.actors[ts].ids[r] for r in rows]
-    plan = cc.plan(ts)
+    ids = [judging.log.actors[ts].ids[r] for r in rows]
+    plan = judging.plan(ts)
     if plan is not None:
-        found = least_clearance(cc, ts, plan.boxes, ids)
+        found = least_clearance(judging, ts, plan.boxes, ids)
         if found is not None:
             return found
-    ego = ego_box(cc, ts)
-    return None if ego is None else nearest_actor(cc, ts, ego)
+    ego = ego_box(judging, ts)
+    return None if ego is None else nearest_actor(judging, ts, ego)
 
 
-def least_clearance(cc: CorrectedContext, ts: int, ego: Series, ids: list[str]) -> str | None:
+def least_clearance(judging: CorrectedContext, ts: int, ego: Series, ids: list[str]) -> str | None:
     """Of ``ids``, the one with the least clearance c_gt to the ego's plan boxes (None when
     no clearance is defined): every actor's real boxes from one table, one distance call."""
-    w, n = cc.window, len(ids)
+    w, n = judging.window, len(ids)
     if w < 1:
         return None
-    states = cc.states_over(cc.gids(ids), [ts + i * cc.tpf for i in range(w + 1)])
-    extents = cc.log.actor_extents
+    states = judging.states_over(judging.gids(ids), [ts + i * judging.tpf for i in range(w + 1)])
+    extents = judging.log.actor_extents
     half = np.array([extents[a][:2] for a in ids], dtype=np.float64)
     dist = index_distances(
         np.broadcast_to(ego.center, (n, w + 1, 2)),

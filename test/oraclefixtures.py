@@ -71,7 +71,7 @@ class LogBuilder:
                 folder[ts] = make_boxes(items)
         return self
 
-    def pwp(self, ts: int, tracks: Mapping[str, Mapping[str, XY]]) -> LogBuilder:
+    def on_truth(self, ts: int, tracks: Mapping[str, Mapping[str, XY]]) -> LogBuilder:
         self.log.predictions_with_perception[ts] = make_predictions(tracks)
         return self
 

@@ -142,15 +142,15 @@ def test_linked_pairs_with_the_same_keys_give_each_pairs_own_displacement() -> N
     one) left out."""
     keys = ("2", "0", "x", "1", "1", "5")  # steps 0, 1, 2 below a window of 3; "1" twice
     rng = np.random.default_rng(7)
-    raws = [Track(keys, rng.normal(size=(6, 3)) * 10) for _ in range(5)]
-    pwps = [Track(keys, rng.normal(size=(6, 3)) * 10) for _ in range(5)]
-    raws[1].offsets[0, 0] = np.nan  # step 2 of actor b has no distance: its others count
-    raws[2].offsets[:, 1] = np.nan  # no step of c has one: left out
-    raws[3].offsets[3, 0] = np.inf  # d's step 1 is infinitely far: left out
+    raw_tracks = [Track(keys, rng.normal(size=(6, 3)) * 10) for _ in range(5)]
+    on_truth_tracks = [Track(keys, rng.normal(size=(6, 3)) * 10) for _ in range(5)]
+    raw_tracks[1].offsets[0, 0] = np.nan  # step 2 of actor b has no distance: its others count
+    raw_tracks[2].offsets[:, 1] = np.nan  # no step of c has one: left out
+    raw_tracks[3].offsets[3, 0] = np.inf  # d's step 1 is infinitely far: left out
     actors = ["a", "b", "c", "d", "e"]
-    got = _shared_keys_displacements(actors, raws, pwps, keys, 3)
+    got = _shared_keys_displacements(actors, raw_tracks, on_truth_tracks, keys, 3)
     want: dict[str, float] = {}
-    for actor, a, b in zip(actors, raws, pwps, strict=True):
+    for actor, a, b in zip(actors, raw_tracks, on_truth_tracks, strict=True):
         value = _offset_displacement(a, b, 3)
         if math.isfinite(value):
             want[actor] = value
@@ -159,5 +159,8 @@ def test_linked_pairs_with_the_same_keys_give_each_pairs_own_displacement() -> N
         np.float64(v).tobytes() for v in want.values()
     ]
     # b by hand: steps 0 ("0", row 1) and 1 (row 3, the first "1"); step 2 is NaN
-    d = [float(np.hypot(*(raws[1].offsets[r, :2] - pwps[1].offsets[r, :2]))) for r in (1, 3)]
+    d = [
+        float(np.hypot(*(raw_tracks[1].offsets[r, :2] - on_truth_tracks[1].offsets[r, :2])))
+        for r in (1, 3)
+    ]
     assert got["b"] == max(d)

@@ -1,6 +1,6 @@
 """``raw_links`` resolves the raw ids in one pass: the same links as the per-actor numpy form
-(each raw id's nearest pwp id below the distance cap, earlier pwp id on ties; per actor the
-nearest raw id, earlier raw id on ties), NaN offsets and exact ties included."""
+(each raw id's nearest id on truth below the distance cap, earlier id on truth on ties; per
+actor the nearest raw id, earlier raw id on ties), NaN offsets and exact ties included."""
 
 from __future__ import annotations
 
@@ -10,19 +10,21 @@ from ads_rca.model import Predictions, Track
 from ads_rca.oracles.corrected.links import LINK_MAX_DISTANCE, raw_links, step0_offsets
 
 
-def per_actor_form(raw: Predictions, pwp: Predictions, ego_id: str | None) -> dict[str, str]:
-    pwp_ids, pwp_xy = step0_offsets(pwp, ego_id)
+def per_actor_form(raw: Predictions, on_truth: Predictions, ego_id: str | None) -> dict[str, str]:
+    on_truth_ids, on_truth_xy = step0_offsets(on_truth, ego_id)
     raw_ids, raw_xy = step0_offsets(raw, None)
-    if not pwp_ids or not raw_ids:
+    if not on_truth_ids or not raw_ids:
         return {}
-    d = np.hypot(raw_xy[:, None, 0] - pwp_xy[None, :, 0], raw_xy[:, None, 1] - pwp_xy[None, :, 1])
+    d = np.hypot(
+        raw_xy[:, None, 0] - on_truth_xy[None, :, 0], raw_xy[:, None, 1] - on_truth_xy[None, :, 1]
+    )
     d = np.where(d < LINK_MAX_DISTANCE, d, np.inf)
     best = np.argmin(d, axis=1)
     reach = np.isfinite(d[np.arange(len(raw_ids)), best])
     out: dict[str, str] = {}
     for col in np.unique(best[reach]).tolist():
         linked = np.flatnonzero((best == col) & reach)
-        out[pwp_ids[col]] = raw_ids[int(linked[np.argmin(d[linked, col])])]
+        out[on_truth_ids[col]] = raw_ids[int(linked[np.argmin(d[linked, col])])]
     return out
 
 
@@ -40,9 +42,9 @@ def test_the_same_links_as_the_per_actor_form() -> None:
     linked = 0
     for case in range(1500):
         raw = tracks(rng, int(rng.integers(0, 9)), "r")
-        pwp = tracks(rng, int(rng.integers(0, 9)), "p")
+        on_truth = tracks(rng, int(rng.integers(0, 9)), "p")
         ego = "p0" if case % 2 else None
-        got, want = raw_links(raw, pwp, ego), per_actor_form(raw, pwp, ego)
+        got, want = raw_links(raw, on_truth, ego), per_actor_form(raw, on_truth, ego)
         assert list(got.items()) == list(want.items()), case  # order too
         linked += len(got)
     assert linked > 1000  # links were made (and contested: several raw ids per actor)
@@ -55,7 +57,7 @@ def test_a_shared_actor_goes_to_the_nearest_raw_id_then_the_earlier() -> None:
     def at(x: float, y: float) -> Track:
         return Track(("0",), np.array([[x, y, 0.0]]))
 
-    pwp = {"p": at(0.0, 0.0), "q": at(50.0, 0.0)}
+    on_truth = {"p": at(0.0, 0.0), "q": at(50.0, 0.0)}
     raw = {
         "d": at(52.0, 0.0),
         "a": at(3.0, 0.0),
@@ -63,11 +65,11 @@ def test_a_shared_actor_goes_to_the_nearest_raw_id_then_the_earlier() -> None:
         "c": at(49.0, 0.0),
         "e": at(0.0, 150.0),
     }
-    assert raw_links(raw, pwp, None) == {"p": "a", "q": "c"}
+    assert raw_links(raw, on_truth, None) == {"p": "a", "q": "c"}
 
 
-def test_without_pwp_ids_no_raw_offset_is_read() -> None:
-    """No pwp id (an empty file, or only the ego): nothing links, and the raw tracks are not
+def test_without_ids_on_truth_no_raw_offset_is_read() -> None:
+    """No id on truth (an empty file, or only the ego): nothing links, and the raw tracks are not
     read at all (most frames of a long log; a raw track with a key "0" but no rows would
     raise IndexError if its offsets were read)."""
     unreadable = {"r": Track(("0",), np.zeros((0, 3)))}

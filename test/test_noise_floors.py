@@ -116,7 +116,7 @@ def test_the_floors_measure_the_noise_of_the_run() -> None:
     perception_1, lateral_1, steps = floors_at(1.0)
     perception_10, lateral_10, _ = floors_at(10.0)
     assert steps == 59  # 60 floor frames, 59 differences
-    # today's noise: the raw predictions sit about half a metre off pwp, the controller
+    # today's noise: the raw predictions sit about half a metre off those on truth, the controller
     # tracks its plan within millimetres
     assert 0.3 < perception_1 < 1.0 and lateral_1 < 0.01
     assert perception_10 > 4 * perception_1

@@ -140,10 +140,10 @@ def build_log(
         log.actors[ts] = Actors(tuple(ids), loc, rot, ext)
         log.bboxes_gt[ts] = Boxes((PARTNER,), np.array([GT_BOX]), ({},))
         log.bboxes[ts] = Boxes(("d0",), np.array([GT_BOX]), ({},))
-        pwp = {PARTNER: track_of(partner, f, pose)}
+        on_truth = {PARTNER: track_of(partner, f, pose)}
         for name, (traj, _) in extra.items():
-            pwp[name] = track_of(traj, f, pose)
-        log.predictions_with_perception[ts] = pwp
+            on_truth[name] = track_of(traj, f, pose)
+        log.predictions_with_perception[ts] = on_truth
         log.predictions[ts] = {TRACK: track_of(partner, f, pose)}
         log.waypoints[ts] = plan_along(ego, f)
     return log
@@ -208,7 +208,7 @@ def test_partner_tie_goes_to_earlier_actor_and_missing_file_uses_earlier_frame()
 CONFLICT_TS, CALM_TS = 42 * TPF, 20 * TPF  # c_gt = 0.0 and 10.5 in head_on_log
 
 
-def _shifted(log: RunLog, ts: int, shift: np.ndarray, folder: str = "pwp") -> None:
+def _shifted(log: RunLog, ts: int, shift: np.ndarray, folder: str = "on_truth") -> None:
     """Replace the partner's prediction at ts by the exact one plus ``shift`` (K, 2)."""
     partner = Traj(
         np.array([log.actors[t].location[1, :2] for t in sorted(log.actors)]),
@@ -218,7 +218,7 @@ def _shifted(log: RunLog, ts: int, shift: np.ndarray, folder: str = "pwp") -> No
     # Frame f is row f - 1 here; track_of indexes by frame, so pad one row in front.
     padded = Traj(np.vstack((partner.xy[:1], partner.xy)), partner.yaw, partner.speed)
     track = track_of(padded, ts // TPF, log.pose[ts], shift=shift)
-    if folder == "pwp":
+    if folder == "on_truth":
         log.predictions_with_perception[ts][PARTNER] = track
     else:
         log.predictions[ts][TRACK] = track
@@ -270,8 +270,9 @@ def test_pessimistic_prediction_error_is_reported_not_blamed() -> None:
 def test_prediction_that_hides_the_conflict_fails_below_the_displacement_threshold(
     shift: float, failed: bool
 ) -> None:
-    # Partner at 30.1: c_gt = 0.1 at frame 42; a constant 0.45 m optimistic offset gives
-    # c_pwp = 0.55 >= margin (hidden) with e = 0.45 < 0.5; 0.35 m neither hides nor exceeds.
+    # Partner at 30.1: c_gt = 0.1 at frame 42; a constant 0.45 m optimistic offset gives the
+    # clearance on truth 0.55 >= margin (hidden) with e = 0.45 < 0.5; 0.35 m neither hides nor
+    # exceeds.
     log = build_log(straight(0.0, 10.0, 80), straight(30.1, 0.0, 80), 53, 53)
     ts = 42 * TPF
     _shifted(log, ts, np.tile([shift, 0.0], (HORIZON, 1)))
@@ -281,7 +282,7 @@ def test_prediction_that_hides_the_conflict_fails_below_the_displacement_thresho
     assert result.failed is failed
 
 
-def test_partner_in_view_but_absent_from_pwp_fails_only_during_conflict() -> None:
+def test_partner_in_view_but_absent_from_predictions_on_truth_fails_only_during_conflict() -> None:
     log = head_on_log()
     for ts in (CONFLICT_TS, CALM_TS):
         del log.predictions_with_perception[ts][PARTNER]
@@ -307,9 +308,9 @@ def _constant(x: float, y: float = 0.0) -> Track:
 
 
 def test_raw_linking_rule() -> None:
-    # At CALM_TS the partner's pwp step 0 is 20 m ahead; Q's is 40 m. Raw A (20.5) and B
+    # At CALM_TS the partner's step 0 on truth is 20 m ahead; Q's is 40 m. Raw A (20.5) and B
     # (19.8) both link to the partner, B is nearer its step 0; C links to Q; D is 100 m or
-    # more from every pwp step 0 and links to nothing.
+    # more from every step 0 on truth and links to nothing.
     log = head_on_log()
     log.predictions_with_perception[CALM_TS]["Q"] = _constant(40.0)
     log.predictions[CALM_TS] = {
@@ -744,8 +745,8 @@ def test_oracles_read_only_a_bounded_window() -> None:
     part = RunLog(full.metadata, tuple(t for t in full.frames if t in keep))
     for name in ("pose", "actors", "bboxes", "bboxes_gt", "predictions", "waypoint"):
         part.folder(name).update({t: v for t, v in full.folder(name).items() if t in keep})
-    pwp = full.predictions_with_perception
-    part.predictions_with_perception.update({t: v for t, v in pwp.items() if t in keep})
+    on_truth = full.predictions_with_perception
+    part.predictions_with_perception.update({t: v for t, v in on_truth.items() if t in keep})
     part.actors[53 * TPF] = full.actors[53 * TPF]
     for module in MODULES:
         a, b = run(full, module, ts), run(part, module, ts)

@@ -193,7 +193,7 @@ def test_prediction_anchored_at_the_future_ego_flags_exact_offsets_when_ego_move
     #          >= 0.1: failure.
     # The ego's own entry (listed first, absurd offsets) is skipped.
     b = moving_ego(LogBuilder()).frame(TS)
-    b.pwp(TS, {"ego": {"0": (99, 99)}, "7": {"0": (3, 2), "1": (3, 2), "2": (3, 2)}})
+    b.on_truth(TS, {"ego": {"0": (99, 99)}, "7": {"0": (3, 2), "1": (3, 2), "2": (3, 2)}})
     ctx = context(b.build())
     assert ctx.ego_id == "ego"
     result = prediction(ctx, TS)
@@ -209,14 +209,14 @@ def test_prediction_anchored_at_the_future_ego_flags_exact_offsets_when_ego_move
 def test_prediction_same_offsets_pass_when_ego_stands_still() -> None:
     b = moving_ego(LogBuilder(), speed=0.0).frame(TS)
     # Ego at (0, 0) throughout: exact offsets are (5, 2); error 0 at every step.
-    b.pwp(TS, {"7": {"0": (5, 2), "1": (5, 2), "2": (5, 2)}})
+    b.on_truth(TS, {"7": {"0": (5, 2), "1": (5, 2), "2": (5, 2)}})
     assert not prediction(context(b.build()), TS).failed
 
 
 def test_prediction_offsets_relative_to_future_ego_pass() -> None:
     # What the reference expects: A - ego(tk) = (3 - k, 2).
     b = moving_ego(LogBuilder()).frame(TS)
-    b.pwp(TS, {"7": {"0": (3, 2), "1": (2, 2), "2": (1, 2)}})
+    b.on_truth(TS, {"7": {"0": (3, 2), "1": (2, 2), "2": (1, 2)}})
     result = prediction(context(b.build()), TS)
     assert not result.failed
     assert result.metrics["n_steps"] == 3
@@ -230,7 +230,7 @@ def test_prediction_rotates_by_the_yaw_at_ts_not_at_tk() -> None:
     b.pose(TS, 0, 0, yaw=90).pose(150, 0, 0, yaw=0)
     for ts in (50, TS, 150):
         b.actor(ts, "ego", 0, 0).actor(ts, "7", 0, 3)
-    b.pwp(TS, {"7": {"0": (3, 0), "1": (3, 0)}})
+    b.on_truth(TS, {"7": {"0": (3, 0), "1": (3, 0)}})
     assert not prediction(context(b.build()), TS).failed
 
 
@@ -239,7 +239,7 @@ def dis_zero_log(offset: tuple[float, float]) -> RunLog:
     b = LogBuilder().frame(TS)
     for ts in (50, TS, 150):
         b.pose(ts, 0, 0).actor(ts, "ego", 0, 0).actor(ts, "7", 0, 0)
-    return b.pwp(TS, {"7": {"1": offset}}).build()
+    return b.on_truth(TS, {"7": {"1": offset}}).build()
 
 
 def test_prediction_dis_zero_with_error_is_infinite_ratio_failure() -> None:
@@ -260,13 +260,13 @@ def test_prediction_distance_gate() -> None:
     b = LogBuilder().frame(TS)
     for ts in (50, TS, 150):
         b.pose(ts, 0, 0).actor(ts, "ego", 0, 0).actor(ts, "7", 10, 0)
-    b.pwp(TS, {"7": {"1": (-50, 30)}})
+    b.on_truth(TS, {"7": {"1": (-50, 30)}})
     assert not prediction(context(b.build()), TS).failed
 
 
 def test_prediction_nan_offset_passes() -> None:
     b = moving_ego(LogBuilder()).frame(TS)
-    b.pwp(TS, {"7": {"0": (math.nan, 2), "1": (3, math.nan)}})
+    b.on_truth(TS, {"7": {"0": (math.nan, 2), "1": (3, math.nan)}})
     assert not prediction(context(b.build()), TS).failed
 
 
@@ -275,7 +275,7 @@ def test_prediction_first_failure_in_file_order() -> None:
     b = moving_ego(LogBuilder()).frame(TS)
     for ts in range(0, 1001, 50):
         b.actor(ts, "9", 5, 2).actor(ts, "3", 5, 2)
-    b.pwp(TS, {"9": {"0": (3, 2), "2": (3, 2), "1": (3, 2)}, "3": {"0": (9, 9)}})
+    b.on_truth(TS, {"9": {"0": (3, 2), "2": (3, 2), "1": (3, 2)}, "3": {"0": (9, 9)}})
     result = prediction(context(b.build()), TS)
     assert (result.metrics["obstacle_id"], result.metrics["key"]) == ("9", "2")
     # k = 2: P = (4 + 3, 2), error 2; dis = |(4, 0) - (5, 2)| = sqrt(5).
@@ -289,7 +289,7 @@ def test_prediction_horizon_excludes_tk_at_the_end() -> None:
     b = LogBuilder(total_frames=3).frame(TS)
     for ts in (50, TS):
         b.pose(ts, 0, 0).actor(ts, "ego", 0, 0).actor(ts, "7", 1, 0)
-    b.pwp(TS, {"7": {"0": (1, 0), "1": (40, 40)}})
+    b.on_truth(TS, {"7": {"0": (1, 0), "1": (40, 40)}})
     ctx = context(b.build())
     result = prediction(ctx, TS)
     assert not result.failed and result.skipped is None
@@ -300,7 +300,7 @@ def test_prediction_horizon_excludes_tk_at_the_end() -> None:
 def test_prediction_failure_before_a_crash_stands() -> None:
     # Step "1" fails (see the first prediction test) before the non-integer key is read.
     b = moving_ego(LogBuilder()).frame(TS)
-    b.pwp(TS, {"7": {"0": (3, 2), "1": (3, 2), "x": (0, 0)}, "8": {"1": (0, 0)}})
+    b.on_truth(TS, {"7": {"0": (3, 2), "1": (3, 2), "x": (0, 0)}, "8": {"1": (0, 0)}})
     ctx = context(b.build())
     result = prediction(ctx, TS)
     assert result.failed and result.skipped is None
@@ -311,7 +311,7 @@ def test_prediction_failure_before_a_crash_stands() -> None:
     ("mutate", "problem"),
     [
         # A non-integer key before any failure.
-        (lambda b: b.pwp(TS, {"7": {"0": (3, 2), "1.0": (3, 2)}}),
+        (lambda b: b.on_truth(TS, {"7": {"0": (3, 2), "1.0": (3, 2)}}),
          ("predictions_with_perception/predictions-100.json", "7.1.0")),
         # The ego pose at tk = 150 is missing.
         (lambda b: b.log.pose.pop(150), ("pose/pose-150.json", "")),
@@ -319,7 +319,7 @@ def test_prediction_failure_before_a_crash_stands() -> None:
         (lambda b: b.no_actors_file(150), ("actors/actors-150.json", "")),
         # "7" is not in the actors file at tk = 150.
         (lambda b: b._actors[150].pop("7"), ("actors/actors-150.json", "7")),
-        # The pwp file itself is missing.
+        # The file of predictions on truth itself is missing.
         (lambda b: b.log.predictions_with_perception.pop(TS),
          ("predictions_with_perception/predictions-100.json", "")),
     ],
@@ -327,8 +327,8 @@ def test_prediction_failure_before_a_crash_stands() -> None:
 def test_prediction_crash_cases_are_reported_and_skipped(mutate: Any, problem: Any) -> None:
     b = moving_ego(LogBuilder()).frame(TS, 200)
     # Offsets relative to the future ego: every step passes when the data is there.
-    b.pwp(TS, {"7": {"0": (3, 2), "1": (2, 2)}})
-    b.pwp(200, {"7": {"0": (1, 2), "1": (0, 2)}})
+    b.on_truth(TS, {"7": {"0": (3, 2), "1": (2, 2)}})
+    b.on_truth(200, {"7": {"0": (1, 2), "1": (0, 2)}})
     mutate(b)
     ctx = context(b.build())
     result = prediction(ctx, TS)
@@ -341,7 +341,7 @@ def test_prediction_crash_cases_are_reported_and_skipped(mutate: Any, problem: A
 
 def test_prediction_missing_pose_at_ts() -> None:
     b = moving_ego(LogBuilder()).frame(TS)
-    b.pwp(TS, {"7": {"1": (2, 2)}})
+    b.on_truth(TS, {"7": {"1": (2, 2)}})
     b.log.pose.pop(TS)
     ctx = context(b.build())
     assert_skipped(prediction(ctx, TS))
@@ -353,7 +353,7 @@ def test_prediction_off_grid_frame_looks_up_exact_timestamps() -> None:
     # at the origin, "7" at (1, 0) at 175: offset (0, 0) gives error = dis = 1: failure.
     b = LogBuilder().frame(125).pose(50, 0, 0).actor(50, "ego", 0, 0)
     b.pose(125, 0, 0).pose(175, 0, 0).actor(175, "ego", 0, 0).actor(175, "7", 1, 0)
-    b.pwp(125, {"7": {"1": (0, 0)}})
+    b.on_truth(125, {"7": {"1": (0, 0)}})
     result = prediction(context(b.build()), 125)
     assert result.failed and result.metrics["ratio"] == 1.0
 
@@ -361,12 +361,12 @@ def test_prediction_off_grid_frame_looks_up_exact_timestamps() -> None:
 def test_prediction_negative_key_reads_the_past() -> None:
     # Key "-1" at ts 100 is tk = 50 < end: judged against the ego and "7" at 50 ms.
     b = LogBuilder().frame(TS).pose(50, 0, 0).actor(50, "ego", 0, 0).actor(50, "7", 1, 0)
-    b.pose(TS, 0, 0).pwp(TS, {"7": {"-1": (0, 0)}})
+    b.pose(TS, 0, 0).on_truth(TS, {"7": {"-1": (0, 0)}})
     assert prediction(context(b.build()), TS).failed
 
 
 def test_prediction_only_ego_is_nothing_to_judge() -> None:
-    b = moving_ego(LogBuilder()).frame(TS).pwp(TS, {"ego": {"0": (99, 0)}})
+    b = moving_ego(LogBuilder()).frame(TS).on_truth(TS, {"ego": {"0": (99, 0)}})
     result = prediction(context(b.build()), TS)
     assert not result.failed and result.skipped is None
 
@@ -376,7 +376,7 @@ def test_prediction_only_ego_is_nothing_to_judge() -> None:
 
 def planning_builder(
     raw: Mapping[str, Mapping[str, tuple[float, float]]],
-    pwp: Mapping[str, Mapping[str, tuple[float, float]]] | None = None,
+    on_truth: Mapping[str, Mapping[str, tuple[float, float]]] | None = None,
     total_frames: int = 20,
     yaw: float = 0.0,
     other_ext: tuple[float, float, float] = CAR,
@@ -390,7 +390,9 @@ def planning_builder(
     b.pose(50, 0, 0).actor(50, "ego", 0, 0).actor(50, "car", 50, 50, ext=other_ext)
     b.pose(TS, 0, 0, yaw=yaw)
     b.plan(TS, {str(i): (float(i), 0.0) for i in range(6)})
-    b.pwp(TS, pwp if pwp is not None else {"ego": {"0": (0, 0)}, "car": {"0": (10, 0)}})
+    b.on_truth(
+        TS, on_truth if on_truth is not None else {"ego": {"0": (0, 0)}, "car": {"0": (10, 0)}}
+    )
     return b.raw(TS, raw)
 
 
@@ -484,8 +486,8 @@ def test_planning_anchor_is_plan_zero_not_the_pose() -> None:
 
 def test_planning_link_skips_the_ego_and_takes_the_nearest() -> None:
     # The ego's step "0" coincides with the raw one; it is skipped. "car" (d = 2) wins.
-    pwp = {"ego": {"0": (10, 0)}, "far": {"0": (30, 0)}, "car": {"0": (12, 0)}}
-    b = planning_builder({"r": ahead(1)}, pwp=pwp).actor(50, "far", 0, 90)
+    on_truth = {"ego": {"0": (10, 0)}, "far": {"0": (30, 0)}, "car": {"0": (12, 0)}}
+    b = planning_builder({"r": ahead(1)}, on_truth=on_truth).actor(50, "far", 0, 90)
     result, _ = judge_planning(b)
     assert result.metrics["links"] == {"r": "car"}
 
@@ -493,22 +495,30 @@ def test_planning_link_skips_the_ego_and_takes_the_nearest() -> None:
 def test_planning_link_tie_goes_to_the_earlier_id() -> None:
     # "ped" and "car" are both 1 m from the raw step "0". The earlier id wins. Linked to
     # the pedestrian (half 0.3): gap_x = 2 - (0.3 + 2.4 - 1.3) = 0.6, no collision.
-    pwp = {"ped": {"0": (11, 0)}, "car": {"0": (9, 0)}}
-    b = planning_builder({"r": ahead(1)}, pwp=pwp).actor(50, "ped", 70, 70, ext=(0.3, 0.3, 1))
+    on_truth = {"ped": {"0": (11, 0)}, "car": {"0": (9, 0)}}
+    b = planning_builder({"r": ahead(1)}, on_truth=on_truth).actor(
+        50, "ped", 70, 70, ext=(0.3, 0.3, 1)
+    )
     result, _ = judge_planning(b)
     assert result.metrics["links"] == {"r": "ped"} and not result.failed
     swapped = {"car": {"0": (9, 0)}, "ped": {"0": (11, 0)}}
-    b = planning_builder({"r": ahead(1)}, pwp=swapped).actor(50, "ped", 70, 70, ext=(0.3, 0.3, 1))
+    b = planning_builder({"r": ahead(1)}, on_truth=swapped).actor(
+        50, "ped", 70, 70, ext=(0.3, 0.3, 1)
+    )
     result, _ = judge_planning(b)
     assert result.metrics["links"] == {"r": "car"} and result.failed
 
 
 def test_planning_link_distance_is_strictly_below_100() -> None:
     # Raw step "0" at (10, 0); the candidate at (110, 0) is exactly 100 m away: ignored.
-    result, ctx = judge_planning(planning_builder({"r": ahead(1)}, pwp={"car": {"0": (110, 0)}}))
+    result, ctx = judge_planning(
+        planning_builder({"r": ahead(1)}, on_truth={"car": {"0": (110, 0)}})
+    )
     assert not result.failed and result.metrics["links"] == {}
     assert not ctx.problems
-    result, _ = judge_planning(planning_builder({"r": ahead(1)}, pwp={"car": {"0": (109.9, 0)}}))
+    result, _ = judge_planning(
+        planning_builder({"r": ahead(1)}, on_truth={"car": {"0": (109.9, 0)}})
+    )
     assert result.failed
 
 
@@ -523,8 +533,11 @@ def test_planning_without_raw_predictions_passes() -> None:
 
 
 def test_planning_no_candidate_ignores_raw_ids_without_reading_them() -> None:
-    # Only the ego in pwp: nothing to link, so the raw id's missing step "0" is never read.
-    result, ctx = judge_planning(planning_builder({"r": {"1": (3, 0)}}, pwp={"ego": {"0": (0, 0)}}))
+    # Only the ego in the predictions on truth: nothing to link, so the raw id's missing
+    # step "0" is never read.
+    result, ctx = judge_planning(
+        planning_builder({"r": {"1": (3, 0)}}, on_truth={"ego": {"0": (0, 0)}})
+    )
     assert not result.failed and result.skipped is None
     assert not ctx.problems
 
@@ -545,18 +558,18 @@ def drop_pose(b: LogBuilder) -> LogBuilder:
         (lambda b: b.log.waypoints.pop(TS), ("waypoint/waypoints-100.json", "")),
         # Linking needs every step "0": the raw id's, and every candidate's.
         (lambda b: b.raw(TS, {"r": {"1": (3, 0)}}), ("predictions/predictions-100.json", "r")),
-        (lambda b: b.pwp(TS, {"car": {"0": (10, 0)}, "x": {"1": (0, 0)}}),
+        (lambda b: b.on_truth(TS, {"car": {"0": (10, 0)}, "x": {"1": (0, 0)}}),
          ("predictions_with_perception/predictions-100.json", "x")),
         (lambda b: b.log.predictions_with_perception.pop(TS),
          ("predictions_with_perception/predictions-100.json", "")),
         # A non-integer plan key reached before the collision (index 1 is after it).
         (lambda b: b.plan(TS, {"0": (0, 0), "one": (1, 0), "1": (1, 0)}),
          ("waypoint/waypoints-100.json", "one")),
-        # Nothing links (only the ego in pwp), but the plan keys are still visited.
-        (lambda b: (b.pwp(TS, {"ego": {"0": (0, 0)}}), b.plan(TS, {"0": (0, 0), "x": (1, 0)})),
+        # Nothing links (only the ego on truth), but the plan keys are still visited.
+        (lambda b: (b.on_truth(TS, {"ego": {"0": (0, 0)}}), b.plan(TS, {"0": (0, 0), "x": (1, 0)})),
          ("waypoint/waypoints-100.json", "x")),
         # The linked actor has no extent anywhere.
-        (lambda b: b.pwp(TS, {"ghost": {"0": (10, 0)}}), ("actors/", "ghost.extent")),
+        (lambda b: b.on_truth(TS, {"ghost": {"0": (10, 0)}}), ("actors/", "ghost.extent")),
     ],
 )  # fmt: skip
 def test_planning_crash_cases_are_reported_and_skipped(mutate: Any, problem: Any) -> None:
@@ -693,7 +706,7 @@ def test_crash_in_one_frame_leaves_the_other_frames_evaluated() -> None:
     b = moving_ego(LogBuilder()).frame(100, 150, 200)
     for ts in (100, 150, 200):
         b.boxes(ts, [("d", (0, 0, 10, 10))], [("g", (5, 0, 15, 10))])  # IoU 1/3: failure
-        b.pwp(ts, {"7": {"1": (0, 0)}})
+        b.on_truth(ts, {"7": {"1": (0, 0)}})
         b.raw(ts, {})
         f = ts // 50
         b.plan(ts, {"0": (f, 0), "1": (f + 1, 0)})  # exact tracking at 20 m/s: failure
@@ -792,10 +805,10 @@ def test_perception_matches_slow_greedy(
 def slow_prediction(log: RunLog, ego_id: str, ts: int, thr: float) -> tuple[Any, ...]:
     """The spec's prediction oracle, one id and one key at a time; "crash" where it stops."""
     tpf, end = log.tpf, log.metadata.end_ms
-    pwp = log.predictions_with_perception.get(ts)
-    if pwp is None:
+    on_truth = log.predictions_with_perception.get(ts)
+    if on_truth is None:
         return ("crash",)
-    for pid, track in pwp.items():
+    for pid, track in on_truth.items():
         if pid == ego_id:
             continue
         for row, key in enumerate(track.keys):
@@ -848,7 +861,7 @@ def prediction_logs(draw: st.DrawFn) -> tuple[RunLog, float, int]:
             if draw(st.booleans()):
                 keys = draw(st.lists(key_strategy, max_size=4, unique=True))
                 tracks[actor_id] = {k: (draw(small), draw(small)) for k in keys}
-        b.pwp(ts_judged, tracks)
+        b.on_truth(ts_judged, tracks)
     return b.build(), draw(st.sampled_from([0.1, 0.5])), ts_judged
 
 
@@ -883,13 +896,13 @@ def slow_planning(log: RunLog, ego: str, ts: int) -> tuple[Any, ...]:
     raw = log.predictions.get(ts)
     if not raw:
         return ("pass",)
-    pwp = log.predictions_with_perception.get(ts)
-    if pwp is None:
+    on_truth = log.predictions_with_perception.get(ts)
+    if on_truth is None:
         return ("crash",)
     links: dict[str, tuple[str, Any]] = {}
     for raw_id, raw_track in raw.items():
         best, best_id = 100.0, None
-        for pid, track in pwp.items():
+        for pid, track in on_truth.items():
             if pid == ego:
                 continue
             r0, p0 = raw_track.offset("0"), track.offset("0")
@@ -966,7 +979,7 @@ def planning_logs(draw: st.DrawFn) -> RunLog:
     if draw(st.integers(0, 9)):
         b.raw(TS, tracks(["r1", "r2", "r3"]))
     if draw(st.integers(0, 9)):
-        b.pwp(TS, tracks([*ids, "ghost"]))
+        b.on_truth(TS, tracks([*ids, "ghost"]))
     return b.build()
 
 

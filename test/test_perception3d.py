@@ -1,4 +1,5 @@
-"""Rule 2b (perception in 3-D) and prediction / planning without pwp, on hand-built logs.
+"""Rule 2b (perception in 3-D) and prediction / planning without predictions on truth, on
+hand-built logs.
 
 Logs are built in code like a recording of a real stack: ground-truth actors, ego pose, an
 exact plan, the partner as a tracked object (id "T7") and the stack's own prediction of
@@ -435,8 +436,8 @@ def test_perception_check_chooses_the_rule() -> None:
     assert run(log, "perception", CONFLICT, perception_check="3d").metrics["check"] == "3d"
 
 
-# --------------------------------------------------------------------------- no pwp
-def test_prediction_without_pwp_is_judged_on_the_linked_raw_track() -> None:
+# ------------------------------------------------------------------- no predictions on truth
+def test_prediction_without_predictions_on_truth_is_judged_on_the_linked_raw_track() -> None:
     log = head_on()
     exact = run(log, "prediction", CONFLICT)
     assert not exact.failed and exact.skipped is None
@@ -488,7 +489,7 @@ def test_prediction_is_not_judged_where_perception_of_the_partner_was_wrong() ->
     assert run(log, "prediction", CONFLICT).skipped == "perception of the partner not correct at ts"
 
 
-def test_planning_without_pwp_links_the_raw_track_through_the_3d_match() -> None:
+def test_planning_without_predictions_on_truth_links_the_raw_track_through_the_3d_match() -> None:
     log = head_on()
     result = run(log, "planning", CONFLICT)
     assert result.skipped is None

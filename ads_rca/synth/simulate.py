@@ -49,7 +49,7 @@ from ads_rca.synth.world import PAD, Scene
 
 TPF_MS = 50
 CAMERA_LOC = (1.3, 0.0, 1.8)
-PWP_RANGE = 80.0
+PREDICTION_ON_TRUTH_RANGE = 80.0
 WHEELBASE = 2.9  # m, for the steering angle that follows the path's curvature
 
 
@@ -122,7 +122,7 @@ def simulate(
         det = misperception.apply(det, variant, i, s, pose_xy, v)
         tracker.update(det)
 
-        # Prediction from tracks (raw) and from ground-truth history (pwp).
+        # Prediction from tracks (raw) and from ground-truth history (on truth).
         rows = tracker.published()
         pos, vel, acc = tracker.pos[rows], tracker.vel[rows], tracker.acc[rows]
         faulty_prediction = fault.active("prediction", f)
@@ -131,11 +131,11 @@ def simulate(
         raw_world = predict_positions(pos, vel, acc, horizon)
         raw_off = to_body(raw_world, pose_xy, pose_yaw)
 
-        near = np.flatnonzero(np.hypot(*(xy - pose_xy).T) < PWP_RANGE)
+        near = np.flatnonzero(np.hypot(*(xy - pose_xy).T) < PREDICTION_ON_TRUTH_RANGE)
         g_pos, g_vel, g_acc = state_from_history(scene.xy[i - 2 : i + 1, near])
         if faulty_prediction:
             g_pos, g_vel, g_acc = _inject(scene, near, g_pos, g_vel, g_acc, stale)
-        pwp_off = to_body(predict_positions(g_pos, g_vel, g_acc, horizon), localised, pose_yaw)
+        on_truth_off = to_body(predict_positions(g_pos, g_vel, g_acc, horizon), localised, pose_yaw)
 
         # Planning from the published raw predictions only.
         keep = np.ones(rows.size, dtype=bool)
@@ -179,7 +179,7 @@ def simulate(
         )
         log.predictions[ts] = _tracks([str(t) for t in tracker.track_id[rows]], raw_off, pred_keys)
         log.predictions_with_perception[ts] = _tracks(
-            [scene.actor_ids[r] for r in near], pwp_off, pred_keys
+            [scene.actor_ids[r] for r in near], on_truth_off, pred_keys
         )
         log.waypoints[ts] = Plan(plan_keys, _shift(result.xy, offset), result.speed.copy())
         log.detections_3d[ts] = _placed(output_3d.detections(det, pose_xy), offset)

@@ -6,10 +6,11 @@ box i; negative is penetration. A clearance with no such index is undefined (NaN
 every comparison with it is false, which is exactly the spec's reading.
 
 :class:`PartnerView` gathers, once per timestamp, everything perception, prediction and
-planning ask about the partner: its real, pwp (``predictions_with_perception``) and raw
-(planner's ``predictions``, linked by the reference's rule; without any pwp in the log, the
-track rule 2b matched to the partner) boxes, the three clearances, displacement errors and
-the displacement threshold.
+planning ask about the partner: its real boxes, its boxes predicted on truth (the predictions
+on truth, ``predictions_with_perception``: the stack's predictor given ground-truth perception)
+and its raw boxes (the planner's ``predictions``, linked by the reference's rule; without any
+predictions on truth in the log, the track rule 2b matched to the partner), the three
+clearances, displacement errors and the displacement threshold.
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ from ads_rca.oracles.corrected.boxes import PlanData, Series, all_steps, braking
 from ads_rca.oracles.corrected.context import CacheName, CorrectedContext
 from ads_rca.oracles.corrected.floors import partner_object
 from ads_rca.oracles.corrected.links import raw_links
-from ads_rca.oracles.corrected.match3d import raw_without_pwp
+from ads_rca.oracles.corrected.match3d import raw_without_predictions_on_truth
 
 NAN = float("nan")
 #: Clearances this close count as equal when choosing the earliest index of the minimum.
@@ -214,21 +215,21 @@ class PartnerView:
     partner_id: str | None
     plan: PlanData | None
     real: Series | None
-    pwp: Series | None
+    on_truth: Series | None
     raw: Series | None
     raw_id: str | None
     ref: Series | None
     c_gt: Clearance
-    c_pwp: Clearance
+    c_on_truth: Clearance
     c_raw: Clearance
     c_ref: Clearance
     c_brake: Clearance  # the plan's path braking at max_decel from v0, vs the raw boxes
-    e_pwp: float  # max |pwp − real| of the partner over the horizon
+    e_on_truth: float  # max |predicted on truth − real| of the partner over the horizon
     raw_displacement: float  # max |raw − reference| over the horizon
     travelled: float
     threshold: float  # displacement threshold
     in_view: bool | None  # partner has a gt box (None: no bboxes_gt file)
-    in_pwp: bool | None  # partner in predictions_with_perception (None: no file)
+    in_predictions_on_truth: bool | None  # partner in predictions_with_perception (None: no file)
     raw_file: bool  # the predictions file exists
     real_conflict: bool
 
@@ -253,29 +254,33 @@ def _build_view(judging: CorrectedContext, ts: int) -> PartnerView:
     plan = judging.plan(ts)
     pose = log.pose.get(ts)
     gt = log.bboxes_gt.get(ts)
-    pwp_file = log.predictions_with_perception.get(ts)
+    on_truth_file = log.predictions_with_perception.get(ts)
     raw_file = log.predictions.get(ts)
     in_view = None if gt is None or partner is None else partner in gt.ids
-    in_pwp = None if pwp_file is None or partner is None else partner in pwp_file
-    real = pwp = raw = None
+    in_predictions_on_truth = (
+        None if on_truth_file is None or partner is None else partner in on_truth_file
+    )
+    real = on_truth = raw = None
     raw_id = None
     measured = None if partner is None or plan is None else _measured(judging, ts, partner, plan)
     travelled = None if measured is None else measured[2]
     if partner is not None:
         real = measured[0] if measured is not None else judging.real_series(partner, ts)
-        if pose is not None and pwp_file is not None and partner in pwp_file:
-            pwp = judging.predicted_series(pwp_file[partner], pose, partner, ts)
+        if pose is not None and on_truth_file is not None and partner in on_truth_file:
+            on_truth = judging.predicted_series(on_truth_file[partner], pose, partner, ts)
             if raw_file is not None:
-                raw_id = link_raw(judging, ts, raw_file, pwp_file, partner)
+                raw_id = link_raw(judging, ts, raw_file, on_truth_file, partner)
                 if raw_id is not None:
                     raw = judging.predicted_series(raw_file[raw_id], pose, partner, ts)
-        elif pose is not None and raw_file is not None and raw_without_pwp(judging):
-            raw_id = partner_object(judging, ts, partner)  # rule 2b's match stands in for pwp
+        elif (
+            pose is not None and raw_file is not None and raw_without_predictions_on_truth(judging)
+        ):
+            raw_id = partner_object(judging, ts, partner)  # rule 2b's match stands in for the link
             if raw_id is not None and raw_id in raw_file:
                 raw = judging.predicted_series(raw_file[raw_id], pose, partner, ts)
             else:
                 raw_id = None
-    ref = _reference(pwp, real)
+    ref = _reference(on_truth, real)
     ego = plan.boxes if plan else None
     brake = None
     if plan is not None and raw is not None and pose is not None:
@@ -288,9 +293,10 @@ def _build_view(judging: CorrectedContext, ts: int) -> PartnerView:
         c_gt = measured[1]
     elif plan is not None and real is not None and partner is not None:
         c_gt = _ground_truth(judging, ts, partner, plan, real)
-    same = ref is real  # without pwp the reference is the real boxes: c_ref is c_gt
-    pairs = [(ego, pwp), (ego, raw), (None if same else ego, ref), (brake, raw)]
-    c_pwp, c_raw, c_ref, c_brake = pair_clearances(pairs, w)
+    # without predictions on truth the reference is the real boxes: c_ref is c_gt
+    same = ref is real
+    pairs = [(ego, on_truth), (ego, raw), (None if same else ego, ref), (brake, raw)]
+    c_on_truth, c_raw, c_ref, c_brake = pair_clearances(pairs, w)
     if same:
         c_ref = c_gt
     if travelled is None:
@@ -299,21 +305,21 @@ def _build_view(judging: CorrectedContext, ts: int) -> PartnerView:
         partner_id=partner,
         plan=plan,
         real=real,
-        pwp=pwp,
+        on_truth=on_truth,
         raw=raw,
         raw_id=raw_id,
         ref=ref,
         c_gt=c_gt,
-        c_pwp=c_pwp,
+        c_on_truth=c_on_truth,
         c_raw=c_raw,
         c_ref=c_ref,
         c_brake=c_brake,
-        e_pwp=displacement(pwp, real),
+        e_on_truth=displacement(on_truth, real),
         raw_displacement=displacement(raw, ref),
         travelled=travelled,
         threshold=displacement_threshold(judging, travelled),
         in_view=in_view,
-        in_pwp=in_pwp,
+        in_predictions_on_truth=in_predictions_on_truth,
         raw_file=raw_file is not None,
         real_conflict=bool(c_gt.value < judging.params.safety_margin),
     )
@@ -400,31 +406,35 @@ def _same_boxes(a: Series, b: Series) -> bool:
     )
 
 
-def _reference(pwp: Series | None, real: Series | None) -> Series | None:
-    """The pwp boxes, with the real boxes at indices where there is no pwp box."""
-    if pwp is None:
+def _reference(on_truth: Series | None, real: Series | None) -> Series | None:
+    """The boxes predicted on truth, with the real boxes at indices where there is none."""
+    if on_truth is None:
         return real
     if real is None:
-        return pwp
-    fill = ~pwp.present
-    center, yaw = pwp.center.copy(), pwp.yaw.copy()
+        return on_truth
+    fill = ~on_truth.present
+    center, yaw = on_truth.center.copy(), on_truth.yaw.copy()
     center[fill], yaw[fill] = real.center[fill], real.yaw[fill]
-    return Series(center, yaw, pwp.half)
+    return Series(center, yaw, on_truth.half)
 
 
 def link_raw(
-    judging: CorrectedContext, ts: int, raw: Predictions, pwp: Predictions, partner: str
+    judging: CorrectedContext, ts: int, raw: Predictions, on_truth: Predictions, partner: str
 ) -> str | None:
     """The raw id linked to the partner by the reference's linking rule.
 
-    Each raw id links to the pwp id (file order, ego skipped) with the smallest distance
+    Each raw id links to the id on truth (file order, ego skipped) with the smallest distance
     between the unrotated step-"0" offsets, strictly below 100 m, earlier id on ties. If
-    several raw ids link to the partner: the one nearest the partner's pwp step "0".
+    several raw ids link to the partner: the one nearest the partner's step "0" on truth.
     """
-    if partner == judging.ego_id or partner not in pwp or pwp[partner].offset("0") is None:
+    if (
+        partner == judging.ego_id
+        or partner not in on_truth
+        or on_truth[partner].offset("0") is None
+    ):
         return None
     if any(track.offset("0") is None for track in raw.values()):
         judging.ctx.report(
             judging.log.file_of("predictions", ts), "step 0", "a raw id has no step 0; ignored", ts
         )
-    return raw_links(raw, pwp, judging.ego_id).get(partner)
+    return raw_links(raw, on_truth, judging.ego_id).get(partner)

@@ -258,27 +258,28 @@ def velocity_floor(judging: CorrectedContext, ts: int) -> Floor:
 # -- samples --------------------------------------------------------------------------------
 def perception_samples(judging: CorrectedContext, u: int) -> Samples:
     """Perception's error per actor at u (cached): rule 2's raw displacement (2-D: each
-    actor's linked raw prediction against its pwp, max over the horizon) or rule 2b's (3-D:
-    each matched actor's perceived against its real box, both at constant velocity)."""
+    actor's linked raw prediction against its prediction on truth, max over the horizon) or
+    rule 2b's (3-D: each matched actor's perceived against its real box, both at constant
+    velocity)."""
     return judging.cache(PERCEPTION_SAMPLES).get(u, lambda: _perception_samples(judging, u))
 
 
 def _perception_samples(judging: CorrectedContext, u: int) -> Samples:
     if uses_3d(judging):
         return _perception3d_samples(judging, u)
-    raw, pwp = judging.log.predictions.get(u), judging.log.predictions_with_perception.get(u)
-    if raw is None or pwp is None:
+    raw, on_truth = judging.log.predictions.get(u), judging.log.predictions_with_perception.get(u)
+    if raw is None or on_truth is None:
         return {}
-    links = raw_links(raw, pwp, judging.ego_id)
+    links = raw_links(raw, on_truth, judging.ego_id)
     if not links:
         return {}
     actors = list(links)
-    raws, pwps = [raw[links[a]] for a in actors], [pwp[a] for a in actors]
-    keys = raws[0].keys
-    if all(t.keys == keys for t in raws) and all(t.keys == keys for t in pwps):
-        return _shared_keys_displacements(actors, raws, pwps, keys, judging.window)
+    raw_tracks, on_truth_tracks = [raw[links[a]] for a in actors], [on_truth[a] for a in actors]
+    keys = raw_tracks[0].keys
+    if all(t.keys == keys for t in raw_tracks) and all(t.keys == keys for t in on_truth_tracks):
+        return _shared_keys_displacements(actors, raw_tracks, on_truth_tracks, keys, judging.window)
     out: Samples = {}
-    for actor, a, b in zip(actors, raws, pwps, strict=True):
+    for actor, a, b in zip(actors, raw_tracks, on_truth_tracks, strict=True):
         error = _offset_displacement(a, b, judging.window)
         if math.isfinite(error):
             out[actor] = error
@@ -286,7 +287,11 @@ def _perception_samples(judging: CorrectedContext, u: int) -> Samples:
 
 
 def _shared_keys_displacements(
-    actors: list[str], raws: list[Track], pwps: list[Track], keys: tuple[str, ...], window: int
+    actors: list[str],
+    raw_tracks: list[Track],
+    on_truth_tracks: list[Track],
+    keys: tuple[str, ...],
+    window: int,
 ) -> Samples:
     """:func:`_offset_displacement` of every linked pair at once when all tracks have the
     same keys (the usual case: their shared steps are all steps): the same distances, and
@@ -294,8 +299,8 @@ def _shared_keys_displacements(
     rows, _ = step_order(keys, window)
     if rows.size == 0:
         return {}
-    diff = np.array([t.offsets for t in raws])[:, rows, :2]
-    diff -= np.array([t.offsets for t in pwps])[:, rows, :2]
+    diff = np.array([t.offsets for t in raw_tracks])[:, rows, :2]
+    diff -= np.array([t.offsets for t in on_truth_tracks])[:, rows, :2]
     dist = np.hypot(diff[..., 0], diff[..., 1])
     some = np.isfinite(dist).any(axis=1).tolist()
     top = np.where(np.isnan(dist), -np.inf, dist).max(axis=1).tolist()

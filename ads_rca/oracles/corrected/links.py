@@ -1,8 +1,8 @@
 """The reference's linking rule: which raw prediction speaks for which actor.
 
-Each raw id links to the pwp id (file order, ego skipped) with the smallest distance between
+Each raw id links to the id on truth (file order, ego skipped) with the smallest distance between
 the unrotated step-"0" offsets, strictly below ``LINK_MAX_DISTANCE``, earlier id on ties. If
-several raw ids link to one actor, the one nearest that actor's pwp step "0" speaks for it.
+several raw ids link to one actor, the one nearest that actor's step "0" on truth speaks for it.
 Rule 2 links the partner this way, rule 8 every actor (its samples).
 """
 
@@ -35,22 +35,22 @@ def step0_offsets(tracks: Predictions, skip: str | None) -> tuple[list[str], Flo
     return [i for i, _ in kept], np.array([offset for _, offset in kept])
 
 
-def raw_links(raw: Predictions, pwp: Predictions, ego_id: str | None) -> dict[str, str]:
-    """{pwp actor id: the raw id linked to it} for every actor some raw id links to."""
-    pwp_ids, pwp_xy = step0_offsets(pwp, ego_id)
-    if not pwp_ids:  # most frames of a long log: no raw offsets to read
+def raw_links(raw: Predictions, on_truth: Predictions, ego_id: str | None) -> dict[str, str]:
+    """{actor id on truth: the raw id linked to it} for every actor some raw id links to."""
+    on_truth_ids, on_truth_xy = step0_offsets(on_truth, ego_id)
+    if not on_truth_ids:  # most frames of a long log: no raw offsets to read
         return {}
     raw_ids, raw_xy = step0_offsets(raw, None)
     if not raw_ids:
         return {}
-    diff = raw_xy[:, None] - pwp_xy[None, :]  # (raw, pwp, 2)
+    diff = raw_xy[:, None] - on_truth_xy[None, :]  # (raw, on_truth, 2)
     d = np.hypot(diff[..., 0], diff[..., 1])
     d[~(d < LINK_MAX_DISTANCE)] = np.inf  # NaN too
-    best = d.argmin(axis=1)  # the first minimum: the earlier pwp id on ties
+    best = d.argmin(axis=1)  # the first minimum: the earlier id on truth on ties
     nearest = np.minimum.reduce(d, axis=1)
     # one pass over the raw ids in order (ids are few: Python beats a numpy call per actor)
-    winner: dict[int, tuple[float, int]] = {}  # pwp column -> (distance, raw row)
+    winner: dict[int, tuple[float, int]] = {}  # column on truth -> (distance, raw row)
     for row, (col, distance) in enumerate(zip(best.tolist(), nearest.tolist(), strict=True)):
         if distance < math.inf and (col not in winner or distance < winner[col][0]):
             winner[col] = (distance, row)  # strictly nearer: the earlier raw id on ties
-    return {pwp_ids[col]: raw_ids[winner[col][1]] for col in sorted(winner)}
+    return {on_truth_ids[col]: raw_ids[winner[col][1]] for col in sorted(winner)}

@@ -47,7 +47,7 @@ def source(judging: CorrectedContext) -> tuple[str, dict[int, Objects3D]]:
     return "tracked", judging.log.tracks_3d
 
 
-def raw_without_pwp(judging: CorrectedContext) -> bool:
+def raw_without_predictions_on_truth(judging: CorrectedContext) -> bool:
     """Whether prediction and planning read the raw predictions linked through the 3-D
     match: the log has no prediction on ground truth at all and rule 2b is in force."""
     return not judging.log.predictions_with_perception and uses_3d(judging)

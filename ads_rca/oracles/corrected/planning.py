@@ -29,10 +29,11 @@ from ads_rca.oracles.corrected.common import (
     skipped,
 )
 from ads_rca.oracles.corrected.context import CorrectedContext, corrected_context
-from ads_rca.oracles.corrected.match3d import raw_without_pwp
+from ads_rca.oracles.corrected.match3d import raw_without_predictions_on_truth
 
-#: The folders rule 4 needs to link the planner's inputs to the partner (pwp: the link;
-#: without pwp in the log, rule 2b's match links them and only the predictions are needed).
+#: The folders rule 4 needs to link the planner's inputs to the partner (the predictions on
+#: truth: the link; without them in the log, rule 2b's match links them and only the
+#: predictions are needed).
 PLANNER_INPUTS = ("predictions", "predictions_with_perception")
 
 
@@ -82,7 +83,7 @@ def planning(ctx: RunContext, ts: int) -> OracleResult:
     partner = judging.partner_at(ts)
     if partner is None:
         return OracleResult("planning", ts, False, metrics, thresholds)
-    needed = ("predictions",) if raw_without_pwp(judging) else PLANNER_INPUTS
+    needed = ("predictions",) if raw_without_predictions_on_truth(judging) else PLANNER_INPUTS
     absent = missing_inputs(judging, ts, needed, "planning check (planner inputs)")
     if absent:
         return missing_skip("planning", ts, absent, metrics, thresholds)

@@ -3,10 +3,11 @@
 Predictions are anchored at the ego pose at ts and rotated by its yaw; key k is k + 1
 frames ahead (rule 1), so exact predictions are never flagged. A failure needs a real
 conflict (c_gt < ``safety_margin``) that the prediction made look safer than it was:
-c_pwp − c_gt > ``understate_min``, and either the partner's displacement error e (max over
+c_on_truth (the clearance of the partner's boxes predicted on truth, reported as ``c_pwp``)
+− c_gt > ``understate_min``, and either the partner's displacement error e (max over
 the horizon of |predicted − real|) exceeds the threshold or the prediction hid the conflict
-(c_pwp >= ``safety_margin``). Pessimistic errors are reported in the metrics, never blamed.
-The partner in view but absent from the pwp file during a real conflict also fails.
+(c_on_truth >= ``safety_margin``). Pessimistic errors are reported in the metrics, never blamed.
+The partner in view but absent from the predictions on truth during a real conflict also fails.
 
 Every frame also reports ADE, FDE and the miss rate (FDE > 2 m) over all predicted actors.
 """
@@ -38,7 +39,7 @@ from ads_rca.oracles.corrected.common import (
 )
 from ads_rca.oracles.corrected.context import CacheName, CorrectedContext, corrected_context
 from ads_rca.oracles.corrected.floors import Samples, actor_floor, perceived_offsets
-from ads_rca.oracles.corrected.match3d import frame_match, raw_without_pwp
+from ads_rca.oracles.corrected.match3d import frame_match, raw_without_predictions_on_truth
 from ads_rca.oracles.corrected.perception3d import PartnerPerception, partner_perception
 
 #: A final displacement error above this is a miss (the usual motion-forecasting metric).
@@ -112,13 +113,14 @@ def errors(
     return ids, np.hypot(diff[..., 0], diff[..., 1])
 
 
-PWP_ERRORS: CacheName[tuple[list[str], FloatArray]] = CacheName("pwp_errors")
+ERRORS_ON_TRUTH: CacheName[tuple[list[str], FloatArray]] = CacheName("errors_on_truth")
 
 
-def pwp_errors(judging: CorrectedContext, ts: int) -> tuple[list[str], FloatArray]:
-    """:func:`errors` of the pwp file at ts (cached: the frame's metrics and, later, its
-    rule-8 samples read it); the caller has checked that the pwp and pose files exist."""
-    return judging.cache(PWP_ERRORS).get(
+def errors_on_truth(judging: CorrectedContext, ts: int) -> tuple[list[str], FloatArray]:
+    """:func:`errors` of the predictions on truth at ts (cached: the frame's metrics and,
+    later, its rule-8 samples read it); the caller has checked that the predictions on truth
+    and the pose exist."""
+    return judging.cache(ERRORS_ON_TRUTH).get(
         ts,
         lambda: errors(
             judging, ts, judging.log.predictions_with_perception[ts], judging.log.pose[ts]
@@ -128,8 +130,9 @@ def pwp_errors(judging: CorrectedContext, ts: int) -> tuple[list[str], FloatArra
 
 def prediction_samples(judging: CorrectedContext, u: int) -> Samples:
     """Prediction's error per actor at u, rule 8's samples (cached): e, the max over the
-    horizon of |predicted − real| centre, of every non-ego actor's pwp track; without pwp
-    (rule 2b's reading), of every raw track rule 2b matched, against reality as perceived."""
+    horizon of |predicted − real| centre, of every non-ego actor's track predicted on truth;
+    without predictions on truth (rule 2b's reading), of every raw track rule 2b matched,
+    against reality as perceived."""
     return judging.cache(PREDICTION_SAMPLES).get(u, lambda: _prediction_samples(judging, u))
 
 
@@ -137,7 +140,7 @@ def _prediction_samples(judging: CorrectedContext, u: int) -> Samples:
     pose = judging.log.pose.get(u)
     if pose is None:
         return {}
-    if raw_without_pwp(judging):
+    if raw_without_predictions_on_truth(judging):
         raw = judging.log.predictions.get(u)
         if raw is None:
             return {}
@@ -147,7 +150,7 @@ def _prediction_samples(judging: CorrectedContext, u: int) -> Samples:
     else:
         if u not in judging.log.predictions_with_perception:
             return {}
-        ids, err = pwp_errors(judging, u)
+        ids, err = errors_on_truth(judging, u)
     if not ids:  # no actor predicted (most frames of a quiet run): no array calls
         return {}
     finite: list[bool] = np.asarray(np.isfinite(err).any(axis=1), dtype=bool).tolist()
@@ -194,43 +197,43 @@ def prediction(ctx: RunContext, ts: int) -> OracleResult:
     judging = corrected_context(ctx)
     p = judging.params
     thresholds = {**judging.reported(REPORTED["prediction"]), "miss_distance": MISS_DISTANCE}
-    if raw_without_pwp(judging):
+    if raw_without_predictions_on_truth(judging):
         return raw_prediction(judging, ts, thresholds)
     absent = missing_inputs(
         judging, ts, ("pose", "predictions_with_perception"), "prediction check"
     )
     if absent:
         return missing_skip("prediction", ts, absent, thresholds=thresholds)
-    metrics = displacement_metrics(judging, *pwp_errors(judging, ts))
+    metrics = displacement_metrics(judging, *errors_on_truth(judging, ts))
     partner = judging.partner_at(ts)
     if partner is None:
         metrics["unconditioned"] = False
         return OracleResult("prediction", ts, False, metrics, thresholds)
     view = partner_view(judging, ts)
     thresholds["displacement_threshold"] = view.threshold
-    absent_from_pwp = bool(view.in_view) and view.in_pwp is False
+    absent_from_predictions_on_truth = bool(view.in_view) and view.in_predictions_on_truth is False
     floor = actor_floor(judging, ts, prediction_samples)
     allowance = p.noise_floor_factor * floor.value
     e_over, understated, hidden, judged = judge(
-        judging, view.c_pwp, view.c_gt, view.e_pwp, view, allowance
+        judging, view.c_on_truth, view.c_gt, view.e_on_truth, view, allowance
     )
     metrics.update(
         **floor.metrics("prediction"),
         noise_allowance=allowance,
         partner_in_view=view.in_view,
-        partner_in_pwp=view.in_pwp,
-        displacement_error=num(view.e_pwp),
+        partner_in_pwp=view.in_predictions_on_truth,
+        displacement_error=num(view.e_on_truth),
         displacement_threshold=view.threshold,
         partner_travelled=num(view.travelled),
         real_conflict=view.real_conflict,
         understated=bool(understated),
         conflict_hidden=bool(hidden),
-        pessimistic=bool(view.c_pwp.value < view.c_gt.value),
-        unconditioned=bool(e_over or absent_from_pwp),
+        pessimistic=bool(view.c_on_truth.value < view.c_gt.value),
+        unconditioned=bool(e_over or absent_from_predictions_on_truth),
         **clearance_metrics("c_gt", view.c_gt),
-        **clearance_metrics("c_pwp", view.c_pwp),
+        **clearance_metrics("c_pwp", view.c_on_truth),
     )
-    failed = bool(view.real_conflict and (judged or absent_from_pwp))
+    failed = bool(view.real_conflict and (judged or absent_from_predictions_on_truth))
     reason = None
     if ts not in judging.log.waypoints:
         judging.missing("waypoint", ts, "prediction check needs the plan for clearances")
@@ -246,7 +249,7 @@ def raw_prediction(
     """Rule 3 without predictions on ground truth (rule 2b's reading): the partner's raw
     track, linked by the 3-D match, judged only where the partner was perceived correctly
     at ts, against reality as perceived (:func:`perceived_reality`), so that it answers for
-    its own model as pwp would."""
+    its own model as the predictions on truth would."""
     absent = missing_inputs(judging, ts, ("pose", "predictions"), "prediction check (raw)")
     if absent:
         return missing_skip("prediction", ts, absent, thresholds=thresholds)

@@ -186,7 +186,8 @@ class _Flat:
     y: FloatArray  # (K,) offsets y
 
 
-#: The last few flattened records: prediction and planning share the frame's pwp record.
+#: The last few flattened records: prediction and planning share the frame's record of
+#: predictions on truth.
 #: Keyed by the record's identity; the entry holds the record, so its id is not reused.
 _FLAT_CACHE: LRU[int, tuple[Predictions, _Flat]] = LRU(4)
 
@@ -551,7 +552,8 @@ def judge_perception(det: Boxes, gt: Boxes, ts: int, thr: float) -> OracleResult
 
 
 def prediction(ctx: RunContext, ts: int) -> OracleResult:
-    """First step of a non-ego pwp track whose error/distance ratio reaches the threshold.
+    """First step of a non-ego track predicted on truth whose error/distance ratio reaches
+    the threshold.
 
     Anchored at the ego pose at tk (the FUTURE pose: the reference's quirk) with the ego yaw
     at ts. Every key of every track is judged at once; the frame's outcome is its first
@@ -564,11 +566,11 @@ def prediction(ctx: RunContext, ts: int) -> OracleResult:
         **ctx.params.values(REPORTED["prediction"]),
         "distance_gate_m": PRED_DISTANCE_GATE_M,
     }
-    pwp = log.predictions_with_perception.get(ts)
-    if pwp is None:
+    on_truth = log.predictions_with_perception.get(ts)
+    if on_truth is None:
         file = log.file_of("predictions_with_perception", ts)
         return _skip(ctx, "prediction", ts, file, "", "file missing", thresholds)
-    flat = _flatten(pwp)
+    flat = _flatten(on_truth)
     layout = flat.layout
     tables = _tables(log)
     steps = layout.steps
@@ -578,7 +580,7 @@ def prediction(ctx: RunContext, ts: int) -> OracleResult:
     crash = None if layout.all_int else ~layout.int_ok
     if crash is not None:
         judged &= layout.int_ok
-    if ctx.ego_id in pwp:  # the ego's own entry is never read
+    if ctx.ego_id in on_truth:  # the ego's own entry is never read
         not_ego = layout.track_of != flat.ids.index(ctx.ego_id)
         judged &= not_ego
         if crash is not None:
@@ -678,13 +680,13 @@ def planning(ctx: RunContext, ts: int) -> OracleResult:
     raw = log.predictions.get(ts)
     if not raw:
         return OracleResult("planning", ts, False, {"links": {}}, thresholds)
-    # 3. Link each raw id to a pwp id.
-    pwp = log.predictions_with_perception.get(ts)
-    if pwp is None:
+    # 3. Link each raw id to an id on truth.
+    on_truth = log.predictions_with_perception.get(ts)
+    if on_truth is None:
         file = log.file_of("predictions_with_perception", ts)
         return _skip(ctx, "planning", ts, file, "", "file missing", thresholds)
     raw_flat = _flatten(raw)
-    links = _link(ctx, ts, raw_flat, _flatten(pwp), thresholds)
+    links = _link(ctx, ts, raw_flat, _flatten(on_truth), thresholds)
     if isinstance(links, OracleResult):
         return links
     # Even with nothing linked the plan keys are still visited (a non-integer one stops).
@@ -698,41 +700,41 @@ class _Links:
     linked: BoolArray  # (R,)
     ext_x: FloatArray  # (R,) garbage where not linked
     ext_y: FloatArray
-    actor_ids: dict[str, str]  # raw id -> linked pwp id, in raw file order
+    actor_ids: dict[str, str]  # raw id -> linked id on truth, in raw file order
 
 
 def _link(
-    ctx: RunContext, ts: int, raw: _Flat, pwp: _Flat, thresholds: dict[str, float]
+    ctx: RunContext, ts: int, raw: _Flat, on_truth: _Flat, thresholds: dict[str, float]
 ) -> _Links | OracleResult:
-    """Each raw id's nearest non-ego pwp id by unrotated step "0" (< 100 m, earlier wins)."""
+    """Each raw id's nearest non-ego id on truth by unrotated step "0" (< 100 m, earlier wins)."""
     log = ctx.log
-    n_raw, n_pwp = len(raw.ids), len(pwp.ids)
-    ego = pwp.ids.index(ctx.ego_id) if ctx.ego_id in pwp.ids else -1
-    if n_pwp - (ego >= 0) == 0:  # no candidate: every raw id is ignored, nothing is read
+    n_raw, n_on_truth = len(raw.ids), len(on_truth.ids)
+    ego = on_truth.ids.index(ctx.ego_id) if ctx.ego_id in on_truth.ids else -1
+    if n_on_truth - (ego >= 0) == 0:  # no candidate: every raw id is ignored, nothing is read
         nan = np.full(n_raw, np.nan)
         return _Links(np.zeros(n_raw, dtype=np.bool_), nan, nan, {})
-    candidates = np.array([c for c in range(n_pwp) if c != ego], dtype=np.int64)
-    raw0, cand0 = raw.layout.zero_rows, pwp.layout.zero_rows[candidates]
-    if not (raw.layout.all_zero and (pwp.layout.all_zero or _first(cand0 < 0) < 0)):
+    candidates = np.array([c for c in range(n_on_truth) if c != ego], dtype=np.int64)
+    raw0, cand0 = raw.layout.zero_rows, on_truth.layout.zero_rows[candidates]
+    if not (raw.layout.all_zero and (on_truth.layout.all_zero or _first(cand0 < 0) < 0)):
         # Read order: raw id 1's step "0", then every candidate's, then raw ids 2, 3 ...
         order = [("predictions", raw.ids[0], int(raw0[0]))]
         order += [
-            ("predictions_with_perception", pwp.ids[c], r)
+            ("predictions_with_perception", on_truth.ids[c], r)
             for c, r in zip(candidates.tolist(), cand0.tolist(), strict=True)
         ]
         order += [("predictions", rid, r) for rid, r in zip(raw.ids, raw0.tolist(), strict=True)]
         folder, obstacle_id, _ = next(item for item in order if item[2] < 0)
         file = log.file_of(folder, ts)
         return _skip(ctx, "planning", ts, file, obstacle_id, 'no step "0"', thresholds)
-    dx = raw.x[raw0][:, None] - pwp.x[cand0]  # (R, C)
-    dy = raw.y[raw0][:, None] - pwp.y[cand0]
+    dx = raw.x[raw0][:, None] - on_truth.x[cand0]  # (R, C)
+    dy = raw.y[raw0][:, None] - on_truth.y[cand0]
     dist = _norm(dx, dy)
     dist[~(dist < LINK_DISTANCE_M)] = np.inf  # NaN never links
     nearest = dist.argmin(axis=1)  # the first minimum: the earlier id wins ties
     linked = dist.ravel()[nearest + np.arange(0, dist.size, dist.shape[1])] < np.inf
     tables = _tables(log)
     cols, sentinel = tables.actor_cols, tables.n_cols - 1
-    cand_ids = [pwp.ids[c] for c in candidates.tolist()]
+    cand_ids = [on_truth.ids[c] for c in candidates.tolist()]
     cand_col = np.array([cols.get(a, sentinel) for a in cand_ids], dtype=np.int64)
     col = cand_col[nearest]
     col[~linked] = sentinel

@@ -58,7 +58,7 @@ class Params:
     perc3d_small_area: float = 2.0  # m²
     perc3d_range: float = 80.0  # m
     perc3d_velocity_error: float = 1.5  # m/s
-    noise_floor_s: float = 3.0  # s of floor frames (rule 8)
+    noise_floor_s: float = 3.0  # s of floor frames (the noise-floor rule)
     noise_floor_min_frames: int = 5
     noise_floor_factor: float = 1.5
 

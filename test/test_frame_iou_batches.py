@@ -1,6 +1,6 @@
-"""Rule 2's IoU matrices are computed for a batch of frames at once (the frame judged and
-those after it) and cached per frame: each batch member is, bit for bit, the frame scored
-alone; a frame whose boxes were replaced since is scored afresh; frames judged backwards
+"""The 2-D perception rule's IoU matrices are computed for a batch of frames at once (the frame
+judged and those after it) and cached per frame: each batch member is, bit for bit, the frame
+scored alone; a frame whose boxes were replaced since is scored afresh; frames judged backwards
 and frames too large to batch are scored alone."""
 
 from __future__ import annotations

@@ -1,4 +1,5 @@
-"""Rule 8 (docs/semantics-corrected.md): each module's error floor from the run itself.
+"""The noise-floor rule (docs/semantics-corrected.md, "Noise floors"): each module's error floor
+from the run itself.
 
 Hand-computed floors on a real context (samples given by hand), the floor frames, and
 end to end on synthesised crashes at ten times today's noise: the fault the old rules
@@ -124,7 +125,7 @@ def test_the_floors_measure_the_noise_of_the_run() -> None:
 
 
 #: Crashes at ten times today's noise whose planning / control fault the fixed thresholds
-#: blamed on perception (bench/accuracy.py --noise 10, before rule 8).
+#: blamed on perception (bench/accuracy.py --noise 10, before the noise-floor rule).
 NOISY_CASES = [
     ("lead_braking", "planning", 0, False),
     ("lead_braking", "controller", 0, False),

@@ -734,7 +734,7 @@ def test_params_replace_keeps_thresholds_in_results() -> None:
 # --------------------------------------------------------------------------- robustness
 def test_oracles_read_only_a_bounded_window() -> None:
     # Same results from the full log and from a log holding only ts − (W + L) … ts + 10
-    # frames (rule 8's floor frames, the prediction window and control horizon) plus the
+    # frames (the noise floors' frames, the prediction window and control horizon) plus the
     # actors file at the collision frame.
     full = head_on_log()
     for f in (42, 43, 44):  # something to find: the partner vanishes from the planner

@@ -1,11 +1,12 @@
-"""Rule 2b (perception in 3-D) and prediction / planning without predictions on truth, on
+"""The 3-D perception rule and prediction / planning without predictions on truth, on
 hand-built logs.
 
 Logs are built in code like a recording of a real stack: ground-truth actors, ego pose, an
 exact plan, the partner as a tracked object (id "T7") and the stack's own prediction of
 that track, no image boxes and no predictions on ground truth. The ego "E" (half extents
 2 × 1 m) drives along +x; each test breaks what the stack perceived at one frame and checks
-the number rule 2b computes by hand. The bird's-eye IoU is also compared with shapely.
+the number the 3-D perception rule computes by hand. The bird's-eye IoU is also compared with
+shapely.
 """
 
 from __future__ import annotations
@@ -225,7 +226,7 @@ def test_metrics_count_in_range_objects_only() -> None:
     }
 
 
-# --------------------------------------------------------------------------- rule 2b
+# --------------------------------------------------------------- the 3-D perception rule
 def test_exact_perception_never_fails() -> None:
     log = head_on()
     ctx = RunContext.create(log, make_params("corrected"))
@@ -291,7 +292,8 @@ def test_a_safer_looking_partner_must_be_displaced_or_hide_the_conflict(
 ) -> None:
     # Seen 0.4 m further away: c_perc − c_true = 0.4 ≥ understate_min, but displaced by
     # 0.4 m (threshold max(0.5, 0.1 × 0 m travelled) = 0.5) and c_perc 0.4 < safety_margin
-    # still shows the conflict: not overstated (rule 2's test). Seen 0.6 m away: displaced.
+    # still shows the conflict: not overstated (the 2-D perception rule's test). Seen 0.6 m
+    # away: displaced.
     log = head_on()
     log.tracks_3d[CONFLICT] = objects((seen_x, 0.0), CAR_HALF, (0.0, 0.0))
     result = run(log, "perception", CONFLICT)
@@ -368,7 +370,7 @@ def test_a_pedestrian_seen_walking_back_misleads_over_the_stacks_plan() -> None:
     assert number(result, "misled_c_perc") == pytest.approx(1.14)
     assert number(result, "misled_c_true") < 0.0
     # No real conflict within the window yet: not a failure, but unconditioned (what the
-    # fallback of rule 7 finds), and the stack's prediction is not judged from it.
+    # fallback of attribution finds), and the stack's prediction is not judged from it.
     assert not result.failed and result.metrics["unconditioned"] is True
     assert "perc3d_velocity_error" in result.thresholds
     assert run(log, "prediction", ts).skipped == "perception of the partner not correct at ts"
@@ -376,8 +378,8 @@ def test_a_pedestrian_seen_walking_back_misleads_over_the_stacks_plan() -> None:
 
 def test_a_velocity_error_that_makes_the_partner_look_closer_never_fails() -> None:
     # Really walking back, perceived stepping in: pessimistic, not misleading, so never a
-    # failure; still a wrong input (unconditioned, as rule 3's error test), and the
-    # stack's prediction from it is not judged.
+    # failure; still a wrong input (unconditioned, as the prediction rule's error test), and
+    # the stack's prediction from it is not judged.
     log = crossing(STEP_IN, real_vy=-STEP_IN)
     result = run(log, "perception", 10 * TPF)
     assert number(result, "partner_velocity_error") == pytest.approx(3.2)
@@ -428,7 +430,8 @@ def test_perception_check_chooses_the_rule() -> None:
     assert detected.skipped == "missing detections_3d"
     with pytest.raises(ConfigError, match=r"perception_check: '4d' is not one of auto \| 2d"):
         make_params("corrected", {"perception_check": "4d"})
-    # With image boxes and their ground truth too, auto keeps rule 2 (2-D logs unchanged).
+    # With image boxes and their ground truth too, auto keeps the 2-D perception rule (2-D
+    # logs unchanged).
     box = Boxes((PARTNER,), np.array([[100.0, 100.0, 200.0, 200.0]]), ({},))
     log.bboxes[CONFLICT], log.bboxes_gt[CONFLICT] = box, box
     both = run(log, "perception", CONFLICT)
@@ -455,10 +458,10 @@ def test_prediction_without_predictions_on_truth_is_judged_on_the_linked_raw_tra
 
 
 def test_a_raw_prediction_answers_for_its_model_not_for_perceptions_accepted_error() -> None:
-    # The standing car perceived 0.4 m further (rule 2b accepts it: c_perc − c_true = 0.4
-    # but displaced 0.4 ≤ 0.5 and c_perc 0.4 < safety_margin): the stack predicts it
-    # exactly from there. The reference is reality moved by that perception error, so the
-    # prediction's own error is 0 and c_ref = c_raw = 0.4 (c_gt = 0).
+    # The standing car perceived 0.4 m further (the 3-D perception rule accepts it:
+    # c_perc − c_true = 0.4 but displaced 0.4 ≤ 0.5 and c_perc 0.4 < safety_margin): the stack
+    # predicts it exactly from there. The reference is reality moved by that perception error,
+    # so the prediction's own error is 0 and c_ref = c_raw = 0.4 (c_gt = 0).
     log = head_on()
     log.tracks_3d[CONFLICT] = objects((30.4, 0.0), CAR_HALF, (0.0, 0.0))
     track = log.predictions[CONFLICT][TRACK]

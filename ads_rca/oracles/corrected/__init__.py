@@ -3,7 +3,8 @@
 ``SEMANTICS`` is what the engine and the live nodes ask (:class:`~ads_rca.oracles.semantics.
 Semantics`). ``ORACLES`` maps each module to its per-frame oracle ``(ctx, ts) ->
 OracleResult`` (the same signature as the reference oracles); ``attribute_corrected`` turns
-the per-frame results into the verdict (rules 6–7 of docs/semantics-corrected.md).
+the per-frame results into the verdict (docs/semantics-corrected.md,
+"Window" and "Attribution").
 """
 
 from __future__ import annotations
@@ -121,8 +122,8 @@ class CorrectedSemantics(Semantics):
         "other: the other failing frames (JSON collision / safe)"
     )
     headline: Mapping[Module, Sequence[Headline]] = {
-        # what rule 2 judges: the partner's real clearance while it is unmatched, and what
-        # the planner was told (c_raw), not the overall recall
+        # what the 2-D perception rule judges: the partner's real clearance while it is
+        # unmatched, and what the planner was told (c_raw), not the overall recall
         "perception": [
             Headline(
                 ("c_gt", "c_raw"),
@@ -187,10 +188,10 @@ class CorrectedSemantics(Semantics):
         return earliest_ego(ctx, tolerant=True)
 
     def folders(self, module: Module) -> tuple[str, ...]:
-        """Every folder of the seed format, and for the partner-reading rules the 3-D
-        objects of a recording (rule 2b, and the 3-D link of prediction and planning);
-        perception also an OpenLane-V2 segment's lane graphs, which its not-judged result
-        scores (:mod:`ads_rca.sources.openlane.run_scores`)."""
+        """Every folder of a running log, and for the partner-reading rules the 3-D
+        objects of a recording (the 3-D perception rule, and the 3-D link of prediction and
+        planning); perception also an OpenLane-V2 segment's lane graphs, which its not-judged
+        result scores (:mod:`ads_rca.sources.openlane.run_scores`)."""
         if module == "controller":
             return FOLDERS
         lanes = ("lanes", "lanes_predicted") if module == "perception" else ()
@@ -225,9 +226,9 @@ class CorrectedSemantics(Semantics):
         return max(params.prediction_window, params.control_horizon, 1)
 
     def rejudge_history(self, params: Params, tpf_ms: int) -> int:
-        """The effect window, the floor frames its first frame reads (rule 8), the control
-        horizon, and some slack: a live window keeps their records, so a re-judged frame
-        reads what the offline run read."""
+        """The effect window, the floor frames its first frame reads (the noise-floor rule),
+        the control horizon, and some slack: a live window keeps their records, so a re-judged
+        frame reads what the offline run read."""
         span = floor_span(params, tpf_ms)
         return window_frames(params, tpf_ms) + span + params.control_horizon + 5
 

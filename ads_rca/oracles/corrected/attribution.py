@@ -1,4 +1,5 @@
-"""Rules 6–7: which module caused the crash, from the per-frame `corrected` results.
+"""Attribution over the effect window: which module caused the crash, from the per-frame
+`corrected` results.
 
 Window: frames [collision_frame − W, collision_frame] with W = :func:`window_frames`.
 A module's failing frames in the window count only in runs of at least its persistence

@@ -9,7 +9,7 @@ every comparison with it is false, which is exactly the spec's reading.
 planning ask about the partner: its real boxes, its boxes predicted on truth (the predictions
 on truth, ``predictions_with_perception``: the stack's predictor given ground-truth perception)
 and its raw boxes (the planner's ``predictions``, linked by the reference's rule; without any
-predictions on truth in the log, the track rule 2b matched to the partner), the three
+predictions on truth in the log, the track the 3-D match paired with the partner), the three
 clearances, displacement errors and the displacement threshold.
 """
 
@@ -275,7 +275,7 @@ def _build_view(judging: CorrectedContext, ts: int) -> PartnerView:
         elif (
             pose is not None and raw_file is not None and raw_without_predictions_on_truth(judging)
         ):
-            raw_id = partner_object(judging, ts, partner)  # rule 2b's match stands in for the link
+            raw_id = partner_object(judging, ts, partner)  # the 3-D match stands in for the link
             if raw_id is not None and raw_id in raw_file:
                 raw = judging.predicted_series(raw_file[raw_id], pose, partner, ts)
             else:

@@ -9,7 +9,7 @@ from ads_rca.oracles.base import Metric, Module, OracleResult
 from ads_rca.oracles.corrected.clearance import Clearance
 from ads_rca.oracles.corrected.context import CorrectedContext
 
-#: The rule-8 parameters every module with a floor reports.
+#: The noise-floor rule's parameters every module with a floor reports.
 FLOOR_PARAMETERS = ("noise_floor_s", "noise_floor_min_frames", "noise_floor_factor")
 
 #: The parameters each oracle's results report in ``thresholds``, in that order (the mode's

@@ -54,7 +54,7 @@ def window_frames(params: Params, tpf_ms: int) -> int:
 
 
 def floor_span(params: Params, tpf_ms: int) -> int:
-    """Frames from the oldest floor frame of ts to ts (rule 8): W + L."""
+    """Frames from the oldest floor frame of ts to ts (the noise-floor rule): W + L."""
     return window_frames(params, tpf_ms) + round(params.noise_floor_s * 1000.0 / tpf_ms)
 
 
@@ -98,10 +98,10 @@ class CorrectedContext:
         self._provisional: PartnerRule = no_partner
         self.plans: LRU[int, PlanData | None] = LRU()
         #: Per-timestamp caches of the oracle modules, by name: each holds a frame's floor
-        #: frames and look-ahead (rule 8), so a floor reads each sample once.
+        #: frames and look-ahead (the noise-floor rule), so a floor reads each sample once.
         self.caches: dict[str, LRU[int, object]] = {}
         self.cache_size = CACHE_SIZE + floor_span(self.params, self.tpf)
-        #: The floors' sliding runs of per-frame values, by name (rule 8).
+        #: The floors' sliding runs of per-frame values, by name (the noise-floor rule).
         self.slides: dict[str, Slide[object]] = {}
         self.ts_max = max(self.log.frames) if self.log.frames else 0
         #: The log's per-folder dicts by folder name (``RunLog.folder`` builds a dict per call).
@@ -353,7 +353,8 @@ class CorrectedContext:
     def predicted_series(
         self, track: Track, pose: EgoPose, actor_id: str, ts: int
     ) -> Series | None:
-        """Predicted boxes of an actor (rule 1): key k at index k + 1, anchored at the pose."""
+        """Predicted boxes of an actor (the prediction frame): key k at index k + 1, anchored
+        at the pose."""
         extent = self.log.actor_extents.get(actor_id)
         if extent is None:
             return None

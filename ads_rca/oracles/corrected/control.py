@@ -1,4 +1,4 @@
-"""Rule 5: control is judged on tracking over a horizon, in the partner's direction.
+"""The control rule: control is judged on tracking over a horizon, in the partner's direction.
 
 For each step t = ts … ts + (``control_horizon`` − 1)·tpf the speed innovation is the
 realised speed at t + tpf minus plan[t]'s index-1 speed, and the lateral innovation the
@@ -11,11 +11,11 @@ the partner ahead (slower with it behind), or drift to its side. There is no spe
 exact tracking never fires, and a real deviation fires at any speed.
 
 Each frame's horizon adds one step, and a step costs a handful of numpy calls on a ~30-point
-plan, so steps are read a block of frames at a time (one array pass over their plans), and
-only a step that reports a problem is read on its own; so are the floors (rule 8): a block
-of frames whose floor frames all have such steps costs two sorts. A block reads only
-records present when it is made and lives in the context's caches, as every per-timestamp
-view does (a live monitor judges each window on a new context).
+plan, so steps are read a block of frames at a time (one array pass over their plans), and only
+a step that reports a problem is read on its own; so are the floors (the noise-floor rule): a
+block of frames whose floor frames all have such steps costs two sorts. A block reads only
+records present when it is made and lives in the context's caches, as every per-timestamp view
+does (a live monitor judges each window on a new context).
 """
 
 from __future__ import annotations
@@ -227,9 +227,9 @@ FLOOR_BLOCKS: CacheName[FloorBlock] = CacheName("control_floor_blocks")
 
 
 def control_floors(judging: CorrectedContext, ts: int) -> tuple[Floor, Floor]:
-    """Rule 8's speed and lateral floors at ts, from the control steps of its floor frames
-    (those with every input; the robust sigma of consecutive steps' differences): from
-    ts's block of floors where every floor frame has a silent step, else on its own."""
+    """The noise-floor rule's speed and lateral floors at ts, from the control steps of its
+    floor frames (those with every input; the robust sigma of consecutive steps' differences):
+    from ts's block of floors where every floor frame has a silent step, else on its own."""
     tpf = judging.tpf
     if ts % tpf == 0 and "ego_half" in vars(judging):
         blocks = judging.cache(FLOOR_BLOCKS)
@@ -363,7 +363,7 @@ def _steps_one_by_one(judging: CorrectedContext, ts: int, horizon: int) -> Steps
 
 
 def control(ctx: RunContext, ts: int) -> OracleResult:
-    """Rule 5 at ts, with tracking-error metrics."""
+    """The control rule at ts, with tracking-error metrics."""
     judging = corrected_context(ctx)
     p = judging.params
     thresholds: dict[str, float] = judging.reported(REPORTED["controller"])
@@ -376,7 +376,7 @@ def control(ctx: RunContext, ts: int) -> OracleResult:
     decels = [s.decel for s in steps if math.isfinite(s.decel)]
     max_decel = max(decels) if decels else math.nan
     speed_floor, lateral_floor = control_floors(judging, ts)
-    # rule 8: the summed noise of n steps grows as sqrt(n); 2 sigma of it is not a fault
+    # noise floors: the summed noise of n steps grows as sqrt(n); 2 sigma of it is not a fault
     spread = p.noise_floor_factor * 2.0 * math.sqrt(len(steps))
     thr_v = max(p.control_speed_threshold, spread * speed_floor.value)
     if decels:

@@ -1,4 +1,5 @@
-"""Rule 8: each module's error floor, read from the run itself before the effect window.
+"""The noise-floor rule: each module's error floor, read from the run itself before the effect
+window.
 
 Why: a real stack is noisy. Localisation drifts by decimetres and a camera's 3-D position is
 off by a metre at 20 m, so errors at or over the fixed thresholds (``understate_min``,
@@ -7,26 +8,25 @@ fault. A module is blamed only when its error stands out from what the same modu
 the same run before: the floor.
 
 The floor frames of ts are the log's timestamps u with ts − (G + L)·tpf ≤ u < ts − G·tpf:
-G = W (the effect window, rule 6), so no frame of a window frame's floor lies in the
+G = W (the effect window), so no frame of a window frame's floor lies in the
 window, and L = round(``noise_floor_s`` · 1000 / tpf). Only earlier frames are read, so a
 live monitor judges exactly as the offline run does (it keeps them, :meth:`rejudge_history`).
 
-* Perception, rule 2b's velocity and prediction: every floor frame gives one *sample* per
-  actor (its error at u, the same measure the rule applies to the partner at ts; cached
-  per u, independent of who the partner is). The floor is the median over the floor frames
-  of the median over the actors other than the partner (basis ``others``). With fewer than
-  ``noise_floor_min_frames`` such frames (an empty scene), it is the partner's own robust
-  spread, 1.4826 × the median absolute deviation of its samples (basis ``partner``: a bias
-  the partner carried throughout adds nothing, its jitter does). With fewer than that too
-  (a short run), the floor is 0 (basis ``none``): the fixed thresholds alone, as on a
-  noise-free run.
+* Perception, the 3-D perception rule's velocity and prediction: every floor frame gives one
+  *sample* per actor (its error at u, the same measure the rule applies to the partner at ts;
+  cached per u, independent of who the partner is). The floor is the median over the floor
+  frames of the median over the actors other than the partner (basis ``others``). With fewer
+  than ``noise_floor_min_frames`` such frames (an empty scene), it is the partner's own robust
+  spread, 1.4826 × the median absolute deviation of its samples (basis ``partner``: a bias the
+  partner carried throughout adds nothing, its jitter does). With fewer than that too (a short
+  run), the floor is 0 (basis ``none``): the fixed thresholds alone, as on a noise-free run.
 * Control: the robust sigma of the differences of consecutive floor steps' innovations
   (differencing removes a steady tracking offset, which is not noise).
 
-The rules add ``noise_floor_factor`` × the floor to their fixed thresholds, and rule 2b
-pairs a partner the match left alone with a free perceived object within the match
-distance plus that allowance (:func:`partner_row`): noise moved the box, it was not missed.
-docs/semantics-corrected.md rule 8 has the precise readings.
+The rules add ``noise_floor_factor`` × the floor to their fixed thresholds, and the 3-D
+perception rule pairs a partner the match left alone with a free perceived object within the
+match distance plus that allowance (:func:`partner_row`): noise moved the box, it was not missed.
+docs/semantics-corrected.md ("Noise floors") has the precise readings.
 """
 
 from __future__ import annotations
@@ -251,16 +251,16 @@ def perception_floor(judging: CorrectedContext, ts: int) -> Floor:
 
 
 def velocity_floor(judging: CorrectedContext, ts: int) -> Floor:
-    """Rule 2b's velocity-error floor at ts (m/s)."""
+    """The 3-D perception rule's velocity-error floor at ts (m/s)."""
     return actor_floor(judging, ts, velocity_samples)
 
 
 # -- samples --------------------------------------------------------------------------------
 def perception_samples(judging: CorrectedContext, u: int) -> Samples:
-    """Perception's error per actor at u (cached): rule 2's raw displacement (2-D: each
-    actor's linked raw prediction against its prediction on truth, max over the horizon) or
-    rule 2b's (3-D: each matched actor's perceived against its real box, both at constant
-    velocity)."""
+    """Perception's error per actor at u (cached): the 2-D perception rule's raw displacement
+    (each actor's linked raw prediction against its prediction on truth, max over the horizon)
+    or the 3-D perception rule's (each matched actor's perceived against its real box, both at
+    constant velocity)."""
     return judging.cache(PERCEPTION_SAMPLES).get(u, lambda: _perception_samples(judging, u))
 
 
@@ -327,8 +327,8 @@ def _perception3d_samples(judging: CorrectedContext, u: int) -> Samples:
 
 
 def velocity_samples(judging: CorrectedContext, u: int) -> Samples:
-    """Rule 2b's velocity error |perceived − real| (m/s) of every matched in-range actor at
-    u (the perceived velocity standing in for itself when unknown gives 0)."""
+    """The 3-D perception rule's velocity error |perceived − real| (m/s) of every matched
+    in-range actor at u (the perceived velocity standing in for itself when unknown gives 0)."""
     dt = judging.tpf / 1000.0
     return {
         a: float(np.hypot(*(off[1] - off[0]))) / dt
@@ -340,9 +340,9 @@ PERCEIVED_OFFSETS: CacheName[dict[str, np.ndarray]] = CacheName("perceived_offse
 
 
 def perceived_offsets(judging: CorrectedContext, u: int) -> dict[str, np.ndarray]:
-    """Rule 2b's state error of every matched in-range actor at u (cached): perceived −
-    real centre at indices 0..W, both moved at constant velocity (the perceived velocity,
-    else the real one); actors with a NaN error are left out."""
+    """The 3-D perception rule's state error of every matched in-range actor at u (cached):
+    perceived − real centre at indices 0..W, both moved at constant velocity (the perceived
+    velocity, else the real one); actors with a NaN error are left out."""
     return judging.cache(PERCEIVED_OFFSETS).get(u, lambda: _perceived_offsets(judging, u))
 
 
@@ -369,8 +369,9 @@ def _perceived_offsets(judging: CorrectedContext, u: int) -> dict[str, np.ndarra
 
 def partner_row(judging: CorrectedContext, ts: int, actor_id: str) -> tuple[int | None, bool]:
     """The perceived object row that stands for ``actor_id`` at ts, and whether only the
-    noise allowance paired them: rule 2b's match; else (rule 8) the nearest in-range object
-    no actor matched whose centre lies within ``perc3d_match_distance`` plus the allowance
+    noise allowance paired them: the 3-D match; else (the noise-floor rule) the nearest
+    in-range object no actor matched whose centre lies within ``perc3d_match_distance`` plus the
+    allowance
     (``noise_floor_factor`` × the perception floor) of the actor's; else None."""
     match = frame_match(judging, ts)
     if match is None or actor_id not in match.actor_ids:

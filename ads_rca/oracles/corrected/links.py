@@ -3,7 +3,8 @@
 Each raw id links to the id on truth (file order, ego skipped) with the smallest distance between
 the unrotated step-"0" offsets, strictly below ``LINK_MAX_DISTANCE``, earlier id on ties. If
 several raw ids link to one actor, the one nearest that actor's step "0" on truth speaks for it.
-Rule 2 links the partner this way, rule 8 every actor (its samples).
+The 2-D perception rule links the partner this way, the noise-floor rule every actor (its
+samples).
 """
 
 from __future__ import annotations

@@ -1,13 +1,14 @@
-"""Rule 2b's matching: the stack's 3-D objects to the ground-truth actors, per timestamp.
+"""The 3-D perception rule's matching: the stack's 3-D objects to the ground-truth actors, per
+timestamp.
 
-Why a module of its own: perception (rule 2b) judges the match, and without predictions on
+Why a module of its own: perception in 3-D judges the match, and without predictions on
 ground truth (recordings of real stacks) prediction and planning find the partner's raw
 track through it (tracked objects share their ids with the stack's predictions). So the
 match is made once per timestamp, cached on the :class:`CorrectedContext`, and read by all
 three. Pairs are scored by bird's-eye IoU of oriented boxes, with a centre-distance
 fallback for small actors (a pedestrian's box is too small for IoU to survive a few
 decimetres of error), and assigned by the Hungarian method (docs/semantics-corrected.md,
-rule 2b).
+"Perception in 3-D").
 """
 
 from __future__ import annotations
@@ -27,8 +28,8 @@ IntArray = npt.NDArray[np.intp]
 
 
 def uses_3d(judging: CorrectedContext) -> bool:
-    """Whether rule 2b judges perception (``perception_check``; ``auto``: the log has no
-    2-D detections with 2-D ground truth, and has 3-D objects)."""
+    """Whether the 3-D perception rule judges perception (``perception_check``; ``auto``: the
+    log has no 2-D detections with 2-D ground truth, and has 3-D objects)."""
     check = judging.params.perception_check
     if check != "auto":
         return check == "3d"
@@ -39,8 +40,9 @@ def uses_3d(judging: CorrectedContext) -> bool:
 
 
 def source(judging: CorrectedContext) -> tuple[str, dict[int, Objects3D]]:
-    """The perceived objects rule 2b judges: ``("tracked", tracks_3d)`` or ``("detected",
-    detections_3d)`` (``perception_3d_source``; ``auto``: tracked objects when there are)."""
+    """The perceived objects the 3-D perception rule judges: ``("tracked", tracks_3d)`` or
+    ``("detected", detections_3d)`` (``perception_3d_source``; ``auto``: tracked objects when
+    there are)."""
     chosen = judging.params.perception_3d_source
     if chosen == "detected" or (chosen == "auto" and not judging.log.tracks_3d):
         return "detected", judging.log.detections_3d
@@ -49,7 +51,8 @@ def source(judging: CorrectedContext) -> tuple[str, dict[int, Objects3D]]:
 
 def raw_without_predictions_on_truth(judging: CorrectedContext) -> bool:
     """Whether prediction and planning read the raw predictions linked through the 3-D
-    match: the log has no prediction on ground truth at all and rule 2b is in force."""
+    match: the log has no prediction on ground truth at all and the 3-D perception rule is
+    in force."""
     return not judging.log.predictions_with_perception and uses_3d(judging)
 
 

@@ -1,4 +1,5 @@
-"""Rule 2: perception is blamed only when a missed partner degraded what the planner saw.
+"""The 2-D perception rule: perception is blamed only when a missed partner degraded what the
+planner saw.
 
 Every frame reports the standard detection metrics from an optimal one-to-one (Hungarian)
 matching of detections to ground-truth boxes with IoU >= ``perc_match_iou``: precision,
@@ -204,8 +205,9 @@ def detection_metrics(
 
 
 def degraded(judging: CorrectedContext, view: PartnerView, allowance: float = 0.0) -> bool:
-    """The planner's input about the partner is degraded (rule 2's third condition), by
-    more than the noise ``allowance`` (rule 8) on the fixed thresholds."""
+    """The planner's input about the partner is degraded (the 2-D perception rule's third
+    condition), by more than the noise ``allowance`` (the noise-floor rule) on the fixed
+    thresholds."""
     if view.raw is None:
         return True
     understated = view.c_raw.value - view.c_ref.value > judging.params.understate_min + allowance
@@ -223,7 +225,8 @@ def displaced(view: PartnerView, allowance: float) -> bool:
 
 
 def perception(ctx: RunContext, ts: int) -> OracleResult:
-    """Rule 2 at ts, with the standard detection metrics (rule 2b for 3-D perception)."""
+    """The 2-D perception rule at ts, with the standard detection metrics (the 3-D perception
+    rule for 3-D logs)."""
     judging = corrected_context(ctx)
     if uses_3d(judging):
         return perception3d(ctx, ts)

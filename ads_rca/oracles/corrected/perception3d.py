@@ -1,17 +1,18 @@
-"""Rule 2b: perception in 3-D, judged like rule 2 on what the stack perceived of the partner.
+"""The 3-D perception rule: perception in 3-D, judged like the 2-D perception rule on what
+the stack perceived of the partner.
 
-Real stacks perceive objects as 3-D boxes (tracked objects, 3-D detections), not image
-boxes. Every frame reports bird's-eye detection metrics from the match of :mod:`.match3d`
-(precision, recall, IoU, position and heading errors, missed actors, false positives). A
-failure needs a real conflict (c_gt < ``safety_margin``) with the partner in sensing range
-and either missed, or perceived so that the clearance looked safer than it was by at least
-``understate_min`` while displaced beyond the displacement threshold or hiding the
-conflict (rule 2's test): the real and the perceived partner are both moved at constant
-velocity from ts (the real velocity from the ground truth over one frame, the perceived one
-as recorded) against the ego's plan boxes, so only the errors of position, extent, heading
-and velocity at ts count, not the partner's later manoeuvres (prediction's business). A
-velocity off by more than ``perc3d_velocity_error`` is also tested over the stack's whole
-plan, longer than the judged window: optimistic there, it fails too (``misled``).
+Real stacks perceive objects as 3-D boxes (tracked objects, 3-D detections), not image boxes.
+Every frame reports bird's-eye detection metrics from the match of :mod:`.match3d` (precision,
+recall, IoU, position and heading errors, missed actors, false positives). A failure needs a
+real conflict (c_gt < ``safety_margin``) with the partner in sensing range and either missed,
+or perceived so that the clearance looked safer than it was by at least ``understate_min``
+while displaced beyond the displacement threshold or hiding the conflict (the 2-D perception
+rule's test): the real and the perceived partner are both moved at constant velocity from ts
+(the real velocity from the ground truth over one frame, the perceived one as recorded) against
+the ego's plan boxes, so only the errors of position, extent, heading and velocity at ts count,
+not the partner's later manoeuvres (prediction's business). A velocity off by more than
+``perc3d_velocity_error`` is also tested over the stack's whole plan, longer than the judged
+window: optimistic there, it fails too (``misled``).
 """
 
 from __future__ import annotations
@@ -56,7 +57,7 @@ from ads_rca.oracles.corrected.floors import (
 )
 from ads_rca.oracles.corrected.match3d import Match3D, frame_match, source
 
-#: The parameters rule 2b's results report in ``thresholds``, in that order.
+#: The parameters the 3-D perception rule's results report in ``thresholds``, in that order.
 REPORTED_3D = (
     "perc3d_match_iou",
     "perc3d_match_distance",
@@ -129,8 +130,8 @@ class PartnerPerception:
     misled: Misled | None = None  # the velocity test over the plan (None: not run)
     #: perceived − real centre at indices 0..W (both at constant velocity); None unmatched
     offset: FloatArray | None = None
-    floor: Floor = NO_FLOOR  # rule 8's displacement floor (matched only)
-    velocity_floor: Floor = NO_FLOOR  # rule 8's velocity-error floor (matched only)
+    floor: Floor = NO_FLOOR  # the displacement noise floor (matched only)
+    velocity_floor: Floor = NO_FLOOR  # the velocity-error noise floor (matched only)
     allowance: float = 0.0  # noise_floor_factor × floor (m)
     by_allowance: bool = False  # paired with its object only within the noise allowance
 
@@ -202,8 +203,8 @@ def real_velocity(judging: CorrectedContext, actor_id: str, ts: int) -> FloatArr
 
 @dataclass(frozen=True)
 class Motion:
-    """A box at ts moving at constant velocity: how rule 2b propagates both the real and
-    the perceived partner, so only their states at ts differ."""
+    """A box at ts moving at constant velocity: how the 3-D perception rule propagates both
+    the real and the perceived partner, so only their states at ts differ."""
 
     center: FloatArray  # (2,) world metres
     velocity: FloatArray  # (2,) m/s
@@ -259,7 +260,7 @@ def _assess(judging: CorrectedContext, ts: int, partner: str | None) -> PartnerP
     threshold = displacement_threshold(judging, path_length(real_boxes))
     p = judging.params
     floor, v_floor = perception_floor(judging, ts), velocity_floor(judging, ts)
-    allowance = p.noise_floor_factor * floor.value  # rule 8
+    allowance = p.noise_floor_factor * floor.value  # the noise-floor rule
     hidden = c_perc.value >= p.safety_margin > c_true.value  # the error hid the conflict
     overstated = c_perc.value - c_true.value >= p.understate_min + allowance and (
         displaced > threshold + allowance or hidden
@@ -316,7 +317,8 @@ def _misled(
 
 
 def _not_matched(judging: CorrectedContext, ts: int, thresholds: dict[str, float]) -> OracleResult:
-    """Rule 2b cannot run at ts: say which input is missing (reported once per file)."""
+    """The 3-D perception rule cannot run at ts: say which input is missing (reported once
+    per file)."""
     name, frames = source(judging)
     field = "tracks_3d" if name == "tracked" else "detections_3d"
     missing = True
@@ -338,7 +340,7 @@ def _not_matched(judging: CorrectedContext, ts: int, thresholds: dict[str, float
 
 
 def perception3d(ctx: RunContext, ts: int) -> OracleResult:
-    """Rule 2b at ts, with the bird's-eye detection metrics."""
+    """The 3-D perception rule at ts, with the bird's-eye detection metrics."""
     judging = corrected_context(ctx)
     thresholds = judging.reported(REPORTED_3D)
     match = frame_match(judging, ts)
@@ -379,7 +381,7 @@ def perception3d(ctx: RunContext, ts: int) -> OracleResult:
     metrics["velocity_wrong"] = seen.velocity_wrong
     metrics["misled"] = seen.misleading
     degraded = seen.in_range and seen.degraded
-    # The fallback's test is the error alone, as rule 3's (e above the threshold).
+    # The fallback's test is the error alone, as the prediction rule's (e above the threshold).
     metrics["unconditioned"] = bool(degraded or (seen.in_range and seen.velocity_wrong))
     if not seen.in_range:
         return OracleResult("perception", ts, False, metrics, thresholds, ids)

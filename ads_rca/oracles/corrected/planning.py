@@ -1,4 +1,5 @@
-"""Rule 4: planning is judged against its own inputs (the raw predictions), with feasibility.
+"""The planning rule: planning is judged against its own inputs (the raw predictions), with
+feasibility.
 
 If the partner is not in the planner's inputs (no raw prediction links to it), planning is
 not at fault: that is an upstream failure. Otherwise c_plan is the clearance of the plan
@@ -31,9 +32,9 @@ from ads_rca.oracles.corrected.common import (
 from ads_rca.oracles.corrected.context import CorrectedContext, corrected_context
 from ads_rca.oracles.corrected.match3d import raw_without_predictions_on_truth
 
-#: The folders rule 4 needs to link the planner's inputs to the partner (the predictions on
-#: truth: the link; without them in the log, rule 2b's match links them and only the
-#: predictions are needed).
+#: The folders the planning rule needs to link the planner's inputs to the partner (the
+#: predictions on truth: the link; without them in the log, the 3-D match links them and only
+#: the predictions are needed).
 PLANNER_INPUTS = ("predictions", "predictions_with_perception")
 
 
@@ -66,7 +67,7 @@ _NOWHERE = (math.nan, math.nan)
 
 
 def planning(ctx: RunContext, ts: int) -> OracleResult:
-    """Rule 4 at ts, with clearance, TTC and plan-vs-realised metrics."""
+    """The planning rule at ts, with clearance, TTC and plan-vs-realised metrics."""
     judging = corrected_context(ctx)
     p = judging.params
     thresholds = judging.reported(REPORTED["planning"])

@@ -1,8 +1,9 @@
-"""Rule 3: prediction is judged on ``predictions_with_perception`` (correct perception given).
+"""The prediction rule: prediction is judged on the predictions on truth
+(``predictions_with_perception``: correct perception given).
 
 Predictions are anchored at the ego pose at ts and rotated by its yaw; key k is k + 1
-frames ahead (rule 1), so exact predictions are never flagged. A failure needs a real
-conflict (c_gt < ``safety_margin``) that the prediction made look safer than it was:
+frames ahead (the prediction frame), so exact predictions are never flagged. A failure needs a
+real conflict (c_gt < ``safety_margin``) that the prediction made look safer than it was:
 c_on_truth (the clearance of the partner's boxes predicted on truth, reported as ``c_pwp``)
 − c_gt > ``understate_min``, and either the partner's displacement error e (max over
 the horizon of |predicted − real|) exceeds the threshold or the prediction hid the conflict
@@ -118,8 +119,8 @@ ERRORS_ON_TRUTH: CacheName[tuple[list[str], FloatArray]] = CacheName("errors_on_
 
 def errors_on_truth(judging: CorrectedContext, ts: int) -> tuple[list[str], FloatArray]:
     """:func:`errors` of the predictions on truth at ts (cached: the frame's metrics and,
-    later, its rule-8 samples read it); the caller has checked that the predictions on truth
-    and the pose exist."""
+    later, its noise-floor samples read it); the caller has checked that the predictions on
+    truth and the pose exist."""
     return judging.cache(ERRORS_ON_TRUTH).get(
         ts,
         lambda: errors(
@@ -129,10 +130,10 @@ def errors_on_truth(judging: CorrectedContext, ts: int) -> tuple[list[str], Floa
 
 
 def prediction_samples(judging: CorrectedContext, u: int) -> Samples:
-    """Prediction's error per actor at u, rule 8's samples (cached): e, the max over the
-    horizon of |predicted − real| centre, of every non-ego actor's track predicted on truth;
-    without predictions on truth (rule 2b's reading), of every raw track rule 2b matched,
-    against reality as perceived."""
+    """Prediction's error per actor at u, the noise-floor rule's samples (cached): e, the max
+    over the horizon of |predicted − real| centre, of every non-ego actor's track predicted on
+    truth; without predictions on truth (the 3-D perception rule's reading), of every raw
+    track the 3-D match paired, against reality as perceived."""
     return judging.cache(PREDICTION_SAMPLES).get(u, lambda: _prediction_samples(judging, u))
 
 
@@ -169,9 +170,9 @@ def judge(
     view: PartnerView,
     allowance: float,
 ) -> tuple[bool, bool, bool, bool]:
-    """Rule 3's tests on a predicted clearance and displacement error, each fixed threshold
-    raised by the noise ``allowance`` (rule 8): (e over the threshold, understated by more
-    than understate_min, conflict hidden, judged failing)."""
+    """The prediction rule's tests on a predicted clearance and displacement error, each fixed
+    threshold raised by the noise ``allowance`` (the noise-floor rule): (e over the threshold,
+    understated by more than understate_min, conflict hidden, judged failing)."""
     p = judging.params
     e_over = e > view.threshold + allowance
     understated = c_pred.value - c_gt.value > p.understate_min + allowance
@@ -181,7 +182,8 @@ def judge(
 
 
 def by_actor(judging: CorrectedContext, ts: int, raw: Predictions) -> Predictions:
-    """The raw tracks rule 2b matched to an actor at ts, keyed by that actor (file order)."""
+    """The raw tracks the 3-D perception rule matched to an actor at ts, keyed by that actor
+    (file order)."""
     match = frame_match(judging, ts)
     if match is None:
         return {}
@@ -193,7 +195,7 @@ def by_actor(judging: CorrectedContext, ts: int, raw: Predictions) -> Prediction
 
 
 def prediction(ctx: RunContext, ts: int) -> OracleResult:
-    """Rule 3 at ts, with ADE/FDE/miss rate."""
+    """The prediction rule at ts, with ADE/FDE/miss rate."""
     judging = corrected_context(ctx)
     p = judging.params
     thresholds = {**judging.reported(REPORTED["prediction"]), "miss_distance": MISS_DISTANCE}
@@ -246,10 +248,10 @@ def prediction(ctx: RunContext, ts: int) -> OracleResult:
 def raw_prediction(
     judging: CorrectedContext, ts: int, thresholds: dict[str, float]
 ) -> OracleResult:
-    """Rule 3 without predictions on ground truth (rule 2b's reading): the partner's raw
-    track, linked by the 3-D match, judged only where the partner was perceived correctly
-    at ts, against reality as perceived (:func:`perceived_reality`), so that it answers for
-    its own model as the predictions on truth would."""
+    """The prediction rule without predictions on ground truth (the 3-D perception rule's
+    reading): the partner's raw track, linked by the 3-D match, judged only where the partner
+    was perceived correctly at ts, against reality as perceived (:func:`perceived_reality`), so
+    that it answers for its own model as the predictions on truth would."""
     absent = missing_inputs(judging, ts, ("pose", "predictions"), "prediction check (raw)")
     if absent:
         return missing_skip("prediction", ts, absent, thresholds=thresholds)
@@ -304,8 +306,8 @@ def perceived_reality(
     judging: CorrectedContext, ts: int, view: PartnerView, seen: PartnerPerception
 ) -> tuple[Series | None, Clearance]:
     """The reference of a raw prediction: the partner's real boxes moved by the state error
-    perception made at ts (and rule 2b accepted), so prediction answers only for its own
-    model, as a prediction on ground truth would."""
+    perception made at ts (and the 3-D perception rule accepted), so prediction answers only
+    for its own model, as a prediction on ground truth would."""
     if view.real is None or seen.offset is None:
         return view.real, view.c_gt
     ref = Series(view.real.center + seen.offset, view.real.yaw, view.real.half)

@@ -1,4 +1,4 @@
-"""One table drives every topic of the contract (issue #13 item 1).
+"""One table drives every topic of the contract.
 
 ``contract/topics.py``'s ``TABLE`` gives each topic its kind of record (a ``Codec``: type,
 object conversions, CDR encoder, decoder, stamp reader), QoS and log folder; the folder maps,

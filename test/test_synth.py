@@ -56,7 +56,7 @@ def test_different_seeds_give_different_scenes() -> None:
 
 @pytest.mark.parametrize("scenario", CRASH_SCENARIOS)
 @pytest.mark.parametrize("fault", FAULTS)
-def test_every_scenario_and_fault_writes_a_complete_seed_format_log(
+def test_every_scenario_and_fault_writes_a_complete_running_log(
     scenario: str, fault: str, tmp_path: Path
 ) -> None:
     log, summary = _run(scenario, fault)

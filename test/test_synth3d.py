@@ -81,7 +81,7 @@ def _run(scenario: str, fault: str) -> tuple[RunLog, SynthesisSummary]:
 
 def _folder_hash(root: Path) -> str:
     """The hash of what a running log held before the 3-D folders: metadata.json and the
-    seed format's seven folders (the optional ones are new, written beside them)."""
+    running log's seven folders (the optional ones are new, written beside them)."""
     digest = hashlib.sha256()
     for path in sorted(root.rglob("*")):
         top = path.relative_to(root).parts[0]

@@ -1,4 +1,4 @@
-"""The synthesiser's noise level K (issue #21): K = 1 is the default to the byte, K = 10 scales
+"""The synthesiser's noise level K: K = 1 is the default to the byte, K = 10 scales
 perception noise tenfold and adds a drifting localisation error that only the stack's own
 records carry, and ``ads-rca synth --noise`` / ``bench/accuracy.py --noise`` expose it."""
 

@@ -1,9 +1,10 @@
 """How a stack's topic carries one model input: its message type and its decoder.
 
-Stack mode (issue #15) reads a running stack's own topics. Each model input (a log folder:
-``pose``, ``actors``, ``waypoint`` ...) comes on one topic in one *layout*: ``contract`` (this
-project's message for that folder, decoded from CDR bytes by the topic table's codec) or a
-common_interfaces message a stack publishes instead (:mod:`ads_rca.contract.stack_inputs`):
+Stack mode (the monitors beside a running stack, no player) reads the stack's own topics.
+Each model input (a log folder: ``pose``, ``actors``, ``waypoint`` ...) comes on one topic in
+one *layout*: ``contract`` (this project's message for that folder, decoded from CDR bytes by
+the topic table's codec) or a common_interfaces message a stack publishes instead
+(:mod:`ads_rca.contract.stack_inputs`):
 
 ======================= ========== ===========================================================
 layout                  folder     message

@@ -1,7 +1,7 @@
 """The synthesiser's noise level K: every sigma of the simulated stack in physical units.
 
 Real stacks are noisier than the synthesiser's default: localisation drifts by decimetres and
-camera-based 3-D positions are off by a metre at 20 m (issue #21). :class:`Noise` scales each
+camera-based 3-D positions are off by a metre at 20 m. :class:`Noise` scales each
 noise source by one level K (``ads-rca synth --noise K``; 1 = the default), so nothing else
 multiplies by K by hand. The random draws are the same at every level, only scaled, so K = 1
 gives exactly the default output.

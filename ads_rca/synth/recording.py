@@ -1,4 +1,4 @@
-"""A run written as a rosbag2 recording of a real stack: the fixtures of issue #16.
+"""A run written as a rosbag2 recording of a real stack: fixtures for the recording readers.
 
 Real stacks do not publish this project's contract topics: the CARLA ROS bridge publishes
 ground truth as ``derived_object_msgs`` and collisions as ``carla_msgs``, Autoware its

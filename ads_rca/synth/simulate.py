@@ -1,6 +1,6 @@
 """The closed loop: world → camera → detector → tracker → predictor → planner → controller.
 
-One call runs a scene for one fault and returns the run log (the seed format's content) plus
+One call runs a scene for one fault and returns the run log (a running log folder's content) plus
 what happened. Random numbers come from a generator seeded by the scene seed only and are
 drawn identically whatever the fault, so a faulty run equals its twin up to the onset. The
 3-D perception output (``detections_3d``, ``tracks_3d``) draws its noise from a second

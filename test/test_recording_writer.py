@@ -1,5 +1,5 @@
-"""Synthesised runs written as recordings of real stacks (issue #16's fixtures) read back
-with rosbags' own reader, independently of ours, and checked against the run exactly.
+"""Synthesised runs written as recordings of real stacks (the recording readers' fixtures)
+read back with rosbags' own reader, independently of ours, and checked against the run exactly.
 
 Each profile × storage: message counts per topic, the decoded fields of every type against
 the model (the CARLA → ROS ``map`` flip, full sizes, uuids, predicted paths in the map

@@ -7,8 +7,10 @@ markers and the four modules' results of N frames, as the monitors publish them:
 results of a diagnosed synthetic crash run, repeated with increasing indices and stamps.
 Each N runs in a fresh process. Columns: memory the core retains once fed (tracemalloc),
 the peak while feeding, the peak while rendering the verdict (its ``frames`` list is
-O(frames) by contract), and the process's max RSS. The retained column must stay flat:
-results are spilled to a temporary file, only fixed-size columns stay in memory.
+O(frames) by contract), and the process's max RSS; then the wall and CPU time of feeding
+and rendering (with tracemalloc on, which slows Python allocation down: for comparing rows,
+not as the node's speed). The retained column must stay flat: results are spilled to a
+temporary file, only fixed-size columns stay in memory.
 """
 
 from __future__ import annotations
@@ -20,6 +22,8 @@ import subprocess
 import sys
 import tracemalloc
 from dataclasses import replace
+
+from timing import Clock
 
 
 def one_run(frames: int, semantics: str) -> dict[str, float]:
@@ -39,6 +43,7 @@ def one_run(frames: int, semantics: str) -> dict[str, float]:
     core.set_metadata(metadata, "bench", 0.0)
     base = tracemalloc.get_traced_memory()[0]
     tracemalloc.reset_peak()
+    clock = Clock().start()
     for index in range(frames):
         stamp = (index + 1) * tpf
         core.add_marker(FrameMarker(index, stamp), 0.0)
@@ -52,8 +57,11 @@ def one_run(frames: int, semantics: str) -> dict[str, float]:
     core.set_finished(0.0)
     outcome = core.poll(1.0)
     assert outcome is not None and len(outcome.document["frames"]) == frames
+    took = clock.timing
     verdict_peak = tracemalloc.get_traced_memory()[1]
     return {
+        "wall_s": took.wall_s,
+        "cpu_s": took.cpu_s,
         "retained_mb": (retained - base) / 2**20,
         "feed_peak_mb": (feed_peak - base) / 2**20,
         "verdict_peak_mb": (verdict_peak - base) / 2**20,
@@ -72,7 +80,7 @@ def main() -> None:
         return
     print("AggregatorCore fed N frames x 4 results (tracemalloc MB above the empty core)")
     print(f"{'semantics':<11}{'frames':>8}{'retained':>10}{'feed pk':>9}{'verdict pk':>11}", end="")
-    print(f"{'max RSS':>9}")
+    print(f"{'max RSS':>9}{'wall s':>8}{'CPU s':>8}")
     for semantics in args.semantics:
         for frames in args.frames:
             command = [sys.executable, __file__, "--child", str(frames), semantics]
@@ -81,6 +89,8 @@ def main() -> None:
             print(
                 f"{semantics:<11}{frames:>8}{row['retained_mb']:>10.2f}{row['feed_peak_mb']:>9.2f}"
                 f"{row['verdict_peak_mb']:>11.1f}{row['rss_mb']:>9.0f}"
+                f"{row['wall_s']:>8.2f}{row['cpu_s']:>8.2f}",
+                flush=True,
             )
 
 

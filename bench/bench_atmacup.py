@@ -5,7 +5,8 @@
 A synthesised train table (test/writers/atmacup_tables.py ``big_table``: scenes of 40
 rows, a green light on every other row, an empty list on the rest) of ``--rows`` rows is
 written to ``--dir`` with one traffic-light file per row, and a submission of every row.
-Each phase is timed in this process, the median of ``--rounds`` rounds:
+Each phase is timed in this process, wall and CPU time each the median of ``--rounds``
+rounds:
 
 * ``table only``: ``open_run`` of the CSV with no ``traffic_lights/`` beside it (the
   columns parsed by numpy, the per-row records built);
@@ -15,26 +16,18 @@ Each phase is timed in this process, the median of ``--rounds`` rounds:
 * ``diagnose``: judging every frame (``corrected``, every module not judged) and building
   the verdict document with its scores.
 
-Measured on the 2-core machine of the issue while another test run kept it busy (load
-average 3.9), 43,371 rows, 7.2 MB CSV, 43,371 traffic-light files:
-
-    phase              rows   seconds
-    table only        43371      1.16
-    table + lights    43371      2.08
-    + submission      43371      2.62
-    scores            43371    0.0296
-    diagnose          43371       2.7
+Figures: docs/performance.md (``bench/performance.py`` regenerates it).
 """
 
 from __future__ import annotations
 
 import argparse
 import shutil
-import statistics
 import sys
-import time
 from collections.abc import Callable
 from pathlib import Path
+
+from timing import Timing, median, repeated
 
 # The dataset writers live with the tests (not in the installed package).
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "test"))
@@ -49,13 +42,8 @@ from ads_rca.sources.formats import SourceOptions
 from ads_rca.sources.registry import open_run
 
 
-def timed(rounds: int, work: Callable[[], object]) -> float:
-    times = []
-    for _ in range(rounds):
-        start = time.perf_counter()
-        work()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times)
+def timed(rounds: int, work: Callable[[], object]) -> Timing:
+    return median(repeated(work, rounds))
 
 
 def main() -> None:
@@ -75,7 +63,7 @@ def main() -> None:
     def read_scored() -> None:
         log[:] = [open_run(full, source=with_sub)]
 
-    phases: list[tuple[str, float]] = [
+    phases: list[tuple[str, Timing]] = [
         ("table only", timed(args.rounds, lambda: open_run(bare))),
         ("table + lights", timed(args.rounds, lambda: open_run(full))),
         ("+ submission", timed(args.rounds, read_scored)),
@@ -87,9 +75,9 @@ def main() -> None:
     phases.append(("diagnose", timed(1, lambda: diagnose(log[0], params).to_json())))
     size = (args.dir / "full" / TRAIN).stat().st_size / 2**20
     print(f"{args.rows} rows, {size:.1f} MB CSV")
-    print(f"{'phase':<16}{'rows':>8}{'seconds':>10}")
-    for name, seconds in phases:
-        print(f"{name:<16}{args.rows:>8}{seconds:>10.3g}")
+    print(f"{'phase':<16}{'rows':>8}{'wall s':>10}{'CPU s':>10}")
+    for name, took in phases:
+        print(f"{name:<16}{args.rows:>8}{took.wall_s:>10.3g}{took.cpu_s:>10.3g}")
 
 
 if __name__ == "__main__":

@@ -6,7 +6,8 @@ Each configuration runs in its own process (so peak memory is its own): synthesi
 ``cruise`` log, write it under ``--dir``, then time loading it from disk and judging it.
 The cruise log has no crash, so its last frame is declared the collision frame: the
 corrected rules then judge every frame against the nearest actor as the partner, which is
-the expensive path. Cost should grow linearly with frames (the last column: µs per frame).
+the expensive path. Cost should grow linearly with frames (the last column: wall µs per
+frame). CPU is the process's own plus its judging workers' (forked, reaped before it ends).
 """
 
 from __future__ import annotations
@@ -18,8 +19,9 @@ import resource
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
+
+from timing import timed
 
 
 def one_run(
@@ -33,17 +35,15 @@ def one_run(
     from ads_rca.sources.log.reader import read_run_log
 
     write_frames_log(folder, frames, actors)
-    start = time.perf_counter()
-    loaded = read_run_log(folder)
-    load_s = time.perf_counter() - start
-    start = time.perf_counter()
-    result = diagnose(loaded, make_params(semantics), workers=workers)
-    judge_s = time.perf_counter() - start
+    loaded, load = timed(lambda: read_run_log(folder))
+    result, judge = timed(lambda: diagnose(loaded, make_params(semantics), workers=workers))
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     return {
         "frames": len(result.frames),
-        "load_s": load_s,
-        "judge_s": judge_s,
+        "load_s": load.wall_s,
+        "load_cpu_s": load.cpu_s,
+        "judge_s": judge.wall_s,
+        "judge_cpu_s": judge.cpu_s,
         "peak_mb": peak_mb,
         "problems": len(result.problems),
     }
@@ -68,8 +68,8 @@ def main() -> None:
         f"semantics {args.semantics}, {args.workers} judging workers; each row in its own "
         "process; load = JSON from disk"
     )
-    header = f"{'frames':>7}{'actors':>7}{'load s':>9}{'judge s':>9}{'total s':>9}"
-    print(header + f"{'peak MB':>9}{'µs/frame':>10}")
+    header = f"{'frames':>7}{'actors':>7}{'load s':>9}{'CPU s':>8}{'judge s':>9}{'CPU s':>8}"
+    print(header + f"{'total s':>9}{'CPU s':>8}{'peak MB':>9}{'µs/frame':>10}")
     for actors in args.actors:
         for frames in args.frames:
             with tempfile.TemporaryDirectory(dir=args.dir) as tmp:
@@ -79,10 +79,13 @@ def main() -> None:
                 done = subprocess.run(command, capture_output=True, text=True, check=True)
             row = json.loads(done.stdout.strip().splitlines()[-1])
             total = row["load_s"] + row["judge_s"]
+            total_cpu = row["load_cpu_s"] + row["judge_cpu_s"]
             per_frame = total / row["frames"] * 1e6
             print(
-                f"{row['frames']:>7}{actors:>7}{row['load_s']:>9.2f}{row['judge_s']:>9.2f}"
-                f"{total:>9.2f}{row['peak_mb']:>9.0f}{per_frame:>10.0f}"
+                f"{row['frames']:>7}{actors:>7}{row['load_s']:>9.2f}{row['load_cpu_s']:>8.2f}"
+                f"{row['judge_s']:>9.2f}{row['judge_cpu_s']:>8.2f}{total:>9.2f}{total_cpu:>8.2f}"
+                f"{row['peak_mb']:>9.0f}{per_frame:>10.0f}",
+                flush=True,
             )
 
 

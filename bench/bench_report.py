@@ -3,15 +3,16 @@
     python bench/bench_report.py [--log examples/cut_in_perception] [--repeat 5]
 
 Per mode: the diagnosis once (not timed), then ``render`` (every figure drawn and encoded,
-the page built) best of ``--repeat``, wall and CPU time, and the page's size. Run it with
+the page built) wall and CPU time, each the best of ``--repeat``, and the page's size. Run it with
 ``PYTHONPATH`` on an older checkout to compare with that version's report.
 """
 
 from __future__ import annotations
 
 import argparse
-import time
 from pathlib import Path
+
+from timing import best, timed
 
 import ads_rca
 from ads_rca.diagnosis.engine import diagnose
@@ -28,20 +29,15 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=5)
     args = parser.parse_args()
     print(f"report of {args.log} ({Path(ads_rca.__file__).parent}), best of {args.repeat}")
-    header = ("semantics", "frames", "wall s", "cpu s", "page KB", "images")
+    header = ("semantics", "frames", "wall s", "CPU s", "page KB", "images")
     print(f"{header[0]:<10} " + " ".join(f"{h:>7}" for h in header[1:]))
     for mode in SEMANTICS:
         result = diagnose(open_run(args.log), make_params(mode))
         render(result)  # warm: fonts and matplotlib caches
-        walls, cpus = [], []
-        page = ""
-        for _ in range(args.repeat):
-            wall, cpu = time.perf_counter(), time.process_time()
-            page = render(result)
-            walls.append(time.perf_counter() - wall)
-            cpus.append(time.process_time() - cpu)
+        runs = [timed(lambda: render(result)) for _ in range(max(args.repeat, 1))]  # noqa: B023
+        page, took = runs[-1][0], best(t for _, t in runs)
         print(
-            f"{mode:<10} {len(result.frames):>7} {min(walls):>7.2f} {min(cpus):>7.2f} "
+            f"{mode:<10} {len(result.frames):>7} {took.wall_s:>7.2f} {took.cpu_s:>7.2f} "
             f"{len(page.encode()) / 1024:>7.0f} {page.count('<img '):>7}"
         )
 

@@ -6,8 +6,10 @@
 Synthesises ``--runs`` crash logs of ``--frames`` frames (scenarios and faults cycled,
 written once under ``--dir`` and reused by later runs of the bench), then times the whole
 command (cluster start, every run diagnosed, results and summary written) once per worker
-count, each into a fresh output folder. Prints runs/min per worker count and the scaling
-figure (runs/min with N workers over runs/min with the first count). The summary's
+count, each into a fresh output folder. Prints the command's wall time and CPU time (user
++ system from ``wait4``: the command, its cluster and its workers), runs/min per worker
+count (by wall time) and the scaling figure (runs/min with N workers over runs/min with the
+first count). The summary's
 per-run diagnose time (median) is printed too: with one core per worker the rest is the
 cluster's and the command's own overhead.
 """
@@ -18,12 +20,12 @@ import argparse
 import os
 import shutil
 import statistics
-import subprocess
 import sys
 import tempfile
-import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
+
+from timing import Clock, Timing, run_child
 
 REPO = Path(__file__).resolve().parents[1]
 SCENARIOS = ("cut_in", "lead_braking", "pedestrian_crossing", "left_turn")
@@ -63,18 +65,13 @@ def make_runs(n: int, frames: int, root: Path, distinct: int) -> list[str]:
     return made
 
 
-def time_batch(listing: Path, workers: int, out: Path) -> tuple[float, list[float], int]:
+def time_batch(listing: Path, workers: int, out: Path) -> tuple[Timing, list[float], int]:
     env = dict(
         os.environ,
         PYTHONPATH=os.pathsep.join(filter(None, [str(REPO), os.environ.get("PYTHONPATH")])),
     )
-    started = time.monotonic()
-    done = subprocess.run(
-        [sys.executable, "-m", "ads_rca.cli", "batch", str(listing), "--out", str(out),
-         "--workers", str(workers)],
-        capture_output=True, text=True, env=env, check=False,
-    )  # fmt: skip
-    elapsed = time.monotonic() - started
+    argv = [sys.executable, "-m", "ads_rca.cli", "batch", str(listing), "--out", str(out)]
+    done = run_child([*argv, "--workers", str(workers)], env=env)
     if done.returncode != 0:
         sys.exit(f"batch failed ({done.returncode}): {done.stderr}")
     sys.path.insert(0, str(REPO))
@@ -82,7 +79,7 @@ def time_batch(listing: Path, workers: int, out: Path) -> tuple[float, list[floa
 
     rows = read_csv(out / "results.csv")
     errors = sum(1 for r in rows if r["error"])
-    return elapsed, [float(r["diagnose_seconds"]) for r in rows], errors
+    return done.timing, [float(r["diagnose_seconds"]) for r in rows], errors
 
 
 def main() -> None:
@@ -98,28 +95,29 @@ def main() -> None:
     )
     args = parser.parse_args()
     runs_dir = args.dir / f"runs_{args.frames}f"
-    started = time.monotonic()
-    paths = make_runs(args.runs, args.frames, runs_dir, args.distinct or args.runs)
+    with Clock() as made:
+        paths = make_runs(args.runs, args.frames, runs_dir, args.distinct or args.runs)
     print(
-        f"{len(paths)} runs of {args.frames} frames ready in {time.monotonic() - started:.1f} s "
-        f"({runs_dir})"
+        f"{len(paths)} runs of {args.frames} frames ready in {made.wall_s:.1f} s wall, "
+        f"{made.cpu_s:.1f} s CPU ({runs_dir})"
     )
     listing = args.dir / f"paths_{args.runs}_{args.frames}.txt"
     listing.write_text("".join(f"{p}\n" for p in paths))
     print(
-        f"{'workers':>8}{'wall s':>9}{'runs/min':>10}{'scaling':>9}"
+        f"{'workers':>8}{'wall s':>9}{'CPU s':>9}{'runs/min':>10}{'scaling':>9}"
         f"{'median run s':>14}{'errors':>8}"
     )
     base = None
     for workers in args.workers:
         out = args.dir / f"out_w{workers}"
         shutil.rmtree(out, ignore_errors=True)
-        elapsed, seconds, errors = time_batch(listing, workers, out)
-        rate = len(paths) / elapsed * 60
+        took, seconds, errors = time_batch(listing, workers, out)
+        rate = len(paths) / took.wall_s * 60
         base = base or rate
         print(
-            f"{workers:>8}{elapsed:>9.1f}{rate:>10.0f}{rate / base:>9.2f}"
-            f"{statistics.median(seconds):>14.3f}{errors:>8}"
+            f"{workers:>8}{took.wall_s:>9.1f}{took.cpu_s:>9.1f}{rate:>10.0f}{rate / base:>9.2f}"
+            f"{statistics.median(seconds):>14.3f}{errors:>8}",
+            flush=True,
         )
 
 

@@ -4,8 +4,9 @@
 
 For each size a synthesised scene (test/writers/dlp_scenes.py: the three scripted agents,
 ``--agents - 3`` more cars, one parked car) of N frames is written to ``--dir``, so it holds
-about N x agents instances. Each row is one process (its peak resident set from ``wait4``:
-the interpreter and libraries are counted):
+about N x agents instances. Each measurement is one process (its peak resident set and CPU
+time, user + system, from ``wait4``: the interpreter and libraries are counted; its wall
+time):
 
 * ``stream``: ``open_run`` of the scene, the instances and frames files streamed
   (ads_rca/sources/json_stream.py) into typed arrays, then the per-frame model built;
@@ -13,22 +14,18 @@ the interpreter and libraries are counted):
   before any model is built (the naive way, for comparison).
 
 ``inst. MB`` is the instances file's size. Streaming should hold memory near the model's own
-size, well below the file's Python objects. Measured on the 2-core machine of the issue:
-
-      frames  instances  inst. MB  stream MB  stream s  json.load MB  json.load s
-       10000     100000        39         57       0.8           169          0.5
-      100000    1000000       390        328       8.4          1581          6.3
+size, well below the file's Python objects. Figures: docs/performance.md
+(``bench/performance.py`` regenerates it).
 """
 
 from __future__ import annotations
 
 import argparse
-import os
 import shutil
-import subprocess
 import sys
-import time
 from pathlib import Path
+
+from timing import Timing, run_child
 
 # The dataset writers live with the tests (not in the installed package).
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "test"))
@@ -42,15 +39,12 @@ STREAM = (
 WHOLE = "import json, sys; d = json.load(open(sys.argv[1])); print(len(d))"
 
 
-def measure(code: str, path: Path) -> tuple[float, float]:
-    """(peak MB, seconds) of one process running ``code`` on ``path``."""
-    start = time.perf_counter()
-    child = subprocess.Popen([sys.executable, "-c", code, str(path)], stdout=subprocess.DEVNULL)
-    _pid, status, usage = os.wait4(child.pid, 0)
-    seconds = time.perf_counter() - start
-    if os.waitstatus_to_exitcode(status) != 0:
-        raise SystemExit(f"failed on {path}")
-    return usage.ru_maxrss / 1024, seconds
+def measure(code: str, path: Path) -> tuple[float, Timing]:
+    """(peak MB, wall and CPU time) of one process running ``code`` on ``path``."""
+    done = run_child([sys.executable, "-c", code, str(path)])
+    if done.returncode != 0:
+        raise SystemExit(f"failed on {path}: {done.stderr.strip()[-500:]}")
+    return done.max_rss_mb, done.timing
 
 
 def main() -> None:
@@ -60,10 +54,10 @@ def main() -> None:
     parser.add_argument("--dir", default="out/bench_dlp", help="where scenes are written")
     args = parser.parse_args()
     root = Path(args.dir)
-    print("peak = the process's max RSS (MB); s = wall seconds")
+    print("peak = the process's max RSS (MB); s = wall seconds; CPU = user + system seconds")
     print(
         f"{'frames':>8}{'instances':>11}{'inst. MB':>10}{'stream MB':>11}{'stream s':>10}"
-        f"{'json.load MB':>14}{'json.load s':>13}"
+        f"{'stream CPU':>12}{'json.load MB':>14}{'json.load s':>13}{'json.load CPU':>15}"
     )
     for frames in args.frames:
         folder = root / f"scene-{frames}"
@@ -73,11 +67,11 @@ def main() -> None:
         instances = folder / f"{STEM}_instances.json"
         count = frames * args.agents  # about: two scripted agents live part of the scene
         size = instances.stat().st_size / 2**20
-        stream_mb, stream_s = measure(STREAM, scene)
-        whole_mb, whole_s = measure(WHOLE, instances)
+        stream_mb, stream = measure(STREAM, scene)
+        whole_mb, whole = measure(WHOLE, instances)
         print(
-            f"{frames:>8}{count:>11}{size:>10.0f}{stream_mb:>11.0f}{stream_s:>10.1f}"
-            f"{whole_mb:>14.0f}{whole_s:>13.1f}",
+            f"{frames:>8}{count:>11}{size:>10.0f}{stream_mb:>11.0f}{stream.wall_s:>10.1f}"
+            f"{stream.cpu_s:>12.1f}{whole_mb:>14.0f}{whole.wall_s:>13.1f}{whole.cpu_s:>15.1f}",
             flush=True,
         )
         shutil.rmtree(folder)

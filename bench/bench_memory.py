@@ -3,8 +3,9 @@
     python bench/bench_memory.py [--boxes 100 1000 5000 10000] [--frames 1000 10000 100000]
                                  [--actors 2] [--semantics reference corrected] [--workers 1]
 
-Each row is one whole ``ads-rca diagnose --json`` process (its peak resident set from
-``wait4``, so the interpreter and libraries are counted), on a log written to ``--dir``:
+Each row is one whole ``ads-rca diagnose --json`` process (its peak resident set and its
+CPU time, user + system, from ``wait4``, so the interpreter and libraries are counted; its
+wall time), on a log written to ``--dir``:
 
 * boxes: a short ``cruise`` log (20 frames, 5 actors) with one frame holding N detections
   and N ground-truth boxes (random image boxes, each detection a jittered gt box);
@@ -18,15 +19,13 @@ near the interpreter's own baseline.
 from __future__ import annotations
 
 import argparse
-import os
 import shutil
-import subprocess
 import sys
-import time
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from timing import Timing, run_child
 
 from ads_rca.model import Boxes, RunLog
 from ads_rca.sources.log.writer import write_run_log
@@ -66,19 +65,15 @@ def size_on_disk(folder: Path) -> int:
     return sum(p.stat().st_size for p in folder.rglob("*") if p.is_file())
 
 
-def measure(folder: Path, semantics: str, workers: int) -> tuple[float, float]:
-    """(peak MB, seconds) of one ``diagnose --json`` process."""
+def measure(folder: Path, semantics: str, workers: int) -> tuple[float, Timing]:
+    """(peak MB, wall and CPU time) of one ``diagnose --json`` process."""
     command = [sys.executable, "-m", "ads_rca.cli", "diagnose", str(folder)]
     command += ["--semantics", semantics, "--workers", str(workers)]
     command += ["--json", str(folder.with_suffix(".json"))]
-    start = time.perf_counter()
-    child = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    _pid, status, usage = os.wait4(child.pid, 0)
-    seconds = time.perf_counter() - start
-    child.returncode = os.waitstatus_to_exitcode(status)
-    if child.returncode != 0:
-        raise SystemExit(f"diagnose failed ({child.returncode}) on {folder}")
-    return usage.ru_maxrss / 1024, seconds
+    done = run_child(command, capture=False)
+    if done.returncode != 0:
+        raise SystemExit(f"diagnose failed ({done.returncode}) on {folder}")
+    return done.max_rss_mb, done.timing
 
 
 def main() -> None:
@@ -93,10 +88,14 @@ def main() -> None:
 
     root = Path(args.dir)
     root.mkdir(parents=True, exist_ok=True)
-    print(f"diagnose --json, --workers {args.workers}; peak = the process's max RSS")
+    print(
+        f"diagnose --json, --workers {args.workers}; peak = the process's max RSS; "
+        "s = wall, CPU = user + system seconds"
+    )
     print(f"{'series':<8}{'N':>8}{'input MB':>10}", end="")
     for semantics in args.semantics:
-        print(f"{semantics[:3] + ' MB':>10}{semantics[:3] + ' s':>9}{'x input':>9}", end="")
+        name = semantics[:3]
+        print(f"{name + ' MB':>10}{name + ' s':>9}{name + ' CPU':>9}{'x input':>9}", end="")
     print()
     jobs = [("boxes", n) for n in args.boxes] + [("frames", n) for n in args.frames]
     for series, n in jobs:
@@ -110,8 +109,12 @@ def main() -> None:
         input_mb = size_on_disk(folder) / 2**20
         print(f"{series:<8}{n:>8}{input_mb:>10.1f}", end="", flush=True)
         for semantics in args.semantics:
-            peak, seconds = measure(folder, semantics, args.workers)
-            print(f"{peak:>10.0f}{seconds:>9.1f}{peak / input_mb:>9.1f}", end="", flush=True)
+            peak, took = measure(folder, semantics, args.workers)
+            print(
+                f"{peak:>10.0f}{took.wall_s:>9.1f}{took.cpu_s:>9.1f}{peak / input_mb:>9.1f}",
+                end="",
+                flush=True,
+            )
         print()
         shutil.rmtree(folder)
         folder.with_suffix(".json").unlink(missing_ok=True)

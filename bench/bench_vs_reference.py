@@ -11,28 +11,17 @@ none). Then, in turn, one run each of: the reference tool (``PY DIR/main.py
 log_dir=LOG``, in a scratch working directory, which its configuration framework writes
 into), ``ads-rca diagnose LOG --semantics reference --json FILE`` and the same with
 ``--semantics corrected``; that round is repeated ``--repeat`` times after one warm-up round
-(the logs are then in the file cache), and each command's median wall time is printed with
-the reference tool's time divided by ours. Both run with their bytecode cached, as installed
-tools do (PYTHONDONTWRITEBYTECODE is cleared for them; the warm-up round writes it).
-Without ``--reference`` (the reference tool is not part of this project) only our two times
-are printed.
+(the logs are then in the file cache), and each command's median wall time and median CPU
+time (user + system from ``wait4``: the process and the workers it forked) are printed with
+the reference tool's wall time divided by ours. Both run with their bytecode cached, as
+installed tools do (PYTHONDONTWRITEBYTECODE is cleared for them; the warm-up round writes
+it). Without ``--reference`` (the reference tool is not part of this project) only our two
+commands are timed.
 
 The 1,957-frame, 11-actor log is the size of issue #18's measurement (13,700 JSON files);
-the 10,000-frame, 50-actor log is its second target (under 10 s on 2 cores). Results, with
-the reference tool, are in docs/architecture.md ("Speed of one diagnosis"). A change to
-ours alone is measured against the commit before it the same way, runs alternating, on a
-machine shared with a test run (ratio = before / after, median of the rounds' ratios):
-
-| change | log | reference mode | corrected mode | CPU, reference mode |
-|---|---|---|---|---|
-| predictions packed from pieces, boxes' bracket count | 1957x11 | 1.05 | 1.04 | 2.57 to 2.34 s |
-| the same | 10000x50 | 1.06 (2 rounds) | not run | 26.1 to 24.9 s |
-
-The collector change after it (the verdict document built with the collector paused,
-paused stretches handed to the oldest generation unscanned) was measured by the parent's
-time in collections instead (gc callbacks, 1957x11): 38-46 to 19-27 ms in reference mode,
-86-104 to 36-40 ms in corrected mode; whole processes, 6 alternating rounds while a test
-run shared the machine: 1.11 (reference mode) and 1.07 (corrected mode).
+the 10,000-frame, 50-actor log is its second target (under 10 s on 2 cores). Figures:
+docs/performance.md (``bench/performance.py`` regenerates it). To measure a change to ours
+alone, run this on the commit before and after it, alternating, on the same machine.
 """
 
 from __future__ import annotations
@@ -41,14 +30,13 @@ import argparse
 import os
 import shutil
 import statistics
-import subprocess
 import sys
 import tempfile
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from bench_memory import size_on_disk, write_frames_log
+from timing import Timing, run_child
 
 from ads_rca.model import OPTIONAL_FOLDERS
 
@@ -60,31 +48,34 @@ AS_INSTALLED = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTE
 
 @dataclass
 class Command:
-    """One command to time, and its wall times (s)."""
+    """One command to time, and its wall and CPU times."""
 
     name: str
     argv: list[str]
     cwd: Path
-    times: list[float] = field(default_factory=list)
+    times: list[Timing] = field(default_factory=list)
     failed: str = ""
 
     def run(self, counted: bool) -> None:
         if self.failed:
             return
-        start = time.perf_counter()
-        done = subprocess.run(
-            self.argv, cwd=self.cwd, env=AS_INSTALLED, capture_output=True, check=False
-        )
-        seconds = time.perf_counter() - start
+        done = run_child(self.argv, cwd=self.cwd, env=AS_INSTALLED)
         if done.returncode != 0:
-            tail = done.stderr.decode(errors="replace").strip().splitlines()[-1:]
+            tail = done.stderr.strip().splitlines()[-1:]
             self.failed = f"exit {done.returncode}: {' '.join(tail)[:120]}"
         elif counted:
-            self.times.append(seconds)
+            self.times.append(done.timing)
 
     @property
     def median(self) -> float | None:
-        return statistics.median(self.times) if self.times and not self.failed else None
+        """The median wall time (s), None when the command failed or was not counted."""
+        if not self.times or self.failed:
+            return None
+        return statistics.median(t.wall_s for t in self.times)
+
+    @property
+    def median_cpu(self) -> float:
+        return statistics.median(t.cpu_s for t in self.times)
 
 
 def parse_size(text: str) -> tuple[int, int]:
@@ -110,7 +101,8 @@ def commands(log: Path, scratch: Path, args: argparse.Namespace) -> list[Command
 
 def one_size(frames: int, actors: int, args: argparse.Namespace) -> list[str]:
     """Write one log, time every command on it; the table's rows for it."""
-    with tempfile.TemporaryDirectory(dir=args.dir) as tmp:
+    # Absolute: the commands run in the scratch folder.
+    with tempfile.TemporaryDirectory(dir=Path(args.dir).resolve()) as tmp:
         log = Path(tmp) / f"cruise_{frames}x{actors}"
         write_frames_log(log, frames, actors - 1)
         for folder in OPTIONAL_FOLDERS:  # the seed format has none (the reference reads none)
@@ -130,11 +122,15 @@ def one_size(frames: int, actors: int, args: argparse.Namespace) -> list[str]:
         if command.median is None:
             rows.append(f"{label:<32}{command.name:<18}{'failed':>9}  {command.failed}")
             continue
-        spread = f"{min(command.times):.2f}-{max(command.times):.2f}"
+        walls = [t.wall_s for t in command.times]
+        spread = f"{min(walls):.2f}-{max(walls):.2f}"
         ratio = ""
         if reference is not None and command is not timed[0]:
             ratio = f"{reference / command.median:.1f}x"
-        rows.append(f"{label:<32}{command.name:<18}{command.median:>9.2f}{spread:>13}{ratio:>9}")
+        rows.append(
+            f"{label:<32}{command.name:<18}{command.median:>9.2f}{spread:>13}"
+            f"{command.median_cpu:>9.2f}{ratio:>9}"
+        )
     return rows
 
 
@@ -153,12 +149,12 @@ def main() -> None:
     sizes = args.sizes or [parse_size(s) for s in DEFAULT_SIZES]
     Path(args.dir).mkdir(parents=True, exist_ok=True)
     print(
-        f"whole processes, wall time: median of {args.repeat} rounds after a warm-up; "
-        f"{os.cpu_count()} CPUs; ratio = reference tool / ours"
+        f"whole processes, wall and CPU (user + system) time: medians of {args.repeat} rounds "
+        f"after a warm-up; {os.cpu_count()} CPUs; ratio = reference tool / ours (wall)"
     )
     if not args.reference:
         print("reference tool: not given (--reference DIR --reference-python PY); ours only")
-    print(f"{'log':<32}{'command':<18}{'median s':>9}{'min-max s':>13}{'ratio':>9}")
+    print(f"{'log':<32}{'command':<18}{'median s':>9}{'min-max s':>13}{'CPU s':>9}{'ratio':>9}")
     for frames, actors in sizes:
         for row in one_size(frames, actors, args):
             print(row, flush=True)

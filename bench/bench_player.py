@@ -14,7 +14,9 @@ frame sent once the subscriber acknowledged the previous one) to ``topic_summary
 process, on a private DDS domain with local-only discovery: the fast path (``fast_publish`` +
 ``fast_decode``) over the whole log, and, with ``--object-dds-frames K``, the object path over
 the first K frames for comparison. The machine's load average is printed: other processes on
-the same cores slow every number down. Prints one table.
+the same cores slow every number down. Prints one table: each step's wall and CPU time
+(user + system; for a DDS step the whole step, both node processes from start to exit, with
+this process) and its rate (by wall time; for DDS the player's own publishing span).
 """
 
 from __future__ import annotations
@@ -23,9 +25,10 @@ import argparse
 import json
 import sys
 import tempfile
-import time
 from pathlib import Path
 from typing import Any
+
+from timing import Clock, Timing, load_average, timed
 
 from ads_rca.contract.playback import timeline
 from ads_rca.contract.topics import decode_record, frame_messages, frame_payloads
@@ -41,8 +44,8 @@ def make_log(frames: int, actors: int, seed: int) -> tuple[RunLog, str]:
     return synthesise("cruise", "none", seed, frames=frames, actors=actors), "synth cruise"
 
 
-def conversion_rate(log: RunLog, limit: int, path: str) -> tuple[float, float, int]:
-    """frames/s and messages/s of one path's per-frame conversion (first ``limit`` ticks).
+def conversion_rate(log: RunLog, limit: int, path: str) -> tuple[Timing, int, int]:
+    """Timing, frames and messages of one path's per-frame conversion (first ``limit`` ticks).
 
     ``object``: topics.frame_messages; ``object+cdr``: the same plus serialize_message (what
     publishing an object costs on top); ``fast``: topics.frame_payloads (bytes ready to send).
@@ -52,18 +55,17 @@ def conversion_rate(log: RunLog, limit: int, path: str) -> tuple[float, float, i
     if path == "object+cdr":
         from rclpy.serialization import serialize_message as serialise
     messages = 0
-    start = time.perf_counter()
-    for tick in ticks:
-        if path == "fast":
-            messages += len(frame_payloads(log, tick.stamp_ms))
-            continue
-        built = frame_messages(log, tick.stamp_ms)
-        if serialise is not None:
-            for msg in built.values():
-                serialise(msg)
-        messages += len(built)
-    elapsed = time.perf_counter() - start
-    return len(ticks) / elapsed, messages / elapsed, len(ticks)
+    with Clock() as clock:
+        for tick in ticks:
+            if path == "fast":
+                messages += len(frame_payloads(log, tick.stamp_ms))
+                continue
+            built = frame_messages(log, tick.stamp_ms)
+            if serialise is not None:
+                for msg in built.values():
+                    serialise(msg)
+            messages += len(built)
+    return clock.timing, len(ticks), messages
 
 
 def dds_rate(
@@ -110,18 +112,17 @@ def dds_rate(
     return document
 
 
-def decode_rate(log: RunLog, limit: int) -> tuple[float, float, int]:
-    """frames/s and messages/s of decoding the fast path's bytes back into model records
+def decode_rate(log: RunLog, limit: int) -> tuple[Timing, int, int]:
+    """Timing, frames and messages of decoding the fast path's bytes back into model records
     (what a subscriber such as the monitors does with every frame)."""
     payloads = [frame_payloads(log, tick.stamp_ms) for tick in timeline(log)[:limit]]
     messages = 0
-    start = time.perf_counter()
-    for frame in payloads:
-        for key, data in frame.items():
-            decode_record(key, data, log.tpf)
-        messages += len(frame)
-    elapsed = time.perf_counter() - start
-    return len(payloads) / elapsed, messages / elapsed, len(payloads)
+    with Clock() as clock:
+        for frame in payloads:
+            for key, data in frame.items():
+                decode_record(key, data, log.tpf)
+            messages += len(frame)
+    return clock.timing, len(payloads), messages
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -139,37 +140,37 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--timeout", type=float, default=1800.0)
     args = parser.parse_args(argv)
 
-    load_before = _load_average()
-    t0 = time.perf_counter()
-    log, origin = make_log(args.frames, args.actors, args.seed)
-    build_s = time.perf_counter() - t0
+    load_before = load_average()
+    (log, origin), build = timed(lambda: make_log(args.frames, args.actors, args.seed))
     conversions = {
         path: conversion_rate(log, args.conversion_frames, path)
         for path in ("object", "object+cdr", "fast")
     }
     conversions["decode (subscriber side)"] = decode_rate(log, args.conversion_frames)
-    runs: dict[str, dict[str, Any]] = {}
+    runs: dict[str, tuple[dict[str, Any], Timing]] = {}
     with tempfile.TemporaryDirectory(prefix="ads_rca_bench_player_") as tmp:
         work = Path(tmp)
-        t0 = time.perf_counter()
-        log_dir = write_run_log(log, work / "log")
-        write_s = time.perf_counter() - t0
-        runs["fast"] = dds_rate(log_dir, work / "fast", args.timeout)
+        log_dir, write = timed(lambda: write_run_log(log, work / "log"))
+        runs["fast"] = timed(lambda: dds_rate(log_dir, work / "fast", args.timeout))
         if args.object_dds_frames > 0:
-            runs["object"] = dds_rate(
-                log_dir,
-                work / "object",
-                args.timeout,
-                fast=False,
-                stop_frame=args.object_dds_frames - 1,
+            runs["object"] = timed(
+                lambda: dds_rate(
+                    log_dir,
+                    work / "object",
+                    args.timeout,
+                    fast=False,
+                    stop_frame=args.object_dds_frames - 1,
+                )
             )
-    rows = [
-        ("log", f"{origin}: {len(log.frames)} frames × {args.actors} actors"),
-        ("build / write log", f"{build_s:.1f} s / {write_s:.1f} s"),
+    rows: list[tuple[str, Timing | None, str]] = [
+        ("log", None, f"{origin}: {len(log.frames)} frames × {args.actors} actors"),
+        ("build log", build, ""),
+        ("write log", write, ""),
     ]
-    for path, (fps, mps, n) in conversions.items():
-        rows.append((f"conversion only, {path}", f"{fps:,.0f} frames/s, {mps:,.0f} msgs/s ({n})"))
-    for path, summary in runs.items():
+    for path, (took, n, messages) in conversions.items():
+        rate = f"{n / took.wall_s:,.0f} frames/s, {messages / took.wall_s:,.0f} msgs/s ({n})"
+        rows.append((f"conversion only, {path}", took, rate))
+    for path, (summary, took) in runs.items():
         status = summary["status"]
         frames = int(status["frames_published"])
         elapsed = float(status["elapsed_s"])
@@ -178,24 +179,18 @@ def main(argv: list[str] | None = None) -> int:
         rows.append(
             (
                 f"DDS rate 0, 1 sub, {path}",
+                took,
                 f"{frames / elapsed:,.0f} frames/s, {received / elapsed:,.0f} msgs/s "
                 f"({frames} frames, {received} msgs in {elapsed:.1f} s; {delivered})",
             )
         )
-    rows.append(("load average", f"{load_before} before, {_load_average()} after (2 cores)"))
-    width = max(len(name) for name, _ in rows)
-    print(f"{'bench_player':<{width}}  result")
-    for name, value in rows:
-        print(f"{name:<{width}}  {value}")
+    rows.append(("load average", None, f"{load_before} before, {load_average()} after"))
+    width = max(len(name) for name, _, _ in rows)
+    print(f"{'bench_player':<{width}}  {'wall s':>7}  {'CPU s':>7}  result")
+    for name, step, value in rows:
+        wall, cpu = (f"{step.wall_s:7.2f}", f"{step.cpu_s:7.2f}") if step else ("", "")
+        print(f"{name:<{width}}  {wall:>7}  {cpu:>7}  {value}".rstrip())
     return 0
-
-
-def _load_average() -> str:
-    """1-minute load average (other processes on these cores slow every number down)."""
-    try:
-        return Path("/proc/loadavg").read_text().split()[0]
-    except OSError:
-        return "?"
 
 
 if __name__ == "__main__":

@@ -5,8 +5,11 @@ Usage: ``python bench/bench_recorder.py [--frames N] [--actors M] [--compression
 (each frame sent once every subscriber acknowledged the previous one) to the ``recorder``
 in another process, on a private DDS domain with local-only discovery. The recorder's
 throughput is payload bytes / (last − first reception time); "lost" compares the per-topic
-counts in the bag with what the frame markers announced. The offline line times
-:class:`McapBagWriter` alone on the same bytes (no DDS) for each compression.
+counts in the bag with what the frame markers announced. The offline rows time
+:class:`McapBagWriter` alone on the same bytes (no DDS) for each compression. Each row's
+wall and CPU time (user + system) are the step's: for the recorder, both node processes
+from start to exit and this process reading the bag back; MB/s is by wall time (the
+recorder's over its reception span).
 """
 
 from __future__ import annotations
@@ -15,10 +18,11 @@ import argparse
 import shutil
 import sys
 import tempfile
-import time
 from collections import Counter
 from pathlib import Path
 from typing import Any
+
+from timing import Clock, Timing, timed
 
 from ads_rca.contract import rosmsg, topics
 from ads_rca.contract.assembler import RunLogAssembler
@@ -81,17 +85,18 @@ def record(log_dir: Path, bag: Path, work: Path, compression: str) -> dict[str, 
     }
 
 
-def offline(data: list[tuple[str, str, int, bytes]], work: Path, compression: str) -> float:
+def offline(
+    data: list[tuple[str, str, int, bytes]], work: Path, compression: str
+) -> tuple[Timing, float]:
+    """The writer's timing and MB/s (by wall time) on ``data``."""
     out = work / f"offline_{compression}"
-    start = time.perf_counter()
-    with McapBagWriter(out, compression=compression) as writer:
+    with Clock() as clock, McapBagWriter(out, compression=compression) as writer:
         for topic, msg_type, log_time, payload in data:
             if not writer.has_topic(topic):
                 writer.add_topic(topic, msg_type)
             writer.write(topic, log_time, payload)
-    elapsed = time.perf_counter() - start
     shutil.rmtree(out)
-    return sum(len(d[3]) for d in data) / 1e6 / elapsed
+    return clock.timing, sum(len(d[3]) for d in data) / 1e6 / clock.wall_s
 
 
 def main() -> int:
@@ -106,17 +111,23 @@ def main() -> int:
     with tempfile.TemporaryDirectory(prefix="ads_rca_bench_rec_") as tmp:
         work = Path(tmp)
         log_dir = write_run_log(log, work / "log")
-        r = record(log_dir, work / "bag", work, args.compression)
+        r, took = timed(lambda: record(log_dir, work / "bag", work, args.compression))
         print(f"log: synth cruise, {len(log.frames)} frames x {args.actors} actors")
         print(
             f"recorder ({args.compression}): {r['messages']} messages, "
-            f"{r['payload_mb']:.1f} MB payload -> {r['file_mb']:.1f} MB file in "
-            f"{r['seconds']:.2f} s: {r['mb_s']:.1f} MB/s, {r['msg_s']:.0f} msg/s; "
+            f"{r['payload_mb']:.1f} MB payload -> {r['file_mb']:.1f} MB file, received in "
+            f"{r['seconds']:.2f} s ({r['msg_s']:.0f} msg/s); "
             f"frames {r['frames']}, lost {r['lost'] or 'none'}"
         )
+        print(f"{'step':<26}{'wall s':>8}{'CPU s':>8}{'MB/s':>8}")
+        print(f"{'recorder over DDS (' + args.compression + ')':<26}", end="")
+        print(f"{took.wall_s:>8.2f}{took.cpu_s:>8.2f}{r['mb_s']:>8.1f}")
         for compression in sorted(COMPRESSIONS):
-            rate = offline(r["data"], work, compression)
-            print(f"writer alone ({compression}): {rate:.0f} MB/s")
+            writer, rate = offline(r["data"], work, compression)
+            print(
+                f"{'writer alone (' + compression + ')':<26}"
+                f"{writer.wall_s:>8.2f}{writer.cpu_s:>8.2f}{rate:>8.0f}"
+            )
     return 1 if r["lost"] else 0
 
 

@@ -26,15 +26,18 @@ process on a private DDS domain (local-only discovery), its Zenoh endpoint a fre
    heartbeat, DDS; measured over 3 s, 10 ms clock ticks), and split by thread from
    /proc/<pid>/task: ``python`` (rclpy's executor and every Python callback), ``zenoh``
    (its runtime's tx/rx threads), ``dds`` (Fast DDS). At a fixed rate every message wakes
-   the threads on its own, so it costs more than at full speed. A last line times the
-   bridge's JSON work alone in this process (decode the CDR string,
-   ``RemoteState.on_result``: parse, validate, re-serialise), without ROS or Zenoh: a
-   cross-check of the CPU figure's Python part.
+   the threads on its own, so it costs more than at full speed. The table's ``wall s`` and
+   ``CPU s`` are the phase's (first publish to last delivery; CPU of the bridge and of this
+   process, publisher and subscribers). A last line times the bridge's JSON work alone in
+   this process (decode the CDR string, ``RemoteState.on_result``: parse, validate,
+   re-serialise), without ROS or Zenoh, wall and CPU: a cross-check of the CPU figure's
+   Python part.
 2. Dashboard. ``ads-rca dashboard --connect <bridge endpoint>`` runs as its own process;
    this process reads its server-sent events (``/events``) with aiohttp and publishes
    results at 20 Hz. The latency of a frame is from its ROS publish to the first event whose
    run shows that index (``last_index``). The dashboard coalesces events (at most one per
    0.1 s to a browser) and drains Zenoh every 0.05 s, so up to ~150 ms of it is by design.
+   The phase's wall time and the CPU of the dashboard, the bridge and this process follow.
 
 Every process is stopped with SIGINT and waited for; none outlives the bench (checked).
 Default run: under 2 minutes.
@@ -62,7 +65,7 @@ from typing import Any
 
 import numpy as np
 import orjson
-from bench_graph import cpu_seconds
+from timing import Clock, Timing, process_cpu_s
 
 from ads_rca.contract.cdr_decode import decode_string
 from ads_rca.contract.jsontext import dumps_json
@@ -217,6 +220,8 @@ class Phase:
     delivered: dict[str, dict[int, float]]
     duplicates: dict[str, int]
     threads: dict[str, float]
+    #: This process's CPU seconds over the phase (publishing, Zenoh's callbacks).
+    own_cpu_s: float
 
 
 def wait_for(condition: Callable[[], bool], timeout: float, what: str) -> None:
@@ -379,9 +384,9 @@ class Bench:
 
     def idle_cpu(self, seconds: float) -> float:
         """The bridge's CPU seconds per second with nothing to forward."""
-        before = cpu_seconds(self.bridge.process.pid)
+        before = process_cpu_s(self.bridge.process.pid)
         time.sleep(seconds)
-        return (cpu_seconds(self.bridge.process.pid) - before) / seconds
+        return (process_cpu_s(self.bridge.process.pid) - before) / seconds
 
     def run_phase(self, name: str, count: int, rate: float | None) -> Phase:
         batch = self.messages(count)
@@ -389,7 +394,8 @@ class Bench:
         sent: dict[int, float] = {}
         pid = self.bridge.process.pid
         threads0 = thread_cpu(pid)
-        cpu0 = cpu_seconds(pid)
+        cpu0 = process_cpu_s(pid)
+        own = Clock().start()
         start = time.perf_counter()
         publish = self.publisher.publish
         if rate is None:
@@ -427,7 +433,8 @@ class Bench:
             for kind, r in self.receivers.items()
         }
         last = max((max(d.values()) for d in delivered.values() if d), default=start)
-        cpu = cpu_seconds(pid) - cpu0
+        cpu = process_cpu_s(pid) - cpu0
+        own_cpu = own.cpu_s
         threads: dict[str, float] = {}
         for thread, seconds in thread_cpu(pid).items():
             group = thread_group(thread[1])
@@ -436,7 +443,7 @@ class Bench:
             kind: len(r.got) - marks[kind] - len(delivered[kind])
             for kind, r in self.receivers.items()
         }
-        return Phase(name, sent, cpu, last - start, delivered, duplicates, threads)
+        return Phase(name, sent, cpu, last - start, delivered, duplicates, threads, own_cpu)
 
     # The dashboard ---------------------------------------------------------------------
 
@@ -510,18 +517,18 @@ class Bench:
         }
 
 
-def json_work_per_message(count: int) -> float:
-    """Seconds per message of the bridge's JSON side alone (CDR string decode and
-    ``RemoteState.on_result``), in this process, on the same texts."""
+def json_work_per_message(count: int) -> Timing:
+    """Wall and CPU seconds per message of the bridge's JSON side alone (CDR string decode
+    and ``RemoteState.on_result``), in this process, on the same texts."""
     from rclpy.serialization import serialize_message
     from std_msgs.msg import String
 
     payloads = [serialize_message(String(data=result_text(i))) for i in range(count)]
     state = RemoteState(PREFIX, 2000, {"modules": 0.0})
-    start = time.perf_counter()
-    for n, payload in enumerate(payloads):
-        state.on_result(decode_string(payload), float(n))
-    return (time.perf_counter() - start) / count
+    with Clock() as clock:
+        for n, payload in enumerate(payloads):
+            state.on_result(decode_string(payload), float(n))
+    return Timing(clock.wall_s / count, clock.cpu_s / count)
 
 
 def phase_rows(phase: Phase, idle: float) -> list[str]:
@@ -529,6 +536,7 @@ def phase_rows(phase: Phase, idle: float) -> list[str]:
     first = min(phase.sent.values())
     publish_span = max(phase.sent.values()) - first
     rows = []
+    whole = f"{phase.wall_s:>7.2f} {phase.cpu_s + phase.own_cpu_s:>7.2f}"
     for kind in ("raw", "json"):
         delivered = phase.delivered[kind]
         latency = [t - phase.sent[i] for i, t in delivered.items()]
@@ -538,14 +546,16 @@ def phase_rows(phase: Phase, idle: float) -> list[str]:
         rows.append(
             f"  {phase.name:<11} {kind:<5} {count:>6} {count / max(publish_span, 1e-9):>9.0f}"
             f" {rate:>9.0f} {p50:>8.2f} {p99:>8.2f} {count - len(delivered):>5}"
-            f" {phase.duplicates[kind]:>4}"
+            f" {phase.duplicates[kind]:>4} {whole}".rstrip()
         )
+        whole = ""
     net = phase.cpu_s - idle * phase.wall_s
     rows.append(
         f"  {'':<11} bridge CPU {phase.cpu_s:.2f} s in {phase.wall_s:.2f} s = "
         f"{phase.cpu_s / count * 1e6:.0f} us/message ({net / count * 1e6:.0f} us without the "
         f"idle {idle * 1000:.1f} ms/s); {phase.cpu_s / max(phase.wall_s, 1e-9) * 100:.0f}% of a CPU"
     )
+    rows.append(f"  {'':<11} this process CPU {phase.own_cpu_s:.2f} s (publisher, subscribers)")
     parts = ", ".join(
         f"{group} {seconds / count * 1e6:.0f}"
         for group, seconds in sorted(phase.threads.items(), key=lambda item: -item[1])
@@ -581,9 +591,14 @@ def main() -> int:
         paced = bench.run_phase(f"{args.rate:g} Hz", args.messages, args.rate)
         bench.close_zenoh()  # only the dashboard reads from here on
         url = bench.start_dashboard()
-        board = asyncio.run(
-            bench.dashboard_latency(url, args.dashboard_frames, args.dashboard_rate)
-        )
+        pids = {"dashboard": bench.dashboard.process.pid, "bridge": bench.bridge.process.pid}
+        before = {name: process_cpu_s(pid) for name, pid in pids.items()}
+        with Clock() as own:
+            board = asyncio.run(
+                bench.dashboard_latency(url, args.dashboard_frames, args.dashboard_rate)
+            )
+        board_cpu = {name: process_cpu_s(pid) - before[name] for name, pid in pids.items()}
+        board_cpu["this process"] = own.cpu_s
     finally:
         try:
             bench.close()
@@ -595,7 +610,7 @@ def main() -> int:
     )
     print(
         f"  {'phase':<11} {'key':<5} {'sent':>6} {'pub/s':>9} {'deliv/s':>9} "
-        f"{'p50 ms':>8} {'p99 ms':>8} {'lost':>5} {'dup':>4}"
+        f"{'p50 ms':>8} {'p99 ms':>8} {'lost':>5} {'dup':>4} {'wall s':>7} {'CPU s':>7}"
     )
     for phase in (full, paced):
         for row in phase_rows(phase, idle):
@@ -603,7 +618,8 @@ def main() -> int:
     work_s = json_work_per_message(min(args.messages, 2000))
     print(
         f"  cross-check: the JSON side alone (decode + RemoteState.on_result, no ROS/Zenoh) "
-        f"{work_s * 1e6:.0f} us/message in this process"
+        f"{work_s.wall_s * 1e6:.0f} us/message wall, {work_s.cpu_s * 1e6:.0f} us CPU, "
+        "in this process"
     )
     p50, p99 = percentiles(board["latency"])
     print(
@@ -614,6 +630,8 @@ def main() -> int:
         f"  p50 {p50:.1f} ms  p99 {p99:.1f} ms; {board['shown']}/{board['frames']} frames shown; "
         f"{board['events_per_s']:.1f} events/s"
     )
+    cpu_parts = ", ".join(f"{name} {seconds:.2f} s" for name, seconds in board_cpu.items())
+    print(f"  wall {own.wall_s:.2f} s; CPU {sum(board_cpu.values()):.2f} s ({cpu_parts})")
     print("\n3. shutdown")
     for line in stops:
         print(f"  {line}")

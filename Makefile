@@ -47,19 +47,7 @@ format: $(STAMP)
 	$(BIN)/ruff check --fix ads_rca test bench launch_scripts setup.py
 
 bench: $(STAMP)
-	$(BIN)/python bench/bench_load.py
-	$(BIN)/python bench/bench_diagnose.py
-	$(BIN)/python bench/bench_vs_reference.py --sizes 1957x11 --repeat 3
-	$(BIN)/python bench/bench_player.py --frames 2000
-	$(BIN)/python bench/bench_graph.py
-	$(BIN)/python bench/bench_zenoh.py
-	$(BIN)/python bench/bench_recorder.py
-	$(BIN)/python bench/bench_memory.py
-	$(BIN)/python bench/bench_aggregator_memory.py
-	$(BIN)/python bench/bench_safe_read.py
-	$(BIN)/python bench/bench_verdict_json.py
-	$(BIN)/python bench/bench_report.py
-	$(BIN)/python bench/accuracy.py 20
+	$(BIN)/python bench/performance.py
 
 clean:
 	rm -rf $(VENV) build install log .ros_log $(OUT) .pytest_cache .mypy_cache .ruff_cache

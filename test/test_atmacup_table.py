@@ -45,8 +45,8 @@ from ads_rca.params import make_params
 from ads_rca.ros.launcher import ManagedProcess
 from ads_rca.sources.atmacup.reader import read_atmacup_table
 from ads_rca.sources.atmacup.trajectory_scores import TRAJECTORY_SCORES_KEY, trajectory_scores
-from ads_rca.sources.formats import ATMACUP, LOG, SourceOptions, detect_format
-from ads_rca.sources.registry import open_run
+from ads_rca.sources.formats import SourceOptions
+from ads_rca.sources.registry import detect_format, open_run
 
 if TYPE_CHECKING:
     from conftest import RosEnv
@@ -434,11 +434,11 @@ def test_a_row_without_a_traffic_light_file_is_one_warning(table: Path) -> None:
 
 def test_format_detection_by_names(tmp_path: Path) -> None:
     path = write_table(tmp_path / "data")
-    assert detect_format(path) == ATMACUP and detect_format(tmp_path / "data") == ATMACUP
+    assert detect_format(path) == "atmacup" and detect_format(tmp_path / "data") == "atmacup"
     write_table(tmp_path / "test", train=False)
-    assert detect_format(tmp_path / "test") == ATMACUP
+    assert detect_format(tmp_path / "test") == "atmacup"
     (tmp_path / "data" / "actors").mkdir()
-    assert detect_format(tmp_path / "data") == LOG  # a running log wins over a stray table
+    assert detect_format(tmp_path / "data") == "log"  # a running log wins over a stray table
     write_table(tmp_path / "both")
     write_table(tmp_path / "both", train=False)
     with pytest.raises(InputError, match="holds both of"):

@@ -28,8 +28,7 @@ from ads_rca.ros.launcher import ManagedProcess
 from ads_rca.sources.carla.annotations import MAX_TEXT, annotations_from_document
 from ads_rca.sources.carla.figures import ActorRows, EgoTrack, run_figures, world_velocity
 from ads_rca.sources.carla.reader import read_carla_run
-from ads_rca.sources.formats import detect_format
-from ads_rca.sources.registry import open_run
+from ads_rca.sources.registry import detect_format, open_run
 
 if TYPE_CHECKING:
     from conftest import RosEnv

@@ -24,8 +24,8 @@ from ads_rca.errors import InputError
 from ads_rca.params import make_params
 from ads_rca.ros.launcher import ManagedProcess
 from ads_rca.sources.dlp.reader import read_dlp_scene
-from ads_rca.sources.formats import SourceOptions, detect_format
-from ads_rca.sources.registry import open_run
+from ads_rca.sources.formats import SourceOptions
+from ads_rca.sources.registry import detect_format, open_run
 
 if TYPE_CHECKING:
     from conftest import RosEnv

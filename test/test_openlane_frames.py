@@ -30,9 +30,9 @@ from ads_rca.diagnosis.engine import diagnose
 from ads_rca.errors import InputError
 from ads_rca.model import RunLog
 from ads_rca.params import make_params
-from ads_rca.sources.formats import SourceOptions, detect_format
+from ads_rca.sources.formats import SourceOptions
 from ads_rca.sources.openlane.reader import ego_poses, read_openlane_segment, timestamp_unit
-from ads_rca.sources.registry import open_run
+from ads_rca.sources.registry import detect_format, open_run
 
 if TYPE_CHECKING:
     from conftest import RosEnv

@@ -18,6 +18,7 @@ from typing import Any
 from ads_rca.oracles.base import MODULES
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import Params
+from ads_rca.sources.registry import SOURCES, listed, source_named
 
 #: Column types: "str", "int" (nullable), "float" (NaN when unknown), "bool" (nullable).
 STR, INT, FLOAT, BOOL = "str", "int", "float", "bool"
@@ -28,7 +29,7 @@ INTERNAL_ERROR = "internal error"
 COLUMN_DOCS: tuple[tuple[str, str, str], ...] = (
     ("run_id", STR, "stable id: SHA-256 of the resolved path, 16 hex digits"),
     ("path", STR, "the run's resolved path"),
-    ("format", STR, "log folder, bag, CARLA run, DLP scene, OpenLane-V2 segment or atmaCup table"),
+    ("format", STR, listed([source_named(name).words for name in SOURCES], "or")),
     ("profile", STR, "the bag profile read through (bags only)"),
     ("semantics", STR, "oracle semantics"),
     ("scenario", STR, "scenario family (metadata synthesis.scenario), when known"),

@@ -179,8 +179,7 @@ def run_job(job: Job, worker: str = "") -> Outcome:
     from ads_rca.diagnosis.engine import diagnose
     from ads_rca.foundation.workers import loaded_objects_frozen
     from ads_rca.oracles.semantics import semantics_for
-    from ads_rca.sources.formats import no_frame_message
-    from ads_rca.sources.registry import open_run
+    from ads_rca.sources.registry import no_frame_message, open_run
 
     started = time.monotonic()
     known: dict[str, Any] = {"worker": worker, **_format(job)}
@@ -210,28 +209,19 @@ def run_job(job: Job, worker: str = "") -> Outcome:
     return Outcome(row, text.encode("utf-8"))
 
 
-#: The format column's words for each reader (``ads_rca.sources.formats``).
-FORMAT_NAMES = {
-    "bag": "bag",
-    "carla": "CARLA run",
-    "dlp": "DLP scene",
-    "log": "log folder",
-    "openlane": "OpenLane-V2 segment",
-    "atmacup": "atmaCup table",
-}
-
-
 def _format(job: Job) -> dict[str, str]:
+    """The format column (the source's words, ``Source.words``), and the profile of a bag."""
     from ads_rca.errors import AdsRcaError
-    from ads_rca.sources.formats import resolved_format
+    from ads_rca.sources.bag import NAME as BAG
+    from ads_rca.sources.registry import DETECTION_ORDER, resolved_format, source_named
 
     try:
         found = resolved_format(job.path, job.source.source_format)
     except (OSError, AdsRcaError):
-        found = "log"
+        found = DETECTION_ORDER[-1]  # what takes any path
     return {
-        "format": FORMAT_NAMES[found],
-        "profile": job.bag.profile if found == "bag" else "",
+        "format": source_named(found).words,
+        "profile": job.bag.profile if found == BAG else "",
         "semantics": job.params.semantics,
     }
 

@@ -24,12 +24,12 @@ from ads_rca.contract import topics
 from ads_rca.errors import InputError
 from ads_rca.foundation.text import printable
 from ads_rca.model import RunLog
+from ads_rca.sources.bag import NAME as BAG
 from ads_rca.sources.bag.mcap_writer import COMPRESSIONS, DEFAULT_CHUNK_SIZE
 from ads_rca.sources.bag.reader import read_bag
 from ads_rca.sources.bag.writer import STORAGES, McapOptions, write_bag
-from ads_rca.sources.formats import BAG, resolved_format
 from ads_rca.sources.log.writer import write_run_log
-from ads_rca.sources.registry import open_run
+from ads_rca.sources.registry import open_run, resolved_format
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -77,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
             for line in log.problems.summary_lines(10):
                 print(f"  {line}", file=sys.stderr)
         return 0
-    # A log folder, CARLA run or DLP scene: written as a log folder's bag would be.
+    # Any other source (a log folder, a dataset's run): written as a log folder's bag would be.
     log = open_run(source, max_file_mb=max_file_mb, source=options_in)
     if not bag.contract:
         return _write_recording(log, source, out, bag.profile, args.storage)

@@ -40,8 +40,7 @@ from ads_rca.params import (
     params_from_sources,
 )
 from ads_rca.params import parse_assignments as parse_p
-from ads_rca.sources.formats import no_frame_message
-from ads_rca.sources.registry import open_run
+from ads_rca.sources.registry import no_frame_message, open_run
 
 #: ``--semantics both``: judge in every mode and say why the verdicts differ.
 BOTH = "both"

@@ -21,7 +21,8 @@ from ads_rca.params import parse_assignments
 from ads_rca.paramspec import MAX_FILE_MB, check_number
 from ads_rca.sources.bag.options import BagOptions
 from ads_rca.sources.bag.profiles import BUILTIN_PROFILES, DEFAULT_PROFILE
-from ads_rca.sources.formats import AUTO, FORMATS, SOURCE_PARAMS, SourceOptions
+from ads_rca.sources.formats import AUTO, SOURCE_PARAMS, SourceOptions
+from ads_rca.sources.registry import FORMATS
 
 #: The reader's parameter names (popped from ``-p`` / config before the engine sees them).
 READER_PARAMS = ("max_file_mb", *SOURCE_PARAMS)

@@ -23,10 +23,10 @@ from ads_rca.foundation.strictjson import dumps
 from ads_rca.foundation.text import printable
 from ads_rca.model import FOLDERS, RunLog
 from ads_rca.oracles.semantics import MODES, semantics_for
+from ads_rca.sources.bag import NAME as BAG
 from ads_rca.sources.bag.options import BagOptions
 from ads_rca.sources.bag.reader import BagContents, load_bag, read_bag
-from ads_rca.sources.formats import BAG, resolved_format
-from ads_rca.sources.registry import open_run
+from ads_rca.sources.registry import open_run, resolved_format
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:

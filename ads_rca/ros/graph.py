@@ -40,7 +40,8 @@ from ads_rca.params import SEMANTICS, Params, params_from_sources
 from ads_rca.paramspec import MAX_FILE_MB, RATE, SECONDS, check_number
 from ads_rca.ros.launcher import Launcher, ManagedProcess, ParamValue, ros_args
 from ads_rca.sources.bag.profiles import BUILTIN_PROFILES
-from ads_rca.sources.formats import AUTO, FORMATS, SOURCE_PARAMS, SourceOptions
+from ads_rca.sources.formats import AUTO, SOURCE_PARAMS, SourceOptions
+from ads_rca.sources.registry import FORMATS
 
 PLAYER = "ads_rca.ros.player"
 AGGREGATOR = "ads_rca.ros.aggregator"

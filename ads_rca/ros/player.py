@@ -61,7 +61,8 @@ from ads_rca.ros.nodemain import (
 from ads_rca.ros.nodeparams import NodeParameter, declare_node_parameters, log_in_force
 from ads_rca.sources.bag.options import BagOptions
 from ads_rca.sources.bag.profiles import BUILTIN_PROFILES, DEFAULT_PROFILE
-from ads_rca.sources.formats import AUTO, FORMATS, SOURCE_PARAMS, SourceOptions, no_frame_message
+from ads_rca.sources.formats import AUTO, SOURCE_PARAMS, SourceOptions
+from ads_rca.sources.registry import FORMATS, no_frame_message
 
 #: A tick may carry a few extra stamps; 40 frames stay far below the 100-message history.
 MAX_ACK_EVERY = 40

@@ -1,28 +1,101 @@
-"""Readers and writers of run logs. :func:`open_run` picks the reader for a path."""
+"""The sources, and :func:`open_run`: which source a path is, and its reader.
+
+Each folder named in :data:`SOURCES` declares its :class:`~ads_rca.sources.formats.Source`
+(``SOURCE`` in its ``__init__.py``, imported when first asked for: a source's reader only
+when it reads). Everything that depends on which sources exist derives from this table:
+``--format``'s names (:data:`FORMATS`), what ``auto`` detects (:data:`DETECTION_ORDER`), which
+options a path may be given (:func:`refuse_options`), how batch rows and messages name a
+source.
+"""
 
 from __future__ import annotations
 
+import importlib
 import os
-from dataclasses import replace
+from functools import cache
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ads_rca.errors import InputError
 from ads_rca.foundation.files import DEFAULT_MAX_FILE_MB
-from ads_rca.foundation.progress import Progress
-from ads_rca.model import RunLog
 from ads_rca.sources.bag.options import BagOptions
-from ads_rca.sources.bag.paths import is_bag
 from ads_rca.sources.formats import (
-    ATMACUP,
     AUTO,
-    BAG,
-    CARLA,
-    DLP,
-    FORMAT_NAMES,
-    LOG,
-    OPENLANE,
+    REFUSALS,
+    ReadRequest,
+    Source,
     SourceOptions,
-    resolved_format,
+    actors_reason,
+    shown,
 )
+
+if TYPE_CHECKING:
+    from ads_rca.foundation.progress import Progress
+    from ads_rca.model import RunLog
+
+#: The sources, each a folder of :mod:`ads_rca.sources` of that name, in the order
+#: ``--format`` lists them (and the refusals name the sources taking an option).
+SOURCES: tuple[str, ...] = ("log", "bag", "carla", "dlp", "atmacup", "openlane")
+#: The order ``auto`` asks the sources whether a path is theirs: the first to say yes
+#: reads it (a folder holding both a CARLA telemetry file and an atmaCup table is the
+#: table); the running log last, as it takes what no other does (its reader says what is
+#: wrong).
+DETECTION_ORDER: tuple[str, ...] = ("bag", "atmacup", "carla", "dlp", "openlane", "log")
+#: Every name ``--format`` takes, ``auto`` first.
+FORMATS: tuple[str, ...] = (AUTO, *SOURCES)
+
+
+@cache
+def source_named(name: str) -> Source:
+    """The declaration of source ``name`` (one of :data:`SOURCES`)."""
+    if name not in SOURCES:
+        raise KeyError(name)
+    found = importlib.import_module(f"{__package__}.{name}").SOURCE
+    assert isinstance(found, Source) and found.name == name, name
+    return found
+
+
+def checked_format(name: object) -> str:
+    """``name`` when it is one of :data:`FORMATS`; InputError (one line) else."""
+    if name not in FORMATS:
+        raise InputError(f"format {shown(name)}: expected one of {', '.join(FORMATS)}")
+    return str(name)
+
+
+def detect_format(path: str | os.PathLike[str]) -> str:
+    """The source ``path`` is: the first of :data:`DETECTION_ORDER` whose ``detect`` says
+    so (by names and ``stat`` only); the last one takes any path."""
+    folder = Path(path)
+    found = (n for n in DETECTION_ORDER if source_named(n).detect(folder))
+    return next(found, DETECTION_ORDER[-1])
+
+
+def resolved_format(path: str | os.PathLike[str], name: str = AUTO) -> str:
+    """``name`` checked, with ``auto`` replaced by what :func:`detect_format` finds."""
+    name = checked_format(name)
+    return detect_format(path) if name == AUTO else name
+
+
+def refuse_options(path: str | os.PathLike[str], source: Source, request: ReadRequest) -> None:
+    """InputError (one line, :data:`~ads_rca.sources.formats.REFUSALS`) for the first
+    option given that ``source`` does not take."""
+    for option, message in REFUSALS:
+        if option in source.options or not request.given(option):
+            continue
+        takers = [source_named(n).words + "s" for n in SOURCES if option in source_named(n).options]
+        raise InputError(
+            message.format(
+                path=os.fspath(path),
+                takers=listed(takers),
+                kind=source.kind,
+                refused_as=source.refused_as or source.kind,
+            )
+        )
+
+
+def listed(words: list[str], conjunction: str = "and") -> str:
+    """``a``, ``a and b``, ``a, b and c`` (or another conjunction)."""
+    return f" {conjunction} ".join(filter(None, (", ".join(words[:-1]), words[-1])))
 
 
 def open_run(
@@ -34,117 +107,38 @@ def open_run(
     workers: int = 1,
     source: SourceOptions | None = None,
 ) -> RunLog:
-    """Load a run from any supported source (``source.source_format``, :mod:`.formats`;
-    ``auto`` tells them apart by the path): an ADS running-log folder, a rosbag2 bag
-    (directory, ``.mcap`` or ``.db3``) read through ``bag``'s profile (default: this
-    project's topics; ``remap`` = topic remapping YAML for them, also ``bag.remap``), a CARLA
-    experiment-client run folder, a DLP scene or an OpenLane-V2 segment (docs/formats.md;
-    ``source`` holds their options: the derived collision, the DLP ego, a predictor's
-    files to score).
-    ``max_file_mb`` caps each file read whole (larger ones are reported and skipped);
-    ``progress`` sees the files read, or the bag messages decoded; ``workers`` > 1 reads a
-    long log folder in that many forked processes."""
+    """Load a run from any source (``source.source_format``; ``auto`` tells them apart by
+    the path), with the options that source takes (``source``'s; a bag's ``bag``, ``remap``
+    = topic remapping YAML for this project's topics, also ``bag.remap``); any other option
+    given is refused in one line before anything is read. ``max_file_mb`` caps each file
+    read whole (larger ones are reported and skipped); ``progress`` sees the files read, or
+    the bag messages decoded; ``workers`` > 1 reads a long log folder in that many forked
+    processes."""
     bag = bag or BagOptions()
     source = source or SourceOptions()
-    source_format, derived_collision = source.source_format, source.derived_collision
     remap = remap if remap is not None else bag.remap
     if not os.path.lexists(path):
         raise InputError(f"{os.fspath(path)}: no such log folder or bag")
-    fmt = resolved_format(path, source_format)
-    kind = FORMAT_NAMES[fmt]
-    if derived_collision and fmt not in (CARLA, DLP):
-        raise InputError(
-            f"{os.fspath(path)}: the derived collision check applies to CARLA runs and DLP "
-            f"scenes, not to {kind}"
-        )
-    if source.ego_agent and fmt != DLP:
-        raise InputError(f"{os.fspath(path)}: ego_agent applies to DLP scenes, not to {kind}")
-    if source.predictions and fmt not in (CARLA, DLP, OPENLANE):
-        raise InputError(
-            f"{os.fspath(path)}: --predictions applies to CARLA runs, DLP scenes and OpenLane-V2 "
-            f"segments (which hold no predictions), not to {kind}"
-        )
-    if fmt == OPENLANE:
-        if remap is not None or not bag.contract:
-            raise InputError("--profile and --remap apply to bags, not to an OpenLane-V2 segment")
-        from ads_rca.sources.openlane.reader import read_openlane_segment
-
-        return read_openlane_segment(path, max_file_mb, source)
-    if source.submission and fmt != ATMACUP:
-        raise InputError(
-            f"{os.fspath(path)}: --submission applies to atmaCup tables, not to {kind}"
-        )
-    if fmt == ATMACUP:
-        if remap is not None or not bag.contract:
-            raise InputError("--profile and --remap apply to bags, not to an atmaCup table")
-        from ads_rca.sources.atmacup.reader import read_atmacup_table
-
-        return read_atmacup_table(path, max_file_mb, source)
-    if fmt in (CARLA, DLP):
-        log = _dataset_run(path, fmt, max_file_mb, source, remap, bag)
-        if source.predictions:
-            with_predictions(log, source.predictions, max_file_mb)
-        return log
-    if fmt == LOG and source_format != AUTO and is_bag(path):
-        raise InputError(f"{os.fspath(path)}: --format {LOG}: this is a bag")
-    if fmt == BAG and not is_bag(path):
-        raise InputError(
-            f"{os.fspath(path)}: --format {BAG}: not a bag (a .mcap or .db3 file, "
-            "or a folder with metadata.yaml)"
-        )
-    if not bag.contract:
-        if remap is not None:  # a remap given beside the options: the options' own check
-            BagOptions(bag.profile, str(remap), bag.msg_path)
-        if not is_bag(path):
-            raise InputError(f"{os.fspath(path)}: profile {bag.profile!r} reads bags; not a bag")
-        from ads_rca.sources.bag.profiles.recording import read_recording
-
-        return read_recording(path, bag.profile, bag.msg_path, progress)
-    if remap is not None or is_bag(path):
-        from ads_rca.sources.bag.reader import read_bag
-
-        return read_bag(path, remap=remap, progress=progress)
-    from ads_rca.sources.log.reader import read_run_log
-
-    return read_run_log(path, max_file_mb, progress, workers)
+    chosen = source_named(resolved_format(path, source.source_format))
+    request = ReadRequest(source, bag, remap, max_file_mb, progress, workers)
+    refuse_options(path, chosen, request)
+    return chosen.read(path, request)
 
 
-def _dataset_run(
+def no_frame_message(
     path: str | os.PathLike[str],
-    fmt: str,
-    max_file_mb: float,
-    source: SourceOptions,
-    remap: str | os.PathLike[str] | None,
-    bag: BagOptions,
-) -> RunLog:
-    """A CARLA run or a DLP scene (no profile, no remapping: they are not bags)."""
-    what = "a CARLA run folder" if fmt == CARLA else "a DLP scene"
-    if remap is not None or not bag.contract:
-        raise InputError(f"--profile and --remap apply to bags, not to {what}")
-    if fmt == CARLA:
-        from ads_rca.sources.carla.reader import read_carla_run
-
-        return read_carla_run(path, max_file_mb, source.derived_collision)
-    from ads_rca.sources.dlp.reader import read_dlp_scene
-
-    return read_dlp_scene(path, max_file_mb, source)
-
-
-def with_predictions(log: RunLog, directory: str, max_file_mb: float) -> None:
-    """A predictor's prediction files put in ``log`` (which had none), its problems
-    reported, and the capability record saying where they came from."""
-    from ads_rca.model import INPUTS_KEY, InputStatus
-    from ads_rca.sources.log.reader import read_predictions_folder
-
-    found, problems = read_predictions_folder(directory, max_file_mb)
-    log.predictions.update(found)
-    log.problems.extend(problems)
-    log.inputs["predictions"] = InputStatus(
-        "real",
-        os.fspath(directory),
-        "a predictor's output given with --predictions: not judged by the verdict rules, "
-        "scored against the realised future (ids are actor ids)",
-    )
-    raw = dict(log.metadata.raw)
-    raw[INPUTS_KEY] = {name: s.to_dict() for name, s in log.inputs.items()}
-    log.metadata = replace(log.metadata, raw=raw)
+    log: RunLog,
+    source_format: str = AUTO,
+    bag: BagOptions | None = None,
+) -> str:
+    """Why ``log``, read from ``path`` (a bag with ``bag``'s options), gives no frame to
+    analyse, in terms of what the input is (``diagnose`` and the player refuse it in this
+    one line): the source's own words when it has them (:attr:`Source.no_frame`), else its
+    actors and why they gave none."""
+    where = os.fspath(path)
+    chosen = source_named(resolved_format(path, source_format))
+    if chosen.no_frame is not None:
+        return chosen.no_frame(where, log, bag)
+    why = actors_reason(log)
+    detail = f" (actors: {why})" if why else ""
+    return f"{where}: no frame to analyse in {chosen.kind}{detail}"

@@ -52,6 +52,7 @@ from ads_rca.model import (
     RunMetadata,
 )
 from ads_rca.problems import DROPPED_RECORD, SKIPPED_FILE, SKIPPED_FRAME, ProblemLog
+from ads_rca.sources.atmacup import TABLE_FILES
 from ads_rca.sources.atmacup.snapshots import (
     BOOLEAN_COLUMNS,
     HORIZONS_S,
@@ -72,8 +73,6 @@ from ads_rca.sources.log.reader import UNUSABLE, check_max_file_mb, decode_file
 from ads_rca.sources.log.records import is_json_number, json_number
 
 FORMAT_NAME = "atmacup"
-#: The table files a folder may hold (a folder must hold exactly one of them).
-TABLE_FILES = ("train_features.csv", "test_features.csv")
 LIGHTS_FOLDER = "traffic_lights"
 #: Milliseconds between the frames of consecutive rows (the table's unit: deciseconds).
 TPF_MS = 100

@@ -61,6 +61,7 @@ from ads_rca.problems import (
     USED_DEFAULT,
     ProblemLog,
 )
+from ads_rca.sources.carla import TELEMETRY_CSV, TELEMETRY_JSON
 from ads_rca.sources.carla.annotations import (
     ANNOTATIONS_KEY,
     MAX_ANNOTATIONS,
@@ -81,8 +82,6 @@ from ads_rca.sources.carla.telemetry import (
     DEFAULT_FPS,
     EGO_ACTOR_ID,
     MAX_FPS,
-    TELEMETRY_CSV,
-    TELEMETRY_JSON,
     Telemetry,
     kind_of,
     telemetry_from_csv,

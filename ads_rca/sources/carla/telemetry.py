@@ -26,11 +26,10 @@ from ads_rca.problems import (
     USED_DEFAULT,
     ProblemLog,
 )
+from ads_rca.sources.carla import TELEMETRY_CSV, TELEMETRY_JSON
 from ads_rca.sources.carla.annotations import MAX_KIND, bounded
 from ads_rca.sources.log.records import FieldReader, show_value
 
-TELEMETRY_JSON = "telemetry.json"
-TELEMETRY_CSV = "telemetry.csv"
 #: The ego's actor id (CARLA ids are integers, so no recorded actor has it).
 EGO_ACTOR_ID = "ego"
 #: The client's frame rate when neither the run nor its telemetry says one.

@@ -62,6 +62,7 @@ from ads_rca.problems import (
     ProblemLog,
 )
 from ads_rca.sources.carla.figures import ActorRows, EgoTrack, overlaps
+from ads_rca.sources.dlp import SCENE_SUFFIX
 from ads_rca.sources.errors import InvalidJson
 from ads_rca.sources.formats import SourceOptions
 from ads_rca.sources.json_stream import object_members
@@ -71,7 +72,6 @@ from ads_rca.sources.predictor.scores import ACTOR_TYPES_KEY
 
 FORMAT_NAME = "dlp"
 PARTS = ("scene", "frames", "agents", "instances", "obstacles")
-SCENE_SUFFIX = "_scene.json"
 #: DLP's frame period (25 fps) when the timestamps do not give one.
 DEFAULT_TPF = 40
 #: Half heights (m) per class: DLP gives lengths and widths only.

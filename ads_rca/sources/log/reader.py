@@ -25,6 +25,7 @@ import json
 import math
 import os
 from collections.abc import Callable, Iterable, Sequence
+from dataclasses import replace
 from operator import itemgetter
 from pathlib import Path
 from typing import Any
@@ -52,9 +53,11 @@ from ads_rca.sources.log.validate import validate_run_log
 from ads_rca.model import (
     ALL_FOLDERS,
     FOLDERS,
+    INPUTS_KEY,
     MAX_FRAME,
     MAX_TIMESTAMP_MS,
     OPTIONAL_FOLDERS,
+    InputStatus,
     Predictions,
     Record,
     RunLog,
@@ -268,6 +271,25 @@ def read_predictions_folder(
         if record is not None:
             out[ts] = record
     return out, problems
+
+
+def with_predictions(log: RunLog, directory: str, max_file_mb: float) -> RunLog:
+    """``log`` (which had no predictions) with a predictor's prediction files
+    (:func:`read_predictions_folder`), their problems reported, and the capability record
+    saying where they came from: the sources taking ``--predictions`` call it after reading."""
+    found, problems = read_predictions_folder(directory, max_file_mb)
+    log.predictions.update(found)
+    log.problems.extend(problems)
+    log.inputs["predictions"] = InputStatus(
+        "real",
+        os.fspath(directory),
+        "a predictor's output given with --predictions: not judged by the verdict rules, "
+        "scored against the realised future (ids are actor ids)",
+    )
+    raw = dict(log.metadata.raw)
+    raw[INPUTS_KEY] = {name: s.to_dict() for name, s in log.inputs.items()}
+    log.metadata = replace(log.metadata, raw=raw)
+    return log
 
 
 def check_max_file_mb(max_file_mb: float) -> int:

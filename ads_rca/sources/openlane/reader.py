@@ -72,6 +72,7 @@ from ads_rca.problems import (
 from ads_rca.sources.bag.profiles.frames import map_rpy_to_carla_deg
 from ads_rca.sources.formats import SourceOptions
 from ads_rca.sources.log.reader import UNUSABLE, check_max_file_mb, decode_file
+from ads_rca.sources.openlane import INFO
 from ads_rca.sources.openlane.annotation import (
     bounded_text,
     boxes_of,
@@ -83,7 +84,6 @@ from ads_rca.sources.openlane.annotation import (
 from ads_rca.sources.openlane.lanes import LaneGraph
 
 FORMAT_NAME = "openlane"
-INFO = "info"
 #: Timestamps at least this large are nanoseconds (Argoverse 2's are about 3.2e17).
 NS_FROM = 10**17
 #: Timestamps at least this large (and below :data:`NS_FROM`) are microseconds (nuScenes').

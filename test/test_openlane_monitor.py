@@ -347,7 +347,7 @@ def test_the_live_monitor_reports_what_diagnose_does(
     for n, result in enumerate(results):
         status = result_status(result, "corrected", "test")
         assert (status.level, status.message) == expected_status(offline, n), n
-    matches = run.monitors["perception"].lane_matches
+    matches = LaneMatches.kept_in(run.monitors["perception"].scorer_state["lanes"])
     assert sorted(matches.by_stamp) == [log.frames[i] for i in SCORED]
 
 
@@ -362,7 +362,8 @@ def test_the_window_forgets_old_frames_but_the_segment_keeps_their_matches(
     params = make_params("corrected", {**overrides, "window_s": 0.5})
     run = run_live(log, params)
     core = run.monitors["perception"]
-    assert len(core.records["lanes"]) < 30 and len(core.lane_matches.by_stamp) == 60
+    matches = LaneMatches.kept_in(core.scorer_state["lanes"])
+    assert len(core.records["lanes"]) < 30 and len(matches.by_stamp) == 60
     assert run.outcome is not None
     live = run.outcome.document[OPENLANE_SCORES_KEY]
     assert live == diagnose(log, params).to_json()[OPENLANE_SCORES_KEY]

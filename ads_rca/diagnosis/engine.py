@@ -27,12 +27,7 @@ from ads_rca.oracles.base import MODULES, Module, OracleResult, RunContext
 from ads_rca.oracles.semantics import Oracle, Semantics, semantics_for
 from ads_rca.params import Params
 from ads_rca.problems import Problem, ProblemLog
-from ads_rca.sources.atmacup.trajectory_scores import TRAJECTORY_SCORES_KEY, trajectory_scores
-from ads_rca.sources.carla.annotations import ANNOTATIONS_KEY, annotations_from_document
-from ads_rca.sources.carla.figures import FIGURES_KEY, figures_from_document
-from ads_rca.sources.openlane.run_scores import OPENLANE_SCORES_KEY
-from ads_rca.sources.openlane.run_scores import run_scores as lane_run_scores
-from ads_rca.sources.predictor.scores import SCORES_KEY, run_scores
+from ads_rca.sources.registry import scored_entries
 
 
 def evaluate_frame(ctx: RunContext, oracles: Mapping[Module, Oracle], ts: int) -> FrameResults:
@@ -146,21 +141,8 @@ class Diagnosis:
             "frames": self._frames_json() if include_frames else [],
             "input_problems": [p.to_dict() for p in self.problems],
         }
-        # What a run says about itself (a CARLA run's events and figures), when it does.
-        annotations = annotations_from_document(self.log.metadata.raw)
-        if annotations:
-            document[ANNOTATIONS_KEY] = [a.to_dict() for a in annotations]
-        figures = figures_from_document(self.log.metadata.raw)
-        if figures:
-            document[FIGURES_KEY] = figures
-        scores = run_scores(self.frames)
-        if scores:
-            document[SCORES_KEY] = scores
-        lanes = lane_run_scores(self.frames, self.params.semantics)
-        if lanes:  # an OpenLane-V2 segment's model, with the benchmark's figures
-            document[OPENLANE_SCORES_KEY] = lanes
-        if self.log.ego_snapshots is not None:  # a table of snapshots (atmaCup #18)
-            document[TRAJECTORY_SCORES_KEY] = trajectory_scores(self.log.ego_snapshots)
+        # The figures the run's data gives beside the verdict, when it gives any.
+        document.update(scored_entries(self.log, self.frames, self.params.semantics))
         return dict(json_safe(document))
 
     def _frames_json(self) -> list[dict[str, Any]] | RenderedList:

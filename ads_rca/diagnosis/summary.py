@@ -10,16 +10,11 @@ from typing import Any
 
 from ads_rca.capabilities import JUDGED
 from ads_rca.diagnosis.conclusion import COLLISION_UNKNOWN_STATE
-from ads_rca.foundation.text import printable
+from ads_rca.foundation.text import printable, short
 from ads_rca.oracles.base import MODULES
 from ads_rca.oracles.semantics import MODES, Semantics, semantics_for
 from ads_rca.problems import Problem, ProblemLog
-from ads_rca.sources.atmacup.trajectory_scores import TRAJECTORY_SCORES_KEY
-from ads_rca.sources.carla.annotations import annotations_from_document
-from ads_rca.sources.carla.figures import FIGURE_KEYS, figures_from_document
-from ads_rca.sources.openlane.run_scores import OPENLANE_SCORES_KEY
-from ads_rca.sources.openlane.run_scores import summary_lines as openlane_lines
-from ads_rca.sources.predictor.scores import MISS_M, SCORES_KEY
+from ads_rca.sources.registry import scores_summary_lines
 
 
 def collision_text(collision_frame: int, known: bool = True) -> str:
@@ -75,87 +70,11 @@ def summary_text(document: dict[str, Any], max_problems: int = 10, how: str = "j
         for module in document.get("root_causes") or []
         if evidence.get(module)
     )
-    lines.extend(run_notes_lines(document))
+    lines.extend(scores_summary_lines(document))
     problems = ProblemLog(Problem.from_dict(p) for p in document.get("input_problems") or [])
     lines.append(f"input problems: {len(problems)}")
     lines.extend(f"  {line}" for line in problems.summary_lines(max_problems))
     return "\n".join(printable(line) for line in lines)
-
-
-def run_notes_lines(document: dict[str, Any], shown: int = 10) -> list[str]:
-    """The run's own figures and annotations (a CARLA run's) and a predictor's scores, when
-    it has any."""
-    lines: list[str] = []
-    scores = document.get(SCORES_KEY)
-    if isinstance(scores, dict) and scores.get("scored"):
-        lines.append(
-            f"prediction scores ({scores['scored']} tracks against the realised future): "
-            + _score_text(scores)
-        )
-        by_type = scores.get("by_type")
-        for kind, row in (by_type if isinstance(by_type, dict) else {}).items():
-            if isinstance(row, dict):
-                lines.append(f"  {kind}: {row.get('scored')} tracks, {_score_text(row)}")
-    lines.extend(trajectory_lines(document.get(TRAJECTORY_SCORES_KEY), shown))
-    lines.extend(openlane_lines(document.get(OPENLANE_SCORES_KEY)))
-    figures = figures_from_document(document)
-    if figures:
-        values = ", ".join(f"{k}={_short(figures[k])}" for k in FIGURE_KEYS)
-        lines.append(f"run figures: {values}")
-    annotations = annotations_from_document(document)
-    if annotations:
-        lines.append(f"annotations ({len(annotations)}; events, not collisions):")
-        lines.extend(f"  {a.line()}" for a in annotations[:shown])
-        if len(annotations) > shown:
-            lines.append(f"  ... {len(annotations) - shown} more")
-    return lines
-
-
-def trajectory_lines(scores: object, shown: int = 10) -> list[str]:
-    """A snapshot table's ego-trajectory scores (``trajectory_scores``): the competition's
-    MAE, ADE and FDE, per horizon, the worst rows; or why nothing was scored."""
-    if not isinstance(scores, dict):
-        return []
-    head = f"trajectory scores ({scores.get('scored')} of {scores.get('rows')} rows scored"
-    if not scores.get("scored"):
-        return [f"{head}): {scores.get('note', 'nothing scored')}"]
-    lines = [
-        f"{head}; {scores.get('no_truth')} without a realised path, "
-        f"{scores.get('no_prediction')} without a prediction): MAE {_precise(scores.get('mae'))} "
-        f"(the competition's, over x, y, z), ADE {_short(scores.get('ade'))} m, "
-        f"FDE {_short(scores.get('fde'))} m (3-D)"
-    ]
-    horizons = scores.get("by_horizon")
-    if isinstance(horizons, list):
-        lines.append(
-            "  by horizon (mean distance): "
-            + ", ".join(
-                f"{_short(h.get('horizon_s'))} s {_short(h.get('distance'))} m"
-                for h in horizons
-                if isinstance(h, dict)
-            )
-        )
-    worst = scores.get("worst_rows")
-    if isinstance(worst, list) and worst:
-        lines.append("  worst rows by ADE:")
-        lines.extend(
-            f"    {row.get('id')}: ADE {_short(row.get('ade'))} m, FDE "
-            f"{_short(row.get('fde'))} m, MAE {_short(row.get('mae'))}"
-            for row in worst[:shown]
-            if isinstance(row, dict)
-        )
-    return lines
-
-
-def _precise(value: object) -> str:
-    return f"{value:.6g}" if isinstance(value, float) else _short(value)
-
-
-def _score_text(row: dict[str, Any]) -> str:
-    return (
-        f"ADE {_short(row.get('ade'))} m, FDE {_short(row.get('fde'))} m, "
-        f"miss rate {_short(row.get('miss_rate'))} (FDE > {MISS_M:g} m)"
-    )
 
 
 def window_text(window: Any) -> str:
@@ -183,12 +102,5 @@ def _flat(values: dict[str, Any], prefix: str = "") -> list[str]:
         if isinstance(value, dict):
             items.extend(_flat(value, f"{prefix}{key}."))
         else:
-            items.append(f"{prefix}{key}={_short(value)}")
+            items.append(f"{prefix}{key}={short(value)}")
     return items
-
-
-def _short(value: object) -> str:
-    if isinstance(value, float):
-        return f"{value:.3g}"
-    text = str(value)
-    return text if len(text) <= 60 else text[:57] + "..."

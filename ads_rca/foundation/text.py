@@ -5,6 +5,10 @@ forge a whole output line such as ``verdict: planning``), an ANSI escape sequenc
 screen, recolour, move the cursor) or a bidi override (show text in another order than it
 is). Everything human-facing that can carry such text goes through :func:`printable`.
 JSON outputs keep the exact strings: JSON escapes control characters itself.
+
+How a figure or an id is shown in a line (:func:`short`, :func:`precise`, :func:`metres`,
+:func:`shown_id`) is here too, so the summary, the live statuses and every scorer of a
+run's data show them alike.
 """
 
 from __future__ import annotations
@@ -53,3 +57,34 @@ def short_repr(value: object, limit: int = 40) -> str:
     """
     text = _SHORT.repr(value)
     return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+#: Characters of an actor or row id a message shows (ids come from a log: untrusted).
+ID_CHARS = 64
+
+
+def shown_id(identifier: str) -> str:
+    """An id for a message: control characters escaped, at most :data:`ID_CHARS`."""
+    if len(identifier) > ID_CHARS:
+        identifier = identifier[:ID_CHARS] + "…"
+    return printable(identifier)
+
+
+def short(value: object) -> str:
+    """A figure or a value for a line of a summary: a float to 3 significant digits, any
+    other value as text of at most 60 characters."""
+    if isinstance(value, float):
+        return f"{value:.3g}"
+    text = str(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def precise(value: object) -> str:
+    """A figure compared to others' to many digits (a competition's metric): 6 significant
+    digits; any other value as :func:`short` shows it."""
+    return f"{value:.6g}" if isinstance(value, float) else short(value)
+
+
+def metres(value: object) -> str:
+    """A distance for a status line: ``1.23 m``, ``-`` when it is no number."""
+    return f"{value:.2f} m" if isinstance(value, float) else "-"

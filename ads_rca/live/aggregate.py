@@ -620,8 +620,8 @@ class AggregatorCore(FollowsRunEnd):
 
 #: Stack mode: results this many frames before the first one heard are still placed.
 STACK_MARGIN = 4096
-#: Snapshot rows (``run/ego_paths`` stamps) held at most: an atmaCup #18 train table has
-#: about 43,000; a flood of made-up stamps must not grow memory without end.
+#: Snapshot rows (``run/ego_paths`` stamps) held at most: a whole dataset split of snapshots
+#: is some 43,000 rows; a flood of made-up stamps must not grow memory without end.
 MAX_ROWS = 1 << 17
 
 

@@ -33,20 +33,17 @@ from ads_rca.contract.cdr import CdrWriter
 from ads_rca.contract.cdr_decode import CdrReader
 from ads_rca.contract.errors import CdrError
 from ads_rca.contract.jsontext import dumps_json
-from ads_rca.foundation.text import printable
+from ads_rca.foundation.text import shown_id
 from ads_rca.live.results import LiveResult, plain
 from ads_rca.live.runid import RUN_KEY
 from ads_rca.params import make_params
-from ads_rca.sources.openlane.run_scores import FRAME_KEY, SEGMENT_KEY, figures_text
+from ads_rca.sources.registry import scored_status
 
 #: diagnostic_msgs/DiagnosticStatus levels (a ``byte`` field).
 OK = 0
 WARN = 1
 ERROR = 2
 STALE = 3
-
-#: Characters of an actor id a status message shows (ids come from the log: untrusted).
-ID_CHARS = 64
 
 
 @dataclass(frozen=True)
@@ -154,13 +151,6 @@ def near_miss(results: Sequence[LiveResult], semantics: str) -> str:
     )
 
 
-def shown_id(actor_id: str) -> str:
-    """An actor id for a message: control characters escaped, at most :data:`ID_CHARS`."""
-    if len(actor_id) > ID_CHARS:
-        actor_id = actor_id[:ID_CHARS] + "…"
-    return printable(actor_id)
-
-
 def result_status(live: LiveResult, semantics: str, hardware_id: str) -> Status:
     """One judged frame: ERROR failed, STALE when the run has no data for the module (its
     inputs are absent: never OK), WARN skipped or judged with incomplete inputs, else OK."""
@@ -170,29 +160,9 @@ def result_status(live: LiveResult, semantics: str, hardware_id: str) -> Status:
         message = f"frame {live.frame}: {internal_error_head(r.module)} ({r.internal_error})"
     elif r.failed:
         level, message = ERROR, f"frame {live.frame}: {r.module} failed"
-    elif r.skipped and r.skipped.startswith(NOT_JUDGED) and r.metrics.get("scored_ids"):
-        level = OK  # a predictor's tracks scored against the realised future
-        message = (
-            f"frame {live.frame}: {r.metrics['scored_ids']} predictions scored "
-            f"(ADE {_metres(r.metrics.get('ade'))}, FDE {_metres(r.metrics.get('fde'))}); "
-            f"the verdict rule: {r.skipped}"
-        )
-    elif r.skipped and r.skipped.startswith(NOT_JUDGED) and "trajectory_ade" in r.metrics:
-        level = OK  # a snapshot table's row: its predicted ego path against the realised one
-        message = (
-            f"frame {live.frame}: row {shown_id(str(r.metrics.get('row_id')))}: predicted path "
-            f"scored (ADE {_metres(r.metrics.get('trajectory_ade'))}, FDE "
-            f"{_metres(r.metrics.get('trajectory_fde'))}); the verdict rule: {r.skipped}"
-        )
-    elif r.skipped and r.skipped.startswith(NOT_JUDGED) and FRAME_KEY in r.metrics:
-        level = OK  # an OpenLane-V2 model's lane graphs against the ground truth
-        segment = r.metrics.get(SEGMENT_KEY)
-        frames = segment.get("frames") if isinstance(segment, Mapping) else None
-        message = (
-            f"frame {live.frame}: OpenLane-V2 {figures_text(r.metrics[FRAME_KEY])} (frame) / "
-            f"{figures_text(segment)} (segment so far, {_count(frames)}); "
-            f"the verdict rule: {r.skipped}"
-        )
+    elif r.skipped and r.skipped.startswith(NOT_JUDGED) and (scored := scored_status(r)):
+        level = OK  # not judged, but a scorer scored what the run holds for the module
+        message = f"frame {live.frame}: {scored}; the verdict rule: {r.skipped}"
     elif r.skipped and r.skipped.startswith(NOT_JUDGED):
         level, message = STALE, f"frame {live.frame}: no data: {r.skipped}"
     elif r.skipped or live.incomplete or r.missing_input:
@@ -218,16 +188,6 @@ def result_status(live: LiveResult, semantics: str, hardware_id: str) -> Status:
         head[RUN_KEY] = live.run
     values = flatten(head) + flatten(r.metrics, "metric.") + flatten(r.thresholds, "threshold.")
     return Status(level, status_name(r.module), message, hardware_id, values)
-
-
-def _count(frames: object) -> str:
-    if not isinstance(frames, int) or isinstance(frames, bool):
-        return "- frames"
-    return f"{frames} frame" + ("" if frames == 1 else "s")
-
-
-def _metres(value: object) -> str:
-    return f"{value:.2f} m" if isinstance(value, float) else "-"
 
 
 def simple_status(

@@ -43,6 +43,7 @@ import uuid
 from collections import deque
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
@@ -65,7 +66,6 @@ from ads_rca.oracles.base import MODULES, Module, RunContext
 from ads_rca.oracles.semantics import semantics_for
 from ads_rca.params import Params
 from ads_rca.problems import Problem, ProblemLog, new_problems
-from ads_rca.sources.openlane.run_scores import LaneMatches
 
 #: A snapshot row's paths, awaited by the planning module like an input folder.
 EGO_PATHS = "ego_paths"
@@ -168,10 +168,9 @@ class MonitorCore(FollowsRunEnd):
         #: Planning is not judged by its rules on this run's inputs: its result of a row reads
         #: the row's paths only, so a later path re-scores it (set with the metadata).
         self.rescores_rows = False
-        #: An OpenLane-V2 segment's scored frames' matches, kept for the segment figures
-        #: (a frame is matched when judged, never again;
-        # :mod:`ads_rca.sources.openlane.run_scores`).
-        self.lane_matches = LaneMatches()
+        #: What each scorer keeps over the run's frames (a scorer's figures of the run so
+        #: far pool every frame judged, in every window; :attr:`RunContext.scorer_state`).
+        self.scorer_state: dict[str, Any] = {}
         #: Per module, the traceback of the first exception its oracle raised in any
         #: window (a bug in our code: the node logs it once; the result says which error).
         self.tracebacks: dict[Module, str] = {}
@@ -426,7 +425,7 @@ class MonitorCore(FollowsRunEnd):
         else:
             ctx = RunContext.create(log, self.params)
             self.ego_id, self.ego_resolved = ctx.ego_id, True
-        ctx.lane_matches = self.lane_matches  # the segment so far: every judged frame's
+        ctx.scorer_state = self.scorer_state  # the run so far: every judged frame's
         ctx.tracebacks = self.tracebacks  # the first per module, of every window
         if self.judge_without_collision and self.collision_frame < 0:
             self.semantics.judge_without_collision(ctx)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -18,7 +19,6 @@ from ads_rca.model import Actors, EgoPose, RunLog
 from ads_rca.oracles.semantics import EGO_ID_TIMESTAMP_MS, semantics_for
 from ads_rca.params import Params
 from ads_rca.problems import CHECK_SKIPPED, Problem, ProblemLog, new_problems
-from ads_rca.sources.openlane.run_scores import LaneMatches
 
 # The per-frame result types live with the verdict (they are its contract); oracles name
 # them from here.
@@ -44,9 +44,10 @@ class RunContext:
     ego_id: str | None = None
     problems: ProblemLog = field(default_factory=ProblemLog)
     _reported: set[tuple[str, str, str]] = field(default_factory=set, repr=False)
-    #: The OpenLane-V2 frames' matches the segment figures pool (a live monitor gives every
-    #: context of its run the same one; :mod:`ads_rca.sources.openlane.run_scores`).
-    lane_matches: LaneMatches = field(default_factory=LaneMatches, repr=False)
+    #: What each scorer keeps over the run's frames, by scorer name (a scorer's figures of
+    #: a run so far pool earlier frames: a live monitor gives every context of its run the
+    #: same one; :func:`ads_rca.sources.registry.scored_frame`).
+    scorer_state: dict[str, Any] = field(default_factory=dict, repr=False)
     #: Per module, the traceback of the first exception its oracle raised (a bug in our
     #: code: the command prints it; the verdict names the module's internal error).
     tracebacks: dict[Module, str] = field(default_factory=dict, repr=False)
@@ -73,8 +74,8 @@ class RunContext:
 
 
 def _records_no_actors(log: RunLog) -> bool:
-    """The run's capability record says it has no actors (an OpenLane-V2 segment, a
-    recording without them)."""
+    """The run's capability record says it has no actors (a dataset of map perception only,
+    a recording without them)."""
     status = log.inputs.get("actors")
     return bool(log.inputs) and (status is None or status.state == "absent")
 

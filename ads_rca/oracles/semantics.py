@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from functools import partial
 from typing import TYPE_CHECKING, Any
 
-from ads_rca.diagnosis.verdict import Attribution, FrameResults, Metric, Module, OracleResult
+from ads_rca.diagnosis.verdict import Attribution, FrameResults, Module, OracleResult
 from ads_rca.model import ALL_FOLDERS, FOLDERS, InputStatus, Record, RunLog
 from ads_rca.params import Params
 
@@ -258,26 +258,15 @@ class Semantics:
 def not_judged(module: Module, why: str, scores: bool, ctx: RunContext, ts: int) -> OracleResult:
     """The result of a module the run's inputs do not let be judged (see
     :meth:`Semantics.judging_oracles`); with ``scores`` (:attr:`Semantics.scores_predictions`)
-    a predictor's tracks are still scored against the realised future
-    (:mod:`ads_rca.sources.predictor.scores`), an OpenLane-V2 model's lane graphs against the
-    ground truth (:mod:`ads_rca.sources.openlane.run_scores`)."""
-    metrics: dict[str, Metric] = {}
-    if scores and module == "prediction":
-        from ads_rca.sources.predictor.scores import frame_scores
+    the scorer of what the run holds for that module still scores the frame (a predictor's
+    tracks against the realised future, a model's output against the ground truth:
+    :func:`ads_rca.sources.registry.scored_frame`)."""
+    if not scores:
+        return OracleResult(module, ts, failed=False, skipped=why)
+    from ads_rca.sources.registry import scored_frame
 
-        metrics = frame_scores(ctx.log, ts, ctx.params.prediction_window)
-    elif scores and module == "perception" and (ctx.log.lanes or ctx.log.lanes_predicted):
-        from ads_rca.sources.openlane.run_scores import THRESHOLDS
-        from ads_rca.sources.openlane.run_scores import frame_scores as lane_scores
-
-        metrics = lane_scores(ctx.log, ts, ctx.lane_matches)  # an OpenLane-V2 segment's
-        if metrics:
-            return OracleResult(module, ts, False, metrics, dict(THRESHOLDS), skipped=why)
-    elif scores and module == "planning" and ctx.log.ego_snapshots is not None:
-        from ads_rca.sources.atmacup.trajectory_scores import frame_scores as row_scores
-
-        metrics = dict(row_scores(ctx.log, ts))  # a snapshot table's row's predicted path
-    return OracleResult(module, ts, failed=False, metrics=metrics, skipped=why)
+    found = scored_frame(module, ctx.log, ts, ctx.params, ctx.scorer_state)
+    return OracleResult(module, ts, False, found.metrics, found.thresholds, skipped=why)
 
 
 def semantics_for(mode: str | Params) -> Semantics:

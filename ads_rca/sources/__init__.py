@@ -1,3 +1,4 @@
 """Where runs come from: one folder per source (an ADS running log, rosbag2 bags and their
-profiles, a CARLA experiment-client run, a DLP scene, an OpenLane-V2 segment, an atmaCup
-#18 table) and the registry that tells them apart and reads them (`registry.py`)."""
+profiles, each driving dataset we read), each declaring its ``Source`` (``formats.py``), and
+the registry that tells them apart, reads them and lists the scorers of their data
+(``registry.py``)."""

@@ -1,4 +1,5 @@
-"""The sources, and :func:`open_run`: which source a path is, and its reader.
+"""The sources and the scorers of their data: :func:`open_run` (which source a path is, and
+its reader) and the figures a run's data gives beside the verdict.
 
 Each folder named in :data:`SOURCES` declares its :class:`~ads_rca.sources.formats.Source`
 (``SOURCE`` in its ``__init__.py``, imported when first asked for: a source's reader only
@@ -6,16 +7,25 @@ when it reads). Everything that depends on which sources exist derives from this
 ``--format``'s names (:data:`FORMATS`), what ``auto`` detects (:data:`DETECTION_ORDER`), which
 options a path may be given (:func:`refuse_options`), how batch rows and messages name a
 source.
+
+Each module named in :data:`SCORERS` holds a :class:`~ads_rca.diagnosis.Scorer` (``SCORER``),
+imported only when a run holds what it scores (:class:`ScorerEntry`): the engine
+(:func:`scored_entries`), the summary (:func:`scores_summary_lines`), the not-judged results
+(:func:`scored_frame`) and the live statuses (:func:`scored_status`) ask them all, in the
+table's order, and never name one.
 """
 
 from __future__ import annotations
 
 import importlib
 import os
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
+from ads_rca.diagnosis import FrameScores, Scorer
 from ads_rca.errors import InputError
 from ads_rca.foundation.files import DEFAULT_MAX_FILE_MB
 from ads_rca.sources.bag.options import BagOptions
@@ -30,8 +40,10 @@ from ads_rca.sources.formats import (
 )
 
 if TYPE_CHECKING:
+    from ads_rca.diagnosis.verdict import FrameResults, Metric, Module, OracleResult
     from ads_rca.foundation.progress import Progress
     from ads_rca.model import RunLog
+    from ads_rca.params import Params
 
 #: The sources, each a folder of :mod:`ads_rca.sources` of that name, in the order
 #: ``--format`` lists them (and the refusals name the sources taking an option).
@@ -142,3 +154,138 @@ def no_frame_message(
     why = actors_reason(log)
     detail = f" (actors: {why})" if why else ""
     return f"{where}: no frame to analyse in {chosen.kind}{detail}"
+
+
+def _nothing(log: RunLog) -> bool:
+    return False
+
+
+@dataclass(frozen=True)
+class ScorerEntry:
+    """Where a scorer lives and when a run has anything for it, asked before importing it.
+
+    ``module`` holds ``SCORER``; ``keys`` are the verdict JSON keys it writes (its
+    :attr:`~ads_rca.diagnosis.Scorer.keys`: the summary asks it only about a document
+    holding one); ``scores`` is the module whose not-judged results it scores frame by
+    frame, when the run holds what it scores (``frame_data``); the engine asks it for its
+    entries when a frame of that module carries its scores or the run holds what its
+    entries come from besides (``run_data``)."""
+
+    name: str
+    module: str
+    keys: tuple[str, ...]
+    scores: Module | None = None
+    frame_data: Callable[[RunLog], bool] = _nothing
+    run_data: Callable[[RunLog], bool] = _nothing
+
+    def scorer(self) -> Scorer:
+        """The scorer itself (its module imported on first use)."""
+        return _scorer(self.module)
+
+    def wanted(self, log: RunLog, frames: Sequence[FrameResults]) -> bool:
+        """The run judged as ``frames`` has something for :meth:`Scorer.document`."""
+        if self.run_data(log):
+            return True
+        if self.scores is None:
+            return False
+        # Imported here: the CLI and the launch description read this table without the model.
+        from ads_rca.capabilities import NOT_JUDGED
+
+        module = self.scores
+        return any(_scored(f.results.get(module), NOT_JUDGED) for f in frames)
+
+
+@cache
+def _scorer(module: str) -> Scorer:
+    found = importlib.import_module(module).SCORER
+    assert isinstance(found, Scorer), module
+    return found
+
+
+def _scored(result: OracleResult | None, not_judged: str) -> bool:
+    """``result`` was not judged (its reason starts ``not_judged``) and carries metrics."""
+    return bool(result and result.metrics and (result.skipped or "").startswith(not_judged))
+
+
+def _metadata_holds(*keys: str) -> Callable[[RunLog], bool]:
+    return lambda log: any(key in log.metadata.raw for key in keys)
+
+
+#: The scorers, in the order their keys come in the verdict JSON.
+SCORERS: tuple[ScorerEntry, ...] = (
+    ScorerEntry(
+        "run_notes",
+        "ads_rca.sources.carla.figures",
+        ("annotations", "run_figures"),
+        run_data=_metadata_holds("annotations", "run_figures"),
+    ),
+    ScorerEntry(
+        "prediction",
+        "ads_rca.sources.predictor.scores",
+        ("prediction_scores",),
+        "prediction",
+        frame_data=lambda log: bool(log.predictions),
+    ),
+    ScorerEntry(
+        "lanes",
+        "ads_rca.sources.openlane.run_scores",
+        ("openlane_scores",),
+        "perception",
+        frame_data=lambda log: bool(log.lanes or log.lanes_predicted),
+    ),
+    ScorerEntry(
+        "trajectory",
+        "ads_rca.sources.atmacup.trajectory_scores",
+        ("trajectory_scores",),
+        "planning",
+        frame_data=lambda log: log.ego_snapshots is not None,
+        run_data=lambda log: log.ego_snapshots is not None,
+    ),
+)
+#: The order the summary tells them (by :attr:`ScorerEntry.name`): scores of the run's
+#: frames first, what the run says about itself last.
+SUMMARY_ORDER: tuple[str, ...] = ("prediction", "trajectory", "lanes", "run_notes")
+
+
+def scored_entries(log: RunLog, frames: Sequence[FrameResults], semantics: str) -> dict[str, Any]:
+    """Every scorer's verdict JSON entries for the run judged as ``frames``, in order."""
+    out: dict[str, Any] = {}
+    for entry in SCORERS:
+        if entry.wanted(log, frames):
+            out.update(entry.scorer().document(log, frames, semantics))
+    return out
+
+
+def scores_summary_lines(document: Mapping[str, Any], shown: int = 10) -> list[str]:
+    """Every scorer's summary lines for a verdict ``document``, in :data:`SUMMARY_ORDER`."""
+    named = {entry.name: entry for entry in SCORERS}
+    lines: list[str] = []
+    for entry in (named[name] for name in SUMMARY_ORDER):
+        if any(key in document for key in entry.keys):
+            lines.extend(entry.scorer().summary_lines(document, shown))
+    return lines
+
+
+def scored_frame(
+    module: Module, log: RunLog, timestamp_ms: int, params: Params, kept: dict[str, Any]
+) -> FrameScores:
+    """A not-judged ``module``'s scores at one frame: the first scorer of that module with
+    any (``kept``: every scorer's state over the run, by name)."""
+    for entry in SCORERS:
+        if entry.scores == module and entry.frame_data(log):
+            state = kept.setdefault(entry.name, {})
+            found = entry.scorer().frame_scores(log, timestamp_ms, params, state)
+            if found.metrics:
+                return found
+    return FrameScores({}, {})
+
+
+def scored_status(result: OracleResult) -> str | None:
+    """What a live status says of a not-judged result a scorer scored (None: none did)."""
+    metrics: Mapping[str, Metric] = result.metrics
+    for entry in SCORERS:
+        if entry.scores == result.module and metrics:
+            text = entry.scorer().status_text(metrics)
+            if text is not None:
+                return text
+    return None

@@ -25,11 +25,16 @@ Pure numpy over all rows at once (43,000 rows in a few milliseconds).
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
+from ads_rca.diagnosis import FrameScores, Scorer
+from ads_rca.diagnosis.verdict import FrameResults, Metric
+from ads_rca.foundation.text import metres, precise, short, shown_id
 from ads_rca.model import RunLog
+from ads_rca.params import Params
 from ads_rca.sources.atmacup.snapshots import HORIZONS_S, EgoSnapshots
 
 #: Key of the verdict JSON holding the scores.
@@ -137,4 +142,81 @@ def frame_scores(log: RunLog, timestamp_ms: int) -> dict[str, float | str]:
     }
 
 
-__all__ = ["TRAJECTORY_SCORES_KEY", "WORST_ROWS", "frame_scores", "trajectory_scores"]
+def trajectory_lines(scores: object, shown: int = 10) -> list[str]:
+    """The summary's lines of a snapshot table's ego-trajectory scores (:func:`trajectory_scores`):
+    the competition's MAE, ADE and FDE, per horizon, the worst rows; or why nothing was
+    scored."""
+    if not isinstance(scores, dict):
+        return []
+    head = f"trajectory scores ({scores.get('scored')} of {scores.get('rows')} rows scored"
+    if not scores.get("scored"):
+        return [f"{head}): {scores.get('note', 'nothing scored')}"]
+    lines = [
+        f"{head}; {scores.get('no_truth')} without a realised path, "
+        f"{scores.get('no_prediction')} without a prediction): MAE {precise(scores.get('mae'))} "
+        f"(the competition's, over x, y, z), ADE {short(scores.get('ade'))} m, "
+        f"FDE {short(scores.get('fde'))} m (3-D)"
+    ]
+    horizons = scores.get("by_horizon")
+    if isinstance(horizons, list):
+        lines.append(
+            "  by horizon (mean distance): "
+            + ", ".join(
+                f"{short(h.get('horizon_s'))} s {short(h.get('distance'))} m"
+                for h in horizons
+                if isinstance(h, dict)
+            )
+        )
+    worst = scores.get("worst_rows")
+    if isinstance(worst, list) and worst:
+        lines.append("  worst rows by ADE:")
+        lines.extend(
+            f"    {row.get('id')}: ADE {short(row.get('ade'))} m, FDE "
+            f"{short(row.get('fde'))} m, MAE {short(row.get('mae'))}"
+            for row in worst[:shown]
+            if isinstance(row, dict)
+        )
+    return lines
+
+
+class TrajectoryScorer(Scorer):
+    """The planning module's scorer for a table of snapshots (``SCORER``): each row's
+    predicted ego path, the table's scores, their summary and live status lines."""
+
+    keys = (TRAJECTORY_SCORES_KEY,)
+
+    def document(
+        self, log: RunLog, frames: Sequence[FrameResults], semantics: str
+    ) -> dict[str, Any]:
+        if log.ego_snapshots is None:
+            return {}
+        return {TRAJECTORY_SCORES_KEY: trajectory_scores(log.ego_snapshots)}
+
+    def summary_lines(self, document: Mapping[str, Any], shown: int) -> list[str]:
+        return trajectory_lines(document.get(TRAJECTORY_SCORES_KEY), shown)
+
+    def frame_scores(
+        self, log: RunLog, timestamp_ms: int, params: Params, kept: dict[str, Any]
+    ) -> FrameScores:
+        return FrameScores(dict(frame_scores(log, timestamp_ms)), {})
+
+    def status_text(self, metrics: Mapping[str, Metric]) -> str | None:
+        if "trajectory_ade" not in metrics:
+            return None
+        return (
+            f"row {shown_id(str(metrics.get('row_id')))}: predicted path scored (ADE "
+            f"{metres(metrics.get('trajectory_ade'))}, FDE "
+            f"{metres(metrics.get('trajectory_fde'))})"
+        )
+
+
+SCORER = TrajectoryScorer()
+
+__all__ = [
+    "SCORER",
+    "TRAJECTORY_SCORES_KEY",
+    "WORST_ROWS",
+    "frame_scores",
+    "trajectory_lines",
+    "trajectory_scores",
+]

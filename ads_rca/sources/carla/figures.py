@@ -21,14 +21,21 @@ Pure numpy over all ticks and actor rows at once (no per-tick loop).
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 
+from ads_rca.diagnosis import Scorer
 from ads_rca.foundation.geometry import FloatArray, box_signed_distance, ego_to_world, world_to_ego
+from ads_rca.foundation.text import short
+from ads_rca.sources.carla.annotations import ANNOTATIONS_KEY, annotations_from_document
+
+if TYPE_CHECKING:
+    from ads_rca.diagnosis.verdict import FrameResults
+    from ads_rca.model import RunLog
 
 HARD_BRAKE_MS2 = -4.0
 LEAD_MIN_M = 1.0
@@ -186,3 +193,39 @@ def figures_from_document(document: Mapping[str, Any]) -> dict[str, Any]:
         )
         out[key] = value if usable else None
     return out
+
+
+class RunNotes(Scorer):
+    """What a run says about itself (``SCORER``): its annotations (events, never collisions)
+    and its own figures, both read back from its metadata, bounded and checked."""
+
+    keys = (ANNOTATIONS_KEY, FIGURES_KEY)
+
+    def document(
+        self, log: RunLog, frames: Sequence[FrameResults], semantics: str
+    ) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        annotations = annotations_from_document(log.metadata.raw)
+        if annotations:
+            out[ANNOTATIONS_KEY] = [a.to_dict() for a in annotations]
+        figures = figures_from_document(log.metadata.raw)
+        if figures:
+            out[FIGURES_KEY] = figures
+        return out
+
+    def summary_lines(self, document: Mapping[str, Any], shown: int) -> list[str]:
+        lines: list[str] = []
+        figures = figures_from_document(document)
+        if figures:
+            values = ", ".join(f"{k}={short(figures[k])}" for k in FIGURE_KEYS)
+            lines.append(f"run figures: {values}")
+        annotations = annotations_from_document(document)
+        if annotations:
+            lines.append(f"annotations ({len(annotations)}; events, not collisions):")
+            lines.extend(f"  {a.line()}" for a in annotations[:shown])
+            if len(annotations) > shown:
+                lines.append(f"  ... {len(annotations) - shown} more")
+        return lines
+
+
+SCORER = RunNotes()

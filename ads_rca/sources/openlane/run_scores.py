@@ -37,11 +37,13 @@ from __future__ import annotations
 
 import math
 from bisect import bisect_right
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any, cast
 
+from ads_rca.diagnosis import FrameScores, Scorer
 from ads_rca.diagnosis.verdict import FrameResults, Metric
 from ads_rca.model import RunLog, RunMetadata
+from ads_rca.params import Params
 from ads_rca.sources.openlane.lanes import LaneGraph
 from ads_rca.sources.openlane.scores import (
     ELEMENT_IOU_DISTANCE,
@@ -129,6 +131,13 @@ class LaneMatches:
     def upto(self, ts: int) -> list[FrameMatch]:
         """The kept matches of frames at or before ``ts``, in stamp order."""
         return [self.by_stamp[s] for s in sorted(self.by_stamp) if s <= ts]
+
+    @classmethod
+    def kept_in(cls, kept: dict[str, Any]) -> LaneMatches:
+        """The run's matches in the scorer's state ``kept`` (new on its first frame)."""
+        found = kept.setdefault("matches", cls())
+        assert isinstance(found, cls)
+        return found
 
 
 def frame_scores(log: RunLog, ts: int, matches: LaneMatches) -> dict[str, Metric]:
@@ -224,11 +233,55 @@ def run_scores(frames: Iterable[FrameResults], semantics: str) -> dict[str, Any]
     return {**latest[1], "semantics": semantics, "rules": rules}
 
 
+def _frames(count: object) -> str:
+    if not isinstance(count, int) or isinstance(count, bool):
+        return "- frames"
+    return f"{count} frame" + ("" if count == 1 else "s")
+
+
+class LaneScorer(Scorer):
+    """The perception module's scorer for a segment's lane graphs (``SCORER``): each
+    not-judged frame's figures and the segment's so far, the segment's figures, their
+    summary and live status lines."""
+
+    keys = (OPENLANE_SCORES_KEY,)
+
+    def document(
+        self, log: RunLog, frames: Sequence[FrameResults], semantics: str
+    ) -> dict[str, Any]:
+        lanes = run_scores(frames, semantics)
+        return {OPENLANE_SCORES_KEY: lanes} if lanes else {}
+
+    def summary_lines(self, document: Mapping[str, Any], shown: int) -> list[str]:
+        return summary_lines(document.get(OPENLANE_SCORES_KEY))
+
+    def frame_scores(
+        self, log: RunLog, timestamp_ms: int, params: Params, kept: dict[str, Any]
+    ) -> FrameScores:
+        if not log.lanes and not log.lanes_predicted:
+            return FrameScores({}, {})
+        metrics = frame_scores(log, timestamp_ms, LaneMatches.kept_in(kept))
+        return FrameScores(metrics, dict(THRESHOLDS) if metrics else {})
+
+    def status_text(self, metrics: Mapping[str, Metric]) -> str | None:
+        if FRAME_KEY not in metrics:
+            return None
+        segment = metrics.get(SEGMENT_KEY)
+        frames = segment.get("frames") if isinstance(segment, Mapping) else None
+        return (
+            f"OpenLane-V2 {figures_text(metrics[FRAME_KEY])} (frame) / "
+            f"{figures_text(segment)} (segment so far, {_frames(frames)})"
+        )
+
+
+SCORER = LaneScorer()
+
 __all__ = [
     "FRAME_KEY",
     "INPUTS_KEY",
     "OPENLANE_SCORES_KEY",
     "RULES",
+    "SCORER",
     "SEGMENT_KEY",
     "THRESHOLDS",
     "LaneMatches",

@@ -1,7 +1,7 @@
 """Prediction scoring: a predictor's tracks against the realised future of the actors.
 
-A run whose prediction module cannot be judged by the verdict rules (a DLP scene or a CARLA
-run: no predictions on ground truth, no plan) may still carry a predictor's output (``diagnose
+A run whose prediction module cannot be judged by the verdict rules (a dataset's run: no
+predictions on ground truth, no plan) may still carry a predictor's output (``diagnose
 --predictions DIR``, or a stack's predictions): each predicted track whose id is an actor's is
 scored against where that actor really went, with the usual trajectory-prediction figures:
 
@@ -14,7 +14,8 @@ scored against where that actor really went, with the usual trajectory-predictio
   step; a miss: FDE above :data:`MISS_M` (2 m);
 - per frame: how many tracks were scored (``scored_ids``), how many ids are no actor of the
   frame (``unmatched_ids``), mean ADE, mean FDE and the miss rate over the scored tracks, and
-  the same per actor type (``by_type``; a DLP scene's agent types, else ``unknown``);
+  the same per actor type (``by_type``; the types the run's metadata gives,
+  :data:`ACTOR_TYPES_KEY`, else ``unknown``);
 - over the run (:func:`run_scores`): the same, every scored (track, frame) counted once.
 
 Pure numpy per frame; the same function scores offline and in the live prediction monitor.
@@ -22,18 +23,22 @@ Pure numpy per frame; the same function scores offline and in the live predictio
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
+from ads_rca.diagnosis import FrameScores, Scorer
 from ads_rca.diagnosis.verdict import FrameResults, Metric
 from ads_rca.foundation.geometry import ego_to_world
+from ads_rca.foundation.text import metres, short
 from ads_rca.model import RunLog
+from ads_rca.params import Params
 
 #: A track whose final displacement error exceeds this (m) missed.
 MISS_M = 2.0
-#: Key of the metadata document mapping actor ids to their types (a DLP scene's).
+#: Key of the metadata document mapping actor ids to their types (written by a reader whose
+#: dataset types its agents).
 ACTOR_TYPES_KEY = "actor_types"
 UNKNOWN_TYPE = "unknown"
 #: Key of the verdict JSON holding the run's scores.
@@ -145,3 +150,53 @@ def run_scores(frames: Iterable[FrameResults]) -> dict[str, Any]:
         "miss_threshold_m": MISS_M,
         "by_type": {kind: figures(row) for kind, row in sorted(totals.items())},
     }
+
+
+class PredictionScorer(Scorer):
+    """The prediction module's scorer (``SCORER``): each not-judged frame's tracks, the run's
+    figures, their summary and live status lines."""
+
+    keys = (SCORES_KEY,)
+
+    def document(
+        self, log: RunLog, frames: Sequence[FrameResults], semantics: str
+    ) -> dict[str, Any]:
+        scores = run_scores(frames)
+        return {SCORES_KEY: scores} if scores else {}
+
+    def summary_lines(self, document: Mapping[str, Any], shown: int) -> list[str]:
+        scores = document.get(SCORES_KEY)
+        if not (isinstance(scores, dict) and scores.get("scored")):
+            return []
+        lines = [
+            f"prediction scores ({scores['scored']} tracks against the realised future): "
+            + _score_text(scores)
+        ]
+        by_type = scores.get("by_type")
+        for kind, row in (by_type if isinstance(by_type, dict) else {}).items():
+            if isinstance(row, dict):
+                lines.append(f"  {kind}: {row.get('scored')} tracks, {_score_text(row)}")
+        return lines
+
+    def frame_scores(
+        self, log: RunLog, timestamp_ms: int, params: Params, kept: dict[str, Any]
+    ) -> FrameScores:
+        return FrameScores(frame_scores(log, timestamp_ms, params.prediction_window), {})
+
+    def status_text(self, metrics: Mapping[str, Metric]) -> str | None:
+        if not metrics.get("scored_ids"):
+            return None
+        return (
+            f"{metrics['scored_ids']} predictions scored "
+            f"(ADE {metres(metrics.get('ade'))}, FDE {metres(metrics.get('fde'))})"
+        )
+
+
+def _score_text(row: Mapping[str, Any]) -> str:
+    return (
+        f"ADE {short(row.get('ade'))} m, FDE {short(row.get('fde'))} m, "
+        f"miss rate {short(row.get('miss_rate'))} (FDE > {MISS_M:g} m)"
+    )
+
+
+SCORER = PredictionScorer()

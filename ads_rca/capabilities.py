@@ -112,7 +112,7 @@ INPUT_WORDS = {
 
 def source_statuses(given: Mapping[str, InputStatus], lacking: str) -> dict[str, InputStatus]:
     """Every model input of a dataset's run: ``given``'s statuses, the others absent because
-    ``lacking`` (e.g. "a DLP scene holds no") that input."""
+    ``lacking`` (e.g. "a parking-lot scene holds no") that input."""
     return {
         name: given.get(name) or InputStatus("absent", "", f"{lacking} {INPUT_WORDS[name]}")
         for name in MODEL_INPUTS

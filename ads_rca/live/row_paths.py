@@ -1,7 +1,7 @@
 """A planning monitor's snapshot rows' paths, and when a row is scored again.
 
-Why: a snapshot table's row (``ads_rca.sources.atmacup.snapshots``) is scored frame by frame by the
-planning module's not-judged result (``trajectory_scores.frame_scores``). The player sends
+Why: a snapshot table's row (``RunLog.ego_snapshots``) is scored frame by frame by the
+planning module's not-judged result (its scorer's ``frame_scores``). The player sends
 the row's paths on ``run/ego_paths`` with its frame, and a live trajectory-prediction model
 (any node of the run, in its own process) may send its own ``predicted`` path for the row.
 A model answers after it heard the frame, so its path often comes after the monitor judged

@@ -1,6 +1,6 @@
 """A CSV file read by its header's column names, its columns converted a column at a time.
 
-Dataset tables (atmaCup #18's features, a submission) are tens of thousands of rows: each
+Dataset tables (a competition's features, a submission) are tens of thousands of rows: each
 column is parsed by numpy in one call, and only a column holding something that is no
 number is walked value by value (to find which). A defect becomes one problem per column
 and kind (how many rows, the first named), never one per row: a column of text in a big

@@ -1,12 +1,12 @@
 """The members of a huge top-level JSON object, one at a time, in bounded memory.
 
-A DLP scene's instances file is one JSON object of over a million members (hundreds of MB):
-loading it whole costs gigabytes of Python objects. :func:`object_members` reads it in 1 MB
-chunks and parses one ``"key": value`` member at a time with the standard library's C
-scanner (``JSONDecoder.raw_decode``), so memory holds one chunk and one member. A member
-larger than ``max_member`` bytes, invalid JSON or a cut file raises :class:`InvalidJson`
-naming the character where it stopped; the members yielded before it stand (the caller
-keeps them).
+A dataset's file can be one JSON object of over a million members (a drone-recorded scene's
+instances: hundreds of MB): loading it whole costs gigabytes of Python objects.
+:func:`object_members` reads it in 1 MB chunks and parses one ``"key": value`` member at a
+time with the standard library's C scanner (``JSONDecoder.raw_decode``), so memory holds
+one chunk and one member. A member larger than ``max_member`` bytes, invalid JSON or a cut
+file raises :class:`InvalidJson` naming the character where it stopped; the members yielded
+before it stand (the caller keeps them).
 """
 
 from __future__ import annotations

@@ -35,8 +35,8 @@ from typing import Any
 
 import numpy as np
 
-from ads_rca.sources.log.records import track_offsets
 from ads_rca.model import Actors, Boxes, EgoPose, FloatArray, Objects3D, Plan, Record, Track
+from ads_rca.sources.log.records import track_offsets
 
 #: What one packed record says: folder, timestamp, kind, then the kind's fields.
 Entry = tuple[Any, ...]

@@ -33,23 +33,9 @@ from typing import Any
 import orjson
 
 from ads_rca.errors import InputError
-from ads_rca.sources.errors import InvalidJson
 from ads_rca.foundation.files import DEFAULT_MAX_FILE_MB, Unreadable, max_bytes, read_regular
-from ads_rca.sources.openlane.annotation import parse_lanes, parse_predicted_lanes
-from ads_rca.sources.log.packing import Handed, Packer, reading_prefix, sweep_shared, unpack
-from ads_rca.sources.log.records import (
-    as_float,
-    parse_actors,
-    parse_boxes,
-    parse_control,
-    parse_objects_3d,
-    parse_plan,
-    parse_pose,
-    parse_predictions,
-    prediction_parts,
-    show_value,
-)
-from ads_rca.sources.log.validate import validate_run_log
+from ads_rca.foundation.progress import Progress, advancer, tracked
+from ads_rca.foundation.workers import can_fork, collector_paused, map_forked
 from ads_rca.model import (
     ALL_FOLDERS,
     FOLDERS,
@@ -65,8 +51,22 @@ from ads_rca.model import (
     read_inputs,
 )
 from ads_rca.problems import IGNORED, KEPT_VALUE, SKIPPED_FILE, USED_DEFAULT, Problem, ProblemLog
-from ads_rca.foundation.progress import Progress, advancer, tracked
-from ads_rca.foundation.workers import can_fork, collector_paused, map_forked
+from ads_rca.sources.errors import InvalidJson
+from ads_rca.sources.log.packing import Handed, Packer, reading_prefix, sweep_shared, unpack
+from ads_rca.sources.log.records import (
+    as_float,
+    parse_actors,
+    parse_boxes,
+    parse_control,
+    parse_objects_3d,
+    parse_plan,
+    parse_pose,
+    parse_predictions,
+    prediction_parts,
+    show_value,
+)
+from ads_rca.sources.log.validate import validate_run_log
+from ads_rca.sources.openlane.annotation import parse_lanes, parse_predicted_lanes
 
 DEFAULT_TPF_MS = 50
 #: Deepest nesting of what the reader keeps as raw JSON (``metadata.json``, box extras).

@@ -25,7 +25,6 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from ads_rca.sources.errors import StrictFileError
 from ads_rca.model import (
     Actors,
     Boxes,
@@ -38,6 +37,7 @@ from ads_rca.model import (
     Track,
 )
 from ads_rca.problems import DROPPED_RECORD, KEPT_VALUE, SKIPPED_FILE, USED_DEFAULT, ProblemLog
+from ads_rca.sources.errors import StrictFileError
 
 _R = TypeVar("_R")
 

@@ -17,8 +17,7 @@ from typing import Any
 import numpy as np
 import orjson
 
-from ads_rca.sources.openlane.annotation import annotation_document
-from ads_rca.sources.openlane.lanes import LaneGraph
+from ads_rca.foundation.strictjson import all_finite
 from ads_rca.model import (
     ALL_FOLDERS,
     FILE_PREFIX,
@@ -33,7 +32,8 @@ from ads_rca.model import (
     Record,
     RunLog,
 )
-from ads_rca.foundation.strictjson import all_finite
+from ads_rca.sources.openlane.annotation import annotation_document
+from ads_rca.sources.openlane.lanes import LaneGraph
 
 
 def write_run_log(log: RunLog, out_dir: str | os.PathLike[str]) -> Path:

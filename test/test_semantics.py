@@ -61,6 +61,7 @@ def test_no_code_outside_the_parameter_layers_branches_on_the_mode_name() -> Non
 
 
 def test_the_pattern_finds_the_branches_it_forbids(tmp_path: Path) -> None:
+    (tmp_path / "diagnosis").mkdir()
     (tmp_path / "diagnosis/engine.py").write_text(
         'if params.semantics == "reference":\n'
         'x = a if "corrected" != mode else b\n'

@@ -101,10 +101,10 @@ FILE_PREFIX = {
 }
 
 
-def frame_number(timestamp_ms: int, tpf: int) -> int | float:
+def frame_number(timestamp_ms: int, frame_ms: int) -> int | float:
     """Frame index of a timestamp: an int on the frame grid, else a float (the verdict's
     frames and the player's frame markers number frames with this one rule)."""
-    return timestamp_ms // tpf if timestamp_ms % tpf == 0 else timestamp_ms / tpf
+    return timestamp_ms // frame_ms if timestamp_ms % frame_ms == 0 else timestamp_ms / frame_ms
 
 
 def most_common_step(stamps: Sequence[int]) -> int | None:
@@ -137,7 +137,7 @@ class RunMetadata:
 
     @property
     def end_ms(self) -> int:
-        """``total_frames * tpf``: the last timestamp the reference looks ahead to."""
+        """``total_frames * frame_ms``: the last timestamp the reference looks ahead to."""
         return self.total_frames * self.timesteps_per_frame
 
     def to_dict(self) -> dict[str, Any]:
@@ -476,7 +476,7 @@ class RunLog:
         return document
 
     @property
-    def tpf(self) -> int:
+    def frame_ms(self) -> int:
         """Milliseconds per frame."""
         return self.metadata.timesteps_per_frame
 
@@ -486,7 +486,7 @@ class RunLog:
         return tuple(dict.fromkeys(self.frames))
 
     def frame_index(self, timestamp_ms: int) -> float:
-        return timestamp_ms / self.tpf
+        return timestamp_ms / self.frame_ms
 
     @cached_property
     def actor_extents(self) -> dict[str, FloatArray]:

@@ -36,7 +36,7 @@ def one_run(frames: int, semantics: str) -> dict[str, float]:
     params = make_params(semantics)
     log = synthesise("cut_in", "perception", seed=2)
     template = diagnose(log, params).frames
-    tpf = log.tpf
+    frame_ms = log.frame_ms
     metadata = replace(log.metadata, collision_frame=frames, total_frames=frames)
     tracemalloc.start()
     core = AggregatorCore(params, verdict_timeout_s=1e9)
@@ -45,7 +45,7 @@ def one_run(frames: int, semantics: str) -> dict[str, float]:
     tracemalloc.reset_peak()
     clock = Clock().start()
     for index in range(frames):
-        stamp = (index + 1) * tpf
+        stamp = (index + 1) * frame_ms
         core.add_marker(FrameMarker(index, stamp), 0.0)
         source = template[index % len(template)]
         for result in source.results.values():

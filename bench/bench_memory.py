@@ -36,7 +36,7 @@ def cruise_crashing_at_the_end(frames: int, actors: int) -> RunLog:
     """A cruise log whose last frame is declared the collision frame: the corrected rules
     then judge every frame against a partner (the expensive path)."""
     log = synthesise("cruise", "none", seed=1, frames=frames, actors=actors)
-    last = log.frames[-1] // log.tpf
+    last = log.frames[-1] // log.frame_ms
     log.metadata = replace(log.metadata, collision_frame=last, total_frames=last)
     return log
 

@@ -120,7 +120,7 @@ def decode_rate(log: RunLog, limit: int) -> tuple[Timing, int, int]:
     with Clock() as clock:
         for frame in payloads:
             for key, data in frame.items():
-                decode_record(key, data, log.tpf)
+                decode_record(key, data, log.frame_ms)
             messages += len(frame)
     return clock.timing, len(payloads), messages
 

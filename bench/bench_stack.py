@@ -118,7 +118,7 @@ def long_run(frames: int, actors: int) -> tuple[int, float, Timing]:
     current, _peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
     now = messages[-1].arrival_s + 0.001
-    verdict = time_to_verdict(core, feed, aggregator, log.frames[-1] // log.tpf, now)
+    verdict = time_to_verdict(core, feed, aggregator, log.frames[-1] // log.frame_ms, now)
     return core.held_records(), current / 1e6, verdict
 
 

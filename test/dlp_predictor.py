@@ -41,7 +41,7 @@ def main() -> int:
     parser.add_argument("--namespace", default=topics.DEFAULT_NAMESPACE)
     parser.add_argument("--ego-id", required=True)
     parser.add_argument("--steps", type=int, default=10)
-    parser.add_argument("--tpf", type=int, default=40)
+    parser.add_argument("--frame_ms", type=int, default=40)
     args = parser.parse_args()
 
     import rclpy
@@ -67,13 +67,13 @@ def main() -> int:
     def heard(key: str, msg: object) -> None:
         stamp = message_stamp_ms(msg)
         entry = held.setdefault(stamp, {})
-        entry[key] = topics.message_to_record(key, msg, args.tpf)
+        entry[key] = topics.message_to_record(key, msg, args.frame_ms)
         if len(entry) == 2:
             del held[stamp]
             pose, actors = entry[topics.ODOMETRY], entry[topics.ACTORS]
             assert isinstance(pose, EgoPose) and isinstance(actors, Actors)
             record = predictions(pose, actors, args.ego_id, args.steps)
-            publisher.publish(codec.build(record, stamp, args.tpf))
+            publisher.publish(codec.build(record, stamp, args.frame_ms))
 
     for key in (topics.ODOMETRY, topics.ACTORS):
         node.create_subscription(

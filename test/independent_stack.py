@@ -145,7 +145,7 @@ def parse(argv: Sequence[str]) -> Options:
 class Run:
     """A running-log folder as read here: per folder, its records by stamp (ms)."""
 
-    tpf: int
+    frame_ms: int
     collision_frame: int
     records: dict[str, dict[int, Any]] = field(default_factory=dict)
 
@@ -202,7 +202,7 @@ def point(x: float, y: float, z: float) -> Any:
     return Point(x=float(x), y=float(y), z=float(z))
 
 
-def odometry(pose: dict[str, Any], ms: int, _tpf: int) -> Any:
+def odometry(pose: dict[str, Any], ms: int, _frame_ms: int) -> Any:
     from nav_msgs.msg import Odometry
 
     value = {k: float(v) for k, v in pose.items() if k != "timestamp"}
@@ -213,7 +213,7 @@ def odometry(pose: dict[str, Any], ms: int, _tpf: int) -> Any:
     return msg
 
 
-def carla_markers(actors: dict[str, Any], ms: int, _tpf: int) -> Any:
+def carla_markers(actors: dict[str, Any], ms: int, _frame_ms: int) -> Any:
     from geometry_msgs.msg import Vector3
     from visualization_msgs.msg import Marker, MarkerArray
 
@@ -244,7 +244,7 @@ def _line_strips(ns: str, frame_id: str, ms: int, strips: list[tuple[list[Any], 
 
 
 def boxes(folder: str) -> Any:
-    def build(items: list[dict[str, Any]], ms: int, _tpf: int) -> Any:
+    def build(items: list[dict[str, Any]], ms: int, _frame_ms: int) -> Any:
         strips = []
         for box in items:
             (x1, y1), (x2, y2) = box["bounding_box"]
@@ -258,7 +258,7 @@ def boxes(folder: str) -> Any:
 
 
 def tracks(folder: str) -> Any:
-    def build(obstacles: dict[str, Any], ms: int, _tpf: int) -> Any:
+    def build(obstacles: dict[str, Any], ms: int, _frame_ms: int) -> Any:
         strips = []
         for obstacle_id, steps in obstacles.items():
             points = [point(s["x"], -s["y"], s["z"]) for s in steps.values()]
@@ -268,13 +268,13 @@ def tracks(folder: str) -> Any:
     return build
 
 
-def path(plan: dict[str, Any], ms: int, tpf: int) -> Any:
+def path(plan: dict[str, Any], ms: int, frame_ms: int) -> Any:
     from geometry_msgs.msg import PoseStamped
     from nav_msgs.msg import Path as PathMessage
 
     poses = []
     for key, waypoint in plan.items():
-        pose = PoseStamped(header=header(ms + int(key) * tpf, "map"))
+        pose = PoseStamped(header=header(ms + int(key) * frame_ms, "map"))
         pose.pose.position = point(waypoint["x"], -waypoint["y"], 0.0)
         pose.pose.orientation.w = 1.0
         poses.append(pose)
@@ -318,11 +318,13 @@ def schedule(run: Run, options: Options, shifts: dict[str, int]) -> list[Outgoin
     from std_msgs.msg import String
 
     rng = random.Random(options.seed + 1)
-    chosen = [s for s in run.stamps if options.first_frame <= s // run.tpf <= options.last_frame]
+    chosen = [
+        s for s in run.stamps if options.first_frame <= s // run.frame_ms <= options.last_frame
+    ]
     start = chosen[0] if chosen else 0
     out: list[tuple[float, int, int, Outgoing]] = []
     for stamp in chosen:
-        frame, due = stamp // run.tpf, float(stamp - start)
+        frame, due = stamp // run.frame_ms, float(stamp - start)
         out.append((due, 0, len(out), Outgoing(due, "/clock", Clock(clock=stamp_of(stamp)), None)))
         for folder, (_, build) in BUILDERS.items():
             record = run.records[folder].get(stamp)
@@ -331,12 +333,12 @@ def schedule(run: Run, options: Options, shifts: dict[str, int]) -> list[Outgoin
                 continue
             if folder in options.stops and frame >= options.stops[folder]:
                 continue
-            message = build(record, stamp + shifts[folder], run.tpf)
+            message = build(record, stamp + shifts[folder], run.frame_ms)
             sending = Outgoing(due + late, TOPICS[folder], message, folder)
             out.append((sending.due_ms, 1, len(out), sending))
     cf = run.collision_frame
-    if cf >= 0 and chosen and chosen[0] <= cf * run.tpf <= chosen[-1]:
-        document = json.dumps({"frame": cf, "stamp_ms": cf * run.tpf})
+    if cf >= 0 and chosen and chosen[0] <= cf * run.frame_ms <= chosen[-1]:
+        document = json.dumps({"frame": cf, "stamp_ms": cf * run.frame_ms})
         due = max(o[0] for o in out)
         collision = Outgoing(due, f"{options.namespace}/run/collision", String(data=document), None)
         out.append((due, 2, len(out), collision))

@@ -49,7 +49,7 @@ def make_log(
     orphan_stamps: bool = False,
     empty_predictions: bool = True,
 ) -> RunLog:
-    """A valid RunLog of ``n_frames`` frames (tpf 50 ms) with ``n_actors`` actors."""
+    """A valid RunLog of ``n_frames`` frames (frame_ms 50 ms) with ``n_actors`` actors."""
     rng = np.random.default_rng(seed)
     ids = _actor_ids(rng, n_actors)
     frames = [TPF * (f + 1) for f in range(n_frames)]

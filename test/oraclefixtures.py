@@ -25,12 +25,12 @@ class LogBuilder:
 
     def __init__(
         self,
-        tpf: int = 50,
+        frame_ms: int = 50,
         total_frames: int = 20,
         camera_loc: tuple[float, float, float] = (1.3, 0.0, 1.8),
         collision_frame: int = -1,
     ) -> None:
-        self.metadata = RunMetadata(tpf, camera_loc, collision_frame, total_frames)
+        self.metadata = RunMetadata(frame_ms, camera_loc, collision_frame, total_frames)
         self.frames: list[int] = []
         self._actors: dict[int, dict[str, tuple[XY, float, Sequence[float]]]] = {}
         self.log = RunLog(metadata=self.metadata, frames=())

@@ -284,7 +284,7 @@ def _builders(settings: Settings) -> dict[str, tuple[str, str, Builder]]:
         out["actors"] = (
             CARLA_TOPICS["actors"],
             MARKER_ARRAY,
-            lambda actors, stamp, tpf: actors_to_carla_markers(actors, stamp),
+            lambda actors, stamp, frame_ms: actors_to_carla_markers(actors, stamp),
         )
         out["waypoint"] = (CARLA_TOPICS["waypoint"], "nav_msgs/msg/Path", plan_to_path)
     return out
@@ -302,14 +302,14 @@ def make_schedule(log: RunLog, settings: Settings) -> Schedule:
     # (due, rank, order): the clock (rank 0) before a frame's data (rank 1) at equal due.
     keyed: list[tuple[float, int, int, Outgoing]] = []
     for stamp in frames:
-        frame_ms = float(stamp - first)
+        send_ms = float(stamp - first)
         clock = clock_message(stamp)
         keyed.append(
             (
-                frame_ms,
+                send_ms,
                 0,
                 len(keyed),
-                Outgoing(frame_ms, topics.CLOCK, CLOCK_TYPE, clock, None, stamp, stamp),
+                Outgoing(send_ms, topics.CLOCK, CLOCK_TYPE, clock, None, stamp, stamp),
             )
         )
         for folder in FOLDERS:
@@ -320,14 +320,14 @@ def make_schedule(log: RunLog, settings: Settings) -> Schedule:
             name, type_name, build = builders[folder]
             header_ms = stamp + offsets[folder]
             try:
-                message = build(record, header_ms, log.tpf)
+                message = build(record, header_ms, log.frame_ms)
             except ValueError as error:  # e.g. a CARLA marker id that is not an integer
                 raise StackError(f"{folder} at {stamp} ms: {error}") from None
-            out = Outgoing(frame_ms + delay, name, type_name, message, folder, stamp, header_ms)
+            out = Outgoing(send_ms + delay, name, type_name, message, folder, stamp, header_ms)
             keyed.append((out.due_ms, 1, len(keyed), out))
     collision = log.metadata.collision_frame
     if collision >= 0 and frames:
-        collision_ms = collision * log.tpf
+        collision_ms = collision * log.frame_ms
         before = [k[0] for k in keyed if k[3].log_stamp_ms <= collision_ms]
         due = max([float(collision_ms - first), *before])
         document = dumps_json({"frame": collision, "stamp_ms": collision_ms})

@@ -111,7 +111,7 @@ def test_every_field_maps_as_worked_out_by_hand(table: Path) -> None:
     log = read(table)
     assert problems_of(log) == []
     assert log.frames == (0, 100, 200)  # one frame per row, 100 ms apart
-    assert log.tpf == 100 and log.metadata.collision_frame == -1
+    assert log.frame_ms == 100 and log.metadata.collision_frame == -1
     raw = log.metadata.raw
     assert raw["snapshots"] is True and "not a time series" in raw["frame_layout"]
     assert "y' = -y" in raw["source_frame"]

@@ -57,7 +57,7 @@ def problems_of(log: Any) -> list[str]:
 def test_every_field_maps_as_worked_out_by_hand(tmp_path: Path, schema: str) -> None:
     log = read_carla_run(write_carla_run(tmp_path / "run", schema))
     assert problems_of(log) == []
-    assert log.tpf == 50 and log.frames == tuple(range(0, 2000, 50))
+    assert log.frame_ms == 50 and log.frames == tuple(range(0, 2000, 50))
     assert log.metadata.collision_frame == -1 and log.metadata.total_frames == 40
     raw = log.metadata.raw
     assert raw["telemetry_schema"] == schema and raw["source_format"] == "carla_experiment_client"
@@ -533,7 +533,7 @@ def test_a_frame_rate_that_disagrees_with_the_ticks_is_said(tmp_path: Path) -> N
     facts["fps"] = 10
     (root / "run_metadata.json").write_text(json.dumps(facts))
     log = read_carla_run(root)
-    assert log.tpf == 100
+    assert log.frame_ms == 100
     expected = "telemetry.json t_sim: ticks are 50 ms apart, the frame rate gives 100 ms"
     assert any(line.startswith(expected) for line in problems_of(log)), problems_of(log)
 

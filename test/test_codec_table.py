@@ -42,15 +42,15 @@ def _one(log: RunLog, folder: str, stamp: int, record: Any) -> RunLog:
     return RunLog.from_folders(log.metadata, (stamp,), {folder: {stamp: record}})
 
 
-def _check_row(topic: topics.Topic, record: Any, stamp: int, tpf: int) -> tuple[Any, Any]:
+def _check_row(topic: topics.Topic, record: Any, stamp: int, frame_ms: int) -> tuple[Any, Any]:
     """Both paths of one row on one record: the object is the table's type, our bytes are
     rclpy's bytes of it; returns the record read back from the object and from the bytes."""
-    msg = topic.codec.build(record, stamp, tpf)
+    msg = topic.codec.build(record, stamp, frame_ms)
     assert type(msg) is topics.message_types()[topic.key]
     assert rosmsg.type_name(type(msg)) == topic.codec.type_name
-    data = topic.codec.encode(record, stamp, tpf)
+    data = topic.codec.encode(record, stamp, frame_ms)
     assert differences(data, serialize_message(msg), msg) == []
-    return topic.codec.read(msg, tpf), topic.codec.decode(data, tpf)
+    return topic.codec.read(msg, frame_ms), topic.codec.decode(data, frame_ms)
 
 
 def test_every_data_topic_round_trips_on_both_paths_byte_equal_to_rclpy(log: RunLog) -> None:
@@ -60,9 +60,9 @@ def test_every_data_topic_round_trips_on_both_paths_byte_equal_to_rclpy(log: Run
         assert stamps, topic.key
         for stamp in stamps:
             record = log.folder(topic.folder)[stamp]
-            from_object, from_bytes = _check_row(topic, record, stamp, log.tpf)
-            data = topic.codec.encode(record, stamp, log.tpf)
-            msg = topic.codec.build(record, stamp, log.tpf)
+            from_object, from_bytes = _check_row(topic, record, stamp, log.frame_ms)
+            data = topic.codec.encode(record, stamp, log.frame_ms)
+            msg = topic.codec.build(record, stamp, log.frame_ms)
             assert topic.codec.stamp(data) == message_stamp_ms(msg) == stamp
             assert topics.stamp_ms(topic.key, data) == stamp
             expected = _one(log, topic.folder, stamp, record)

@@ -47,7 +47,7 @@ def test_synthesised_runs(scenario: str, fault: str, seed: int) -> None:
         log.metadata.collision_frame,
         summary["partner_id"],
     )
-    assert first.timestamp_ms == log.metadata.collision_frame * log.tpf
+    assert first.timestamp_ms == log.metadata.collision_frame * log.frame_ms
     assert first.depth_m > 0.0
 
 
@@ -218,5 +218,5 @@ def test_no_ego_no_detection() -> None:
 
 
 def test_bad_period_is_a_config_error() -> None:
-    with pytest.raises(ConfigError, match="tpf_ms must be positive, got 0"):
+    with pytest.raises(ConfigError, match="frame_ms must be positive, got 0"):
         CollisionDetector(0)

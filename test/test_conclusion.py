@@ -49,7 +49,7 @@ def test_a_whole_run_is_conclusive(crash: RunLog, mode: str) -> None:
 def test_frames_missing_from_the_window_are_named(crash: RunLog, mode: str) -> None:
     log = synthesise("lead_braking", "planning", 1)
     collision = log.metadata.collision_frame
-    lost = {(collision - 5) * log.tpf, (collision - 4) * log.tpf}
+    lost = {(collision - 5) * log.frame_ms, (collision - 4) * log.frame_ms}
     log.frames = tuple(ts for ts in log.frames if ts not in lost)
     document = _document(log, mode)
     assert document["conclusive"] is False
@@ -65,7 +65,7 @@ def test_an_input_missing_at_window_frames_makes_its_modules_partly_judged(
     crash: RunLog, mode: str
 ) -> None:
     log = synthesise("lead_braking", "planning", 1)
-    gone = (log.metadata.collision_frame - 3) * log.tpf
+    gone = (log.metadata.collision_frame - 3) * log.frame_ms
     del log.waypoints[gone]
     document = _document(log, mode)
     statuses = document["modules_judged"]

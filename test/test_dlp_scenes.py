@@ -59,7 +59,7 @@ def scene(tmp_path: Path) -> Path:
 def test_every_field_maps_as_worked_out_by_hand(scene: Path) -> None:
     log = read_dlp_scene(scene)
     assert problems_of(log) == []
-    assert log.tpf == 40 and log.frames == tuple(range(0, 40 * FRAMES, 40))
+    assert log.frame_ms == 40 and log.frames == tuple(range(0, 40 * FRAMES, 40))
     assert log.metadata.collision_frame == -1
     number = ids()
     ego = log.metadata.raw["ego_agent"]

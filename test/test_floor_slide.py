@@ -114,9 +114,9 @@ def test_the_short_list_median_is_numpys_bit_for_bit_nan_included() -> None:
 
 
 def test_floor_frames_of_a_run_without_gaps_are_the_ones_a_set_reads() -> None:
-    # every tpf from 0 (the range shortcut), then with a gap, a repeated frame and an
+    # every frame_ms from 0 (the range shortcut), then with a gap, a repeated frame and an
     # off-grid frame (each read through the frame set): always the log's frames u with
-    # ts - 80 tpf <= u < ts - 20 tpf (W = 20, L = 60 at 50 ms)
+    # ts - 80 frame_ms <= u < ts - 20 frame_ms (W = 20, L = 60 at 50 ms)
     log = RunLog(metadata=RunMetadata(50, (1.3, 0.0, 1.8), -1, 400), frames=())
     judging = corrected_context(RunContext(log, make_params("corrected")))
     regular = tuple(range(0, 200 * 50, 50))

@@ -434,7 +434,9 @@ def test_monitors_skip_and_report_malformed_messages_and_judge_the_rest(ros_env:
             for key, data in payloads.items():
                 pubs[key].publish(data)
             published = playback.published_names(payloads)
-            pubs[topics.FRAME].publish(playback.frame_marker(tick, published, log.tpf, run=run))
+            pubs[topics.FRAME].publish(
+                playback.frame_marker(tick, published, log.frame_ms, run=run)
+            )
             for pub in pubs.values():
                 pub.wait_for_all_acked()
             spin(0.0)
@@ -544,7 +546,14 @@ def test_the_aggregator_skips_malformed_results_and_says_so_once(ros_env: RosEnv
 _RESULT = {"module": "perception", "stamp_ms": 1000, "failed": False, "index": 3, "frame": 3}
 _HOSTILE_NUMBERS: list[tuple[str, Any]] = [
     (field, value)
-    for field in ("index", "stamp_ms", "collision_frame", "closes_collision", "revision", "tpf_ms")
+    for field in (
+        "index",
+        "stamp_ms",
+        "collision_frame",
+        "closes_collision",
+        "revision",
+        "frame_ms",
+    )
     for value in (10**30, 2**63, -(2**63) - 1, True, "12", 2.5, 1e300)
 ]
 
@@ -563,12 +572,12 @@ def test_absurd_numbers_in_a_result_are_one_malformed_message(field: str, value:
     from ads_rca.params import make_params
 
     with pytest.raises(MalformedMessage, match=field):
-        LiveResult.from_document({**_RESULT, "tpf_ms": 50, field: value})
+        LiveResult.from_document({**_RESULT, "frame_ms": 50, field: value})
     # What is accepted is used without an error, in both kinds of run.
     for run in (None, config()):  # a player's run, and a stack's (test_stack_mode's facts)
         core = AggregatorCore(make_params("corrected"), stack=run)
         edge = {"closes_collision": 2**42, "collision_frame": -(2**42), "revision": 2**42}
-        for document in (_RESULT, {**_RESULT, "tpf_ms": 50, **edge}):
+        for document in (_RESULT, {**_RESULT, "frame_ms": 50, **edge}):
             core.add_result(LiveResult.from_document(document), 1.0)
         core.poll(2.0)
         core.poll(1000.0)

@@ -228,7 +228,7 @@ def test_lookahead_holds_a_reference_prediction_frame_until_it_arrives() -> None
     params = make_params("reference")
     core = MonitorCore("prediction", params)
     core.set_metadata(log.metadata, 0.0)
-    tpf = log.tpf
+    frame_ms = log.frame_ms
     keys = max(int(t.steps.max()) for t in log.predictions_with_perception[log.frames[0]].values())
     judged: list[LiveResult] = []
     for n, ts in enumerate(log.frames[: keys + 2]):
@@ -239,7 +239,7 @@ def test_lookahead_holds_a_reference_prediction_frame_until_it_arrives() -> None
         folders = frozenset(f for f in ("pose", "actors", "predictions_with_perception"))
         core.add_marker(FrameMarker(n, ts, folders), 0.1)
         judged += core.poll(0.1)
-        if ts < log.frames[0] + keys * tpf:
+        if ts < log.frames[0] + keys * frame_ms:
             assert not judged, f"judged before its look-ahead (at {ts} ms)"
     assert [r.index for r in judged][:1] == [0]
 

@@ -65,12 +65,12 @@ def test_robust_sigma_and_the_step_floor_by_hand() -> None:
 def test_floor_frames_end_one_effect_window_before_ts() -> None:
     ctx, _ = clean_context(noise_floor_s=1.0)
     judging = corrected_context(ctx)
-    tpf = judging.tpf
-    ts = 90 * tpf
+    frame_ms = judging.frame_ms
+    ts = 90 * frame_ms
     frames = floor_frames(judging, ts)
     # W = 20 frames (window_s 1 s at 20 Hz), L = 20 frames: frames 50 … 69
-    assert frames == [n * tpf for n in range(50, 70)]
-    assert floor_frames(judging, 10 * tpf) == []  # before the run's first frame
+    assert frames == [n * frame_ms for n in range(50, 70)]
+    assert floor_frames(judging, 10 * frame_ms) == []  # before the run's first frame
 
 
 def test_the_floor_is_the_others_median_then_the_partners_spread_then_none() -> None:
@@ -88,7 +88,9 @@ def test_the_floor_is_the_others_median_then_the_partners_spread_then_none() -> 
     assert floor.value == pytest.approx(float(np.median([2.0 if u % 100 else 4.0 for u in frames])))
 
     def alone(_judging: object, u: int) -> dict[str, float]:
-        return {partner: 5.0 + (0.2 if (u // judging.tpf) % 2 else -0.2)}  # a bias and a jitter
+        return {
+            partner: 5.0 + (0.2 if (u // judging.frame_ms) % 2 else -0.2)
+        }  # a bias and a jitter
 
     floor = actor_floor(judging, ts, alone)
     assert floor.basis == BASIS_PARTNER
@@ -106,7 +108,7 @@ def floors_at(level: float) -> tuple[float, float, int]:
     control floor's step count (lead_braking, planning fault, seed 0)."""
     log = noisy("lead_braking", "planning", 0, level)
     judging = corrected_context(RunContext.create(log, make_params("corrected")))
-    ts = max(log.frames) - 10 * log.tpf
+    ts = max(log.frames) - 10 * log.frame_ms
     perception = perception_floor(judging, ts)
     assert perception.basis == BASIS_OTHERS and perception.frames >= 55
     _speed, lateral = control_floors(judging, ts)

@@ -74,10 +74,10 @@ def test_one_de_duplication_rule_for_the_engine_and_the_live_nodes() -> None:
 
 
 def test_the_player_numbers_frames_as_the_verdict_does() -> None:
-    for stamp, tpf in ((50, 50), (75, 50), (0, 50), (7, 3), (100, 0)):
+    for stamp, frame_ms in ((50, 50), (75, 50), (0, 50), (7, 3), (100, 0)):
         tick = Tick(stamp, 0, False)
-        sent = loads_json(frame_marker(tick, [], tpf).data)["frame"]
-        assert sent == (frame_number(stamp, tpf) if tpf > 0 else None)
+        sent = loads_json(frame_marker(tick, [], frame_ms).data)["frame"]
+        assert sent == (frame_number(stamp, frame_ms) if frame_ms > 0 else None)
     # The rule is the model's (time ↔ frame); the contract no longer reaches up to verdict.
     assert not hasattr(verdict, "frame_number")
     assert "ads_rca.diagnosis.verdict" not in (PACKAGE / "contract" / "playback.py").read_text()

@@ -82,7 +82,7 @@ def test_every_field_maps_as_worked_out_by_hand(segment: Path) -> None:
     assert problems_of(log) == []
     # 0.5 s apart: 500 ms steps from the rounded first stamp.
     assert log.frames == tuple(NS_FIRST_MS + 500 * n for n in range(FRAMES))
-    assert log.tpf == 500 and log.metadata.collision_frame == -1
+    assert log.frame_ms == 500 and log.metadata.collision_frame == -1
     first, second = log.pose[log.frames[0]], log.pose[log.frames[1]]
     # (100, 200, 5) mirrored; Rz(30°) Ry(2°) Rx(1°): roll kept, pitch and yaw negated.
     assert (first.x, first.y, first.z) == (100.0, -200.0, 5.0)
@@ -119,7 +119,7 @@ def test_a_microsecond_segment_with_text_ids(tmp_path: Path) -> None:
     segment = write_openlane_segment(tmp_path, "01000", unit="us", text_ids=True)
     log = read_openlane_segment(segment)
     assert problems_of(log) == []
-    assert log.frames[0] == US_FIRST_MS and log.tpf == 500
+    assert log.frames[0] == US_FIRST_MS and log.frame_ms == 500
     assert log.metadata.raw["timestamp_unit"] == "us"
     graph = log.lanes[log.frames[0]]
     assert graph.lane_ids == ("lane-1", "lane-2", "lane-3")
@@ -164,7 +164,7 @@ def test_one_frame_has_no_speed(segment: Path) -> None:
     for file in info_files(segment)[1:]:
         file.unlink()
     log = read_openlane_segment(segment)
-    assert log.frames == (NS_FIRST_MS,) and log.tpf == 500
+    assert log.frames == (NS_FIRST_MS,) and log.frame_ms == 500
     assert math.isnan(log.pose[NS_FIRST_MS].speed)
 
 
@@ -409,7 +409,7 @@ def test_gaps_are_reported_as_the_running_log_reader_does(segment: Path) -> None
         f"info/ timestamp: gap: no frame between {start} and {start + 1500} ms (about 2 "
         "missing) (frames around the gap are analysed; the speed across it is an average)"
     ]
-    assert log.tpf == 500
+    assert log.frame_ms == 500
 
 
 def test_varying_steps_are_no_gap(tmp_path: Path) -> None:
@@ -417,7 +417,7 @@ def test_varying_steps_are_no_gap(tmp_path: Path) -> None:
     last = info_files(segment)[-1]
     last.rename(last.with_name(f"{int(last.stem) + 150_000}.json"))  # 650 ms after the one before
     log = read_openlane_segment(segment)
-    assert not any("gap" in p for p in problems_of(log)) and log.tpf == 500
+    assert not any("gap" in p for p in problems_of(log)) and log.frame_ms == 500
 
 
 def test_bad_lanes_and_elements_are_dropped_with_their_topology(segment: Path) -> None:

@@ -78,11 +78,11 @@ def test_awkward_values_come_back_exactly_on_both_paths() -> None:
         folder = log.folder(str(topic.folder))
         assert folder, topic.key
         for stamp, record in folder.items():
-            msg = topic.codec.build(record, stamp, log.tpf)
+            msg = topic.codec.build(record, stamp, log.frame_ms)
             for back in (
-                topic.codec.read(msg, log.tpf),
-                topic.codec.decode(topic.codec.encode(record, stamp, log.tpf), log.tpf),
-                topic.codec.decode(serialize_message(msg), log.tpf),
+                topic.codec.read(msg, log.frame_ms),
+                topic.codec.decode(topic.codec.encode(record, stamp, log.frame_ms), log.frame_ms),
+                topic.codec.decode(serialize_message(msg), log.frame_ms),
             ):
                 rebuilt = only_optional(log)
                 rebuilt.folder(str(topic.folder))[stamp] = back

@@ -804,7 +804,7 @@ def test_perception_matches_slow_greedy(
 
 def slow_prediction(log: RunLog, ego_id: str, ts: int, thr: float) -> tuple[Any, ...]:
     """The spec's prediction oracle, one id and one key at a time; "crash" where it stops."""
-    tpf, end = log.tpf, log.metadata.end_ms
+    frame_ms, end = log.frame_ms, log.metadata.end_ms
     on_truth = log.predictions_with_perception.get(ts)
     if on_truth is None:
         return ("crash",)
@@ -816,7 +816,7 @@ def slow_prediction(log: RunLog, ego_id: str, ts: int, thr: float) -> tuple[Any,
                 k = int(key)
             except ValueError:
                 return ("crash",)
-            tk = ts + k * tpf
+            tk = ts + k * frame_ms
             if not tk < end:
                 continue
             anchor, now, actors = log.pose.get(tk), log.pose.get(ts), log.actors.get(tk)
@@ -889,7 +889,7 @@ def test_prediction_matches_slow_sequential(case: tuple[RunLog, float, int]) -> 
 
 def slow_planning(log: RunLog, ego: str, ts: int) -> tuple[Any, ...]:
     """The spec's planning oracle written out literally; "crash" where the reference stops."""
-    tpf, end, cam = log.tpf, log.metadata.end_ms, log.metadata.camera_loc
+    frame_ms, end, cam = log.frame_ms, log.metadata.end_ms, log.metadata.camera_loc
     pose, plan = log.pose.get(ts), log.waypoints.get(ts)
     if pose is None or plan is None or len(plan) == 0 or plan.point("0") is None:
         return ("crash",)
@@ -926,7 +926,7 @@ def slow_planning(log: RunLog, ego: str, ts: int) -> tuple[Any, ...]:
             i = int(key)
         except ValueError:
             return ("crash",)
-        if i == 0 or ts + i * tpf > end:
+        if i == 0 or ts + i * frame_ms > end:
             continue
         for raw_id, (pid, ext) in links.items():
             offset = raw[raw_id].offset(key)

@@ -361,8 +361,8 @@ def series_bits(s: Series | None) -> object:
 
 
 def test_a_run_of_real_series_read_at_once_is_the_chain_of_previous_frames() -> None:
-    """The batch's real series at ts + tpf, ts + 2·tpf, … are read at once: bit for bit what
-    building each from the one before gives, with frames missing from the log (read as
+    """The batch's real series at ts + frame_ms, ts + 2·frame_ms, … are read at once: bit for
+    bit what building each from the one before gives, with frames missing from the log (read as
     absent, and read again by each later series: one arriving after ts's series was built
     is taken) and a state whose yaw is NaN."""
     log = synthesise("cut_in", "prediction", 1)
@@ -385,7 +385,7 @@ def test_a_run_of_real_series_read_at_once_is_the_chain_of_previous_frames() -> 
         chain: list[Series | None] = []
         prev: Series | None = real
         for k in range(1, w + 1):
-            prev = judging.real_series_after(partner, ts + k * judging.tpf, prev)
+            prev = judging.real_series_after(partner, ts + k * judging.frame_ms, prev)
             chain.append(prev)
         assert [series_bits(s) for s in run] == [series_bits(s) for s in chain]
     assert any(np.isnan(s.yaw).any() for s in run)  # the holes are in the run

@@ -657,7 +657,7 @@ def test_a_carla_autoware_bag_becomes_a_run(tmp_path: Path, store: Typestore, st
     bag = write_bag(tmp_path / "bag", store, sorted(messages, key=lambda m: m[2]), storage)
     log = read_profiled(load_bag(bag), load_profile("carla-autoware"), decoder(store), str(bag))
 
-    assert log.tpf == 100
+    assert log.frame_ms == 100
     assert log.frames == tuple(range(0, 1000, 100))
     meta = log.metadata
     assert (meta.collision_frame, meta.total_frames, meta.camera_loc) == (7, 10, (1.5, 0.0, 2.4))
@@ -933,7 +933,7 @@ def test_a_user_profile_in_the_carla_frame_timed_by_the_ego(
             )
     bag = write_bag(tmp_path / "mine", store, messages)
     log = read_profiled(load_bag(bag), load_profile(profile_file), decoder(store), str(bag))
-    assert log.tpf == 50 and log.metadata.total_frames == 5
+    assert log.frame_ms == 50 and log.metadata.total_frames == 5
     assert log.frames == (0, 100, 200)  # the analysed frames are those with ground truth
     assert sorted(log.pose) == [0, 50, 100, 150, 200]
     assert log.pose[50].y == 2.0  # as given: no flip

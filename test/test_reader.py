@@ -421,7 +421,9 @@ def test_missing_metadata_uses_reported_defaults(log_dir: Path) -> None:
     log = read_run_log(log_dir)
     [problem] = log.problems
     assert problem.file == "metadata.json" and problem.issue == "missing"
-    assert log.tpf == 50 and log.metadata.collision_frame == -1 and log.metadata.total_frames == 5
+    assert (
+        log.frame_ms == 50 and log.metadata.collision_frame == -1 and log.metadata.total_frames == 5
+    )
 
 
 def test_bad_metadata_fields_use_reported_defaults(log_dir: Path) -> None:
@@ -433,7 +435,7 @@ def test_bad_metadata_fields_use_reported_defaults(log_dir: Path) -> None:
     fields = {p.field for p in log.problems}
     # "50" is used as 50 and reported (issue 12 item 6); "soon" falls back to the default.
     assert fields == {"timesteps_per_frame", "collision_frame", "ego_config.camera.camera_loc"}
-    assert log.tpf == 50 and log.metadata.collision_frame == -1
+    assert log.frame_ms == 50 and log.metadata.collision_frame == -1
 
 
 def test_cli_inspect_lists_problems_one_line_each(log_dir: Path) -> None:

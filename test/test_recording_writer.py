@@ -198,7 +198,7 @@ def test_ego_odometry_and_ground_truth_are_the_carla_run_flipped_into_map(
             yaw = math.degrees(_map_yaw(obj.pose.orientation))
             assert yaw == pytest.approx(-actors.rotation[row, 2], abs=1e-9)
     ((log_time, event),) = messages["/carla/ego_vehicle/collision"]
-    assert _ms(log_time) == log.metadata.collision_frame * log.tpf == 99 * 50
+    assert _ms(log_time) == log.metadata.collision_frame * log.frame_ms == 99 * 50
     assert event.other_actor_id == int(summary["partner_id"]) == 876
 
 

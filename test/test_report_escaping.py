@@ -48,7 +48,7 @@ def hostile_log(root: Path) -> tuple[Path, dict[str, str]]:
     folder = root / f"log {FILE_PAYLOAD}\"'"
     log = synthesise("cut_in", "perception", seed=3)
     write_run_log(log, folder)
-    after = max(log.frames) + log.tpf  # stamps past the end: the crash is judged as before
+    after = max(log.frames) + log.frame_ms  # stamps past the end: the crash is judged as before
     ids: dict[str, str] = {}
 
     def rename(actor_id: Any) -> str:
@@ -86,7 +86,7 @@ def hostile_log(root: Path) -> tuple[Path, dict[str, str]]:
     for sub in FOLDERS:
         prefix = FILE_PREFIX[sub]
         (folder / sub / f"{prefix}-{FILE_PAYLOAD}-{after}.json").write_text("{}")
-        (folder / sub / f"{prefix}-\"'><b>-{after + log.tpf}.json").write_text("[")
+        (folder / sub / f"{prefix}-\"'><b>-{after + log.frame_ms}.json").write_text("[")
     return folder, ids
 
 

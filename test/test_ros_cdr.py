@@ -94,10 +94,10 @@ def check_log(log: RunLog, every: int = 1) -> int:
         assert list(fast) == list(slow)
         for key, msg in slow.items():
             assert_bytes_match(fast[key], msg)
-            expected = topics.message_to_record(key, msg, log.tpf)
-            assert_records_equal(decode_record(key, fast[key], log.tpf), expected)
+            expected = topics.message_to_record(key, msg, log.frame_ms)
+            assert_records_equal(decode_record(key, fast[key], log.frame_ms), expected)
             rclpy_bytes = serialize_message(msg)
-            assert_records_equal(decode_record(key, rclpy_bytes, log.tpf), expected)
+            assert_records_equal(decode_record(key, rclpy_bytes, log.frame_ms), expected)
             assert stamp_ms(key, fast[key]) == convert.message_stamp_ms(msg)
             checked += 1
         assert_bytes_match(cdr.encode_clock(ts), convert.clock_message(ts))

@@ -83,9 +83,9 @@ def test_each_episode_gets_its_own_verdict_equal_to_diagnose(
         assert document["live"]["complete"] is True, document["live"]
         assert document["conclusive"] is True
     second = crash(*cases[1])
-    cf_ms = second.metadata.collision_frame * second.tpf
+    cf_ms = second.metadata.collision_frame * second.frame_ms
     document = run.verdicts[1].document
-    start = cf_ms - document["window_frames"] * second.tpf
+    start = cf_ms - document["window_frames"] * second.frame_ms
     window = [f["timestamp_ms"] for f in document["frames"]]
     assert window == [s for s in second.unique_frames if start <= s <= cf_ms]
     [report] = run.episodes

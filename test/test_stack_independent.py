@@ -169,8 +169,8 @@ def test_a_simulator_restart_is_a_new_episode_with_its_own_verdict(
         assert verdict["collision_frame"] == log.metadata.collision_frame
         for key in ("partner_id", "primary_root_cause"):
             assert verdict[key] == want[key], key
-        cf_ms = log.metadata.collision_frame * log.tpf
-        start = cf_ms - verdict["window_frames"] * log.tpf
+        cf_ms = log.metadata.collision_frame * log.frame_ms
+        start = cf_ms - verdict["window_frames"] * log.frame_ms
         window = [s for s in log.unique_frames if start <= s <= cf_ms]
         assert [f["timestamp_ms"] for f in verdict["frames"]] == window
     said = {s["message"] for s in graph.diagnostics if s["name"] == "ads_rca/episode"}

@@ -85,10 +85,10 @@ def test_odometry_keeps_its_measured_speed() -> None:
 @pytest.mark.parametrize("scenario", SCENARIOS)
 def test_path_gives_the_log_plan(scenario: str) -> None:
     log = run_log(scenario)
-    tpf = log.metadata.timesteps_per_frame
+    frame_ms = log.metadata.timesteps_per_frame
     for t in log.frames:
         plan = log.waypoints[t]
-        got = stack_inputs.path_to_plan(stack_inputs.plan_to_path(plan, t, tpf), tpf)
+        got = stack_inputs.path_to_plan(stack_inputs.plan_to_path(plan, t, frame_ms), frame_ms)
         assert got.keys == plan.keys
         np.testing.assert_allclose(got.xy, plan.xy, rtol=0.0, atol=TOL)
         mean = 0.5 * (plan.speed[1:] + plan.speed[:-1])

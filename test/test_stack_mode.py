@@ -55,8 +55,8 @@ def test_every_crash_judged_live_equals_diagnose(mode: str) -> None:
         assert same_verdict(verdict, want), (scenario, fault)
         assert verdict["live"]["complete"], (scenario, fault)
         # The verdict's frames are the effect window's (a long run's verdict stays small).
-        cf_ms = log.metadata.collision_frame * log.tpf
-        start = cf_ms - verdict["window_frames"] * log.tpf
+        cf_ms = log.metadata.collision_frame * log.frame_ms
+        start = cf_ms - verdict["window_frames"] * log.frame_ms
         window = [s for s in log.unique_frames if start <= s <= cf_ms]
         assert [f["timestamp_ms"] for f in verdict["frames"]] == window
         latest = {(r.module, r.stamp_ms): r for rs in run.results.values() for r in rs}

@@ -63,7 +63,7 @@ def parameters(**values: Any) -> dict[str, Any]:
 def config(log: RunLog, **values: Any) -> StackConfig:
     """Stack parameters: the defaults, the log's period and camera, then ``values``."""
     given = parameters()
-    given["timesteps_per_frame"] = log.tpf
+    given["timesteps_per_frame"] = log.frame_ms
     for axis, value in zip("xyz", log.metadata.camera_loc, strict=True):
         given[f"camera_loc.{axis}"] = value
     given.update(values)
@@ -175,14 +175,17 @@ def test_two_collisions_give_two_numbered_verdicts(mode: str) -> None:
     log, sent = crash(*case), stream(*case)
     collision = log.metadata.collision_frame
     first = collision - 40
-    announced = [(heard_after(sent, first * log.tpf), first), (sent.collision_s or 0.0, collision)]
+    announced = [
+        (heard_after(sent, first * log.frame_ms), first),
+        (sent.collision_s or 0.0, collision),
+    ]
     run = run_stack(log, make_params(mode), sent, config(log), WHOLE_HISTORY, collisions=announced)
     documents = [v.document for v in run.verdicts]
     assert [d["live"]["collision_number"] for d in documents] == [1, 2]
     assert [d["collision_frame"] for d in documents] == [first, collision]
     assert [d["live"]["why_incomplete"] for d in documents] == [[], []]
     # The first verdict is diagnose's on the run up to the first collision, a crash log's.
-    first_ms = first * log.tpf
+    first_ms = first * log.frame_ms
     until_first = RunLog.from_folders(
         replace(log.metadata, collision_frame=first, total_frames=first),
         tuple(s for s in log.frames if s <= first_ms),
@@ -271,7 +274,7 @@ LAYOUTS: dict[str, tuple[str, Callable[[RunLog, int, int], Any]]] = {
     "pose": ("pose_stamped", lambda log, t, at: stack_inputs.pose_stamped(log.pose[t], at)),
     "waypoint": (
         "path",
-        lambda log, t, at: stack_inputs.plan_to_path(log.waypoints[t], at, log.tpf),
+        lambda log, t, at: stack_inputs.plan_to_path(log.waypoints[t], at, log.frame_ms),
     ),
     "actors": (
         "carla_markers",

@@ -55,7 +55,7 @@ def threat_context(log: RunLog) -> RunContext:
 
 def last_second(log: RunLog) -> list[int]:
     """The analysed frames in the last second up to the collision frame."""
-    cf_ms = log.metadata.collision_frame * log.tpf
+    cf_ms = log.metadata.collision_frame * log.frame_ms
     return [t for t in log.unique_frames if cf_ms - 1000 < t <= cf_ms]
 
 
@@ -161,7 +161,7 @@ def test_monitors_judge_the_threat_then_rejudge_against_the_collision(shared: bo
     live = run.outcome.document
     for key in ("modules", "primary_root_cause", "contributing", "partner_id", "evidence"):
         assert live[key] == offline[key], key
-    cf_ms = log.metadata.collision_frame * log.tpf
+    cf_ms = log.metadata.collision_frame * log.frame_ms
     for module in MODULES:
         results = run.results[module]
         before = [r for r in results if r.collision_frame == -1]

@@ -217,16 +217,16 @@ class RunLogAssembler:
         )
         for name, issue in issues:
             log.problems.add(topics.METADATA, name, issue, IGNORED, "warning")
-        tpf = metadata.timesteps_per_frame
+        frame_ms = metadata.timesteps_per_frame
         for topic, by_stamp in self._data.items():
             folder = log.folder(topics.TOPIC_FOLDERS[topic])
             for stamp in sorted(by_stamp):
                 item = by_stamp[stamp]
                 if not isinstance(item, bytes):
-                    folder[stamp] = topics.message_to_record(topic, item, tpf)
+                    folder[stamp] = topics.message_to_record(topic, item, frame_ms)
                     continue
                 try:
-                    folder[stamp] = topics.decode_record(topic, item, tpf)
+                    folder[stamp] = topics.decode_record(topic, item, frame_ms)
                 except CdrError as error:
                     log.problems.add(topic, "", str(error), "message skipped", timestamp_ms=stamp)
         return log

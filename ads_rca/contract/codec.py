@@ -15,7 +15,7 @@ follows from it:
 Changing a field of a kind means changing its four functions together, which the tests hold
 to each other; adding a topic of an existing kind is one row of the table. Two topics of one
 MarkerArray kind differ only in their :class:`~ads_rca.contract.convert.MarkerStyle`, which
-is why those kinds are made per style. ``tpf`` (the run's milliseconds per frame) is passed
+is why those kinds are made per style. ``frame_ms`` (the run's milliseconds per frame) is passed
 to every conversion because a plan's step keys are times. Pure: no rclpy import.
 """
 
@@ -38,19 +38,19 @@ class Codec(Generic[R]):
     """One kind of record on the wire: message type name and the conversions (module doc)."""
 
     type_name: str  # ``package/msg/Type``
-    build: Callable[[R, int, int], Any]  # (record, stamp_ms, tpf) -> message object
-    read: Callable[[Any, int], R]  # (message object, tpf) -> record
-    encode: Callable[[R, int, int], bytes]  # (record, stamp_ms, tpf) -> CDR bytes
-    decode: Callable[[bytes, int], R]  # (CDR bytes, tpf) -> record; CdrError if malformed
+    build: Callable[[R, int, int], Any]  # (record, stamp_ms, frame_ms) -> message object
+    read: Callable[[Any, int], R]  # (message object, frame_ms) -> record
+    encode: Callable[[R, int, int], bytes]  # (record, stamp_ms, frame_ms) -> CDR bytes
+    decode: Callable[[bytes, int], R]  # (CDR bytes, frame_ms) -> record; CdrError if malformed
     stamp: Callable[[bytes], int] | None = None  # CDR bytes -> stamp_ms (data kinds)
 
 
 POSE: Codec[EgoPose] = Codec(
     "nav_msgs/msg/Odometry",
-    build=lambda pose, stamp, _tpf: convert.pose_to_odometry(pose, stamp),
-    read=lambda msg, _tpf: convert.odometry_to_pose(msg),
-    encode=lambda pose, stamp, _tpf: cdr.encode_odometry(pose, stamp),
-    decode=lambda data, _tpf: cdr_decode.decode_odometry(data),
+    build=lambda pose, stamp, _frame_ms: convert.pose_to_odometry(pose, stamp),
+    read=lambda msg, _frame_ms: convert.odometry_to_pose(msg),
+    encode=lambda pose, stamp, _frame_ms: cdr.encode_odometry(pose, stamp),
+    decode=lambda data, _frame_ms: cdr_decode.decode_odometry(data),
     stamp=cdr_decode.header_stamp_ms,
 )
 
@@ -70,10 +70,10 @@ def actors(style: MarkerStyle) -> Codec[Actors]:
     """Actors as CUBE markers in ``style``."""
     return Codec(
         _MARKER_ARRAY,
-        build=lambda record, stamp, _tpf: convert.actors_to_markers(record, stamp, style),
-        read=lambda msg, _tpf: convert.markers_to_actors(msg),
-        encode=lambda record, stamp, _tpf: cdr.encode_actors(record, stamp, style),
-        decode=lambda data, _tpf: cdr_decode.decode_actors(data),
+        build=lambda record, stamp, _frame_ms: convert.actors_to_markers(record, stamp, style),
+        read=lambda msg, _frame_ms: convert.markers_to_actors(msg),
+        encode=lambda record, stamp, _frame_ms: cdr.encode_actors(record, stamp, style),
+        decode=lambda data, _frame_ms: cdr_decode.decode_actors(data),
         stamp=cdr_decode.marker_array_stamp_ms,
     )
 
@@ -82,10 +82,10 @@ def boxes(style: MarkerStyle) -> Codec[Boxes]:
     """Image boxes as LINE_STRIP markers in ``style``."""
     return Codec(
         _MARKER_ARRAY,
-        build=lambda record, stamp, _tpf: convert.boxes_to_markers(record, stamp, style),
-        read=lambda msg, _tpf: convert.markers_to_boxes(msg),
-        encode=lambda record, stamp, _tpf: cdr.encode_boxes(record, stamp, style),
-        decode=lambda data, _tpf: cdr_decode.decode_boxes(data),
+        build=lambda record, stamp, _frame_ms: convert.boxes_to_markers(record, stamp, style),
+        read=lambda msg, _frame_ms: convert.markers_to_boxes(msg),
+        encode=lambda record, stamp, _frame_ms: cdr.encode_boxes(record, stamp, style),
+        decode=lambda data, _frame_ms: cdr_decode.decode_boxes(data),
         stamp=cdr_decode.marker_array_stamp_ms,
     )
 
@@ -94,10 +94,10 @@ def predictions(style: MarkerStyle) -> Codec[Predictions]:
     """Predicted tracks as LINE_STRIP markers in ``style``."""
     return Codec(
         _MARKER_ARRAY,
-        build=lambda record, stamp, _tpf: convert.predictions_to_markers(record, stamp, style),
-        read=lambda msg, _tpf: convert.markers_to_predictions(msg),
-        encode=lambda record, stamp, _tpf: cdr.encode_predictions(record, stamp, style),
-        decode=lambda data, _tpf: cdr_decode.decode_predictions(data),
+        build=lambda record, stamp, _frame_ms: convert.predictions_to_markers(record, stamp, style),
+        read=lambda msg, _frame_ms: convert.markers_to_predictions(msg),
+        encode=lambda record, stamp, _frame_ms: cdr.encode_predictions(record, stamp, style),
+        decode=lambda data, _frame_ms: cdr_decode.decode_predictions(data),
         stamp=cdr_decode.marker_array_stamp_ms,
     )
 
@@ -106,10 +106,10 @@ def objects(style: MarkerStyle) -> Codec[Objects3D]:
     """3-D objects (detections, tracks) as CUBE markers in ``style``."""
     return Codec(
         _MARKER_ARRAY,
-        build=lambda record, stamp, _tpf: convert.objects_to_markers(record, stamp, style),
-        read=lambda msg, _tpf: convert.markers_to_objects(msg),
-        encode=lambda record, stamp, _tpf: cdr.encode_objects(record, stamp, style),
-        decode=lambda data, _tpf: cdr_decode.decode_objects(data),
+        build=lambda record, stamp, _frame_ms: convert.objects_to_markers(record, stamp, style),
+        read=lambda msg, _frame_ms: convert.markers_to_objects(msg),
+        encode=lambda record, stamp, _frame_ms: cdr.encode_objects(record, stamp, style),
+        decode=lambda data, _frame_ms: cdr_decode.decode_objects(data),
         stamp=cdr_decode.marker_array_stamp_ms,
     )
 
@@ -118,10 +118,10 @@ def lanes(style: MarkerStyle) -> Codec[LaneGraph]:
     """A lane graph as LINE_STRIP lanes and TEXT_VIEW_FACING element labels in ``style``."""
     return Codec(
         _MARKER_ARRAY,
-        build=lambda record, stamp, _tpf: convert.lanes_to_markers(record, stamp, style),
-        read=lambda msg, _tpf: convert.markers_to_lanes(msg),
-        encode=lambda record, stamp, _tpf: cdr.encode_lanes(record, stamp, style),
-        decode=lambda data, _tpf: cdr_decode.decode_lanes(data),
+        build=lambda record, stamp, _frame_ms: convert.lanes_to_markers(record, stamp, style),
+        read=lambda msg, _frame_ms: convert.markers_to_lanes(msg),
+        encode=lambda record, stamp, _frame_ms: cdr.encode_lanes(record, stamp, style),
+        decode=lambda data, _frame_ms: cdr_decode.decode_lanes(data),
         stamp=cdr_decode.marker_array_stamp_ms,
     )
 
@@ -129,10 +129,10 @@ def lanes(style: MarkerStyle) -> Codec[LaneGraph]:
 #: A control command as labelled numbers (no common_interfaces type holds one).
 CONTROL: Codec[ControlCommand] = Codec(
     "sensor_msgs/msg/JointState",
-    build=lambda command, stamp, _tpf: convert.control_to_joint_state(command, stamp),
-    read=lambda msg, _tpf: convert.joint_state_to_control(msg),
-    encode=lambda command, stamp, _tpf: cdr.encode_control(command, stamp),
-    decode=lambda data, _tpf: cdr_decode.decode_control(data),
+    build=lambda command, stamp, _frame_ms: convert.control_to_joint_state(command, stamp),
+    read=lambda msg, _frame_ms: convert.joint_state_to_control(msg),
+    encode=lambda command, stamp, _frame_ms: cdr.encode_control(command, stamp),
+    decode=lambda data, _frame_ms: cdr_decode.decode_control(data),
     stamp=cdr_decode.header_stamp_ms,
 )
 
@@ -140,17 +140,17 @@ CONTROL: Codec[ControlCommand] = Codec(
 #: JSON text on a std_msgs/String (metadata, frame markers, status); no stamp.
 TEXT: Codec[str] = Codec(
     "std_msgs/msg/String",
-    build=lambda text, _stamp, _tpf: convert.string_message(text),
-    read=lambda msg, _tpf: convert.string_text(msg),
-    encode=lambda text, _stamp, _tpf: cdr.encode_string(text),
-    decode=lambda data, _tpf: cdr_decode.decode_string(data),
+    build=lambda text, _stamp, _frame_ms: convert.string_message(text),
+    read=lambda msg, _frame_ms: convert.string_text(msg),
+    encode=lambda text, _stamp, _frame_ms: cdr.encode_string(text),
+    decode=lambda data, _frame_ms: cdr_decode.decode_string(data),
 )
 
 #: A log time on /clock; the record is the time itself.
 CLOCK: Codec[int] = Codec(
     "rosgraph_msgs/msg/Clock",
-    build=lambda stamp, _stamp, _tpf: convert.clock_message(stamp),
-    read=lambda msg, _tpf: convert.clock_ms(msg),
-    encode=lambda stamp, _stamp, _tpf: cdr.encode_clock(stamp),
-    decode=lambda data, _tpf: cdr_decode.decode_clock(data),
+    build=lambda stamp, _stamp, _frame_ms: convert.clock_message(stamp),
+    read=lambda msg, _frame_ms: convert.clock_ms(msg),
+    encode=lambda stamp, _stamp, _frame_ms: cdr.encode_clock(stamp),
+    decode=lambda data, _frame_ms: cdr_decode.decode_clock(data),
 )

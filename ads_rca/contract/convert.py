@@ -733,7 +733,7 @@ def plan_to_trajectory(
 ) -> MultiDOFJointTrajectory:
     """Plan → MultiDOFJointTrajectory in ``map``: one point per integer key, file order.
 
-    translation (x, −y, 0), identity rotation, linear.x = speed, time_from_start = key × tpf.
+    translation (x, −y, 0), identity rotation, linear.x = speed, time_from_start = key × frame_ms.
     """
     from geometry_msgs.msg import Quaternion, Transform, Twist, Vector3
     from trajectory_msgs.msg import MultiDOFJointTrajectory, MultiDOFJointTrajectoryPoint

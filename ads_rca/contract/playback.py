@@ -84,8 +84,8 @@ def frame_marker(
     """The ``run/frame`` message sent after a tick's data: what was published for it."""
     from std_msgs.msg import String
 
-    tpf = timesteps_per_frame
-    frame = frame_number(tick.stamp_ms, tpf) if tpf > 0 else None
+    frame_ms = timesteps_per_frame
+    frame = frame_number(tick.stamp_ms, frame_ms) if frame_ms > 0 else None
     document = {
         "index": tick.index,
         "stamp_ms": tick.stamp_ms,

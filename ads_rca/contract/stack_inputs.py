@@ -194,7 +194,7 @@ def path_to_plan(msg: Path, timesteps_per_frame: int, world_frame: str = WORLD_F
 
 def plan_to_path(plan: Plan, timestamp_ms: int, timesteps_per_frame: int) -> Path:
     """Plan → nav_msgs/Path in ``map``: one pose per integer key (stamp = header stamp +
-    key × tpf ms), position (x, −y, 0), identity orientation; the speeds are not carried."""
+    key × frame_ms ms), position (x, −y, 0), identity orientation; the speeds are not carried."""
     from geometry_msgs.msg import PoseStamped
     from nav_msgs.msg import Path
 

@@ -113,7 +113,7 @@ class Decoder:
             CONTRACT: self._contract,
             "pose_stamped": self._pose_stamped,
             "path": path_to_plan,
-            "carla_markers": lambda msg, _tpf: carla_markers_to_actors(msg),
+            "carla_markers": lambda msg, _frame_ms: carla_markers_to_actors(msg),
         }
         self._record = records[self.layout.name]
         #: PoseStamped: the pose released before, for the derived speed.
@@ -131,10 +131,10 @@ class Decoder:
     def record(self, payload: Any, timesteps_per_frame: int) -> Record:
         return self._record(payload, timesteps_per_frame)
 
-    def _contract(self, data: bytes, tpf: int) -> Record:
-        return topics.decode_record(self._key, data, tpf)  # type: ignore[no-any-return]
+    def _contract(self, data: bytes, frame_ms: int) -> Record:
+        return topics.decode_record(self._key, data, frame_ms)  # type: ignore[no-any-return]
 
-    def _pose_stamped(self, msg: Any, _tpf: int) -> Record:
+    def _pose_stamped(self, msg: Any, _frame_ms: int) -> Record:
         """Speed over the interval from the pose released before (frames are released in
         stamp order; a dropped pose gives the mean over the longer interval)."""
         pose = pose_stamped_pose(msg, self._previous).pose

@@ -225,7 +225,7 @@ def frame_messages(log: RunLog, timestamp_ms: int) -> dict[str, Any]:
     for topic in DATA:
         record = log.folder(str(topic.folder)).get(timestamp_ms)
         if record is not None:
-            out[topic.key] = topic.codec.build(record, timestamp_ms, log.tpf)
+            out[topic.key] = topic.codec.build(record, timestamp_ms, log.frame_ms)
     return out
 
 
@@ -236,7 +236,7 @@ def frame_payloads(log: RunLog, timestamp_ms: int) -> dict[str, bytes]:
     for topic in DATA:
         record = log.folder(str(topic.folder)).get(timestamp_ms)
         if record is not None:
-            out[topic.key] = topic.codec.encode(record, timestamp_ms, log.tpf)
+            out[topic.key] = topic.codec.encode(record, timestamp_ms, log.frame_ms)
     return out
 
 

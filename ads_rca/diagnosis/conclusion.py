@@ -166,13 +166,13 @@ class _Window:
 
     start_ms: int
     end_ms: int
-    tpf: int
+    frame_ms: int
 
 
 def _window(semantics: Semantics, params: Params, log: RunLog) -> _Window:
-    tpf = log.tpf
-    end = log.metadata.collision_frame * tpf
-    return _Window(end - semantics.window_frames(params, tpf) * tpf, end, tpf)
+    frame_ms = log.frame_ms
+    end = log.metadata.collision_frame * frame_ms
+    return _Window(end - semantics.window_frames(params, frame_ms) * frame_ms, end, frame_ms)
 
 
 def _partly_judged(
@@ -211,7 +211,7 @@ def _missing_frames(log: RunLog, window: _Window) -> list[str]:
     """The reason naming the frames of the window the run does not hold (none: [])."""
     if not any(window.start_ms <= ts <= window.end_ms for ts in log.frames):
         return ["no frame of the effect window is in the run"] if log.frames else []
-    missing = missing_window_frames(log.frames, window.start_ms, window.end_ms, window.tpf)
+    missing = missing_window_frames(log.frames, window.start_ms, window.end_ms, window.frame_ms)
     if not missing:
         return []
     verb = "is" if len(missing) == 1 else "are"
@@ -219,7 +219,7 @@ def _missing_frames(log: RunLog, window: _Window) -> list[str]:
 
 
 def missing_window_frames(
-    frames_ms: Iterable[int], start_ms: int, end_ms: int, tpf: int
+    frames_ms: Iterable[int], start_ms: int, end_ms: int, frame_ms: int
 ) -> list[int | float]:
     """Frame numbers in [``start_ms``, ``end_ms``] that ``frames_ms`` lacks: between two
     frames it holds (the last one before the window counts: a run that began earlier and
@@ -233,11 +233,13 @@ def missing_window_frames(
     earlier = [ts for ts in stamps if ts < start_ms][-1:]
     missing: list[int | float] = []
     for before, after in pairwise([*earlier, *held]):
-        gap = round((after - before) / tpf) - 1
-        stamps_between = (before + k * tpf for k in range(1, gap + 1))
-        missing.extend(frame_number(ts, tpf) for ts in stamps_between if ts >= start_ms)
-    after_last = round((end_ms - held[-1]) / tpf)
-    missing.extend(frame_number(held[-1] + k * tpf, tpf) for k in range(1, after_last + 1))
+        gap = round((after - before) / frame_ms) - 1
+        stamps_between = (before + k * frame_ms for k in range(1, gap + 1))
+        missing.extend(frame_number(ts, frame_ms) for ts in stamps_between if ts >= start_ms)
+    after_last = round((end_ms - held[-1]) / frame_ms)
+    missing.extend(
+        frame_number(held[-1] + k * frame_ms, frame_ms) for k in range(1, after_last + 1)
+    )
     return missing
 
 

@@ -47,7 +47,7 @@ def evaluate_frame(ctx: RunContext, oracles: Mapping[Module, Oracle], ts: int) -
                 results[module] = oracle(ctx, ts)
             except Exception as error:
                 results[module] = internal_error_result(ctx, module, ts, error)
-    return FrameResults(ts, frame_number(ts, ctx.tpf), results)
+    return FrameResults(ts, frame_number(ts, ctx.frame_ms), results)
 
 
 def internal_error_result(
@@ -87,7 +87,7 @@ class Diagnosis:
     @property
     def window_frames(self) -> int:
         """W: the effect window's length in frames (the mode's rule)."""
-        return self.semantics.window_frames(self.params, self.log.tpf)
+        return self.semantics.window_frames(self.params, self.log.frame_ms)
 
     @property
     def problems(self) -> ProblemLog:
@@ -116,7 +116,7 @@ class Diagnosis:
             "thresholds": self.semantics.used(self.params),
             "collision_frame": self.log.metadata.collision_frame,
             "window_frames": self.window_frames,
-            "effect_window": self.semantics.effect_window(self.params, self.log.tpf),
+            "effect_window": self.semantics.effect_window(self.params, self.log.frame_ms),
             "ego_id": self.ctx.ego_id,
             "modules_judged": conclusion.modules,
             "partner_id": a.partner_id,

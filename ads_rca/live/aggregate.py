@@ -278,14 +278,14 @@ class AggregatorCore(FollowsRunEnd):
     def _stack_frame(self, result: LiveResult, now: float) -> LiveResult:
         """Stack mode: the result re-indexed by its stamp, its frame registered as expected
         (index -1: a stamp too far before the first one heard)."""
-        if self.metadata is None and self.stack_config is not None and result.tpf_ms > 0:
-            self.set_metadata(self.stack_config.metadata(result.tpf_ms), "stack", now)
+        if self.metadata is None and self.stack_config is not None and result.frame_ms > 0:
+            self.set_metadata(self.stack_config.metadata(result.frame_ms), "stack", now)
         if self.metadata is None:
             return replace(result, index=-1)
-        tpf = self.metadata.timesteps_per_frame
+        frame_ms = self.metadata.timesteps_per_frame
         if self._origin_ms is None:
-            self._origin_ms = result.stamp_ms - STACK_MARGIN * tpf
-        index = round((result.stamp_ms - self._origin_ms) / tpf)
+            self._origin_ms = result.stamp_ms - STACK_MARGIN * frame_ms
+        index = round((result.stamp_ms - self._origin_ms) / frame_ms)
         if index < 0:
             return replace(result, index=-1)
         if self.expected.accepts(index) and not self.expected.has(index):
@@ -332,7 +332,7 @@ class AggregatorCore(FollowsRunEnd):
         verdict costs its failures, not its length. Their full results stay on the metrics
         topics; passing frames outside the window count for nothing in either mode."""
         assert self.metadata is not None
-        tpf = self.metadata.timesteps_per_frame
+        frame_ms = self.metadata.timesteps_per_frame
         indices = self._required_indices()
         stamps = self.expected.columns["stamp_ms"][indices]
         before = indices[stamps < start_ms]
@@ -346,7 +346,7 @@ class AggregatorCore(FollowsRunEnd):
         out = []
         for index in sorted(failing):
             stamp = int(self.expected.columns["stamp_ms"][index])
-            out.append(FrameResults(stamp, frame_number(stamp, tpf), failing[index]))
+            out.append(FrameResults(stamp, frame_number(stamp, frame_ms), failing[index]))
         return out
 
     def _window_start_ms(self) -> int | None:
@@ -480,15 +480,17 @@ class AggregatorCore(FollowsRunEnd):
         margin before the first stamp heard), so they are named by frame number."""
         if not self.stack or self.metadata is None:
             return _frames_text(by_module)
-        tpf = self.metadata.timesteps_per_frame
+        frame_ms = self.metadata.timesteps_per_frame
         stamps = self.expected.columns["stamp_ms"]
-        number = {i: frame_number(int(stamps[i]), tpf) for got in by_module.values() for i in got}
+        number = {
+            i: frame_number(int(stamps[i]), frame_ms) for got in by_module.values() for i in got
+        }
         return _frames_text({m: [number[i] for i in got] for m, got in by_module.items()})
 
     def _verdict(self, now: float, why: list[str]) -> VerdictOutcome:
         assert self.metadata is not None
         metadata = replace(self.metadata, collision_frame=self.collision_frame)
-        tpf = metadata.timesteps_per_frame
+        frame_ms = metadata.timesteps_per_frame
         required = self.required()
         window_start = self._window_start_ms() if self.stack else None
         frames: list[FrameResults] = []
@@ -499,7 +501,7 @@ class AggregatorCore(FollowsRunEnd):
             required_full = required
         for e in required_full:
             results = {m: self._result(m, e.index) for m in MODULES if self.results.has(m, e.index)}
-            frames.append(FrameResults(e.stamp_ms, frame_number(e.stamp_ms, tpf), results))
+            frames.append(FrameResults(e.stamp_ms, frame_number(e.stamp_ms, frame_ms), results))
         held = {FOLDER_FIELDS[f] for f in self.folders_sent if f in FOLDER_FIELDS}
         inputs = dict(self.recorded_inputs or held_status(held, metadata.collision_known))
         # Stack mode: only the effect window's frames decide whether the verdict is complete.
@@ -560,7 +562,7 @@ class AggregatorCore(FollowsRunEnd):
             "frames_expected": len(required),
             "results_received": dict(self.received),
             "incomplete_results": [
-                [m, frame_number(int(self.expected.columns["stamp_ms"][i]), tpf)]
+                [m, frame_number(int(self.expected.columns["stamp_ms"][i]), frame_ms)]
                 if self.expected.has(i)
                 else [m, None]
                 for m, i in incomplete[:50]
@@ -605,11 +607,11 @@ class AggregatorCore(FollowsRunEnd):
         horizon = self.horizon_ms()
         if horizon is None:
             return []
-        tpf = self.metadata.timesteps_per_frame
+        frame_ms = self.metadata.timesteps_per_frame
         stamps = [e.stamp_ms for e in required]
         if not any(window_start <= stamp <= horizon for stamp in stamps):
             return ["no frame of the effect window was judged"]
-        missing = missing_window_frames(stamps, window_start, horizon, tpf)
+        missing = missing_window_frames(stamps, window_start, horizon, frame_ms)
         if not missing:
             return []
         return [

@@ -51,11 +51,11 @@ class CollisionDetector:
     """
 
     def __init__(
-        self, tpf_ms: int, ego_id: str | None = None, ego_half: FloatArray | None = None
+        self, frame_ms: int, ego_id: str | None = None, ego_half: FloatArray | None = None
     ) -> None:
-        if tpf_ms <= 0:
-            raise ConfigError(f"collision detector: tpf_ms must be positive, got {tpf_ms}")
-        self.tpf_ms = tpf_ms
+        if frame_ms <= 0:
+            raise ConfigError(f"collision detector: frame_ms must be positive, got {frame_ms}")
+        self.frame_ms = frame_ms
         self.ego_id = ego_id
         self.ego_half: FloatArray | None = None
         if ego_half is not None:
@@ -137,7 +137,7 @@ class CollisionDetector:
             self._contacts.add(actor_id)
             number = len(self.collisions) + 1
             collision = Collision(
-                number, ts, frame_number(ts, self.tpf_ms), actor_id, float(-dist[r])
+                number, ts, frame_number(ts, self.frame_ms), actor_id, float(-dist[r])
             )
             self.collisions.append(collision)
             found.append(collision)
@@ -155,7 +155,7 @@ def detect_collisions(
     log: RunLog, ego_id: str | None = None, ego_half: FloatArray | None = None
 ) -> list[Collision]:
     """Every collision of a whole log, numbered, by streaming its analysed frames."""
-    detector = CollisionDetector(log.tpf, ego_id, ego_half)
+    detector = CollisionDetector(log.frame_ms, ego_id, ego_half)
     for ts in sorted(log.unique_frames):
         detector.update(ts, log.pose.get(ts), log.actors.get(ts))
     return detector.collisions

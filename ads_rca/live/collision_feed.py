@@ -16,7 +16,7 @@ from ads_rca.contract.errors import MalformedMessage, NoStamp
 from ads_rca.contract.stack_layouts import Decoder
 from ads_rca.errors import ConfigError
 from ads_rca.live.collision_detect import Collision, CollisionDetector
-from ads_rca.live.stack_config import StackConfig, period_to_tpf
+from ads_rca.live.stack_config import StackConfig, period_to_frame_ms
 from ads_rca.live.stack_feed import SkipReport
 from ads_rca.live.stamp_sync import StampSync, SyncedFrame
 from ads_rca.model import Actors, EgoPose
@@ -62,14 +62,14 @@ class CollisionFeed:
             return []
         if self.detector is None:
             assert self.sync.period_ms is not None  # nothing is released before it is known
-            tpf = self.config.timesteps_per_frame or period_to_tpf(self.sync.period_ms)
-            self.detector = CollisionDetector(tpf, self.config.ego_id or None)
+            frame_ms = self.config.timesteps_per_frame or period_to_frame_ms(self.sync.period_ms)
+            self.detector = CollisionDetector(frame_ms, self.config.ego_id or None)
         found: list[Collision] = []
         for frame in frames:
             records: dict[str, Any] = {}
             for folder, payload in frame.inputs.items():
                 try:
-                    records[folder] = self.decoders[folder].record(payload, self.detector.tpf_ms)
+                    records[folder] = self.decoders[folder].record(payload, self.detector.frame_ms)
                 except MalformedMessage as error:
                     self.skipped(folder, str(error))
             pose, actors = records.get("pose"), records.get("actors")

@@ -138,10 +138,10 @@ class EpisodeReport:
     @classmethod
     def of(cls, core: AggregatorCore, next_episode: int) -> EpisodeReport:
         stamps = core.frame_stamps()
-        tpf = core.metadata.timesteps_per_frame if core.metadata is not None else 0
+        frame_ms = core.metadata.timesteps_per_frame if core.metadata is not None else 0
         first, last = (
-            (frame_number(stamps[0], tpf), frame_number(stamps[-1], tpf))
-            if stamps and tpf
+            (frame_number(stamps[0], frame_ms), frame_number(stamps[-1], frame_ms))
+            if stamps and frame_ms
             else (None, None)
         )
         deciding = core.collision_frame if core.deciding else None

@@ -83,7 +83,7 @@ class LiveResult:
     #: the module is complete for that collision's verdict.
     closes_collision: int = -1
     #: Stack mode: the frame period the monitor used (measured or given; 0: a player's run).
-    tpf_ms: int = 0
+    frame_ms: int = 0
     #: Stack mode: the episode judged (1, 2, ...: the stamps went back, a new run began);
     #: the aggregator keys results by it, so two episodes never mix.
     episode: int = 1
@@ -127,8 +127,8 @@ class LiveResult:
             "session": self.session,
             **({"run": self.run} if self.run else {}),
             **({"closes_collision": self.closes_collision} if self.closes_collision >= 0 else {}),
-            **({"tpf_ms": self.tpf_ms} if self.tpf_ms > 0 else {}),
-            **({"episode": self.episode} if self.tpf_ms > 0 or self.episode != 1 else {}),
+            **({"frame_ms": self.frame_ms} if self.frame_ms > 0 else {}),
+            **({"episode": self.episode} if self.frame_ms > 0 or self.episode != 1 else {}),
             **self.extra,
         }
 
@@ -176,7 +176,7 @@ class LiveResult:
             closes_collision=bounded_int(
                 d.get("closes_collision", -1), "closes_collision", -1, MAX_FRAME
             ),
-            tpf_ms=bounded_int(d.get("tpf_ms", 0), "tpf_ms", 0, MAX_STAMP),
+            frame_ms=bounded_int(d.get("frame_ms", 0), "frame_ms", 0, MAX_STAMP),
             episode=bounded_int(d.get("episode", 1), "episode", 1, MAX_FRAME),
         )
 

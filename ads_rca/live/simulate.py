@@ -215,13 +215,13 @@ def stack_stream(
             if stamp in gone:
                 continue
             record = log.folder(folder)[stamp]
-            payload = topic.codec.encode(record, stamp + offsets[folder], log.tpf)
+            payload = topic.codec.encode(record, stamp + offsets[folder], log.frame_ms)
             arrival = (stamp + float(rng.uniform(0.0, jitter_ms))) / 1000.0
             messages.append(StackMessage(arrival, folder, stamp + offsets[folder], payload))
     messages.sort(key=lambda m: m.arrival_s)
     collision_s = None
     if log.metadata.collision_frame >= 0:
-        cf_ms = log.metadata.collision_frame * log.tpf
+        cf_ms = log.metadata.collision_frame * log.frame_ms
         collision_s = (
             max((m.arrival_s for m in messages if m.stamp_ms <= cf_ms + max_offset_ms), default=0.0)
             + 0.001

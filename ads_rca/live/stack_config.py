@@ -223,6 +223,6 @@ class StackConfig:
         return tuple(i.layout.derived for i in self.inputs.values() if i.layout.derived)
 
 
-def period_to_tpf(period_ms: float) -> int:
+def period_to_frame_ms(period_ms: float) -> int:
     """A measured period as the metadata's integer milliseconds (at least 1)."""
     return max(1, math.floor(period_ms + 0.5))

@@ -32,7 +32,7 @@ from ads_rca.contract.errors import MalformedMessage, NoStamp
 from ads_rca.contract.stack_layouts import Decoder
 from ads_rca.live.episodes import NEW, NEXT, PREVIOUS, EpisodeClock
 from ads_rca.live.results import FrameMarker, LiveResult
-from ads_rca.live.stack_config import StackConfig, period_to_tpf
+from ads_rca.live.stack_config import StackConfig, period_to_frame_ms
 from ads_rca.live.stamp_sync import StampSync, SyncedFrame
 from ads_rca.live.window import MonitorCore
 from ads_rca.model import OPTIONAL_FOLDERS, Actors, Record
@@ -150,8 +150,8 @@ class StackFeed:
         waits for it). Never the ending episode's: a stack announces a collision after its
         frame's data, so one stamped ahead of the data judged so far is this episode's, its
         data still queued; True when held frames are judged again."""
-        tpf = self._tpf()
-        if tpf and self.clock.place(frame * tpf) == NEXT:
+        frame_ms = self._frame_ms()
+        if frame_ms and self.clock.place(frame * frame_ms) == NEXT:
             self._collisions_ahead.append((frame, now))
             return False
         return self.core.set_collision(frame, now)
@@ -270,13 +270,13 @@ class StackFeed:
         for frame, heard in due:
             self.core.set_collision(frame, heard)
 
-    def _tpf(self) -> int | None:
+    def _frame_ms(self) -> int | None:
         """The current episode's frame period (ms), once known."""
         metadata = self.core.metadata
         if metadata is not None:
             return metadata.timesteps_per_frame
         period = self.sync.period_ms
-        return period_to_tpf(period) if period is not None else None
+        return period_to_frame_ms(period) if period is not None else None
 
     # --- frames into the core ----------------------------------------------------------
 
@@ -286,16 +286,16 @@ class StackFeed:
         core, sync = episode.core, episode.sync
         if core.metadata is None:
             assert sync.period_ms is not None  # nothing is released before it is known
-            core.set_metadata(self.config.metadata(period_to_tpf(sync.period_ms)), now)
+            core.set_metadata(self.config.metadata(period_to_frame_ms(sync.period_ms)), now)
         self._check_period(sync)
         assert core.metadata is not None
-        tpf = core.metadata.timesteps_per_frame
-        period = sync.period_ms or float(tpf)
+        frame_ms = core.metadata.timesteps_per_frame
+        period = sync.period_ms or float(frame_ms)
         wanted = frozenset((*self.expected, *self.unprovided))
         for frame in frames:
             for folder, payload in frame.inputs.items():
                 try:
-                    record = episode.decoders[folder].record(payload, tpf)
+                    record = episode.decoders[folder].record(payload, frame_ms)
                 except MalformedMessage as error:
                     self.skipped(folder, str(error))
                     continue

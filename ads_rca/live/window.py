@@ -215,10 +215,10 @@ class MonitorCore(FollowsRunEnd):
             # Judged before the run's end was known, a frame whose look-ahead may reach past
             # the collision read as if the run went on: judged again, the data ending there.
             assert self.metadata is not None
-            tpf = self.metadata.timesteps_per_frame
+            frame_ms = self.metadata.timesteps_per_frame
             # So was one judged on the data up to the previous collision: the run went on.
-            cuts = [c * tpf for c in (frame, previous) if c >= 0]
-            again = [e for e in self._judged if any(self._reaches(e, c, tpf) for c in cuts)]
+            cuts = [c * frame_ms for c in (frame, previous) if c >= 0]
+            again = [e for e in self._judged if any(self._reaches(e, c, frame_ms) for c in cuts)]
             taken = {id(e) for e in again}
             self._judged = deque(e for e in self._judged if id(e) not in taken)
             if not again and not self._pending_through(frame):
@@ -232,11 +232,11 @@ class MonitorCore(FollowsRunEnd):
             self.pending.appendleft(entry)
         return bool(again)
 
-    def _reaches(self, entry: _Entry, cf_ms: int, tpf: int) -> bool:
+    def _reaches(self, entry: _Entry, cf_ms: int, frame_ms: int) -> bool:
         """Whether a judged frame's look-ahead reaches the collision (it read the run as
         going on past it)."""
         stamp = entry.marker.stamp_ms
-        return stamp + self._lookahead_frames(entry) * tpf >= cf_ms
+        return stamp + self._lookahead_frames(entry) * frame_ms >= cf_ms
 
     def _pending_through(self, frame: int) -> bool:
         """A frame at or before collision ``frame`` is still to be judged."""
@@ -343,12 +343,12 @@ class MonitorCore(FollowsRunEnd):
     def _blockers(self, entry: _Entry) -> list[str]:
         """What the frame still waits for (empty: it can be judged)."""
         assert self.metadata is not None
-        tpf = self.metadata.timesteps_per_frame
+        frame_ms = self.metadata.timesteps_per_frame
         stamp = entry.marker.stamp_ms
         out = []
         if not entry.settled:
             out.append("inputs not complete")
-        ahead = stamp + self._lookahead_frames(entry) * tpf
+        ahead = stamp + self._lookahead_frames(entry) * frame_ms
         cut = self._cut_ms(stamp)
         if cut is not None:
             ahead = min(ahead, cut)
@@ -359,7 +359,7 @@ class MonitorCore(FollowsRunEnd):
         if (
             self.semantics.uses_partner
             and self.collision_frame >= 0
-            and not self._through(self.collision_frame * tpf)
+            and not self._through(self.collision_frame * frame_ms)
         ):
             out.append("collision partner unknown (collision frame not received)")
         return out
@@ -481,7 +481,7 @@ class MonitorCore(FollowsRunEnd):
                     LiveResult(
                         index=int(entry.marker.index or 0),
                         result=result,
-                        frame=frame_number(stamp, log.tpf),
+                        frame=frame_number(stamp, log.frame_ms),
                         collision_frame=self.collision_frame,
                         incomplete=incomplete,
                         revision=entry.revision,
@@ -493,7 +493,7 @@ class MonitorCore(FollowsRunEnd):
                         session=self.session,
                         run=self.run,
                         closes_collision=self.collision_frame if stamp == closing else -1,
-                        tpf_ms=log.tpf if self.stack else 0,
+                        frame_ms=log.frame_ms if self.stack else 0,
                         episode=self.episode,
                         extra={"derived": list(self.derived)} if self.derived else {},
                     )

@@ -60,8 +60,8 @@ class RunContext:
         return ctx
 
     @property
-    def tpf(self) -> int:
-        return self.log.tpf
+    def frame_ms(self) -> int:
+        return self.log.frame_ms
 
     def report(self, file: str, field_name: str, issue: str, ts: int | None = None) -> None:
         """An input problem found while judging (reported once per file, field and issue)."""

@@ -154,15 +154,15 @@ class Semantics:
     #: Which frames the window holds (``{w}``: its length), for outputs.
     window_counts: str = "frames collision_frame - {w} to collision_frame"
 
-    def window_frames(self, params: Params, tpf_ms: int) -> int:
+    def window_frames(self, params: Params, frame_ms: int) -> int:
         """W: frames before the collision that belong to the effect window."""
         return params.effect_time_window
 
-    def window_rule(self, params: Params, tpf_ms: int) -> str:
+    def window_rule(self, params: Params, frame_ms: int) -> str:
         """How W follows from the parameters, with their values (outputs print it)."""
         return f"effect_time_window {params.effect_time_window}"
 
-    def window_terms(self, params: Params, tpf_ms: int) -> dict[str, int]:
+    def window_terms(self, params: Params, frame_ms: int) -> dict[str, int]:
         """The window in frames each parameter that sets W asks for (W is the largest)."""
         return {"effect_time_window": params.effect_time_window}
 
@@ -190,7 +190,7 @@ class Semantics:
         """
         return 0
 
-    def rejudge_history(self, params: Params, tpf_ms: int) -> int:
+    def rejudge_history(self, params: Params, frame_ms: int) -> int:
         """Judged frames a live window keeps to re-judge them on a later collision."""
         return 0
 
@@ -209,16 +209,16 @@ class Semantics:
 
     # --- derived: the same for every mode --------------------------------------------
 
-    def effect_window(self, params: Params, tpf_ms: int) -> dict[str, Any]:
+    def effect_window(self, params: Params, frame_ms: int) -> dict[str, Any]:
         """The effective window as outputs name it: length, which parameter set it, the
         rule with the values, the frames it holds (``effect_window`` of the JSON)."""
-        w = self.window_frames(params, tpf_ms)
-        terms = self.window_terms(params, tpf_ms)
+        w = self.window_frames(params, frame_ms)
+        terms = self.window_terms(params, frame_ms)
         return {
             "frames": w,
-            "ms": w * tpf_ms,
+            "ms": w * frame_ms,
             "set_by": [name for name, frames in terms.items() if frames == w],
-            "rule": self.window_rule(params, tpf_ms),
+            "rule": self.window_rule(params, frame_ms),
             "counts": self.window_counts.format(w=w),
         }
 

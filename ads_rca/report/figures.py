@@ -235,8 +235,8 @@ def metrics_figure(result: Diagnosis, skipped: Skipped) -> Figure:
     for ax, module in zip(axes, MODULES, strict=True):
         _metric_panel(ax, result, module, skipped, ends)
     axes[-1].set_xlabel("frame")
-    tpf_s = result.log.tpf / 1000.0
-    top = axes[0].secondary_xaxis("top", functions=(lambda f: f * tpf_s, lambda t: t / tpf_s))
+    frame_s = result.log.frame_ms / 1000.0
+    top = axes[0].secondary_xaxis("top", functions=(lambda f: f * frame_s, lambda t: t / frame_s))
     top.set_xlabel("time since the log's start (s)")
     # fixed margins, room for the legends on the right: one draw (no tight layout pass)
     fig.subplots_adjust(left=0.08, right=0.76, top=0.93, bottom=0.06, hspace=0.35)
@@ -393,9 +393,9 @@ def _collision_window(ax: Axes, result: Diagnosis, skipped: Skipped, module: Mod
 def _annotation_lines(ax: Axes, result: Diagnosis, skipped: Skipped, module: Module) -> None:
     """The run's annotations (a CARLA run's events) as dotted lines at their frames."""
     found = annotations_from_document(result.log.metadata.raw)
-    if not found or result.log.tpf <= 0:
+    if not found or result.log.frame_ms <= 0:
         return
-    at = _floats([a.timestamp_ms / result.log.tpf for a in found])
+    at = _floats([a.timestamp_ms / result.log.frame_ms for a in found])
     drawable = skipped.keep(f"metrics, {module} annotations", at)
     label = "annotation (event, not a collision)"
     for x in at[drawable]:
@@ -433,7 +433,7 @@ def scene_figure(
     fig, ax = plt.subplots(figsize=(5.8, 6.5))
     fig.subplots_adjust(left=0.15, right=0.97, top=0.92, bottom=0.22)  # the legend below
     log = result.log
-    stamp = _floats([frame])[0] * log.tpf
+    stamp = _floats([frame])[0] * log.frame_ms
     ts = round(float(stamp)) if np.isfinite(stamp) and abs(stamp) <= PLOT_LIMIT else None
     failing = _failing_at(result, ts)
     title = f"{caption + ', ' if caption else ''}frame {frame_text(frame)}"
@@ -552,7 +552,7 @@ def _draw_trails(
 ) -> None:
     """The ego's and the partner's positions over the last frames: how they got here."""
     log = result.log
-    stamps = [s for s in log.unique_frames if ts - SCENE_TRAIL_FRAMES * log.tpf <= s <= ts]
+    stamps = [s for s in log.unique_frames if ts - SCENE_TRAIL_FRAMES * log.frame_ms <= s <= ts]
     ego_xy = np.array([log.pose[s].xy for s in stamps if s in log.pose]).reshape(-1, 2)
     partner_xy = np.array(
         [
@@ -561,7 +561,7 @@ def _draw_trails(
             if partner is not None and s in log.actors and partner in log.actors[s].index
         ]
     ).reshape(-1, 2)
-    seconds = SCENE_TRAIL_FRAMES * log.tpf / 1000
+    seconds = SCENE_TRAIL_FRAMES * log.frame_ms / 1000
     for name, xy, color in (("ego", ego_xy, EGO_COLOR), ("partner", partner_xy, PARTNER_COLOR)):
         if not len(xy):
             continue

@@ -136,7 +136,7 @@ def render(result: Diagnosis) -> str:
             result.log.source,
             " \N{EM DASH} semantics ",
             el("b", result.params.semantics),
-            f", {len(result.frames)} frames judged ({result.log.tpf} ms each), ",
+            f", {len(result.frames)} frames judged ({result.log.frame_ms} ms each), ",
             collision_text(meta.collision_frame, conclusion.collision != COLLISION_UNKNOWN_STATE),
             ", ego ",
             result.ctx.ego_id,
@@ -150,7 +150,7 @@ def render(result: Diagnosis) -> str:
             else []
         ),
         el("p", "Attribution basis: ", a.attribution_basis),
-        el("p", window_text(result.semantics.effect_window(result.params, result.log.tpf))),
+        el("p", window_text(result.semantics.effect_window(result.params, result.log.frame_ms))),
         el("table", *rows),
         el("h2", "Scene from above"),
         el(

@@ -256,10 +256,10 @@ class Aggregator(Node):
                     now,
                     read_input_problems(document),
                 )
-                tpf = metadata.timesteps_per_frame
-                if tpf > 0:  # the window in frames needs the run's frame period
-                    window = semantics_for(self.params).effect_window(self.params, tpf)
-                    self.get_logger().info(f"{tpf} ms per frame, {window_text(window)}")
+                frame_ms = metadata.timesteps_per_frame
+                if frame_ms > 0:  # the window in frames needs the run's frame period
+                    window = semantics_for(self.params).effect_window(self.params, frame_ms)
+                    self.get_logger().info(f"{frame_ms} ms per frame, {window_text(window)}")
 
         return on_message
 
@@ -333,7 +333,7 @@ class Aggregator(Node):
         if result.module not in self.results_from:
             self.results_from.add(result.module)
             self.get_logger().info(f"first result from the {result.module} monitor")
-        if result.tpf_ms > 0:
+        if result.frame_ms > 0:
             self._stack_mode()
         before = self.episodes.cores.get(result.episode)
         known = before.collision_frame if before is not None else -1

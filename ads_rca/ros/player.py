@@ -1,7 +1,7 @@
 """``player`` node: plays a running-log folder onto the topic contract, frame by frame.
 
 A thin shell: the data logic (conversion, timeline, markers) lives in convert.py and
-playback.py. Timing follows log time: a wall timer ticks every tpf/rate and sends every
+playback.py. Timing follows log time: a wall timer ticks every frame_ms/rate and sends every
 stamp that is due; at rate 0 frames go in batches of ``ack_every``, each batch once every
 subscriber acknowledged the previous one (``wait_for_all_acked``), so nothing is dropped.
 Bad input is one logged line and exit status 2; reader problems are logged one per line
@@ -295,7 +295,7 @@ class Player(Node):
             raise InputError(no_frame_message(log_path, log, source.source_format, bag))
         self.get_logger().info(
             printable(
-                f"{log_path}: {len(log.frames)} analysed frames, tpf {log.tpf} ms, "
+                f"{log_path}: {len(log.frames)} analysed frames, frame_ms {log.frame_ms} ms, "
                 f"{len(log.problems)} problems"
             )
         )
@@ -342,7 +342,7 @@ class Player(Node):
     def start(self) -> None:
         self._wall0 = time.monotonic()
         self.pubs[topics.STATUS].publish(self._status(PLAYING))
-        period = 0.0 if self.rate == 0 else self.log.tpf / 1000.0 / self.rate
+        period = 0.0 if self.rate == 0 else self.log.frame_ms / 1000.0 / self.rate
         self.create_timer(max(period, 0.0), self._on_timer)
 
     def _status(self, state: str) -> Any:
@@ -408,7 +408,7 @@ class Player(Node):
         names = published_names(messages)
         if self.publish_clock:
             names.insert(0, topics.CLOCK)
-        marker = frame_marker(tick, names, self.log.tpf, **extra)
+        marker = frame_marker(tick, names, self.log.frame_ms, **extra)
         self.pubs[topics.FRAME].publish(encode_string(marker.data) if fast else marker)
         self.frames_published += 1
         self._position += 1

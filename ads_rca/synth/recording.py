@@ -368,7 +368,7 @@ class _Writer:
         self.profile = profile
         self.m = _Messages(typestore())
         self.numbers = actor_numbers(log)
-        self.tpf_ns = log.tpf * _NS_PER_MS
+        self.frame_step_ns = log.frame_ms * _NS_PER_MS
 
     # Each builder gives the input's message at one timestamp, or None.
 
@@ -429,7 +429,7 @@ class _Writer:
 
     def collision(self, ts: int) -> Any:
         meta = self.log.metadata
-        if not meta.has_collision or ts != meta.collision_frame * self.log.tpf:
+        if not meta.has_collision or ts != meta.collision_frame * self.log.frame_ms:
             return None
         partner = _partner(self.log)
         return self.m.new(
@@ -537,7 +537,7 @@ class _Writer:
         path_map = carla_to_map_xyz(np.vstack([start[None, :], points]))
         if known is None:  # untracked: moving along the path's first step
             step = float(np.linalg.norm(path_map[1, :2] - path_map[0, :2])) if len(points) else 0.0
-            velocity = np.array([step / (self.tpf_ns / 1e9), 0.0, 0.0])
+            velocity = np.array([step / (self.frame_step_ns / 1e9), 0.0, 0.0])
             extent = self._actor_extent(ts, object_id)
             known = _Tracked(start, 0.0, velocity, extent, "", math.nan)
         quaternions = _yaw_quaternion(path_headings(path_map, known.yaw_map))
@@ -546,7 +546,7 @@ class _Writer:
             m.new(
                 _AUTOWARE_PERCEPTION + "PredictedPath",
                 path=poses,
-                time_step=m.duration(self.tpf_ns),
+                time_step=m.duration(self.frame_step_ns),
                 confidence=1.0,
             )
         ]
@@ -589,7 +589,7 @@ class _Writer:
         points = [
             m.new(
                 "autoware_planning_msgs/msg/TrajectoryPoint",
-                time_from_start=m.duration(i * self.tpf_ns),
+                time_from_start=m.duration(i * self.frame_step_ns),
                 pose=poses[i],
                 longitudinal_velocity_mps=float(plan.speed[i]),
                 lateral_velocity_mps=0.0,
@@ -729,7 +729,7 @@ class _Writer:
         for records in _held(log).values():
             stamps.update(records)
         if log.metadata.has_collision:
-            stamps.add(log.metadata.collision_frame * log.tpf)
+            stamps.add(log.metadata.collision_frame * log.frame_ms)
         for ts in sorted(stamps):
             for name, build in builders.items():
                 message = build(ts)

@@ -36,7 +36,7 @@ def write_predictions(
                 continue
             track: dict[str, dict[str, float]] = {}
             for k in range(steps):
-                later = log.actors.get(ts + (k + 1) * log.tpf)
+                later = log.actors.get(ts + (k + 1) * log.frame_ms)
                 row = later.index.get(actor_id) if later is not None else None
                 if later is None or row is None:
                     break

@@ -200,17 +200,17 @@ class CorrectedSemantics(Semantics):
     def attribute(self, frames: Sequence[FrameResults], ctx: RunContext) -> Attribution:
         return attribute_corrected(frames, ctx)
 
-    def window_frames(self, params: Params, tpf_ms: int) -> int:
-        return window_frames(params, tpf_ms)
+    def window_frames(self, params: Params, frame_ms: int) -> int:
+        return window_frames(params, frame_ms)
 
-    def window_terms(self, params: Params, tpf_ms: int) -> dict[str, int]:
-        return window_terms(params, tpf_ms)
+    def window_terms(self, params: Params, frame_ms: int) -> dict[str, int]:
+        return window_terms(params, frame_ms)
 
-    def window_rule(self, params: Params, tpf_ms: int) -> str:
-        terms = window_terms(params, tpf_ms)
+    def window_rule(self, params: Params, frame_ms: int) -> str:
+        terms = window_terms(params, frame_ms)
         return (
             f"max(effect_time_window {terms['effect_time_window']}, "
-            f"round(window_s {params.window_s:g} s / {tpf_ms} ms) {terms['window_s']})"
+            f"round(window_s {params.window_s:g} s / {frame_ms} ms) {terms['window_s']})"
         )
 
     def lookahead_frames(
@@ -225,12 +225,12 @@ class CorrectedSemantics(Semantics):
         every module: they share one context."""
         return max(params.prediction_window, params.control_horizon, 1)
 
-    def rejudge_history(self, params: Params, tpf_ms: int) -> int:
+    def rejudge_history(self, params: Params, frame_ms: int) -> int:
         """The effect window, the floor frames its first frame reads (the noise-floor rule),
         the control horizon, and some slack: a live window keeps their records, so a re-judged
         frame reads what the offline run read."""
-        span = floor_span(params, tpf_ms)
-        return window_frames(params, tpf_ms) + span + params.control_horizon + 5
+        span = floor_span(params, frame_ms)
+        return window_frames(params, frame_ms) + span + params.control_horizon + 5
 
     def partner_id(self, ctx: RunContext) -> str | None:
         return corrected_context(ctx).partner_id

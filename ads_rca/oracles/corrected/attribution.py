@@ -92,12 +92,15 @@ def _evidence(
 
 def attribute_corrected(frames: Sequence[FrameResults], ctx: RunContext) -> Attribution:
     """The `corrected` verdict over the analysed frames' oracle results."""
-    params, tpf = ctx.params, ctx.tpf
+    params, frame_ms = ctx.params, ctx.frame_ms
     collision_frame = ctx.log.metadata.collision_frame
     ordered = sorted({f.timestamp_ms: f for f in reversed(frames)}.values(), key=_ts)
     partner = corrected_context(ctx).partner_id if collision_frame >= 0 else None
     if collision_frame >= 0:
-        start, end = (collision_frame - window_frames(params, tpf)) * tpf, collision_frame * tpf
+        start, end = (
+            (collision_frame - window_frames(params, frame_ms)) * frame_ms,
+            collision_frame * frame_ms,
+        )
         window = [f for f in ordered if start <= f.timestamp_ms <= end]
     else:
         window = []

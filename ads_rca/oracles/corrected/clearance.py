@@ -176,7 +176,7 @@ def displacement(a: Series | None, b: Series | None) -> float:
 
 
 def path_length(real: Series | None) -> float:
-    """Path length of the real positions at ts, ts + tpf, …, ts + W·tpf (present ones)."""
+    """Path length of the real positions at ts, ts + frame_ms, …, ts + W·frame_ms (present ones)."""
     if real is None:
         return NAN
     pts = real.center[real.present]
@@ -286,7 +286,7 @@ def _build_view(judging: CorrectedContext, ts: int) -> PartnerView:
     if plan is not None and raw is not None and pose is not None:
         p = judging.params
         brake = braking_boxes(
-            plan, pose.yaw, plan.speed_of(0), p.max_decel, judging.tpf / 1000.0, w
+            plan, pose.yaw, plan.speed_of(0), p.max_decel, judging.frame_ms / 1000.0, w
         )
     c_gt = undefined_clearance(w)
     if measured is not None:
@@ -372,10 +372,10 @@ def _ground_truth(
         return found[2]
     batch = [(ts, plan, real)]
     log = judging.log
-    if log.metadata.collision_frame >= 0 and judging.tpf > 0:
+    if log.metadata.collision_frame >= 0 and judging.frame_ms > 0:
         ahead: list[int] = []
         for k in range(1, max(judging.window, BATCH_AHEAD) + 1):
-            u = ts + k * judging.tpf
+            u = ts + k * judging.frame_ms
             waypoints = log.waypoints.get(u)
             if waypoints is None or u not in log.pose or cache.lookup(u) is not None:
                 break

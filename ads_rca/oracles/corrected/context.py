@@ -39,23 +39,23 @@ from ads_rca.params import Params
 V = TypeVar("V")
 
 
-def window_terms(params: Params, tpf_ms: int) -> dict[str, int]:
+def window_terms(params: Params, frame_ms: int) -> dict[str, int]:
     """The window each parameter asks for, in frames: ``effect_time_window``, and
     ``window_s`` seconds at this frame period."""
     return {
         "effect_time_window": params.effect_time_window,
-        "window_s": round(params.window_s * 1000.0 / tpf_ms),
+        "window_s": round(params.window_s * 1000.0 / frame_ms),
     }
 
 
-def window_frames(params: Params, tpf_ms: int) -> int:
+def window_frames(params: Params, frame_ms: int) -> int:
     """W: ``effect_time_window`` frames, or ``window_s`` seconds when that is longer."""
-    return max(window_terms(params, tpf_ms).values())
+    return max(window_terms(params, frame_ms).values())
 
 
-def floor_span(params: Params, tpf_ms: int) -> int:
+def floor_span(params: Params, frame_ms: int) -> int:
     """Frames from the oldest floor frame of ts to ts (the noise-floor rule): W + L."""
-    return window_frames(params, tpf_ms) + round(params.noise_floor_s * 1000.0 / tpf_ms)
+    return window_frames(params, frame_ms) + round(params.noise_floor_s * 1000.0 / frame_ms)
 
 
 class CacheName(Generic[V]):
@@ -91,7 +91,7 @@ class CorrectedContext:
         self.ctx = ctx
         self.log: RunLog = ctx.log
         self.params: Params = ctx.params
-        self.tpf: int = ctx.log.tpf
+        self.frame_ms: int = ctx.log.frame_ms
         self.window: int = max(int(ctx.params.prediction_window), 1)
         self.ego_id: str | None = ctx.ego_id
         self._partner: tuple[int, str | None] | None = None
@@ -100,7 +100,7 @@ class CorrectedContext:
         #: Per-timestamp caches of the oracle modules, by name: each holds a frame's floor
         #: frames and look-ahead (the noise-floor rule), so a floor reads each sample once.
         self.caches: dict[str, LRU[int, object]] = {}
-        self.cache_size = CACHE_SIZE + floor_span(self.params, self.tpf)
+        self.cache_size = CACHE_SIZE + floor_span(self.params, self.frame_ms)
         #: The floors' sliding runs of per-frame values, by name (the noise-floor rule).
         self.slides: dict[str, Slide[object]] = {}
         self.ts_max = max(self.log.frames) if self.log.frames else 0
@@ -170,8 +170,8 @@ class CorrectedContext:
         return cast("Slide[V]", self.slides[name.name])
 
     def seconds(self, index: int | npt.NDArray[np.int64]) -> FloatArray:
-        """Time of horizon index i in seconds (frames × tpf / 1000)."""
-        return np.asarray(index, dtype=np.float64) * (self.tpf / 1000.0)
+        """Time of horizon index i in seconds (frames × frame_ms / 1000)."""
+        return np.asarray(index, dtype=np.float64) * (self.frame_ms / 1000.0)
 
     def frame_set(self) -> frozenset[int]:
         """The log's analysed frames as a set (rebuilt when a live window's frames change)."""
@@ -279,13 +279,13 @@ class CorrectedContext:
         return out
 
     def real_series(self, actor_id: str, ts: int) -> Series | None:
-        """The actor's real boxes at ts + i·tpf, i = 0..W (None without an extent).
+        """The actor's real boxes at ts + i·frame_ms, i = 0..W (None without an extent).
 
         The previous frame's series of the same actor (kept per timestamp) lends the boxes
         it had at the frames both read (:meth:`real_series_after`).
         """
         cache = self.cache(REAL_SERIES)
-        prev = cache.lookup(ts - self.tpf)
+        prev = cache.lookup(ts - self.frame_ms)
         series = self.real_series_after(
             actor_id, ts, prev[1] if prev is not None and prev[0] == actor_id else None
         )
@@ -300,26 +300,26 @@ class CorrectedContext:
 
     def real_sources(self, actor_id: str, ts: int) -> tuple[object, ...]:
         """What the actor's real series at ts is read from: the actor, its extent and the
-        actors records at ts, ts + tpf, …, ts + W·tpf (None where absent), compared by
+        actors records at ts, ts + frame_ms, …, ts + W·frame_ms (None where absent), compared by
         identity: a series built on the same objects is the one a fresh read gives."""
-        actors, tpf = self.log.actors, self.tpf
-        records = [actors.get(ts + i * tpf) for i in range(self.window + 1)]
+        actors, frame_ms = self.log.actors, self.frame_ms
+        records = [actors.get(ts + i * frame_ms) for i in range(self.window + 1)]
         return (actor_id, self.log.actor_extents.get(actor_id), *records)
 
     def real_series_run(self, actor_id: str, ts: int, real: Series, count: int) -> list[Series]:
-        """:meth:`real_series_after` at ts + tpf, …, ts + count·tpf, each from the one
+        """:meth:`real_series_after` at ts + frame_ms, …, ts + count·frame_ms, each from the one
         before, starting from ``real`` (the series at ts), read at once: a frame's box is
         ``real``'s where ``real`` has its yaw, else the state read now (``real``'s or none
         without one); the series are read-only windows of one array."""
         extent = self.log.actor_extents.get(actor_id)
         if extent is None or count < 1:
             return []
-        w, tpf = self.window, self.tpf
+        w, frame_ms = self.window, self.frame_ms
         center = np.full((count + w + 1, 2), np.nan)
         yaw = np.full(count + w + 1, np.nan)
         center[: w + 1], yaw[: w + 1] = real.center, real.yaw
         for i in (np.flatnonzero(np.isnan(yaw[1:])) + 1).tolist():
-            state = self.actor_state(actor_id, ts + i * tpf)
+            state = self.actor_state(actor_id, ts + i * frame_ms)
             if state is not None:
                 center[i], yaw[i] = state
         center.flags.writeable = yaw.flags.writeable = False
@@ -330,12 +330,12 @@ class CorrectedContext:
 
     def real_series_after(self, actor_id: str, ts: int, prev: Series | None) -> Series | None:
         """:meth:`real_series` at ts, taking the boxes ``prev`` (the actor's series at
-        ts − tpf) had at indices 1..W, so one new state is read (and again those it lacked:
+        ts − frame_ms) had at indices 1..W, so one new state is read (and again those it lacked:
         a frame may have arrived since); kept nowhere."""
         extent = self.log.actor_extents.get(actor_id)
         if extent is None:
             return None
-        w, tpf = self.window, self.tpf
+        w, frame_ms = self.window, self.frame_ms
         todo: list[int] | range
         if prev is not None:
             center = np.concatenate((prev.center[1:], _NO_POINT))
@@ -345,7 +345,7 @@ class CorrectedContext:
         else:
             center, yaw, todo = np.full((w + 1, 2), np.nan), np.full(w + 1, np.nan), range(w + 1)
         for i in todo:
-            state = self.actor_state(actor_id, ts + i * tpf)
+            state = self.actor_state(actor_id, ts + i * frame_ms)
             if state is not None:
                 center[i], yaw[i] = state
         return Series(center, yaw, np.asarray(extent[:2], dtype=np.float64))
@@ -377,7 +377,7 @@ def find_partner(judging: CorrectedContext) -> str | None:
     Without an actors file at the collision frame, the latest earlier analysed frame.
     """
     log = judging.log
-    cf_ms = log.metadata.collision_frame * judging.tpf
+    cf_ms = log.metadata.collision_frame * judging.frame_ms
     ts = cf_ms
     if ts not in log.actors:
         earlier = [t for t in log.unique_frames if t < cf_ms and t in log.actors]

@@ -1,8 +1,8 @@
 """The control rule: control is judged on tracking over a horizon, in the partner's direction.
 
-For each step t = ts … ts + (``control_horizon`` − 1)·tpf the speed innovation is the
-realised speed at t + tpf minus plan[t]'s index-1 speed, and the lateral innovation the
-signed offset of the realised position at t + tpf from plan[t]'s polyline (sign of the
+For each step t = ts … ts + (``control_horizon`` − 1)·frame_ms the speed innovation is the
+realised speed at t + frame_ms minus plan[t]'s index-1 speed, and the lateral innovation the
+signed offset of the realised position at t + frame_ms from plan[t]'s polyline (sign of the
 ego-frame y axis at t). Signed sums cancel noise; the sums stop at the first missing input.
 Tracking fails when |Σ speed| exceeds max(``control_speed_threshold``, ``actuator_delay`` ×
 the largest commanded deceleration) or |Σ lateral| exceeds ``control_lateral_threshold``.
@@ -53,10 +53,10 @@ _T = TypeVar("_T")
 
 @dataclass(frozen=True)
 class Step:
-    """One control step t: innovations realised at t + tpf against plan[t]."""
+    """One control step t: innovations realised at t + frame_ms against plan[t]."""
 
-    speed: float  # realised speed at t + tpf − plan[t]'s step-1 speed
-    lateral: float  # signed offset of pose[t + tpf] from plan[t]'s polyline
+    speed: float  # realised speed at t + frame_ms − plan[t]'s step-1 speed
+    lateral: float  # signed offset of pose[t + frame_ms] from plan[t]'s polyline
     decel: float  # commanded deceleration (step-0 − step-1 speed) / dt; NaN without step 0
 
 
@@ -69,7 +69,7 @@ BLOCK = 32
 
 @dataclass(frozen=True)
 class StepBlock:
-    """The steps at ``start`` + i·tpf, i < :data:`BLOCK`; None where the step cannot be
+    """The steps at ``start`` + i·frame_ms, i < :data:`BLOCK`; None where the step cannot be
     read without a problem report (a missing input, a plan with no step 1 or a non-integer
     key): those take :func:`_control_step`'s path, which reports."""
 
@@ -77,7 +77,7 @@ class StepBlock:
     steps: list[Step | None]
 
 
-#: Step blocks by block number (timestamp // (BLOCK · tpf)).
+#: Step blocks by block number (timestamp // (BLOCK · frame_ms)).
 STEP_BLOCKS: CacheName[StepBlock] = CacheName("control_step_blocks")
 
 
@@ -93,40 +93,40 @@ def block_step(judging: CorrectedContext, t: int) -> Step | None:
     problem, t is off the frame grid, or no plan was built yet: the first build reports
     an ego without extent, and must come first)."""
     block = block_of(judging, t)
-    return None if block is None else block.steps[(t - block.start) // judging.tpf]
+    return None if block is None else block.steps[(t - block.start) // judging.frame_ms]
 
 
 def block_of(judging: CorrectedContext, t: int) -> StepBlock | None:
     """The block of steps t belongs to (None off the frame grid or before any plan build)."""
-    tpf = judging.tpf
-    if t % tpf:
+    frame_ms = judging.frame_ms
+    if t % frame_ms:
         return None
     blocks = judging.cache(STEP_BLOCKS)
-    number = t // (BLOCK * tpf)
+    number = t // (BLOCK * frame_ms)
     block = blocks.lookup(number)
     if block is None:
         if "ego_half" not in vars(judging):
             return None
-        block = step_block(judging, number * BLOCK * tpf)
+        block = step_block(judging, number * BLOCK * frame_ms)
         blocks.put(number, block)
     return block
 
 
 def step_block(judging: CorrectedContext, start: int) -> StepBlock:
-    """The steps of the frames start + i·tpf, i < :data:`BLOCK`, in one pass per key layout:
+    """The steps of the frames start + i·frame_ms, i < :data:`BLOCK`, in one pass per key layout:
     the same IEEE operations as :meth:`PlanData.lateral_offset`, so the same values."""
-    tpf = judging.tpf
+    frame_ms = judging.frame_ms
     pose, plans = judging.log.pose, judging.log.waypoints
     groups: dict[tuple[str, ...], list[int]] = {}
     for i in range(BLOCK):
-        t = start + i * tpf
+        t = start + i * frame_ms
         plan = plans.get(t)
-        if plan is not None and len(plan) and t in pose and t + tpf in pose:
+        if plan is not None and len(plan) and t in pose and t + frame_ms in pose:
             groups.setdefault(plan.keys, []).append(i)
     steps: list[Step | None] = [None] * BLOCK
     for keys, members in groups.items():
         values = key_steps(keys)
-        times = [start + i * tpf for i in members]
+        times = [start + i * frame_ms for i in members]
         shapes = ((len(keys), 2), (len(keys),))
         if (values < 0).any() or any(
             (plans[t].xy.shape, plans[t].speed.shape) != shapes for t in times
@@ -137,7 +137,7 @@ def step_block(judging: CorrectedContext, start: int) -> StepBlock:
         if 1 not in rows:
             continue
         before = [pose[t] for t in times]
-        after = [pose[t + tpf] for t in times]
+        after = [pose[t + frame_ms] for t in times]
         # (np.array of same-shape arrays: np.stack's copy without its per-array Python work)
         lateral = _lateral_offsets(
             np.array([plans[t].xy for t in times])[:, order],
@@ -148,7 +148,9 @@ def step_block(judging: CorrectedContext, start: int) -> StepBlock:
         v1 = speed[:, rows[1]].tolist()
         v0 = speed[:, rows[0]].tolist() if 0 in rows else [math.nan] * len(times)
         for n, i in enumerate(members):
-            steps[i] = _step(after[n].speed - v1[n], lateral[n], (v0[n] - v1[n]) / (tpf / 1000.0))
+            steps[i] = _step(
+                after[n].speed - v1[n], lateral[n], (v0[n] - v1[n]) / (frame_ms / 1000.0)
+            )
     return StepBlock(start, steps)
 
 
@@ -191,8 +193,8 @@ def _control_step(judging: CorrectedContext, t: int) -> Step | tuple[str, int]:
     found = cache.lookup(t)
     if found is not None:
         return found
-    tpf = judging.tpf
-    checks = (("pose", t), ("waypoint", t), ("pose", t + tpf))
+    frame_ms = judging.frame_ms
+    checks = (("pose", t), ("waypoint", t), ("pose", t + frame_ms))
     absent = [(folder, at) for folder, at in checks if at not in judging.folders[folder]]
     plan = None if absent else judging.plan(t)
     if plan is None or 1 not in plan.rows:
@@ -203,17 +205,17 @@ def _control_step(judging: CorrectedContext, t: int) -> Step | tuple[str, int]:
             if judging.in_log(at):
                 judging.missing(folder, at, "control tracking")
         return absent[0]
-    before, after = judging.log.pose[t], judging.log.pose[t + tpf]
+    before, after = judging.log.pose[t], judging.log.pose[t + frame_ms]
     v1 = plan.speed_of(1)
     lateral = plan.lateral_offset(after.x, after.y, before.yaw)
-    step = Step(after.speed - v1, lateral, (plan.speed_of(0) - v1) / (tpf / 1000.0))
+    step = Step(after.speed - v1, lateral, (plan.speed_of(0) - v1) / (frame_ms / 1000.0))
     cache.put(t, step)
     return step
 
 
 @dataclass(frozen=True)
 class FloorBlock:
-    """The control floors at ``start`` + i·tpf, i < :data:`BLOCK`, read for the log's
+    """The control floors at ``start`` + i·frame_ms, i < :data:`BLOCK`, read for the log's
     ``frames``; None where a floor frame is missing, its step is read on its own or a
     difference is not finite (:func:`_control_floors` reads those)."""
 
@@ -222,7 +224,7 @@ class FloorBlock:
     floors: list[tuple[Floor, Floor] | None]
 
 
-#: Floor blocks by block number (timestamp // (BLOCK · tpf)).
+#: Floor blocks by block number (timestamp // (BLOCK · frame_ms)).
 FLOOR_BLOCKS: CacheName[FloorBlock] = CacheName("control_floor_blocks")
 
 
@@ -230,15 +232,15 @@ def control_floors(judging: CorrectedContext, ts: int) -> tuple[Floor, Floor]:
     """The noise-floor rule's speed and lateral floors at ts, from the control steps of its
     floor frames (those with every input; the robust sigma of consecutive steps' differences):
     from ts's block of floors where every floor frame has a silent step, else on its own."""
-    tpf = judging.tpf
-    if ts % tpf == 0 and "ego_half" in vars(judging):
+    frame_ms = judging.frame_ms
+    if ts % frame_ms == 0 and "ego_half" in vars(judging):
         blocks = judging.cache(FLOOR_BLOCKS)
-        number = ts // (BLOCK * tpf)
+        number = ts // (BLOCK * frame_ms)
         block = blocks.lookup(number)
         if block is None or block.frames is not judging.log.frames:
-            block = floor_block(judging, number * BLOCK * tpf)
+            block = floor_block(judging, number * BLOCK * frame_ms)
             blocks.put(number, block)
-        found = block.floors[(ts - block.start) // tpf]
+        found = block.floors[(ts - block.start) // frame_ms]
         if found is not None:
             return found
     return _control_floors(judging, ts)
@@ -248,14 +250,14 @@ def floor_block(judging: CorrectedContext, start: int) -> FloorBlock:
     """The floors of a block of frames whose floor frames are all present with silent
     steps: consecutive floor frames, so each frame's differences are a window of one
     difference array, and all the robust sigmas are two sorts."""
-    tpf = judging.tpf
-    span = floor_span(judging.params, tpf)
-    length = span - window_frames(judging.params, tpf)  # floor frames per frame (L)
+    frame_ms = judging.frame_ms
+    span = floor_span(judging.params, frame_ms)
+    length = span - window_frames(judging.params, frame_ms)  # floor frames per frame (L)
     floors: list[tuple[Floor, Floor] | None] = [None] * BLOCK
     block = FloorBlock(start, judging.log.frames, floors)
     if length < 2:
         return block
-    first = start - span * tpf
+    first = start - span * frame_ms
     found = _silent_steps(judging, first, BLOCK - 1 + length)
     values = np.array(
         [
@@ -289,24 +291,24 @@ def _floor(value: float, frames: int) -> Floor:
 
 
 def _silent_steps(judging: CorrectedContext, first: int, count: int) -> list[Step | None]:
-    """The silent steps (:func:`block_step`) of the frames first + k·tpf, k < count, None
+    """The silent steps (:func:`block_step`) of the frames first + k·frame_ms, k < count, None
     where that frame is not in the log or its step is read on its own."""
-    tpf = judging.tpf
+    frame_ms = judging.frame_ms
     out: list[Step | None] = []
     while len(out) < count:
-        u = first + len(out) * tpf
+        u = first + len(out) * frame_ms
         block = block_of(judging, u)
         if block is None:
             out.append(None)
             continue
-        i = (u - block.start) // tpf
+        i = (u - block.start) // frame_ms
         out.extend(block.steps[i : i + count - len(out)])
     grid = frame_grid(judging)
-    if grid is not None and grid[0] % tpf == 0:  # frames every tpf from lo to hi (as u)
+    if grid is not None and grid[0] % frame_ms == 0:  # frames every frame_ms from lo to hi (as u)
         lo, hi = grid
-        return [s if lo <= first + k * tpf <= hi else None for k, s in enumerate(out)]
+        return [s if lo <= first + k * frame_ms <= hi else None for k, s in enumerate(out)]
     frames = judging.frame_set()
-    return [s if first + k * tpf in frames else None for k, s in enumerate(out)]
+    return [s if first + k * frame_ms in frames else None for k, s in enumerate(out)]
 
 
 def _control_floors(judging: CorrectedContext, ts: int) -> tuple[Floor, Floor]:
@@ -329,14 +331,14 @@ Steps = tuple[list[Step], str | None, bool]
 
 def _steps(judging: CorrectedContext, ts: int) -> Steps:
     """The usable steps from ts, stopping at the first missing input, and why it stopped."""
-    tpf = judging.tpf
+    frame_ms = judging.frame_ms
     horizon = max(int(judging.params.control_horizon), 0)
     block = block_of(judging, ts)
     if block is not None:  # the usual case: every step silent, sliced from one or two blocks
-        i = (ts - block.start) // tpf
+        i = (ts - block.start) // frame_ms
         silent = block.steps[i : i + horizon]
         if len(silent) < horizon:
-            after = block_of(judging, block.start + BLOCK * tpf)
+            after = block_of(judging, block.start + BLOCK * frame_ms)
             if after is not None:
                 silent = silent + after.steps[: horizon - len(silent)]
         # (an identity test: ``None in`` would call Step.__eq__ on every step)
@@ -348,13 +350,13 @@ def _steps(judging: CorrectedContext, ts: int) -> Steps:
 def _steps_one_by_one(judging: CorrectedContext, ts: int, horizon: int) -> Steps:
     """:func:`_steps` where some step is read on its own (and may report a problem)."""
     steps: list[Step] = []
-    tpf = judging.tpf
+    frame_ms = judging.frame_ms
     block: StepBlock | None = None
     for j in range(horizon):
-        t = ts + j * tpf
-        if block is None or t - block.start >= BLOCK * tpf:  # a horizon spans two blocks
+        t = ts + j * frame_ms
+        if block is None or t - block.start >= BLOCK * frame_ms:  # a horizon spans two blocks
             block = block_of(judging, t)
-        silent = None if block is None else block.steps[(t - block.start) // tpf]
+        silent = None if block is None else block.steps[(t - block.start) // frame_ms]
         step = silent if silent is not None else _control_step(judging, t)
         if not isinstance(step, Step):
             return steps, f"missing {step[0]} at {step[1]} ms", judging.in_log(step[1])

@@ -7,9 +7,9 @@ off by a metre at 20 m, so errors at or over the fixed thresholds (``understate_
 fault. A module is blamed only when its error stands out from what the same module did on
 the same run before: the floor.
 
-The floor frames of ts are the log's timestamps u with ts − (G + L)·tpf ≤ u < ts − G·tpf:
+The floor frames of ts are the log's timestamps u with ts − (G + L)·frame_ms ≤ u < ts − G·frame_ms:
 G = W (the effect window), so no frame of a window frame's floor lies in the
-window, and L = round(``noise_floor_s`` · 1000 / tpf). Only earlier frames are read, so a
+window, and L = round(``noise_floor_s`` · 1000 / frame_ms). Only earlier frames are read, so a
 live monitor judges exactly as the offline run does (it keeps them, :meth:`rejudge_history`).
 
 * Perception, the 3-D perception rule's velocity and prediction: every floor frame gives one
@@ -84,29 +84,33 @@ PREDICTION_SAMPLES: CacheName[Samples] = CacheName("prediction_samples")
 
 
 def floor_frames(judging: CorrectedContext, ts: int) -> list[int]:
-    """The log's timestamps u with ts − (G + L)·tpf ≤ u < ts − G·tpf (ascending)."""
-    tpf = judging.tpf
-    span, gap = floor_reach(judging.params, tpf)
-    first, end = ts - span * tpf, ts - gap * tpf
+    """The log's timestamps u with ts − (G + L)·frame_ms ≤ u < ts − G·frame_ms (ascending)."""
+    frame_ms = judging.frame_ms
+    span, gap = floor_reach(judging.params, frame_ms)
+    first, end = ts - span * frame_ms, ts - gap * frame_ms
     grid = frame_grid(judging)
-    if grid is not None:  # every tpf from lo to hi: the range's grid points inside it
+    if grid is not None:  # every frame_ms from lo to hi: the range's grid points inside it
         lo, hi = grid
-        return [] if (first - lo) % tpf else list(range(max(first, lo), min(end, hi + tpf), tpf))
+        return (
+            []
+            if (first - lo) % frame_ms
+            else list(range(max(first, lo), min(end, hi + frame_ms), frame_ms))
+        )
     frames = judging.frame_set()
-    return [u for u in range(first, end, tpf) if u in frames]
+    return [u for u in range(first, end, frame_ms) if u in frames]
 
 
 #: The parameters and frame period last asked, and their (W + L, W).
 _REACH: list[tuple[Params, int, tuple[int, int]]] = []
 
 
-def floor_reach(params: Params, tpf: int) -> tuple[int, int]:
-    """(W + L, W) in frames: the floor frames of ts lie from ts − (W + L)·tpf to before
-    ts − W·tpf (remembered for the last parameters: every frame asks)."""
-    if _REACH and _REACH[0][0] is params and _REACH[0][1] == tpf:
+def floor_reach(params: Params, frame_ms: int) -> tuple[int, int]:
+    """(W + L, W) in frames: the floor frames of ts lie from ts − (W + L)·frame_ms to before
+    ts − W·frame_ms (remembered for the last parameters: every frame asks)."""
+    if _REACH and _REACH[0][0] is params and _REACH[0][1] == frame_ms:
         return _REACH[0][2]
-    reach = (floor_span(params, tpf), window_frames(params, tpf))
-    _REACH[:] = [(params, tpf, reach)]
+    reach = (floor_span(params, frame_ms), window_frames(params, frame_ms))
+    _REACH[:] = [(params, frame_ms, reach)]
     return reach
 
 
@@ -115,15 +119,15 @@ FRAME_GRID: CacheName[tuple[tuple[int, ...], tuple[int, int] | None]] = CacheNam
 
 
 def frame_grid(judging: CorrectedContext) -> tuple[int, int] | None:
-    """The log's first and last frame when its frames are every tpf from one to the other,
+    """The log's first and last frame when its frames are every frame_ms from one to the other,
     each once (a run without gaps: floor frames are then a range), else None; checked once
     per frames tuple (a live window's frames change)."""
     frames = judging.log.frames
     cache = judging.cache(FRAME_GRID)
     found = cache.lookup(0)
     if found is None or found[0] is not frames:
-        tpf = judging.tpf
-        grid = bool(frames) and all(b - a == tpf for a, b in pairwise(frames))
+        frame_ms = judging.frame_ms
+        grid = bool(frames) and all(b - a == frame_ms for a, b in pairwise(frames))
         found = (frames, (frames[0], frames[-1]) if grid else None)
         cache.put(0, found)
     return found[1]
@@ -329,7 +333,7 @@ def _perception3d_samples(judging: CorrectedContext, u: int) -> Samples:
 def velocity_samples(judging: CorrectedContext, u: int) -> Samples:
     """The 3-D perception rule's velocity error |perceived − real| (m/s) of every matched
     in-range actor at u (the perceived velocity standing in for itself when unknown gives 0)."""
-    dt = judging.tpf / 1000.0
+    dt = judging.frame_ms / 1000.0
     return {
         a: float(np.hypot(*(off[1] - off[0]))) / dt
         for a, off in perceived_offsets(judging, u).items()
@@ -351,8 +355,10 @@ def _perceived_offsets(judging: CorrectedContext, u: int) -> dict[str, np.ndarra
     if match is None or match.rows.size == 0:
         return {}
     ids = [match.actor_ids[c] for c in match.cols.tolist()]
-    states = judging.states_over(judging.gids(ids), [u - judging.tpf, u, u + judging.tpf])[:, :, :2]
-    dt = judging.tpf / 1000.0
+    states = judging.states_over(
+        judging.gids(ids), [u - judging.frame_ms, u, u + judging.frame_ms]
+    )[:, :, :2]
+    dt = judging.frame_ms / 1000.0
     ahead = (states[:, 2] - states[:, 1]) / dt
     behind = (states[:, 1] - states[:, 0]) / dt
     ahead_known = np.asarray(np.isfinite(ahead).all(axis=1), dtype=bool)

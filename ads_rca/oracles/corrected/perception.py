@@ -73,8 +73,8 @@ def frame_iou(judging: CorrectedContext, ts: int, det: Boxes, gt: Boxes) -> Floa
     batch = [(ts, det, gt)]
     detections, truths = judging.log.bboxes, judging.log.bboxes_gt
     for u in (
-        range(ts + judging.tpf, ts + IOU_BATCH * judging.tpf, judging.tpf)
-        if judging.tpf > 0
+        range(ts + judging.frame_ms, ts + IOU_BATCH * judging.frame_ms, judging.frame_ms)
+        if judging.frame_ms > 0
         else ()
     ):
         d, g = detections.get(u), truths.get(u)

@@ -186,16 +186,16 @@ def partner_perception(judging: CorrectedContext, ts: int) -> PartnerPerception 
 
 
 def real_velocity(judging: CorrectedContext, actor_id: str, ts: int) -> FloatArray:
-    """The actor's world velocity (2,) at ts: its displacement to ts + tpf over one frame
-    (from ts − tpf when ts + tpf has none); NaN when neither."""
+    """The actor's world velocity (2,) at ts: its displacement to ts + frame_ms over one frame
+    (from ts − frame_ms when ts + frame_ms has none); NaN when neither."""
     now = judging.actor_state(actor_id, ts)
-    dt = judging.tpf / 1000.0
+    dt = judging.frame_ms / 1000.0
     if now is None:
         return np.full(2, np.nan)
-    later = judging.actor_state(actor_id, ts + judging.tpf)
+    later = judging.actor_state(actor_id, ts + judging.frame_ms)
     if later is not None:
         return np.asarray((later[0] - now[0]) / dt, dtype=np.float64)
-    earlier = judging.actor_state(actor_id, ts - judging.tpf)
+    earlier = judging.actor_state(actor_id, ts - judging.frame_ms)
     if earlier is not None:
         return np.asarray((now[0] - earlier[0]) / dt, dtype=np.float64)
     return np.full(2, np.nan)
@@ -303,7 +303,7 @@ def _misled(
     if plan is None or pose is None:
         return None
     horizon = min(
-        int(key_steps(plan.keys).max(initial=-1)), round(MISLED_MAX_S * 1000 / judging.tpf)
+        int(key_steps(plan.keys).max(initial=-1)), round(MISLED_MAX_S * 1000 / judging.frame_ms)
     )
     built = build_plan(plan, pose, judging.ego_half, horizon) if horizon >= 1 else None
     if built is None:

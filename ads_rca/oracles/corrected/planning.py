@@ -47,9 +47,9 @@ def time_to_collision(judging: CorrectedContext, c: Clearance) -> float:
 
 
 def realised_error(judging: CorrectedContext, ts: int, plan: PlanData) -> dict[str, Metric]:
-    """Plan point i vs the realised pose at ts + i·tpf, i = 1..W: mean, max and last."""
+    """Plan point i vs the realised pose at ts + i·frame_ms, i = 1..W: mean, max and last."""
     poses = judging.log.pose
-    after = [poses.get(ts + i * judging.tpf) for i in range(1, judging.window + 1)]
+    after = [poses.get(ts + i * judging.frame_ms) for i in range(1, judging.window + 1)]
     real = np.array([_NOWHERE if p is None else (p.x, p.y) for p in after], dtype=np.float64)
     diff = plan.boxes.center[1:] - real
     err = np.hypot(diff[:, 0], diff[:, 1])

@@ -88,7 +88,7 @@ def errors(
     """Non-ego actor ids and their |predicted − reference| centre distance (A, W) at
     indices 1..W (NaN where undefined): the reference is the real position, moved by
     ``offsets[actor]`` (indices 0..W) where given."""
-    w, tpf = judging.window, judging.tpf
+    w, frame_ms = judging.window, judging.frame_ms
     ids = [a for a in tracks_by_actor if a != judging.ego_id]
     if not ids:
         return [], np.zeros((0, w))
@@ -106,7 +106,7 @@ def errors(
             order, k = step_order(track.keys, w)
             if order.size:
                 predicted[n, k] = ego_to_world(track.offsets[order, :2], anchor, pose.yaw)
-    real = judging.locations_over(judging.gids(ids), [ts + (j + 1) * tpf for j in range(w)])
+    real = judging.locations_over(judging.gids(ids), [ts + (j + 1) * frame_ms for j in range(w)])
     if offsets is not None:
         shift = np.array([offsets.get(a, np.full((w + 1, 2), np.nan))[1:] for a in ids])
         real = real + shift

@@ -52,7 +52,9 @@ def least_clearance(judging: CorrectedContext, ts: int, ego: Series, ids: list[s
     w, n = judging.window, len(ids)
     if w < 1:
         return None
-    states = judging.states_over(judging.gids(ids), [ts + i * judging.tpf for i in range(w + 1)])
+    states = judging.states_over(
+        judging.gids(ids), [ts + i * judging.frame_ms for i in range(w + 1)]
+    )
     extents = judging.log.actor_extents
     half = np.array([extents[a][:2] for a in ids], dtype=np.float64)
     dist = index_distances(

@@ -27,12 +27,12 @@ def attribute_reference(frames: Sequence[FrameResults], ctx: RunContext) -> Attr
 
     A failure at ts counts as ``collision`` when collision_frame is not -1 (the reference's
     test: any other negative frame is a collision before the run, so every failure counts)
-    and ts > (collision_frame - effect_time_window) * tpf, with no upper bound; else ``safe``.
+    and ts > (collision_frame - effect_time_window) * frame_ms, with no upper bound; else ``safe``.
     Root causes are the modules with any ``collision`` count, in pipeline order.
     """
     collision_frame = ctx.log.metadata.collision_frame
-    tpf = ctx.tpf
-    start_ms = (collision_frame - ctx.params.effect_time_window) * tpf
+    frame_ms = ctx.frame_ms
+    start_ms = (collision_frame - ctx.params.effect_time_window) * frame_ms
     modules = {m: ModuleVerdict() for m in MODULES}
     for frame in frames:
         for module, result in frame.results.items():

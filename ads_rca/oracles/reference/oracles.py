@@ -220,7 +220,7 @@ class _Tables:
     column ``n_cols - 1``.
     """
 
-    tpf: int
+    frame_ms: int
     pose_times: IntArray  # (T,) sorted
     pose_x: FloatArray  # (T + 1,)
     pose_y: FloatArray
@@ -242,14 +242,14 @@ class _Tables:
     dropped: set[str]
 
     def rows_at(self, ts: int, steps: IntArray) -> tuple[IntArray, IntArray]:
-        """Pose row and actor time row at ts + steps * tpf (the sentinels where absent)."""
+        """Pose row and actor time row at ts + steps * frame_ms (the sentinels where absent)."""
         n_pose, n_times = len(self.pose_times), len(self.actor_times)
-        if ts % self.tpf == 0 and self.pose_slot.size:
-            idx = steps + (ts // self.tpf - self.grid_f0 + 1)
+        if ts % self.frame_ms == 0 and self.pose_slot.size:
+            idx = steps + (ts // self.frame_ms - self.grid_f0 + 1)
             np.maximum(idx, 0, out=idx)
             np.minimum(idx, self.pose_slot.size - 1, out=idx)
             return self.pose_slot[idx], self.actor_slot[idx]
-        tk = steps * self.tpf
+        tk = steps * self.frame_ms
         tk += ts
         return _search(self.pose_times, tk, n_pose), _search(self.actor_times, tk, n_times)
 
@@ -278,7 +278,7 @@ def _tables(log: RunLog) -> _Tables:
 
 
 def _build_tables(log: RunLog) -> _Tables:
-    tpf = log.tpf
+    frame_ms = log.frame_ms
     pose_times = sorted(log.pose)
     pose_x = np.array([log.pose[t].x for t in pose_times] + [math.nan], dtype=np.float64)
     pose_y = np.array([log.pose[t].y for t in pose_times] + [math.nan], dtype=np.float64)
@@ -305,7 +305,7 @@ def _build_tables(log: RunLog) -> _Tables:
     ext_x, ext_y = np.full(len(cols) + 1, np.nan), np.full(len(cols) + 1, np.nan)
     for actor_id, ext in log.actor_extents.items():
         ext_x[cols[actor_id]], ext_y[cols[actor_id]] = ext[0], ext[1]
-    f0, pose_slot, actor_slot = _grid(tpf, pose_times, actor_times)
+    f0, pose_slot, actor_slot = _grid(frame_ms, pose_times, actor_times)
     nan_fields: dict[str, set[str]] = {}
     dropped: set[str] = set()
     for problem in log.problems:
@@ -314,7 +314,7 @@ def _build_tables(log: RunLog) -> _Tables:
         elif problem.action == DROPPED_RECORD:
             dropped.add(problem.file)
     return _Tables(
-        tpf,
+        frame_ms,
         np.array(pose_times, dtype=np.int64),
         pose_x,
         pose_y,
@@ -354,10 +354,10 @@ def _frames_by_ids(log: RunLog, times: list[int]) -> list[tuple[tuple[str, ...],
 
 
 def _grid(
-    tpf: int, pose_times: list[int], actor_times: list[int]
+    frame_ms: int, pose_times: list[int], actor_times: list[int]
 ) -> tuple[int, IntArray, IntArray]:
     """Row per frame of the on-grid timestamps (empty when there are none or too sparse)."""
-    frames = [t // tpf for t in (*pose_times, *actor_times) if t % tpf == 0]
+    frames = [t // frame_ms for t in (*pose_times, *actor_times) if t % frame_ms == 0]
     empty = np.zeros(0, dtype=np.int64)
     if not frames:
         return 0, empty, empty
@@ -367,11 +367,11 @@ def _grid(
     pose_slot = np.full(f1 - f0 + 3, len(pose_times), dtype=np.int64)
     actor_slot = np.full(f1 - f0 + 3, len(actor_times), dtype=np.int64)
     for row, t in enumerate(pose_times):
-        if t % tpf == 0:
-            pose_slot[t // tpf - f0 + 1] = row
+        if t % frame_ms == 0:
+            pose_slot[t // frame_ms - f0 + 1] = row
     for row, t in enumerate(actor_times):
-        if t % tpf == 0:
-            actor_slot[t // tpf - f0 + 1] = row
+        if t % frame_ms == 0:
+            actor_slot[t // frame_ms - f0 + 1] = row
     return f0, pose_slot, actor_slot
 
 
@@ -574,7 +574,7 @@ def prediction(ctx: RunContext, ts: int) -> OracleResult:
     layout = flat.layout
     tables = _tables(log)
     steps = layout.steps
-    tk = steps * log.tpf
+    tk = steps * log.frame_ms
     tk += ts
     judged = tk < log.metadata.end_ms
     crash = None if layout.all_int else ~layout.int_ok
@@ -790,11 +790,11 @@ def _judge_plan(
     log, params = ctx.log, ctx.params
     pairs = _plan_pairs(raw.layout, plan)
     bad_row = pairs.bad_row
-    # Linked, i != 0, before any non-integer key, ts + i * tpf <= total_frames * tpf.
+    # Linked, i != 0, before any non-integer key, ts + i * frame_ms <= total_frames * frame_ms.
     step = pairs.step
     judged = links.linked[pairs.track]
     judged &= pairs.reachable
-    judged &= step <= (log.metadata.end_ms - ts) // log.tpf
+    judged &= step <= (log.metadata.end_ms - ts) // log.frame_ms
     ego_ext = log.actor_extents.get(ctx.ego_id) if ctx.ego_id is not None else None
     fail_at = -1
     gap_x = gap_y = tol = np.zeros(0)
@@ -870,7 +870,7 @@ _CONTROL_THRESHOLDS = {
 def control(ctx: RunContext, ts: int) -> OracleResult:
     """Planned step (plan["1"] - pose[ts]) against the actual step, the reference's way."""
     log = ctx.log
-    tpf = log.tpf
+    frame_ms = log.frame_ms
     thresholds = dict(_CONTROL_THRESHOLDS)
     plan = log.waypoints.get(ts)
     if plan is None:
@@ -881,15 +881,15 @@ def control(ctx: RunContext, ts: int) -> OracleResult:
         return OracleResult(  # the reference has crashed in planning on it already
             "controller", ts, False, thresholds=thresholds, skipped="empty plan", missing_input=True
         )
-    if ts + tpf > log.metadata.end_ms:
+    if ts + frame_ms > log.metadata.end_ms:
         return OracleResult("controller", ts, False, {"beyond_end": True}, thresholds)
     row = plan.index.get("1")
     if row is None:
         file = log.file_of("waypoint", ts)
         return _skip(ctx, "controller", ts, file, "1", "plan has no point 1", thresholds)
-    now, nxt = log.pose.get(ts), log.pose.get(ts + tpf)
+    now, nxt = log.pose.get(ts), log.pose.get(ts + frame_ms)
     if now is None or nxt is None:
-        file = log.file_of("pose", ts if now is None else ts + tpf)
+        file = log.file_of("pose", ts if now is None else ts + frame_ms)
         return _skip(ctx, "controller", ts, file, "", "pose missing", thresholds)
     px, py = plan.xy[row].tolist()
     bx, by = px - now.x, py - now.y  # planned step
@@ -919,7 +919,7 @@ def _unreadable_control_input(ctx: RunContext, ts: int) -> tuple[str, str] | Non
     for folder, t, names in (
         ("waypoint", ts, ("1.x", "1.y")),
         ("pose", ts, ("x", "y")),
-        ("pose", ts + log.tpf, ("x", "y")),
+        ("pose", ts + log.frame_ms, ("x", "y")),
     ):
         file = log.file_of(folder, t)
         for name in names:

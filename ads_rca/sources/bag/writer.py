@@ -137,7 +137,7 @@ def playback_messages(log: RunLog) -> Iterator[tuple[str, int, Any]]:
             yield topics.EGO_PATHS, last, string_message(dumps_json(paths))
             marker_extra["snapshot"] = paths["id"]
         names = [topics.CLOCK, *published_names(messages)]
-        yield topics.FRAME, last, frame_marker(tick, names, log.tpf, **marker_extra)
+        yield topics.FRAME, last, frame_marker(tick, names, log.frame_ms, **marker_extra)
     yield topics.STATUS, last, status_message(FINISHED, len(ticks), **extra, elapsed_s=0.0)
 
 

@@ -118,17 +118,17 @@ def read_carla_run(
     scenario = _scenario(root, problems)
     telemetry = _telemetry(root, problems, limit)
     fps = _frame_rate(facts, telemetry, problems)
-    tpf = max(1, round(1000.0 / fps))
-    if abs(1000.0 / fps - tpf) > 1e-9:
+    frame_ms = max(1, round(1000.0 / fps))
+    if abs(1000.0 / fps - frame_ms) > 1e-9:
         problems.add(
             RUN_METADATA,
             "fps",
             f"{fps:g} fps is not a whole number of milliseconds a frame",
-            f"{KEPT_VALUE}: frames numbered at {tpf} ms",
+            f"{KEPT_VALUE}: frames numbered at {frame_ms} ms",
             "warning",
         )
     ticks = _ticks(telemetry, problems)
-    _check_spacing([telemetry.stamps[i] for i in ticks], tpf, telemetry.file, problems)
+    _check_spacing([telemetry.stamps[i] for i in ticks], frame_ms, telemetry.file, problems)
     ego_blueprint = scenario.get("ego_vehicle")
     if not isinstance(ego_blueprint, str):
         if ego_blueprint is not None:
@@ -151,7 +151,7 @@ def read_carla_run(
     collision_frame = -1
     if derived_collision and hit.any():
         first_tick = int(rows.tick[hit].min())
-        collision_frame = round(telemetry.stamps[ticks[first_tick]] / tpf)
+        collision_frame = round(telemetry.stamps[ticks[first_tick]] / frame_ms)
 
     stamps = [telemetry.stamps[i] for i in ticks]
     pose: dict[int, Record] = {}
@@ -167,9 +167,9 @@ def read_carla_run(
     raw: dict[str, Any] = {
         "source_format": FORMAT_NAME,
         "telemetry_schema": telemetry.schema,
-        "timesteps_per_frame": tpf,
+        "timesteps_per_frame": frame_ms,
         "collision_frame": collision_frame,
-        "total_frames": (stamps[-1] // tpf + 1) if stamps else 0,
+        "total_frames": (stamps[-1] // frame_ms + 1) if stamps else 0,
         "ego_blueprint": bounded(ego_blueprint, MAX_KIND),
         **_run_facts(facts),
         ANNOTATIONS_KEY: [a.to_dict() for a in annotations],
@@ -179,7 +179,9 @@ def read_carla_run(
         telemetry, ego_blueprint, ego_known, found.unknown, plan_file, derived_collision
     )
     raw[INPUTS_KEY] = {name: status.to_dict() for name, status in inputs.items()}
-    metadata = RunMetadata(tpf, (0.0, 0.0, 0.0), collision_frame, int(raw["total_frames"]), raw)
+    metadata = RunMetadata(
+        frame_ms, (0.0, 0.0, 0.0), collision_frame, int(raw["total_frames"]), raw
+    )
     return RunLog.from_folders(
         metadata,
         tuple(stamps),
@@ -297,16 +299,16 @@ def _ticks(telemetry: Telemetry, problems: ProblemLog) -> list[int]:
     return kept
 
 
-def _check_spacing(stamps: Sequence[int], tpf: int, file: str, problems: ProblemLog) -> None:
+def _check_spacing(stamps: Sequence[int], frame_ms: int, file: str, problems: ProblemLog) -> None:
     """Say so when the ticks' most common spacing is not the frame period the rate gives
     (frame numbers then do not count ticks)."""
     common = most_common_step(stamps)
-    if common is not None and abs(common - tpf) > 1:
+    if common is not None and abs(common - frame_ms) > 1:
         problems.add(
             file,
             "t_sim",
-            f"ticks are {common} ms apart, the frame rate gives {tpf} ms",
-            f"{KEPT_VALUE}: frames numbered at {tpf} ms",
+            f"ticks are {common} ms apart, the frame rate gives {frame_ms} ms",
+            f"{KEPT_VALUE}: frames numbered at {frame_ms} ms",
             "warning",
         )
 

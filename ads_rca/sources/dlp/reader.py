@@ -460,7 +460,7 @@ def _run_log(
             f"{table.duplicates} instances repeat an agent's frame",
             "the first kept",
         )
-    tpf = most_common_step(stamps) or DEFAULT_TPF  # the list's times only increase
+    frame_ms = most_common_step(stamps) or DEFAULT_TPF  # the list's times only increase
     mine = table.agent == ego
     ego_frames = table.frame[mine]
     lifetime = int(ego_frames[-1] - ego_frames[0] + 1)
@@ -508,14 +508,14 @@ def _run_log(
     collision_frame = -1
     if source.derived_collision:
         collision_frame = _first_overlap(
-            table, ego, ego_frames, ego_xy, ego_yaw, half, obstacles, agents, stamps, tpf
+            table, ego, ego_frames, ego_xy, ego_yaw, half, obstacles, agents, stamps, frame_ms
         )
     frames = tuple(stamps[f] for f in ego_frames.tolist())
     raw: dict[str, Any] = {
         "source_format": FORMAT_NAME,
-        "timesteps_per_frame": tpf,
+        "timesteps_per_frame": frame_ms,
         "collision_frame": collision_frame,
-        "total_frames": (frames[-1] // tpf + 1) if frames else 0,
+        "total_frames": (frames[-1] // frame_ms + 1) if frames else 0,
         "scene": {
             "filename": _text(scene.get("filename"), ""),
             "timestamp": _text(scene.get("timestamp"), ""),
@@ -536,7 +536,9 @@ def _run_log(
     }
     inputs = _capabilities(names, agents, ego, ids, chosen_by, source.derived_collision)
     raw[INPUTS_KEY] = {key: status.to_dict() for key, status in inputs.items()}
-    metadata = RunMetadata(tpf, (0.0, 0.0, 0.0), collision_frame, int(raw["total_frames"]), raw)
+    metadata = RunMetadata(
+        frame_ms, (0.0, 0.0, 0.0), collision_frame, int(raw["total_frames"]), raw
+    )
     return RunLog.from_folders(
         metadata,
         frames,
@@ -563,7 +565,7 @@ def _first_overlap(
     obstacles: FloatArray,
     agents: Agents,
     stamps: list[int],
-    tpf: int,
+    frame_ms: int,
 ) -> int:
     """The frame number where the ego's box first overlaps an agent's or an obstacle's."""
     tick_of = {f: n for n, f in enumerate(ego_frames.tolist())}
@@ -602,7 +604,7 @@ def _first_overlap(
             break
     if not hits:
         return -1
-    return round(stamps[int(ego_frames[min(hits)])] / tpf)
+    return round(stamps[int(ego_frames[min(hits)])] / frame_ms)
 
 
 def _capabilities(

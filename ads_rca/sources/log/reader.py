@@ -529,17 +529,22 @@ def read_metadata(
             )
         return number
 
-    tpf = int(
+    frame_ms = int(
         field(
-            "timesteps_per_frame", document.get("timesteps_per_frame"), _infer_tpf(timestamps), True
+            "timesteps_per_frame",
+            document.get("timesteps_per_frame"),
+            _infer_frame_ms(timestamps),
+            True,
         )
     )
-    if tpf <= 0 or tpf > MAX_TIMESTAMP_MS:
-        issue = "is not positive" if tpf <= 0 else f"is past the largest read ({MAX_TIMESTAMP_MS})"
-        problems.add(file, "timesteps_per_frame", f"{tpf} {issue}", USED_DEFAULT)
-        tpf = _infer_tpf(timestamps)
+    if frame_ms <= 0 or frame_ms > MAX_TIMESTAMP_MS:
+        issue = (
+            "is not positive" if frame_ms <= 0 else f"is past the largest read ({MAX_TIMESTAMP_MS})"
+        )
+        problems.add(file, "timesteps_per_frame", f"{frame_ms} {issue}", USED_DEFAULT)
+        frame_ms = _infer_frame_ms(timestamps)
     elif "timesteps_per_frame" not in defaulted and len(timestamps) > 1:
-        _check_step(file, tpf, timestamps, problems)
+        _check_step(file, frame_ms, timestamps, problems)
     camera_loc = _camera_loc(document, file, problems)
     collision = int(field("collision_frame", document.get("collision_frame"), -1, True))
     if abs(collision) > MAX_FRAME:  # judges as the absurd frame did (see MAX_FRAME)
@@ -558,15 +563,15 @@ def read_metadata(
             "counts every failure as in the window, corrected finds no collision)",
             KEPT_VALUE,
         )
-    if timestamps and collision * tpf > timestamps[-1]:
+    if timestamps and collision * frame_ms > timestamps[-1]:
         problems.add(
             file,
             "collision_frame",
-            f"frame {collision} ({collision * tpf} ms) is past the last actors file "
+            f"frame {collision} ({collision * frame_ms} ms) is past the last actors file "
             f"({timestamps[-1]} ms)",
             KEPT_VALUE,
         )
-    last_frame = (timestamps[-1] // tpf) if timestamps else 0
+    last_frame = (timestamps[-1] // frame_ms) if timestamps else 0
     total = int(field("total_frames", document.get("total_frames"), last_frame, True))
     if not 0 <= total <= MAX_FRAME:
         problems.add(
@@ -577,30 +582,30 @@ def read_metadata(
         )
         total = last_frame
     elif "total_frames" not in defaulted and timestamps:
-        _check_total(file, total, tpf, timestamps[-1], problems)
+        _check_total(file, total, frame_ms, timestamps[-1], problems)
     known = "collision_frame" not in defaulted  # else -1 stands in: the collision is unknown
-    return RunMetadata(tpf, camera_loc, collision, total, raw=document, collision_known=known)
+    return RunMetadata(frame_ms, camera_loc, collision, total, raw=document, collision_known=known)
 
 
-def _check_step(file: str, tpf: int, timestamps: list[int], problems: ProblemLog) -> None:
+def _check_step(file: str, frame_ms: int, timestamps: list[int], problems: ProblemLog) -> None:
     """A ``timesteps_per_frame`` that is not the actors timestamps' step (their most common
     one, what a missing value defaults to) numbers every frame and places the collision and
     the effect window wrongly: an input problem; the value is kept, as the reference does."""
-    step = _infer_tpf(timestamps)
-    if step != tpf:
+    step = _infer_frame_ms(timestamps)
+    if step != frame_ms:
         problems.add(
             file,
             "timesteps_per_frame",
-            f"{tpf} ms, but the actors timestamps step by {step} ms (their most common step)",
+            f"{frame_ms} ms, but the actors timestamps step by {step} ms (their most common step)",
             KEPT_VALUE,
         )
 
 
-def _check_total(file: str, total: int, tpf: int, last_ms: int, problems: ProblemLog) -> None:
+def _check_total(file: str, total: int, frame_ms: int, last_ms: int, problems: ProblemLog) -> None:
     """A ``total_frames`` more than one frame from the last actors file's frame (one off
     is either counting convention: frames from 0 or from 1) disagrees with the data; the
     reference looks ahead up to it, so it is kept and reported."""
-    last = last_ms // tpf
+    last = last_ms // frame_ms
     if abs(total - last) > 1:
         problems.add(
             file,
@@ -635,7 +640,7 @@ def _camera_loc(
     return (0.0, 0.0, 0.0)
 
 
-def _infer_tpf(timestamps: list[int]) -> int:
+def _infer_frame_ms(timestamps: list[int]) -> int:
     steps = [b - a for a, b in itertools.pairwise(timestamps) if b > a]
     if not steps:
         return DEFAULT_TPF_MS

@@ -59,29 +59,29 @@ def _duplicates(log: RunLog, listings: dict[str, list[tuple[int, str]]]) -> None
 
 
 def _grid_and_gaps(log: RunLog) -> None:
-    tpf = log.tpf
+    frame_ms = log.frame_ms
     frames = np.array(log.unique_frames, dtype=np.int64)
     if frames.size == 0:
         log.problems.add("actors/", "", "no actors files: no frame to analyse", IGNORED)
         return
-    off_grid = frames[frames % tpf != 0]
+    off_grid = frames[frames % frame_ms != 0]
     if off_grid.size:
         log.problems.add(
             "actors/",
             "timestamp",
-            f"{off_grid.size} timestamps are not multiples of the {tpf} ms frame period "
+            f"{off_grid.size} timestamps are not multiples of the {frame_ms} ms frame period "
             f"(first: {int(off_grid[0])} ms)",
             "analysed as they are; look-ahead by whole frames finds no data for them",
             "warning",
             int(off_grid[0]),
         )
     steps = np.diff(frames)
-    for index in np.flatnonzero(steps > tpf):
+    for index in np.flatnonzero(steps > frame_ms):
         start, end = int(frames[index]), int(frames[index + 1])
         log.problems.add(
             "actors/",
             "timestamp",
-            f"gap: no frame between {start} and {end} ms ({(end - start) // tpf - 1} missing)",
+            f"gap: no frame between {start} and {end} ms ({(end - start) // frame_ms - 1} missing)",
             "frames around the gap are analysed; look-ahead into it finds no data",
             "warning",
             start,

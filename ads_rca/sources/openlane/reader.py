@@ -390,8 +390,8 @@ def _run_log(
     problems: ProblemLog,
 ) -> RunLog:
     stamps = [f.stamp_ms for f in frames]
-    tpf = most_common_step(stamps) or DEFAULT_TPF
-    _report_gaps(stamps, tpf, problems)
+    frame_ms = most_common_step(stamps) or DEFAULT_TPF
+    _report_gaps(stamps, frame_ms, problems)
     poses = ego_poses(
         np.stack([f.rotation for f in frames]), np.stack([f.translation for f in frames]), stamps
     )
@@ -410,10 +410,10 @@ def _run_log(
             "the folder's name shown",
             "warning",
         )
-    total = stamps[-1] // tpf + 1
+    total = stamps[-1] // frame_ms + 1
     raw: dict[str, Any] = {
         "source_format": FORMAT_NAME,
-        "timesteps_per_frame": tpf,
+        "timesteps_per_frame": frame_ms,
         "collision_frame": -1,
         "total_frames": total,
         "source_frame": SOURCE_FRAME,
@@ -430,7 +430,7 @@ def _run_log(
     }
     inputs = _capabilities(predicted=False)
     raw[INPUTS_KEY] = {key: status.to_dict() for key, status in inputs.items()}
-    metadata = RunMetadata(tpf, (0.0, 0.0, 0.0), -1, total, raw)
+    metadata = RunMetadata(frame_ms, (0.0, 0.0, 0.0), -1, total, raw)
     return RunLog.from_folders(
         metadata,
         tuple(stamps),
@@ -442,18 +442,18 @@ def _run_log(
     )
 
 
-def _report_gaps(stamps: Sequence[int], tpf: int, problems: ProblemLog) -> None:
+def _report_gaps(stamps: Sequence[int], frame_ms: int, problems: ProblemLog) -> None:
     """Each step of at least :data:`GAP_FACTOR` periods, as the running-log reader says a
     gap (the first :data:`MAX_LISTED`, then a count)."""
     steps = np.diff(np.asarray(stamps, dtype=np.int64))
-    gaps = np.flatnonzero(steps >= int(GAP_FACTOR * tpf)).tolist()
+    gaps = np.flatnonzero(steps >= int(GAP_FACTOR * frame_ms)).tolist()
     for index in gaps[:MAX_LISTED]:
         start, end = stamps[index], stamps[index + 1]
         problems.add(
             f"{INFO}/",
             "timestamp",
-            f"gap: no frame between {start} and {end} ms (about {round((end - start) / tpf) - 1}"
-            " missing)",
+            f"gap: no frame between {start} and {end} ms "
+            f"(about {round((end - start) / frame_ms) - 1} missing)",
             "frames around the gap are analysed; the speed across it is an average",
             "warning",
             start,

@@ -50,9 +50,9 @@ def frame_scores(log: RunLog, ts: int, window: int) -> dict[str, Metric]:
     tracks, pose, actors = log.predictions.get(ts), log.pose.get(ts), log.actors.get(ts)
     if not tracks or pose is None or actors is None:
         return {}
-    tpf = log.tpf
+    frame_ms = log.frame_ms
     meta = log.metadata
-    last_ms = meta.collision_frame * tpf if meta.has_collision else None
+    last_ms = meta.collision_frame * frame_ms if meta.has_collision else None
     ids = [i for i in tracks if i in actors.index]
     unmatched = len(tracks) - len(ids)
     per_track: list[tuple[str, float, float]] = []  # (id, ADE, FDE)
@@ -64,7 +64,7 @@ def frame_scores(log: RunLog, ts: int, window: int) -> dict[str, Metric]:
             continue
         real = np.full((steps.size, 2), np.nan)
         for n, step in enumerate(steps.tolist()):
-            stamp = ts + (step + 1) * tpf
+            stamp = ts + (step + 1) * frame_ms
             if last_ms is not None and stamp > last_ms:
                 continue
             later = log.actors.get(stamp)

@@ -301,7 +301,7 @@ def _to_frames(
 ) -> dict[int, Stamped]:
     """Timestamp (ms) → the message of each frame (see the module docstring)."""
     out: dict[int, Stamped] = {}
-    tpf = grid.period_ms
+    frame_ms = grid.period_ms
     for item in sorted(stamped, key=lambda s: (s.stamp_ns, s.log_time_ns)):
         where = f"message at log time {item.log_time_ns} ns, stamp {item.stamp_ns} ns"
         if not grid.on_grid(item.stamp_ns):
@@ -310,12 +310,12 @@ def _to_frames(
                     item.file,
                     spec.topic,
                     f"{where}: outside the frames of {grid.t0_ns} ns + [0, {grid.last}] × "
-                    f"{tpf} ms by more than half a period",
+                    f"{frame_ms} ms by more than half a period",
                     _SKIPPED,
                 )
             )
             continue
-        ts = grid.nearest(item.stamp_ns) * tpf
+        ts = grid.nearest(item.stamp_ns) * frame_ms
         earlier = out.get(ts)
         if earlier is not None:
             problems.append(
@@ -323,7 +323,7 @@ def _to_frames(
                     earlier.file,
                     spec.topic,
                     f"message at log time {earlier.log_time_ns} ns, stamp {earlier.stamp_ns} "
-                    f"ns: frame {ts // tpf} has a later message ({item.stamp_ns} ns)",
+                    f"ns: frame {ts // frame_ms} has a later message ({item.stamp_ns} ns)",
                     "earlier message dropped",
                     "warning",
                     ts,
@@ -341,10 +341,10 @@ def _predictions(
     problems: list[Problem],
 ) -> dict[int, Predictions]:
     """Each frame's predicted paths as the model's keyed offsets in the ego body frame:
-    key k is the position (k+1)·tpf after the frame's time, linearly interpolated along the
+    key k is the position (k+1)·frame_ms after the frame's time, linearly interpolated along the
     path, for as long as the path lasts."""
     out: dict[int, Predictions] = {}
-    tpf = grid.period_ms
+    frame_ms = grid.period_ms
     for ts, item in sorted(framed.items()):
         pose = poses.get(ts)
         if pose is None:
@@ -352,7 +352,7 @@ def _predictions(
                 Problem(
                     item.file,
                     spec.topic,
-                    f"frame {ts // tpf}: no ego pose to put the predictions in its body frame",
+                    f"frame {ts // frame_ms}: no ego pose to put the predictions in its body frame",
                     DROPPED_RECORD,
                     timestamp_ms=ts,
                 )
@@ -364,26 +364,26 @@ def _predictions(
                 Problem(
                     item.file,
                     spec.topic,
-                    f"frame {ts // tpf}: {len(paths.ids) - len(set(paths.ids))} objects repeat "
-                    "an object_id",
+                    f"frame {ts // frame_ms}: {len(paths.ids) - len(set(paths.ids))} objects "
+                    "repeat an object_id",
                     "the last object of each id kept",
                     timestamp_ms=ts,
                 )
             )
-        delay_s = (grid.frame_ns(ts // tpf) - item.stamp_ns) / 1e9
-        out[ts] = track_offsets(paths, delay_s, tpf / 1000.0, pose)
+        delay_s = (grid.frame_ns(ts // frame_ms) - item.stamp_ns) / 1e9
+        out[ts] = track_offsets(paths, delay_s, frame_ms / 1000.0, pose)
     return out
 
 
 def _plans(
     framed: dict[int, Stamped], spec: InputSpec, grid: Grid, problems: list[Problem]
 ) -> dict[int, Plan]:
-    """Each frame's trajectory as the model's plan: key i is the point ``i``·tpf after the
+    """Each frame's trajectory as the model's plan: key i is the point ``i``·frame_ms after the
     frame's time (``time_from_start`` from the message's stamp), x, y and speed linearly
     interpolated, for as long as the trajectory lasts. A trajectory whose times are not
     filled (all zero) is timed by its points' spacing and speeds, and that is said once."""
     out: dict[int, Plan] = {}
-    tpf = grid.period_ms
+    frame_ms = grid.period_ms
     said = False
     for ts, item in sorted(framed.items()):
         timed = cast("TimedPlan", item.record)
@@ -395,15 +395,15 @@ def _plans(
                     Problem(
                         item.file,
                         spec.topic,
-                        f"frame {ts // tpf}: time_from_start not filled",
+                        f"frame {ts // frame_ms}: time_from_start not filled",
                         "times derived from the points' spacing and speeds",
                         severity="warning",
                         timestamp_ms=ts,
                     )
                 )
                 said = True
-        delay_s = (grid.frame_ns(ts // tpf) - item.stamp_ns) / 1e9
-        out[ts] = sample_plan(times, timed.xy, timed.speed, delay_s, tpf / 1000.0)
+        delay_s = (grid.frame_ns(ts // frame_ms) - item.stamp_ns) / 1e9
+        out[ts] = sample_plan(times, timed.xy, timed.speed, delay_s, frame_ms / 1000.0)
     return out
 
 
@@ -417,23 +417,23 @@ def travel_times(xy: FloatArray, speed: FloatArray) -> FloatArray:
 
 
 def sample_plan(
-    times: FloatArray, xy: FloatArray, speed: FloatArray, delay_s: float, tpf_s: float
+    times: FloatArray, xy: FloatArray, speed: FloatArray, delay_s: float, frame_s: float
 ) -> Plan:
-    """The plan of keys "0", "1", ...: the trajectory at ``delay_s + i·tpf_s`` seconds from
+    """The plan of keys "0", "1", ...: the trajectory at ``delay_s + i·frame_s`` seconds from
     its start, while inside it (a point exactly at a sample time is taken as is)."""
     if len(times) == 0:
         return Plan((), np.zeros((0, 2)), np.zeros(0))
-    count = int(np.floor((times[-1] - delay_s) / tpf_s + 1e-9)) + 1 if times[-1] >= delay_s else 1
-    at = np.clip(delay_s + np.arange(count) * tpf_s, times[0], times[-1])
+    count = int(np.floor((times[-1] - delay_s) / frame_s + 1e-9)) + 1 if times[-1] >= delay_s else 1
+    at = np.clip(delay_s + np.arange(count) * frame_s, times[0], times[-1])
     points = np.column_stack([np.interp(at, times, xy[:, 0]), np.interp(at, times, xy[:, 1])])
     return Plan(tuple(str(i) for i in range(count)), points, np.interp(at, times, speed))
 
 
 def track_offsets(
-    paths: PredictedPaths, delay_s: float, tpf_s: float, pose: EgoPose
+    paths: PredictedPaths, delay_s: float, frame_s: float, pose: EgoPose
 ) -> Predictions:
     """The model's predictions of one frame from world paths: key k at ``delay_s + (k+1)·
-    tpf_s`` seconds after the message stamp, while within the path; offsets are world
+    frame_s`` seconds after the message stamp, while within the path; offsets are world
     points minus the ego position, rotated into the ego's body frame (x forward, y right).
 
     Objects whose paths have the same length and step are interpolated together."""
@@ -444,8 +444,8 @@ def track_offsets(
     origin = np.array([pose.x, pose.y])
     for (length, step), rows in groups.items():
         span = (length - 1) * step
-        count = 0 if length < 2 else max(0, math.floor((span - delay_s) / tpf_s + 1e-9))
-        query = delay_s + tpf_s * np.arange(1, count + 1)
+        count = 0 if length < 2 else max(0, math.floor((span - delay_s) / frame_s + 1e-9))
+        query = delay_s + frame_s * np.arange(1, count + 1)
         query = query[(query >= 0) & (query <= span + 1e-9)]
         keys = tuple(str(k) for k in range(len(query)))
         points = np.stack([paths.points[row] for row in rows])  # (M, P, 3)

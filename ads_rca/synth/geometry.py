@@ -1,12 +1,10 @@
-"""Planar geometry shared by the synthesiser: rotations, oriented boxes, separating axes.
+"""Planar geometry of the synthesiser: rotations and the separating-axis gap of boxes.
 
 Everything is vectorised over leading dimensions so a whole frame (all actors, all plan
 steps) is one numpy call. Angles are radians here; the log's degrees are converted at the
 edges. The CARLA world is left-handed (x forward, y right), but a yaw ψ still maps a body
 offset (x, y) to the world as (x cos ψ − y sin ψ, x sin ψ + y cos ψ), exactly as the
 format's rotation rule says, so no special handling is needed in 2-D.
-
-These helpers are general; they are meant to move to a shared ``ads_rca/foundation/geometry.py``.
 """
 
 from __future__ import annotations
@@ -15,9 +13,6 @@ import numpy as np
 import numpy.typing as npt
 
 FloatArray = npt.NDArray[np.float64]
-
-#: Corner signs of a box in its own frame, counter-clockwise in a right-handed sense.
-_CORNER_SIGNS = np.array([[1.0, 1.0], [-1.0, 1.0], [-1.0, -1.0], [1.0, -1.0]])
 
 
 def heading_vector(yaw: FloatArray) -> FloatArray:
@@ -37,15 +32,6 @@ def to_world(offsets: FloatArray, origin: FloatArray, yaw: float) -> FloatArray:
     c, s = np.cos(yaw), np.sin(yaw)
     x, y = offsets[..., 0], offsets[..., 1]
     return np.stack([origin[0] + x * c - y * s, origin[1] + x * s + y * c], axis=-1)
-
-
-def box_corners(center: FloatArray, yaw: FloatArray, half: FloatArray) -> FloatArray:
-    """Corners (..., 4, 2) of oriented boxes: centres (..., 2), yaw (...), half sizes (..., 2)."""
-    local = _CORNER_SIGNS * half[..., None, :]
-    c, s = np.cos(yaw)[..., None], np.sin(yaw)[..., None]
-    x = center[..., None, 0] + local[..., 0] * c - local[..., 1] * s
-    y = center[..., None, 1] + local[..., 0] * s + local[..., 1] * c
-    return np.stack([x, y], axis=-1)
 
 
 def sat_gap(
@@ -78,38 +64,5 @@ def sat_gap(
     return best
 
 
-def box_distance(
-    c1: FloatArray,
-    yaw1: FloatArray,
-    h1: FloatArray,
-    c2: FloatArray,
-    yaw2: FloatArray,
-    h2: FloatArray,
-) -> FloatArray:
-    """Signed edge-to-edge distance of oriented boxes: Euclidean apart, SAT depth overlapping."""
-    gap = sat_gap(c1, yaw1, h1, c2, yaw2, h2)
-    p1 = box_corners(c1, yaw1, h1)
-    p2 = box_corners(c2, yaw2, h2)
-    exact = np.minimum(_points_to_polygon(p1, p2), _points_to_polygon(p2, p1))
-    return np.where(gap > 0.0, exact, gap)
-
-
-def _points_to_polygon(points: FloatArray, polygon: FloatArray) -> FloatArray:
-    """Smallest distance from any of ``points`` (..., 4, 2) to the edges of ``polygon``."""
-    start = polygon[..., None, :, :]
-    edge = np.roll(polygon, -1, axis=-2)[..., None, :, :] - start
-    rel = points[..., :, None, :] - start
-    t = np.clip(_dot(rel, edge) / np.maximum(_dot(edge, edge), 1e-12), 0.0, 1.0)
-    diff = rel - t[..., None] * edge
-    dist: FloatArray = np.sqrt(_dot(diff, diff))
-    nearest: FloatArray = dist.min(axis=(-1, -2))
-    return nearest
-
-
 def _dot(a: FloatArray, b: FloatArray) -> FloatArray:
     return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1]
-
-
-def wrap_angle(angle: FloatArray) -> FloatArray:
-    """Angles (rad) wrapped into [-π, π)."""
-    return (angle + np.pi) % (2.0 * np.pi) - np.pi

@@ -317,14 +317,6 @@ def iter_mcap_stream(path: str | os.PathLike[str]) -> Iterator[BagMessage]:
     yield from read_mcap(Path(path)).messages
 
 
-def bag_topics(path: str | os.PathLike[str]) -> dict[str, str]:
-    """Topic name → type of every topic a bag holds messages on."""
-    out: dict[str, str] = {}
-    for message in iter_bag(path):
-        out.setdefault(message.topic, message.msg_type)
-    return out
-
-
 # --- rebuilding the log -------------------------------------------------------------------
 
 

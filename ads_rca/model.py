@@ -288,7 +288,7 @@ class Objects3D:
     """One frame of 3-D objects a stack perceived (detections or tracks), in the log's world
     frame like :class:`Actors` (CARLA: left-handed, metres, degrees).
 
-    Real stacks detect in 3-D, not as image boxes; recordings of them (issue #16) carry these
+    Real stacks detect in 3-D, not as image boxes; recordings of them carry these
     instead of ``bboxes/``. ``extent`` holds HALF sizes; ``velocity`` is world m/s (NaN where
     the message gives none); ``score`` is the existence probability or confidence (NaN where
     none); ``labels`` the class names as text (never trusted for output without escaping).

@@ -1,4 +1,4 @@
-"""Batch diagnosis of many runs (``ads-rca batch``; issue #18): the pure core.
+"""Batch diagnosis of many runs (``ads-rca batch``): the pure core.
 
 What runs where: :mod:`~ads_rca.batch.inputs` expands the command line into runs (each with
 a stable run id), :mod:`~ads_rca.batch.work` diagnoses one run in a child process with a

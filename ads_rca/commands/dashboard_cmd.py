@@ -1,4 +1,4 @@
-"""``ads-rca dashboard``: a web page of the runs on Zenoh, live (issue #17).
+"""``ads-rca dashboard``: a web page of the runs on Zenoh, live.
 
 Serves :mod:`ads_rca.remote.web` on 127.0.0.1 (another interface only with
 ``--allow-remote``: the page has no authentication) and joins Zenoh as a peer that listens

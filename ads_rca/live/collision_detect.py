@@ -1,6 +1,6 @@
 """Collisions derived from ground truth: the ego's box overlapping an actor's box.
 
-A stack publishes no collision frame, so stack mode (issue #15 item 4) can detect it from
+A stack publishes no collision frame, so stack mode can detect it from
 what the simulator reports. The ego box is built as the oracles build it: centre and yaw
 from the ego pose, half extent from the ego actor's record; every other actor's box is its
 location, yaw and half extent in the same record. A pair collides when the signed distance

@@ -187,7 +187,7 @@ def stack_stream(
     drop: dict[str, float] | None = None,
     reference: str = "pose",
 ) -> StackStream:
-    """The contract messages of ``log`` stamped and delivered as a stack does (issue #15):
+    """The contract messages of ``log`` stamped and delivered as a stack does:
     each input but the reference stamped at its frame's time plus a fixed per-input offset in
     [-max_offset_ms, max_offset_ms], each message arriving up to ``jitter_ms`` after its
     frame's time (so inputs and frames reorder), ``drop`` {folder: fraction} of an input's

@@ -1,6 +1,6 @@
 """Stack mode's run facts and inputs, from parameters: what ``run/metadata`` says otherwise.
 
-Beside a running stack (issue #15) there is no player to announce the frame period, the
+Beside a running stack there is no player to announce the frame period, the
 camera mounting, the ego or which topic carries what. :class:`StackConfig` is all of that,
 read from node parameters (names in :data:`STACK_PARAMETERS`, the same in
 ``config/stack_*.yaml``): the input that defines frames, each model input's topic and

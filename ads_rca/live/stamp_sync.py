@@ -1,6 +1,6 @@
 """Frames from header stamps: a stack's topics grouped into frames with no player marker.
 
-Why this exists: beside a real stack (issue #15, stack mode) nobody announces frames. A
+Why this exists: beside a real stack (stack mode) nobody announces frames. A
 stack stamps each message with the time of the data it was computed from, a few ms apart
 per topic (camera detections, predictions and plans come later than the odometry), and
 DDS delivers them late, out of order or twice. :class:`StampSync` turns that stream into

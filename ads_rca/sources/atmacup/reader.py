@@ -1,4 +1,4 @@
-"""Reader for atmaCup #18's driving table (seed 003): ``train_features.csv`` or
+"""Reader for atmaCup #18's driving table: ``train_features.csv`` or
 ``test_features.csv``, ``traffic_lights/{ID}.json`` beside it, optionally a submission.
 
 Each row of the table is one moment of a Japanese drive (ID = ``{scene}_{deciseconds}``):

@@ -1,4 +1,4 @@
-"""Reader for CARLA experiment-client runs (seed 001): a ``runs/<scenario>/`` folder.
+"""Reader for CARLA experiment-client runs: a ``runs/<scenario>/`` folder.
 
 What is read (docs/formats.md "CARLA experiment-client runs" has the whole mapping):
 

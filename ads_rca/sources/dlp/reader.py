@@ -1,4 +1,4 @@
-"""Reader for Dragon Lake Parking (DLP) scenes (seed 002): ``DJI_XXXX_{scene,frames,agents,
+"""Reader for Dragon Lake Parking (DLP) scenes: ``DJI_XXXX_{scene,frames,agents,
 instances,obstacles}.json``.
 
 A drone's view of a parking lot: every moving agent's trajectory and the parked cars, no ADS

@@ -1,4 +1,4 @@
-"""OpenLane-V2 annotations (seed 004) as :class:`~ads_rca.sources.openlane.lanes.LaneGraph`: one
+"""OpenLane-V2 annotations as :class:`~ads_rca.sources.openlane.lanes.LaneGraph`: one
 frame's lane
 centerlines, traffic elements and topology, ground truth or a model's prediction.
 

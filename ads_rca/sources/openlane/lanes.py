@@ -1,6 +1,6 @@
 """Map perception of one frame: lane centerlines, traffic elements and their topology.
 
-OpenLane-V2 (seed 004) frames carry what a map-perception model sees instead of actors:
+OpenLane-V2 frames carry what a map-perception model sees instead of actors:
 3-D lane centerlines in the ego frame, 2-D traffic elements (lights and signs) in the front
 camera's image, and two adjacency matrices (lane -> lane, lane -> traffic element). The same
 structure holds the ground truth (``scores`` NaN, adjacency 0 or 1) and a model's prediction

@@ -1,4 +1,4 @@
-"""Reader for OpenLane-V2 segments (seed 004): ``<split>/<segment>/info/<timestamp>.json``.
+"""Reader for OpenLane-V2 segments: ``<split>/<segment>/info/<timestamp>.json``.
 
 A lane-topology perception benchmark (Argoverse 2 as subset_A, nuScenes as subset_B): each
 frame's info file holds the ego pose, lane centerlines in the ego frame, traffic elements

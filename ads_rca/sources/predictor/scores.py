@@ -6,7 +6,7 @@ predictions on ground truth, no plan) may still carry a predictor's output (``di
 scored against where that actor really went, with the usual trajectory-prediction figures:
 
 - a track's step key k is k + 1 frames ahead, anchored at the ego pose at ts and rotated by
-  its yaw (rule 1 of docs/semantics-corrected.md); keys k < ``prediction_window`` only;
+  its yaw (docs/semantics-corrected.md, the prediction frame); keys k < ``prediction_window``;
 - a step is scored where the actor has a position k + 1 frames later, at or before the
   collision frame when there is one (what follows a crash is no future to predict; the
   live graph's view also ends there);

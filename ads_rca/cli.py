@@ -17,7 +17,7 @@ import sys
 from collections.abc import Sequence
 
 from ads_rca import __version__
-from ads_rca.commands import command_modules
+from ads_rca.commands import add_commands
 from ads_rca.errors import AdsRcaError
 from ads_rca.foundation import quick_exit
 from ads_rca.foundation.text import printable
@@ -31,8 +31,7 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"ads-rca {__version__}")
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for command in command_modules(only):
-        command.register(subparsers)
+    add_commands(subparsers, only)
     return parser
 
 

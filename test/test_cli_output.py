@@ -154,7 +154,7 @@ def test_synth_prints_what_happened(tmp_path: Path) -> None:
 )
 def test_help_says_log_folder_or_bag_where_both_are_read(command: str, dest: str) -> None:
     subparsers = next(
-        a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction)
+        a for a in build_parser(command)._actions if isinstance(a, argparse._SubParsersAction)
     )
     parser = subparsers.choices[command]
     action = next(a for a in parser._actions if a.dest == dest)

@@ -47,7 +47,7 @@ pytestmark = pytest.mark.timeout(240)
 
 
 def replay_options() -> set[str]:
-    parser = build_parser()
+    parser = build_parser("replay")
     subparsers = next(a for a in parser._actions if a.dest == "command" or a.choices)
     replay = subparsers.choices["replay"]  # type: ignore[index]
     return {action.dest for action in replay._actions if action.dest != "help"}
@@ -321,7 +321,7 @@ def test_ros2_launch_without_log_path_is_one_line_and_starts_nothing(
 def test_ros2_launch_with_the_bridge_ends_once_it_forwarded_the_verdict(
     launch_env: dict[str, str], ros_env: RosEnv, tmp_path: Path
 ) -> None:
-    from test_remote_core import free_port
+    from loopback import free_port
     from test_zenoh_bridge import listener, rows
 
     endpoint = f"tcp/127.0.0.1:{free_port()}"

@@ -34,7 +34,7 @@ MONITOR_NODE = re.compile(r"\b([a-z]+_monitor)\b")
 
 
 def synth_fault_action() -> tuple[argparse.ArgumentParser, argparse.Action]:
-    parser = build_parser()
+    parser = build_parser("synth")
     subparsers = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     synth = subparsers.choices["synth"]
     return synth, next(a for a in synth._actions if a.dest == "fault")

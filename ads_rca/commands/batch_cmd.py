@@ -29,6 +29,7 @@ from ads_rca.batch.rows import error_row
 from ads_rca.batch.store import CSV_NAME, PARQUET_NAME, RUNS_DIR, ResultStore
 from ads_rca.batch.summary import Counts, summary_text, write_html
 from ads_rca.batch.work import Job, Outcome, diagnose_job
+from ads_rca.commands import command_parser
 from ads_rca.commands.diagnose_cmd import add_engine_arguments, params_from_args
 from ads_rca.commands.input_args import (
     add_bag_arguments,
@@ -53,9 +54,7 @@ SCHEMES = ("tcp://", "tls://", "ucx://", "inproc://", "ws://", "wss://")
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    parser = subparsers.add_parser(
-        "batch", help="diagnose many runs on a Dask cluster: one row each, and a summary"
-    )
+    parser = command_parser(subparsers, "batch")
     parser.add_argument(
         "inputs",
         nargs="+",

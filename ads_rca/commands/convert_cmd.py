@@ -12,6 +12,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from ads_rca.commands import command_parser
 from ads_rca.commands.input_args import (
     add_bag_arguments,
     add_reader_arguments,
@@ -33,9 +34,9 @@ from ads_rca.sources.registry import open_run, resolved_format
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    parser = subparsers.add_parser(
+    parser = command_parser(
+        subparsers,
         "convert",
-        help="convert a running-log folder to a rosbag2 bag, or a bag to a log folder",
         description="LOG_DIR OUT_BAG writes a bag; BAG OUT_DIR writes a log folder.",
     )
     parser.add_argument("source", metavar="IN", help="log folder or bag")

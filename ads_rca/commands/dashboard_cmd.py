@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 
+from ads_rca.commands import command_parser
 from ads_rca.remote.config import DEFAULT_ENDPOINT
 from ads_rca.remote.keys import check_prefix
 
@@ -18,9 +19,9 @@ DEFAULT_PORT = 8765
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    parser = subparsers.add_parser(
+    parser = command_parser(
+        subparsers,
         "dashboard",
-        help="serve a live web dashboard of the runs on Zenoh (127.0.0.1 by default)",
         description="Serve a live web dashboard of the runs the bridge puts on Zenoh: each "
         "module's results, the clearance timeline, the verdict with its evidence.",
     )

@@ -12,6 +12,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from ads_rca.commands import command_parser
 from ads_rca.commands.outputs import check_output_dir
 from ads_rca.commands.playback_args import (
     add_playback_arguments,
@@ -25,9 +26,7 @@ from ads_rca.ros.launcher import Launcher, ParamValue, node_command
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    parser = subparsers.add_parser(
-        "demo", help="play a log on ROS 2 topics to a subscriber process (local-only DDS)"
-    )
+    parser = command_parser(subparsers, "demo")
     parser.add_argument("log_dir", metavar="PATH", help="log folder or bag")
     parser.add_argument("--out", help="write the log rebuilt from the messages here")
     add_playback_arguments(parser)

@@ -10,6 +10,7 @@ from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
+from ads_rca.commands import command_parser
 from ads_rca.commands.input_args import (
     READER_PARAMS,
     add_bag_arguments,
@@ -113,7 +114,7 @@ def graph_parameter_names() -> set[str]:
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    parser = subparsers.add_parser("diagnose", help="find the root cause of a crash in a run log")
+    parser = command_parser(subparsers, "diagnose")
     parser.add_argument("path", help="log folder or bag")
     add_engine_arguments(parser, both=True)
     add_reader_arguments(parser)

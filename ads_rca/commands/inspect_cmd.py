@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from ads_rca.capabilities import input_status, present, statuses_to_document
+from ads_rca.commands import command_parser
 from ads_rca.commands.input_args import (
     add_bag_arguments,
     add_reader_arguments,
@@ -30,10 +31,9 @@ from ads_rca.sources.registry import open_run, resolved_format
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    parser = subparsers.add_parser(
+    parser = command_parser(
+        subparsers,
         "inspect",
-        help="summarise a run log or bag: topics, model inputs found and missing, which "
-        "modules can be judged, and the problems found in it",
     )
     parser.add_argument("path", help="log folder or bag")
     parser.add_argument("--json", action="store_true", help="print the summary as JSON")

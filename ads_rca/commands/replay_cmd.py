@@ -25,6 +25,7 @@ from pathlib import Path
 from types import FrameType
 from typing import TYPE_CHECKING, Any
 
+from ads_rca.commands import command_parser
 from ads_rca.commands.diagnose_cmd import (
     add_engine_arguments,
     internal_error_line,
@@ -61,9 +62,7 @@ if TYPE_CHECKING:
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    parser = subparsers.add_parser(
-        "replay", help="replay a run through the live node graph (monitors + aggregator)"
-    )
+    parser = command_parser(subparsers, "replay")
     parser.add_argument("path", help="log folder or bag")
     parser.add_argument(
         "--namespace",

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 
+from ads_rca.commands import command_parser
 from ads_rca.commands.outputs import check_output_dir
 from ads_rca.errors import ConfigError
 from ads_rca.foundation.text import printable
@@ -27,9 +28,7 @@ BAG_PROFILES = ("ads_rca", *PROFILES)
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    parser = subparsers.add_parser(
-        "synth", help="synthesise a closed-loop run log with an injected fault"
-    )
+    parser = command_parser(subparsers, "synth")
     parser.add_argument("out_dir", metavar="OUT_DIR", help="folder to write the log into")
     parser.add_argument("--scenario", required=True, choices=SCENARIOS)
     parser.add_argument(

@@ -9,15 +9,15 @@ from __future__ import annotations
 import argparse
 import math
 
+from ads_rca.commands import command_parser
 from ads_rca.errors import ConfigError
 from ads_rca.remote.config import DEFAULT_ENDPOINT
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    parser = subparsers.add_parser(
+    parser = command_parser(
+        subparsers,
         "watch",
-        help="a live terminal dashboard of runs on Zenoh: modules, frame rate, near misses, "
-        "the verdict (no ROS needed)",
         description="Watch the runs a zenoh bridge publishes: per-module status and metrics, "
         "frame and rate, near-miss warnings and the verdict when it arrives. Start it before, "
         "during or after a run. Exit status: 0 once a verdict was shown (--exit-on-verdict, "

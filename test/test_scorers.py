@@ -19,8 +19,8 @@ from typing import Any
 import pytest
 
 import ads_rca
-from ads_rca.diagnosis import FrameScores, Scorer
 from ads_rca.diagnosis.engine import diagnose
+from ads_rca.diagnosis.scoring import FrameScores, Scorer
 from ads_rca.diagnosis.summary import summary_text
 from ads_rca.diagnosis.verdict import FrameResults, Metric
 from ads_rca.live.diagnostics import OK, result_status

@@ -25,7 +25,7 @@ from functools import cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ads_rca.diagnosis import FrameScores, Scorer
+from ads_rca.diagnosis.scoring import FrameScores, Scorer
 from ads_rca.errors import InputError
 from ads_rca.foundation.files import DEFAULT_MAX_FILE_MB
 from ads_rca.sources.bag.options import BagOptions

@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from ads_rca.diagnosis import FrameScores, Scorer
+from ads_rca.diagnosis.scoring import FrameScores, Scorer
 from ads_rca.diagnosis.verdict import FrameResults, Metric
 from ads_rca.foundation.text import metres, precise, short, shown_id
 from ads_rca.model import RunLog

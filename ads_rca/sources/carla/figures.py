@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from ads_rca.diagnosis import Scorer
+from ads_rca.diagnosis.scoring import Scorer
 from ads_rca.foundation.geometry import FloatArray, box_signed_distance, ego_to_world, world_to_ego
 from ads_rca.foundation.text import short
 from ads_rca.sources.carla.annotations import ANNOTATIONS_KEY, annotations_from_document

@@ -40,7 +40,7 @@ from bisect import bisect_right
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any, cast
 
-from ads_rca.diagnosis import FrameScores, Scorer
+from ads_rca.diagnosis.scoring import FrameScores, Scorer
 from ads_rca.diagnosis.verdict import FrameResults, Metric
 from ads_rca.model import RunLog, RunMetadata
 from ads_rca.params import Params

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from ads_rca.diagnosis import FrameScores, Scorer
+from ads_rca.diagnosis.scoring import FrameScores, Scorer
 from ads_rca.diagnosis.verdict import FrameResults, Metric
 from ads_rca.foundation.geometry import ego_to_world
 from ads_rca.foundation.text import metres, short

@@ -21,6 +21,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).parent))
 
 from shmclean import remove_zombie_segments
+from synthlogs import synth
 
 from ads_rca.ros.env import MAX_DOMAIN_ID, ros_environment
 
@@ -67,8 +68,6 @@ _LOG_DIRS: dict[tuple[str, str], Path] = {}
 @pytest.fixture(scope="module")
 def log_dirs(tmp_path_factory: pytest.TempPathFactory) -> Callable[[str, str], Path]:
     """Synthesised log folders by (scenario, fault), written once per session."""
-    from test_live_window import synth
-
     from ads_rca.sources.log.writer import write_run_log
 
     def get(scenario: str, fault: str) -> Path:

@@ -10,13 +10,13 @@ from __future__ import annotations
 import json
 import math
 import os
-import subprocess
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pytest
+from commandline import run_script
 from writers.atmacup_tables import (
     LIGHTS,
     ROWS,
@@ -53,12 +53,6 @@ if TYPE_CHECKING:
 
 ADS_RCA = str(Path(sys.executable).with_name("ads-rca"))
 IDS = [row.ident for row in ROWS]
-
-
-def run(*argv: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [ADS_RCA, *argv], capture_output=True, text=True, timeout=300, check=False
-    )
 
 
 def problems_of(log: RunLog) -> list[str]:
@@ -302,10 +296,10 @@ def test_a_submission_lacking_a_column_is_one_line(table: Path) -> None:
     sub.write_text(header + "\n" + ",".join(["0"] * 17) + "\n")
     with pytest.raises(InputError, match="no column z_5"):
         read(table, sub)
-    done = run("diagnose", str(table), "--submission", str(sub))
+    done = run_script("diagnose", str(table), "--submission", str(sub))
     assert done.returncode == 2 and "Traceback" not in done.stderr
     assert len(done.stderr.strip().splitlines()) == 1 and "no column z_5" in done.stderr
-    done = run("diagnose", str(table), "--submission", str(table / "missing.csv"))
+    done = run_script("diagnose", str(table), "--submission", str(table / "missing.csv"))
     assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1
 
 
@@ -374,7 +368,7 @@ def test_an_unusable_table_is_one_line(tmp_path: Path, content: bytes, expected:
     (tmp_path / TRAIN).write_bytes(content)
     with pytest.raises(InputError, match=expected):
         read(tmp_path)
-    done = run("diagnose", str(tmp_path))
+    done = run_script("diagnose", str(tmp_path))
     assert done.returncode == 2 and "Traceback" not in done.stderr
     assert len(done.stderr.strip().splitlines()) == 1 and expected in done.stderr
 
@@ -451,14 +445,14 @@ def test_submission_elsewhere_is_one_line(tmp_path: Path) -> None:
     from writers.carla_runs import write_carla_run
 
     sub = write_submission(tmp_path / "sub.csv", hand_paths())
-    done = run("diagnose", str(write_carla_run(tmp_path / "run")), "--submission", str(sub))
+    done = run_script("diagnose", str(write_carla_run(tmp_path / "run")), "--submission", str(sub))
     assert done.returncode == 2 and "--submission applies to atmaCup tables" in done.stderr
 
 
 def test_diagnose_prints_the_scores_and_writes_them_in_the_json(table: Path) -> None:
     sub = write_submission(table / "sub.csv", hand_paths())
     out = table.parent / "verdict.json"
-    done = run("diagnose", str(table), "--submission", str(sub), "--json", str(out))
+    done = run_script("diagnose", str(table), "--submission", str(sub), "--json", str(out))
     assert done.returncode == 0, done.stderr
     assert "trajectory scores (3 of 3 rows scored" in done.stdout
     assert "MAE 0.244444 (the competition's, over x, y, z)" in done.stdout  # 13.2 / 54
@@ -468,7 +462,7 @@ def test_diagnose_prints_the_scores_and_writes_them_in_the_json(table: Path) -> 
     scores = document[TRAJECTORY_SCORES_KEY]
     assert scores["mae"] == pytest.approx(HAND_MAE) and scores["scored"] == 3
     assert document["modules_judged"]["controller"] == "not judged (no plan)"
-    done = run("diagnose", str(table), "--format", "atmacup")
+    done = run_script("diagnose", str(table), "--format", "atmacup")
     assert done.returncode == 0 and "no submission given" in done.stdout
 
 
@@ -483,7 +477,7 @@ def test_a_batch_job_diagnoses_a_table_and_names_its_format(table: Path) -> None
 
 
 def test_inspect_lists_the_capability_record(table: Path) -> None:
-    done = run("inspect", str(table))
+    done = run_script("inspect", str(table))
     assert done.returncode == 0, done.stderr
     assert "actors: derived" in done.stdout and "detections_2d: real" in done.stdout
 

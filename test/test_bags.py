@@ -70,7 +70,7 @@ def test_convert_round_trips(log_dir: Path, tmp_path: Path, storage: str) -> Non
 
 def test_a_bag_keeps_the_logs_reader_problems(tmp_path: Path) -> None:
     """Values the reader read as NaN stay reported in the bag, so it is judged the same."""
-    from test_live_window import write_log_with_unreadable_values
+    from synthlogs import write_log_with_unreadable_values
 
     from ads_rca.diagnosis.engine import diagnose
     from ads_rca.params import make_params

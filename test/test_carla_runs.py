@@ -10,7 +10,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import subprocess
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -18,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pytest
+from commandline import run_script
 from writers.carla_runs import write_carla_run
 
 from ads_rca.diagnosis.engine import diagnose
@@ -38,12 +38,6 @@ MKZ_2020 = (2.446, 0.918, 0.745)  # scenario.yaml's ego_vehicle
 MODEL3 = (2.396, 1.082, 0.744)
 ADULT = (0.188, 0.188, 0.930)
 CAR_DEFAULT = (2.337, 0.966, 0.767)
-
-
-def run(*argv: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [ADS_RCA, *argv], capture_output=True, text=True, timeout=300, check=False
-    )
 
 
 def problems_of(log: Any) -> list[str]:
@@ -253,14 +247,14 @@ def test_auto_tells_a_carla_run_from_a_running_log(tmp_path: Path) -> None:
 def test_diagnose_a_carla_run_with_one_command(tmp_path: Path) -> None:
     root = write_carla_run(tmp_path / "run")
     out = tmp_path / "verdict.json"
-    done = run("diagnose", str(root), "--json", str(out))
+    done = run_script("diagnose", str(root), "--json", str(out))
     assert done.returncode == 0, done.stderr
     document = json.loads(out.read_text())
     assert document["modules_judged"]["controller"] == "judged"
     assert document["modules_judged"]["perception"].startswith("not judged (no ")
     assert document["run_figures"]["min_ttc_s"] == pytest.approx(4.05)
     assert "annotations (1; events, not collisions)" in done.stdout
-    forced = run("diagnose", str(root), "--format", "carla", "--derived-collision")
+    forced = run_script("diagnose", str(root), "--format", "carla", "--derived-collision")
     assert forced.returncode == 0 and "no collision in this run" in forced.stdout
 
 
@@ -277,7 +271,7 @@ def test_diagnose_a_carla_run_with_one_command(tmp_path: Path) -> None:
 )
 def test_a_wrong_format_choice_is_one_line(tmp_path: Path, argv: list[str], expected: str) -> None:
     root = write_carla_run(tmp_path / "run")
-    done = run("diagnose", str(root), *argv)
+    done = run_script("diagnose", str(root), *argv)
     assert done.returncode == 2, done.stdout
     assert expected in done.stderr and "Traceback" not in done.stderr
     assert len(done.stderr.strip().splitlines()) == 1
@@ -291,7 +285,7 @@ def test_carla_options_on_other_inputs_are_one_line(
         (["--derived-collision"], "derived collision check applies to CARLA runs and DLP scenes"),
         (["--format", "carla"], "no telemetry.json or telemetry.csv"),
     ):
-        done = run("diagnose", str(log_dir), *argv)
+        done = run_script("diagnose", str(log_dir), *argv)
         assert done.returncode == 2 and expected in done.stderr, done.stderr
         assert len(done.stderr.strip().splitlines()) == 1
 
@@ -461,7 +455,7 @@ def test_a_run_without_usable_telemetry_is_one_line(
     with pytest.raises(InputError) as error:
         read_carla_run(root)
     assert expected in str(error.value), str(error.value)
-    done = run("diagnose", str(root), "--format", "carla")
+    done = run_script("diagnose", str(root), "--format", "carla")
     assert done.returncode == 2 and "Traceback" not in done.stderr
     assert len(done.stderr.strip().splitlines()) == 1, done.stderr
 
@@ -541,9 +535,9 @@ def test_a_frame_rate_that_disagrees_with_the_ticks_is_said(tmp_path: Path) -> N
 def test_convert_writes_a_run_as_a_bag_that_diagnoses_the_same(tmp_path: Path) -> None:
     root = write_carla_run(tmp_path / "run")
     bag, direct, again = tmp_path / "bag", tmp_path / "direct.json", tmp_path / "again.json"
-    assert run("convert", str(root), str(bag)).returncode == 0
-    assert run("diagnose", str(root), "--json", str(direct)).returncode == 0
-    assert run("diagnose", str(bag), "--json", str(again)).returncode == 0
+    assert run_script("convert", str(root), str(bag)).returncode == 0
+    assert run_script("diagnose", str(root), "--json", str(direct)).returncode == 0
+    assert run_script("diagnose", str(bag), "--json", str(again)).returncode == 0
     first, second = json.loads(direct.read_text()), json.loads(again.read_text())
     for key in ("frames", "modules_judged", "verdict", "annotations", "run_figures"):
         assert first[key] == second[key], key

@@ -12,12 +12,12 @@ diagnose; log folder → contract bag → log folder) and ``replay`` through the
 from __future__ import annotations
 
 import json
-import subprocess
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import pytest
+from commandline import run_cli
 
 from ads_rca.ros.launcher import ManagedProcess
 from ads_rca.sources.bag.profiles.profile import builtin_path
@@ -42,16 +42,6 @@ metadata:
 #: What an output with an unknown collision may never say ("collision unknown (no
 #: collision source)" is fine).
 NEVER = ("no collision in this run", "(no collision)", "no fault found")
-
-
-def cli(*argv: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "ads_rca.cli", *argv],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
-    )
 
 
 @pytest.fixture(scope="module")
@@ -103,7 +93,7 @@ def test_diagnose_says_collision_unknown(
     runs: dict[str, Path], tmp_path: Path, case: str, semantics: str
 ) -> None:
     out, report = tmp_path / "v.json", tmp_path / "r.html"
-    done = cli(
+    done = run_cli(
         "diagnose",
         *source_args(runs, case),
         "--semantics",
@@ -122,13 +112,13 @@ def test_diagnose_says_collision_unknown(
 @pytest.mark.parametrize("case", CASES)
 def test_inspect_says_collision_unknown(runs: dict[str, Path], case: str) -> None:
     """Not ``collision frame -1``, which reads as none."""
-    done = cli("inspect", *source_args(runs, case))
+    done = run_cli("inspect", *source_args(runs, case))
     assert done.returncode == 0, done.stderr
     first = done.stdout.splitlines()[0]
     assert "collision unknown" in first and "collision frame" not in first, first
-    info = json.loads(cli("inspect", *source_args(runs, case), "--json").stdout)
+    info = json.loads(run_cli("inspect", *source_args(runs, case), "--json").stdout)
     assert info["collision"] == "unknown" and info["inputs"]["collision"]["state"] == "absent"
-    known = json.loads(cli("inspect", str(runs["bag"]), "--profile", CARLA, "--json").stdout)
+    known = json.loads(run_cli("inspect", str(runs["bag"]), "--profile", CARLA, "--json").stdout)
     assert known["collision"] == "yes"
 
 
@@ -137,8 +127,8 @@ def test_a_log_with_unknown_collision_written_as_a_stack_recording_stays_unknown
 ) -> None:
     """An empty collision topic would say nothing collided: it is not written."""
     bag, out = tmp_path / "bag", tmp_path / "v.json"
-    assert cli("convert", str(runs["log"]), str(bag), "--profile", CARLA).returncode == 0
-    done = cli("diagnose", str(bag), "--profile", CARLA, "--json", str(out))
+    assert run_cli("convert", str(runs["log"]), str(bag), "--profile", CARLA).returncode == 0
+    done = run_cli("diagnose", str(bag), "--profile", CARLA, "--json", str(out))
     assert done.returncode == 0, done.stderr
     assert_unknown(json.loads(out.read_text()), done.stdout)
 
@@ -154,12 +144,12 @@ def test_convert_round_trips_keep_the_collision_unknown(
     if first:
         source = [str(runs["bag"]), first[0], str(runs[first[1]])]
     else:
-        assert cli("convert", str(runs["log"]), str(tmp_path / "b.mcap")).returncode == 0
+        assert run_cli("convert", str(runs["log"]), str(tmp_path / "b.mcap")).returncode == 0
         source = [str(tmp_path / "b.mcap")]
     folder, out = tmp_path / "folder", tmp_path / "v.json"
-    done = cli("convert", *source, str(folder))
+    done = run_cli("convert", *source, str(folder))
     assert done.returncode == 0, done.stderr
-    done = cli("diagnose", str(folder), "--json", str(out))
+    done = run_cli("diagnose", str(folder), "--json", str(out))
     assert done.returncode == 0, done.stderr
     assert_unknown(json.loads(out.read_text()), done.stdout)
 

@@ -29,7 +29,7 @@ from typing import Any
 
 import orjson
 import pytest
-from test_remote_core import free_port
+from loopback import free_port
 from unsure_run import unsure_copy
 
 from ads_rca.oracles.base import MODULES

@@ -4,12 +4,11 @@ from __future__ import annotations
 
 import json
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 from typing import Any
 
 import pytest
+from commandline import run_cli
 
 from ads_rca.diagnosis.engine import diagnose
 from ads_rca.diagnosis.verdict import NO_COLLISION, NO_MODULE_FAILED
@@ -21,12 +20,6 @@ from ads_rca.synth import FAULTS, SCENARIOS, synthesise
 
 EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "cut_in_perception"
 CRASH_SCENARIOS = [s for s in SCENARIOS if s != "cruise"]
-
-
-def run_cli(*args: str, check: bool = True) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "ads_rca.cli", *args], capture_output=True, text=True, check=check
-    )
 
 
 def strict_json(text: str) -> Any:
@@ -57,7 +50,9 @@ def test_corrected_names_the_injected_module(scenario: str, fault: str) -> None:
 def test_json_contract_in_both_modes(tmp_path: Path) -> None:
     for semantics in ("reference", "corrected"):
         out = tmp_path / f"{semantics}.json"
-        done = run_cli("diagnose", str(EXAMPLE), "--semantics", semantics, "--json", str(out))
+        done = run_cli(
+            "diagnose", str(EXAMPLE), "--semantics", semantics, "--json", str(out), check=True
+        )
         assert f"semantics {semantics}" in done.stdout
         document = strict_json(out.read_text())
         assert document["semantics"] == semantics
@@ -87,7 +82,7 @@ def test_parameters_from_config_and_p_are_used_and_recorded(tmp_path: Path) -> N
     )
     out = tmp_path / "v.json"
     run_cli("diagnose", str(EXAMPLE), "--config", str(config), "-p", "perc_score_threshold=0.9",
-            "--json", str(out))  # fmt: skip
+            "--json", str(out), check=True)  # fmt: skip
     document = strict_json(out.read_text())
     assert document["semantics"] == "reference"
     assert document["thresholds"]["effect_time_window"] == 5
@@ -107,19 +102,19 @@ def test_parameters_from_config_and_p_are_used_and_recorded(tmp_path: Path) -> N
     ],
 )
 def test_bad_parameters_are_one_line_errors(args: list[str], message: str) -> None:
-    done = run_cli("diagnose", str(EXAMPLE), *args, check=False)
+    done = run_cli("diagnose", str(EXAMPLE), *args)
     assert done.returncode == 2
     assert message in done.stderr and done.stderr.count("\n") == 1
     assert "Traceback" not in done.stderr
 
 
 def test_logs_that_cannot_be_diagnosed_exit_non_zero(tmp_path: Path) -> None:
-    missing = run_cli("diagnose", str(tmp_path / "nope"), check=False)
+    missing = run_cli("diagnose", str(tmp_path / "nope"))
     assert missing.returncode == 2 and "no such log folder" in missing.stderr
     empty = tmp_path / "empty"
     (empty / "actors").mkdir(parents=True)
     (empty / "metadata.json").write_text('{"timesteps_per_frame": 50}')
-    nothing = run_cli("diagnose", str(empty), check=False)
+    nothing = run_cli("diagnose", str(empty))
     assert nothing.returncode == 2 and "no frame to analyse" in nothing.stderr
     assert "Traceback" not in missing.stderr + nothing.stderr
 
@@ -133,7 +128,9 @@ def test_damaged_log_is_still_diagnosed_and_problems_reported(tmp_path: Path) ->
     waypoints.write_text(waypoints.read_text().replace('"speed":', '"speed": "fast", "x_":', 1))
     out = tmp_path / "v.json"
     for semantics in ("reference", "corrected"):
-        done = run_cli("diagnose", str(log_dir), "--semantics", semantics, "--json", str(out))
+        done = run_cli(
+            "diagnose", str(log_dir), "--semantics", semantics, "--json", str(out), check=True
+        )
         assert "input problems:" in done.stdout
         document = strict_json(out.read_text())
         files = {p["file"] for p in document["input_problems"]}
@@ -144,7 +141,7 @@ def test_damaged_log_is_still_diagnosed_and_problems_reported(tmp_path: Path) ->
 
 def test_html_report_is_self_contained(tmp_path: Path) -> None:
     report = tmp_path / "r.html"
-    run_cli("diagnose", str(EXAMPLE), "--report", str(report))
+    run_cli("diagnose", str(EXAMPLE), "--report", str(report), check=True)
     page = report.read_text()
     assert "Verdict: perception" in page
     assert page.count("data:image/png;base64,") == 3  # scenes at frames 68 and 81, metrics
@@ -154,7 +151,7 @@ def test_html_report_is_self_contained(tmp_path: Path) -> None:
 def test_no_collision_says_no_fault_found(tmp_path: Path) -> None:
     log = synthesise("cruise", "none", seed=3, frames=60, actors=5)
     out = tmp_path / "v.json"
-    run_cli("diagnose", str(write_run_log(log, tmp_path / "log")), "--json", str(out))
+    run_cli("diagnose", str(write_run_log(log, tmp_path / "log")), "--json", str(out), check=True)
     document = strict_json(out.read_text())
     assert document["primary_root_cause"] is None and document["reason"] == NO_COLLISION
     assert document["verdict"] == "no fault found (no collision)"
@@ -200,6 +197,7 @@ def test_frames_written_as_their_slices_come_back_are_the_same_bytes(
             workers,
             "--json",
             str(out),
+            check=True,
         )
         outputs.append((out.read_bytes(), done.stdout))
     (alone, alone_summary), (shared, shared_summary) = outputs

@@ -8,7 +8,6 @@ and a real replay over DDS equal to diagnose.
 from __future__ import annotations
 
 import json
-import subprocess
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -16,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 import dlp_predictor
 import numpy as np
 import pytest
+from commandline import run_script
 from writers.dlp_scenes import STEM, frame_token, scene_agents, write_dlp_scene
 from writers.predictor_files import write_predictions
 
@@ -32,12 +32,6 @@ if TYPE_CHECKING:
 
 ADS_RCA = str(Path(sys.executable).with_name("ads-rca"))
 FRAMES = 50
-
-
-def run(*argv: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [ADS_RCA, *argv], capture_output=True, text=True, timeout=300, check=False
-    )
 
 
 def ids() -> dict[int, str]:
@@ -239,7 +233,7 @@ def test_an_unusable_scene_is_one_line(scene: Path, damage: str, expected: str) 
         os.mkfifo(part["instances"])
     elif damage == "bad ego":
         argv = ["--ego-agent", "99"]
-    done = run("diagnose", str(scene), *argv)
+    done = run_script("diagnose", str(scene), *argv)
     assert done.returncode == 2, done.stdout
     assert expected in done.stderr and "Traceback" not in done.stderr, done.stderr
     assert len(done.stderr.strip().splitlines()) == 1, done.stderr
@@ -248,9 +242,9 @@ def test_an_unusable_scene_is_one_line(scene: Path, damage: str, expected: str) 
 def test_ego_agent_elsewhere_is_one_line(tmp_path: Path) -> None:
     from writers.carla_runs import write_carla_run
 
-    done = run("diagnose", str(write_carla_run(tmp_path / "run")), "--ego-agent", "1")
+    done = run_script("diagnose", str(write_carla_run(tmp_path / "run")), "--ego-agent", "1")
     assert done.returncode == 2 and "ego_agent applies to DLP scenes" in done.stderr
-    long = run("diagnose", str(tmp_path / "run"), "--ego-agent", "x" * 100)
+    long = run_script("diagnose", str(tmp_path / "run"), "--ego-agent", "x" * 100)
     assert long.returncode == 2 and "ego_agent: expected an agent token" in long.stderr
 
 
@@ -374,7 +368,7 @@ def test_predictions_elsewhere_or_missing_are_one_line(
             "--predictions applies to CARLA runs, DLP scenes and OpenLane-V2 segments",
         ),
     ):
-        done = run("diagnose", *argv)
+        done = run_script("diagnose", *argv)
         assert done.returncode == 2 and expected in done.stderr, done.stderr
         assert len(done.stderr.strip().splitlines()) == 1
 
@@ -483,9 +477,9 @@ def test_convert_writes_a_scene_as_a_bag_that_diagnoses_the_same(
     scene: Path, tmp_path: Path
 ) -> None:
     bag, direct, again = tmp_path / "bag", tmp_path / "direct.json", tmp_path / "again.json"
-    assert run("convert", str(scene), str(bag)).returncode == 0
-    assert run("diagnose", str(scene), "--json", str(direct)).returncode == 0
-    assert run("diagnose", str(bag), "--json", str(again)).returncode == 0
+    assert run_script("convert", str(scene), str(bag)).returncode == 0
+    assert run_script("diagnose", str(scene), "--json", str(direct)).returncode == 0
+    assert run_script("diagnose", str(bag), "--json", str(again)).returncode == 0
     first, second = json.loads(direct.read_text()), json.loads(again.read_text())
     for key in ("frames", "modules_judged", "verdict", "ego_id"):
         assert first[key] == second[key], key

@@ -21,8 +21,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import pytest
+from loopback import free_port
 from rosrun import wait_for
-from test_remote_core import free_port
 
 from ads_rca.contract import live_topics, topics
 from ads_rca.ros.launcher import ManagedProcess, ParamValue, node_command, ros_args

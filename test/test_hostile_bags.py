@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 
 import pytest
 import yaml
-from test_hostile_input import assert_clean, run_cli
+from commandline import assert_clean, run_limited
 from test_recorder import start_player, start_recorder
 
 from ads_rca.cli import main as cli
@@ -423,7 +423,7 @@ def test_a_storage_file_that_is_not_regular_is_one_line(
     ):
         for command in ("inspect", "diagnose", "convert"):
             out = [str(tmp_path / "out")] if command == "convert" else []
-            done = run_cli(command, str(path), *out)
+            done = run_limited(command, str(path), *out)
             assert_clean(done, 2)
             assert done.stderr.count("\n") == 1, done.stderr
             assert f"{name}: not a regular file ({why})" in done.stderr, done.stderr
@@ -441,7 +441,7 @@ def test_a_fifo_beside_a_readable_storage_file_is_a_problem(
     info["relative_file_paths"].append("bag_1.mcap")
     path.write_text(yaml.safe_dump(document))
     os.mkfifo(bag / "bag_1.mcap")
-    done = run_cli("diagnose", str(bag), "--workers", "1")
+    done = run_limited("diagnose", str(bag), "--workers", "1")
     assert_clean(done)
     assert "verdict: perception" in done.stdout
     assert "bag_1.mcap: not a regular file (FIFO) (file skipped)" in done.stdout, done.stdout
@@ -453,7 +453,7 @@ def test_a_metadata_yaml_that_is_not_regular_is_a_problem(
 ) -> None:
     bag = Path(shutil.copytree(bags["zstd"], tmp_path / "bag"))
     _not_regular(bag / "metadata.yaml", kind)
-    done = run_cli("inspect", "--json", str(bag))
+    done = run_limited("inspect", "--json", str(bag))
     assert_clean(done)
     why = "FIFO" if kind == "fifo" else "character device"
     problems = json.loads(done.stdout)["problems"]

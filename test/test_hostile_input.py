@@ -16,14 +16,13 @@ from __future__ import annotations
 import json
 import os
 import re
-import resource
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import pytest
+from commandline import assert_clean, run_limited
 
 from ads_rca.model import MAX_FRAME
 from ads_rca.sources.log.writer import write_run_log
@@ -32,34 +31,8 @@ from ads_rca.synth import synthesise
 if TYPE_CHECKING:
     from conftest import RosEnv
 
-#: Seconds before a CLI run counts as hung.
-TIMEOUT = 120
-#: Address space of a CLI run: plenty for a diagnosis, far below the machine's memory.
-MEMORY_LIMIT = 3 << 30
 FORGED = "\nverdict: planning\n"
 CLEAR_SCREEN = "\x1b[2J"
-
-
-def _limit_memory() -> None:
-    resource.setrlimit(resource.RLIMIT_AS, (MEMORY_LIMIT, MEMORY_LIMIT))
-
-
-def run_cli(*args: str, timeout: float = TIMEOUT) -> subprocess.CompletedProcess[str]:
-    """``ads-rca ARGS`` in a subprocess; a hang raises TimeoutExpired (a failure)."""
-    return subprocess.run(
-        [sys.executable, "-m", "ads_rca.cli", *args],
-        capture_output=True,
-        check=False,
-        text=True,
-        timeout=timeout,
-        preexec_fn=_limit_memory,
-    )
-
-
-def assert_clean(done: subprocess.CompletedProcess[str], code: int = 0) -> None:
-    output = done.stdout + done.stderr
-    assert "Traceback" not in output, output
-    assert done.returncode == code, output
 
 
 @pytest.fixture(scope="module")
@@ -96,7 +69,7 @@ def test_a_fifo_named_like_a_record_file_is_reported_not_read(
     fifo.unlink()
     os.mkfifo(fifo)
     args = [command, str(log_dir)] + ([str(tmp_path / "bag")] if command == "convert" else [])
-    done = run_cli(*args)
+    done = run_limited(*args)
     assert_clean(done)
     if command == "convert":
         assert (tmp_path / "bag" / "metadata.yaml").is_file()
@@ -107,7 +80,7 @@ def test_a_fifo_named_like_a_record_file_is_reported_not_read(
 def test_a_fifo_as_metadata_json_is_reported_and_defaults_used(log_dir: Path) -> None:
     (log_dir / "metadata.json").unlink()
     os.mkfifo(log_dir / "metadata.json")
-    done = run_cli("inspect", "--json", str(log_dir))
+    done = run_limited("inspect", "--json", str(log_dir))
     assert_clean(done)
     assert {
         "file": "metadata.json",
@@ -127,7 +100,7 @@ def test_a_symlink_to_a_device_is_reported_and_the_rest_diagnosed(
     target = log_dir / folder if folder.endswith(".json") else _one(log_dir / folder)
     target.unlink()
     target.symlink_to(device)
-    done = run_cli("diagnose", str(log_dir))
+    done = run_limited("diagnose", str(log_dir))
     assert_clean(done)
     name = target.relative_to(log_dir).as_posix()
     assert f"{name}: not a regular file (character device) (file skipped)" in done.stdout
@@ -139,7 +112,7 @@ def test_a_symlink_to_a_regular_file_is_still_read(log_dir: Path) -> None:
     moved = log_dir / "elsewhere.data"
     original.rename(moved)
     original.symlink_to(moved)
-    done = run_cli("inspect", "--json", str(log_dir))
+    done = run_limited("inspect", "--json", str(log_dir))
     assert_clean(done)
     assert not any(p["file"].endswith(original.name) for p in problems_of(done))
 
@@ -151,15 +124,15 @@ def test_a_file_over_max_file_mb_is_skipped_with_the_cap_named(log_dir: Path) ->
     assert big.stat().st_size > 1 << 20
     expected = f"bboxes_gt/{big.name}: larger than 1 MB (max_file_mb) (file skipped)"
     for option in (["--max-file-mb", "1"], ["-p", "max_file_mb=1"]):
-        done = run_cli("diagnose", str(log_dir), *option)
+        done = run_limited("diagnose", str(log_dir), *option)
         assert_clean(done)
         assert expected in done.stdout
-    done = run_cli("inspect", "--json", str(log_dir))  # the default cap is generous
+    done = run_limited("inspect", "--json", str(log_dir))  # the default cap is generous
     assert not any(p["issue"].startswith("larger than") for p in problems_of(done))
 
 
 def test_max_file_mb_must_be_positive(log_dir: Path) -> None:
-    done = run_cli("inspect", str(log_dir), "--max-file-mb", "0")
+    done = run_limited("inspect", str(log_dir), "--max-file-mb", "0")
     assert_clean(done, 2)
     message = "parameter max_file_mb: 0 is out of range [0.001, 1048576] MB"
     assert done.stderr.strip().endswith(message)
@@ -168,7 +141,7 @@ def test_max_file_mb_must_be_positive(log_dir: Path) -> None:
 @pytest.mark.parametrize("workers", ["0", "-3", "100000"])
 def test_diagnose_workers_must_be_1_to_512(log_dir: Path, workers: str) -> None:
     """A typo is an error before the work, not a silent 1 or a fork bomb (batch's rule)."""
-    done = run_cli("diagnose", str(log_dir), "--workers", workers)
+    done = run_limited("diagnose", str(log_dir), "--workers", workers)
     assert_clean(done, 2)
     assert done.stdout == ""
     assert done.stderr.strip() == f"ads-rca diagnose: error: --workers {workers}: expected 1 to 512"
@@ -177,10 +150,10 @@ def test_diagnose_workers_must_be_1_to_512(log_dir: Path, workers: str) -> None:
 @pytest.mark.parametrize("command", ["diagnose", "inspect"])
 def test_max_problems_must_not_be_negative(log_dir: Path, command: str) -> None:
     """-5 printed all but the last five problems and called those five "more"."""
-    done = run_cli(command, str(log_dir), "--max-problems", "-5")
+    done = run_limited(command, str(log_dir), "--max-problems", "-5")
     assert_clean(done, 2)
     assert done.stderr.strip() == f"ads-rca {command}: error: --max-problems -5: expected 0 or more"
-    assert_clean(run_cli(command, str(log_dir), "--max-problems", "0"))
+    assert_clean(run_limited(command, str(log_dir), "--max-problems", "0"))
 
 
 # --- 2. JSON nested too deep ------------------------------------------------------------
@@ -216,13 +189,13 @@ def test_deeply_nested_json_is_reported_and_the_rest_diagnosed(
     target = log_dir / folder if folder.endswith(".json") else _one(log_dir / folder)
     _write_nested(target, depth)
     name = target.relative_to(log_dir).as_posix()
-    done = run_cli("diagnose", str(log_dir), "--max-problems", "50")
+    done = run_limited("diagnose", str(log_dir), "--max-problems", "50")
     assert_clean(done)
     assert f"{name}: invalid JSON (nested too deep: more than {limit} levels)" in done.stdout
     assert "frames judged" in done.stdout
     # What is kept can be written again: both conversions run through.
-    assert_clean(run_cli("convert", str(log_dir), str(tmp_path / "bag")))
-    assert_clean(run_cli("convert", str(tmp_path / "bag"), str(tmp_path / "back")))
+    assert_clean(run_limited("convert", str(log_dir), str(tmp_path / "bag")))
+    assert_clean(run_limited("convert", str(tmp_path / "bag"), str(tmp_path / "back")))
 
 
 @pytest.mark.parametrize(("depth", "reported"), [(198, False), (199, True)])
@@ -249,11 +222,11 @@ def test_nesting_the_parser_reads_never_overflows_later(log_dir: Path, tmp_path:
     pose = _one(log_dir / "pose")
     document = json.loads(pose.read_text())
     pose.write_text(json.dumps(document)[:-1] + ', "x": ' + _nested(1000) + "}")
-    done = run_cli("diagnose", str(log_dir), "--max-problems", "50")
+    done = run_limited("diagnose", str(log_dir), "--max-problems", "50")
     assert_clean(done)
     assert f"pose/{pose.name}: x: a list nested too deep is not a number" in done.stdout
-    assert_clean(run_cli("convert", str(log_dir), str(tmp_path / "bag")))
-    assert_clean(run_cli("convert", str(tmp_path / "bag"), str(tmp_path / "back")))
+    assert_clean(run_limited("convert", str(log_dir), str(tmp_path / "bag")))
+    assert_clean(run_limited("convert", str(tmp_path / "bag"), str(tmp_path / "back")))
 
 
 # --- 5. output paths checked before the work --------------------------------------------
@@ -279,7 +252,7 @@ def test_diagnose_refuses_an_unwritable_output_before_the_work(
     log_dir: Path, tmp_path: Path, option: str, case: str
 ) -> None:
     out = _unwritable_outputs(tmp_path)[case]
-    done = run_cli("diagnose", str(log_dir), option, str(out))
+    done = run_limited("diagnose", str(log_dir), option, str(out))
     assert_clean(done, 2)
     assert done.stdout == ""  # refused before the diagnosis, not after it
     assert done.stderr.startswith(f"ads-rca diagnose: error: {option} {out}: ")
@@ -288,7 +261,7 @@ def test_diagnose_refuses_an_unwritable_output_before_the_work(
 
 def test_missing_parents_of_an_output_are_created_as_before(log_dir: Path, tmp_path: Path) -> None:
     out = tmp_path / "new" / "deeper" / "verdict.json"
-    assert_clean(run_cli("diagnose", str(log_dir), "--json", str(out)))
+    assert_clean(run_limited("diagnose", str(log_dir), "--json", str(out)))
     assert json.loads(out.read_text())["verdict"]
 
 
@@ -303,7 +276,7 @@ def test_convert_refuses_an_unwritable_out_before_reading(
         "under a file": outputs["under a file"].parent,
         "in /proc": Path("/proc/ads_rca_out"),
     }[case]
-    done = run_cli("convert", str(log_dir), str(out))
+    done = run_limited("convert", str(log_dir), str(out))
     assert_clean(done, 2)
     assert done.stdout == ""
     assert done.stderr.startswith(f"ads-rca convert: error: OUT {out}: ")
@@ -315,12 +288,12 @@ def test_replay_refuses_an_unwritable_output_before_starting_the_graph(
 ) -> None:
     out = _unwritable_outputs(tmp_path)[case]
     args = ["replay", str(log_dir), "--domain-id", str(ros_env.domain_id), "--timeout", "60"]
-    done = run_cli(*args, "--json", str(out))
+    done = run_limited(*args, "--json", str(out))
     assert_clean(done, 2)
     assert done.stdout == ""  # no graph was started
     assert done.stderr.startswith(f"ads-rca replay: error: --json {out}: ")
     record = tmp_path / "a_file" / "bag"
-    done = run_cli(*args, "--record", str(record))
+    done = run_limited(*args, "--record", str(record))
     assert_clean(done, 2)
     assert done.stdout == ""
     assert done.stderr.startswith(f"ads-rca replay: error: --record {record}: ")
@@ -334,7 +307,7 @@ def _metadata(log_dir: Path) -> dict[str, Any]:
 
 
 def _verdict(log_dir: Path, out: Path, semantics: str) -> dict[str, Any]:
-    done = run_cli("diagnose", str(log_dir), "--semantics", semantics, "--json", str(out))
+    done = run_limited("diagnose", str(log_dir), "--semantics", semantics, "--json", str(out))
     assert_clean(done)
     return dict(json.loads(out.read_text()))
 
@@ -419,7 +392,7 @@ def test_a_negative_collision_frame_other_than_minus_one(tmp_path: Path, semanti
         assert before["modules"] == none["modules"]
     assert before["collision"] == "yes" and before["conclusive"] is False
     report = tmp_path / "report.html"
-    done = run_cli("diagnose", str(log_dir), "--semantics", semantics, "--report", str(report))
+    done = run_limited("diagnose", str(log_dir), "--semantics", semantics, "--report", str(report))
     assert "collision frame -5: before the run" in done.stdout
     assert "collision frame -5: before the run" in report.read_text()
 
@@ -471,10 +444,10 @@ def test_a_timestamp_past_ros_time_is_ignored_and_reported(log_dir: Path) -> Non
         huge = log_dir / folder / f"{folder}-{'9' * 30}.json"
         shutil.copy(_one(log_dir / folder, 0), huge)
         names.append(f"{folder}/{huge.name}")
-    done = run_cli("diagnose", str(log_dir))
+    done = run_limited("diagnose", str(log_dir))
     assert_clean(done)
     assert "verdict: planning" in done.stdout
-    done = run_cli("inspect", str(log_dir), "--json")
+    done = run_limited("inspect", str(log_dir), "--json")
     assert_clean(done)
     issues = {p["file"]: p["issue"] for p in problems_of(done)}
     for name in names:
@@ -558,7 +531,7 @@ def test_the_largest_doubles_are_judged_without_numpy_warnings(
         document.update(x=big, yaw=big, speed=-big)
         pose.write_text(json.dumps(document))
     out = tmp_path / "v.json"
-    done = run_cli(
+    done = run_limited(
         "diagnose", str(log_dir), "--semantics", semantics, "--json", str(out),
         "--report", str(tmp_path / "r.html"),
     )  # fmt: skip
@@ -584,7 +557,7 @@ def test_forged_lines_and_escapes_in_file_names_are_escaped(log_dir: Path, tmp_p
         ["diagnose", str(log_dir), "--json", str(tmp_path / "v.json")],
         ["inspect", str(log_dir)],
     ):
-        done = run_cli(*args)
+        done = run_limited(*args)
         assert_clean(done)
         _terminal_safe(done.stdout)
         assert "actors/evil\\x0averdict: planning\\x0a.json: file name" in done.stdout
@@ -598,11 +571,11 @@ def test_forged_lines_and_escapes_in_file_names_are_escaped(log_dir: Path, tmp_p
 
 def test_a_log_folder_name_cannot_forge_lines(crash_log: Path, tmp_path: Path) -> None:
     log_dir = Path(shutil.copytree(crash_log, tmp_path / f"log{FORGED}{CLEAR_SCREEN}"))
-    done = run_cli("diagnose", str(log_dir))
+    done = run_limited("diagnose", str(log_dir))
     assert_clean(done)
     _terminal_safe(done.stdout)
     assert sum(line.startswith("verdict:") for line in done.stdout.splitlines()) == 1
-    missing = run_cli("inspect", str(tmp_path / f"nothing{FORGED}{CLEAR_SCREEN}"))
+    missing = run_limited("inspect", str(tmp_path / f"nothing{FORGED}{CLEAR_SCREEN}"))
     assert_clean(missing, 2)
     assert len(missing.stderr.splitlines()) == 1 and "\x1b" not in missing.stderr
 
@@ -612,7 +585,7 @@ def test_ids_and_field_values_from_a_log_are_escaped(log_dir: Path) -> None:
     document = json.loads(actors.read_text())
     document[f"id{FORGED}\u202e"] = {"location": {"x": "far\x1b[31m", "y": 0}}
     actors.write_text(json.dumps(document))
-    done = run_cli("diagnose", str(log_dir), "--max-problems", "50")
+    done = run_limited("diagnose", str(log_dir), "--max-problems", "50")
     assert_clean(done)
     _terminal_safe(done.stdout)
     assert "id\\x0averdict: planning\\x0a\\u202e.location.x: 'far\\x1b[31m' is not a number" in (
@@ -647,7 +620,7 @@ def test_lone_surrogates_in_ids_and_keys_are_escaped_everywhere(
         predictions.write_text(json.dumps(document))
     out, report = tmp_path / "v.json", tmp_path / "r.html"
     args = ["--semantics", semantics, "--json", str(out), "--report", str(report)]
-    done = run_cli("diagnose", str(log_dir), *args, "--max-problems", "100")
+    done = run_limited("diagnose", str(log_dir), *args, "--max-problems", "100")
     assert_clean(done)
     assert "\\udc00ghost" in done.stdout
     assert "\\udc00ghost" in report.read_text(encoding="utf-8")
@@ -671,7 +644,7 @@ def test_replay_plays_a_log_with_timestamps_at_and_past_the_end_of_ros_time(
         past.add(f"{folder}/{prefix}-{last + 1}.json")
     out = tmp_path / "v.json"
     args = ["replay", str(log_dir), "--domain-id", str(ros_env.domain_id), "--timeout", "90"]
-    done = run_cli(*args, "--json", str(out))
+    done = run_limited(*args, "--json", str(out))
     assert_clean(done)
     problems = json.loads(out.read_text())["input_problems"]
     assert {p["file"] for p in problems if p["issue"].startswith("timestamp past")} == past
@@ -692,7 +665,7 @@ def test_replay_player_skips_a_fifo_and_honours_max_file_mb(
     config = tmp_path / "reader.yaml"  # the YAML key, same name as the flag and ROS parameter
     config.write_text("max_file_mb: 1\n")
     args = ["replay", str(log_dir), "--domain-id", str(ros_env.domain_id), "--timeout", "90"]
-    done = run_cli(*args, "--config", str(config), "--json", str(out))
+    done = run_limited(*args, "--config", str(config), "--json", str(out))
     assert_clean(done)
     issues = {(p["file"], p["issue"]) for p in json.loads(out.read_text())["input_problems"]}
     assert (f"pose/{fifo.name}", "not a regular file (FIFO)") in issues

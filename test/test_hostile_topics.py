@@ -630,7 +630,7 @@ def test_a_log_with_an_absurd_collision_frame_replays_to_diagnoses_verdict(
     """metadata.json says the collision is at frame 10**300: the reader clamps it (and says
     so), the live graph carries it, and the verdict is diagnose's. The aggregator used to
     die on it (OverflowError in its result callback) and the replay gave no verdict."""
-    from test_live_window import assert_close, failed_flags, verdict_keys
+    from verdicts import assert_close, failed_flags, verdict_keys
 
     from ads_rca.diagnosis.engine import diagnose
     from ads_rca.params import make_params

@@ -12,10 +12,10 @@ from __future__ import annotations
 
 import os
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+from commandline import run_cli
 
 from ads_rca.errors import ConfigError
 from ads_rca.foundation.text import short_repr
@@ -31,6 +31,9 @@ BOMB = (
     )
     + "]"
 )
+
+#: The YAML bomb and the FIFO used to hang for ever: a run past this fails the test.
+HANG = 60
 
 
 ACTORS = "{topic: /objects, type: derived_object_msgs/msg/ObjectArray}"
@@ -65,16 +68,6 @@ def hostile_files(folder: Path) -> dict[str, tuple[Path, str]]:
     return made
 
 
-def run(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "ads_rca.cli", *args],
-        capture_output=True,
-        text=True,
-        check=False,
-        timeout=60,  # the bomb and the FIFO hung for ever
-    )
-
-
 def one_error_line(done: subprocess.CompletedProcess[str], file: Path, said: str) -> None:
     assert done.returncode == 2, done.stdout + done.stderr
     assert "Traceback" not in done.stderr, done.stderr
@@ -106,13 +99,17 @@ def test_a_hostile_config_file_is_one_line_and_exit_2(
 ) -> None:
     file, said = hostile_files(tmp_path)[case]
     extra = ["--out", str(tmp_path / "out")] if command == "batch" else []
-    one_error_line(run(command, str(EXAMPLE), "--config", str(file), *extra), file, said)
+    one_error_line(
+        run_cli(command, str(EXAMPLE), "--config", str(file), *extra, timeout=HANG), file, said
+    )
 
 
 @pytest.mark.parametrize("case", ["not_utf8", "deep_list", "fifo", "dev_zero", "missing"])
 def test_a_hostile_remap_file_is_one_line_and_exit_2(tmp_path: Path, case: str) -> None:
     file, said = hostile_files(tmp_path)[case]
-    one_error_line(run("diagnose", str(EXAMPLE), "--remap", str(file)), file, said)
+    one_error_line(
+        run_cli("diagnose", str(EXAMPLE), "--remap", str(file), timeout=HANG), file, said
+    )
 
 
 @pytest.mark.parametrize("case", ["not_utf8", "deep_list", "deep_map", "fifo", "dev_zero"])
@@ -132,7 +129,9 @@ def test_a_billion_laughs_in_a_remap_is_one_line(tmp_path: Path) -> None:
     ):
         file = tmp_path / "bomb.yaml"
         file.write_text(text)
-        one_error_line(run("diagnose", str(EXAMPLE), "--remap", str(file)), file, said)
+        one_error_line(
+            run_cli("diagnose", str(EXAMPLE), "--remap", str(file), timeout=HANG), file, said
+        )
 
 
 @pytest.mark.timeout(30)

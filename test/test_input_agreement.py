@@ -14,12 +14,12 @@
 from __future__ import annotations
 
 import json
-import subprocess
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import pytest
+from commandline import run_cli
 
 from ads_rca.ros.launcher import ManagedProcess
 from ads_rca.sources.log.reader import read_run_log
@@ -45,16 +45,6 @@ EGO_ONLY_REFUSAL = (
 )
 
 
-def cli(*argv: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "ads_rca.cli", *argv],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
-    )
-
-
 @pytest.fixture(scope="module")
 def ego_only_bag(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     """A carla-autoware recording and a profile that reads only its ego odometry."""
@@ -68,7 +58,7 @@ def test_a_bag_read_through_a_profile_without_frames_names_its_actors_input(
     ego_only_bag: tuple[Path, Path],
 ) -> None:
     bag, profile = ego_only_bag
-    done = cli("diagnose", str(bag), "--profile", str(profile))
+    done = run_cli("diagnose", str(bag), "--profile", str(profile))
     assert done.returncode == 2, done.stdout
     assert EGO_ONLY_REFUSAL in done.stderr and "actors/ file" not in done.stderr
     assert len(done.stderr.strip().splitlines()) == 1 and "Traceback" not in done.stderr
@@ -92,8 +82,8 @@ def test_a_contract_bag_without_frames_names_its_markers_and_actors(tmp_path: Pa
     folder.mkdir()
     (folder / "metadata.json").write_text('{"timesteps_per_frame": 50, "collision_frame": -1}')
     bag = tmp_path / "empty.mcap"
-    assert cli("convert", str(folder), str(bag)).returncode == 0
-    done = cli("diagnose", str(bag))
+    assert run_cli("convert", str(folder), str(bag)).returncode == 0
+    done = run_cli("diagnose", str(bag))
     assert done.returncode == 2
     assert (
         f"{bag}: no frame to analyse: the bag has no run/frame marker and no actors message"
@@ -101,7 +91,7 @@ def test_a_contract_bag_without_frames_names_its_markers_and_actors(tmp_path: Pa
     )
     assert "actors/ file" not in done.stderr
     # A log folder is told about its own files, as before.
-    done = cli("diagnose", str(folder))
+    done = run_cli("diagnose", str(folder))
     assert done.returncode == 2
     assert f"{folder}: no frame to analyse (no readable actors/ file)" in done.stderr
 
@@ -141,7 +131,7 @@ def test_a_frame_period_other_than_the_timestamps_step_is_a_problem(tmp_path: Pa
         "by 50 ms (their most common step) (value kept)"
     ) in found, found
     out = tmp_path / "v.json"
-    done = cli("diagnose", str(log_dir), "--json", str(out))  # diagnosed all the same
+    done = run_cli("diagnose", str(log_dir), "--json", str(out))  # diagnosed all the same
     assert done.returncode == 0, done.stderr
     document = json.loads(out.read_text())
     assert document["collision_frame"] == 39 and len(document["frames"]) == 78

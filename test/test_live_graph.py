@@ -22,13 +22,8 @@ from typing import TYPE_CHECKING, Any
 
 import pytest
 from rosrun import wait_for
-from test_live_window import (
-    CASES,
-    assert_close,
-    failed_flags,
-    verdict_keys,
-    write_log_with_unreadable_values,
-)
+from synthlogs import CASES, write_log_with_unreadable_values
+from verdicts import assert_close, failed_flags, verdict_keys
 
 from ads_rca.diagnosis.engine import diagnose
 from ads_rca.oracles.base import MODULES

@@ -7,12 +7,13 @@ the nodes use, in one process.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
 import pytest
 from logfactory import make_log
+from synthlogs import synth, write_log_with_unreadable_values
+from verdicts import failed_flags, verdict_keys
 
 from ads_rca.contract.jsontext import dumps_json, loads_json
 from ads_rca.diagnosis.engine import diagnose
@@ -25,68 +26,7 @@ from ads_rca.oracles.base import MODULES
 from ads_rca.params import make_params
 from ads_rca.problems import Problem
 from ads_rca.sources.log.reader import read_run_log
-from ads_rca.sources.log.writer import write_run_log
 from ads_rca.synth import FAULTS, SCENARIOS, synthesise
-
-#: Every scenario and every fault kind at least once.
-CASES = [
-    ("cut_in", "perception"),
-    ("lead_braking", "prediction"),
-    ("pedestrian_crossing", "planning"),
-    ("left_turn", "controller"),
-    ("cruise", "none"),
-]
-_LOGS: dict[tuple[str, str], RunLog] = {}
-
-
-def synth(scenario: str, fault: str) -> RunLog:
-    if (scenario, fault) not in _LOGS:
-        options = {"frames": 150, "actors": 12} if scenario == "cruise" else {}
-        _LOGS[scenario, fault] = synthesise(scenario, fault, 1, **options)
-    return _LOGS[scenario, fault]
-
-
-def verdict_keys(document: dict[str, Any]) -> dict[str, Any]:
-    keys = (
-        "semantics",
-        "thresholds",
-        "collision_frame",
-        "modules",
-        "root_causes",
-        "primary_root_cause",
-        "contributing",
-        "attribution_basis",
-        "reason",
-        "modules_judged",
-        "verdict",
-        "partner_id",
-        "ego_id",
-        "evidence",
-    )
-    return {k: document[k] for k in keys}
-
-
-def assert_close(a: Any, b: Any, path: str = "") -> None:
-    """Equal, floats within 1e-9 relative (angles cross DDS as quaternions: ~1e-16 off)."""
-    if isinstance(a, float) and isinstance(b, float):
-        assert abs(a - b) <= 1e-9 * max(1.0, abs(a)), f"{path}: {a} != {b}"
-    elif isinstance(a, dict) and isinstance(b, dict):
-        assert a.keys() == b.keys(), f"{path}: keys {a.keys()} != {b.keys()}"
-        for key in a:
-            assert_close(a[key], b[key], f"{path}.{key}")
-    elif isinstance(a, list) and isinstance(b, list):
-        assert len(a) == len(b), f"{path}: length {len(a)} != {len(b)}"
-        for n, (x, y) in enumerate(zip(a, b, strict=True)):
-            assert_close(x, y, f"{path}[{n}]")
-    else:
-        assert a == b, f"{path}: {a!r} != {b!r}"
-
-
-def failed_flags(document: dict[str, Any]) -> list[tuple[Any, ...]]:
-    return [
-        (f["frame"], *((f[m]["failed"], f[m].get("skipped")) for m in MODULES))
-        for f in document["frames"]
-    ]
 
 
 def assert_same_as_diagnose(log: RunLog, semantics: str, **options: Any) -> Any:
@@ -117,18 +57,6 @@ def test_windowed_judging_equals_diagnose(
 ) -> None:
     run = assert_same_as_diagnose(synth(*case), semantics, shared=shared)
     assert run.outcome is not None and run.outcome.complete
-
-
-def write_log_with_unreadable_values(folder: Path) -> Path:
-    """lead_braking with a control fault, where 7 pose files lack x and speed: the reader
-    reads them as NaN and reports it, and reference skips (not fails) those checks."""
-    write_run_log(synthesise("lead_braking", "controller", 0), folder)
-    poses = sorted((folder / "pose").iterdir())
-    for path in poses[40:61:3]:
-        document = json.loads(path.read_text())
-        del document["x"], document["speed"]
-        path.write_text(json.dumps(document))
-    return folder
 
 
 @LAYOUTS

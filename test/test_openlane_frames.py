@@ -10,7 +10,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import subprocess
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -18,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pytest
+from commandline import run_script
 from writers.openlane_segments import (
     NS_START,
     US_START,
@@ -44,12 +44,6 @@ FRAMES = 6
 #: either segment's first frame is at 0 ms, not at the epoch's 315967376860 ms.
 NS_FIRST_MS = 0
 US_FIRST_MS = 0
-
-
-def run(*argv: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [ADS_RCA, *argv], capture_output=True, text=True, timeout=300, check=False
-    )
 
 
 def problems_of(log: RunLog) -> list[str]:
@@ -514,7 +508,7 @@ def test_a_segment_with_no_usable_file_is_one_line(segment: Path, tmp_path: Path
 
 
 def test_diagnose_a_segment_on_the_command_line(segment: Path) -> None:
-    result = run("diagnose", str(segment))
+    result = run_script("diagnose", str(segment))
     assert result.returncode == 0, result.stderr
     out = result.stdout
     assert "6 frames judged" in out and "verdict: inconclusive: collision unknown (" in out
@@ -525,7 +519,7 @@ def test_diagnose_a_segment_on_the_command_line(segment: Path) -> None:
 
 def test_inspect_lists_the_capability_record(segment: Path, tmp_path: Path) -> None:
     folder = write_openlane_predictions(tmp_path / "pred", segment, "perfect")
-    result = run("inspect", str(segment / "info"), "--predictions", str(folder))
+    result = run_script("inspect", str(segment / "info"), "--predictions", str(folder))
     assert result.returncode == 0, result.stderr
     assert "ego: derived" in result.stdout
     assert "detections_2d: real" in result.stdout
@@ -552,9 +546,9 @@ def test_lane_graphs_survive_a_bag_and_a_log_folder(segment: Path, tmp_path: Pat
 
     folder = write_openlane_predictions(tmp_path / "pred", segment, "missing_sign")
     bag, out = tmp_path / "bag", tmp_path / "folder"
-    converted = run("convert", str(segment), str(bag), "--predictions", str(folder))
+    converted = run_script("convert", str(segment), str(bag), "--predictions", str(folder))
     assert converted.returncode == 0, converted.stderr
-    assert run("convert", str(bag), str(out)).returncode == 0
+    assert run_script("convert", str(bag), str(out)).returncode == 0
     original = read_openlane_segment(segment, source=SourceOptions(predictions=str(folder)))
     for back in (read_bag(bag), read_run_log(out)):
         only = [

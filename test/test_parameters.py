@@ -10,12 +10,12 @@ where the window is ``max(effect_time_window, round(window_s / frame period))``.
 from __future__ import annotations
 
 import subprocess
-import sys
 from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
 import pytest
+from commandline import run_cli
 
 from ads_rca.diagnosis.engine import diagnose
 from ads_rca.diagnosis.summary import summary_text
@@ -27,12 +27,6 @@ from ads_rca.sources.log.reader import read_run_log
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = ROOT / "examples" / "cut_in_perception"
-
-
-def run_cli(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "ads_rca.cli", *args], capture_output=True, text=True, check=False
-    )
 
 
 def refused(done: subprocess.CompletedProcess[str]) -> str:

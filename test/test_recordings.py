@@ -10,13 +10,13 @@ lacks, a profile whose type differs from the stored one, and bad options.
 from __future__ import annotations
 
 import json
-import subprocess
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import pytest
-from test_live_window import assert_close, failed_flags, verdict_keys
+from commandline import run_script
+from verdicts import assert_close, failed_flags, verdict_keys
 
 from ads_rca.diagnosis.engine import diagnose
 from ads_rca.params import make_params
@@ -32,12 +32,6 @@ if TYPE_CHECKING:
 
 ADS_RCA = str(Path(sys.executable).with_name("ads-rca"))
 CARLA = "carla-autoware"
-
-
-def run(*argv: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [ADS_RCA, *argv], capture_output=True, text=True, timeout=300, check=False
-    )
 
 
 def edited_profile(folder: Path, old: str, new: str) -> Path:
@@ -72,7 +66,7 @@ def test_a_carla_autoware_recording_is_diagnosed_with_one_command(
     bags: dict[str, Path], storage: str, tmp_path: Path
 ) -> None:
     verdict = tmp_path / "verdict.json"
-    done = run(
+    done = run_script(
         "diagnose", str(bags[f"{CARLA}/{storage}"]), "--profile", CARLA, "--json", str(verdict)
     )
     assert done.returncode == 0, done.stderr
@@ -87,7 +81,7 @@ def test_a_carla_autoware_recording_is_diagnosed_with_one_command(
 
 
 def test_reference_mode_says_what_it_cannot_judge_on_a_3d_stack(bags: dict[str, Path]) -> None:
-    done = run(
+    done = run_script(
         "diagnose", str(bags[f"{CARLA}/mcap"]), "--profile", CARLA, "--semantics", "reference"
     )
     assert done.returncode == 0, done.stderr
@@ -106,7 +100,7 @@ def test_reference_mode_says_what_it_cannot_judge_on_a_3d_stack(bags: dict[str, 
 def test_inspect_lists_topics_inputs_and_the_modules_each_mode_can_judge(
     bags: dict[str, Path],
 ) -> None:
-    done = run("inspect", str(bags[f"{CARLA}/sqlite3"]), "--profile", CARLA)
+    done = run_script("inspect", str(bags[f"{CARLA}/sqlite3"]), "--profile", CARLA)
     assert done.returncode == 0, done.stderr
     lines = done.stdout.splitlines()
     frames = len(synthesise("lead_braking", "planning", 1).frames)
@@ -128,7 +122,7 @@ def test_inspect_lists_topics_inputs_and_the_modules_each_mode_can_judge(
         in lines
     )
     info = json.loads(
-        run("inspect", str(bags[f"{CARLA}/sqlite3"]), "--profile", CARLA, "--json").stdout
+        run_script("inspect", str(bags[f"{CARLA}/sqlite3"]), "--profile", CARLA, "--json").stdout
     )
     assert info["inputs"]["tracked_objects"]["source"].startswith(
         "/perception/object_recognition/tracking/objects"
@@ -149,7 +143,7 @@ def test_a_vision_msgs_recording_is_judged_on_its_2d_boxes(bags: dict[str, Path]
 def test_a_bag_without_type_definitions_names_them_and_msg_path_supplies_them(
     bags: dict[str, Path],
 ) -> None:
-    done = run("diagnose", str(bags["old"]), "--profile", CARLA)
+    done = run_script("diagnose", str(bags["old"]), "--profile", CARLA)
     assert done.returncode == 2
     error = done.stderr.strip()
     assert "\n" not in error and "Traceback" not in error
@@ -160,7 +154,7 @@ def test_a_bag_without_type_definitions_names_them_and_msg_path_supplies_them(
     ):
         assert missing in error
     assert "--msg-path" in error
-    fixed = run("diagnose", str(bags["old"]), "--profile", CARLA, "--msg-path", str(MSG_DIR))
+    fixed = run_script("diagnose", str(bags["old"]), "--profile", CARLA, "--msg-path", str(MSG_DIR))
     assert fixed.returncode == 0, fixed.stderr
     assert "verdict: planning" in fixed.stdout
 
@@ -171,7 +165,7 @@ def test_a_profile_naming_a_topic_the_bag_lacks_leaves_that_input_absent(
     profile = edited_profile(
         tmp_path, "/planning/scenario_planning/trajectory", "/planning/nowhere"
     )
-    done = run("diagnose", str(bags[f"{CARLA}/mcap"]), "--profile", str(profile))
+    done = run_script("diagnose", str(bags[f"{CARLA}/mcap"]), "--profile", str(profile))
     assert done.returncode == 0, done.stderr
     assert "planning             0      0  not judged (no plan)" in done.stdout
     assert "/planning/nowhere" in done.stdout  # the problem names the topic
@@ -185,7 +179,7 @@ def test_a_profile_whose_type_differs_from_the_stored_one_is_said_once(
         "autoware_perception_msgs/msg/TrackedObjects",
         "autoware_perception_msgs/msg/DetectedObjects",
     )
-    done = run("inspect", str(bags[f"{CARLA}/mcap"]), "--profile", str(profile))
+    done = run_script("inspect", str(bags[f"{CARLA}/mcap"]), "--profile", str(profile))
     assert done.returncode == 0, done.stderr
     wrong = [
         line
@@ -216,7 +210,7 @@ def test_bad_bag_options_are_one_line(
     argv = [a.replace("{remap}", str(remap)) for a in argv]
     for command in ("diagnose", "inspect", "convert"):
         extra = [str(tmp_path / f"out_{command}")] if command == "convert" else []
-        done = run(command, str(bags[f"{CARLA}/mcap"]), *extra, *argv)
+        done = run_script(command, str(bags[f"{CARLA}/mcap"]), *extra, *argv)
         assert done.returncode == 2, (command, done.stdout)
         assert said in done.stderr and done.stderr.count("\n") == 1, (command, done.stderr)
 
@@ -226,7 +220,7 @@ def test_a_stacks_recording_read_without_its_profile_names_the_profile(
     bags: dict[str, Path], profile: str
 ) -> None:
     for command in ("diagnose", "inspect"):
-        done = run(command, str(bags[f"{profile}/mcap"]))
+        done = run_script(command, str(bags[f"{profile}/mcap"]))
         assert done.returncode == 2, (command, done.stdout)
         assert done.stderr.count("\n") == 1, (command, done.stderr)
         assert "the bag has no run/metadata message" in done.stderr
@@ -237,17 +231,17 @@ def test_a_stacks_recording_read_without_its_profile_names_the_profile(
 
 def test_convert_writes_a_log_folder_as_a_stacks_recording(tmp_path: Path) -> None:
     folder, bag = tmp_path / "run", tmp_path / "bag"
-    made = run(
+    made = run_script(
         "synth", str(folder), "--scenario", "lead_braking", "--fault", "planning", "--seed", "1"
     )
     assert made.returncode == 0, made.stderr
-    done = run("convert", str(folder), str(bag), "--profile", CARLA, "--storage", "sqlite3")
+    done = run_script("convert", str(folder), str(bag), "--profile", CARLA, "--storage", "sqlite3")
     assert done.returncode == 0, done.stderr
     assert "as a carla-autoware stack records it" in done.stdout
-    diagnosed = run("diagnose", str(bag), "--profile", CARLA)
+    diagnosed = run_script("diagnose", str(bag), "--profile", CARLA)
     assert diagnosed.returncode == 0, diagnosed.stderr
     assert "controller           0      0" in diagnosed.stdout  # judged: ego, plan, actors
-    refused = run(
+    refused = run_script(
         "convert", str(folder), str(tmp_path / "x"), "--profile", str(tmp_path / "p.yaml")
     )
     assert (

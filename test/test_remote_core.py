@@ -4,9 +4,9 @@ hostile values, and one real loopback Zenoh session opened with the built config
 from __future__ import annotations
 
 import json
-import socket
 
 import pytest
+from loopback import free_port
 
 from ads_rca.diagnosis.verdict import Metric, Module
 from ads_rca.errors import ConfigError
@@ -87,12 +87,6 @@ def test_history_is_bounded_and_answers_since() -> None:
             parse_since({"since": bad})
     with pytest.raises(ConfigError):
         History(0)
-
-
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
 
 
 def test_a_loopback_peer_and_client_exchange_a_sample() -> None:

@@ -24,7 +24,8 @@ from typing import TYPE_CHECKING, Any, cast
 
 import pytest
 from rosrun import wait_for
-from test_live_window import assert_close, failed_flags, synth, verdict_keys
+from synthlogs import synth
+from verdicts import assert_close, failed_flags, verdict_keys
 
 from ads_rca.contract import topics
 from ads_rca.diagnosis.engine import diagnose

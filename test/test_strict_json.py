@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import json
 import math
-import subprocess
 import sys
 from collections.abc import Iterator
 from pathlib import Path
@@ -22,9 +21,10 @@ from typing import TYPE_CHECKING, Any
 
 import orjson
 import pytest
+from commandline import run_cli
 from logcompare import assert_logs_equal
 from rosrun import run_pair
-from test_live_window import assert_close, failed_flags, verdict_keys
+from verdicts import assert_close, failed_flags, verdict_keys
 
 from ads_rca.contract.assembler import run_metadata
 from ads_rca.contract.cdr_decode import decode_string
@@ -204,14 +204,6 @@ def nonfinite_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return write_nonfinite_log(tmp_path_factory.mktemp("strict") / "log")
 
 
-def cli(*args: str) -> subprocess.CompletedProcess[str]:
-    done = subprocess.run(
-        [sys.executable, "-m", "ads_rca.cli", *args], check=False, capture_output=True, text=True
-    )
-    assert done.returncode == 0, done.stderr
-    return done
-
-
 def bag_json_texts(bag: Path) -> Iterator[tuple[str, str]]:
     """(topic, text) of every JSON a bag holds: String payloads, Marker texts, and the
     JSON-valued diagnostic key/values."""
@@ -243,7 +235,9 @@ def test_diagnose_json_is_strict_and_names_what_is_null(
     nonfinite_log: Path, tmp_path: Path, semantics: str
 ) -> None:
     out = tmp_path / "verdict.json"
-    cli("diagnose", str(nonfinite_log), "--semantics", semantics, "--json", str(out))
+    run_cli(
+        "diagnose", str(nonfinite_log), "--semantics", semantics, "--json", str(out), check=True
+    )
     document = strict(out.read_text())
     named = dict(annotated_nulls(document))
     assert named and all(p.startswith(("/frames/", "/evidence/")) for p in named)
@@ -252,7 +246,7 @@ def test_diagnose_json_is_strict_and_names_what_is_null(
 
 
 def test_inspect_json_is_strict(nonfinite_log: Path) -> None:
-    document = strict(cli("inspect", str(nonfinite_log), "--json").stdout)
+    document = strict(run_cli("inspect", str(nonfinite_log), "--json", check=True).stdout)
     assert document["analysed_frames"] == len(read_run_log(nonfinite_log).frames)
 
 
@@ -260,7 +254,7 @@ def test_convert_writes_strict_json_and_reads_it_back_exactly(
     nonfinite_log: Path, tmp_path: Path
 ) -> None:
     bag, back = tmp_path / "bag", tmp_path / "back"
-    cli("convert", str(nonfinite_log), str(bag))
+    run_cli("convert", str(nonfinite_log), str(bag), check=True)
     topics_seen = set()
     annotated = set()
     for topic, text in bag_json_texts(bag):
@@ -272,7 +266,7 @@ def test_convert_writes_strict_json_and_reads_it_back_exactly(
     assert {"/ads_rca/player/status", "/ads_rca/run/frame"} <= topics_seen
     original = read_run_log(nonfinite_log)
     assert_logs_equal(original, open_run(bag))
-    cli("convert", str(bag), str(back))
+    run_cli("convert", str(bag), str(back), check=True)
     assert_logs_equal(original, read_run_log(back))
 
 

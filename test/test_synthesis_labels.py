@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any
 
 import pytest
 from golden_outputs import SEED, cases
-from test_live_window import verdict_keys
+from verdicts import verdict_keys
 
 from ads_rca.diagnosis.engine import diagnose
 from ads_rca.params import SEMANTICS, make_params

@@ -30,7 +30,7 @@ from typing import Any
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from test_remote_core import free_port
+from loopback import free_port
 from unsure_run import unsure_copy
 
 from ads_rca.remote.config import session_config

@@ -23,10 +23,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import pytest
+from loopback import free_port
 from rosbags.typesys import Stores, get_typestore
 from rosrun import wait_for
-from test_live_window import failed_flags, verdict_keys
-from test_remote_core import free_port
+from verdicts import failed_flags, verdict_keys
 
 from ads_rca.contract.live_topics import metrics_qos
 from ads_rca.diagnosis.engine import diagnose

@@ -1,0 +1,54 @@
+"""The ``ads-rca`` command line run as a user runs it: a child process, output captured.
+
+:func:`run_cli` starts ``python -m ads_rca.cli`` with this interpreter; ``script=True``
+starts the ``ads-rca`` console script of this venv instead (what ``pip install`` puts on
+the PATH). A run that outlives ``timeout`` raises ``TimeoutExpired``: a hang fails the test.
+"""
+
+from __future__ import annotations
+
+import resource
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+#: The console script beside this interpreter.
+ADS_RCA = str(Path(sys.executable).with_name("ads-rca"))
+#: Address space of a :func:`run_limited` run: plenty for a diagnosis, far below the
+#: machine's memory (reading /dev/zero until memory runs out fails the test, not the machine).
+MEMORY_LIMIT = 3 << 30
+
+
+def run_cli(
+    *args: str, check: bool = False, timeout: float = 120, script: bool = False, **popen: Any
+) -> subprocess.CompletedProcess[str]:
+    """``ads-rca ARGS``; ``check``: assert it exited 0 (its stderr as the message)."""
+    command = [ADS_RCA] if script else [sys.executable, "-m", "ads_rca.cli"]
+    done = subprocess.run(
+        [*command, *args], capture_output=True, text=True, timeout=timeout, check=False, **popen
+    )
+    if check:
+        assert done.returncode == 0, done.stderr
+    return done
+
+
+def run_script(*args: str, timeout: float = 300) -> subprocess.CompletedProcess[str]:
+    """The ``ads-rca`` console script with ``args``, whatever its exit status."""
+    return run_cli(*args, timeout=timeout, script=True)
+
+
+def _limit_memory() -> None:
+    resource.setrlimit(resource.RLIMIT_AS, (MEMORY_LIMIT, MEMORY_LIMIT))
+
+
+def run_limited(*args: str, timeout: float = 120) -> subprocess.CompletedProcess[str]:
+    """``ads-rca ARGS`` with its address space limited to :data:`MEMORY_LIMIT`."""
+    return run_cli(*args, timeout=timeout, preexec_fn=_limit_memory)
+
+
+def assert_clean(done: subprocess.CompletedProcess[str], code: int = 0) -> None:
+    """No traceback in its output, and the exit status ``code``."""
+    output = done.stdout + done.stderr
+    assert "Traceback" not in output, output
+    assert done.returncode == code, output

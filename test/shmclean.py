@@ -8,7 +8,9 @@ between tests means no process ever reopens one.
 
 A file is a zombie when its ``_el`` lock file is not locked: a live participant holds an
 exclusive ``flock`` on it for as long as the segment is open (the rule Fast DDS's own
-``fastdds shm clean`` applies). Files of live participants are never touched.
+``fastdds shm clean`` applies). Files of live participants are never touched, nor files
+younger than ``min_age_s``: a participant starting in another test process (pytest-xdist
+workers run side by side) creates its lock file an instant before it locks it.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from __future__ import annotations
 import fcntl
 import os
 import re
+import time
 from pathlib import Path
 
 SHM_DIR = Path("/dev/shm")
@@ -33,15 +36,25 @@ def _locked(path: Path) -> bool:
     return False
 
 
-def remove_zombie_segments(shm_dir: Path = SHM_DIR) -> list[str]:
-    """Delete every unlocked Fast DDS segment/port with its lock and mutex; names removed."""
+def _younger_than(path: Path, seconds: float) -> bool:
+    try:
+        return time.time() - path.stat().st_mtime < seconds
+    except OSError:
+        return True
+
+
+def remove_zombie_segments(shm_dir: Path = SHM_DIR, min_age_s: float = 2.0) -> list[str]:
+    """Delete every unlocked Fast DDS segment/port with its lock and mutex, unless its lock
+    file is younger than ``min_age_s``; names removed."""
     try:
         names = os.listdir(shm_dir)
     except OSError:
         return []
     removed = []
     for name in names:
-        if not _LOCK.match(name) or _locked(shm_dir / name):
+        if not _LOCK.match(name) or _younger_than(shm_dir / name, min_age_s):
+            continue
+        if _locked(shm_dir / name):
             continue
         base = name[:-3]
         for victim in (base, name, f"sem.{base}_mutex"):

@@ -5,7 +5,7 @@ writes the bundled example and a synthesised log of every scenario × fault (see
 scratch folder, runs the real CLI on each in both modes (separate processes,
 ``PYTHONHASHSEED=0``, the log given by a relative path so ``source`` does not name the
 scratch folder) and keeps each JSON file's sha256 and parsed text.
-``test_golden_outputs.py`` compares them with ``test/golden/diagnose_outputs.json.gz``.
+``test_diagnosis_golden_outputs.py`` compares them with ``test/golden/diagnose_outputs.json.gz``.
 
 Byte equality holds on one machine but not across CPUs: numpy evaluates float64 ``sin``,
 ``cos``, ``arctan2``... with other code on AVX-512 machines (Intel's SVML) than elsewhere

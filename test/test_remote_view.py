@@ -1,7 +1,7 @@
 """The dashboards' model (``remote/view.py``): what it accepts from the wire and what it counts.
 
-Pure: no Zenoh here (the sessions are tested in test_zenoh_bridge, test_watch and
-test_dashboard). Keys: samples end in ``.json``, queryable replies do not, raw CDR keys are
+Pure: no Zenoh here (the sessions are tested in test_ros_zenoh_bridge, test_remote_watch and
+test_remote_dashboard). Keys: samples end in ``.json``, queryable replies do not, raw CDR keys are
 neither; a run's counts survive re-judged frames and restart with a new run id. Verdicts
 (docs/verdicts.md): conclusion fields of the wrong type are refused, an inconclusive or
 unstated verdict never reads as "no fault found", and each module's state is the verdict's

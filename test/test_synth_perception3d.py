@@ -289,7 +289,10 @@ def _hashes_written(out: Path) -> None:
 
 
 def test_the_existing_faults_write_the_same_bytes_as_before(tmp_path: Path) -> None:
-    code = f"import test_synth3d as t, pathlib; t._hashes_written(pathlib.Path({str(tmp_path)!r}))"
+    code = (
+        "import test_synth_perception3d as t, pathlib;"
+        f" t._hashes_written(pathlib.Path({str(tmp_path)!r}))"
+    )
     done = subprocess.run(
         [sys.executable, "-c", code],
         env={**os.environ, **AVX2_KERNELS, "PYTHONPATH": os.pathsep.join(sys.path)},

@@ -7,7 +7,7 @@ data. Now the monitors' feed begins a new episode (fresh window, sync, partner, 
 when the reference stamps go back by more than ``episode_rewind_s``, every result carries its
 episode, and the aggregator keys results by it: each episode's crash gets its own verdict,
 equal to ``diagnose`` of that episode's log alone. Over DDS, with an independent stack:
-test_stack_independent.py.
+test_ros_stack_independent.py.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import itertools
 
 import pytest
 from stackgraph import crash, offline, same_verdict
-from test_stack_mode import config
+from test_live_stack_mode import config
 
 from ads_rca.live.aggregate import AggregatorCore, VerdictOutcome
 from ads_rca.live.episodes import CURRENT, NEW, NEXT, PREVIOUS, EpisodeAggregator, EpisodeClock

@@ -1,4 +1,4 @@
-"""Stack mode's cores in process (no DDS), beyond test_stack_mode.py: the data a stack
+"""Stack mode's cores in process (no DDS), beyond test_live_stack_mode.py: the data a stack
 sent (2 % of one input dropped) judged exactly as ``diagnose`` judges the same data, two
 collisions in one stream, NaN in a PoseStamped or Path, and the stack layouts (PoseStamped,
 Path, CARLA markers) against the contract layout.

@@ -6,7 +6,7 @@ docs alone (no ads_rca import) that sends synthesised runs as a CARLA ROS bridge
 does, and can leave an input out, stop one mid-run, restart as a new process with a gap,
 and restart its simulator (stamps back to the start: a second episode). The verdicts must
 say what they could not judge, never "no fault found", and keep two episodes apart.
-In process, the same rules: test_stack_completeness.py and test_stack_episodes.py.
+In process, the same rules: test_live_stack_completeness.py and test_live_stack_episodes.py.
 """
 
 from __future__ import annotations

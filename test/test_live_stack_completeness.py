@@ -8,7 +8,7 @@ a reference message lost or late) are named by frame number, also when the gap c
 window's start (``diagnose`` says the same of a log folder missing those frames). Before,
 such verdicts were complete, or "partly judged" for an input never sent, and lost frames
 before the window's first judged frame were not named. Over DDS, with an independent
-stack: test_stack_independent.py.
+stack: test_ros_stack_independent.py.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from typing import Any
 
 import pytest
 from stackgraph import crash
-from test_stack_mode import config
+from test_live_stack_mode import config
 
 from ads_rca.diagnosis.engine import diagnose
 from ads_rca.live.aggregate import AggregatorCore

@@ -155,5 +155,5 @@ def test_total_frames_far_from_the_last_frame_is_a_problem(
 
 
 def test_consistent_metadata_is_no_problem(tmp_path: Path) -> None:
-    """The synthesiser's logs (test_golden_outputs pins every one) get no new problem."""
+    """The synthesiser's logs (test_diagnosis_golden_outputs pins every one) get no new problem."""
     assert _metadata_problems(_log_with_metadata(tmp_path / "log")) == []

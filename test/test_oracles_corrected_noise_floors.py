@@ -4,7 +4,8 @@ from the run itself.
 Hand-computed floors on a real context (samples given by hand), the floor frames, and
 end to end on synthesised crashes at ten times today's noise: the fault the old rules
 blamed on perception is found, and with the floors off (``noise_floor_factor`` 0) it is
-not, so the floors are what fixes it. Clean runs keep their verdicts (test_golden_outputs).
+not, so the floors are what fixes it. Clean runs keep their verdicts
+(test_diagnosis_golden_outputs).
 """
 
 from __future__ import annotations

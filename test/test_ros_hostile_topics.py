@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import pytest
-from test_hostile_bags import convert
+from test_sources_bag_hostile_bags import convert
 
 from ads_rca.contract import cdr, cdr_decode, live_topics, playback, rosmsg, topics
 from ads_rca.contract.errors import CdrError, JsonTextError, MalformedMessage, NoStamp
@@ -564,7 +564,7 @@ def test_absurd_numbers_in_a_result_are_one_malformed_message(field: str, value:
     fractions is refused as malformed, naming the field. It used to pass, then overflow the
     aggregator's int64 columns inside its callback (a traceback that ended the node), or,
     as a collision a monitor closed, hold every later verdict back."""
-    from test_stack_mode import config
+    from test_live_stack_mode import config
 
     from ads_rca.contract.errors import MalformedMessage
     from ads_rca.live.aggregate import AggregatorCore
@@ -574,7 +574,7 @@ def test_absurd_numbers_in_a_result_are_one_malformed_message(field: str, value:
     with pytest.raises(MalformedMessage, match=field):
         LiveResult.from_document({**_RESULT, "frame_ms": 50, field: value})
     # What is accepted is used without an error, in both kinds of run.
-    for run in (None, config()):  # a player's run, and a stack's (test_stack_mode's facts)
+    for run in (None, config()):  # a player's run, and a stack's (test_live_stack_mode's facts)
         core = AggregatorCore(make_params("corrected"), stack=run)
         edge = {"closes_collision": 2**42, "collision_frame": -(2**42), "revision": 2**42}
         for document in (_RESULT, {**_RESULT, "frame_ms": 50, **edge}):

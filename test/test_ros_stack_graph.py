@@ -6,7 +6,7 @@ markers, no metadata, the collision announced on ``run/collision`` after the col
 frame. The ``monitors`` and ``aggregator`` nodes run in stack mode from parameters only.
 With no loss the verdict and every judged frame equal ``diagnose``; an input dropped is
 reported incomplete; an input never published makes the modules reading it STALE, not OK.
-The whole grid (every crash, both modes, drops) runs in-process in test_stack_mode.py; here
+The whole grid (every crash, both modes, drops) runs in-process in test_live_stack_mode.py; here
 one crash per scenario, each with a different fault, covers the four faults over DDS.
 """
 

@@ -3,9 +3,10 @@ every path the running log's folders take: messages and CDR both ways, the assem
 folders, bags, and player → DDS → topic_summary and recorder. A running log without them
 sends, lists and writes exactly what it did before they existed.
 
-The codecs' byte equality with rclpy is in test_ros_cdr.py and test_codec_table.py (their
-logs carry these folders too); here: the exact values, the wire layout docs/topics.md
-promises, messages from other publishers, and hostile folder files.
+The codecs' byte equality with rclpy is in test_contract_cdr.py and
+test_contract_topic_table.py (their logs carry these folders too); here: the exact values,
+the wire layout docs/topics.md promises, messages from other publishers, and hostile folder
+files.
 """
 
 from __future__ import annotations
@@ -21,8 +22,8 @@ import pytest
 from logcompare import assert_logs_equal
 from logfactory import add_3d, make_log
 from rclpy.serialization import serialize_message
-from test_ros_cdr import awkward_log
-from test_ros_convert import play_through_assembler
+from test_contract_cdr import awkward_log
+from test_contract_convert import play_through_assembler
 
 from ads_rca.contract import playback, topics
 from ads_rca.contract.errors import MalformedMessage
@@ -435,7 +436,7 @@ def test_player_dds_summary_and_recorder_keep_every_value(ros_env: RosEnv, tmp_p
     """The player sends a 3-D log; topic_summary (raw CDR, assembler, log-folder writer) and
     the recorder (bag) both give it back exactly."""
     from rosrun import SUMMARY
-    from test_recorder import recorded_counts, start_player, start_recorder
+    from test_ros_recorder import recorded_counts, start_player, start_recorder
 
     from ads_rca.ros.launcher import Launcher, node_command
 

@@ -3,7 +3,7 @@
 The same classes the nodes run (:class:`StackFeed` into one :class:`MonitorCore`, the
 stack-mode :class:`AggregatorCore`) fed a synthesised crash as a stack sends it
 (``simulate.stack_stream``: per-input stamp offsets up to 20 ms, arrival jitter, no markers,
-no metadata, the collision announced after its frame). Over DDS: test_stack_graph.py.
+no metadata, the collision announced after its frame). Over DDS: test_ros_stack_graph.py.
 """
 
 from __future__ import annotations

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 import pytest
 import yaml
 from commandline import assert_clean, run_limited
-from test_recorder import start_player, start_recorder
+from test_ros_recorder import start_player, start_recorder
 
 from ads_rca.cli import main as cli
 from ads_rca.contract import topics

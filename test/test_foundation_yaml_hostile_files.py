@@ -114,8 +114,8 @@ def test_a_hostile_remap_file_is_one_line_and_exit_2(tmp_path: Path, case: str) 
 
 @pytest.mark.parametrize("case", ["not_utf8", "deep_list", "deep_map", "fifo", "dev_zero"])
 def test_a_hostile_profile_file_is_one_config_error(tmp_path: Path, case: str) -> None:
-    """Profiles read bags only (a bag is built in test_recordings); the loader is the
-    same for every command."""
+    """Profiles read bags only (a bag is built in test_sources_bag_stack_recordings); the
+    loader is the same for every command."""
     file, said = hostile_files(tmp_path)[case]
     with pytest.raises(ConfigError) as caught:
         load_profile(file)

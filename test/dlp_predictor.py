@@ -1,4 +1,4 @@
-"""A test predictor node: predicts where each actor goes while a scene plays (issue #19).
+"""A test predictor node: predicts where each actor goes while a scene plays.
 
 ``python test/dlp_predictor.py --namespace NS --ego-id ID [--steps 10]`` (the venv's python,
 its own process). It subscribes to the contract's ``ego/odometry`` and ``actors`` and, for

@@ -1,4 +1,4 @@
-"""A test trajectory-prediction model: answers each snapshot row it hears (issue #20).
+"""A test trajectory-prediction model: answers each snapshot row it hears.
 
 ``python test/ego_path_model.py --namespace NS [--shift-x 1.0] [--subscribers 3]
 [--run-id ID] [--after-result] [--hostile]`` (the venv's python, its own process: another

@@ -1,6 +1,6 @@
 """Golden outputs: ``ads-rca diagnose --json`` on every log we can make, stored to compare.
 
-Why: a redesign step (issue #13) must not change any verdict. This helper
+Why: a redesign step must not change any verdict. This helper
 writes the bundled example and a synthesised log of every scenario × fault (seed 1) into a
 scratch folder, runs the real CLI on each in both modes (separate processes,
 ``PYTHONHASHSEED=0``, the log given by a relative path so ``source`` does not name the

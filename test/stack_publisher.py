@@ -1,4 +1,4 @@
-"""A test stack: publishes a run over DDS the way a driving stack does (issue #15's tests).
+"""A test stack: publishes a run over DDS the way a driving stack does.
 
 ``python test/stack_publisher.py --synth cut_in:perception:1 --layout carla ...`` (the venv's
 python, a separate process). A stack publishes no frame markers, no run metadata and no

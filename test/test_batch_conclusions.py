@@ -1,4 +1,4 @@
-"""``ads-rca batch`` and the rule "unknown is an answer" (docs/verdicts.md, issue #34).
+"""``ads-rca batch`` and the rule "unknown is an answer" (docs/verdicts.md).
 
 Pure parts first: a row carries ``conclusive``, ``why_inconclusive``, ``collision`` and the
 internal error of its verdict; the summaries count inconclusive verdicts on their own, never

@@ -1,4 +1,4 @@
-"""``ads-rca batch`` on a real Dask cluster on loopback (issue #18 items 2-5).
+"""``ads-rca batch`` on a real Dask cluster on loopback.
 
 No mocks: the command runs as a process with its own ``LocalCluster`` (or, for the killed
 worker, our own cluster through ``--scheduler``). Checked: 200 synthesised runs of mixed

@@ -1,4 +1,4 @@
-"""Which modules a run lets be judged (issue #16 item 3): never a silent "no fault found"
+"""Which modules a run lets be judged: never a silent "no fault found"
 because an input was absent."""
 
 from __future__ import annotations

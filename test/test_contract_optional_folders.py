@@ -1,4 +1,4 @@
-"""3-D detections, tracked objects and control commands (the optional folders, issue #16) on
+"""3-D detections, tracked objects and control commands (the optional folders) on
 every path the running log's folders take: messages and CDR both ways, the assembler, log
 folders, bags, and player → DDS → topic_summary and recorder. A running log without them
 sends, lists and writes exactly what it did before they existed.

@@ -1,5 +1,5 @@
-"""A run with no collision source has its collision "unknown" in every output (issue 34
-item 3, docs/verdicts.md): never "no collision in this run", never "no fault found".
+"""A run with no collision source has its collision "unknown" in every output
+(docs/verdicts.md): never "no collision in this run", never "no fault found".
 
 The runs: a CARLA+Autoware crash recording (written by our synthesiser) read through a
 profile without its collision input, and through a ground-truth-only profile (ego and

@@ -1,4 +1,4 @@
-"""One typed error hierarchy under ``AdsRcaError`` (issue #13 item 4).
+"""One typed error hierarchy under ``AdsRcaError``.
 
 - Every exception class the package defines derives from ``AdsRcaError`` (the package
   walked with pkgutil, every module imported, the classes found with inspect); one

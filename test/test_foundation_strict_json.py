@@ -1,4 +1,4 @@
-"""Every JSON document the project emits is strict (issue 12, item 20), and lossless.
+"""Every JSON document the project emits is strict, and lossless.
 
 NaN and infinity travel as ``null`` named in the top-level ``"$nonfinite"`` map (JSON Pointer
 → "nan" / "inf" / "-inf"; docs/topics.md). Checked with a parser that rejects the

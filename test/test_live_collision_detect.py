@@ -1,4 +1,4 @@
-"""Collision derived from ground truth (issue #15 item 4): ego box overlapping an actor box.
+"""Collision derived from ground truth: ego box overlapping an actor box.
 
 The whole-log detector must find every synthesised crash at the log's collision frame with
 the synthesis label's partner (every scenario × fault, seeds 1 and 2), and nothing in the

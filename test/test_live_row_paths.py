@@ -1,4 +1,4 @@
-"""A live trajectory-prediction model scored frame by frame (issue #20): the planning
+"""A live trajectory-prediction model scored frame by frame: the planning
 monitor's rule for a snapshot row's later paths (``ads_rca/live/row_paths.py``) and the
 monitor core using it, without ROS. A model's path that comes after its row was judged
 re-publishes the row's planning result with revision + 1, equal to what ``diagnose`` gives

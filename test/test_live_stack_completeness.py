@@ -1,4 +1,4 @@
-"""A stack-mode verdict claims only what it judged (issue 34, item 4), in process.
+"""A stack-mode verdict claims only what it judged, in process.
 
 ``live.complete`` is true only when every frame of the effect window was judged on full
 inputs, and the conclusion (docs/verdicts.md) says what was not: an input the stack never

@@ -1,4 +1,4 @@
-"""Stack mode's episodes in process (issue 34, item 5): stamps that go back begin a new run.
+"""Stack mode's episodes in process: stamps that go back begin a new run.
 
 A simulator that restarts (a new episode from stamp 0) sends stamps its previous episode
 already had. Before, the new episode's frames were dropped as late by the stamp sync and

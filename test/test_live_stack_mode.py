@@ -1,4 +1,4 @@
-"""Stack mode's cores in-process, over the whole grid (issue #15), on simulated time.
+"""Stack mode's cores in-process, over the whole grid, on simulated time.
 
 The same classes the nodes run (:class:`StackFeed` into one :class:`MonitorCore`, the
 stack-mode :class:`AggregatorCore`) fed a synthesised crash as a stack sends it

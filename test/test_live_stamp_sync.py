@@ -1,4 +1,4 @@
-"""Frames from header stamps (issue #15 item 1): a synthesised run sent the way a stack does.
+"""Frames from header stamps: a synthesised run sent the way a stack does.
 
 Each topic of a synthesised log is stamped at its frame's time plus a per-topic offset (up
 to 20 ms either way) and arrives with jitter (reordered across frames); :class:`StampSync`

@@ -103,7 +103,7 @@ def test_memory_does_not_grow_with_run_length(semantics: str, shared: bool) -> N
         assert run.outcome is not None and run.outcome.complete
         held.append(max(run.max_held_records.values()))
     assert held[0] == held[1]
-    # a window of frames (the effect window, rule 8's floor frames before it, the control
+    # a window of frames (the effect window, the noise floors' frames before it, the control
     # horizon: about 125 frames of 9 folders), not the run
     assert held[1] < 10 * 130
 

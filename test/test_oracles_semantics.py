@@ -115,7 +115,7 @@ def test_the_modes_rules() -> None:
     assert corrected.modules_lookahead(["perception"], corrected_params, none, 0, 100) == 10
     assert [reference.reads_ego(m) for m in MODULES] == [False, True, True, False]
     assert reference.uses_partner is False and corrected.uses_partner is True
-    # the window, rule 8's floor frames before its first frame (W + 3 s), control, slack
+    # the window, the noise floors' frames before its first frame (W + 3 s), control, slack
     assert corrected.rejudge_history(corrected_params, 50) == 20 + (20 + 60) + 10 + 5
 
 

@@ -1,4 +1,4 @@
-"""Every import the package makes is a declared dependency (issue #14 item 4).
+"""Every import the package makes is a declared dependency.
 
 A workspace built with ``rosdep install`` + ``colcon build`` gets exactly what package.xml
 declares; an undeclared import fails there later with ModuleNotFoundError. So every

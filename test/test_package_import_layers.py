@@ -1,4 +1,4 @@
-"""The layers import downwards only: the pure packages load no ROS (issue #13 item 1).
+"""The layers import downwards only: the pure packages load no ROS.
 
 ``contract/`` (topic table, conversion, CDR codec, playback, assembler), ``sources/``, ``live/``,
 the oracles and the engine must work where no ROS runtime is installed or wanted (offline

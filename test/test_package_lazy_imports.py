@@ -1,5 +1,5 @@
-"""A ``diagnose`` run imports only what it needs (issue #18: import lazily what a run does not
-use). Each of these costs 0.03 to 0.4 s at start-up, more than judging a short run."""
+"""A ``diagnose`` run imports only what it needs: what a run does not use is imported lazily.
+Each of these costs 0.03 to 0.4 s at start-up, more than judging a short run."""
 
 from __future__ import annotations
 

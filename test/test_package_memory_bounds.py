@@ -1,5 +1,5 @@
 """Memory stays linear in the input: big frames, block-wise box matching, equality with the
-all-pairs versions (issue 12, item 3); the aggregator's memory stays flat (item 15)."""
+all-pairs versions; the aggregator's memory stays flat."""
 
 from __future__ import annotations
 
@@ -203,7 +203,7 @@ def test_grouped_hungarian_is_optimal_with_ties(
     assert rows.tolist() == sorted(rows.tolist())
 
 
-# ------------------------------------------------------------ the aggregator (item 15)
+# -------------------------------------------------------------------------- the aggregator
 
 
 def feed(core: AggregatorCore, template: list[FrameResults], start: int, stop: int) -> None:

@@ -1,4 +1,4 @@
-"""Rules that used to be written twice now have one copy (issue #13 item 3).
+"""Rules that used to be written twice now have one copy.
 
 Problem de-duplication and reading (``problems.py``), the frame number
 (``model.frame_number``), the topic → folder table (``contract/topics.py``), the bounded

@@ -1,5 +1,5 @@
 """Parameters on the command line and in ``--config`` files: ranges, unknown names, what each
-does in each mode, and the effective window named by every output (issue #14 items 9-11).
+does in each mode, and the effective window named by every output.
 
 Out-of-range values (``safety_margin=-1``, ``nan``, ``window_s=-3``) used to be accepted and
 change the verdict; a misspelt ``--config`` key was silently ignored; and

@@ -1,4 +1,4 @@
-"""The remote bridge's pure core (issue #17): keys, endpoints, rate limits, history, with
+"""The remote bridge's pure core: keys, endpoints, rate limits, history, with
 hostile values, and one real loopback Zenoh session opened with the built config."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""``ads-rca dashboard`` (issue #17 item 3), with real parts only: runs played onto Zenoh by
+"""``ads-rca dashboard``, with real parts only: runs played onto Zenoh by
 ``remote_feed.py`` processes, the dashboard as its own process, and Debian's chromium driven
 by Playwright. The page shows each module's status and the verdict of a live replay without
 a reload; the download is the feed's verdict; several runs are listed; text from the wire

@@ -1,4 +1,4 @@
-"""``ads-rca watch`` (issue #17 item 2): a terminal dashboard over Zenoh, no ROS at run time.
+"""``ads-rca watch``: a terminal dashboard over Zenoh, no ROS at run time.
 
 Real parts only: test/remote_feed.py plays ``examples/cut_in_perception`` through the
 simulated live graph and puts every result and the verdict on Zenoh as a loopback peer, in

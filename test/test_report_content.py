@@ -1,4 +1,4 @@
-"""The HTML report reads as an engineer debugging the crash needs it (issue 14, item 16).
+"""The HTML report reads as an engineer debugging the crash needs it.
 
 On the bundled crash (perception missed the cutting-in partner 2486 from frame 47; the
 clearance fell below the margin at frame 68; collision at frame 81): the page is one file

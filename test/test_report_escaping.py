@@ -1,4 +1,4 @@
-"""The HTML report never lets text from a log become markup (issue 12, item 19).
+"""The HTML report never lets text from a log become markup.
 
 A crash log is rewritten so that EVERY string field a log can carry holds markup: actor ids
 (ego and partner included), detection ids, labels and extra keys/values, prediction obstacle

@@ -1,4 +1,4 @@
-"""Non-finite and absurd values never reach a plot of the report (issue 12, item 4).
+"""Non-finite and absurd values never reach a plot of the report.
 
 A pose of ``1e400`` is read as infinity (and kept, with a problem); one of ``1.7e308`` is
 finite but beyond what matplotlib can scale. Either used to crash ``diagnose --report``.

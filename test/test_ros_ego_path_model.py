@@ -1,4 +1,4 @@
-"""A live trajectory-prediction model beside a playing table, over DDS (issue #20): its own
+"""A live trajectory-prediction model beside a playing table, over DDS: its own
 process (test/ego_path_model.py) hears each row the player sends on ``run/ego_paths`` and
 answers with the realised path shifted 1 m in x; the planning monitor scores each row with
 the model's path frame by frame (``metrics/planning``, ``/diagnostics``), and the verdict's

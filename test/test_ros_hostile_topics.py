@@ -1,4 +1,4 @@
-"""Hostile messages on the contract's topics (issue #12): anyone on the domain can publish.
+"""Hostile messages on the contract's topics: anyone on the domain can publish.
 
 - Every CDR decoder of the live path (``ads_rca.contract.cdr_decode``), fed real payloads (the
   project's own encoder on the example log) cut at every length, with absurd counts written

@@ -1,4 +1,4 @@
-"""The launch file and replay start one graph description, and a launch ends (issue #14 items 1, 3).
+"""The launch file and replay start one graph description, and a launch ends.
 
 Everywhere: the launch arguments are ``replay``'s options (described), the graph they
 describe is the one replay starts, bad arguments are one line, the end-of-run rule, and a

@@ -43,7 +43,7 @@ def _lines(text: str) -> list[str]:
     return [line for line in text.splitlines() if line.strip()]
 
 
-# --- item 12: domain ids ---------------------------------------------------------------
+# --- domain ids ---------------------------------------------------------------------------
 
 
 @pytest.mark.parametrize("value", ["233", "999", "-1", "abc", "", "010", "1e2"])
@@ -85,7 +85,7 @@ def test_empty_ros_domain_id_means_unset_as_in_rcl(ros_env: RosEnv) -> None:
     assert 1 <= int(env["ROS_DOMAIN_ID"]) <= 101
 
 
-# --- item 16: variables that redirect discovery ------------------------------------------
+# --- variables that redirect discovery ----------------------------------------------------
 
 HOSTILE = {
     "ROS_DISCOVERY_SERVER": "192.0.2.77:11811",
@@ -223,7 +223,7 @@ def test_node_started_by_hand_warns_and_the_variable_really_applies(
     assert f"{host}:{port}" not in node.output
 
 
-# --- item 17: the profile file -----------------------------------------------------------
+# --- the profile file ---------------------------------------------------------------------
 
 
 def test_profile_is_private_and_never_follows_a_planted_symlink(
@@ -277,7 +277,7 @@ def test_profile_directory_is_0700_and_file_0600(tmp_path: Path) -> None:
     assert private_parent({"XDG_RUNTIME_DIR": str(link)}) != str(link)
 
 
-# --- item 18: the sockets the nodes hold ----------------------------------------------------
+# --- the sockets the nodes hold -----------------------------------------------------------
 
 
 def _socket_inodes(pid: int) -> set[str]:

@@ -1,5 +1,5 @@
 """A running node's parameters: read-only at run time, ranges in their descriptors, and one
-line at start saying the values in force (issue #14 items 9, 11, 12).
+line at start saying the values in force.
 
 ``ros2 param set`` used to return success and change nothing (a node reads its parameters
 once, at start). The parameters are now declared read-only: this test is the ``ros2 param``

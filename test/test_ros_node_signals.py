@@ -1,4 +1,4 @@
-"""SIGINT/SIGTERM to a whole process group of real nodes: every node exits 0 (issue #14 item 2).
+"""SIGINT/SIGTERM to a whole process group of real nodes: every node exits 0.
 
 A terminal's Ctrl-C reaches every process of the foreground group at once, and ``ros2
 launch`` runs its nodes in its own group. The graph's nodes (player, monitors, aggregator,

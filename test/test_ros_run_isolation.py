@@ -1,4 +1,4 @@
-"""Runs keep apart, and replay leaves nothing behind (issue #12, items 11 and 13).
+"""Runs keep apart, and replay leaves nothing behind.
 
 - two ``ads-rca replay`` of different logs at once on ONE domain and ONE namespace each give
   their own ``diagnose`` verdict; a graph's aggregator, monitors and recorder ignore a
@@ -78,7 +78,7 @@ def matches_diagnose(document: dict[str, Any], log_dir: Path, output: str = "") 
     assert_close(verdict_keys(document), verdict_keys(offline))
 
 
-# --- item 11: runs keep apart ------------------------------------------------------------
+# --- runs keep apart ----------------------------------------------------------------------
 
 
 def test_two_replays_on_one_domain_and_namespace_give_their_own_verdicts(
@@ -204,7 +204,7 @@ def test_a_free_domain_has_no_participant(ros_env: RosEnv, tmp_path: Path) -> No
         waiting.stop()
 
 
-# --- item 13: replay leaves nothing behind ---------------------------------------------
+# --- replay leaves nothing behind ---------------------------------------------------------
 
 
 @pytest.mark.parametrize("sig", ["SIGTERM", "SIGINT", "SIGHUP", "SIGKILL"])

@@ -1,4 +1,4 @@
-"""Stack mode over real DDS, each node its own process, beside a test stack (issue #15).
+"""Stack mode over real DDS, each node its own process, beside a test stack.
 
 The test stack (test/stack_publisher.py) publishes a synthesised crash as a stack does: its
 own header stamps offset per topic (up to 20 ms), arrival jitter, ``/clock``, no frame

@@ -1,4 +1,4 @@
-"""Stack mode over real DDS beside an independent stack that misbehaves (issue 34, items 4, 5).
+"""Stack mode over real DDS beside an independent stack that misbehaves.
 
 The ``monitors`` and ``aggregator`` nodes, each its own process, run from
 ``config/stack_carla.yaml`` beside test/independent_stack.py: a publisher written from the

@@ -1,4 +1,4 @@
-"""atmaCup #18 tables (seed 003, issue #20): every field of the synthesised rows
+"""atmaCup #18 tables: every field of the synthesised rows
 (test/writers/atmacup_tables.py) as worked out by hand, the mirrored paths, traffic lights
 (empty and not), the capability record, a submission's scores computed by hand (order- and
 ID-matched), hostile tables, traffic-light files and submissions, format detection, and

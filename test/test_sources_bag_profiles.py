@@ -1,4 +1,4 @@
-"""Recordings of real stacks through profiles (#16 items 1, 2's frames, 5): the map ↔ CARLA
+"""Recordings of real stacks through profiles: the map ↔ CARLA
 conventions both ways, each decoder on messages laid out as the published definitions say,
 the profile files' validation, and whole bags (MCAP and sqlite3, written with rosbags) in the
 carla-autoware and vision_msgs layouts read back into a RunLog: frames from stamps, the

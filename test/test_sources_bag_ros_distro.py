@@ -1,4 +1,4 @@
-"""A bag says honestly which ROS distributions it is for (issue #14 item 5).
+"""A bag says honestly which ROS distributions it is for.
 
 - The recorder writes ``ros_distro`` (metadata.yaml and the MCAP ``rosbag2`` record) from
   the distribution it runs on: ``ROS_DISTRO``, else the one that released the installed

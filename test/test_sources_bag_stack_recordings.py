@@ -1,4 +1,4 @@
-"""Recordings of real stacks diagnosed with one command (issue #16): a synthesised run written
+"""Recordings of real stacks diagnosed with one command: a synthesised run written
 as a CARLA ROS bridge + Autoware (or vision_msgs) stack would have recorded it, read back with
 ``--profile``, its types from the bag itself.
 

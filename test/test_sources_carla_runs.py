@@ -1,4 +1,4 @@
-"""CARLA experiment-client runs (seed 001, issue #19): every field mapped as worked out by
+"""CARLA experiment-client runs: every field mapped as worked out by
 hand on the synthesised straight-road scene (test/writers/carla_runs.py), both telemetry
 schema versions and the CSV, the capability record, annotations, the run's own figures, the
 format choice, hostile files, and the live graph (a real replay over DDS: the same verdict

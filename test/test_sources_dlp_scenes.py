@@ -1,4 +1,4 @@
-"""Dragon Lake Parking scenes (seed 002, issue #19): every field of the synthesised scene
+"""Dragon Lake Parking scenes: every field of the synthesised scene
 (test/writers/dlp_scenes.py) as worked out by hand, mirrored headings, the reversing car's
 signed speed, the ego's choice, timestamps along the linked list, the capability record,
 streaming, hostile files (a broken or looping list, missing and cut files, bad instances),

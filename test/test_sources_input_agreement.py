@@ -1,5 +1,4 @@
-"""Messages name what the input is, and metadata that disagrees with the data is a problem
-(issue 34 item 7).
+"""Messages name what the input is, and metadata that disagrees with the data is a problem.
 
 - A run that yields no frame is refused in one line naming what exists for that input: a
   bag read through a stack's profile names the profile and its actors input (never "no

@@ -1,4 +1,4 @@
-"""Hostile input (issue 12, items 1, 2, 5, 6, 7): every case is a real file, run through the
+"""Hostile input: every case is a real file, run through the
 real CLI in a subprocess, with a timeout (a hang fails the test) and an address-space limit
 (reading /dev/zero until memory runs out fails the test instead of the machine).
 

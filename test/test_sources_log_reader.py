@@ -433,7 +433,7 @@ def test_bad_metadata_fields_use_reported_defaults(log_dir: Path) -> None:
     )
     log = read_run_log(log_dir)
     fields = {p.field for p in log.problems}
-    # "50" is used as 50 and reported (issue 12 item 6); "soon" falls back to the default.
+    # "50" is used as 50 and reported; "soon" falls back to the default.
     assert fields == {"timesteps_per_frame", "collision_frame", "ego_config.camera.camera_loc"}
     assert log.frame_ms == 50 and log.metadata.collision_frame == -1
 

@@ -1,4 +1,4 @@
-"""OpenLane-V2 scores reported by ``diagnose`` and the live perception monitor (issue #20):
+"""OpenLane-V2 scores reported by ``diagnose`` and the live perception monitor:
 each frame's figures and the segment's so far in the not-judged perception result (corrected
 mode), the segment's in the verdict JSON and the summary, the monitor's ``/diagnostics``
 status, and a real DDS replay giving what diagnose gives.

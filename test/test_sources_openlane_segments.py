@@ -1,4 +1,4 @@
-"""OpenLane-V2 segments (seed 004, issue #20): every field of the synthesised segments
+"""OpenLane-V2 segments: every field of the synthesised segments
 (test/writers/openlane_segments.py) as worked out by hand — nanosecond and microsecond
 timestamps, integer and text ids, the mirrored pose and its angles, the derived speed, the
 traffic elements as boxes, lanes mirrored with their topology — a model's per-frame results,

@@ -1,4 +1,4 @@
-"""The source registry (issue 35, "The house", item 1): every source is a folder declaring
+"""The source registry: every source is a folder declaring
 its ``Source``, and what depends on which sources exist derives from the registry's table:
 detection in its order (by names and ``stat`` only), the options a source takes refused in
 one line for the others, ``--format``'s names, the words of messages and batch rows. A

@@ -1,4 +1,4 @@
-"""The scorer protocol (issue 35, "The house", item 1): the figures a run's data gives beside
+"""The scorer protocol: the figures a run's data gives beside
 the verdict come from the scorers of :data:`ads_rca.sources.registry.SCORERS`, which the
 engine, the summary, the not-judged results and the live statuses ask without naming any
 dataset. A scorer registered in-process shows in each of them; a scorer whose data a run
@@ -35,7 +35,7 @@ from ads_rca.sources.registry import SCORERS, SUMMARY_ORDER, ScorerEntry
 from ads_rca.synth import synthesise
 
 PACKAGE = Path(ads_rca.__file__).resolve().parent
-#: The modules that iterate the scorers: none may name a dataset (issue 35).
+#: The modules that iterate the scorers: none may name a dataset.
 ITERATING = (
     "diagnosis/engine.py",
     "diagnosis/summary.py",

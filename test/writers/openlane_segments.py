@@ -1,4 +1,4 @@
-"""OpenLane-V2 segments synthesised from the documented schema (seed 004).
+"""OpenLane-V2 segments synthesised from the documented schema.
 
 No info file of OpenLane-V2 is public in any repository (only the split index is), so the
 fixtures write their own: ``write_openlane_segment(root, ...)`` writes

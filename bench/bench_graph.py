@@ -20,8 +20,10 @@ Usage: ``python bench/bench_graph.py [--frames 200] [--actors 50] [--semantics b
 from __future__ import annotations
 
 import argparse
+import atexit
 import json
 import os
+import shutil
 import sys
 import tempfile
 import time
@@ -103,6 +105,7 @@ def main() -> int:
     parser.add_argument("--semantics", choices=("reference", "corrected", "both"), default="both")
     args = parser.parse_args()
     work = Path(tempfile.mkdtemp(prefix="ads_rca_bench_graph_"))
+    atexit.register(shutil.rmtree, work, True)  # logs, metrics, ROS logs
     log = synthesise("cruise", "none", 1, frames=args.frames, actors=args.actors)
     log_dir = write_run_log(log, work / "log")
     n = len(log.frames)

@@ -50,10 +50,12 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import atexit
 import contextlib
 import math
 import os
 import re
+import shutil
 import socket
 import sys
 import tempfile
@@ -575,6 +577,7 @@ def main() -> int:
     if args.messages < 1 or args.rate <= 0 or args.dashboard_frames < 1 or args.dashboard_rate <= 0:
         parser.error("counts and rates must be positive")
     work = Path(tempfile.mkdtemp(prefix="ads_rca_bench_zenoh_"))
+    atexit.register(shutil.rmtree, work, True)  # logs, metrics, ROS logs
     bench = Bench(work)
     size = len(result_text(0).encode())
     print(

@@ -35,7 +35,13 @@ from shmclean import remove_zombie_segments
 from synthlogs import synth
 
 from ads_rca.errors import InputError
-from ads_rca.ros.env import MAX_DOMAIN_ID, pick_domain_id, requested_domain_id, ros_environment
+from ads_rca.ros.env import (
+    MAX_DOMAIN_ID,
+    pick_domain_id,
+    requested_domain_id,
+    ros_environment,
+    use_node_profile,
+)
 
 #: The ROS_DOMAIN_ID the suite was started with, kept for the xdist workers (which inherit
 #: this process's environment after the override below).
@@ -88,6 +94,10 @@ def _domain_id() -> int:
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ["ROS_DOMAIN_ID"] = str(_DOMAINS[0])
 os.environ.setdefault("ROS_LOG_DIR", tempfile.mkdtemp(prefix="ads_rca_test_ros_log_"))
+# The participants tests create in this process get the nodes' Fast DDS profile too: UDP on
+# loopback only, and writers that heartbeat every 1 ms while a sample is unacknowledged (by
+# default every 3 s, so each ``wait_for_all_acked`` of a test's publisher took up to 3 s).
+use_node_profile()
 remove_zombie_segments()
 
 

@@ -13,8 +13,11 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from ads_rca.cli import main as cli
+
 #: The console script beside this interpreter.
 ADS_RCA = str(Path(sys.executable).with_name("ads-rca"))
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "cut_in_perception"
 #: Address space of a :func:`run_limited` run: plenty for a diagnosis, far below the
 #: machine's memory (reading /dev/zero until memory runs out fails the test, not the machine).
 MEMORY_LIMIT = 3 << 30
@@ -52,3 +55,9 @@ def assert_clean(done: subprocess.CompletedProcess[str], code: int = 0) -> None:
     output = done.stdout + done.stderr
     assert "Traceback" not in output, output
     assert done.returncode == code, output
+
+
+def convert_example(out: Path, *options: str) -> Path:
+    """The bundled example converted to a bag at ``out`` by ``ads-rca convert`` (in process)."""
+    assert cli(["convert", str(EXAMPLE), str(out), *options]) == 0
+    return out

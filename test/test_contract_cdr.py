@@ -20,7 +20,7 @@ from cdrlayout import differences
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from logcompare import assert_logs_equal
-from logfactory import add_3d, make_log
+from logfactory import add_3d, awkward_log, make_log
 from rclpy.serialization import deserialize_message, serialize_message
 from std_msgs.msg import String
 from visualization_msgs.msg import MarkerArray
@@ -36,14 +36,9 @@ from ads_rca.model import (
     Boxes,
     ControlCommand,
     EgoPose,
-    Objects3D,
-    Plan,
     RunLog,
-    RunMetadata,
-    Track,
 )
 from ads_rca.ros.diagnostics import array as diagnostic_array
-from ads_rca.sources.openlane.lanes import LaneGraph
 
 if TYPE_CHECKING:
     from conftest import RosEnv
@@ -134,73 +129,6 @@ def test_3d_objects_and_control_commands_encode_byte_for_byte_and_decode_exactly
         topics.LANES_PREDICTED: 5,  # every third frame
     }
     assert check_log(log) > 120
-
-
-def awkward_log() -> RunLog:
-    """NaN everywhere, empty records, odd keys, negative and huge stamps, JSON extremes."""
-    meta = RunMetadata(TPF, (0.0, 0.0, 0.0), -1, 4, raw={"timesteps_per_frame": TPF})
-    log = RunLog(metadata=meta, frames=(-50, 0, 0, 2_000_000_050))
-    nan = float("nan")
-    log.pose[-50] = EgoPose(nan, -0.0, 0.0, nan, 0.0, 0.0, nan)
-    log.pose[0] = EgoPose(1e308, 0.0, -1e-308, 179.0, 95.0, -400.0, 0.0)
-    log.actors[-50] = Actors((), np.empty((0, 3)), np.empty((0, 3)), np.empty((0, 3)))
-    log.actors[0] = Actors(
-        ("é", "0", "2147483648", "ユニコード", "a" * 7),
-        np.array([[nan, 0.0, -0.0]] * 5),
-        np.array([[0.0, nan, 0.0]] * 5),
-        np.array([[nan, -nan, 1.0]] * 5),
-    )
-    log.actors[2_000_000_050] = log.actors[0]
-    log.bboxes[0] = Boxes(
-        ("1", "ü"),
-        np.array([[nan, 1.0, -0.0, 3.0], [1e-300, 2.0, 3.0, 4.0]]),
-        ({"score": float("inf"), "n": 2**70}, {"nested": {"a": [1, nan]}, "id2": "x"}),
-    )
-    log.bboxes_gt[0] = Boxes((), np.empty((0, 4)), ())
-    log.predictions[0] = {}
-    log.predictions_with_perception[0] = {
-        "ü": Track(("x", "01", "2"), np.array([[nan, -nan, 0.0], [1.0, 0.0, -0.0], [2, 3, 4.0]])),
-        "empty": Track((), np.empty((0, 3))),
-    }
-    log.waypoints[0] = Plan(("0", "01", "x", "-3", "5"), np.full((5, 2), nan), np.full(5, nan))
-    log.waypoints[-50] = Plan((), np.empty((0, 2)), np.empty(0))
-    log.waypoints[2_000_000_050] = Plan(("01",), np.zeros((1, 2)), np.zeros(1))
-    inf = float("inf")
-    log.detections_3d[0] = Objects3D(
-        ("é", "", "ユニコード", "0" * 40),
-        np.array([[nan, -0.0, 1e308], [1e-300, 0.0, -5.0], [2.0, 3.0, 4.0], [0.0, 0.0, 0.0]]),
-        np.array([nan, -0.0, 540.0, -180.0]),
-        np.array([[nan, 1.0, 0.5], [0.0, 0.0, 0.0], [1e-320, 2.0, 3.0], [1.0, 1.0, 1.0]]),
-        np.array([[inf, -inf, nan], [nan, nan, nan], [-0.0, 0.0, 1.5], [1.0, 2.0, 3.0]]),
-        np.array([nan, inf, -0.0, 2.5]),
-        ("", "\u202e", 'q"uote', "\\"),
-    )
-    log.tracks_3d[-50] = Objects3D(
-        (), np.empty((0, 3)), np.empty(0), np.empty((0, 3)), np.empty((0, 3)), np.empty(0), ()
-    )
-    log.controls[0] = ControlCommand(nan, -inf, -0.0)
-    log.controls[2_000_000_050] = ControlCommand(1e-300, 0.0, 1e308)
-    # Points travel as float64 (NaN signs kept); scores, boxes and adjacency as JSON text
-    # (NaN and infinities by the strict-JSON convention, so no -NaN there).
-    log.lanes[0] = LaneGraph(
-        lane_ids=("é", "0", "ユニコード"),
-        lanes=(
-            np.array([[nan, -0.0, 1e308], [1e-300, -nan, -5.0]]),
-            np.empty((0, 3)),
-            np.array([[1.0, 2.0, 3.0]]),
-        ),
-        lane_scores=np.array([nan, inf, -0.0]),
-        element_ids=("\u202e", 'q"uote'),
-        element_boxes=np.array([[nan, 1.0, -0.0, 3.0], [1e-320, 2.0, 3.0, -inf]]),
-        element_category=np.array([1, 7]),
-        element_attribute=np.array([0, -99]),
-        element_scores=np.array([nan, 0.5]),
-        lane_lane=np.array([[nan, inf, 0.0], [-0.0, 1.0, 0.5], [0.0, 0.0, 1e-310]]),
-        lane_element=np.array([[1.0, 0.0], [nan, -inf], [0.25, 0.75]]),
-    )
-    log.lanes_predicted[-50] = LaneGraph.empty()
-    log.lanes_predicted[2_000_000_050] = log.lanes[0]
-    return log
 
 
 def test_awkward_values_encode_byte_for_byte() -> None:

@@ -7,35 +7,11 @@ import math
 import numpy as np
 import pytest
 from logcompare import assert_logs_equal
-from logfactory import make_log
+from logfactory import make_log, play_through_assembler
 
 from ads_rca.contract import convert, playback, topics
 from ads_rca.contract.assembler import RunLogAssembler, run_metadata
-from ads_rca.model import Boxes, Plan, RunLog
-
-
-def play_through_assembler(log: RunLog, *, serialise: bool = False) -> RunLogAssembler:
-    """Everything the player would send for ``log``, fed to an assembler (optionally CDR)."""
-    assembler = RunLogAssembler()
-
-    def send(key: str, msg: object) -> None:
-        if serialise:
-            from rclpy.serialization import deserialize_message, serialize_message
-
-            msg = deserialize_message(serialize_message(msg), topics.message_types()[key])
-        assembler.add(key, msg)
-
-    send(topics.METADATA, playback.metadata_message(log))
-    ticks = playback.timeline(log)
-    send(topics.STATUS, playback.status_message(playback.PLAYING, 0))
-    for tick in ticks:
-        send(topics.CLOCK, convert.clock_message(tick.stamp_ms))
-        messages = topics.frame_messages(log, tick.stamp_ms)
-        for key, msg in messages.items():
-            send(key, msg)
-        send(topics.FRAME, playback.frame_marker(tick, playback.published_names(messages), 50))
-    send(topics.STATUS, playback.status_message(playback.FINISHED, len(ticks)))
-    return assembler
+from ads_rca.model import Boxes, Plan
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

@@ -20,10 +20,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pytest
 from logcompare import assert_logs_equal
-from logfactory import add_3d, make_log
+from logfactory import add_3d, awkward_log, make_log, play_through_assembler
 from rclpy.serialization import serialize_message
-from test_contract_cdr import awkward_log
-from test_contract_convert import play_through_assembler
 
 from ads_rca.contract import playback, topics
 from ads_rca.contract.errors import MalformedMessage
@@ -435,8 +433,7 @@ def test_where_the_inputs_came_from_survives_folders_bags_and_messages(tmp_path:
 def test_player_dds_summary_and_recorder_keep_every_value(ros_env: RosEnv, tmp_path: Path) -> None:
     """The player sends a 3-D log; topic_summary (raw CDR, assembler, log-folder writer) and
     the recorder (bag) both give it back exactly."""
-    from rosrun import SUMMARY
-    from test_ros_recorder import recorded_counts, start_player, start_recorder
+    from rosrun import SUMMARY, recorded_counts, start_player, start_recorder
 
     from ads_rca.ros.launcher import Launcher, node_command
 

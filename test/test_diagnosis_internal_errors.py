@@ -132,7 +132,7 @@ def test_replay_says_internal_error_on_diagnostics_and_exits_70(
     """The monitors inherit the broken oracle from replay's environment. Played at half
     speed (4 s): /diagnostics is volatile, and the probe hears the monitors only once
     discovery matched them (up to ~2.5 s, docs of test_ros_live_graph)."""
-    from test_ros_live_graph import jsonl, start_probe
+    from rosrun import jsonl, start_probe
 
     diag_file = tmp_path / "diag.jsonl"
     probe = start_probe(ros_env, diag_file)

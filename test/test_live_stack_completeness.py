@@ -19,7 +19,7 @@ from typing import Any
 
 import pytest
 from stackgraph import crash
-from test_live_stack_mode import config
+from stacksettings import config
 
 from ads_rca.diagnosis.engine import diagnose
 from ads_rca.live.aggregate import AggregatorCore

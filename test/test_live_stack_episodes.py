@@ -16,7 +16,7 @@ import itertools
 
 import pytest
 from stackgraph import crash, offline, same_verdict
-from test_live_stack_mode import config
+from stacksettings import config
 
 from ads_rca.live.aggregate import AggregatorCore, VerdictOutcome
 from ads_rca.live.episodes import CURRENT, NEW, NEXT, PREVIOUS, EpisodeAggregator, EpisodeClock

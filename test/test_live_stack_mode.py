@@ -13,10 +13,10 @@ from typing import Any
 import pytest
 from golden_outputs import first_difference
 from stackgraph import crash, metrics_difference, offline, same_verdict
+from stacksettings import config
 
 from ads_rca.errors import ConfigError
 from ads_rca.live.simulate import LiveRun, run_stack, stack_stream
-from ads_rca.live.stack_config import STACK_PARAMETERS, StackConfig
 from ads_rca.live.window import WindowSettings
 from ads_rca.model import RunLog
 from ads_rca.params import make_params
@@ -28,12 +28,6 @@ CRASHES = [
 ]
 MODES = ("reference", "corrected")
 ATTRIBUTION_KEYS = ("primary_root_cause", "root_causes", "contributing", "partner_id")
-
-
-def config(input_timeout_s: float = 1.0, **values: Any) -> StackConfig:
-    defaults = {name: entry[0] for name, entry in STACK_PARAMETERS.items()}
-    facts = {"timesteps_per_frame": 50, "camera_loc.x": 1.3, "camera_loc.z": 1.8}
-    return StackConfig.from_values({**defaults, **facts, **values}, input_timeout_s=input_timeout_s)
 
 
 def live(log: RunLog, mode: str, history: int = 400, **stream: Any) -> LiveRun:

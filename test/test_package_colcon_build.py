@@ -8,12 +8,11 @@ AMENT_PREFIX_PATH) and checks that it publishes a log to a subscriber over DDS.
 from __future__ import annotations
 
 import os
-import subprocess
-import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import pytest
+from colconbuild import REPO, build_workspace, colcon
 from logfactory import make_log
 from rosrun import run_pair
 
@@ -23,40 +22,9 @@ from ads_rca.sources.log.writer import write_run_log
 if TYPE_CHECKING:
     from conftest import RosEnv
 
-REPO = Path(__file__).resolve().parent.parent
-COLCON = Path(sys.executable).parent / "colcon"
 
 # colcon is pinned in requirements-dev.txt: a missing colcon is a failure, not a skip.
 pytestmark = pytest.mark.timeout(180)
-
-
-def colcon(workspace: Path, *args: str) -> str:
-    env = dict(os.environ, PYTHONDONTWRITEBYTECODE="1")
-    result = subprocess.run(
-        [str(COLCON), "--log-base", str(workspace / "log"), *args],
-        cwd=workspace,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=150,
-        check=False,
-    )
-    assert result.returncode == 0, result.stdout + result.stderr
-    return result.stdout
-
-
-def build_workspace(workspace: Path) -> Path:
-    """``colcon build`` of this package in ``workspace``, as a user does; the install base."""
-    colcon(
-        workspace,
-        "build",
-        "--base-paths", str(REPO),
-        "--packages-select", "ads_rca",
-        "--build-base", str(workspace / "build"),
-        "--install-base", str(workspace / "install"),
-        "--executor", "sequential",
-    )  # fmt: skip
-    return workspace / "install"
 
 
 @pytest.fixture(scope="module")

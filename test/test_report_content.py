@@ -228,7 +228,7 @@ def test_every_headline_names_its_unit(mode: str) -> None:
 def test_a_hostile_log_with_nan_still_renders_as_text_only(tmp_path: Path) -> None:
     """Markup in every string and NaN poses: the new sections (scenes, notes, evidence
     tables) keep log text as text, and the series the NaN cuts short are explained."""
-    from test_report_escaping import assert_only_report_markup, hostile_log
+    from hostilereport import assert_only_report_markup, hostile_log
 
     folder, ids = hostile_log(tmp_path)
     for frame in range(60, 66):  # before the collision: the partner is still found

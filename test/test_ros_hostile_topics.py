@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import pytest
-from test_sources_bag_hostile_bags import convert
+from commandline import convert_example
 
 from ads_rca.contract import cdr, cdr_decode, live_topics, playback, rosmsg, topics
 from ads_rca.contract.errors import CdrError, JsonTextError, MalformedMessage, NoStamp
@@ -224,7 +224,7 @@ def test_deep_json_is_one_typed_error(depth: int, shape: str, extra: str) -> Non
 def _bag_with(tmp_path: Path, replace: dict[str, Any]) -> Path:
     """The example log as a bag, with the first message of each topic key in ``replace``
     swapped for replace[key](its rclpy-free message object) serialised again."""
-    source = convert(tmp_path / "source", "--compression", "none")
+    source = convert_example(tmp_path / "source", "--compression", "none")
     bag = tmp_path / "bag"
     done: set[str] = set()
     with McapBagWriter(bag, compression="none") as writer:
@@ -564,7 +564,7 @@ def test_absurd_numbers_in_a_result_are_one_malformed_message(field: str, value:
     fractions is refused as malformed, naming the field. It used to pass, then overflow the
     aggregator's int64 columns inside its callback (a traceback that ended the node), or,
     as a collision a monitor closed, hold every later verdict back."""
-    from test_live_stack_mode import config
+    from stacksettings import config
 
     from ads_rca.contract.errors import MalformedMessage
     from ads_rca.live.aggregate import AggregatorCore

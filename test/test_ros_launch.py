@@ -244,7 +244,7 @@ def launch_env(tmp_path_factory: pytest.TempPathFactory) -> dict[str, str]:
         pytest.skip(
             "ros2 launch is not installed (not on the package registries; a ROS install has it)"
         )
-    from test_package_colcon_build import build_workspace
+    from colconbuild import build_workspace
 
     prefix = build_workspace(tmp_path_factory.mktemp("launch_ws")) / "ads_rca"
     site = next((prefix / "lib").glob("python3*/site-packages"))
@@ -322,7 +322,7 @@ def test_ros2_launch_with_the_bridge_ends_once_it_forwarded_the_verdict(
     launch_env: dict[str, str], ros_env: RosEnv, tmp_path: Path
 ) -> None:
     from loopback import free_port
-    from test_ros_zenoh_bridge import listener, rows
+    from rosrun import listener, rows
 
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     out = tmp_path / "remote.jsonl"

@@ -11,7 +11,6 @@
 
 from __future__ import annotations
 
-import contextlib
 import itertools
 import json
 import sys
@@ -21,7 +20,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import pytest
-from rosrun import wait_for
+from rosrun import jsonl, start_probe, wait_for
 from synthlogs import CASES, write_log_with_unreadable_values
 from verdicts import assert_close, failed_flags, verdict_keys
 
@@ -37,18 +36,7 @@ if TYPE_CHECKING:
 
 pytestmark = pytest.mark.timeout(180)
 
-PROBE = Path(__file__).parent / "diag_probe.py"
 STALE = 3
-
-
-def jsonl(path: Path) -> list[dict[str, Any]]:
-    if not path.exists():
-        return []
-    rows = []
-    for line in path.read_text().splitlines():
-        with contextlib.suppress(ValueError):  # a line being written
-            rows.append(json.loads(line))
-    return rows
 
 
 @pytest.mark.parametrize("semantics", ["reference", "corrected"])
@@ -124,12 +112,6 @@ def test_replay_stops_at_once_when_a_node_fails(ros_env: RosEnv, tmp_path: Path)
     line = next(x for x in replay.lines if "no verdict" in x)
     assert "player exited early (status 2)" in line
     assert f"{not_a_log}: not an ADS running log" in line
-
-
-def start_probe(ros_env: RosEnv, path: Path) -> ManagedProcess:
-    probe = ManagedProcess("probe", [sys.executable, str(PROBE), str(path)], ros_env.env)
-    wait_for(lambda: "probe ready" in probe.output, 20, "the probe")
-    return probe
 
 
 def test_monitor_killed_and_restarted_goes_stale_recovers_and_a_verdict_comes(

@@ -19,10 +19,11 @@ import numpy as np
 import pytest
 from logcompare import assert_logs_equal
 from logfactory import make_log
+from rosrun import recorded_counts, start_player, start_recorder
 
 from ads_rca.contract import rosmsg, topics
 from ads_rca.contract.assembler import RunLogAssembler
-from ads_rca.ros.launcher import Launcher, ManagedProcess, ParamValue, node_command
+from ads_rca.ros.launcher import Launcher, ManagedProcess, node_command
 from ads_rca.sources.bag.reader import is_bag, iter_mcap_stream, read_bag
 from ads_rca.sources.log.reader import read_run_log
 from ads_rca.sources.log.writer import write_run_log
@@ -38,29 +39,6 @@ def log_dir(tmp_path: Path) -> Path:
     return write_run_log(make_log(20, 8, 3, duplicate_frame=True), tmp_path / "log")
 
 
-def start(launcher: Launcher, name: str, module: str, params: dict[str, ParamValue]) -> Any:
-    return launcher.start(name, node_command(module, params))
-
-
-def start_recorder(launcher: Launcher, bag: Path, ns: str, **extra: ParamValue) -> Any:
-    """The recorder writing ``bag``, listening under namespace ``ns``."""
-    params: dict[str, ParamValue] = {"output": str(bag), "topic_namespace": ns, **extra}
-    return start(launcher, "recorder", "ads_rca.ros.recorder", params)
-
-
-def start_player(launcher: Launcher, log_dir: Path, ns: str, **extra: ParamValue) -> Any:
-    """The player at rate 0, waiting for the recorder to subscribe first."""
-    params: dict[str, ParamValue] = {
-        "log_path": str(log_dir),
-        "rate": 0.0,
-        "topic_namespace": ns,
-        "wait_for_subscribers": 1,
-        "wait_timeout_s": 15.0,
-        **extra,
-    }
-    return start(launcher, "player", "ads_rca.ros.player", params)
-
-
 def announced(bag: Path) -> tuple[Counter[str], int]:
     """Per topic key, what the recorded frame markers announced; frames the status claims."""
     assembler = RunLogAssembler()
@@ -69,11 +47,6 @@ def announced(bag: Path) -> tuple[Counter[str], int]:
             if m.topic.endswith("/" + key):
                 assembler.add(key, rosmsg.deserialize(m.data, m.msg_type))
     return assembler.expected, int(assembler.status.get("frames_published", -1))
-
-
-def recorded_counts(bag: Path, ns: str) -> Counter[str]:
-    keys = {name: key for key, name in topics.topic_names(ns).items()}
-    return Counter(keys[m.topic] for m in iter_mcap_stream(next(bag.glob("*.mcap"))))
 
 
 def same_fields(a: Any, b: Any, name: str) -> None:

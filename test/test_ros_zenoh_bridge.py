@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Any
 import pytest
 from loopback import free_port
 from rosbags.typesys import Stores, get_typestore
-from rosrun import wait_for
+from rosrun import listener, rows, wait_for
 from verdicts import failed_flags, verdict_keys
 
 from ads_rca.contract.live_topics import metrics_qos
@@ -41,20 +41,7 @@ if TYPE_CHECKING:
 
 pytestmark = pytest.mark.timeout(180)
 
-LISTENER = Path(__file__).parent / "zenoh_listener.py"
 TYPESTORE = get_typestore(Stores.ROS2_KILTED)
-
-
-def rows(path: Path) -> list[dict[str, Any]]:
-    """The listener's lines so far (none before it opened its file; not a half-written one)."""
-    if not path.exists():
-        return []
-    return [json.loads(line) for line in path.read_text().splitlines() if line.endswith("}")]
-
-
-def listener(env: dict[str, str], out: Path, *options: str) -> ManagedProcess:
-    argv = [sys.executable, str(LISTENER), str(out), *options]
-    return ManagedProcess(out.stem, argv, env)
 
 
 def test_replay_over_zenoh_gives_every_result_the_verdict_and_late_catch_up(

@@ -18,8 +18,8 @@ from typing import TYPE_CHECKING
 
 import pytest
 import yaml
-from commandline import assert_clean, run_limited
-from test_ros_recorder import start_player, start_recorder
+from commandline import assert_clean, convert_example, run_limited
+from rosrun import start_player, start_recorder
 
 from ads_rca.cli import main as cli
 from ads_rca.contract import topics
@@ -39,20 +39,15 @@ ADS_RCA = Path(sys.executable).parent / "ads-rca"
 CUT = "the messages before the cut are used"
 
 
-def convert(out: Path, *options: str) -> Path:
-    assert cli(["convert", str(EXAMPLE), str(out), *options]) == 0
-    return out
-
-
 @pytest.fixture(scope="module")
 def bags(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     root = tmp_path_factory.mktemp("hostile")
     return {
-        "zstd": convert(root / "zstd", "--chunk-size", "16384"),
-        "zstd_1MiB": convert(root / "zstd_1MiB"),
-        "none": convert(root / "none", "--chunk-size", "16384", "--compression", "none"),
-        "lz4": convert(root / "lz4", "--chunk-size", "16384", "--compression", "lz4"),
-        "sqlite3": convert(root / "sqlite3", "--storage", "sqlite3"),
+        "zstd": convert_example(root / "zstd", "--chunk-size", "16384"),
+        "zstd_1MiB": convert_example(root / "zstd_1MiB"),
+        "none": convert_example(root / "none", "--chunk-size", "16384", "--compression", "none"),
+        "lz4": convert_example(root / "lz4", "--chunk-size", "16384", "--compression", "lz4"),
+        "sqlite3": convert_example(root / "sqlite3", "--storage", "sqlite3"),
     }
 
 
@@ -97,7 +92,7 @@ def verdict(path: Path, capsys: pytest.CaptureFixture[str]) -> tuple[int, str, s
     return code, out, err
 
 
-# --- 8: truncated storage files -------------------------------------------------------------
+# --- truncated storage files --------------------------------------------------------------
 
 
 @pytest.mark.parametrize("kind", ["zstd", "none", "lz4"])
@@ -201,7 +196,7 @@ def test_cut_sqlite3_is_said(bags: dict[str, Path], tmp_path: Path) -> None:
     assert partial >= 3
 
 
-# --- 9: damaged messages --------------------------------------------------------------------
+# --- damaged messages ---------------------------------------------------------------------
 
 
 def flip(data: bytes, start: int, n: int = 50) -> bytes:
@@ -243,7 +238,7 @@ def test_damaged_messages_are_skipped_and_said(
 
 def test_absurd_lengths_are_refused_not_allocated(tmp_path: Path) -> None:
     """A sequence count of 2**31 in a MarkerArray, a chunk claiming 2**40 bytes: refused."""
-    bag = convert(tmp_path / "bag", "--compression", "none", "--chunk-size", "16384")
+    bag = convert_example(tmp_path / "bag", "--compression", "none", "--chunk-size", "16384")
     mcap = storage_file(bag)
     messages = list(iter_mcap_stream(mcap))
     actors = next(m for m in messages if m.topic.endswith("/" + topics.ACTORS))
@@ -297,7 +292,7 @@ def test_a_bag_with_a_hostile_size_field_in_a_string(tmp_path: Path) -> None:
         read_bag(bag)  # the only metadata is garbage: one line naming why
 
 
-# --- 10: a metadata.yaml that lies ----------------------------------------------------------
+# --- a metadata.yaml that lies ------------------------------------------------------------
 
 
 @pytest.mark.parametrize("kind", ["zstd", "sqlite3"])
@@ -352,7 +347,7 @@ def test_unreadable_metadata_yaml_falls_back_to_the_storage(
     assert p.file == "metadata.yaml" and "unreadable" in p.issue
 
 
-# --- 14: a SIGKILLed recorder -------------------------------------------------------------
+# --- a SIGKILLed recorder -----------------------------------------------------------------
 
 
 def test_sigkilled_recording_is_reported_as_cut(
@@ -388,7 +383,7 @@ def test_sigkilled_recording_is_reported_as_cut(
     assert "bag_0.mcap: data section: truncated after" in out, out
 
 
-# --- 1 for bags: storage files and metadata.yaml that are not regular files ----------------
+# --- storage files and metadata.yaml that are not regular files ----------------------------
 
 
 def _not_regular(path: Path, kind: str) -> None:

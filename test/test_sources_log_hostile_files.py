@@ -58,7 +58,7 @@ def problems_of(done: subprocess.CompletedProcess[str]) -> list[dict[str, Any]]:
     return list(json.loads(done.stdout)["problems"])
 
 
-# --- 1. only regular files, at most max_file_mb ---------------------------------------
+# --- only regular files, at most max_file_mb ------------------------------------------
 
 
 @pytest.mark.parametrize("command", ["diagnose", "inspect", "convert"])
@@ -156,7 +156,7 @@ def test_max_problems_must_not_be_negative(log_dir: Path, command: str) -> None:
     assert_clean(run_limited(command, str(log_dir), "--max-problems", "0"))
 
 
-# --- 2. JSON nested too deep ------------------------------------------------------------
+# --- JSON nested too deep ---------------------------------------------------------------
 
 
 def _nested(depth: int) -> str:
@@ -229,7 +229,7 @@ def test_nesting_the_parser_reads_never_overflows_later(log_dir: Path, tmp_path:
     assert_clean(run_limited("convert", str(tmp_path / "bag"), str(tmp_path / "back")))
 
 
-# --- 5. output paths checked before the work --------------------------------------------
+# --- output paths checked before the work -----------------------------------------------
 
 
 def _unwritable_outputs(tmp_path: Path) -> dict[str, Path]:
@@ -299,7 +299,7 @@ def test_replay_refuses_an_unwritable_output_before_starting_the_graph(
     assert done.stderr.startswith(f"ads-rca replay: error: --record {record}: ")
 
 
-# --- 6. metadata.json numbers -----------------------------------------------------------
+# --- metadata.json numbers --------------------------------------------------------------
 
 
 def _metadata(log_dir: Path) -> dict[str, Any]:
@@ -540,7 +540,7 @@ def test_the_largest_doubles_are_judged_without_numpy_warnings(
     assert json.loads(out.read_text())["frames"]  # judged, frame by frame
 
 
-# --- 7. control characters never reach the terminal raw ---------------------------------
+# --- control characters never reach the terminal raw ------------------------------------
 
 
 def _terminal_safe(text: str) -> None:

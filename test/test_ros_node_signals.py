@@ -51,7 +51,10 @@ def test_group_signal_stops_every_node_cleanly(
         params=make_params("corrected"),
         verdict_json=tmp_path / "verdict.json",
         namespace=ros_env.namespace,
-        rate=0.5,  # about 8 s of playing: the signal comes mid-run
+        # 0.1: about 40 s of playing. The 8th result reaches the aggregator about halfway
+        # through the run; at 0.5 that left ~4 s, and a loaded machine (parallel tests) could
+        # finish the run, verdict included, before the signal.
+        rate=0.1,
         record=tmp_path / "bag",
         metrics_log=metrics,
         monitors=layout,

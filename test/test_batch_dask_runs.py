@@ -116,6 +116,7 @@ def diagnose_json(path: Path, out: Path) -> bytes:
     return out.read_bytes()
 
 
+@pytest.mark.slow
 def test_200_runs_match_diagnose_one_by_one(
     runs: Callable[[int], list[Path]], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -166,6 +167,7 @@ def _view(rows: list[dict[str, object]]) -> list[dict[str, object]]:
     ]
 
 
+@pytest.mark.slow
 def test_corrupt_and_hanging_runs_are_rows_and_the_rest_complete(
     runs: Callable[[int], list[Path]], tmp_path: Path
 ) -> None:
@@ -232,6 +234,7 @@ def _wait_rows(out: Path, n: int, process: subprocess.Popen[str], limit: float =
         time.sleep(0.05)
 
 
+@pytest.mark.slow
 def test_a_worker_killed_mid_batch_still_yields_every_row(
     runs: Callable[[int], list[Path]], tmp_path: Path
 ) -> None:
@@ -254,6 +257,7 @@ def test_a_worker_killed_mid_batch_still_yields_every_row(
     assert len({r["worker"] for r in rows}) >= 2
 
 
+@pytest.mark.slow
 def test_ctrl_c_keeps_finished_rows_and_resume_completes_without_redoing(
     runs: Callable[[int], list[Path]], tmp_path: Path
 ) -> None:

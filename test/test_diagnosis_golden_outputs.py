@@ -8,9 +8,11 @@ floats must be equal and floats must agree to ``REL_TOL`` (``golden_outputs.py``
 
 from __future__ import annotations
 
+import pytest
 from golden_outputs import REL_TOL, cases, first_difference, outputs, stored
 
 
+@pytest.mark.slow
 def test_diagnose_json_is_the_recorded_output() -> None:
     recorded = stored()
     assert len(recorded) == 2 * (1 + len(cases()))

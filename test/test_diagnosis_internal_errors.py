@@ -126,6 +126,7 @@ def test_diagnose_in_forked_workers_says_the_same(tmp_path: Path, modules: str) 
     assert outputs[0]["verdict"] == outputs[1]["verdict"]
 
 
+@pytest.mark.slow
 def test_replay_says_internal_error_on_diagnostics_and_exits_70(
     ros_env: RosEnv, tmp_path: Path, log_dirs: Callable[[str, str], Path]
 ) -> None:

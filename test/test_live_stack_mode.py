@@ -40,6 +40,7 @@ def verdict_of(run: LiveRun) -> dict[str, Any]:
     return run.outcome.document
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("mode", MODES)
 def test_every_crash_judged_live_equals_diagnose(mode: str) -> None:
     for scenario, fault in CRASHES:
@@ -72,6 +73,7 @@ def test_the_default_history_keeps_the_attribution_exact(mode: str) -> None:
         assert first_difference(want["evidence"], verdict["evidence"]) is None
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("mode", MODES)
 def test_two_percent_of_an_input_dropped(mode: str) -> None:
     same = 0

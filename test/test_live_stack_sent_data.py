@@ -142,6 +142,7 @@ def without(log: RunLog, folder: str, stamps: list[int]) -> RunLog:
     return RunLog.from_folders(log.metadata, log.frames, records, source=log.source)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("mode", MODES)
 def test_the_data_sent_is_judged_as_diagnose_judges_it(mode: str) -> None:
     """2 % of one input dropped (bboxes, predictions, waypoint in turn over the grid): the

@@ -59,6 +59,7 @@ def last_second(log: RunLog) -> list[int]:
     return [t for t in log.unique_frames if cf_ms - 1000 < t <= cf_ms]
 
 
+@pytest.mark.slow
 def test_the_most_threatening_actor_is_the_partner_before_the_crash() -> None:
     """Measured: 302 of the 304 frames with a defined clearance name the real partner (16
     crashes x 20 frames; the collision frame, the log's last, has no look-ahead, so no

@@ -865,6 +865,7 @@ def prediction_logs(draw: st.DrawFn) -> tuple[RunLog, float, int]:
     return b.build(), draw(st.sampled_from([0.1, 0.5])), ts_judged
 
 
+@pytest.mark.slow
 @settings(max_examples=500, deadline=None)
 @given(prediction_logs())
 def test_prediction_matches_slow_sequential(case: tuple[RunLog, float, int]) -> None:

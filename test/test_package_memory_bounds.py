@@ -217,6 +217,7 @@ def feed(core: AggregatorCore, template: list[FrameResults], start: int, stop: i
             core.add_result(LiveResult.from_document(moved.to_document()), 0.0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("semantics", ["reference", "corrected"])
 def test_the_aggregator_core_retains_little_per_frame(semantics: str) -> None:
     """Results are spilled to disk: from 2,000 to 10,000 frames the core's retained memory

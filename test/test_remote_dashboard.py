@@ -212,6 +212,7 @@ def _module_statuses(page: Any) -> dict[str, tuple[str, int]]:
     return found
 
 
+@pytest.mark.slow
 def test_the_page_follows_a_live_replay_without_reload(browser: Any) -> None:
     with feed("car1", pace=0.015, start_after=2.5) as car, dashboard(car.endpoint) as board:
         page = browser.new_page()

@@ -114,6 +114,7 @@ def test_replay_stops_at_once_when_a_node_fails(ros_env: RosEnv, tmp_path: Path)
     assert f"{not_a_log}: not an ADS running log" in line
 
 
+@pytest.mark.slow
 def test_monitor_killed_and_restarted_goes_stale_recovers_and_a_verdict_comes(
     ros_env: RosEnv, tmp_path: Path, log_dirs: Callable[[str, str], Path]
 ) -> None:
@@ -198,6 +199,7 @@ def test_monitor_killed_and_restarted_goes_stale_recovers_and_a_verdict_comes(
     assert len(sessions) == 2  # results from before and after the restart
 
 
+@pytest.mark.slow
 def test_stalled_input_is_reported_and_not_waited_on_forever(
     ros_env: RosEnv, tmp_path: Path, log_dirs: Callable[[str, str], Path]
 ) -> None:
@@ -251,6 +253,7 @@ def _stream(path: Path) -> dict[str, list[dict[str, Any]]]:
     return out
 
 
+@pytest.mark.slow
 def test_three_replays_give_identical_metric_streams_and_verdicts(
     ros_env: RosEnv, tmp_path: Path, log_dirs: Callable[[str, str], Path]
 ) -> None:

@@ -40,6 +40,7 @@ def lines_in(path: Path) -> int:
         return 0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("layout", [MONITORS_SHARED, MONITORS_SEPARATE])
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_group_signal_stops_every_node_cleanly(

@@ -105,6 +105,7 @@ def test_two_replays_on_one_domain_and_namespace_give_their_own_verdicts(
     assert verdicts[0]["live"]["run"] != verdicts[1]["live"]["run"]
 
 
+@pytest.mark.slow
 def test_graph_ignores_a_foreign_player_on_its_namespace(
     ros_env: RosEnv, tmp_path: Path, log_dirs: Callable[[str, str], Path]
 ) -> None:

@@ -256,6 +256,7 @@ def test_the_stack_config_file_describes_the_test_stacks_layout(layout: str) -> 
             assert before.lstrip().startswith("#"), f"{path.name}: {line.strip()} has no comment"
 
 
+@pytest.mark.slow
 def test_without_its_subscribers_the_stack_gives_up_in_one_line(ros_env: RosEnv) -> None:
     done = run_publisher(ros_env, "--synth", "cut_in:none:1", "--namespace", ros_env.namespace)
     assert (done.returncode, done.stdout) == (1, "")

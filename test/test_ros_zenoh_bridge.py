@@ -44,6 +44,7 @@ pytestmark = pytest.mark.timeout(180)
 TYPESTORE = get_typestore(Stores.ROS2_KILTED)
 
 
+@pytest.mark.slow
 def test_replay_over_zenoh_gives_every_result_the_verdict_and_late_catch_up(
     ros_env: RosEnv, tmp_path: Path, log_dirs: Callable[[str, str], Path]
 ) -> None:
@@ -255,6 +256,7 @@ def test_bad_replay_zenoh_options_are_one_line_before_any_node(
     assert len(lines) == 1 and message in lines[0], replay.output
 
 
+@pytest.mark.slow
 def test_watch_started_before_a_rate_limited_replay_ends_with_every_frame_counted(
     ros_env: RosEnv, tmp_path: Path, log_dirs: Callable[[str, str], Path]
 ) -> None:

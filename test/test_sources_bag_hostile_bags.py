@@ -95,6 +95,7 @@ def verdict(path: Path, capsys: pytest.CaptureFixture[str]) -> tuple[int, str, s
 # --- truncated storage files --------------------------------------------------------------
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["zstd", "none", "lz4"])
 @pytest.mark.parametrize("with_yaml", [True, False])
 def test_every_cut_of_an_mcap_is_said(
@@ -206,6 +207,7 @@ def flip(data: bytes, start: int, n: int = 50) -> bytes:
     return bytes(out)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["none", "sqlite3"])
 def test_damaged_messages_are_skipped_and_said(
     bags: dict[str, Path], tmp_path: Path, kind: str

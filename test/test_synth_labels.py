@@ -31,6 +31,11 @@ from ads_rca.synth import synthesise
 if TYPE_CHECKING:
     from conftest import RosEnv
 
+#: Every scenario x fault; cruise (2000 frames, every other log about 100) is slow.
+CASES = [
+    pytest.param(*case, id="-".join(case), marks=[pytest.mark.slow] if case[0] == "cruise" else [])
+    for case in cases()
+]
 #: One live case per mode (a crash with a partner, so the partner label could matter).
 LIVE_CASES = [("reference", "cut_in", "perception"), ("corrected", "lead_braking", "prediction")]
 
@@ -52,7 +57,7 @@ def verdict(log_dir: Path, semantics: str) -> dict[str, Any]:
     return document
 
 
-@pytest.mark.parametrize(("scenario", "fault"), cases(), ids=["-".join(c) for c in cases()])
+@pytest.mark.parametrize(("scenario", "fault"), CASES)
 def test_synthesised_metadata_names_the_fault_and_partner(
     tmp_path: Path, scenario: str, fault: str
 ) -> None:
@@ -67,7 +72,7 @@ def test_synthesised_metadata_names_the_fault_and_partner(
     assert read_run_log(log_dir).metadata.raw["synthesis"] == label
 
 
-@pytest.mark.parametrize(("scenario", "fault"), cases(), ids=["-".join(c) for c in cases()])
+@pytest.mark.parametrize(("scenario", "fault"), CASES)
 def test_removing_synthesis_leaves_every_offline_verdict_unchanged(
     tmp_path: Path, scenario: str, fault: str
 ) -> None:
@@ -97,6 +102,7 @@ def recorded_metadata(bag: Path, tmp: Path) -> dict[str, Any]:
     return document
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(300)
 @pytest.mark.parametrize(("semantics", "scenario", "fault"), LIVE_CASES)
 def test_removing_synthesis_leaves_the_live_verdict_unchanged(

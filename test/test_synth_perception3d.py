@@ -288,6 +288,7 @@ def _hashes_written(out: Path) -> None:
     print(json.dumps(hashes))
 
 
+@pytest.mark.slow
 def test_the_existing_faults_write_the_same_bytes_as_before(tmp_path: Path) -> None:
     code = (
         "import test_synth_perception3d as t, pathlib;"

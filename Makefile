@@ -34,8 +34,13 @@ demo: $(STAMP)
 	$(BIN)/ads-rca replay $(EXAMPLE) --domain-id $(ROS_DOMAIN_ID) \
 		--json $(OUT)/replay_verdict.json --record $(OUT)/replay_recording
 
+# The suite waits much of its time (DDS discovery, child processes), so it runs in TEST_WORKERS
+# pytest-xdist workers even on 2 cores: each test file on one worker (its module fixtures built
+# once), the costliest files first (test/conftest.py orders them), each worker on its own slice
+# of ROS domains.
+TEST_WORKERS ?= 4
 test: $(STAMP)
-	$(BIN)/python -m pytest -q test
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder test
 
 lint: $(STAMP)
 	$(BIN)/ruff check ads_rca test bench launch_scripts setup.py

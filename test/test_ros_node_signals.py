@@ -2,9 +2,10 @@
 
 A terminal's Ctrl-C reaches every process of the foreground group at once, and ``ros2
 launch`` runs its nodes in its own group. The graph's nodes (player, monitors, aggregator,
-recorder) are started by a leader in one fresh process group (``pgroup.py``); once results
-flow (the aggregator's ``metrics_log`` has lines: every node is spinning in its executor),
-the signal goes to the group. Each node must stop spinning, close, destroy its node, shut
+recorder) are started by a leader in one fresh process group (``pgroup.py``); once every
+monitor and the aggregator have handled the run's first message (each monitor says "judging
+run", the aggregator its frame period: their executors are spinning), the signal goes to the
+group, mid-run. Each node must stop spinning, close, destroy its node, shut
 rclpy down and exit 0, with no C++ abort ("terminate called ... error_already_set") and no
 traceback, in both monitor layouts.
 """
@@ -33,11 +34,12 @@ LEADER = Path(__file__).resolve().parent / "pgroup.py"
 pytestmark = pytest.mark.timeout(180)
 
 
-def lines_in(path: Path) -> int:
+def said(out: Path, name: str, text: str) -> bool:
+    """Whether node ``name`` has written ``text`` to its output file so far."""
     try:
-        return len(path.read_text().splitlines())
+        return text in (out / f"{name}.out").read_text()
     except OSError:
-        return 0
+        return False
 
 
 @pytest.mark.slow
@@ -52,10 +54,7 @@ def test_group_signal_stops_every_node_cleanly(
         params=make_params("corrected"),
         verdict_json=tmp_path / "verdict.json",
         namespace=ros_env.namespace,
-        # 0.1: about 40 s of playing. The 8th result reaches the aggregator about halfway
-        # through the run; at 0.5 that left ~4 s, and a loaded machine (parallel tests) could
-        # finish the run, verdict included, before the signal.
-        rate=0.1,
+        rate=0.5,  # about 8 s of playing: the signal comes mid-run
         record=tmp_path / "bag",
         metrics_log=metrics,
         monitors=layout,
@@ -68,7 +67,18 @@ def test_group_signal_stops_every_node_cleanly(
         start_new_session=True,
     )
     try:
-        wait_for(lambda: lines_in(metrics) >= 8, 90.0, "results reaching the aggregator")
+        # Not the results: in corrected mode the example's results all come at its collision,
+        # its last frame, a moment before the verdict, so a signal sent on them could come
+        # after the verdict on a loaded machine.
+        monitors = [name for name in commands if "monitor" in name]
+        wait_for(
+            lambda: (
+                all(said(tmp_path, name, "judging run") for name in monitors)
+                and said(tmp_path, "aggregator", " ms per frame, ")
+            ),
+            90.0,
+            "every monitor and the aggregator handling the run",
+        )
         assert leader.poll() is None
         os.killpg(leader.pid, sig)
         assert leader.wait(60.0) == 0

@@ -362,6 +362,7 @@ class MonitorInputs:
         first = next(iter(unit.nodes.values()))
         self.runs = RunFilter(first.run_id)
         core.run = first.run_id
+        self._greeted = False  # "judging run" said on the run's first accepted message
         lossless = [k for k, f in topics.TOPIC_FOLDERS.items() if f in core.folders]
         namespace = self.node_namespace = first.namespace
         # Data topics arrive as CDR bytes and are decoded straight into model records
@@ -442,10 +443,10 @@ class MonitorInputs:
     def _ours(self, document: dict[str, Any], info: Any, player: bool = True) -> bool:
         """A message of our run (the first one locks the run; the first of the ``player``'s
         its participant)."""
-        known = self.runs.run
         if not self.runs.accept(document, info, player=player):
             return False
-        if known is None and self.runs.run is not None:
+        if not self._greeted and self.runs.run is not None:
+            self._greeted = True
             self.unit.core.run = self.runs.run
             self.node.get_logger().info(f"judging run {self.runs.run}")
         return True

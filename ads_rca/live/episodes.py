@@ -30,7 +30,7 @@ heard before any of its results is not taken for the old episode's. Pure: no rcl
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from typing import Literal
 
 from ads_rca.live.aggregate import AggregatorCore, VerdictOutcome
@@ -124,16 +124,8 @@ class EpisodeReport:
         )
 
     def to_document(self) -> dict[str, object]:
-        return {
-            "episode": self.episode,
-            "next_episode": self.next_episode,
-            "frames": self.frames,
-            "first_frame": self.first_frame,
-            "last_frame": self.last_frame,
-            "collisions": self.collisions,
-            "verdicts": self.verdicts,
-            "deciding": self.deciding,
-        }
+        """Every field by its name, in field order."""
+        return asdict(self)
 
     @classmethod
     def of(cls, core: AggregatorCore, next_episode: int) -> EpisodeReport:

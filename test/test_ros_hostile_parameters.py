@@ -77,6 +77,16 @@ RANGE_CASES = [
         "parameter perception_check: '4d' is not one of auto | 2d | 3d",
     ),
     (
+        "monitors",
+        "episode_rewind_s:=.nan",
+        "parameter episode_rewind_s: nan is out of range [0, 86400] s",
+    ),
+    (
+        "ads_rca.ros.aggregator",
+        "episode_rewind_s:=-1.0",
+        "parameter episode_rewind_s: -1 is out of range [0, 86400] s",
+    ),
+    (
         "ads_rca.ros.aggregator",
         "window_s:=-3",
         "parameter window_s: -3 is out of range [0, 3600] s",

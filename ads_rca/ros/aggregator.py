@@ -143,7 +143,8 @@ class Aggregator(Node):
         if p["metrics_log"]:
             path = Path(str(p["metrics_log"]))
             path.parent.mkdir(parents=True, exist_ok=True)
-            self._metrics_log = path.open("w", encoding="utf-8")
+            # Line-buffered: a reader (a test, a tail -f) sees each result as it arrives.
+            self._metrics_log = path.open("w", encoding="utf-8", buffering=1)
         self.heard: dict[Module, float] = {}
         #: Monitors a result was received from: the first one of each is said, so a log
         #: shows whether the aggregator hears the graph at all.

@@ -24,12 +24,17 @@ setup(
     name=PACKAGE,
     version="0.1.0",
     packages=find_packages(include=[PACKAGE, f"{PACKAGE}.*"]),
-    # The built-in profiles, the stacks' .msg files (with their licences) that synthesised
-    # recordings are typed by, and the web dashboard's page.
+    # The built-in profiles, the definitions (with their licences) the bag reader falls back
+    # on for old recordings, the stacks' .msg files that synthesised recordings are typed by,
+    # and the web dashboard's page.
     package_data={
         PACKAGE: [
             "py.typed",
             "sources/bag/profiles/builtin/*.yaml",
+            "sources/bag/definitions/README.md",
+            "sources/bag/definitions/*/LICENSE",
+            "sources/bag/definitions/*/msg/*.idl",
+            "sources/bag/definitions/*/msg/*.msg",
             "synth/msgs/README.md",
             "synth/msgs/*/LICENSE",
             "synth/msgs/*/msg/*.msg",

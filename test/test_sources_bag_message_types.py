@@ -307,6 +307,51 @@ def test_an_idl_definition_is_read_too(tmp_path: Path, storage: StoragePlugin) -
     assert (types.source(reading), types.problems) == ("bag", [])
 
 
+LEGACY_SHAPE = "autoware_auto_perception_msgs/msg/Shape"
+#: rosidl's IDL of a type, as rosbag2 stores it: include lines, annotations, comments.
+SHAPE_IDL = """#include "geometry_msgs/msg/Polygon.idl"
+
+module autoware_auto_perception_msgs {
+  module msg {
+    module Shape_Constants {
+      const uint8 BOUNDING_BOX=0;
+    };
+    @verbatim (language="comment", text=
+      " x: the length (BOUNDING_BOX) or diameter (CYLINDER)" "\\n" " (in m)")
+    struct Shape {
+      /** its type */
+      uint8 type;
+      geometry_msgs::msg::Polygon footprint;
+      @default (value=0.0)
+      geometry_msgs::msg::Vector3 dimensions;
+    };
+  };
+};
+"""
+
+
+def test_an_idl_definition_with_includes_and_annotations_is_read() -> None:
+    types = BagTypes("bag", {LEGACY_SHAPE: ("ros2idl", f"{SEP}IDL: {LEGACY_SHAPE}\n{SHAPE_IDL}")})
+    types.require([LEGACY_SHAPE])
+    assert (types.source(LEGACY_SHAPE), types.problems) == ("bag", [])
+    assert not types.differs_from_shipped(LEGACY_SHAPE)
+
+
+def test_the_shipped_definitions_decode_the_legacy_types_an_old_bag_lacks(tmp_path: Path) -> None:
+    """autoware_auto_*_msgs and MrmState need no --msg-path; a standard type stays Kilted's,
+    and a definition under --msg-path wins over the shipped one."""
+    types = BagTypes("bag", {})
+    legacy = "autoware_auto_perception_msgs/msg/PredictedObjects"
+    types.require([legacy, "autoware_adapi_v1_msgs/msg/MrmState"])
+    assert types.source(legacy) == types.source(LEGACY_SHAPE) == "shipped"
+    assert types.source("geometry_msgs/msg/Polygon") == "standard"
+    package = tmp_path / "autoware_auto_perception_msgs" / "msg"
+    package.mkdir(parents=True)
+    (package / "Shape.msg").write_text("uint8 type\nfloat64 size\n")
+    mine = BagTypes("bag", {}, msg_path=tmp_path)
+    assert mine.source(LEGACY_SHAPE) == "msg-path" and mine.differs_from_shipped(LEGACY_SHAPE)
+
+
 def test_a_type_embedding_another_layout_of_a_bag_type_is_refused() -> None:
     """Wrap's bytes hold the String its text embeds; the bag's own String has another
     layout, so Wrap cannot be decoded with it (String itself still can)."""

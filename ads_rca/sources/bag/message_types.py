@@ -5,8 +5,12 @@ A stack's recording carries its own layouts (MCAP schemas, rosbag2's sqlite3
 into a rosbags type store for that bag alone, the first layer that defines a type winning:
 the bag's own text for it (what the bytes were written with), what the bag's other texts
 embed for it, ``.msg`` files under ``--msg-path`` (for an older sqlite3 bag that stores
-none), Kilted's standard types. A text is parsed when a type first needs it: a recording of
-a whole stack carries hundreds of types, a diagnosis reads a few.
+none), the definitions shipped with the package for the types the built-in profiles read
+that old recordings carry without them (``sources/bag/definitions/``: Autoware's legacy
+``autoware_auto_*_msgs``, ``autoware_adapi_v1_msgs/MrmState``), Kilted's standard types. A
+text is parsed when a type first needs it: a recording of a whole stack carries hundreds of
+types, a diagnosis reads a few. IDL texts are read without their preprocessor lines
+(``#include``), which rosbag2 stores and rosbags' parser does not take.
 
 A definition is untrusted text, and rosbags turns a registered type into Python source that
 it executes. So before anything is registered, every name in it (types, fields, constants)
@@ -66,6 +70,13 @@ MAX_UNROLLED = 1024
 _TYPE_NAME = re.compile(r"[a-z][a-z0-9_]*/(msg|srv|action)/[A-Za-z][A-Za-z0-9_]*\Z")
 _FIELD_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
 _IDL_SEPARATOR = "=" * 80 + "\n"
+#: An IDL preprocessor line (``#include "pkg/msg/Type.idl"``): rosidl's files and the
+#: ``ros2idl`` definitions rosbag2 stores have them, rosbags' parser takes none.
+_PREPROCESSOR = re.compile(r"^[ \t]*#[^\n]*$", re.MULTILINE)
+#: An IDL annotation (``@verbatim (language="comment", text="...")``, ``@default (value=0)``):
+#: no layout depends on one, and rosbags' parser takes six times as long with them
+#: (possessive, so a hostile text without its parenthesis costs no backtracking).
+_ANNOTATION = re.compile(r'@[A-Za-z_]\w*(?:\s*\((?:"(?:\\.|[^"\\])*+"|[^()"])*+\))?')
 MSG_PATH_HINT = "give --msg-path DIR with their .msg files"
 _NOT_DEFINED = "type not defined"
 
@@ -96,6 +107,32 @@ def normalise(name: str) -> str:
 def _kilted() -> Typesdict:
     """Kilted's standard types (rosbags' store, read once)."""
     return get_typestore(Stores.ROS2_KILTED).fielddefs
+
+
+#: The definitions shipped with the package (``definitions/<pkg>/msg/<Type>.msg|.idl``).
+SHIPPED_DIR = Path(__file__).resolve().parent / "definitions"
+
+
+@cache
+def shipped_files() -> dict[str, Path]:
+    """``pkg/msg/Type`` → its shipped definition file."""
+    return {
+        f"{path.parent.parent.name}/msg/{path.stem}": path
+        for path in sorted(SHIPPED_DIR.glob("*/msg/*"))
+        if path.suffix in (".msg", ".idl")
+    }
+
+
+@cache
+def shipped(name: str) -> TypeDef | None:
+    """``name`` as the package's shipped file defines it (None: none shipped). The files
+    are the packages' published text: one that does not parse is a bug, raised."""
+    path = shipped_files().get(name)
+    if path is None:
+        return None
+    text = path.read_text(encoding="utf-8")
+    parsed = _types_from_idl(text) if path.suffix == ".idl" else get_types_from_msg(text, name)
+    return parsed[name]
 
 
 class BagTypes:
@@ -210,20 +247,37 @@ class BagTypes:
         if name in self._refused:
             return None
         found = self._store.fielddefs.get(name) or self._bag_text(name)
-        for layer in (self._embedded, self._from_msg_path, _kilted()):
+        for layer in (self._embedded, self._from_msg_path):
             if found is None:
                 found = layer.get(name)
-        return found
+        if found is None and _TYPE_NAME.match(name):
+            found = shipped(name)
+        return found if found is not None else _kilted().get(name)
 
     def source(self, msg_type: str) -> str | None:
-        """Where ``msg_type``'s definition comes from: "bag", "msg-path", "standard" (Kilted's
-        types), or None when it has none (or an unusable one)."""
+        """Where ``msg_type``'s definition comes from: "bag", "msg-path", "shipped" (the
+        package's ``definitions/``), "standard" (Kilted's types), or None when it has none
+        (or an unusable one)."""
         name = normalise(msg_type)
         if self._lookup(name) is None:
             return None
         if name in self._own or name in self._embedded:
             return "bag"
-        return "msg-path" if name in self._from_msg_path else "standard"
+        if name in self._from_msg_path:
+            return "msg-path"
+        return "shipped" if name in shipped_files() else "standard"
+
+    def differs_from_shipped(self, msg_type: str) -> bool:
+        """The definitions used for ``msg_type`` and the types it holds are not all the
+        shipped ones (another layout of a type the package ships: a bag written with another
+        version of its package)."""
+        order, _lacks, _broken = self._check(normalise(msg_type))
+        for name in order:
+            own = shipped(name) if name in shipped_files() else None
+            used = self._lookup(name)
+            if own is not None and used is not None and used[1] != own[1]:
+                return True
+        return False
 
     # --- checking and registering ----------------------------------------------------------
 
@@ -356,14 +410,20 @@ def _types_from_idl(text: str) -> Typesdict:
     """Types of an ``ros2idl`` definition: one IDL text, or rosbag2's concatenation of
     them (each after a separator line and an ``IDL: pkg/msg/Type`` header)."""
     if not text.startswith(_IDL_SEPARATOR + "IDL: "):
-        return get_types_from_idl(text)
+        return get_types_from_idl(_plain_idl(text))
     parsed: Typesdict = {}
     for part in text.split(_IDL_SEPARATOR)[1:]:
         header, _, idl = part.partition("\n")
         if not header.startswith("IDL: "):
             raise TypesysError(f"an IDL part starts with {header[:40]!r}, not 'IDL: '")
-        parsed.update(get_types_from_idl(idl))
+        parsed.update(get_types_from_idl(_plain_idl(idl)))
     return parsed
+
+
+def _plain_idl(text: str) -> str:
+    """An IDL text without preprocessor lines and annotations (what rosbags' parser reads
+    of it: the modules, constants and structs)."""
+    return _ANNOTATION.sub("", _PREPROCESSOR.sub("", text))
 
 
 def _named(desc: FieldDesc) -> tuple[str | None, bool, int | None]:

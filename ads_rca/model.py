@@ -318,6 +318,39 @@ class ControlCommand:
     speed: float
 
 
+@dataclass(frozen=True, slots=True)
+class VehicleVelocity:
+    """The vehicle's own velocity report (recordings of real stacks), in its axes: along
+    them m/s (lateral CARLA-signed: positive right), heading rate degrees/s (CARLA-signed:
+    positive turns right)."""
+
+    longitudinal: float
+    lateral: float
+    heading_rate: float
+
+
+#: The fail-safe states in which the stack is running a minimal risk manoeuvre or has ended
+#: one (an emergency).
+EMERGENCY_STATES = ("MRM_OPERATING", "MRM_SUCCEEDED", "MRM_FAILED")
+
+
+@dataclass(frozen=True, slots=True)
+class MrmState:
+    """The stack's fail-safe state at one moment (Autoware's minimal risk manoeuvre, MRM):
+    the message's time on the run's clock (ms, frame 0 at 0; it may fall between frames),
+    its state (``NORMAL``, ``MRM_OPERATING``, ``MRM_SUCCEEDED``, ``MRM_FAILED``,
+    ``UNKNOWN``) and behaviour (``NONE``, ``EMERGENCY_STOP``, ``COMFORTABLE_STOP``,
+    ``PULL_OVER``, ``UNKNOWN``) by name."""
+
+    timestamp_ms: int
+    state: str
+    behavior: str
+
+    @property
+    def emergency(self) -> bool:
+        return self.state in EMERGENCY_STATES
+
+
 #: What one per-frame file holds; which one is set by its folder (see :meth:`RunLog.folder`).
 Record = EgoPose | Actors | Boxes | Predictions | Plan | Objects3D | ControlCommand | LaneGraph
 
@@ -336,6 +369,8 @@ class LogExtras(TypedDict, total=False):
     lanes: dict[int, LaneGraph]
     lanes_predicted: dict[int, LaneGraph]
     ego_snapshots: EgoSnapshots | None
+    vehicle_velocity: dict[int, VehicleVelocity]
+    mrm_states: tuple[MrmState, ...]
 
 
 #: How a model input is present in a run: ``real`` (read from the source as is), ``derived``
@@ -434,6 +469,11 @@ class RunLog:
     #: and predicted future ego paths (``ads_rca.sources.atmacup.snapshots``); None for other
     # sources.
     ego_snapshots: EgoSnapshots | None = None
+    #: The vehicle's own velocity reports per timestamp (recordings of real stacks).
+    vehicle_velocity: dict[int, VehicleVelocity] = field(default_factory=dict)
+    #: The stack's fail-safe (MRM) state, every message in time order (recordings of real
+    #: stacks that record it; empty otherwise): a change to an emergency state is an event.
+    mrm_states: tuple[MrmState, ...] = ()
 
     @classmethod
     def from_folders(

@@ -29,18 +29,21 @@ from ads_rca.synth.recording import write_recording
 if TYPE_CHECKING:
     from conftest import RosEnv
 
-#: A profile of the ego alone: its frames (the actors input's messages) never come.
+#: A profile whose ground truth is on a topic the bag lacks: its frames (the actors input's
+#: messages) never come.
 EGO_ONLY = """\
 profile: ego_only
 reference: ego
 inputs:
   ego: {topic: /carla/ego_vehicle/odometry, type: nav_msgs/msg/Odometry, frame: map}
+  actors: {topic: /nowhere/objects, type: derived_object_msgs/msg/ObjectArray, frame: map}
 metadata:
   camera_loc: [1.5, 0.0, 2.4]
 """
 EGO_ONLY_REFUSAL = (
     "no frame to analyse: the frames are the ego_only profile's actors messages, and its "
-    "actors input gave none (the profile names no topic for it)"
+    "actors input gave none (/nowhere/objects (derived_object_msgs/msg/ObjectArray), topic "
+    "/nowhere/objects not in the bag)"
 )
 
 

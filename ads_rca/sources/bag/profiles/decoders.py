@@ -10,16 +10,21 @@ dimensions.x: NaN``), so the reader skips that one message and says why; nothing
 half-used. Objects are read column by column (one ``attrgetter`` pass per field, then numpy),
 so a message of 10^5 objects costs a few hundred milliseconds, not a loop of model records.
 
+A field the message's definition does not have at all is told apart (:func:`missing_field`):
+every message of that topic would fail alike, so the reader skips the topic in one line.
+
 Conventions (docs/recordings.md): ``shape.dimensions`` and ``bbox.size`` are FULL sizes
 (halved here); twists of Autoware objects are in the object's own frame (rotated by its
 yaw); a Control's steering is ROS-signed (positive left), the model's CARLA-signed
-(positive right).
+(positive right). Autoware's legacy types (``autoware_auto_*_msgs``) are aliases of the
+current ones (:data:`LEGACY_ALIASES`): the same decoder, but where a field's name differs.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from dataclasses import field as dataclass_field
 from operator import attrgetter
 from typing import Any, cast
 
@@ -28,7 +33,7 @@ import numpy.typing as npt
 
 from ads_rca.contract.errors import MalformedMessage
 from ads_rca.contract.rosmsg import normalise_type
-from ads_rca.model import Actors, Boxes, ControlCommand, EgoPose, Objects3D
+from ads_rca.model import Actors, Boxes, ControlCommand, EgoPose, Objects3D, VehicleVelocity
 from ads_rca.sources.bag.profiles import frames
 
 FloatArray = npt.NDArray[np.float64]
@@ -54,16 +59,28 @@ AUTOWARE_LABELS = (
 _UUID_BYTES = 16
 
 
+def _no_objects() -> Objects3D:
+    """A message of no objects."""
+    empty = np.zeros((0, 3))
+    return Objects3D((), empty, np.zeros(0), empty, empty, np.zeros(0), ())
+
+
 @dataclass(frozen=True, eq=False)
 class PredictedPaths:
     """One PredictedObjects message in the world: per object, its chosen path's points
     (P, 3) in the CARLA frame and their spacing in seconds (point j is at j·step after the
     message's stamp). The reader turns them into :data:`ads_rca.model.Predictions` once the
-    ego pose of the frame is known (offsets are in the ego's body frame)."""
+    ego pose of the frame is known (offsets are in the ego's body frame).
+
+    ``states`` are the objects as the message states them now (its own kinematics: initial
+    pose and twist, shape, class, existence probability), the tracked objects a recording
+    without a tracking topic still carries; or why they cannot be read (a NaN twist spoils
+    them, not the paths)."""
 
     ids: tuple[str, ...]
     points: tuple[FloatArray, ...]
     step_s: tuple[float, ...]
+    states: Objects3D | MalformedMessage = dataclass_field(default_factory=_no_objects)
 
 
 @dataclass(frozen=True, eq=False)
@@ -85,6 +102,15 @@ class CollisionEvent:
     other_actor_id: str
 
 
+@dataclass(frozen=True, slots=True)
+class FailSafeState:
+    """The stack's fail-safe (MRM) state as one message states it, by the constants' names
+    (a value no constant names: its number as text)."""
+
+    state: str
+    behavior: str
+
+
 @dataclass(frozen=True)
 class Decoder:
     """How one ROS type is read: the model inputs it can carry, its record, its stamp."""
@@ -95,9 +121,33 @@ class Decoder:
     decode: Callable[[Any, str], object]
     #: message object → its stamp in nanoseconds (MalformedMessage if unusable).
     stamp: Callable[[Any], int]
+    #: A legacy type read as this current type (its decoder, with the fields that differ).
+    alias_of: str | None = None
 
 
 # --- field access -------------------------------------------------------------------------
+
+
+class _NoSuchField(MalformedMessage):
+    """A field the decoder reads is not in the message's definition: every message of the
+    topic lacks it (:func:`missing_field` tells it from a bad value)."""
+
+    def __init__(self, path: str) -> None:
+        super().__init__(f"{path}: missing (the message's definition has no such field)")
+        self.path = path
+
+
+def missing_field(error: MalformedMessage) -> str | None:
+    """The field (path from the message) a decoding error says the definition lacks; None
+    when the error is a bad value of one message."""
+    return error.path if isinstance(error, _NoSuchField) else None
+
+
+def within(prefix: str, error: MalformedMessage) -> MalformedMessage:
+    """``error`` said of a field inside ``prefix`` (``objects[3]``), of the same kind."""
+    if isinstance(error, _NoSuchField):
+        return _NoSuchField(f"{prefix}.{error.path}")
+    return MalformedMessage(f"{prefix}.{error}")
 
 
 def field(msg: Any, path: str) -> Any:
@@ -105,8 +155,7 @@ def field(msg: Any, path: str) -> Any:
     try:
         return attrgetter(path)(msg)
     except AttributeError:
-        message = f"{path}: missing (the message's definition has no such field)"
-        raise MalformedMessage(message) from None
+        raise _NoSuchField(path) from None
 
 
 def number(msg: Any, path: str) -> float:
@@ -161,7 +210,7 @@ def column(items: Sequence[Any], where: str, path: str) -> FloatArray:
         values = list(map(getter, items))
     except AttributeError:
         row = next(i for i, item in enumerate(items) if not _has(item, path))
-        raise MalformedMessage(f"{where}[{row}].{path}: missing") from None
+        raise _NoSuchField(f"{where}[{row}].{path}") from None
     try:
         array = np.array(values) if values else np.zeros(0)
     except (ValueError, OverflowError):  # ragged sequences, integers past 64 bits
@@ -232,6 +281,9 @@ def _one(msg: Any, path: str, frame: str) -> tuple[FloatArray, FloatArray]:
 
 
 def _strip_row(error: MalformedMessage) -> MalformedMessage:
+    path = missing_field(error)
+    if path is not None:
+        return _NoSuchField(path.removeprefix("msg[0]."))
     return MalformedMessage(str(error).removeprefix("msg[0]."))
 
 
@@ -315,7 +367,7 @@ def _labels(objects: Sequence[Any]) -> tuple[str, ...]:
             try:
                 p, label = number(entry, "probability"), number(entry, "label")
             except MalformedMessage as error:
-                raise MalformedMessage(f"{where}.{error}") from None
+                raise within(where, error) from None
             if p > best_p:
                 best, best_p = int(label), p
         out.append(AUTOWARE_LABELS[best] if 0 <= best < len(AUTOWARE_LABELS) else str(best))
@@ -348,7 +400,7 @@ def _flags(items: Sequence[Any], where: str, path: str) -> npt.NDArray[np.bool_]
         try:
             value = attrgetter(path)(item)
         except AttributeError:
-            raise MalformedMessage(f"{where}[{row}].{path}: missing") from None
+            raise _NoSuchField(f"{where}[{row}].{path}") from None
         if not isinstance(value, (bool, np.bool_)):
             raise MalformedMessage(f"{where}[{row}].{path}: {type(value).__name__}, not a bool")
         out[row] = value
@@ -382,7 +434,7 @@ def _best_path(obj: Any, row: int) -> tuple[Any, str] | None:
         try:
             number(paths[0], "confidence")
         except MalformedMessage as error:
-            raise MalformedMessage(f"{where}[0].{error}") from None
+            raise within(f"{where}[0]", error) from None
         return paths[0], f"{where}[0]"
     best = int(np.argmax(column(paths, where, "confidence")))
     return paths[best], f"{where}[{best}]"
@@ -406,7 +458,7 @@ def decode_predicted_objects(msg: Any, frame: str) -> PredictedPaths:
             step = duration_s(path, "time_step")
             points = sequence(path, "path")
         except MalformedMessage as error:
-            raise MalformedMessage(f"{here}.{error}") from None
+            raise within(here, error) from None
         if step <= 0 and len(points) > 1:
             raise MalformedMessage(f"{here}.time_step: {step} s is not positive")
         steps.append(step)
@@ -424,7 +476,31 @@ def decode_predicted_objects(msg: Any, frame: str) -> PredictedPaths:
     if not objects:
         return PredictedPaths((), (), ())
     bounds = np.cumsum([len(points) for points in point_lists], dtype=np.int64)[:-1]
-    return PredictedPaths(ids, tuple(np.split(xyz, bounds)), tuple(steps))
+    states: Objects3D | MalformedMessage
+    try:
+        states = _predicted_states(objects, frame, ids)
+    except MalformedMessage as error:
+        states = error
+    return PredictedPaths(ids, tuple(np.split(xyz, bounds)), tuple(steps), states)
+
+
+def _predicted_states(objects: Sequence[Any], frame: str, ids: tuple[str, ...]) -> Objects3D:
+    """Predicted objects as they are now: ``initial_pose_with_covariance``, the body-frame
+    ``initial_twist_with_covariance`` turned into the world by the object's yaw, the
+    shape's full size halved, the class of highest probability, the existence probability
+    (the kinematics Autoware's prediction copies from its tracker)."""
+    kinematics = "kinematics.initial_pose_with_covariance.pose"
+    xyz, rpy = poses(objects, "objects", kinematics, frame)
+    body = vectors(objects, "objects", "kinematics.initial_twist_with_covariance.twist.linear")
+    return Objects3D(
+        ids=ids,
+        location=xyz,
+        yaw=rpy[:, 2],
+        extent=vectors(objects, "objects", "shape.dimensions") / 2.0,
+        velocity=world_velocity(body, rpy[:, 2], frame),
+        score=column(objects, "objects", "existence_probability"),
+        labels=_labels(objects),
+    )
 
 
 def decode_trajectory(msg: Any, frame: str) -> TimedPlan:
@@ -448,12 +524,55 @@ def decode_control(msg: Any, frame: str) -> ControlCommand:
     """autoware Control → steering (ROS + left → CARLA + right, degrees), acceleration,
     target speed."""
     del frame  # a command has no frame
+    return _command(msg, "longitudinal.velocity")
+
+
+def decode_ackermann_control(msg: Any, frame: str) -> ControlCommand:
+    """autoware_auto AckermannControlCommand → as Control (its target speed is
+    ``longitudinal.speed``)."""
+    del frame
+    return _command(msg, "longitudinal.speed")
+
+
+def _command(msg: Any, speed_path: str) -> ControlCommand:
     angle = number(msg, "lateral.steering_tire_angle")
     return ControlCommand(
         steer=-float(np.degrees(angle)),
         acceleration=number(msg, "longitudinal.acceleration"),
-        speed=number(msg, "longitudinal.velocity"),
+        speed=number(msg, speed_path),
     )
+
+
+def decode_velocity_report(msg: Any, frame: str) -> VehicleVelocity:
+    """autoware VelocityReport → the vehicle's own velocity in its axes: longitudinal m/s,
+    lateral m/s and heading rate in degrees/s, CARLA-signed (ROS positive left and
+    counter-clockwise → CARLA positive right and clockwise) unless given in ``carla``."""
+    sign = 1.0 if frame == "carla" else -1.0
+    return VehicleVelocity(
+        longitudinal=number(msg, "longitudinal_velocity"),
+        lateral=sign * number(msg, "lateral_velocity"),
+        heading_rate=sign * float(np.degrees(number(msg, "heading_rate"))),
+    )
+
+
+#: autoware_adapi_v1_msgs/MrmState's constants by value.
+MRM_STATES = ("UNKNOWN", "NORMAL", "MRM_OPERATING", "MRM_SUCCEEDED", "MRM_FAILED")
+MRM_BEHAVIORS = ("UNKNOWN", "NONE", "EMERGENCY_STOP", "COMFORTABLE_STOP", "PULL_OVER")
+
+
+def decode_mrm_state(msg: Any, frame: str) -> FailSafeState:
+    """autoware_adapi_v1_msgs MrmState → the state and behaviour by name."""
+    del frame
+    return FailSafeState(
+        _constant(msg, "state", MRM_STATES), _constant(msg, "behavior", MRM_BEHAVIORS)
+    )
+
+
+def _constant(msg: Any, path: str, names: tuple[str, ...]) -> str:
+    value = field(msg, path)
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise MalformedMessage(f"{path}: {type(value).__name__} {value!r:.40}, not an integer")
+    return names[int(value)] if 0 <= value < len(names) else str(int(value))
 
 
 def decode_collision(msg: Any, frame: str) -> CollisionEvent:
@@ -482,7 +601,7 @@ def _hypotheses(detections: Sequence[Any]) -> tuple[list[str | None], FloatArray
                 labels.append(text(results[0], "hypothesis.class_id"))
                 scores[row] = number(results[0], "hypothesis.score")
             except MalformedMessage as error:
-                raise MalformedMessage(f"{where}.{error}") from None
+                raise within(where, error) from None
         else:
             labels.append(None)
     return labels, scores
@@ -495,7 +614,7 @@ def _detection_ids(detections: Sequence[Any]) -> tuple[str, ...]:
         try:
             ident = text(det, "id")
         except MalformedMessage as error:
-            raise MalformedMessage(f"detections[{row}].{error}") from None
+            raise within(f"detections[{row}]", error) from None
         out.append(ident or f"d{row}")
     return tuple(out)
 
@@ -598,8 +717,65 @@ DECODERS: dict[str, Decoder] = {
         Decoder(
             "vision_msgs/msg/Detection3DArray", _OBJECTS_3D, decode_detection_3d_array, _header
         ),
+        Decoder(
+            "autoware_vehicle_msgs/msg/VelocityReport",
+            frozenset({"vehicle_velocity"}),
+            decode_velocity_report,
+            _header,
+        ),
+        Decoder(
+            "autoware_adapi_v1_msgs/msg/MrmState",
+            frozenset({"mrm_state"}),
+            decode_mrm_state,
+            lambda msg: stamp_ns(msg, "stamp"),
+        ),
     )
 }
+
+#: Autoware's legacy types (``autoware_auto_*_msgs``, recorded until 2024) → the current type
+#: whose decoder reads them. Their fields carry the same names but for the control command's
+#: target speed (``longitudinal.speed``, now ``longitudinal.velocity``); field order and
+#: constants differ (the bytes are decoded by the legacy definition, the fields read by
+#: name), and the legacy ObjectClassification stops at PEDESTRIAN (7).
+LEGACY_ALIASES = {
+    "autoware_auto_perception_msgs/msg/DetectedObjects": (
+        "autoware_perception_msgs/msg/DetectedObjects"
+    ),
+    "autoware_auto_perception_msgs/msg/TrackedObjects": (
+        "autoware_perception_msgs/msg/TrackedObjects"
+    ),
+    "autoware_auto_perception_msgs/msg/PredictedObjects": (
+        "autoware_perception_msgs/msg/PredictedObjects"
+    ),
+    "autoware_auto_planning_msgs/msg/Trajectory": "autoware_planning_msgs/msg/Trajectory",
+    "autoware_auto_control_msgs/msg/AckermannControlCommand": "autoware_control_msgs/msg/Control",
+    "autoware_auto_vehicle_msgs/msg/VelocityReport": "autoware_vehicle_msgs/msg/VelocityReport",
+}
+#: The legacy types whose fields differ: their own decode function.
+_LEGACY_DECODE: dict[str, Callable[[Any, str], object]] = {
+    "autoware_auto_control_msgs/msg/AckermannControlCommand": decode_ackermann_control,
+}
+DECODERS.update(
+    {
+        legacy: Decoder(
+            legacy,
+            DECODERS[current].inputs,
+            _LEGACY_DECODE.get(legacy, DECODERS[current].decode),
+            DECODERS[current].stamp,
+            alias_of=current,
+        )
+        for legacy, current in LEGACY_ALIASES.items()
+    }
+)
+
+
+def aliases_of(type_name: str) -> tuple[str, ...]:
+    """The types read by the same decoder as ``type_name`` (its legacy alias, or the
+    current type it is an alias of), ``type_name`` itself not included."""
+    name = normalise_type(type_name)
+    current = LEGACY_ALIASES.get(name, name)
+    family = [current, *(old for old, new in LEGACY_ALIASES.items() if new == current)]
+    return tuple(t for t in family if t != name and (t in DECODERS))
 
 
 def decoder_for(type_name: str) -> Decoder | None:

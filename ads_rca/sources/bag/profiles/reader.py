@@ -1,25 +1,31 @@
 """A real stack's bag, read through a profile, into a :class:`RunLog`.
 
 The stack's messages carry header stamps, not frame numbers, so the frames are made here:
-the profile's reference input (actors, else ego, else the clock) times them. Its period is
-the median stamp difference rounded to whole milliseconds, frame f = round((stamp − t0) /
-period), timestamp f·period ms, so the model's frame grid holds. Every other message goes
-to the frame nearest its stamp, if within half a period of the reference's first-to-last
-span (else it is reported and dropped); two messages on one frame keep the later and report
-the earlier. The collision frame is the frame nearest the first collision event (the later
-one on a tie). Predictions become offsets in the ego's body frame of their frame, so they
-are kept only where the ego pose is known.
+the profile's reference input times them (its list is tried in order: the first input with a
+usable message; one passed over is a warning). Its period is the median stamp difference
+rounded to whole milliseconds, frame f = round((stamp − t0) / period), timestamp f·period
+ms, so the model's frame grid holds. Every other message goes to the frame nearest its
+stamp, if within half a period of the reference's first-to-last span (else it is dropped,
+said once per input). An input recorded at the frames' rate keeps the later of two messages
+on one frame and reports the earlier; one recorded faster (localisation at 50 Hz on
+perception's 10 Hz frames) gives each frame the message nearest the frame's time. The
+collision frame is the frame nearest the first collision event (the later one on a tie).
+Predictions become offsets in the ego's body frame of their frame, so they are kept only
+where the ego pose is known. A recording without tracked objects still carries them in its
+predicted objects' own kinematics: tracks are derived from those (``derived``). The
+fail-safe (MRM) state is kept as a time series, every message on the run's clock.
 
 Nothing here reads storage or types: the caller gives the bag's contents and ``decode``
 (message, type) → rosbags object (the bag's own definitions), so this stays pure and the
 same for MCAP and sqlite3. Every defect is a Problem naming the topic (and the message's
-log time and field); only a bag with no usable reference message raises InputError.
+log time and field); a topic whose definition lacks a field its decoder reads is skipped
+whole, said once; only a bag with no usable reference message raises InputError.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, TypeVar, cast
 
@@ -27,7 +33,6 @@ import numpy as np
 
 from ads_rca.capabilities import INPUT_FIELDS, MODEL_INPUTS
 from ads_rca.contract.errors import MalformedMessage
-from ads_rca.contract.rosmsg import normalise_type
 from ads_rca.errors import ConfigError, InputError
 from ads_rca.foundation.geometry import world_to_ego
 from ads_rca.foundation.progress import Progress, tracked
@@ -36,21 +41,25 @@ from ads_rca.model import (
     EgoPose,
     FloatArray,
     InputStatus,
+    MrmState,
     Objects3D,
     Plan,
     Predictions,
     RunLog,
     RunMetadata,
     Track,
+    VehicleVelocity,
 )
 from ads_rca.problems import DROPPED_RECORD, USED_DEFAULT, Problem, ProblemLog
 from ads_rca.sources.bag.profiles.decoders import (
     CollisionEvent,
+    FailSafeState,
     PredictedPaths,
     TimedPlan,
     decoder_for,
+    missing_field,
 )
-from ads_rca.sources.bag.profiles.profile import InputSpec, Profile
+from ads_rca.sources.bag.profiles.profile import RECORDING_INPUTS, InputSpec, Profile, mismatch
 from ads_rca.sources.bag.storage import BagMessage
 
 if TYPE_CHECKING:
@@ -60,6 +69,13 @@ R = TypeVar("R")
 
 #: The frame period when the reference has a single stamp (nothing to measure).
 DEFAULT_PERIOD_MS = 50
+#: An input whose median stamp spacing is below this share of the frame period is recorded
+#: faster than the frames: each frame takes its message nearest the frame's time.
+FASTER_THAN_FRAMES = 0.75
+#: Keys of ``metadata.raw`` the reader sets besides the profile's facts.
+FIRST_MESSAGE_OFFSET = "first_message_offset_ms"
+FRAME_REFERENCE = "frame_reference"
+EMERGENCY_ONSETS = "emergency_onsets_ms"
 _SKIPPED = "message skipped"
 _NS_PER_MS = 1_000_000
 #: The inputs read into per-frame folders of the model as decoded, by folder (the field of
@@ -68,6 +84,8 @@ _FOLDERS = {
     INPUT_FIELDS[name]: name for name in ("ego", "actors", "detections_2d", "ground_truth_2d")
 }
 _PREDICTION_FOLDERS = {name: INPUT_FIELDS[name] for name in ("predictions", "predictions_gt")}
+#: The inputs kept as events or a time series rather than one record per frame.
+_NOT_FRAMED = ("collision", "clock", "mrm_state")
 
 
 @dataclass(frozen=True, slots=True)
@@ -100,6 +118,10 @@ class Grid:
     def frame_ns(self, frame: int) -> int:
         return self.t0_ns + frame * self.period_ns
 
+    def clock_ms(self, stamp_ns: int) -> int:
+        """A stamp on the run's clock (ms; frame 0 at 0)."""
+        return round((stamp_ns - self.t0_ns) / _NS_PER_MS)
+
     @property
     def period_ms(self) -> int:
         return self.period_ns // _NS_PER_MS
@@ -111,40 +133,38 @@ def read_profiled(
     decode: Callable[[BagMessage, str], Any],
     source: str,
     progress: Progress | None = None,
+    definition_of: Callable[[str], str] | None = None,
 ) -> RunLog:
     """The run a bag carries in ``profile``'s layout (see the module docstring).
 
     ``decode`` gives the rosbags object of a message as the named type (MalformedMessage
     when it cannot; ``progress`` sees every message); ``source`` names the bag in problems,
-    errors and ``RunLog.source``."""
+    errors and ``RunLog.source``; ``definition_of`` names where a type's definition came
+    from, in the line that says it lacks a field its decoder reads."""
     if profile.contract:
         raise ConfigError(
             f"{profile.file}: the {profile.name} profile is read by the contract reader"
         )
     problems = list(contents.problems)
+    named = (*MODEL_INPUTS, *(name for name in RECORDING_INPUTS if name in profile.inputs))
     inputs = {
-        name: InputStatus("absent", "", "the profile names no topic for it")
-        for name in MODEL_INPUTS
+        name: InputStatus("absent", "", "the profile names no topic for it") for name in named
     }
-    usable = _usable_inputs(contents.topics, profile, inputs, source, problems)
-    decoded = _decode_all(contents.messages, usable, decode, problems, progress)
-    reference = profile.inputs[profile.reference]
-    if not decoded.get(profile.reference):
-        why = inputs[profile.reference].reason
-        if profile.reference in usable:
-            count = sum(m.topic == reference.topic for m in contents.messages)
-            why = f"none of its {count} messages could be used (see the problems)"
-        raise InputError(
-            f"{source}: no usable message on the reference input {profile.reference} "
-            f"({reference.topic}): {why}"
-        )
-    grid = _grid(decoded[profile.reference], reference, problems)
+    usable = usable_inputs(contents.topics, profile, inputs, source, problems)
+    reading = _Decoding(usable, decode, inputs, problems, definition_of)
+    decoded = reading.all(contents.messages, progress)
+    reference = _reference(profile, decoded, inputs, contents, source, problems)
+    grid = _grid(decoded[reference], usable[reference], problems)
     framed = {
         name: _to_frames(stamped, usable[name], grid, problems)
         for name, stamped in decoded.items()
-        if name not in ("collision", "clock")
+        if name not in _NOT_FRAMED
     }
     _mark_read(inputs, usable, framed, decoded)
+    if reference != profile.reference:
+        inputs[reference] = InputStatus(
+            "real", usable[reference].source, f"times the frames in place of {profile.reference}"
+        )
     folders: dict[str, dict[int, Any]] = {
         folder: {ts: s.record for ts, s in framed.get(name, {}).items()}
         for folder, name in _FOLDERS.items()
@@ -155,17 +175,81 @@ def read_profiled(
             folders[folder] = _predictions(framed[name], usable[name], poses, grid, problems)
     if "plan" in framed:
         folders["waypoint"] = _plans(framed["plan"], usable["plan"], grid, problems)
+    tracks = _records(framed.get("tracked_objects", {}), Objects3D)
+    if inputs["tracked_objects"].state != "real" and framed.get("predictions"):
+        tracks = _derived_tracks(framed["predictions"], usable["predictions"], inputs, problems)
+    frames = folders["actors"] if "actors" in profile.inputs else framed[reference]
+    mrm_states = _mrm_states(decoded.get("mrm_state"), usable, grid, inputs, problems)
+    raw: dict[str, Any] = {}
+    if inputs.get("mrm_state", InputStatus("absent")).state == "real":
+        raw[EMERGENCY_ONSETS] = emergency_onsets(mrm_states, grid.period_ms)
+    collisions = decoded.get("collision", [])
+    metadata = _metadata(profile, grid, collisions, contents, reference, problems, raw)
     return RunLog.from_folders(
-        _metadata(profile, grid, decoded.get("collision", []), problems),
-        tuple(sorted(folders["actors"])),
+        metadata,
+        tuple(sorted(frames)),
         folders,
         problems=ProblemLog(problems),
         source=source,
         detections_3d=_records(framed.get("detections_3d", {}), Objects3D),
-        tracks_3d=_records(framed.get("tracked_objects", {}), Objects3D),
+        tracks_3d=tracks,
         controls=_records(framed.get("control", {}), ControlCommand),
+        vehicle_velocity=_records(framed.get("vehicle_velocity", {}), VehicleVelocity),
+        mrm_states=mrm_states,
         inputs=inputs,
     )
+
+
+def _reference(
+    profile: Profile,
+    decoded: dict[str, list[Stamped]],
+    inputs: dict[str, InputStatus],
+    contents: BagContents,
+    source: str,
+    problems: list[Problem],
+) -> str:
+    """The first of the profile's reference inputs with a usable message; each one passed
+    over is a warning. InputError (one line naming each one tried and why) when none has."""
+    for position, name in enumerate(profile.references):
+        if not decoded.get(name):
+            continue
+        passed = [
+            f"{earlier} ({_why_none(profile.inputs[earlier], decoded, inputs, contents)})"
+            for earlier in profile.references[:position]
+        ]
+        if passed:
+            problems.append(
+                Problem(
+                    source,
+                    "reference",
+                    f"no usable message on {', '.join(passed)}",
+                    f"the frames are timed by {name} ({profile.inputs[name].topic})",
+                    "warning",
+                )
+            )
+        return name
+    said = "; nor on ".join(
+        f"{name} ({profile.inputs[name].topic}): "
+        f"{_why_none(profile.inputs[name], decoded, inputs, contents)}"
+        for name in profile.references
+    )
+    raise InputError(f"{source}: no usable message on the reference input {said}")
+
+
+def _why_none(
+    spec: InputSpec,
+    decoded: dict[str, list[Stamped]],
+    inputs: dict[str, InputStatus],
+    contents: BagContents,
+) -> str:
+    """Why an input has no usable message: its status's reason (not in the bag, another
+    type, a definition without a field it reads), or what its topic held."""
+    if spec.input not in decoded:
+        return inputs[spec.input].reason
+    count = sum(message.topic == spec.topic for message in contents.messages)
+    if count == 0:
+        return "the topic holds no message"
+    return f"none of its {count} messages could be used (see the problems)"
 
 
 def _mark_read(
@@ -174,9 +258,12 @@ def _mark_read(
     framed: dict[str, dict[int, Stamped]],
     decoded: dict[str, list[Stamped]],
 ) -> None:
-    """Each usable input real when a message of it was placed on a frame (the clock: when
-    one was decoded; the collision always: a topic without events means none happened)."""
+    """Each input decoded real when a message of it was placed on a frame (the clock: when
+    one was decoded; the collision always: a topic without events means none happened);
+    the fail-safe state is said by :func:`_mrm_states`."""
     for name, spec in usable.items():
+        if name not in decoded or name == "mrm_state":
+            continue  # a topic skipped whole: its status says why
         placed = framed.get(name) or (name == "clock" and decoded["clock"])
         if placed or name == "collision":
             inputs[name] = InputStatus("real", spec.source)
@@ -185,93 +272,169 @@ def _mark_read(
 
 
 def _metadata(
-    profile: Profile, grid: Grid, collisions: list[Stamped], problems: list[Problem]
+    profile: Profile,
+    grid: Grid,
+    collisions: list[Stamped],
+    contents: BagContents,
+    reference: str,
+    problems: list[Problem],
+    more: Mapping[str, Any],
 ) -> RunMetadata:
-    """The run facts: the grid's period and length, the collision, the profile's camera."""
+    """The run facts: the grid's period and length, the collision, the profile's camera and
+    vehicle, how far frame 0 is from the recording's first message, what timed the frames,
+    and ``more`` (the emergency onsets)."""
     collision_frame, partner = _collision(collisions, grid, problems)
     raw: dict[str, Any] = {"source_profile": profile.name, "ego_role": profile.ego_role}
+    raw.update(profile.facts)
+    raw.update(more)
+    first = min((m.log_time_ns for m in contents.messages), default=grid.t0_ns)
+    raw[FIRST_MESSAGE_OFFSET] = max(0, round((grid.t0_ns - first) / _NS_PER_MS))
+    if len(profile.references) > 1:
+        raw[FRAME_REFERENCE] = reference
     if partner is not None:
         raw["collision_partner"] = partner
     camera_loc = profile.camera_loc
     if camera_loc is None:
         camera_loc = (0.0, 0.0, 0.0)
-        problems.append(
-            Problem(
-                profile.file,
-                "metadata.camera_loc",
-                "not given",
-                f"{USED_DEFAULT}: [0, 0, 0]",
-                "warning",
+        if {"detections_2d", "ground_truth_2d"} & set(profile.inputs):
+            problems.append(
+                Problem(
+                    profile.file,
+                    "metadata.camera_loc",
+                    "not given",
+                    f"{USED_DEFAULT}: [0, 0, 0]",
+                    "warning",
+                )
             )
-        )
     return RunMetadata(grid.period_ms, camera_loc, collision_frame, grid.last + 1, raw=raw)
 
 
-def _records(framed: dict[int, Stamped], kind: type[R]) -> dict[int, R]:
+def _records(framed: Mapping[int, Stamped], kind: type[R]) -> dict[int, R]:
     """The records of a framed input, as the type its decoder makes."""
     return {ts: cast("R", s.record) for ts, s in framed.items()}
 
 
-def _usable_inputs(
-    stored: dict[str, str],
+def usable_inputs(
+    stored: Mapping[str, str],
     profile: Profile,
     inputs: dict[str, InputStatus],
     source: str,
     problems: list[Problem],
 ) -> dict[str, InputSpec]:
-    """Input → spec for the profile's topics the bag holds with the profile's type; the
-    others are absent, said in ``inputs`` and as a Problem."""
+    """Input → its spec as the bag stores it (the stored type, one the input accepts) for
+    the profile's topics the bag holds; the others are absent, said in ``inputs`` and as a
+    Problem (a topic of another type names both types, and the alias that would read it)."""
     usable: dict[str, InputSpec] = {}
     for name, spec in profile.inputs.items():
         if spec.topic not in stored:
             reason = f"topic {spec.topic} not in the bag"
             inputs[name] = InputStatus("absent", spec.source, reason)
             problems.append(Problem(source, spec.topic, reason, f"{name} absent", "warning"))
-        elif normalise_type(stored[spec.topic]) != normalise_type(spec.type):
-            reason = f"stored type {stored[spec.topic]}, the profile's {name} is {spec.type}"
+        elif not spec.accepts(stored[spec.topic]):
+            reason = mismatch(spec, stored[spec.topic])
             inputs[name] = InputStatus("absent", spec.source, reason)
             problems.append(Problem(source, spec.topic, reason, f"topic skipped; {name} absent"))
         else:
-            usable[name] = spec
+            usable[name] = spec.as_stored(stored[spec.topic])
     return usable
 
 
-def _decode_all(
-    messages: list[BagMessage],
-    usable: dict[str, InputSpec],
-    decode: Callable[[BagMessage, str], Any],
-    problems: list[Problem],
-    progress: Progress | None = None,
-) -> dict[str, list[Stamped]]:
-    """Input → its decoded messages (log-time order); each unusable one is a Problem."""
-    by_topic = {spec.topic: spec for spec in usable.values()}
-    out: dict[str, list[Stamped]] = {name: [] for name in usable}
-    for message in tracked(messages, progress):
-        spec = by_topic.get(message.topic)
-        if spec is None:
-            continue
-        decoder = decoder_for(spec.type)
-        if decoder is None:  # a contract profile: not this reader's
-            continue
-        try:
-            msg = decode(message, spec.type)
-            stamp = decoder.stamp(msg)
-            record = decoder.decode(msg, spec.frame)
-        except MalformedMessage as error:
-            problems.append(
+def stored_types(stored: Mapping[str, str], profile: Profile) -> list[str]:
+    """The stored types of the profile's topics the bag holds as a type the input accepts:
+    the definitions the reading needs."""
+    return sorted(
+        {
+            stored[spec.topic]
+            for spec in profile.inputs.values()
+            if spec.topic in stored and spec.accepts(stored[spec.topic])
+        }
+    )
+
+
+def mismatches(stored: Mapping[str, str], profile: Profile) -> list[str]:
+    """``topic: why`` for each profile topic the bag holds as a type its input does not
+    accept (said beside a missing definition, which another type would not need)."""
+    return [
+        f"{spec.topic}: {mismatch(spec, stored[spec.topic])}"
+        for spec in profile.inputs.values()
+        if spec.topic in stored and not spec.accepts(stored[spec.topic])
+    ]
+
+
+class _Decoding:
+    """Every message of the usable inputs decoded, in log-time order. An unusable message is
+    a Problem; a topic whose definition lacks a field its decoder reads is skipped whole
+    (every message would fail alike), said once, its input absent."""
+
+    def __init__(
+        self,
+        usable: dict[str, InputSpec],
+        decode: Callable[[BagMessage, str], Any],
+        inputs: dict[str, InputStatus],
+        problems: list[Problem],
+        definition_of: Callable[[str], str] | None,
+    ) -> None:
+        self.by_topic = {spec.topic: spec for spec in usable.values()}
+        self.decode = decode
+        self.inputs = inputs
+        self.problems = problems
+        self.definition_of = definition_of
+
+    def all(
+        self, messages: list[BagMessage], progress: Progress | None
+    ) -> dict[str, list[Stamped]]:
+        """Input → its decoded messages (inputs skipped whole are left out)."""
+        out: dict[str, list[Stamped]] = {spec.input: [] for spec in self.by_topic.values()}
+        for message in tracked(messages, progress):
+            spec = self.by_topic.get(message.topic)
+            if spec is None:
+                continue
+            decoder = decoder_for(spec.type)
+            if decoder is None:  # a contract profile: not this reader's
+                continue
+            try:
+                msg = self.decode(message, spec.type)
+                stamp = decoder.stamp(msg)
+                record = decoder.decode(msg, spec.frame)
+            except MalformedMessage as error:
+                self._unusable(message, spec, error, out)
+                continue
+            out[spec.input].append(
+                Stamped(stamp, message.log_time_ns, message.source or message.topic, record)
+            )
+        return out
+
+    def _unusable(
+        self,
+        message: BagMessage,
+        spec: InputSpec,
+        error: MalformedMessage,
+        out: dict[str, list[Stamped]],
+    ) -> None:
+        where = message.source or message.topic
+        path = missing_field(error)
+        if path is None:
+            self.problems.append(
                 Problem(
-                    message.source or message.topic,
+                    where,
                     message.topic,
                     f"message at log time {message.log_time_ns} ns: cannot use this "
                     f"{spec.type}: {error}",
                     _SKIPPED,
                 )
             )
-            continue
-        out[spec.input].append(
-            Stamped(stamp, message.log_time_ns, message.source or message.topic, record)
+            return
+        definition = self.definition_of(spec.type) if self.definition_of else "its definition"
+        reason = (
+            f"{spec.type} has no field {path} in {definition}: its messages cannot be read as "
+            f"{spec.input}"
         )
-    return out
+        self.problems.append(
+            Problem(where, message.topic, reason, f"topic skipped; {spec.input} absent")
+        )
+        self.inputs[spec.input] = InputStatus("absent", spec.source, reason)
+        del self.by_topic[spec.topic]
+        del out[spec.input]
 
 
 def _grid(reference: list[Stamped], spec: InputSpec, problems: list[Problem]) -> Grid:
@@ -300,21 +463,16 @@ def _to_frames(
     stamped: list[Stamped], spec: InputSpec, grid: Grid, problems: list[Problem]
 ) -> dict[int, Stamped]:
     """Timestamp (ms) → the message of each frame (see the module docstring)."""
+    ordered = sorted(stamped, key=lambda s: (s.stamp_ns, s.log_time_ns))
+    inside = [item for item in ordered if grid.on_grid(item.stamp_ns)]
+    _say_outside(
+        [item for item in ordered if not grid.on_grid(item.stamp_ns)], spec, grid, problems
+    )
+    if _faster_than_frames(inside, grid):
+        return _nearest_per_frame(inside, grid)
     out: dict[int, Stamped] = {}
     frame_ms = grid.period_ms
-    for item in sorted(stamped, key=lambda s: (s.stamp_ns, s.log_time_ns)):
-        where = f"message at log time {item.log_time_ns} ns, stamp {item.stamp_ns} ns"
-        if not grid.on_grid(item.stamp_ns):
-            problems.append(
-                Problem(
-                    item.file,
-                    spec.topic,
-                    f"{where}: outside the frames of {grid.t0_ns} ns + [0, {grid.last}] × "
-                    f"{frame_ms} ms by more than half a period",
-                    _SKIPPED,
-                )
-            )
-            continue
+    for item in inside:
         ts = grid.nearest(item.stamp_ns) * frame_ms
         earlier = out.get(ts)
         if earlier is not None:
@@ -331,6 +489,128 @@ def _to_frames(
             )
         out[ts] = item
     return out
+
+
+def _faster_than_frames(ordered: list[Stamped], grid: Grid) -> bool:
+    """The input's median stamp spacing is well below the frame period (a faster topic)."""
+    stamps = np.unique(np.array([s.stamp_ns for s in ordered], dtype=np.int64))
+    if len(stamps) < 3:
+        return False
+    return float(np.median(np.diff(stamps))) < FASTER_THAN_FRAMES * grid.period_ns
+
+
+def _nearest_per_frame(ordered: list[Stamped], grid: Grid) -> dict[int, Stamped]:
+    """Each frame's message nearest the frame's time (the later on a tie)."""
+    best: dict[int, tuple[int, Stamped]] = {}
+    for item in ordered:
+        frame = grid.nearest(item.stamp_ns)
+        distance = abs(item.stamp_ns - grid.frame_ns(frame))
+        kept = best.get(frame)
+        if kept is None or distance <= kept[0]:
+            best[frame] = (distance, item)
+    return {frame * grid.period_ms: item for frame, (_d, item) in best.items()}
+
+
+def _say_outside(
+    outside: list[Stamped], spec: InputSpec, grid: Grid, problems: list[Problem]
+) -> None:
+    """One warning for an input's messages outside the frames (the first one named)."""
+    if not outside:
+        return
+    first = outside[0]
+    what = f"message at log time {first.log_time_ns} ns, stamp {first.stamp_ns} ns"
+    if len(outside) > 1:
+        what = f"{len(outside)} messages (the first: {what})"
+    problems.append(
+        Problem(
+            first.file,
+            spec.topic,
+            f"{what}: outside the frames of {grid.t0_ns} ns + [0, {grid.last}] × "
+            f"{grid.period_ms} ms by more than half a period",
+            _SKIPPED if len(outside) == 1 else "messages skipped",
+            "warning",
+        )
+    )
+
+
+def _derived_tracks(
+    framed: dict[int, Stamped],
+    spec: InputSpec,
+    inputs: dict[str, InputStatus],
+    problems: list[Problem],
+) -> dict[int, Objects3D]:
+    """Tracked objects per frame from the predicted objects' own kinematics (a recording
+    without tracked objects); ``tracked_objects`` becomes ``derived`` when any frame has
+    them. A message whose kinematics cannot be read gives none (said; once per topic when
+    its definition lacks the field)."""
+    out: dict[int, Objects3D] = {}
+    lacking_said = False
+    for ts, item in sorted(framed.items()):
+        states = cast("PredictedPaths", item.record).states
+        if isinstance(states, Objects3D):
+            out[ts] = states
+            continue
+        path = missing_field(states)
+        if path is not None and lacking_said:
+            continue
+        lacking_said = lacking_said or path is not None
+        where = f"message at log time {item.log_time_ns} ns: " if path is None else ""
+        problems.append(
+            Problem(
+                item.file,
+                spec.topic,
+                f"{where}no tracked objects derived from this {spec.type}: {states}",
+                "no derived tracked objects" + ("" if path is None else " from this topic"),
+                timestamp_ms=None if path is not None else ts,
+            )
+        )
+    if out:
+        why = inputs["tracked_objects"].reason
+        inputs["tracked_objects"] = InputStatus(
+            "derived", spec.source, f"from the predicted objects' own kinematics ({why})"
+        )
+    return out
+
+
+def _mrm_states(
+    stamped: list[Stamped] | None,
+    usable: dict[str, InputSpec],
+    grid: Grid,
+    inputs: dict[str, InputStatus],
+    problems: list[Problem],
+) -> tuple[MrmState, ...]:
+    """The fail-safe state of every message within the frames, in time order, on the run's
+    clock; the input is real when there is one (``stamped`` None: not read)."""
+    spec = usable.get("mrm_state")
+    if spec is None or stamped is None:
+        return ()
+    ordered = sorted(stamped, key=lambda s: (s.stamp_ns, s.log_time_ns))
+    _say_outside([s for s in ordered if not grid.on_grid(s.stamp_ns)], spec, grid, problems)
+    states = tuple(
+        MrmState(grid.clock_ms(item.stamp_ns), record.state, record.behavior)
+        for item in ordered
+        if grid.on_grid(item.stamp_ns)
+        for record in [cast("FailSafeState", item.record)]
+    )
+    if states:
+        inputs["mrm_state"] = InputStatus("real", spec.source)
+    else:
+        inputs["mrm_state"] = InputStatus(
+            "absent", spec.source, f"no usable message on {spec.topic}"
+        )
+    return states
+
+
+def emergency_onsets(states: tuple[MrmState, ...], frame_ms: int) -> list[int]:
+    """The frame timestamps (the nearest frame, the later on a tie) at which the fail-safe
+    state turned to an emergency (the first message too, when it is one)."""
+    onsets: list[int] = []
+    before = False
+    for state in states:
+        if state.emergency and not before:
+            onsets.append(math.floor(state.timestamp_ms / frame_ms + 0.5) * frame_ms)
+        before = state.emergency
+    return onsets
 
 
 def _predictions(

@@ -15,10 +15,12 @@ from __future__ import annotations
 import os
 from collections.abc import Sequence
 
+from ads_rca.errors import InputError
 from ads_rca.foundation.progress import Progress
+from ads_rca.foundation.text import printable
 from ads_rca.model import RunLog
 from ads_rca.sources.bag.profiles.profile import Profile, load_profile
-from ads_rca.sources.bag.profiles.reader import read_profiled
+from ads_rca.sources.bag.profiles.reader import mismatches, read_profiled, stored_types
 from ads_rca.sources.bag.reader import BagContents, BagMessage, load_bag
 
 
@@ -32,19 +34,42 @@ def read_recording(
     """The run a bag of a real stack holds, read with ``profile`` (a name or a file).
 
     InputError (one line) when the bag cannot be read, carries none of the profile's
-    reference input, or lacks the definition of a type the profile needs from it (naming
-    every such type); every other defect is a Problem in the log."""
+    reference inputs, or lacks the definition of a type the profile reads from it (naming
+    every such type, and every topic stored as a type its input does not accept: that one's
+    definition is never asked for); every other defect is a Problem in the log."""
     chosen = profile if isinstance(profile, Profile) else load_profile(profile)
     contents = contents if contents is not None else load_bag(path)
     types = contents.types(msg_path)
-    types.require(
-        sorted({spec.type for spec in chosen.inputs.values() if spec.topic in contents.topics})
-    )
+    try:
+        types.require(stored_types(contents.topics, chosen))
+    except InputError as error:
+        other = mismatches(contents.topics, chosen)
+        if not other:
+            raise
+        raise InputError(
+            printable(f"{error}; and not read as the profile says: " + "; ".join(other))
+        ) from None
 
     def decode(message: BagMessage, type_name: str) -> object:
         return types.decode(message.data, type_name)
 
-    return read_profiled(contents, chosen, decode, os.fspath(path), progress)
+    def definition_of(type_name: str) -> str:
+        source = types.source(type_name)
+        words = _DEFINITION_WORDS.get(source or "", "its definition")
+        if source == "bag" and types.differs_from_shipped(type_name):
+            words += ", another layout than the one shipped with ads_rca"
+        return words
+
+    return read_profiled(contents, chosen, decode, os.fspath(path), progress, definition_of)
+
+
+#: Where a type's definition came from (``BagTypes.source``), in words.
+_DEFINITION_WORDS = {
+    "bag": "the bag's own definition",
+    "msg-path": "the definition under --msg-path",
+    "shipped": "the definition shipped with ads_rca",
+    "standard": "ROS Kilted's definition",
+}
 
 
 __all__ = ["read_recording"]

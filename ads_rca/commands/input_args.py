@@ -114,15 +114,18 @@ def add_bag_arguments(
     parser: argparse.ArgumentParser,
     remap_flags: tuple[str, ...] = ("--remap",),
     remap_dest: str = "remap",
+    no_profile: str = "",
 ) -> None:
-    """--profile, --remap and --msg-path: shared by every command that reads a bag."""
+    """--profile, --remap and --msg-path: shared by every command that reads a bag.
+    ``no_profile``: what the command does with a bag when --profile is not given (then
+    None), instead of reading it with the default profile."""
+    default = f"default {DEFAULT_PROFILE}: this project's own topics"
     parser.add_argument(
         "--profile",
-        default=DEFAULT_PROFILE,
+        default=None if no_profile else DEFAULT_PROFILE,
         metavar="NAME|FILE",
         help=f"which topics and types carry the model's inputs: a built-in profile "
-        f"({', '.join(BUILTIN_PROFILES)}) or a profile YAML (default {DEFAULT_PROFILE}: "
-        "this project's own topics)",
+        f"({', '.join(BUILTIN_PROFILES)}) or a profile YAML ({no_profile or default})",
     )
     parser.add_argument(
         *remap_flags,

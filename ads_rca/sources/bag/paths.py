@@ -25,8 +25,9 @@ def storage_files(directory: Path) -> list[Path]:
 
 
 def is_bag(path: str | os.PathLike[str]) -> bool:
-    """A bag directory (metadata.yaml, or one storage file) or a .mcap/.db3 file."""
+    """A bag directory (metadata.yaml, or storage files: a split recording whose
+    metadata.yaml was never written has several) or a .mcap/.db3 file."""
     p = Path(path)
     if p.is_dir():
-        return present(p / METADATA_YAML) or len(storage_files(p)) == 1
+        return present(p / METADATA_YAML) or bool(storage_files(p))
     return p.suffix in BAG_SUFFIXES and present(p)

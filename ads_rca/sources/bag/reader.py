@@ -28,11 +28,10 @@ reported, never opened: a Problem when other storage files can be read, else Inp
 from __future__ import annotations
 
 import os
-from collections import Counter
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import yaml
 
@@ -52,6 +51,8 @@ from ads_rca.sources.bag.storage import (
     KEPT_BEFORE_CUT,
     BagMessage,
     StorageRead,
+    TopicCount,
+    counts_of,
     read_mcap,
     read_storage,
 )
@@ -124,17 +125,8 @@ class BagContents:
 def load_bag(path: str | os.PathLike[str]) -> BagContents:
     """Read a bag's storage files (see the module docstring), checking metadata.yaml against
     them. Raises InputError only when no storage file can be read at all."""
-    p = Path(path)
-    if p.is_dir():
-        info, problems = _metadata_yaml(p)
-        files = _bag_files(p, info, problems)
-    elif p.suffix in BAG_SUFFIXES and present(p):
-        info, problems, files = None, [], [p]
-    elif p.is_file():
-        raise InputError(f"{p}: not a bag file (.mcap or .db3)")
-    else:
-        raise InputError(f"{p}: no such bag")
-    reads = _read_files(files, info, problems)
+    info, problems, files = locate_bag(path)
+    reads = read_files(files, info, problems, read_storage)
     messages = sorted(
         (m for read in reads for m in read.messages), key=lambda m: m.log_time_ns
     )  # stable: file order within a log time
@@ -148,21 +140,46 @@ def load_bag(path: str | os.PathLike[str]) -> BagContents:
             if definitions.setdefault(msg_type, definition) != definition:
                 issue = f"a definition of {msg_type} other than the first file's"
                 problems.append(Problem(read.file.name, msg_type, issue, "the first one is used"))
-    if info is not None:
-        problems.extend(_disagreements(info, storage_topics, messages, reads))
+    if info is not None and not any(read.truncated for read in reads):
+        problems.extend(disagreements(info, storage_topics, counts_of(messages)))
+    elif info is not None:  # a cut file already says what it lost: no count compared
+        problems.extend(disagreements(info, storage_topics, None))
     return BagContents(messages, storage_topics, problems, definitions, os.fspath(path))
 
 
-def _read_files(
-    files: list[Path], info: dict[str, Any] | None, problems: list[Problem]
-) -> list[StorageRead]:
-    """Each storage file read; one that cannot be read at all is a Problem when another
-    one can (InputError, the first file's reason, when none can)."""
-    reads: list[StorageRead] = []
+def locate_bag(
+    path: str | os.PathLike[str],
+) -> tuple[dict[str, Any] | None, list[Problem], list[Path]]:
+    """A bag's ``metadata.yaml`` document (None when absent or unusable), the problems
+    found in it, and its storage files (InputError when ``path`` is no bag)."""
+    p = Path(path)
+    if p.is_dir():
+        info, problems = _metadata_yaml(p)
+        return info, problems, _bag_files(p, info, problems)
+    if p.suffix in BAG_SUFFIXES and present(p):
+        return None, [], [p]
+    if p.is_file():
+        raise InputError(f"{p}: not a bag file (.mcap or .db3)")
+    raise InputError(f"{p}: no such bag")
+
+
+Read = TypeVar("Read", bound=StorageRead)
+
+
+def read_files(
+    files: list[Path],
+    info: dict[str, Any] | None,
+    problems: list[Problem],
+    read: Callable[[Path, int | None], Read],
+) -> list[Read]:
+    """Each storage file read by ``read`` (given what metadata.yaml announces it holds);
+    one that cannot be read at all is a Problem when another one can (InputError, the
+    first file's reason, when none can)."""
+    reads: list[Read] = []
     failed: list[tuple[Path, InputError]] = []
     for file in files:
         try:
-            reads.append(read_storage(file, _announced_messages(info, file)))
+            reads.append(read(file, _announced_messages(info, file)))
         except InputError as error:
             failed.append((file, error))
     if not reads:
@@ -217,21 +234,31 @@ def _bag_files(directory: Path, info: dict[str, Any] | None, problems: list[Prob
                 )
     if files:
         return files
-    found = storage_files(directory)
-    if len(found) != 1:
-        raise InputError(
-            f"{directory}: not a bag (no usable metadata.yaml and no single .mcap/.db3)"
-        )
+    found = split_order(storage_files(directory))
+    if not found:
+        raise InputError(f"{directory}: not a bag (no usable metadata.yaml and no .mcap/.db3)")
     if info is not None:
+        names = ", ".join(f.name for f in found)
         problems.append(
             Problem(
                 METADATA_YAML,
                 "relative_file_paths",
-                f"names no storage file of the bag; {found[0].name} read instead",
+                f"names no storage file of the bag; {names} read instead",
                 USED_DEFAULT,
             )
         )
     return found
+
+
+def split_order(files: list[Path]) -> list[Path]:
+    """Storage files in the order rosbag2 splits a recording (``x_0``, ``x_1``, ...,
+    ``x_10``: by the number after the last ``_``, then by name)."""
+
+    def key(file: Path) -> tuple[str, int, str]:
+        stem, _, number = file.stem.rpartition("_")
+        return (stem, int(number), file.name) if number.isdigit() else (file.stem, -1, file.name)
+
+    return sorted(files, key=key)
 
 
 def _announced_messages(info: dict[str, Any] | None, file: Path) -> int | None:
@@ -259,13 +286,14 @@ def _yaml_topics(info: dict[str, Any]) -> dict[str, tuple[str, int | None]]:
     return out
 
 
-def _disagreements(
+def disagreements(
     info: dict[str, Any],
     storage: dict[str, str],
-    messages: list[BagMessage],
-    reads: list[StorageRead],
+    counts: Mapping[str, TopicCount] | None,
 ) -> list[Problem]:
-    """Every way metadata.yaml differs from the storage files (which are what is used)."""
+    """Every way metadata.yaml differs from the storage files, which are trusted and used
+    (``counts``: the storage's messages per topic; None when a file was cut, which says
+    itself what it lost)."""
     declared = _yaml_topics(info)
     out: list[Problem] = []
     for name, msg_type in sorted(storage.items()):
@@ -291,15 +319,15 @@ def _disagreements(
         Problem(METADATA_YAML, name, "topic not in the storage files", IGNORED, "warning")
         for name in sorted(set(declared) - set(storage))
     )
-    if not any(read.truncated for read in reads):  # a cut file already says what it lost
-        counts = Counter(m.topic for m in messages)
+    if counts is not None:
         for name, (_type, count) in sorted(declared.items()):
-            if name in storage and count is not None and count != counts[name]:
+            held = counts.get(name, TopicCount()).count
+            if name in storage and count is not None and count != held:
                 out.append(
                     Problem(
                         METADATA_YAML,
                         name,
-                        f"message_count {count}, the storage holds {counts[name]}",
+                        f"message_count {count}, the storage holds {held}",
                         _TRUSTED_STORAGE,
                         severity="warning",
                     )
@@ -351,13 +379,17 @@ class NoRunMetadata(InputError):
 
 
 def _profile_hint(contents: BagContents) -> str:
-    """The error's ending "…: add --profile NAME" when a built-in stack profile's topics
-    are in the bag (else nothing)."""
-    from ads_rca.sources.bag.profiles.profile import (
-        matching_builtin,  # profiles read bags: no cycle
+    """The error's ending "…: add --profile NAME" when the bag holds messages of a built-in
+    stack profile's types on its topics (the rule ``inspect`` recommends by, never topic
+    names alone: a declared topic without messages gives nothing); else nothing."""
+    from ads_rca.sources.bag.survey import (  # the survey reads bags: no cycle
+        builtin_profiles,
+        survey_contents,
     )
 
-    name = matching_builtin(contents.topics)
+    stacks = [profile for profile in builtin_profiles() if not profile.contract]
+    recommendation = survey_contents(contents, profiles=stacks, look_up=False).recommendation
+    name = recommendation.profile if recommendation is not None else None
     return f"; its topics are the {name} profile's: add --profile {name}" if name else ""
 
 

@@ -29,6 +29,13 @@ data, the sqlite3 ``message_definitions`` table of rosbag2 >= Iron), kept as tex
 definition
 over :data:`MAX_DEFINITION_BYTES` is reported and ignored. Pure Python, no rclpy. Nothing
 raises but :class:`~ads_rca.errors.InputError`, when the file holds nothing readable at all.
+
+:func:`list_storage` lists a file instead of reading it (``inspect`` of a bag of any size
+and any types): each topic's count and first and last log time, never a message kept. A
+sqlite3 file is counted by sqlite itself (``GROUP BY topic_id``: no blob fetched); an MCAP
+file from its summary, the statistics for the counts and each chunk's message index records
+(16 bytes a message) for the times, no chunk decompressed; an MCAP without a summary that
+adds up, and a damaged sqlite3 file, from the same salvaging walk as reading, counting.
 """
 
 from __future__ import annotations
@@ -40,13 +47,18 @@ import struct
 import tempfile
 import zlib
 from collections import Counter
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import BinaryIO, Protocol
 
+import numpy as np
+import numpy.typing as npt
+
 from ads_rca.errors import InputError
 from ads_rca.foundation.files import Unreadable, open_regular
-from ads_rca.problems import Problem, Severity
+from ads_rca.foundation.text import short_repr
+from ads_rca.problems import IGNORED, Problem, Severity
 from ads_rca.sources.errors import CorruptRecord
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
@@ -120,6 +132,68 @@ class StorageRead:
         issue = f"definition of {msg_type} has {size} bytes (limit {MAX_DEFINITION_BYTES})"
         self.problem(where, issue, IGNORED_DEFINITION)
         return True
+
+
+@dataclass(frozen=True, slots=True)
+class TopicCount:
+    """How many messages a topic holds and the log times of its first and last (None when
+    it has none with a usable time)."""
+
+    count: int = 0
+    first_ns: int | None = None
+    last_ns: int | None = None
+
+    def merged(self, other: TopicCount) -> TopicCount:
+        """Both counts together (one topic split over several storage files)."""
+        firsts = [t for t in (self.first_ns, other.first_ns) if t is not None]
+        lasts = [t for t in (self.last_ns, other.last_ns) if t is not None]
+        return TopicCount(
+            self.count + other.count,
+            min(firsts) if firsts else None,
+            max(lasts) if lasts else None,
+        )
+
+
+#: How a listing's counts were found (said by ``inspect``).
+LISTED_BY_SUMMARY = "the MCAP summary (statistics and message indexes)"
+LISTED_BY_SCAN = "a scan of every record (no usable MCAP summary)"
+LISTED_BY_SQL = "the sqlite3 topics and messages tables"
+LISTED_BY_SALVAGE = "the rows a damaged sqlite3 file still yields"
+
+
+@dataclass
+class StorageListing(StorageRead):
+    """What one storage file declares and how many messages each topic holds, the messages
+    themselves not kept: ``inspect`` lists a bag of any size, whatever its types, without
+    decoding or holding a message (``messages`` stays empty)."""
+
+    #: topic name → its messages (every declared topic, 0 messages included)
+    counts: dict[str, TopicCount] = field(default_factory=dict)
+    #: how the counts were found (one of the ``LISTED_BY_*`` texts)
+    method: str = ""
+
+
+def counts_of(messages: Iterable[BagMessage]) -> dict[str, TopicCount]:
+    """Per topic, the count and first and last log times of ``messages``."""
+    found: dict[str, list[int]] = {}
+    for message in messages:
+        entry = found.get(message.topic)
+        time = message.log_time_ns
+        if entry is None:
+            found[message.topic] = [1, time, time]
+        else:
+            entry[0] += 1
+            entry[1] = min(entry[1], time)
+            entry[2] = max(entry[2], time)
+    return {topic: TopicCount(n, first, last) for topic, (n, first, last) in found.items()}
+
+
+def list_storage(path: Path, expected_messages: int | None = None) -> StorageListing:
+    """The topics, types, definitions and per-topic counts of a ``.mcap`` or ``.db3`` file,
+    without keeping a message (see :class:`StorageListing`)."""
+    if path.suffix == ".db3":
+        return list_sqlite3(path, expected_messages)
+    return list_mcap(path, expected_messages)
 
 
 def read_storage(path: Path, expected_messages: int | None = None) -> StorageRead:
@@ -279,6 +353,10 @@ class _McapWalk:
             self._record(opcode, data[pos : pos + length], -1)
             pos += length
 
+    def recovered(self) -> int:
+        """How many messages the walk kept (what a cut file is said to have given)."""
+        return len(self.out.messages)
+
     def finish(self, stop: _Stop | None, expected: int | None) -> StorageRead:
         out = self.out
         for channel_id in sorted(self.unknown_channels):
@@ -293,7 +371,7 @@ class _McapWalk:
             out.topics.setdefault(topic, self.schemas.get(schema_id, ""))
         if stop is not None:
             out.truncated = True
-            n = len(out.messages)
+            n = self.recovered()
             if stop.damaged_at is None:
                 issue = truncation_issue(self.size, n, expected)
             else:
@@ -425,6 +503,228 @@ def read_mcap(path: Path, expected_messages: int | None = None) -> StorageRead:
     return walk.finish(stop, expected_messages)
 
 
+# --- MCAP listing --------------------------------------------------------------------------
+
+_MESSAGE_INDEX, _CHUNK_INDEX, _STATISTICS = 7, 8, 11
+_FOOTER_RECORD = _RECORD_HEAD + 8 + 8 + 4  # summary start, summary offset start, CRC
+#: Largest summary section read whole; a larger one (or a damaged length) is scanned past.
+MAX_SUMMARY_BYTES = 1 << 28
+
+
+class _McapCount(_McapWalk):
+    """An MCAP walk that counts each channel's messages and their first and last log times
+    instead of keeping them: the listing of a file without a usable summary."""
+
+    def __init__(self, path: Path, stream: BinaryIO, size: int) -> None:
+        super().__init__(path, stream, size)
+        self.listing = StorageListing(path, method=LISTED_BY_SCAN)
+        self.out = self.listing
+        #: channel id → [count, first log time, last log time]
+        self.counts: dict[int, list[int]] = {}
+
+    def _message(self, body: bytes) -> None:
+        if len(body) < _MESSAGE_HEAD:
+            raise CorruptRecord("message record shorter than its header")
+        channel_id, _seq, log_time, _pub = struct.unpack_from("<HIQQ", body)
+        if channel_id not in self.channels:
+            self.unknown_channels[channel_id] += 1
+            return
+        entry = self.counts.get(channel_id)
+        if entry is None:
+            self.counts[channel_id] = [1, log_time, log_time]
+        else:
+            entry[0] += 1
+            entry[1] = min(entry[1], log_time)
+            entry[2] = max(entry[2], log_time)
+
+    def recovered(self) -> int:
+        return sum(entry[0] for entry in self.counts.values())
+
+    def listed(self, stop: _Stop | None, expected: int | None) -> StorageListing:
+        """The listing, every channel's topic counted (0 for a channel without messages)."""
+        self.finish(stop, expected)
+        by_channel = {cid: TopicCount(*entry) for cid, entry in self.counts.items()}
+        _count_channels(self.listing, self.channels, by_channel)
+        return self.listing
+
+
+def _count_channels(
+    out: StorageListing,
+    channels: dict[int, tuple[str, int, str]],
+    by_channel: dict[int, TopicCount],
+) -> None:
+    """``out.counts`` per topic from per-channel counts (channels of one topic summed)."""
+    for channel_id, (topic, _schema_id, _encoding) in sorted(channels.items()):
+        count = by_channel.get(channel_id, TopicCount())
+        out.counts[topic] = out.counts.get(topic, TopicCount()).merged(count)
+
+
+def list_mcap(path: Path, expected_messages: int | None = None) -> StorageListing:
+    """An MCAP file's listing: from its summary (statistics, then each chunk's message
+    indexes for the times: no chunk is decompressed) when it has a consistent one, else
+    from a walk of every record (a recording cut before its summary, or written without)."""
+    with open_storage(path) as stream:
+        size = os.fstat(stream.fileno()).st_size
+        if stream.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
+            raise InputError(
+                f"{path}: not an MCAP file, or truncated before the first record ({size} bytes)"
+            )
+        summary = _summary_listing(path, stream, size)
+        if summary is not None:
+            return summary
+        stream.seek(len(MCAP_MAGIC))
+        walk = _McapCount(path, stream, size)
+        stop = walk.walk()
+    if not walk.header:
+        raise InputError(f"{path}: truncated before the first record ({size} bytes)")
+    return walk.listed(stop, expected_messages)
+
+
+@dataclass
+class _Summary:
+    """What an MCAP summary section says (the parts a listing needs)."""
+
+    schemas: dict[int, str] = field(default_factory=lambda: {0: ""})
+    channels: dict[int, tuple[str, int, str]] = field(default_factory=dict)
+    #: total messages and per-channel counts, when the file has a statistics record
+    total: int | None = None
+    channel_counts: dict[int, int] | None = None
+    #: per chunk: (message index records' start, their length)
+    indexes: list[tuple[int, int]] = field(default_factory=list)
+
+
+def _summary_listing(path: Path, stream: BinaryIO, size: int) -> StorageListing | None:
+    """The listing the summary gives, or None when it cannot be trusted to be complete
+    (no footer, no summary, damaged, or counts that its message indexes do not add up
+    to): the caller then walks the file."""
+    footer_at = size - len(MCAP_MAGIC) - _FOOTER_RECORD
+    if footer_at < len(MCAP_MAGIC):
+        return None
+    stream.seek(footer_at)
+    tail = stream.read(_FOOTER_RECORD + len(MCAP_MAGIC))
+    if len(tail) != _FOOTER_RECORD + len(MCAP_MAGIC) or tail[-len(MCAP_MAGIC) :] != MCAP_MAGIC:
+        return None
+    opcode, length, start, _offsets, _crc = struct.unpack_from("<BQQQI", tail)
+    if opcode != _FOOTER or length != _FOOTER_RECORD - _RECORD_HEAD:
+        return None
+    if not len(MCAP_MAGIC) < start < footer_at or footer_at - start > MAX_SUMMARY_BYTES:
+        return None
+    stream.seek(start)
+    out = StorageListing(path, method=LISTED_BY_SUMMARY)
+    try:
+        summary = _summary(stream.read(footer_at - start), out)
+        if summary is None:
+            return None
+        by_channel = _indexed_counts(stream, summary, start)
+    except (CorruptRecord, struct.error, UnicodeDecodeError, ValueError):
+        return None
+    if by_channel is None:
+        return None
+    for _channel_id, (topic, schema_id, _encoding) in sorted(summary.channels.items()):
+        out.topics.setdefault(topic, summary.schemas[schema_id])
+    _count_channels(out, summary.channels, by_channel)
+    return out
+
+
+def _summary(data: bytes, out: StorageListing) -> _Summary | None:
+    """The summary section's schemas (their definitions kept in ``out``), channels,
+    statistics and chunk indexes; None when a channel names a schema it does not hold."""
+    found = _Summary()
+    pos = 0
+    while pos < len(data):
+        opcode, length = struct.unpack_from("<BQ", data, pos)
+        pos += _RECORD_HEAD
+        if length > len(data) - pos:
+            raise CorruptRecord(f"a summary record claims {length} bytes")
+        body = data[pos : pos + length]
+        pos += length
+        if opcode == _SCHEMA:
+            schema_id, name, encoding, text = _schema(body)
+            found.schemas[schema_id] = name
+            if text is not None and schema_id != 0:
+                out.definition(name, encoding, text, f"schema {schema_id}")
+        elif opcode == _CHANNEL:
+            channel_id, topic, schema_id, encoding = _channel(body)
+            found.channels.setdefault(channel_id, (topic, schema_id, encoding))
+        elif opcode == _STATISTICS:
+            found.total, found.channel_counts = _statistics(body)
+        elif opcode == _CHUNK_INDEX:
+            found.indexes.append(_chunk_index(body))
+    if any(schema_id not in found.schemas for _t, schema_id, _e in found.channels.values()):
+        return None
+    return found
+
+
+def _statistics(body: bytes) -> tuple[int, dict[int, int]]:
+    """A statistics record's message count and per-channel counts."""
+    (total,) = struct.unpack_from("<Q", body)
+    pos = 8 + 2 + 4 * 4 + 8 + 8  # the schema, channel, ... counts and the message times
+    return total, dict(_map16(body, pos)[0])
+
+
+def _chunk_index(body: bytes) -> tuple[int, int]:
+    """Where a chunk's message index records are: (their first byte, their length)."""
+    _first, _last, chunk_start, chunk_length = struct.unpack_from("<QQQQ", body)
+    _offsets, pos = _map16(body, 32)
+    (index_length,) = struct.unpack_from("<Q", body, pos)
+    return chunk_start + chunk_length, index_length
+
+
+def _map16(body: bytes, pos: int) -> tuple[list[tuple[int, int]], int]:
+    """An MCAP ``map<uint16, uint64>`` at ``pos``: its entries and the position after it."""
+    (length,) = struct.unpack_from("<I", body, pos)
+    pos += 4
+    if length % 10 or pos + length > len(body):
+        raise CorruptRecord(f"a map claims {length} bytes")
+    entries = [struct.unpack_from("<HQ", body, at) for at in range(pos, pos + length, 10)]
+    return entries, pos + length
+
+
+def _indexed_counts(
+    stream: BinaryIO, summary: _Summary, summary_start: int
+) -> dict[int, TopicCount] | None:
+    """Per channel, its messages from the chunks' message index records (a log time and
+    an offset per message: 16 bytes each, no chunk decompressed); None unless they add up
+    to the statistics (a file written without indexes, or messages outside chunks)."""
+    found: dict[int, TopicCount] = {}
+    for index_start, index_length in summary.indexes:
+        if not len(MCAP_MAGIC) <= index_start <= summary_start - index_length:
+            return None
+        stream.seek(index_start)
+        data = stream.read(index_length)
+        pos = 0
+        while pos < len(data):
+            opcode, length = struct.unpack_from("<BQ", data, pos)
+            pos += _RECORD_HEAD
+            if length > len(data) - pos:
+                return None
+            if opcode == _MESSAGE_INDEX:
+                channel_id, times = _message_index(data[pos : pos + length])
+                if times.size:
+                    seen = TopicCount(int(times.size), int(times.min()), int(times.max()))
+                    found[channel_id] = found.get(channel_id, TopicCount()).merged(seen)
+            pos += length
+    total = sum(count.count for count in found.values())
+    if summary.total is None:
+        return found if summary.indexes else None
+    if total != summary.total or not set(found) <= set(summary.channels):
+        return None
+    if summary.channel_counts is not None and any(
+        found.get(cid, TopicCount()).count != n for cid, n in summary.channel_counts.items()
+    ):
+        return None
+    return found
+
+
+def _message_index(body: bytes) -> tuple[int, npt.NDArray[np.uint64]]:
+    """A message index record's channel and the log times of its messages."""
+    (channel_id, length) = struct.unpack_from("<HI", body)
+    if length % 16 or 6 + length > len(body):
+        raise CorruptRecord(f"a message index claims {length} bytes")
+    pairs = np.frombuffer(body, dtype="<u8", count=length // 8, offset=6)
+    return channel_id, pairs[0::2]
+
+
 # --- sqlite3 -------------------------------------------------------------------------------
 
 
@@ -473,11 +773,7 @@ def read_sqlite3(path: Path, expected_messages: int | None = None) -> StorageRea
 def _sqlite_rows(database: Path, path: Path, out: StorageRead) -> str | None:
     """Fill ``out`` from ``database`` (``path``: the bag's file, for names); returns the
     damage that stopped the rows, if any. InputError when not even the topics are readable."""
-    uri = f"{Path(os.path.abspath(database)).as_uri()}?immutable=1"  # no resolve: /proc
-    try:
-        connection = sqlite3.connect(uri, uri=True)
-    except sqlite3.Error as error:
-        raise InputError(f"{path}: cannot open the sqlite3 bag: {error}") from error
+    connection = _connect(database, path)
     by_id: dict[int, tuple[str, str]] = {}
     foreign: Counter[str] = Counter()
     unknown = 0
@@ -515,6 +811,99 @@ def _sqlite_rows(database: Path, path: Path, out: StorageRead) -> str | None:
     for topic, n in sorted(foreign.items()):
         out.problem(topic, f"{n} messages not in CDR encoding", SKIPPED_MESSAGES)
     return damage
+
+
+def _connect(database: Path, path: Path) -> sqlite3.Connection:
+    """A read-only (immutable) connection to ``database`` (``path`` names it in errors)."""
+    uri = f"{Path(os.path.abspath(database)).as_uri()}?immutable=1"  # no resolve: /proc
+    try:
+        return sqlite3.connect(uri, uri=True)
+    except sqlite3.Error as error:
+        raise InputError(f"{path}: cannot open the sqlite3 bag: {error}") from error
+
+
+#: Per topic id: its messages, the first and last integer log times, and how many rows
+#: have a log time that is no integer (a damaged or hostile file).
+_COUNT_MESSAGES = """
+SELECT topic_id, COUNT(*),
+       MIN(CASE WHEN typeof(timestamp) = 'integer' THEN timestamp END),
+       MAX(CASE WHEN typeof(timestamp) = 'integer' THEN timestamp END),
+       SUM(typeof(timestamp) != 'integer')
+FROM messages GROUP BY topic_id
+"""
+
+
+def list_sqlite3(path: Path, expected_messages: int | None = None) -> StorageListing:
+    """A rosbag2 sqlite3 file's listing: topics and types from its ``topics`` table,
+    definitions from ``message_definitions`` when it has one (a bag recorded before Iron
+    has none: nothing needs them to list), per-topic counts and times counted by sqlite
+    (no message is fetched). A file cut short or damaged inside ``messages`` is listed
+    from the rows :func:`read_sqlite3` still salvages, its damage said."""
+    with open_storage(path) as stream:
+        size = os.fstat(stream.fileno()).st_size
+        announced = _sqlite_size(stream.read(100))
+        if announced is None or size >= announced:
+            listing = _sqlite_counted(_descriptor_path(stream, path), path)
+            if listing is not None:
+                return listing
+    read = read_sqlite3(path, expected_messages)
+    out = StorageListing(
+        path,
+        topics=read.topics,
+        definitions=read.definitions,
+        problems=read.problems,
+        truncated=read.truncated,
+        method=LISTED_BY_SALVAGE,
+    )
+    counted = counts_of(read.messages)
+    out.counts = {name: counted.get(name, TopicCount()) for name in read.topics}
+    return out
+
+
+def _sqlite_counted(database: Path, path: Path) -> StorageListing | None:
+    """The listing sqlite's own count gives; None when the messages table is damaged (the
+    caller salvages row by row). InputError when not even the topics are readable."""
+    out = StorageListing(path, method=LISTED_BY_SQL)
+    connection = _connect(database, path)
+    # Names are listed even when not UTF-8 (shown with U+FFFD): a listing never refuses
+    # a bag for one bad byte in a name.
+    connection.text_factory = lambda raw: raw.decode("utf-8", "replace")
+    try:
+        try:
+            rows = connection.execute("SELECT id, name, type FROM topics").fetchall()
+        except sqlite3.Error as error:
+            raise InputError(f"{path}: not a readable rosbag2 sqlite3 file: {error}") from error
+        by_id: dict[int, str] = {}
+        for topic_id, name, msg_type in rows:
+            if not isinstance(topic_id, int):
+                out.problem("topics", f"a topic id {short_repr(topic_id)} is no integer", IGNORED)
+                continue
+            by_id[topic_id] = str(name)
+            if out.topics.setdefault(str(name), str(msg_type)) != str(msg_type):
+                out.problem(
+                    "topics", f"{str(name)!r} declared again as {msg_type}", "the first type used"
+                )
+        _sqlite_definitions(connection, out)
+        try:
+            counted = connection.execute(_COUNT_MESSAGES).fetchall()
+        except sqlite3.Error:
+            return None
+    finally:
+        connection.close()
+    out.counts = dict.fromkeys(out.topics, TopicCount())
+    unknown = untimed = 0
+    for topic_id, count, first, last, no_time in counted:
+        name = by_id.get(topic_id) if isinstance(topic_id, int) else None
+        if name is None:
+            unknown += int(count)
+            continue
+        untimed += int(no_time or 0)
+        out.counts[name] = out.counts[name].merged(TopicCount(int(count), first, last))
+    if unknown:
+        out.problem("messages", f"{unknown} messages on a topic id never defined", IGNORED)
+    if untimed:
+        out.problem("messages", f"{untimed} messages with a timestamp that is no integer", IGNORED)
+    return out
 
 
 def _sqlite_definitions(connection: sqlite3.Connection, out: StorageRead) -> None:

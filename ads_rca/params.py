@@ -61,6 +61,11 @@ class Params:
     noise_floor_s: float = 3.0  # s of floor frames (the noise-floor rule)
     noise_floor_min_frames: int = 5
     noise_floor_factor: float = 1.5
+    # Both modes: the critical event explained when the run knows no collision.
+    event_time_s: float = -1.0  # s from the recording's first message; < 0: none given
+    event_decel: float = 4.0  # m/s²
+    event_clearance: float = 0.3  # m
+    event_ttc_s: float = 1.0  # s
 
     def values(self, names: Iterable[str]) -> dict[str, Any]:
         """``{name: value}`` of the parameters ``names``, in that order (for outputs: a

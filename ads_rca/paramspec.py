@@ -76,6 +76,11 @@ class ParamSpec:
         return self.effect.get(mode, "not read in this mode")
 
 
+def _both(effect: str) -> dict[str, str]:
+    """The same effect in both modes (the event rules are not a mode's)."""
+    return {"reference": effect, "corrected": effect}
+
+
 def _frames(low: int, high: int) -> Range:
     return Range(low, high, integer=True, unit="frames")
 
@@ -267,7 +272,27 @@ SPECS: dict[str, ParamSpec] = {
             "this many times 2 sigma per sqrt of steps); 0 turns the floors off"
         },
     ),
+    "event_time_s": ParamSpec(
+        Range(-1.0, 31_536_000.0, unit="s"),
+        _both(
+            "the critical event to explain when the run knows no collision: seconds from the "
+            "recording's first message (negative: none given; events are looked for)"
+        ),
+    ),
+    "event_decel": ParamSpec(
+        Range(0.1, 100.0, unit="m/s²"),
+        _both("a hard brake: the ego decelerating at this or more (over 0.2 s)"),
+    ),
+    "event_clearance": ParamSpec(
+        Range(0.0, 100.0, unit="m"),
+        _both("a near miss: an object's box this close to the ego's, or closer"),
+    ),
+    "event_ttc_s": ParamSpec(
+        Range(0.0, 60.0, unit="s"),
+        _both("a near miss: a collision within this time, both keeping their velocity"),
+    ),
 }
+
 
 #: The log reader's parameter (not an engine threshold; ``commands/input_args.py``).
 MAX_FILE_MB = Range(0.001, 1_048_576.0, unit="MB")

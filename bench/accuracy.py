@@ -40,7 +40,7 @@ import shutil
 import tempfile
 from collections import Counter
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from timing import Clock, Timing, timed
@@ -64,16 +64,21 @@ from ads_rca.synth import (
 from ads_rca.synth.noise import LEVELS
 from ads_rca.synth.recording import PROFILES, write_recording
 
+#: Without ground truth, a verdict that finds no failing module suspects perception.
+SUSPECTED = "suspected"
 #: A fault is named by its module, as the verdict names it.
-LABELS = list(FAULTS)
+LABELS = [*FAULTS, SUSPECTED]
 
 
-def diagnose(log: RunLog, params: Params | None = None) -> tuple[Attribution, Timing]:
-    """The corrected attribution of a log (default parameters unless ``params``) and the
-    diagnosis's wall and CPU time per analysed frame (ms)."""
+def diagnose(log: RunLog, params: Params | None = None) -> tuple[Attribution, Timing, bool]:
+    """The corrected attribution of a log (default parameters unless ``params``), the
+    diagnosis's wall and CPU time per analysed frame (ms), and whether the verdict, finding
+    no failing module, suspects a module it could not judge (a run without ground truth)."""
     found, took = timed(lambda: diagnose_log(log, params or make_params("corrected")))
     frames = max(len(found.frames), 1)
-    return found.attribution, Timing(took.wall_s * 1000 / frames, took.cpu_s * 1000 / frames)
+    timing = Timing(took.wall_s * 1000 / frames, took.cpu_s * 1000 / frames)
+    suspected = found.attribution.primary_root_cause is None and bool(found.conclusion.suspected)
+    return found.attribution, timing, suspected
 
 
 def drop_2d(log: RunLog) -> RunLog:
@@ -90,6 +95,18 @@ def through_bag(log: RunLog, profile: str, storage: str, folder: Path) -> RunLog
     shutil.rmtree(bag, ignore_errors=True)
     write_recording(log, bag, profile, storage)
     return read_recording(bag, profile)
+
+
+def without_truth(log: RunLog) -> tuple[RunLog, float]:
+    """``log`` as a real drive records it: no ground-truth actors, 2-D boxes or predictions
+    on ground truth, no collision source; and the contact's time (s) to give as
+    ``event_time_s``. The stack's tracks stand in for the world when it is diagnosed."""
+    drop_2d(log)
+    contact_s = log.metadata.collision_frame * log.frame_ms / 1000.0
+    log.actors = {}
+    log.frames = tuple(sorted(log.tracks_3d))
+    log.metadata = replace(log.metadata, collision_frame=-1, collision_known=False)
+    return log, contact_s
 
 
 def corrected_params(items: Sequence[str]) -> Params:
@@ -192,13 +209,19 @@ def judge_level(
                 if args.drop_2d:
                     drop_2d(log)
                 label = log.metadata.raw["synthesis"]
+                params = args.params
+                if args.without_truth:
+                    log, contact_s = without_truth(log)
+                    params = replace(params, event_time_s=contact_s)
                 if args.bag:
                     log = through_bag(log, args.bag, args.storage, scratch)
-                attribution, ms = diagnose(log, args.params)
+                attribution, ms, suspected = diagnose(log, params)
                 tally.times.append(ms)
-                got = attribution.primary_root_cause or "none"
+                got = attribution.primary_root_cause or (SUSPECTED if suspected else "none")
                 injected = canonical_fault(label["fault"])
                 want = fault_module(injected)
+                if want == "perception" and got == SUSPECTED:
+                    want = SUSPECTED  # named where the evidence allows, else suspected
                 tally.confusion[injected, got] += 1
                 tally.per_scenario[scenario, got == want] += 1
                 tally.per_cell[scenario, injected, got == want] += 1
@@ -281,6 +304,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--faults", default=",".join(FAULTS), help="faults, or 'variants'")
     parser.add_argument(
         "--drop-2d", action="store_true", help="diagnose without bboxes, bboxes_gt and pwp"
+    )
+    parser.add_argument(
+        "--without-truth",
+        action="store_true",
+        help="diagnose as a real drive: no actors, no collision, event_time_s at the contact",
     )
     parser.add_argument("--bag", choices=PROFILES, help="diagnose each log through a bag")
     parser.add_argument("--storage", choices=("mcap", "sqlite3"), default="mcap")

@@ -89,9 +89,13 @@ def test_no_collision_known_is_no_fault_found_and_unknown_is_never() -> None:
     unknown = _document(cruise, "corrected")
     assert unknown["collision"] == "unknown" and unknown["conclusive"] is False
     assert unknown["reason"] == "collision unknown"
+    # Nothing else to explain either: said so, with what each module's status was.
     assert unknown["verdict"] == (
-        "inconclusive: collision unknown (metadata.json gives no usable collision_frame)"
+        "inconclusive: collision unknown (metadata.json gives no usable collision_frame); "
+        "no critical event found; modules: perception judged, prediction judged, "
+        "planning judged, controller judged"
     )
+    assert unknown["event"] is None and unknown["events_found"] == []
     text = summary_text(unknown)
     assert "collision unknown" in text.splitlines()[1]
     assert "no fault found" not in text and "no collision in this run" not in text

@@ -67,6 +67,14 @@ def add_engine_arguments(parser: argparse.ArgumentParser, both: bool = False) ->
         help="set one parameter (repeatable), e.g. -p safety_margin=0.8; what each does in "
         "each mode, its defaults and range: below",
     )
+    parser.add_argument(
+        "--event-time",
+        type=float,
+        default=None,
+        metavar="SECONDS",
+        help="the critical event to explain when the run knows no collision: seconds from "
+        "the recording's first message (the parameter event_time_s; this wins over -p)",
+    )
     # The parameter table says what a value does in each mode (effect_time_window=15
     # changes nothing in corrected mode at 20 Hz): on --help, laid out as written.
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
@@ -85,6 +93,8 @@ def params_from_args(args: argparse.Namespace, semantics: str | None = None) -> 
     overrides = parse_p(args.params)
     for name in READER_PARAMS:  # the reader's, not the engine's
         overrides.pop(name, None)
+    if getattr(args, "event_time", None) is not None:
+        overrides["event_time_s"] = args.event_time
     return params_from_sources(semantics or args.semantics, config, overrides, args.config)
 
 

@@ -15,10 +15,14 @@ from dataclasses import dataclass
 from itertools import pairwise
 
 from ads_rca.capabilities import JUDGED, NOT_JUDGED, input_status, present
+from ads_rca.diagnosis.events import CriticalEvent, EventChoice, explained_event
+from ads_rca.diagnosis.perceived import is_perceived
 from ads_rca.diagnosis.verdict import (
     COLLISION_UNKNOWN,
     INCONCLUSIVE,
     MODULES,
+    NO_CRITICAL_EVENT,
+    PERCEPTION_SUSPECTED,
     Attribution,
     FrameResults,
     Module,
@@ -75,15 +79,28 @@ class Conclusion:
     #: Why the verdict is inconclusive, in words (empty: conclusive).
     reasons: tuple[str, ...]
     internal_errors: tuple[InternalError, ...] = ()
+    #: The event (not a collision) the verdict explains, if one stood in for the collision.
+    event: CriticalEvent | None = None
+    #: The events looked for when the run knew no collision (None: it knew one).
+    events: EventChoice | None = None
+    #: Modules suspected for want of a judgement (without ground truth: perception).
+    suspected: tuple[Module, ...] = ()
 
     @property
     def conclusive(self) -> bool:
         return not self.reasons
 
+    @property
+    def explains_nothing(self) -> bool:
+        """No collision known and no critical event found or given."""
+        return self.collision != COLLISION_YES and self.event is None and self.events is not None
+
     def reason(self, attribution: Attribution) -> str | None:
         """``reason`` of the JSON: why no root cause was named (None: one was)."""
         if attribution.primary_root_cause is not None:
             return None
+        if self.suspected and self.event is not None:
+            return PERCEPTION_SUSPECTED
         if self.collision == COLLISION_UNKNOWN_STATE:
             return COLLISION_UNKNOWN
         return attribution.reason if self.conclusive else INCONCLUSIVE
@@ -92,20 +109,39 @@ class Conclusion:
         """The verdict in words (docs/verdicts.md "The verdict")."""
         primary = attribution.primary_root_cause
         why = "; ".join(self.reasons)
+        explains = f" [explains {self.event.label}]" if self.event is not None else ""
         if primary is None:
-            return f"inconclusive: {why}" if why else f"no fault found ({attribution.reason})"
+            if self.explains_nothing and self.collision != COLLISION_NO:
+                judged = ", ".join(f"{m} {self.modules.get(m, JUDGED)}" for m in MODULES)
+                return f"inconclusive: {why}; modules: {judged}"
+            if self.suspected and self.event is not None:
+                return (
+                    f"{', '.join(self.suspected)} suspected (no module failed against what the "
+                    f"stack perceived; without ground truth it cannot be judged); "
+                    f"inconclusive: {why}{explains}"
+                )
+            text = f"inconclusive: {why}" if why else f"no fault found ({attribution.reason})"
+            return text + explains
         contributing = attribution.contributing
         text = f"{primary} (contributing: {', '.join(contributing)})" if contributing else primary
-        return f"{text}; inconclusive: {why}" if why else text
+        return (f"{text}; inconclusive: {why}" if why else text) + explains
 
     def to_document(self) -> dict[str, object]:
         """The verdict JSON's keys for it."""
-        return {
+        document: dict[str, object] = {
             "conclusive": self.conclusive,
             "why_inconclusive": list(self.reasons),
             "collision": self.collision,
             "internal_errors": [e.to_dict() for e in self.internal_errors],
         }
+        if self.events is not None or self.event is not None:
+            document["event"] = self.event.to_dict() if self.event is not None else None
+            document["events_found"] = (
+                [e.to_dict() for e in self.events.found] if self.events is not None else []
+            )
+        if self.suspected:
+            document["suspected"] = list(self.suspected)
+        return document
 
 
 def conclude(
@@ -114,29 +150,40 @@ def conclude(
     log: RunLog,
     frames: Sequence[FrameResults],
     incomplete: Iterable[str] = (),
+    events: EventChoice | None = None,
 ) -> Conclusion:
     """The conclusion from a run's inputs and judged frames (``log.frames``: the frames the
-    run holds; ``log.metadata.collision_frame``: the collision being explained).
-    ``incomplete``: why a live verdict came before all its results (each one a reason)."""
+    run holds; ``log.metadata.collision_frame``: the collision, or the event standing in for
+    it, being explained). ``incomplete``: why a live verdict came before all its results
+    (each one a reason); ``events``: the events looked for (the run knew no collision)."""
     statuses = input_status(log)
     modules: dict[Module, str] = dict(semantics.judged(log))
     errors = internal_errors(frames)
     for error in errors:
         modules[error.module] = error.status
-    collision = collision_state(log, present(statuses["collision"]))
+    event = explained_event(log.metadata)
+    if event is not None:
+        collision = event.collision
+    else:
+        collision = collision_state(log, present(statuses["collision"]))
     reasons: list[str] = []
-    if collision == COLLISION_UNKNOWN_STATE:
+    if collision == COLLISION_UNKNOWN_STATE:  # an event explained does not say it
         why = statuses["collision"].reason or "the run has no collision source"
         reasons.append(f"collision unknown ({why})")
+        if events is not None and event is None:
+            reasons.append(events.note or NO_CRITICAL_EVENT)
     missing: list[str] = []
-    if collision == COLLISION_YES:
+    if collision == COLLISION_YES or event is not None:
         window = _window(semantics, params, log)
         modules.update(_partly_judged(frames, window, modules))
         missing = _missing_frames(log, window)
     reasons.extend(f"{m} {modules[m]}" for m in MODULES if modules.get(m, JUDGED) != JUDGED)
     reasons.extend(missing)
     reasons.extend(incomplete)
-    return Conclusion(collision, modules, tuple(reasons), tuple(errors))
+    suspected: tuple[Module, ...] = ()
+    if is_perceived(log) and modules.get("perception", JUDGED) != JUDGED:
+        suspected = ("perception",)
+    return Conclusion(collision, modules, tuple(reasons), tuple(errors), event, events, suspected)
 
 
 def collision_state(log: RunLog, source_present: bool) -> str:

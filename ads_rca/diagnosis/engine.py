@@ -17,7 +17,17 @@ from typing import Any
 import numpy as np
 
 from ads_rca import __version__
-from ads_rca.diagnosis.conclusion import Conclusion, conclude
+from ads_rca.capabilities import input_status, present
+from ads_rca.diagnosis.conclusion import Conclusion, collision_state, conclude
+from ads_rca.diagnosis.events import (
+    EventChoice,
+    choose_event,
+    collision_frame_of,
+    emergency_onsets,
+    explained_event,
+    with_event,
+)
+from ads_rca.diagnosis.perceived import perceived_world, reference_of
 from ads_rca.diagnosis.verdict import Attribution, FrameResults, json_safe
 from ads_rca.foundation.indented_json import RenderedList
 from ads_rca.foundation.progress import advancer
@@ -75,6 +85,8 @@ class Diagnosis:
     rendered_frames: RenderedList | None = None
     #: Why a live verdict came before all its results (each a reason it is inconclusive).
     incomplete: Sequence[str] = ()
+    #: The events looked for when the run knew no collision (None: it knew one).
+    events: EventChoice | None = None
 
     @property
     def params(self) -> Params:
@@ -97,7 +109,9 @@ class Diagnosis:
     @cached_property
     def conclusion(self) -> Conclusion:
         """What the evidence lets the verdict claim (docs/verdicts.md)."""
-        return conclude(self.semantics, self.params, self.log, self.frames, self.incomplete)
+        return conclude(
+            self.semantics, self.params, self.log, self.frames, self.incomplete, self.events
+        )
 
     @property
     def verdict_text(self) -> str:
@@ -114,7 +128,8 @@ class Diagnosis:
             "source": self.log.source,
             "semantics": self.params.semantics,
             "thresholds": self.semantics.used(self.params),
-            "collision_frame": self.log.metadata.collision_frame,
+            "collision_frame": collision_frame_of(self.log.metadata),
+            "reference": reference_of(self.log),
             "window_frames": self.window_frames,
             "effect_window": self.semantics.effect_window(self.params, self.log.frame_ms),
             "ego_id": self.ctx.ego_id,
@@ -187,6 +202,7 @@ def diagnose(
     made as their slices come back (:attr:`Diagnosis.rendered_frames`).
     """
     semantics = semantics_for(params)
+    log, events = explained_run(log, params)
     ctx = RunContext.create(log, params)
     oracles = semantics.judging_oracles(log)
     timestamps = semantics.analysed_frames(log)
@@ -197,7 +213,22 @@ def diagnose(
     else:
         stamps: Iterable[int] = progress(timestamps) if progress is not None else timestamps
         frames = [evaluate_frame(ctx, oracles, ts) for ts in stamps]
-    return Diagnosis(log, ctx, frames, semantics.attribute(frames, ctx), rendered)
+    return Diagnosis(log, ctx, frames, semantics.attribute(frames, ctx), rendered, events=events)
+
+
+def explained_run(log: RunLog, params: Params) -> tuple[RunLog, EventChoice | None]:
+    """The run as its verdict judges it: the stack's tracks as its world when it has no
+    ground truth (:mod:`.perceived`), and, when it knows no collision, the critical event
+    its verdict explains (:mod:`.events`) in the collision's place. A run already prepared
+    (its event in its metadata) is returned as it is."""
+    log = perceived_world(log)
+    if explained_event(log.metadata) is not None:
+        return log, None
+    state = collision_state(log, present(input_status(log)["collision"]))
+    choice = choose_event(log, params, state, emergency_onsets(log))
+    if choice.explained is None:
+        return log, choice if state == "unknown" or choice.note else None
+    return with_event(log, choice.explained), choice
 
 
 # The forked workers read the run and its timestamps from here (set just before forking,

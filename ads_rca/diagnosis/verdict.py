@@ -46,6 +46,10 @@ NO_MODULE_FAILED = "no module failed"
 #: (docs/verdicts.md): something it needed was not judged, or the collision is unknown.
 INCONCLUSIVE = "inconclusive"
 COLLISION_UNKNOWN = "collision unknown"
+#: ``reason`` when the run knows no collision and no critical event was found or given.
+NO_CRITICAL_EVENT = "no critical event found"
+#: ``reason`` when, without ground truth, no module failed against what the stack perceived.
+PERCEPTION_SUSPECTED = "perception suspected"
 
 
 @dataclass(frozen=True)

@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from ads_rca.diagnosis.perceived import EGO_ID, is_perceived
 from ads_rca.diagnosis.verdict import MODULES, Metric, Module, OracleResult
 from ads_rca.model import Actors, EgoPose, RunLog
 from ads_rca.oracles.semantics import EGO_ID_TIMESTAMP_MS, semantics_for
@@ -55,7 +56,9 @@ class RunContext:
     @classmethod
     def create(cls, log: RunLog, params: Params) -> RunContext:
         ctx = cls(log, params)
-        if not _records_no_actors(log):  # else no actor can match: nothing to find or report
+        if is_perceived(log):  # the ego its pose made (its box may not centre on the pose)
+            ctx.ego_id = EGO_ID
+        elif not _records_no_actors(log):  # else no actor can match: nothing to find or report
             ctx.ego_id = semantics_for(params).find_ego(ctx)
         return ctx
 

@@ -72,6 +72,10 @@ class Headline:
     partner: bool = False
 
 
+#: The critical-event rules' parameters (docs/real-drives.md): read in both modes.
+EVENT_PARAMETERS = ("event_time_s", "event_decel", "event_clearance", "event_ttc_s")
+
+
 class Semantics:
     """One mode's rules. Subclasses set the class attributes and override what differs."""
 
@@ -109,36 +113,53 @@ class Semantics:
     #: Per module, the model inputs its rule reads (``ads_rca.capabilities.MODEL_INPUTS``),
     #: as alternatives: any one set present lets the module be judged.
     requires: Mapping[Module, tuple[tuple[str, ...], ...]] = {}
+    #: Per module, how it is judged when the run has no ground truth (its actors are the
+    #: stack's own tracks, :mod:`ads_rca.diagnosis.perceived`): its status in words and the
+    #: oracle that judges it so. A module not listed is judged as usual (against the tracks).
+    without_truth: Mapping[Module, tuple[str, Oracle]] = {}
 
     def judged(self, log: RunLog) -> dict[Module, str]:
         """Per module: ``judged``, or ``not judged (no <input>)`` for this run's inputs."""
-        from ads_rca.capabilities import input_status, judged_modules
+        from ads_rca.capabilities import JUDGED, input_status, judged_modules
+        from ads_rca.diagnosis.perceived import is_perceived
 
-        return judged_modules(self.requires, input_status(log))
+        verdicts = judged_modules(self.requires, input_status(log))
+        if is_perceived(log):
+            for module, (status, _) in self.without_truth.items():
+                if verdicts.get(module) == JUDGED:
+                    verdicts[module] = status
+        return verdicts
 
     def judging_oracles(self, log: RunLog) -> Mapping[Module, Oracle]:
         """The oracles to run on ``log``: for a recording that lacks a module's inputs, an
         oracle that says "not judged" at every frame instead of reporting each frame's
         missing input (a running log's folders run every oracle, as the reference does)."""
         from ads_rca.capabilities import input_status, recorded
+        from ads_rca.diagnosis.perceived import is_perceived
 
-        return self.oracles_for_inputs(input_status(log) if recorded(log) else None)
+        return self.oracles_for_inputs(
+            input_status(log) if recorded(log) else None, perceived=is_perceived(log)
+        )
 
     def oracles_for_inputs(
-        self, statuses: Mapping[str, InputStatus] | None
+        self, statuses: Mapping[str, InputStatus] | None, perceived: bool = False
     ) -> dict[Module, Oracle]:
         """The oracles given a recording's input statuses (None: a running log, every
-        oracle); the live monitors ask it with the statuses the run metadata carries."""
+        oracle); the live monitors ask it with the statuses the run metadata carries.
+        ``perceived``: the run's actors are its own tracks (:attr:`without_truth`)."""
         from ads_rca.capabilities import JUDGED, judged_modules
 
+        chosen = dict(self.oracles)
+        if perceived:
+            chosen.update({m: oracle for m, (_, oracle) in self.without_truth.items()})
         if statuses is None:
-            return dict(self.oracles)
+            return chosen
         verdicts = judged_modules(self.requires, statuses)
         return {
             module: oracle
             if verdicts.get(module, JUDGED) == JUDGED
             else partial(not_judged, module, verdicts[module], self.scores_predictions)
-            for module, oracle in self.oracles.items()
+            for module, oracle in chosen.items()
         }
 
     def attribute(self, frames: Sequence[FrameResults], ctx: RunContext) -> Attribution:

@@ -24,10 +24,12 @@ from ads_rca.oracles.corrected.context import (
 )
 from ads_rca.oracles.corrected.control import control
 from ads_rca.oracles.corrected.perception import perception
+from ads_rca.oracles.corrected.perception_without_truth import STATUS as NO_TRUTH_STATUS
+from ads_rca.oracles.corrected.perception_without_truth import perception_without_truth
 from ads_rca.oracles.corrected.planning import planning
 from ads_rca.oracles.corrected.prediction import prediction
 from ads_rca.oracles.corrected.threat import most_threatening
-from ads_rca.oracles.semantics import Headline, Semantics
+from ads_rca.oracles.semantics import EVENT_PARAMETERS, Headline, Oracle, Semantics
 from ads_rca.params import Params
 
 ORACLES: dict[Module, Callable[[RunContext, int], OracleResult]] = {
@@ -77,8 +79,12 @@ class CorrectedSemantics(Semantics):
         "noise_floor_s",
         "noise_floor_min_frames",
         "noise_floor_factor",
+        *EVENT_PARAMETERS,
     )
     reported = REPORTED
+    without_truth: Mapping[Module, tuple[str, Oracle]] = {
+        "perception": (NO_TRUTH_STATUS, perception_without_truth)
+    }
     requires: Mapping[Module, tuple[tuple[str, ...], ...]] = {
         # Every rule measures clearances against the ego's plan boxes; without predictions
         # on ground truth, the 3-D match links the stack's predictions to the partner.

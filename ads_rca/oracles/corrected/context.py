@@ -22,6 +22,7 @@ from typing import Any, Generic, TypeVar, cast
 import numpy as np
 import numpy.typing as npt
 
+from ads_rca.diagnosis.events import explained_event
 from ads_rca.foundation.geometry import FloatArray, box_signed_distance
 from ads_rca.model import FOLDERS, EgoPose, Record, RunLog, Track
 from ads_rca.oracles.base import RunContext
@@ -140,8 +141,20 @@ class CorrectedContext:
         """The collision partner (cached per collision frame; None without a collision)."""
         cf = self.log.metadata.collision_frame
         if self._partner is None or self._partner[0] != cf:
-            self._partner = (cf, find_partner(self) if cf >= 0 else None)
+            event = explained_event(self.log.metadata) is not None
+            partner = (self._event_partner() if event else find_partner(self)) if cf >= 0 else None
+            self._partner = (cf, partner)
         return self._partner[1]
+
+    def _event_partner(self) -> str | None:
+        """At an event that is not a collision (a hard brake, a near miss, a time given),
+        nothing touched the ego: the partner is the actor most threatening there (the rule
+        of :mod:`.threat`), at the event's frame or the latest earlier one with actors."""
+        from ads_rca.oracles.corrected.threat import most_threatening
+
+        event_ms = self.log.metadata.collision_frame * self.frame_ms
+        held = [ts for ts in self.log.unique_frames if ts <= event_ms and ts in self.log.actors]
+        return most_threatening(self, held[-1]) if held else None
 
     def judge_without_collision(self, rule: PartnerRule) -> None:
         """Judge frames before any collision against ``rule``'s actor at each timestamp

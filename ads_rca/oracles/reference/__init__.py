@@ -22,7 +22,7 @@ from ads_rca.oracles.reference.oracles import (
     planning,
     prediction,
 )
-from ads_rca.oracles.semantics import Headline, Semantics
+from ads_rca.oracles.semantics import EVENT_PARAMETERS, Headline, Semantics
 from ads_rca.params import Params
 
 #: The folders each reference oracle reads.
@@ -50,6 +50,7 @@ class ReferenceSemantics(Semantics):
         "pred_score_threshold",
         "planning_toleration_future_step",
         "planning_toleration",
+        *EVENT_PARAMETERS,
     )
     reported = REPORTED
     window_counts = "frames after collision_frame - {w}, with no upper bound"

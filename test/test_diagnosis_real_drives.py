@@ -1,0 +1,174 @@
+"""A run without ground truth or collision: judged against what the stack perceived, at its
+critical event (docs/real-drives.md).
+
+These runs come from our own synthesiser (consistency, not correctness): its crash logs with
+the actors, the 2-D inputs and the collision taken away, as a real drive records them.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+from commandline import run_cli
+
+from ads_rca.diagnosis.engine import diagnose
+from ads_rca.diagnosis.events import (
+    EVENT_KEY,
+    CriticalEvent,
+    explained_event,
+    find_events,
+    hard_brakes,
+)
+from ads_rca.diagnosis.perceived import EGO_ID, PERCEIVED, perceived_world
+from ads_rca.diagnosis.verdict import PERCEPTION_SUSPECTED
+from ads_rca.model import RunLog
+from ads_rca.params import make_params
+from ads_rca.sources.log.writer import write_run_log
+from ads_rca.synth import synthesise
+
+
+def real_drive(scenario: str, fault: str, seed: int = 0) -> tuple[RunLog, float]:
+    """A synthesised crash as a real drive records it, and the contact's time (s)."""
+    log = synthesise(scenario, fault, seed)
+    contact_s = log.metadata.collision_frame * log.frame_ms / 1000.0
+    log.bboxes, log.bboxes_gt, log.predictions_with_perception = {}, {}, {}
+    log.actors = {}
+    log.frames = tuple(sorted(log.tracks_3d))
+    log.metadata = replace(log.metadata, collision_frame=-1, collision_known=False)
+    return log, contact_s
+
+
+def at(time_s: float) -> object:
+    return replace(make_params("corrected"), event_time_s=time_s)
+
+
+@pytest.mark.parametrize("fault", ["prediction", "planning", "controller"])
+def test_a_downstream_fault_is_named_against_the_perceived_world(fault: str) -> None:
+    log, contact_s = real_drive("cut_in", fault)
+    found = diagnose(log, at(contact_s))  # type: ignore[arg-type]
+    document = found.to_json(include_frames=False)
+    assert document["primary_root_cause"] == fault, document["verdict"]
+    assert document["reference"] == PERCEIVED
+    assert document["collision"] == "unknown" and document["collision_frame"] == -1
+    assert document["event"]["kind"] == "given"
+    assert math.isclose(document["event"]["time_s"], contact_s, abs_tol=0.06)
+    assert "[explains event given at" in document["verdict"]
+    # Perception could only be partly judged: never a conclusive verdict.
+    assert document["modules_judged"]["perception"].startswith("partly judged (no ground truth")
+    assert document["conclusive"] is False
+    assert "no fault found" not in document["verdict"]
+
+
+def test_a_missed_object_leaves_perception_suspected_never_no_fault() -> None:
+    log, contact_s = real_drive("cut_in", "perception")
+    found = diagnose(log, at(contact_s))  # type: ignore[arg-type]
+    document = found.to_json(include_frames=False)
+    assert document["primary_root_cause"] is None
+    assert document["reason"] == PERCEPTION_SUSPECTED
+    assert document["verdict"].startswith("perception suspected")
+    assert document["suspected"] == ["perception"]
+    assert "no fault found" not in document["verdict"]
+
+
+def test_a_wrong_perceived_velocity_is_named_from_the_tracks_own_motion() -> None:
+    log, contact_s = real_drive("lead_braking", "perception:velocity")
+    found = diagnose(log, at(contact_s))  # type: ignore[arg-type]
+    assert found.attribution.primary_root_cause == "perception"
+    marks = {
+        mark
+        for frame in found.frames
+        for mark in frame.results["perception"].metrics.get("marks", [])  # type: ignore[union-attr]
+    }
+    assert "inconsistent track" in marks
+
+
+def test_the_world_is_the_stacks_tracks_and_ground_truth_wins() -> None:
+    log, _ = real_drive("cut_in", "none")
+    world = perceived_world(log)
+    ts = world.frames[0]
+    assert world.actors[ts].ids[0] == EGO_ID
+    assert set(world.actors[ts].ids[1:]) == set(log.tracks_3d[ts].ids)
+    assert world.inputs["actors"].state == "derived"
+    assert world.metadata.raw["reference"] == PERCEIVED
+    truth = synthesise("cut_in", "none", 0)
+    assert perceived_world(truth) is truth  # actors present: nothing replaced
+
+
+def test_a_hard_brake_is_found_and_explained_without_a_time() -> None:
+    log, _ = real_drive("lead_braking", "none")
+    params = make_params("corrected")
+    brakes = hard_brakes(perceived_world(log), params)
+    assert brakes and all("event_decel 4 m/s²" in e.what for e in brakes)
+    found = diagnose(log, params)
+    event = found.conclusion.event
+    assert event is not None and event.kind in ("near_miss", "hard_brake")
+    listed = [e["kind"] for e in found.to_json(include_frames=False)["events_found"]]
+    assert event.kind in listed
+
+
+def test_without_any_event_the_verdict_says_so() -> None:
+    log, _ = real_drive("cruise", "none")
+    params = replace(make_params("corrected"), event_decel=100.0, event_ttc_s=0.0)
+    params = replace(params, event_clearance=0.0)
+    document = diagnose(log, params).to_json(include_frames=False)
+    assert document["event"] is None and document["events_found"] == []
+    assert "no critical event found" in document["verdict"]
+    assert document["verdict"].startswith("inconclusive: collision unknown")
+    assert "no fault found" not in document["verdict"] and document["conclusive"] is False
+
+
+def test_a_time_outside_the_run_is_said_and_nothing_is_explained() -> None:
+    log, _ = real_drive("cut_in", "planning")
+    document = diagnose(log, at(10_000.0)).to_json(include_frames=False)  # type: ignore[arg-type]
+    assert document["event"] is None
+    assert any("outside the run's frames" in r for r in document["why_inconclusive"])
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [
+        None,
+        [],
+        {"kind": "given"},
+        {"kind": "meteor", "timestamp_ms": 0, "frame": 0, "time_s": 0.0, "what": ""},
+        {"kind": "given", "timestamp_ms": True, "frame": 0, "time_s": 0.0, "what": ""},
+        {"kind": "given", "timestamp_ms": -50, "frame": 0, "time_s": 0.0, "what": ""},
+        {"kind": "given", "timestamp_ms": 0, "frame": 0, "time_s": math.nan, "what": ""},
+        {"kind": "given", "timestamp_ms": 0, "frame": 0, "time_s": 1e400, "what": ""},
+        {"kind": "given", "timestamp_ms": 0, "frame": 0, "time_s": 0.0, "what": 7},
+        {"kind": "given", "timestamp_ms": 0, "frame": 0, "time_s": 0.0, "collision": "maybe"},
+    ],
+)
+def test_a_malformed_event_in_the_metadata_explains_nothing(bad: object) -> None:
+    assert CriticalEvent.from_dict(bad) is None
+    log = synthesise("cut_in", "planning", 0)
+    log.metadata = replace(log.metadata, raw={**log.metadata.raw, EVENT_KEY: bad})
+    assert explained_event(log.metadata) is None
+    assert diagnose(log, make_params("corrected")).attribution.primary_root_cause == "planning"
+
+
+def test_events_found_are_in_time_order_with_their_thresholds() -> None:
+    log, _ = real_drive("lead_braking", "planning")
+    found = find_events(perceived_world(log), make_params("corrected"), emergencies=[500])
+    assert [e.timestamp_ms for e in found] == sorted(e.timestamp_ms for e in found)
+    assert found[0].kind == "emergency" and found[0].timestamp_ms == 500
+
+
+def test_event_time_on_the_command_line(tmp_path: Path) -> None:
+    log = synthesise("cut_in", "planning", 0)
+    contact_s = log.metadata.collision_frame * log.frame_ms / 1000.0
+    log.metadata = replace(log.metadata, collision_frame=-1, collision_known=False)
+    folder = write_run_log(log, tmp_path / "log")
+    out = tmp_path / "v.json"
+    run_cli("diagnose", str(folder), "--event-time", str(contact_s), "--json", str(out), check=True)
+    document = json.loads(out.read_text())
+    assert document["event"]["kind"] == "given"
+    assert document["primary_root_cause"] == "planning"
+    assert document["thresholds"]["event_time_s"] == contact_s
+    refused = run_cli("replay", str(folder), "--event-time", "1.0", check=False)
+    assert refused.returncode != 0 and "Traceback" not in refused.stderr
+    assert "not judged by the live graph yet" in refused.stderr

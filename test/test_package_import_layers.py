@@ -45,6 +45,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("ads_rca.oracles",),
     (
         "ads_rca.diagnosis.conclusion",
+        "ads_rca.diagnosis.events",
         "ads_rca.diagnosis.engine",
         "ads_rca.diagnosis.summary",
         "ads_rca.diagnosis.compare",

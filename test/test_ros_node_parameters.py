@@ -118,7 +118,8 @@ def test_every_node_logs_its_parameters_once_at_start(ros_env: Any) -> None:
     expected = (
         "parameters in force: semantics reference; thresholds: effect_time_window=10, "
         "perc_score_threshold=0.5, pred_score_threshold=0.1, planning_toleration_future_step=3, "
-        "planning_toleration=2.0; node: "
+        "planning_toleration=2.0, event_time_s=-1.0, event_decel=4.0, event_clearance=0.3, "
+        "event_ttc_s=1.0; node: "
     )
     for name in (
         "perception_monitor",

@@ -15,7 +15,8 @@ from dataclasses import dataclass
 from itertools import pairwise
 
 from ads_rca.capabilities import JUDGED, NOT_JUDGED, input_status, present
-from ads_rca.diagnosis.events import CriticalEvent, EventChoice, explained_event
+from ads_rca.diagnosis.critical_event import CriticalEvent, explained_event
+from ads_rca.diagnosis.events import EventChoice
 from ads_rca.diagnosis.perceived import is_perceived
 from ads_rca.diagnosis.verdict import (
     COLLISION_UNKNOWN,

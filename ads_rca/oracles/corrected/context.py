@@ -22,7 +22,7 @@ from typing import Any, Generic, TypeVar, cast
 import numpy as np
 import numpy.typing as npt
 
-from ads_rca.diagnosis.events import explained_event
+from ads_rca.diagnosis.critical_event import explained_event
 from ads_rca.foundation.geometry import FloatArray, box_signed_distance
 from ads_rca.model import FOLDERS, EgoPose, Record, RunLog, Track
 from ads_rca.oracles.base import RunContext

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Iterable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
@@ -134,21 +134,6 @@ class Profile:
 def builtin_path(name: str) -> Path:
     """The package-data file of a built-in profile."""
     return Path(str(resources.files("ads_rca.sources.bag.profiles") / "builtin" / f"{name}.yaml"))
-
-
-def matching_builtin(topics: Iterable[str]) -> str | None:
-    """The built-in stack profile (not the contract) whose topics a bag carries most of, at
-    least two of them: what to suggest for a bag read without a profile."""
-    held = set(topics)
-    best, best_count = None, 1
-    for name in BUILTIN_NAMES:
-        profile = load_profile(name)
-        if profile.contract:
-            continue
-        count = len(held & {spec.topic for spec in profile.inputs.values()})
-        if count > best_count:
-            best, best_count = name, count
-    return best
 
 
 def load_profile(name_or_path: str | os.PathLike[str]) -> Profile:

@@ -33,6 +33,7 @@ import numpy as np
 
 from ads_rca.capabilities import INPUT_FIELDS, MODEL_INPUTS
 from ads_rca.contract.errors import MalformedMessage
+from ads_rca.diagnosis.critical_event import EMERGENCY_KEY, START_OFFSET_KEY
 from ads_rca.errors import ConfigError, InputError
 from ads_rca.foundation.geometry import world_to_ego
 from ads_rca.foundation.progress import Progress, tracked
@@ -73,9 +74,7 @@ DEFAULT_PERIOD_MS = 50
 #: faster than the frames: each frame takes its message nearest the frame's time.
 FASTER_THAN_FRAMES = 0.75
 #: Keys of ``metadata.raw`` the reader sets besides the profile's facts.
-FIRST_MESSAGE_OFFSET = "first_message_offset_ms"
 FRAME_REFERENCE = "frame_reference"
-EMERGENCY_ONSETS = "emergency_onsets_ms"
 _SKIPPED = "message skipped"
 _NS_PER_MS = 1_000_000
 #: The inputs read into per-frame folders of the model as decoded, by folder (the field of
@@ -182,7 +181,7 @@ def read_profiled(
     mrm_states = _mrm_states(decoded.get("mrm_state"), usable, grid, inputs, problems)
     raw: dict[str, Any] = {}
     if inputs.get("mrm_state", InputStatus("absent")).state == "real":
-        raw[EMERGENCY_ONSETS] = emergency_onsets(mrm_states, grid.period_ms)
+        raw[EMERGENCY_KEY] = emergency_onsets(mrm_states, grid.period_ms)
     collisions = decoded.get("collision", [])
     metadata = _metadata(profile, grid, collisions, contents, reference, problems, raw)
     return RunLog.from_folders(
@@ -288,7 +287,7 @@ def _metadata(
     raw.update(profile.facts)
     raw.update(more)
     first = min((m.log_time_ns for m in contents.messages), default=grid.t0_ns)
-    raw[FIRST_MESSAGE_OFFSET] = max(0, round((grid.t0_ns - first) / _NS_PER_MS))
+    raw[START_OFFSET_KEY] = max(0, round((grid.t0_ns - first) / _NS_PER_MS))
     if len(profile.references) > 1:
         raw[FRAME_REFERENCE] = reference
     if partner is not None:

@@ -15,18 +15,15 @@ from pathlib import Path
 import pytest
 from commandline import run_cli
 
+from ads_rca.diagnosis.critical_event import EVENT_KEY, CriticalEvent, explained_event
 from ads_rca.diagnosis.engine import diagnose
-from ads_rca.diagnosis.events import (
-    EVENT_KEY,
-    CriticalEvent,
-    explained_event,
-    find_events,
-    hard_brakes,
-)
+from ads_rca.diagnosis.events import find_events, hard_brakes
 from ads_rca.diagnosis.perceived import EGO_ID, PERCEIVED, perceived_world
+from ads_rca.diagnosis.summary import summary_text
 from ads_rca.diagnosis.verdict import PERCEPTION_SUSPECTED
 from ads_rca.model import RunLog
 from ads_rca.params import make_params
+from ads_rca.sources.bag.profiles.recording import read_recording
 from ads_rca.sources.log.writer import write_run_log
 from ads_rca.synth import synthesise
 
@@ -106,8 +103,12 @@ def test_a_hard_brake_is_found_and_explained_without_a_time() -> None:
     found = diagnose(log, params)
     event = found.conclusion.event
     assert event is not None and event.kind in ("near_miss", "hard_brake")
-    listed = [e["kind"] for e in found.to_json(include_frames=False)["events_found"]]
+    document = found.to_json(include_frames=False)
+    listed = [e["kind"] for e in document["events_found"]]
     assert event.kind in listed
+    text = summary_text(document)  # what diagnose and replay print
+    assert f"critical event: {event.label}: {event.what}" in text
+    assert f"events found: {len(listed)}" in text
 
 
 def test_without_any_event_the_verdict_says_so() -> None:
@@ -169,6 +170,24 @@ def test_event_time_on_the_command_line(tmp_path: Path) -> None:
     assert document["event"]["kind"] == "given"
     assert document["primary_root_cause"] == "planning"
     assert document["thresholds"]["event_time_s"] == contact_s
-    refused = run_cli("replay", str(folder), "--event-time", "1.0", check=False)
-    assert refused.returncode != 0 and "Traceback" not in refused.stderr
-    assert "not judged by the live graph yet" in refused.stderr
+
+
+def test_an_object_first_seen_is_no_near_miss_by_time_to_collision(tmp_path: Path) -> None:
+    """Its velocity is unknown on its first frame: taken as standing, the lead ahead of a
+    following ego was "a collision within 0.8 s" at 10 m. Only clearance counts there."""
+    from synthlogs import synth
+    from writers.autoware_bags import AutowareBagOptions, write_autoware_bag
+
+    log = synth("lead_braking", "planning")
+    bag = write_autoware_bag(log, tmp_path / "bag", AutowareBagOptions(legacy=True)).path
+    world = perceived_world(read_recording(bag, "autoware"))
+    first_seen: dict[str, int] = {}
+    for ts in world.unique_frames:
+        for actor in world.actors[ts].ids:
+            first_seen.setdefault(actor, ts)
+    assert max(first_seen.values()) > min(world.unique_frames)  # someone comes into view
+    params = make_params("corrected")
+    for event in find_events(world, params):
+        if event.kind == "near_miss" and event.timestamp_ms in first_seen.values():
+            clearance = float(event.what.split("clearance ")[1].split(" m")[0])
+            assert clearance < params.event_clearance, event

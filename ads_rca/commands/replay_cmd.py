@@ -48,7 +48,7 @@ from ads_rca.commands.playback_args import (
 )
 from ads_rca.commands.zenoh_args import add_zenoh_arguments, zenoh_params_from_args
 from ads_rca.diagnosis.summary import summary_text
-from ads_rca.errors import EXIT_INTERNAL_ERROR, AdsRcaError, ConfigError, InputError
+from ads_rca.errors import EXIT_INTERNAL_ERROR, AdsRcaError, InputError
 from ads_rca.foundation.text import printable, printable_lines
 from ads_rca.params import Params
 from ads_rca.ros.env import discovery_note, ros_environment
@@ -100,11 +100,6 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"{path}: no such log folder or bag")
     check_playback_arguments(args)
     params = params_from_args(args)
-    if params.event_time_s >= 0:
-        raise ConfigError(
-            "replay: --event-time / event_time_s is not judged by the live graph yet; "
-            "use ads-rca diagnose (or batch) for a run without a collision"
-        )
     player_params: dict[str, ParamValue] = {"max_file_mb": float(max_file_mb_from_args(args))}
     source = source_options_from_args(args)
     player_params.update(source.as_params())

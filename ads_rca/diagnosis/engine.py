@@ -19,12 +19,13 @@ import numpy as np
 from ads_rca import __version__
 from ads_rca.capabilities import input_status, present
 from ads_rca.diagnosis.conclusion import Conclusion, collision_state, conclude
+from ads_rca.diagnosis.critical_event import collision_frame_of, explained_event
 from ads_rca.diagnosis.events import (
     EventChoice,
+    choice_of,
     choose_event,
-    collision_frame_of,
     emergency_onsets,
-    explained_event,
+    with_choice,
     with_event,
 )
 from ads_rca.diagnosis.perceived import perceived_world, reference_of
@@ -220,15 +221,25 @@ def explained_run(log: RunLog, params: Params) -> tuple[RunLog, EventChoice | No
     """The run as its verdict judges it: the stack's tracks as its world when it has no
     ground truth (:mod:`.perceived`), and, when it knows no collision, the critical event
     its verdict explains (:mod:`.events`) in the collision's place. A run already prepared
-    (its event in its metadata) is returned as it is."""
+    (:func:`prepared_run`: its event or the events looked for in its metadata) is returned as
+    it is, with the events it carries."""
     log = perceived_world(log)
-    if explained_event(log.metadata) is not None:
-        return log, None
+    prepared = choice_of(log.metadata)
+    if prepared is not None or explained_event(log.metadata) is not None:
+        return log, prepared
     state = collision_state(log, present(input_status(log)["collision"]))
     choice = choose_event(log, params, state, emergency_onsets(log))
     if choice.explained is None:
         return log, choice if state == "unknown" or choice.note else None
     return with_event(log, choice.explained), choice
+
+
+def prepared_run(log: RunLog, params: Params) -> RunLog:
+    """The run as :func:`explained_run` makes it, the events looked for in its metadata: what
+    the player plays, so the monitors judge the world and the event ``diagnose`` judges and
+    the aggregator's verdict lists the same events."""
+    log, choice = explained_run(log, params)
+    return with_choice(log, choice)
 
 
 # The forked workers read the run and its timestamps from here (set just before forking,

@@ -23,118 +23,27 @@ from typing import Any
 
 import numpy as np
 
+from ads_rca.diagnosis.critical_event import (
+    EMERGENCY,
+    EMERGENCY_KEY,
+    EVENT_KEY,
+    GIVEN,
+    HARD_BRAKE,
+    NEAR_MISS,
+    PRIORITY,
+    START_OFFSET_KEY,
+    CriticalEvent,
+    explained_event,
+)
 from ads_rca.diagnosis.perceived import EGO_ID, is_perceived
 from ads_rca.foundation.geometry import box_signed_distance
 from ads_rca.model import RunLog, RunMetadata, frame_number
 from ads_rca.oracles.base import ego_at
 from ads_rca.params import Params
 
-#: Where the explained event travels in the run's metadata.
-EVENT_KEY = "critical_event"
-#: ms from the recording's first message to frame 0 (a recording's reader sets it; a log
-#: folder starts at its first frame): ``--event-time`` counts from that first message.
-START_OFFSET_KEY = "first_message_offset_ms"
-
-COLLISION = "collision"
-GIVEN = "given"
-EMERGENCY = "emergency"
-NEAR_MISS = "near_miss"
-HARD_BRAKE = "hard_brake"
-#: Which event a verdict explains when several are found: the first kind here, then the
-#: earliest of that kind.
-PRIORITY = (COLLISION, GIVEN, EMERGENCY, NEAR_MISS, HARD_BRAKE)
-KIND_WORDS = {
-    COLLISION: "collision",
-    GIVEN: "event given",
-    EMERGENCY: "emergency state",
-    NEAR_MISS: "near miss",
-    HARD_BRAKE: "hard brake",
-}
 #: The ego's deceleration is taken over at least this span (ms), centred on the frame, so one
 #: noisy speed sample is not a hard brake.
 DECEL_SPAN_MS = 200
-
-
-@dataclass(frozen=True)
-class CriticalEvent:
-    """One event: its kind, where it is on the run's frame clock, and what it was."""
-
-    kind: str
-    timestamp_ms: int
-    frame: int
-    time_s: float  # seconds from the recording's first message
-    what: str  # in words, with the threshold that made it an event
-    #: The run's own collision state (``yes``, ``no``, ``unknown``) when this stood in for it.
-    collision: str = "unknown"
-
-    @property
-    def label(self) -> str:
-        """``hard brake at 12.40 s (frame 124)``."""
-        return f"{KIND_WORDS[self.kind]} at {self.time_s:.2f} s (frame {self.frame})"
-
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "kind": self.kind,
-            "timestamp_ms": self.timestamp_ms,
-            "frame": self.frame,
-            "time_s": self.time_s,
-            "what": self.what,
-            "collision": self.collision,
-        }
-
-    @classmethod
-    def from_dict(cls, document: object) -> CriticalEvent | None:
-        """The event a metadata document carries; None when it carries none or one that is
-        not well formed (it then explains nothing: the run is judged as its collision
-        source says)."""
-        if not isinstance(document, Mapping):
-            return None
-        kind, stamp, frame = (
-            document.get("kind"),
-            document.get("timestamp_ms"),
-            document.get("frame"),
-        )
-        time_s, what = document.get("time_s"), document.get("what", "")
-        collision = document.get("collision", "unknown")
-        if not isinstance(stamp, int) or not isinstance(frame, int):
-            return None
-        if (
-            kind not in KIND_WORDS
-            or not _whole(stamp)
-            or not _whole(frame)
-            or not isinstance(time_s, int | float)
-            or isinstance(time_s, bool)
-            or not math.isfinite(time_s)
-            or not isinstance(what, str)
-            or collision not in ("yes", "no", "unknown")
-        ):
-            return None
-        return cls(str(kind), int(stamp), int(frame), float(time_s), what, str(collision))
-
-
-def _whole(value: object) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool) and value >= 0
-
-
-def explained_event(metadata: RunMetadata) -> CriticalEvent | None:
-    """The event (not a collision) a run's verdict explains; None: its collision, if any."""
-    event = CriticalEvent.from_dict(metadata.raw.get(EVENT_KEY))
-    if event is None or event.kind == COLLISION:
-        return None
-    frame_ms = metadata.timesteps_per_frame
-    if abs(event.timestamp_ms - metadata.collision_frame * frame_ms) >= max(frame_ms, 1):
-        return None  # the frame it stood in for was changed since: not this run's event
-    return event
-
-
-def collision_frame_of(metadata: RunMetadata) -> int:
-    """The run's collision frame as its source gave it (-1 when an event stands in)."""
-    return -1 if explained_event(metadata) is not None else metadata.collision_frame
-
-
-#: Timestamps (ms, the frames' clock) at which the stack entered an emergency / MRM state:
-#: a recording's reader lists them in the metadata when the run carries that state.
-EMERGENCY_KEY = "emergency_onsets_ms"
 
 
 def emergency_onsets(log: RunLog) -> list[int]:
@@ -315,7 +224,10 @@ def _closest(
         ).reshape(n, k)
     gap = dist[:, 0]
     hit = dist <= 0.0
-    ttc = np.where(hit.any(axis=1), times[np.argmax(hit, axis=1)], np.inf)
+    # An object first seen at ts has no velocity yet: taken as standing, a moving one would
+    # be a near miss by time to collision it never was; only its clearance counts.
+    moving_known = np.array([dt > 0 and a in previous for a in others])
+    ttc = np.where(hit.any(axis=1) & moving_known, times[np.argmax(hit, axis=1)], np.inf)
     near = (gap < params.event_clearance) | (ttc <= params.event_ttc_s)
     near &= np.isfinite(gap)
     if not near.any():
@@ -337,18 +249,25 @@ class EventChoice:
     note: str = ""
 
 
+#: Why a run of snapshots (an atmaCup table: each row its own scene) has no critical event.
+SNAPSHOTS_NOTE = "no critical event: its frames are independent snapshots, not one drive"
+
+
 def choose_event(
     log: RunLog, params: Params, collision_state: str, emergencies: Sequence[int] = ()
 ) -> EventChoice:
     """The event to explain: the collision when the run knows one (nothing else is looked
     for), else the time given (``event_time_s`` >= 0), else, when nothing says whether the
-    ego collided, the first found of the kind first in :data:`PRIORITY`. A run whose
+    ego collided, the first found of the kind first in :data:`PRIORITY`. A run of snapshots
+    has none (neither a time nor a deceleration runs through unrelated scenes). A run whose
     collision source says it did not collide is judged as before unless a time is given
     (its "no fault found (no collision)" stands on that source)."""
     if collision_state == "yes":
         return EventChoice(None, ())
     if collision_state == "no" and params.event_time_s < 0:
         return EventChoice(None, ())  # its collision source says none: judged as before
+    if log.ego_snapshots is not None:  # rows of unrelated scenes: no time runs through them
+        return EventChoice(None, (), SNAPSHOTS_NOTE)
     found = tuple(find_events(log, params, emergencies))
     if params.event_time_s >= 0:
         ts = frame_of_time(log, params.event_time_s)
@@ -384,3 +303,35 @@ def with_event(log: RunLog, event: CriticalEvent) -> RunLog:
 def events_document(found: Sequence[CriticalEvent]) -> list[dict[str, Any]]:
     """The events found, for the verdict JSON."""
     return [e.to_dict() for e in found]
+
+
+#: Where the events looked for travel in a prepared run's metadata: the player prepares the
+#: run it plays (:func:`ads_rca.diagnosis.engine.prepared_run`), so the live verdict lists
+#: the events ``diagnose`` lists and explains the same one.
+CHOICE_KEY = "events_looked_for"
+
+
+def with_choice(log: RunLog, choice: EventChoice | None) -> RunLog:
+    """``log`` carrying ``choice`` (the events looked for) in its metadata; as it is for None."""
+    if choice is None:
+        return log
+    document = {"found": events_document(choice.found), "note": choice.note}
+    return replace(
+        log, metadata=replace(log.metadata, raw={**log.metadata.raw, CHOICE_KEY: document})
+    )
+
+
+def choice_of(metadata: RunMetadata) -> EventChoice | None:
+    """The events looked for that a prepared run's metadata carries (None: it carries none;
+    a malformed entry is left out, as :meth:`CriticalEvent.from_dict` leaves it)."""
+    document = metadata.raw.get(CHOICE_KEY)
+    if not isinstance(document, Mapping):
+        return None
+    listed = document.get("found")
+    found = [CriticalEvent.from_dict(d) for d in listed] if isinstance(listed, list) else []
+    note = document.get("note")
+    return EventChoice(
+        explained_event(metadata),
+        tuple(e for e in found if e is not None),
+        note if isinstance(note, str) else "",
+    )

@@ -45,11 +45,16 @@ DEFAULT_EGO_BOX_OFFSET = 0.0
 
 def reference_of(log: RunLog) -> str:
     """``ground truth`` or ``perceived``: what the run's actors are."""
-    return PERCEIVED if log.metadata.raw.get(REFERENCE_KEY) == PERCEIVED else GROUND_TRUTH
+    return PERCEIVED if perceived_reference(log.metadata.raw) else GROUND_TRUTH
+
+
+def perceived_reference(raw: Mapping[str, Any]) -> bool:
+    """A run's metadata says its actors are its own tracks (a live monitor has only that)."""
+    return raw.get(REFERENCE_KEY) == PERCEIVED
 
 
 def is_perceived(log: RunLog) -> bool:
-    return reference_of(log) == PERCEIVED
+    return perceived_reference(log.metadata.raw)
 
 
 def _number_triple(value: object, default: tuple[float, float, float]) -> tuple[float, ...]:

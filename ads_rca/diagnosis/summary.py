@@ -10,6 +10,7 @@ from typing import Any
 
 from ads_rca.capabilities import JUDGED
 from ads_rca.diagnosis.conclusion import COLLISION_UNKNOWN_STATE
+from ads_rca.diagnosis.critical_event import CriticalEvent
 from ads_rca.foundation.text import printable, short
 from ads_rca.oracles.base import MODULES
 from ads_rca.oracles.semantics import MODES, Semantics, semantics_for
@@ -43,6 +44,7 @@ def summary_text(document: dict[str, Any], max_problems: int = 10, how: str = "j
     partner = document.get("partner_id")
     text = collision_text(collision, document.get("collision") != COLLISION_UNKNOWN_STATE)
     lines.append(f"{text} with actor {partner}" if partner and collision >= 0 else text)
+    lines.extend(event_lines(document, max_problems))
     lines.append(window_text(document.get("effect_window")))
     (counted, other), legend = count_columns(document.get("semantics"))
     lines.append(f"{'module':<12}{counted:>10}{other:>7}  first failure")
@@ -75,6 +77,23 @@ def summary_text(document: dict[str, Any], max_problems: int = 10, how: str = "j
     lines.append(f"input problems: {len(problems)}")
     lines.extend(f"  {line}" for line in problems.summary_lines(max_problems))
     return "\n".join(printable(line) for line in lines)
+
+
+def event_lines(document: dict[str, Any], max_events: int = 10) -> list[str]:
+    """The critical event explained and every event found, each with its time (none when
+    the run knew its collision: no event was looked for)."""
+    if "events_found" not in document:
+        return []
+    lines = []
+    event = CriticalEvent.from_dict(document.get("event"))
+    if event is not None:
+        lines.append(f"critical event: {event.label}: {event.what}")
+    found = [e for e in map(CriticalEvent.from_dict, document.get("events_found") or []) if e]
+    lines.append(f"events found: {len(found)}")
+    lines.extend(f"  {e.label}: {e.what}" for e in found[:max_events])
+    if len(found) > max_events:
+        lines.append(f"  ... {len(found) - max_events} more")
+    return lines
 
 
 def window_text(window: Any) -> str:

@@ -53,6 +53,7 @@ from ads_rca.contract.ego_paths import EgoPathRow, merged, snapshots_from_rows
 from ads_rca.contract.errors import MalformedMessage
 from ads_rca.diagnosis.conclusion import frames_text, missing_window_frames
 from ads_rca.diagnosis.engine import Diagnosis, frame_json
+from ads_rca.diagnosis.events import choice_of
 from ads_rca.diagnosis.verdict import FrameResults, json_safe
 from ads_rca.live.results import (
     Columns,
@@ -534,6 +535,7 @@ class AggregatorCore(FollowsRunEnd):
             frames,
             attribution,
             incomplete=[f"incomplete: {reason}" for reason in why_incomplete],
+            events=choice_of(metadata),
         )
         if window_start is not None:
             # Said by the conclusion too ("... missing from the run"): not passed to it.

@@ -50,6 +50,7 @@ import numpy as np
 from ads_rca.capabilities import JUDGED, complete, judged_modules
 from ads_rca.contract.ego_paths import EgoPathRow, snapshots_from_rows
 from ads_rca.diagnosis.engine import evaluate_frame
+from ads_rca.diagnosis.perceived import perceived_reference
 from ads_rca.live.results import FollowsRunEnd, FrameMarker, LiveResult, RunEnd, no_record
 from ads_rca.live.row_paths import JudgedRow, RowPaths, rescored_incomplete
 from ads_rca.model import (
@@ -188,7 +189,9 @@ class MonitorCore(FollowsRunEnd):
         # allow is "not judged", as diagnose says.
         self.inputs = read_inputs(metadata.raw)[0]
         if self.inputs:
-            chosen = self.semantics.oracles_for_inputs(complete(self.inputs))
+            chosen = self.semantics.oracles_for_inputs(
+                complete(self.inputs), perceived=perceived_reference(metadata.raw)
+            )
             self.oracles = {m: chosen[m] for m in self.modules}
             verdicts = judged_modules(self.semantics.requires, complete(self.inputs))
             self.rescores_rows = self.wants_paths and verdicts.get("planning") != JUDGED

@@ -36,6 +36,7 @@ from ads_rca.foundation.files import DEFAULT_MAX_FILE_MB
 from ads_rca.foundation.yaml_files import load_config
 from ads_rca.live.runid import new_run_id
 from ads_rca.oracles.base import MODULES, Module
+from ads_rca.oracles.semantics import EVENT_PARAMETERS
 from ads_rca.params import SEMANTICS, Params, params_from_sources
 from ads_rca.paramspec import MAX_FILE_MB, RATE, SECONDS, check_number
 from ads_rca.ros.launcher import Launcher, ManagedProcess, ParamValue, ros_args
@@ -162,6 +163,8 @@ class GraphSpec:
             "run_id": self.run_id,
             "wait_for_subscribers": len(out),  # every node subscribes to run/frame
             "wait_timeout_s": PLAYER_WAIT_S,
+            # The run is played as the engine judges it: its critical event by these.
+            **{name: float(getattr(self.params, name)) for name in EVENT_PARAMETERS},
             **self.player_params,
         }
         out.append(NodeSpec("player", "player", PLAYER, None, player))
@@ -267,6 +270,12 @@ LAUNCH_ARGUMENTS: dict[str, LaunchArgument] = {
         "config/rca_reference.yaml ('' = the mode's defaults).",
         "config",
     ),
+    "event_time": LaunchArgument(
+        "-1",
+        "The critical event to explain when the run knows no collision: seconds from the "
+        "recording's first message (-1 = the params file's; events are looked for).",
+        "event_time",
+    ),
     "record": LaunchArgument(
         "", "Record every topic to this new MCAP bag directory ('' = no recording).", "record"
     ),
@@ -350,8 +359,12 @@ def spec_from_arguments(values: Mapping[str, str]) -> GraphSpec:
         raise InputError(f"monitors must be {' or '.join(MONITOR_LAYOUTS)}, not {monitors!r}")
     rate = float(check_number("rate", value("rate"), RATE))
     params_file = value("params_file")
+    event_time = value("event_time")
+    given = (
+        {} if event_time == LAUNCH_ARGUMENTS["event_time"].default else {"event_time_s": event_time}
+    )
     params = params_from_sources(
-        value("semantics") or None, load_config(params_file) if params_file else {}, {}
+        value("semantics") or None, load_config(params_file) if params_file else {}, given
     )
     max_file_mb = float(check_number("max_file_mb", value("max_file_mb"), MAX_FILE_MB))
     source = SourceOptions.from_values({name: value(name) for name in SOURCE_PARAMS})

@@ -45,12 +45,15 @@ from ads_rca.contract.playback import (
     status_message,
     timeline,
 )
+from ads_rca.diagnosis.engine import prepared_run
 from ads_rca.errors import AdsRcaError, ConfigError, InputError
 from ads_rca.foundation.files import DEFAULT_MAX_FILE_MB
 from ads_rca.foundation.text import printable
 from ads_rca.live.runid import checked_run_id, new_run_id
 from ads_rca.model import RunLog
-from ads_rca.paramspec import MAX_FILE_MB, RATE, SECONDS, Range
+from ads_rca.oracles.semantics import EVENT_PARAMETERS
+from ads_rca.params import DEFAULT_SEMANTICS, Params, make_params
+from ads_rca.paramspec import MAX_FILE_MB, RATE, SECONDS, SPECS, Range
 from ads_rca.ros.nodemain import (
     ignore_stop_signals,
     keep_running,
@@ -165,12 +168,25 @@ PARAMETERS: dict[str, NodeParameter] = {
 }
 
 
+#: The critical event's parameters (docs/real-drives.md "Events"): the player plays the run
+#: as ``diagnose`` judges it, its event in the collision's place (same names, same ranges).
+def _event_parameter(name: str) -> NodeParameter:
+    effect, bounds = SPECS[name].effect_in(DEFAULT_SEMANTICS), SPECS[name].range
+    assert isinstance(bounds, Range)  # every event parameter is a number
+    return getattr(Params(), name), f"{effect[:1].upper()}{effect[1:]}.", bounds
+
+
+EVENT_NODE_PARAMETERS: dict[str, NodeParameter] = {
+    name: _event_parameter(name) for name in EVENT_PARAMETERS
+}
+
+
 class Player(Node):
     """Publishes one RunLog on the contract topics."""
 
     def __init__(self) -> None:
         super().__init__("player")
-        self._values = declare_node_parameters(self, PARAMETERS)
+        self._values = declare_node_parameters(self, {**PARAMETERS, **EVENT_NODE_PARAMETERS})
         self.rate = float(self._param("rate"))
         self.start_frame = int(self._param("start_frame"))
         self.stop_frame = int(self._param("stop_frame"))
@@ -289,6 +305,10 @@ class Player(Node):
             raise ConfigError(f"{log_path}: no such log folder")
         source = SourceOptions.from_values({k: self._param(k) for k in SOURCE_PARAMS})
         log = open_run(log_path, max_file_mb=self.max_file_mb, bag=bag, source=source)
+        # Without ground truth its tracks are the world; without a collision, its critical
+        # event stands in: the monitors judge what diagnose judges.
+        events = make_params(DEFAULT_SEMANTICS, {n: self._param(n) for n in EVENT_NODE_PARAMETERS})
+        log = prepared_run(log, events)
         for problem in log.problems:
             self.get_logger().warning(str(problem))
         if not log.frames:  # nothing to play: refused as diagnose refuses it

@@ -614,3 +614,39 @@ def test_a_legacy_definition_other_than_the_shipped_one_is_one_line(tmp_path: Pa
     )
     assert run.inputs["tracked_objects"].state == "absent"
     assert run.metadata.raw["frame_reference"] == "ego"
+
+
+@pytest.mark.parametrize("variant", ["legacy", "untracked"])
+@pytest.mark.parametrize("mode", ["reference", "corrected"])
+def test_inspect_says_what_diagnose_will_judge(
+    bags: dict[str, AutowareBag], runs: dict[str, RunLog], variant: str, mode: str
+) -> None:
+    """What inspect promises for the recommended profile is what diagnose then judges: the
+    stack's tracks (derived from predicted objects when untracked) stand in for the world."""
+    from ads_rca.commands.inspect_cmd import judged_with
+    from ads_rca.diagnosis.engine import diagnose
+    from ads_rca.params import make_params
+    from ads_rca.sources.bag.survey import survey_bag
+
+    survey = survey_bag(bags[variant].path)
+    assert survey.recommendation is not None and survey.recommendation.profile == "autoware"
+    fit = next(f for f in survey.fits if f.profile == "autoware")
+    promised = judged_with(fit.mapped)[mode]
+    judged = diagnose(runs[variant], make_params(mode)).to_json(include_frames=False)
+    assert promised == judged["modules_judged"]
+
+
+def test_a_starting_profile_times_the_frames_by_perception(
+    bags: dict[str, AutowareBag], runs: dict[str, RunLog], tmp_path: Path
+) -> None:
+    """Without ground truth the tracks are the world: the written profile's frames follow
+    perception (10 Hz), as the built-in autoware profile's do, not localisation (50 Hz)."""
+    from ads_rca.sources.bag.survey import starting_profile, survey_bag
+
+    text = starting_profile(survey_bag(bags["legacy"].path), "my-car")
+    assert "reference: [tracked_objects, predictions, detections_3d, ego]" in text
+    profile = tmp_path / "my-car.yaml"
+    profile.write_text(text)
+    written = read_recording(bags["legacy"].path, str(profile))
+    assert written.frame_ms == runs["legacy"].frame_ms == 100
+    assert written.unique_frames == runs["legacy"].unique_frames

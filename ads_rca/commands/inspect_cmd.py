@@ -18,7 +18,6 @@ from typing import Any
 from ads_rca.capabilities import (
     MODEL_INPUTS,
     input_status,
-    judged_modules,
     present,
     statuses_to_document,
 )
@@ -129,14 +128,21 @@ def survey_summary(survey: BagSurvey) -> dict[str, Any]:
 
 
 def judged_with(mapped: tuple[str, ...]) -> dict[str, dict[str, str]]:
-    """Per mode, which modules a run with (only) the ``mapped`` inputs could judge."""
+    """Per mode, which modules a run with (only) the ``mapped`` inputs could judge, as the
+    reader and diagnose would make it: tracks derived from predicted objects, and the
+    stack's tracks as the world when there is no ground truth (docs/real-drives.md)."""
     statuses = {
         name: InputStatus("real") if name in mapped else InputStatus("absent")
         for name in MODEL_INPUTS
     }
+    if "tracked_objects" not in mapped and "predictions" in mapped:
+        statuses["tracked_objects"] = InputStatus("derived")
+    perceived = "actors" not in mapped and "ego" in mapped and present(statuses["tracked_objects"])
+    if perceived:
+        statuses["actors"] = InputStatus("derived")
     out: dict[str, dict[str, str]] = {}
     for mode in MODES:
-        judged = judged_modules(semantics_for(mode).requires, statuses)
+        judged = semantics_for(mode).judged_for(statuses, perceived)
         out[mode] = {str(module): verdict for module, verdict in judged.items()}
     return out
 

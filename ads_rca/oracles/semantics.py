@@ -120,11 +120,19 @@ class Semantics:
 
     def judged(self, log: RunLog) -> dict[Module, str]:
         """Per module: ``judged``, or ``not judged (no <input>)`` for this run's inputs."""
-        from ads_rca.capabilities import JUDGED, input_status, judged_modules
+        from ads_rca.capabilities import input_status
         from ads_rca.diagnosis.perceived import is_perceived
 
-        verdicts = judged_modules(self.requires, input_status(log))
-        if is_perceived(log):
+        return self.judged_for(input_status(log), is_perceived(log))
+
+    def judged_for(
+        self, statuses: Mapping[str, InputStatus], perceived: bool = False
+    ) -> dict[Module, str]:
+        """:meth:`judged` from input statuses alone (``inspect`` asks it before reading)."""
+        from ads_rca.capabilities import JUDGED, judged_modules
+
+        verdicts = judged_modules(self.requires, statuses)
+        if perceived:
             for module, (status, _) in self.without_truth.items():
                 if verdicts.get(module) == JUDGED:
                     verdicts[module] = status

@@ -381,17 +381,6 @@ def _looks_like_type(name: str) -> bool:
 # --- fitting and recommending --------------------------------------------------------------
 
 
-def _accepted(spec: InputSpec) -> tuple[str, ...]:
-    """Every type an input accepts (a profile may list a stack's legacy types after its
-    current one)."""
-    return tuple(getattr(spec, "types", (spec.type,)))
-
-
-def _references(profile: Profile) -> tuple[str, ...]:
-    """The inputs that may time a profile's frames, in the order they are tried."""
-    return tuple(getattr(profile, "references", (profile.reference,)))
-
-
 def _topic_of(profile: Profile, spec: InputSpec, names: list[str]) -> str:
     """Where the bag would carry ``spec``: its topic, or for the contract the same topic
     under the namespace the bag's contract topics use."""
@@ -415,7 +404,7 @@ def profile_fits(
     for profile in profiles:
         inputs: list[InputFit] = []
         for spec in profile.inputs.values():
-            accepted = _accepted(spec)
+            accepted = spec.types
             wanted = {normalise_type(t) for t in accepted}
             topic_name = _topic_of(profile, spec, names)
             topic = by_name.get(topic_name)
@@ -436,7 +425,7 @@ def profile_fits(
             ProfileFit(
                 profile.name,
                 profile.contract,
-                _references(profile),
+                profile.references,
                 tuple(inputs),
                 _refusal(profile, inputs, by_name, names),
             )
@@ -450,7 +439,7 @@ def _refusal(
     """Why ``profile`` could not read the bag at all: none of its reference inputs has a
     message (nothing to time the frames by); the contract: no run/metadata message."""
     mapped = {fit.input for fit in inputs if fit.mapped}
-    references = _references(profile)
+    references = profile.references
     if not mapped & set(references):
         fit = {f.input: f for f in inputs}
         said = "; ".join(f"{r} ({shown(fit[r].topic)}: {fit[r].why})" for r in references)
@@ -548,15 +537,30 @@ def picks(listed: Sequence[TopicInfo]) -> dict[str, TopicInfo]:
     return {name: chosen[name] for name in found if name in chosen}
 
 
+#: Without ground truth the stack's tracks are the world (docs/real-drives.md): the frames
+#: follow perception, as a real stack's profile times them, not the faster localisation.
+PERCEPTION_REFERENCES = ("tracked_objects", "predictions", "detections_3d")
+
+
+def frame_references(chosen: Mapping[str, TopicInfo]) -> list[str]:
+    """The inputs that time a starting profile's frames, in the order tried: the ground
+    truth when mapped; else perception's outputs, then the first other input that can."""
+    if "actors" in chosen:
+        return ["actors"]
+    perceived = [r for r in PERCEPTION_REFERENCES if r in chosen]
+    others = [r for r in REFERENCE_INPUTS if r in chosen and r not in perceived]
+    return [*perceived, *others[:1]]
+
+
 def starting_profile(survey: BagSurvey, name: str) -> str:
     """A profile YAML for the bag, to be checked and edited: each input mapped to the
     topic :func:`picks` chooses with its stored type, the other candidates as comments, the
-    reference the first of the profile rules' inputs it maps. Loads with the profile loader
+    references :func:`frame_references` gives. Loads with the profile loader
     when every picked type has a decoder (only such types are picked). InputError when the
     bag has no message of a type that could time the frames."""
     chosen = picks(survey.topics)
-    reference = next((r for r in REFERENCE_INPUTS if r in chosen), None)
-    if reference is None:
+    references = frame_references(chosen)
+    if not references:
         types = carriers()
         wanted = "; ".join(f"{r}: {', '.join(types.get(r, ()))}" for r in REFERENCE_INPUTS)
         raise InputError(
@@ -572,7 +576,7 @@ def starting_profile(survey: BagSurvey, name: str) -> str:
         "# stack's output or the ground truth. An input: {topic, type[, frame, path]}.",
         f"profile: {_scalar(name)}",
         f"description: {_scalar('started from ' + Path(survey.path).name)}",
-        f"reference: {reference}",
+        f"reference: {references[0] if len(references) == 1 else _flow_list(references)}",
         "inputs:",
     ]
     for input_name, topics in found.items():
@@ -590,8 +594,15 @@ def starting_profile(survey: BagSurvey, name: str) -> str:
     lines += [
         "# metadata:                  # run facts a bag cannot carry",
         "#   camera_loc: [x, y, z]    # the camera in the ego frame (x forward, y right, z up), m",
+        "#   ego_size: [l, w, h]      # the ego's box (m): without ground truth, its clearances",
+        "#   ego_box_offset: 1.345    # box centre ahead of the ego pose (m; Autoware: rear axle)",
     ]
     return "\n".join(lines) + "\n"
+
+
+def _flow_list(names: Sequence[str]) -> str:
+    """``[a, b]``: input names (plain words, nothing to escape)."""
+    return "[" + ", ".join(names) + "]"
 
 
 def _candidates(topics: Sequence[TopicInfo], prefix: str) -> list[str]:

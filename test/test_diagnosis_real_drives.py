@@ -17,7 +17,7 @@ from commandline import run_cli
 
 from ads_rca.diagnosis.critical_event import EVENT_KEY, CriticalEvent, explained_event
 from ads_rca.diagnosis.engine import diagnose
-from ads_rca.diagnosis.events import find_events, hard_brakes
+from ads_rca.diagnosis.events import CHOICE_KEY, choice_of, find_events, hard_brakes
 from ads_rca.diagnosis.perceived import EGO_ID, PERCEIVED, perceived_world
 from ads_rca.diagnosis.summary import summary_text
 from ads_rca.diagnosis.verdict import PERCEPTION_SUSPECTED
@@ -191,3 +191,42 @@ def test_an_object_first_seen_is_no_near_miss_by_time_to_collision(tmp_path: Pat
         if event.kind == "near_miss" and event.timestamp_ms in first_seen.values():
             clearance = float(event.what.split("clearance ")[1].split(" m")[0])
             assert clearance < params.event_clearance, event
+
+
+@pytest.mark.parametrize("value", ["nan", "-5", "1e12", "abc", "inf"])
+def test_a_hostile_event_time_is_one_line_and_exit_2(tmp_path: Path, value: str) -> None:
+    log, _ = real_drive("cut_in", "planning")
+    folder = write_run_log(log, tmp_path / "log")
+    for command in ("diagnose", "replay"):
+        refused = run_cli(command, str(folder), f"--event-time={value}", check=False)
+        assert refused.returncode == 2, refused.stderr
+        assert "Traceback" not in refused.stderr
+        # argparse's own refusal ('abc') comes after its usage lines; ours is the only line
+        last = refused.stderr.strip().splitlines()[-1]
+        assert "event-time" in last or "parameter event_time_s" in last, refused.stderr
+
+
+@pytest.mark.parametrize(
+    "document",
+    [
+        "yes",
+        {"found": "all", "note": 3},
+        {"found": [{"kind": "crash", "timestamp_ms": 1, "frame": 0, "time_s": 0.0}], "note": ""},
+        {"found": [None, {"kind": "hard_brake", "timestamp_ms": -1, "frame": 0, "time_s": 0}]},
+    ],
+)
+def test_malformed_events_in_a_recordings_metadata_are_left_out(document: object) -> None:
+    """A recording of a replay carries the events looked for; a hostile entry lists nothing
+    and explains nothing (one that is no mapping at all is as if absent: events are looked
+    for), and the run is still diagnosed, never conclusively."""
+    log, _ = real_drive("cut_in", "planning")
+    log.metadata = replace(log.metadata, raw={**log.metadata.raw, CHOICE_KEY: document})
+    choice = choice_of(log.metadata)
+    found = diagnose(log, make_params("corrected")).to_json(include_frames=False)
+    if choice is not None:
+        assert choice.found == () and choice.explained is None
+        assert found["event"] is None and found["events_found"] == []
+        assert "no critical event found" in found["verdict"]
+    else:
+        assert isinstance(document, str) and found["events_found"]
+    assert found["conclusive"] is False

@@ -99,6 +99,16 @@ RANGE_CASES = [
     ("ads_rca.ros.player", "rate:=-.inf", "parameter rate: -inf is out of range [0, 1000]"),
     ("ads_rca.ros.player", "ack_every:=41", "parameter ack_every: 41 is out of range [1, 40]"),
     (
+        "ads_rca.ros.player",
+        "event_time_s:=.nan",
+        "parameter event_time_s: nan is out of range [-1, 31536000] s",
+    ),
+    (
+        "ads_rca.ros.player",
+        "event_decel:=0.0",
+        "parameter event_decel: 0 is out of range [0.1, 100] m/s²",
+    ),
+    (
         "ads_rca.ros.recorder",
         "chunk_size:=0",
         "parameter chunk_size: 0 is out of range [1024, 1073741824] bytes",

@@ -116,6 +116,10 @@ def test_arguments_describe_replays_graph(tmp_path: Path) -> None:
     assert corrected.params == make_params("corrected", {"safety_margin": 0.75})
     assert [n.name for n in corrected.nodes()] == ["aggregator", "monitors", "player"]
     assert corrected.nodes()[1].executable == "monitors"
+    # event_time:= beats the params file's event_time_s, and reaches the player
+    given = spec_from_arguments({"log_path": str(EXAMPLE), "event_time": "3.5"})
+    assert given.params.event_time_s == 3.5
+    assert {n.name: n.params for n in given.nodes()}["player"]["event_time_s"] == 3.5
 
 
 @pytest.mark.parametrize(
@@ -129,6 +133,9 @@ def test_arguments_describe_replays_graph(tmp_path: Path) -> None:
         ({"max_file_mb": "0"}, "parameter max_file_mb: 0 is out of range [0.001, 1048576] MB"),
         ({"semantics": "mine"}, "semantics must be one of reference, corrected, not 'mine'"),
         ({"params_file": "/no/such.yaml"}, "/no/such.yaml: cannot read config"),
+        ({"event_time": "abc"}, "parameter event_time_s: 'abc' is not a number"),
+        ({"event_time": "nan"}, "parameter event_time_s: nan is out of range [-1, 31536000] s"),
+        ({"event_time": "-5"}, "parameter event_time_s: -5 is out of range [-1, 31536000] s"),
     ],
 )
 def test_bad_arguments_are_one_line(values: dict[str, str], message: str) -> None:

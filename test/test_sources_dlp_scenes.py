@@ -267,6 +267,10 @@ def test_replay_of_a_dlp_scene_equals_diagnose(
     argv = [sys.executable, "-m", "ads_rca.cli", "replay", str(scene), "--json", str(out)]
     argv += ["--ego-agent", ego, "--predictions", str(predictions), "--record", str(bag)]
     argv += ["--domain-id", str(ros_env.domain_id), "--timeout", "90"]
+    # Paced (4 s): a monitor says one status per batch it judged, for the batch's latest
+    # frame; unpaced on a loaded machine one batch can hold the run and its status is then
+    # the last frame's (STALE: no future to score), hiding the frames that scored.
+    argv += ["--rate", "0.5"]
     replay = ManagedProcess("replay", argv, ros_env.env)
     assert replay.wait(120) == 0, replay.output
     live = json.loads(out.read_text())

@@ -12,6 +12,7 @@ import math
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
 import pytest
 from commandline import run_cli
 
@@ -21,7 +22,7 @@ from ads_rca.diagnosis.events import CHOICE_KEY, choice_of, find_events, hard_br
 from ads_rca.diagnosis.perceived import EGO_ID, PERCEIVED, perceived_world
 from ads_rca.diagnosis.summary import summary_text
 from ads_rca.diagnosis.verdict import PERCEPTION_SUSPECTED
-from ads_rca.model import RunLog
+from ads_rca.model import Objects3D, RunLog
 from ads_rca.params import make_params
 from ads_rca.sources.bag.profiles.recording import read_recording
 from ads_rca.sources.log.writer import write_run_log
@@ -230,3 +231,36 @@ def test_malformed_events_in_a_recordings_metadata_are_left_out(document: object
     else:
         assert isinstance(document, str) and found["events_found"]
     assert found["conclusive"] is False
+
+
+def _marks(found: object) -> dict[int, list[str]]:
+    """Per frame, the marks perception's result found."""
+    out: dict[int, list[str]] = {}
+    for frame in found.frames:  # type: ignore[attr-defined]
+        result = frame.results["perception"]
+        out[frame.timestamp_ms] = list(result.metrics.get("marks", []))
+    return out
+
+
+def test_a_detection_the_tracker_dropped_is_an_untracked_detection() -> None:
+    """The detector sees the lead ahead, the tracker outputs nothing for it for 5 frames
+    before the contact: perception fails there with the mark, from min_persistence frames
+    on; with every detection tracked (the synthesiser's tracker), the mark never shows."""
+    log, contact_s = real_drive("lead_braking", "planning")
+    params = at(contact_s)
+    tracked = diagnose(log, params)  # type: ignore[arg-type]
+    assert not any("untracked detection" in m for m in _marks(tracked).values())
+    contact_ms = round(contact_s * 1000)
+    dropped = [ts for ts in sorted(log.tracks_3d) if contact_ms - 5 * log.frame_ms < ts]
+    none = np.zeros((0, 3))
+    for ts in dropped:  # the tracker outputs nothing; the detector still sees the lead
+        log.tracks_3d[ts] = Objects3D((), none, np.zeros(0), none, none, np.zeros(0), ())
+    found = diagnose(log, params)  # type: ignore[arg-type]
+    marks = _marks(found)
+    marked = [ts for ts, m in marks.items() if "untracked detection" in m]
+    persistence = make_params("corrected").min_persistence
+    assert marked and marked[0] == dropped[persistence - 1], (marked, dropped)
+    result = next(f for f in found.frames if f.timestamp_ms == marked[-1]).results["perception"]
+    count = result.metrics["untracked_detections"]
+    assert result.failed and isinstance(count, int) and count >= 1
+    assert "perc3d_match_distance" in result.thresholds

@@ -14,7 +14,11 @@ these are judged (each frame's result says which mark it found, and against what
 - **inconsistent track**: the partner's perceived velocity disagrees with its own perceived
   motion over the next ``prediction_window`` frames by more than ``perc3d_velocity_error``
   (a tracker reporting a braking car as cruising), or its position jumps between two frames
-  by more than its speed explains plus ``pred_abs_threshold``.
+  by more than its speed explains plus ``pred_abs_threshold``;
+- **untracked detection**: for ``min_persistence`` frames up to the one judged, the detector
+  saw an object ahead of the ego within its stopping distance that no track is within
+  ``perc3d_match_distance`` of (the tracker dropped or had not yet confirmed what the
+  detector saw: the planner, reading tracks, did not know it).
 
 A frame with none of these marks is not evidence that perception was right: the module is
 "partly judged (no ground truth ...)" in every output, and a verdict that finds no failing
@@ -39,8 +43,8 @@ from ads_rca.oracles.corrected.context import (
 
 #: How the module's status reads when the run has no ground truth.
 STATUS = (
-    "partly judged (no ground truth: only late sight, lost tracks and track consistency; "
-    "perception suspected unless another module failed)"
+    "partly judged (no ground truth: only late sight, lost tracks, track consistency and "
+    "untracked detections; perception suspected unless another module failed)"
 )
 #: What the results were judged against.
 AGAINST = "the stack's own tracks (no ground truth)"
@@ -52,6 +56,8 @@ THRESHOLDS = (
     "perc3d_velocity_error",
     "pred_abs_threshold",
     "prediction_window",
+    "perc3d_match_distance",
+    "min_persistence",
 )
 SIGHTINGS: CacheName[dict[str, tuple[int, int]]] = CacheName("sightings")
 
@@ -235,6 +241,52 @@ def _central_velocity(judging: CorrectedContext, actor_id: str, ts: int) -> np.n
     return None
 
 
+def untracked_detections(judging: CorrectedContext, ts: int) -> tuple[int, float] | None:
+    """(how many, the nearest's gap in m) of the detections at ts ahead of the ego within
+    its stopping distance that no track is within ``perc3d_match_distance`` of, when each of
+    the ``min_persistence`` frames up to ts has such a detection (None otherwise)."""
+    p = judging.params
+    found: tuple[int, float] | None = None
+    for k in range(max(p.min_persistence, 1)):
+        at = ts - k * judging.frame_ms
+        unmatched = _untracked_at(judging, at)
+        if not unmatched:
+            return None
+        if k == 0:
+            found = (len(unmatched), min(unmatched))
+    return found
+
+
+def _untracked_at(judging: CorrectedContext, ts: int) -> list[float]:
+    """Gaps (m) to the ego of the detections at ts ahead of it, within its stopping
+    distance, that no track (the world's actors but the ego) is near."""
+    log = judging.log
+    detections, frame = log.detections_3d.get(ts), log.actors.get(ts)
+    ego = _ego_xy_yaw(judging, ts)
+    if detections is None or frame is None or ego is None or not len(detections.ids):
+        return []
+    centre, yaw = ego
+    ego_length = float(frame.extent[frame.index[EGO_ID], 0])
+    tracked = np.array(
+        [frame.location[r, :2] for a, r in frame.index.items() if a != EGO_ID], dtype=np.float64
+    ).reshape(-1, 2)
+    stop = _stopping_distance(judging, ts)
+    heading = np.array([math.cos(yaw), math.sin(yaw)])
+    gaps: list[float] = []
+    for row in range(len(detections.ids)):
+        xy = np.asarray(detections.location[row, :2], dtype=np.float64)
+        if not np.isfinite(xy).all():
+            continue
+        offset = xy - centre
+        gap = float(np.hypot(*offset)) - float(detections.extent[row, 0]) - ego_length
+        if float(offset @ heading) <= 0 or not (gap < stop):
+            continue
+        near = np.hypot(*(tracked - xy).T) if len(tracked) else np.empty(0)
+        if not (near <= judging.params.perc3d_match_distance).any():
+            gaps.append(gap)
+    return gaps
+
+
 def perception_without_truth(ctx: RunContext, ts: int) -> OracleResult:
     """Perception at ts, by the marks its failures leave in the run's own tracks."""
     judging = corrected_context(ctx)
@@ -253,6 +305,10 @@ def perception_without_truth(ctx: RunContext, ts: int) -> OracleResult:
         if track is not None:
             metrics.update(track)
             marks.append("inconsistent track")
+    untracked = untracked_detections(judging, ts)
+    if untracked is not None:
+        metrics["untracked_detections"], metrics["untracked_detection_gap"] = untracked
+        marks.append("untracked detection")
     lost = lost_tracks(judging, ts)
     if lost:
         metrics["lost_tracks"] = list[Metric](lost[:8])

@@ -107,6 +107,27 @@ def interval_speeds(location: FloatArray, stamps_ns: IntArray) -> FloatArray:
     return speeds
 
 
+def point_speeds(location: FloatArray, stamps_ns: IntArray) -> FloatArray:
+    """(N,) speed at each of a plan's points (m/s): the derivative of the distance travelled
+    along the points over their stamps, second order (central differences inside, one-sided
+    at the ends; numpy.gradient with non-uniform stamps).
+
+    Why not each interval's mean (distance / time to the point before): under constant
+    acceleration that is the speed half an interval earlier, 0.2 m/s too high at 8 m/s²
+    and 20 Hz, and a braking plan looked safer than the one the planner made. Second-order
+    differences are exact where the distance is quadratic in time (constant acceleration),
+    so a Path of a logged plan gives back the logged speeds. Two points: their interval's
+    speed for both; one: NaN. Stamps must be strictly increasing (callers check)."""
+    if len(stamps_ns) < 2:
+        return np.full(len(stamps_ns), math.nan)
+    travelled = np.concatenate(
+        ([0.0], np.cumsum(np.linalg.norm(np.diff(location, axis=0), axis=1)))
+    )
+    seconds = (stamps_ns - stamps_ns[0]).astype(np.float64) / _NS_PER_S
+    speeds: FloatArray = np.gradient(travelled, seconds, edge_order=2 if len(stamps_ns) > 2 else 1)
+    return speeds
+
+
 # --- ego --------------------------------------------------------------------------------------
 
 
@@ -171,10 +192,9 @@ def path_to_plan(msg: Path, timesteps_per_frame: int, world_frame: str = WORLD_F
     """nav_msgs/Path → Plan.
 
     Key of a point: its stamp after the header stamp in plan steps (``timesteps_per_frame``
-    ms, rounded to the nearest step); xy from the REP-103 position; speed derived over the
-    interval ending at the point (the first point takes the first interval's; NaN for a
-    one-point path). MalformedMessage for an empty path, a foreign frame, a non-finite pose
-    or stamps that do not increase."""
+    ms, rounded to the nearest step); xy from the REP-103 position; speed at the point from
+    :func:`point_speeds` (NaN for a one-point path). MalformedMessage for an empty path, a
+    foreign frame, a non-finite pose or stamps that do not increase."""
     if not msg.poses:
         raise MalformedMessage("nav_msgs/Path has no poses")
     _check_frame(msg.header.frame_id, world_frame, "Path")
@@ -184,8 +204,7 @@ def path_to_plan(msg: Path, timesteps_per_frame: int, world_frame: str = WORLD_F
     stamps = np.array([_stamp_ns(p.header.stamp) for p in msg.poses], dtype=np.int64)
     _increasing(stamps, "Path")
     location, _ = _pose_arrays([p.pose for p in msg.poses], "Path")
-    intervals = interval_speeds(location, stamps)
-    speed = np.concatenate((intervals[:1], intervals)) if intervals.size else np.array([math.nan])
+    speed = point_speeds(location, stamps)
     step_ns = step_ms(timesteps_per_frame) * 1_000_000
     offset = stamps - _stamp_ns(msg.header.stamp)
     keys = np.floor_divide(offset + step_ns // 2, step_ns)

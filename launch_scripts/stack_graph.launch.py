@@ -74,6 +74,14 @@ def bridge_parameters(values: dict[str, str]) -> dict[str, Any]:
     } | {"topic_namespace": values["namespace"]}
 
 
+def rule(value: Any) -> str:
+    """A parameter value as the text of a ``-p name:=value`` rule: JSON, which rcl reads as
+    YAML (a string stays quoted: never read as a number, a bool or a mapping)."""
+    import json
+
+    return json.dumps(value)
+
+
 def stack_actions(context: Any) -> list[Any]:
     """The recorder (if asked), the aggregator and the monitors, with the stack file."""
     from ament_index_python.packages import get_package_share_directory
@@ -100,11 +108,17 @@ def stack_actions(context: Any) -> list[Any]:
     }
 
     def node(executable: str, parameters: list[Any]) -> Any:
+        """The stack file as a params file; the launch arguments' values as ``-p`` rules,
+        which win over every params file (a file's ``/**/aggregator`` section would
+        otherwise beat a plain parameter dict, as rcl merges them)."""
+        files = [p for p in parameters if isinstance(p, str)]
+        given = {k: v for p in parameters if isinstance(p, dict) for k, v in p.items()}
         return Node(
             package="ads_rca",
             executable=executable,
             output="screen",
-            parameters=parameters,
+            parameters=files,
+            ros_arguments=[arg for k, v in given.items() for arg in ("-p", f"{k}:={rule(v)}")],
             additional_env=LOCAL_DISCOVERY,
         )
 

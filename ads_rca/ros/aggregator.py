@@ -60,6 +60,7 @@ from ads_rca.ros.diagnostics import array as diagnostic_array
 from ads_rca.ros.nodemain import run_node, subscribe_ready, wait_for_acks
 from ads_rca.ros.nodeparams import (
     NodeParameter,
+    command_line_overrides,
     declare_engine_parameters,
     declare_node_parameters,
     log_in_force,
@@ -121,7 +122,7 @@ class Aggregator(Node):
     """Collects results, publishes the verdict once."""
 
     def __init__(self) -> None:
-        super().__init__("aggregator")
+        super().__init__("aggregator", parameter_overrides=command_line_overrides("aggregator"))
         self.params = declare_engine_parameters(self)
         p = declare_node_parameters(self, {**PARAMETERS, **STACK_PARAMETERS}, self.params)
         self.hardware_id = str(p["hardware_id"])

@@ -66,6 +66,7 @@ from ads_rca.ros.graph import GROUP, MONITORS
 from ads_rca.ros.nodemain import run_node, subscribe_ready, wait_for_acks
 from ads_rca.ros.nodeparams import (
     NodeParameter,
+    command_line_overrides,
     declare_engine_parameters,
     declare_node_parameters,
     log_in_force,
@@ -115,7 +116,7 @@ class Monitor(Node):
     """One module's node: declares the parameters, publishes its results and heartbeat."""
 
     def __init__(self, node_name: str, module: Module) -> None:
-        super().__init__(node_name)
+        super().__init__(node_name, parameter_overrides=command_line_overrides(node_name))
         self.module = module
         self.params = declare_engine_parameters(self)
         p = declare_node_parameters(self, {**PARAMETERS, **STACK_PARAMETERS}, self.params)

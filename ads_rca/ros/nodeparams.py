@@ -13,13 +13,22 @@ read-only: a node reads its parameters once, at start (a monitor's window and th
 aggregator's verdict are built from them), so a runtime ``ros2 param set`` is refused
 rather than reported as a success that changes nothing. A ``-p name:=value`` (or params
 file entry) for a parameter the node does not have is refused with the known names.
+
+A value given on the command line wins over every params file, as ROS users expect: rcl
+merges the files' and ``-p``'s values by node-name pattern, so a file's node-specific
+section (``/**/aggregator``) was applied after a ``-p`` (a ``/**`` rule) and silently beat
+it. Each node passes :func:`command_line_overrides` as its ``parameter_overrides``, which
+rclpy applies last.
 """
 
 from __future__ import annotations
 
+import sys
+from collections.abc import Sequence
 from dataclasses import asdict, fields
 from typing import Any
 
+import yaml
 from rcl_interfaces.msg import (
     FloatingPointRange,
     IntegerRange,
@@ -42,6 +51,54 @@ ROS_NODE_PARAMETERS: tuple[str, ...] = ("use_sim_time", "start_type_description_
 
 #: A node's own parameter: (default, description), plus its range when it is a number.
 NodeParameter = tuple[Any, str] | tuple[Any, str, Range]
+
+
+def command_line_rules(node_name: str, argv: Sequence[str]) -> dict[str, str]:
+    """``-p``/``--param`` assignments in ``argv``'s ``--ros-args`` sections that apply to
+    ``node_name`` (``name:=value``, or ``node:name:=value`` for this node), name → value
+    text, the last one of a name winning (as in rcl)."""
+    rules: dict[str, str] = {}
+    inside = False
+    tokens = iter(argv)
+    for token in tokens:
+        if token == "--ros-args":
+            inside = True
+        elif token == "--":
+            inside = False
+        elif inside and token in ("-p", "--param"):
+            rule = next(tokens, "")
+            target, sep, text = rule.partition(":=")
+            if not sep:
+                continue  # rcl refuses it on its own
+            node, colon, name = target.rpartition(":")
+            if not colon or node.strip("/") in (node_name, "*", "**"):
+                rules[name] = text
+    return rules
+
+
+def command_line_overrides(
+    node_name: str, argv: Sequence[str] | None = None
+) -> list[Parameter[Any]]:
+    """The command line's values for ``node_name`` (:func:`command_line_rules` of
+    ``sys.argv``), typed as rcl types them (a YAML scalar or list), for the node's
+    ``parameter_overrides``. ConfigError (one line) for a value rcl could not have read."""
+    out: list[Parameter[Any]] = []
+    for name, text in command_line_rules(node_name, sys.argv if argv is None else argv).items():
+        try:
+            value = yaml.safe_load(text) if text.strip() else text
+        except yaml.YAMLError:
+            value = text
+        scalar = (bool, int, float, str)
+        listed = isinstance(value, list) and all(isinstance(v, scalar) for v in value)
+        if not (isinstance(value, scalar) or listed):
+            value = text  # rcl keeps what is no scalar or flat list as the text given
+        try:
+            out.append(Parameter(name, value=value))
+        except (TypeError, ValueError):
+            raise ConfigError(
+                printable(f"parameter {name}: {text[:80]!r} mixes types in one array")
+            ) from None
+    return out
 
 
 def declare_engine_parameters(node: Node) -> Params:

@@ -61,7 +61,12 @@ from ads_rca.ros.nodemain import (
     start_process,
     wait_for_acks,
 )
-from ads_rca.ros.nodeparams import NodeParameter, declare_node_parameters, log_in_force
+from ads_rca.ros.nodeparams import (
+    NodeParameter,
+    command_line_overrides,
+    declare_node_parameters,
+    log_in_force,
+)
 from ads_rca.sources.bag.options import BagOptions
 from ads_rca.sources.bag.profiles import BUILTIN_PROFILES, DEFAULT_PROFILE
 from ads_rca.sources.formats import AUTO, SOURCE_PARAMS, SourceOptions
@@ -185,7 +190,7 @@ class Player(Node):
     """Publishes one RunLog on the contract topics."""
 
     def __init__(self) -> None:
-        super().__init__("player")
+        super().__init__("player", parameter_overrides=command_line_overrides("player"))
         self._values = declare_node_parameters(self, {**PARAMETERS, **EVENT_NODE_PARAMETERS})
         self.rate = float(self._param("rate"))
         self.start_frame = int(self._param("start_frame"))

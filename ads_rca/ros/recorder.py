@@ -49,7 +49,12 @@ from ads_rca.ros.nodemain import (
     stop_requested,
     subscribe_ready_once_matched,
 )
-from ads_rca.ros.nodeparams import NodeParameter, declare_node_parameters, log_in_force
+from ads_rca.ros.nodeparams import (
+    NodeParameter,
+    command_line_overrides,
+    declare_node_parameters,
+    log_in_force,
+)
 from ads_rca.ros.qos_match import offered_qos
 from ads_rca.sources.bag.mcap_writer import (
     COMPRESSIONS,
@@ -195,7 +200,7 @@ class Recorder(Node):
     """Subscribes (raw) to the topics to record and writes every message to the bag."""
 
     def __init__(self) -> None:
-        super().__init__("recorder")
+        super().__init__("recorder", parameter_overrides=command_line_overrides("recorder"))
         self._values = declare_node_parameters(self, PARAMETERS)
         output = str(self._param("output"))
         if not output:

@@ -34,7 +34,12 @@ from ads_rca.ros.nodemain import (
     start_process,
     stop_requested,
 )
-from ads_rca.ros.nodeparams import NodeParameter, declare_node_parameters, log_in_force
+from ads_rca.ros.nodeparams import (
+    NodeParameter,
+    command_line_overrides,
+    declare_node_parameters,
+    log_in_force,
+)
 
 PARAMETERS: dict[str, NodeParameter] = {
     "topic_namespace": (topics.DEFAULT_NAMESPACE, "Namespace of the contract topics."),
@@ -58,7 +63,9 @@ class TopicSummary(Node):
     """Subscribes to every contract topic and records what arrives."""
 
     def __init__(self) -> None:
-        super().__init__("topic_summary")
+        super().__init__(
+            "topic_summary", parameter_overrides=command_line_overrides("topic_summary")
+        )
         values = declare_node_parameters(self, PARAMETERS)
         namespace = str(values["topic_namespace"])
         self.timeout = float(values["timeout_s"])

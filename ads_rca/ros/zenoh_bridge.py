@@ -40,7 +40,12 @@ from ads_rca.remote.publisher import ZenohPublisher
 from ads_rca.remote.rate import RateLimiter
 from ads_rca.remote.state import RemoteState
 from ads_rca.ros.nodemain import run_node, subscribe_ready_once_matched
-from ads_rca.ros.nodeparams import NodeParameter, declare_node_parameters, log_in_force
+from ads_rca.ros.nodeparams import (
+    NodeParameter,
+    command_line_overrides,
+    declare_node_parameters,
+    log_in_force,
+)
 from ads_rca.ros.qos_match import offered_qos
 
 #: How often rate-limited samples are flushed (s).
@@ -113,7 +118,7 @@ class ZenohBridge(Node):
     """Raw subscriptions in, Zenoh samples out (see the module doc)."""
 
     def __init__(self) -> None:
-        super().__init__("zenoh_bridge")
+        super().__init__("zenoh_bridge", parameter_overrides=command_line_overrides("zenoh_bridge"))
         p = declare_node_parameters(self, PARAMETERS)
         self.values = p
         ns = str(p["topic_namespace"])

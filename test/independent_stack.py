@@ -13,7 +13,9 @@ and builds every message itself, in the layout ``config/stack_carla.yaml`` names
   then one ``LINE_STRIP`` per box or track, the id and extras in the marker's JSON text);
 - ``/planning/path`` (``nav_msgs/Path``, pose stamps = header stamp + key x frame period);
 - ``/clock`` each frame, and ``{ns}/run/collision`` (``{"frame", "stamp_ms"}``, latched)
-  once the collision frame's data were acknowledged.
+  once the collision frame's data were acknowledged; ``--collision-topic NAME`` sends it
+  there instead, and ``--collision-qos volatile`` with the default QoS (reliable, volatile,
+  depth 10: what CARLA's collision sensor offers) instead of latched.
 
 CARLA's left-handed frame goes to REP-103 as the bridge does: (x, -y, z), roll, -pitch, -yaw.
 Each input but the odometry is stamped with a fixed offset (``--offset-ms``, from ``--seed``)
@@ -88,6 +90,8 @@ class Options:
     episode_gap_s: float
     wait_subscribers: int
     wait_collision_subscribers: int
+    collision_topic: str
+    collision_volatile: bool
 
 
 def parse(argv: Sequence[str]) -> Options:
@@ -104,6 +108,8 @@ def parse(argv: Sequence[str]) -> Options:
     parser.add_argument("--episode-gap-s", type=float, default=0.5)
     parser.add_argument("--wait-subscribers", type=int, default=1)
     parser.add_argument("--wait-collision-subscribers", type=int, default=2)
+    parser.add_argument("--collision-topic", default="", metavar="NAME")
+    parser.add_argument("--collision-qos", choices=("latched", "volatile"), default="latched")
     args = parser.parse_args(list(argv))
     for folder in args.drop_input:
         if folder not in TOPICS or folder == REFERENCE:
@@ -135,6 +141,8 @@ def parse(argv: Sequence[str]) -> Options:
         episode_gap_s=args.episode_gap_s,
         wait_subscribers=args.wait_subscribers,
         wait_collision_subscribers=args.wait_collision_subscribers,
+        collision_topic=args.collision_topic or f"{args.namespace.rstrip('/')}/run/collision",
+        collision_volatile=args.collision_qos == "volatile",
     )
 
 
@@ -340,7 +348,7 @@ def schedule(run: Run, options: Options, shifts: dict[str, int]) -> list[Outgoin
     if cf >= 0 and chosen and chosen[0] <= cf * run.frame_ms <= chosen[-1]:
         document = json.dumps({"frame": cf, "stamp_ms": cf * run.frame_ms})
         due = max(o[0] for o in out)
-        collision = Outgoing(due, f"{options.namespace}/run/collision", String(data=document), None)
+        collision = Outgoing(due, options.collision_topic, String(data=document), None)
         out.append((due, 2, len(out), collision))
     out.sort(key=lambda item: item[:3])
     return [item[3] for item in out]
@@ -372,14 +380,15 @@ def publish(options: Options) -> int:
         reliability=ReliabilityPolicy.RELIABLE,
         durability=DurabilityPolicy.TRANSIENT_LOCAL,
     )
-    collision_topic = f"{options.namespace}/run/collision"
+    collision_topic = options.collision_topic
     pubs: dict[str, Any] = {
         TOPICS[f]: node.create_publisher(_message_class(t), TOPICS[f], data_qos)
         for f, (t, _) in BUILDERS.items()
         if f not in options.drops
     }
     pubs["/clock"] = node.create_publisher(Clock, "/clock", data_qos)
-    pubs[collision_topic] = node.create_publisher(String, collision_topic, latched)
+    collision_qos = QoSProfile(depth=10) if options.collision_volatile else latched
+    pubs[collision_topic] = node.create_publisher(String, collision_topic, collision_qos)
     needed = {t: options.wait_subscribers for t in pubs if t not in ("/clock", collision_topic)}
     needed[collision_topic] = options.wait_collision_subscribers
 

@@ -65,6 +65,7 @@ from ads_rca.ros.nodeparams import (
     declare_node_parameters,
     log_in_force,
 )
+from ads_rca.ros.qos_match import any_durability
 
 PARAMETERS: dict[str, NodeParameter] = {
     "topic_namespace": (topics.DEFAULT_NAMESPACE, "Namespace of the contract topics."),
@@ -172,18 +173,14 @@ class Aggregator(Node):
                 topics.qos_profile(key, keep_all=True),
             )
         collision_topic = topics.topic_name(live_topics.COLLISION, ns)
-        self.create_subscription(
-            String, collision_topic, self._on_collision, live_topics.latched_qos()
-        )
+        any_durability(self, String, collision_topic, self._on_collision)
         #: Collisions from elsewhere (a mapped topic, detection) go on run/collision too.
         self.collision_pub = self.create_publisher(
             String, collision_topic, live_topics.latched_qos()
         )
         mapped = str(p["collision_topic"])
         if mapped and mapped != collision_topic:
-            self.create_subscription(
-                String, mapped, self._on_mapped_collision, live_topics.latched_qos()
-            )
+            any_durability(self, String, mapped, self._on_mapped_collision)
         self.detection: CollisionFeed | None = None
         if bool(p["detect_collisions"]):
             self._subscribe_detection()

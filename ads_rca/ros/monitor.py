@@ -379,7 +379,7 @@ class MonitorInputs:
                 raw=key in lossless,
             )
             self.subscriptions.append(sub)
-        self.subscriptions.append(
+        self.subscriptions.extend(
             listen_for_collisions(
                 node,
                 unit,

@@ -4,12 +4,21 @@ Like rosbag2: reliable only if every publisher offers reliable, latched (TRANSIE
 only if every publisher is, so a reader never asks more than some writer offers (which would
 not match, and nothing would arrive). Used by the recorder and the Zenoh bridge for the
 topics they find by discovery.
+
+A topic read from the start, before its publishers are known (a collision topic), gets
+:func:`any_durability` instead: one latched reader and one volatile best-effort reader, so
+every publisher matches one of them whatever it offers.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.subscription import Subscription
 
 
 def offered_qos(node: Node, name: str, keep_all: bool = False, depth: int = 1000) -> QoSProfile:
@@ -25,3 +34,32 @@ def offered_qos(node: Node, name: str, keep_all: bool = False, depth: int = 1000
         reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
         durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,
     )
+
+
+def any_durability(
+    node: Node, msg_type: Any, name: str, callback: Callable[[Any], None], depth: int = 10
+) -> list[Subscription[Any]]:
+    """Two readers of ``name`` that together match any publisher: TRANSIENT_LOCAL reliable
+    (a latched publisher's last messages reach a late reader) and VOLATILE best-effort (a
+    publisher with the default QoS, as CARLA's collision sensor, or a sensor QoS; a
+    latched reader matches neither). A publisher both match delivers each message twice:
+    ``callback`` must take a repeat as a no-op (a collision frame heard again is)."""
+    latched = QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=depth,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL,
+    )
+    volatile = QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=depth,
+        reliability=ReliabilityPolicy.BEST_EFFORT,
+        durability=DurabilityPolicy.VOLATILE,
+    )
+    # The latched reader cannot match a volatile publisher; the other one reads it, so rcl's
+    # "incompatible QoS: no messages will be received" warning would be false: not logged.
+    quiet = SubscriptionEventCallbacks(incompatible_qos=lambda _event: None)
+    return [
+        node.create_subscription(msg_type, name, callback, latched, event_callbacks=quiet),
+        node.create_subscription(msg_type, name, callback, volatile),
+    ]

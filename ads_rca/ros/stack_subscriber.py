@@ -29,6 +29,7 @@ from ads_rca.live.runid import RunFilter
 from ads_rca.live.stack_config import StackConfig
 from ads_rca.live.stack_feed import StackFeed
 from ads_rca.ros.diagnostics import array as diagnostic_array
+from ads_rca.ros.qos_match import any_durability
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -121,7 +122,7 @@ class StackSubscriber:
         config, unit = self.config, self.unit
         feed = self.feed = StackFeed(config, unit.core, self._skip)
         namespace = next(iter(unit.nodes.values())).namespace
-        self.subscriptions.append(
+        self.subscriptions.extend(
             listen_for_collisions(
                 self.node, unit, namespace, self.runs, self._skip, collide=feed.set_collision
             )
@@ -213,10 +214,11 @@ def listen_for_collisions(
     runs: RunFilter,
     skip: Callable[[str, str], None],
     collide: Callable[[int, float], bool] | None = None,
-) -> Subscription[String]:
-    """Subscribe to ``run/collision``: each collision goes to ``collide`` (stack mode: the
-    feed, which finds its episode), else the unit's core (which judges the held frames
-    again, said once); an unreadable document is skipped and said."""
+) -> list[Subscription[String]]:
+    """Subscribe to ``run/collision``, latched or volatile publishers alike: each collision
+    goes to ``collide`` (stack mode: the feed, which finds its episode), else the unit's core
+    (which judges the held frames again, said once); an unreadable document is skipped and
+    said."""
 
     def on_collision(msg: String) -> None:
         try:
@@ -231,7 +233,7 @@ def listen_for_collisions(
             unit.logger.info(f"collision at frame {frame}: judging held frames again")
 
     name = topics.topic_name(live_topics.COLLISION, namespace)
-    return node.create_subscription(String, name, on_collision, live_topics.latched_qos())
+    return any_durability(node, String, name, on_collision)
 
 
 __all__ = ["FACTS_STATUS", "StackSubscriber", "listen_for_collisions"]

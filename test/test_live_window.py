@@ -237,3 +237,29 @@ def test_end_of_run_waits_for_the_markers_the_status_announced() -> None:
     results = core.poll(0.3)
     assert core.finished and len(results) == len(frames)
     assert not any(r.incomplete for r in results)
+
+
+@pytest.mark.parametrize("value", ["abc", float("nan"), -1.0, float("inf"), True, None, [1]])
+def test_a_hostile_arrival_time_is_not_said_and_the_latency_says_so(value: object) -> None:
+    """A result's ``arrived_s`` from the wire that is no finite positive number is taken as
+    not said (0); a verdict whose collision frame no monitor dated counts its latency from
+    the last result's arrival at the aggregator, and says so."""
+    log = synth("cut_in", "perception")
+    params = make_params("reference")
+    run = run_live(log, params)
+    aggregator = AggregatorCore(params)
+    aggregator.set_metadata(log.metadata, log.source, 0.0)
+    for n, ts in enumerate(log.frames):
+        aggregator.add_marker(FrameMarker(n, ts), 0.0)
+    aggregator.set_finished(0.0)
+    for module in MODULES:
+        for result in run.results[module]:
+            document = {**result.to_document(), "arrived_s": value}
+            back = LiveResult.from_document(loads_json(dumps_json(document)))
+            assert back.arrived_s == 0.0
+            aggregator.add_result(back, 1.0)
+    outcome = aggregator.poll(2.0)
+    assert outcome is not None
+    document = outcome.document
+    assert document["verdict_latency_from"] == "the collision frame's arrival (its marker) here"
+    assert document["verdict_latency_s"] == 2.0  # the markers came at 0.0, the verdict at 2.0

@@ -18,7 +18,14 @@ import pytest
 from ads_rca.contract.jsontext import dumps_json
 from ads_rca.diagnosis.engine import diagnose, evaluate_frame, frame_json
 from ads_rca.diagnosis.verdict import FrameResults, OracleResult, json_safe
-from ads_rca.live.diagnostics import OK, WARN, batch_status
+from ads_rca.live.diagnostics import (
+    OK,
+    WARN,
+    WARNING_NAME,
+    CollisionWarning,
+    batch_status,
+    collision_warning,
+)
 from ads_rca.live.results import LiveResult
 from ads_rca.live.simulate import run_live
 from ads_rca.model import RunLog
@@ -133,6 +140,54 @@ def test_a_near_miss_is_a_warning_naming_frame_actor_and_clearance() -> None:
         planning_result(0.42, {"safety_margin": 1.0}, partner_id="7068", collision_frame=60),
     ):
         assert batch_status([quiet], "corrected", "hw").level == OK
+
+
+def test_a_predicted_collision_is_a_warning_of_its_own_before_contact() -> None:
+    """The most imminent of a batch's warnings, WARN, named apart from the module's status
+    (a failing frame's ERROR must not hide it); escaped like every id."""
+    found = [
+        CollisionWarning(2750, 55, 3.0, 0.9, "7068"),
+        CollisionWarning(2800, 56, 2.5, 0.6, "7068"),
+        CollisionWarning(2850, 57, 0.2, float("inf"), "\x1b[2J9"),
+    ]
+    warning = collision_warning(found, 1.0, "hw", run="r1")
+    assert warning is not None and warning.level == WARN and warning.name == WARNING_NAME
+    assert warning.message == (
+        "collision predicted in 0.60 s with actor 7068 at frame 56 (event_ttc_s 1 s)"
+    )
+    assert dict(warning.values)["ttc_s"] == "0.600" and dict(warning.values)["run"] == "r1"
+    close = collision_warning(found[2:], 1.0, "hw")
+    assert close is not None and close.message.startswith("actor \\x1b[2J9 0.20 m from the ego")
+    assert collision_warning([], 1.0, "hw") is None
+
+
+def test_a_warning_comes_as_the_frame_arrives_before_the_rules_can_judge_it() -> None:
+    """A stack's monitor core fed a crash frame by frame, no collision known: the first
+    warning names a frame before the contact, as that frame arrives, while its planning
+    result still waits for its look-ahead."""
+    from ads_rca.contract.playback import timeline
+    from ads_rca.live.results import FrameMarker
+    from ads_rca.live.window import MonitorCore
+    from ads_rca.model import ALL_FOLDERS
+
+    log = crash("lead_braking", "prediction")
+    core = MonitorCore(MODULES, PARAMS, judge_without_collision=True)
+    core.set_metadata(replace(log.metadata, collision_frame=-1), 0.0)
+    judged: set[int] = set()
+    first: tuple[int, set[int]] | None = None
+    for tick in timeline(log):
+        folders = {f for f in ALL_FOLDERS if tick.stamp_ms in log.folder(f)}
+        for folder in folders:
+            core.add_record(folder, tick.stamp_ms, log.folder(folder)[tick.stamp_ms], 0.1)
+        core.add_marker(FrameMarker(tick.index, tick.stamp_ms, frozenset(folders)), 0.1)
+        judged |= {r.stamp_ms for r in core.poll(0.1) if r.module == "planning"}
+        warnings = core.collision_warnings()
+        if warnings and first is None:
+            first = (warnings[0].stamp_ms, set(judged))
+    assert first is not None
+    stamp, judged_then = first
+    assert stamp < log.metadata.collision_frame * log.frame_ms
+    assert stamp not in judged_then  # its own planning result was not out yet
 
 
 def test_a_hostile_actor_id_is_shown_escaped_and_short() -> None:

@@ -62,8 +62,9 @@ def test_replay_gives_the_diagnose_verdict(
     assert failed_flags(live) == failed_flags(offline)
     assert_close(verdict_keys(live), verdict_keys(offline))  # evidence metrics: floats
     assert_close(live["frames"], offline["frames"])
-    # From the last required frame's marker to the verdict: a later timer tick of the
-    # aggregator (never the same instant), inside the replay's lifetime.
+    # From the last decided frame's first arrival in the graph (one machine's
+    # CLOCK_MONOTONIC) to the verdict: a later instant, inside the replay's lifetime.
+    assert live["verdict_latency_from"].startswith("the collision frame's arrival")
     assert 0 < live["verdict_latency_s"] < elapsed
     assert f"verdict: {offline['verdict']}" in replay.output
 
@@ -246,7 +247,7 @@ def test_stalled_input_is_reported_and_not_waited_on_forever(
 
 
 def _stream(path: Path) -> dict[str, list[dict[str, Any]]]:
-    volatile = {"compute_s", "wait_s", "session", "run"}  # run: each replay's own id
+    volatile = {"compute_s", "wait_s", "arrived_s", "session", "run"}  # run: each replay's own id
     out: dict[str, list[dict[str, Any]]] = {m: [] for m in MODULES}
     for row in jsonl(path):
         out[row["module"]].append({k: v for k, v in row.items() if k not in volatile})

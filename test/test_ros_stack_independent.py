@@ -195,6 +195,8 @@ def test_a_volatile_collision_publisher_is_heard(
     topic = "/stack/ego/collision" if mapped else f"{ros_env.namespace}/run/collision"
     stack = ["--log", log_folder(tmp_path, CASE), "--seed", "1", "--collision-qos", "volatile"]
     stack += ["--collision-topic", topic, "--wait-collision-subscribers", "1"]
+    if not mapped:  # at log rate, as a stack drives: warnings come as its frames do
+        stack += ["--rate", "1.0"]
     params: dict[str, ParamValue] = {"semantics": "corrected", "input_timeout_s": 1.0}
     mapping: dict[str, ParamValue] = {"collision_topic": topic} if mapped else {}
     graph = run_beside(ros_env, tmp_path, [stack], params, verdicts=1, aggregator_only=mapping)
@@ -203,6 +205,16 @@ def test_a_volatile_collision_publisher_is_heard(
     want = offline(*CASE, "corrected").to_json(include_frames=False)
     assert verdict["primary_root_cause"] == want["primary_root_cause"]
     assert verdict["verdict"] == want["verdict"]
+    # Beside a stack the monitors see the collision frame before any result of it exists.
+    assert verdict["verdict_latency_from"] == "the collision frame's arrival at the monitors"
+    assert 0 < verdict["verdict_latency_s"] < 30
+    if not mapped:
+        # Before the contact, as the frames arrive: a collision warning at WARN, a status
+        # of its own (never the planning status's ERROR), 0.75 s ahead in process.
+        warnings = [s for s in graph.diagnostics if s["name"] == "ads_rca/collision_warning"]
+        assert warnings and {s["level"] for s in warnings} == {1}, graph.diagnostics[-5:]
+        first = min(int(s["values"]["frame"]) for s in warnings)
+        assert first < 78 and float(warnings[0]["values"]["ttc_s"]) <= 1.0
     # One reader of the two cannot match a volatile publisher: no warning says it did not.
     for output in graph.outputs.values():
         assert "incompatible" not in output.lower(), output

@@ -174,6 +174,29 @@ def near_misses(log: RunLog, params: Params) -> list[CriticalEvent]:
     return events
 
 
+def threat_at(log: RunLog, params: Params, ts: int) -> tuple[float, float, str] | None:
+    """At ``ts`` alone (no later frame: a live monitor has none yet): (clearance, time to
+    collision, actor) of the object nearest a near miss with the ego by ``event_clearance``
+    or ``event_ttc_s``, each kept at its velocity from its last frame (None when none, or
+    the ego is not among the actors)."""
+    frame = log.actors.get(ts)
+    if frame is None:
+        return None
+    ego_id = EGO_ID if is_perceived(log) else ego_at(log, ts)
+    row = {a: r for r, a in enumerate(frame.ids)}
+    if ego_id is None or ego_id not in row or ego_id not in log.actor_extents:
+        return None
+    prev_ts = max((s for s in log.actors if s < ts), default=None)
+    previous = (
+        {a: log.actors[prev_ts].location[r, :2] for r, a in enumerate(log.actors[prev_ts].ids)}
+        if prev_ts is not None
+        else {}
+    )
+    now = {a: frame.location[r, :2] for r, a in enumerate(frame.ids)}
+    gap, ttc, other = _closest(log, params, ts, frame, row, now, previous, prev_ts, ego_id)
+    return None if other is None else (gap, ttc, other)
+
+
 def _closest(
     log: RunLog,
     params: Params,

@@ -471,6 +471,26 @@ class AggregatorCore(FollowsRunEnd):
             self._start_collision(*self._queued.popleft())
         return outcome
 
+    def _latency(self, required: Sequence[_Expected], now: float) -> dict[str, Any]:
+        """How long after the last frame the verdict decides on (the collision frame, or the
+        last of its look-ahead) first reached the graph the verdict came: from the earliest
+        of its arrival at a monitor (each result says when, on the machine's
+        CLOCK_MONOTONIC, which its processes share) and what the aggregator saw of it first
+        (its marker; beside a stack, its first result). ``verdict_latency_from`` says which."""
+        if not required:
+            return {"verdict_latency_s": 0.0, "verdict_latency_from": "no frame decided on"}
+        decisive = required[-1]
+        at_monitor = self.results.arrived(decisive.index)
+        if at_monitor is not None and at_monitor <= decisive.arrived:
+            start, source = at_monitor, "the collision frame's arrival at the monitors"
+        else:
+            seen = "its marker" if not self.stack else "its first result"
+            start, source = decisive.arrived, f"the collision frame's arrival ({seen}) here"
+        return {
+            "verdict_latency_s": round(max(0.0, now - start), 6),
+            "verdict_latency_from": source,
+        }
+
     def frame_stamps(self) -> list[int]:
         """The stamps of every frame results came for, ascending."""
         indices = self.expected.indices()
@@ -545,8 +565,7 @@ class AggregatorCore(FollowsRunEnd):
             document["frames"] = [
                 json_safe(frame_json(f)) for f in frames if f.timestamp_ms >= window_start
             ]
-        last = max((e.arrived for e in required), default=now)
-        document["verdict_latency_s"] = round(max(0.0, now - last), 6)
+        document.update(self._latency(required, now))
         complete = not why_incomplete
         document["live"] = {
             "complete": complete,

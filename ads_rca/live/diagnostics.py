@@ -12,6 +12,10 @@ latest frame, with how many were judged and failed since the previous one
 (:func:`batch_status`). The frame-by-frame history is on the ``metrics/<module>`` topics.
 Before any collision a planning batch whose plan came closer to its partner (the most
 threatening actor) than ``safety_margin`` is a near miss, level WARN (:func:`near_miss`).
+Earlier, as each frame arrives and while no collision is known, an actor that kept at its
+velocity meets the ego within ``event_ttc_s`` is a **collision warning**: a WARN status of
+its own, ``ads_rca/collision_warning`` (:func:`collision_warning`), so a failing planning
+frame's ERROR never hides it and a passing one's OK never clears it.
 
 Statuses are plain :class:`Status` values; :func:`encode_array` writes a DiagnosticArray's
 CDR bytes directly, for the monitors' statuses (a 40-value status as rclpy objects cost the
@@ -58,6 +62,7 @@ class Status:
 
 
 VERDICT_NAME = "ads_rca/verdict"
+WARNING_NAME = "ads_rca/collision_warning"
 
 
 def status_name(module: str) -> str:
@@ -149,6 +154,46 @@ def near_miss(results: Sequence[LiveResult], semantics: str) -> str:
         f"near miss at frame {live.frame}: clearance {c_gt:.2f} m to actor "
         f"{shown_id(partner)} below safety_margin {margin} m"
     )
+
+
+@dataclass(frozen=True)
+class CollisionWarning:
+    """A frame at which an actor, kept at its velocity, meets the ego (kept at its speed)
+    within ``event_ttc_s``, or is within ``event_clearance`` of it."""
+
+    stamp_ms: int
+    frame: int
+    clearance_m: float
+    ttc_s: float  # inf: no contact within event_ttc_s (the clearance made it one)
+    actor: str
+
+
+def collision_warning(
+    found: Sequence[CollisionWarning], ttc_limit_s: float, hardware_id: str, run: str = ""
+) -> Status | None:
+    """The most imminent of ``found`` (the least time to collision, then the least
+    clearance) as a WARN status of its own, ``ads_rca/collision_warning``; None if none."""
+    if not found:
+        return None
+    w = min(found, key=lambda x: (x.ttc_s, x.clearance_m, x.stamp_ms))
+    actor = shown_id(w.actor)
+    if math.isfinite(w.ttc_s):
+        message = (
+            f"collision predicted in {w.ttc_s:.2f} s with actor {actor} at frame {w.frame} "
+            f"(event_ttc_s {ttc_limit_s:g} s)"
+        )
+    else:
+        message = f"actor {actor} {w.clearance_m:.2f} m from the ego at frame {w.frame}"
+    values = [
+        ("frame", str(w.frame)),
+        ("stamp_ms", str(w.stamp_ms)),
+        ("ttc_s", f"{w.ttc_s:.3f}"),
+        ("clearance_m", f"{w.clearance_m:.3f}"),
+        ("actor", actor),
+        ("event_ttc_s", f"{ttc_limit_s:g}"),
+        *([(RUN_KEY, run)] if run else []),
+    ]
+    return Status(WARN, WARNING_NAME, message, hardware_id, values)
 
 
 def result_status(live: LiveResult, semantics: str, hardware_id: str) -> Status:

@@ -8,6 +8,7 @@ with the strict ``"$nonfinite"`` annotation and reads them back) and every field
 
 from __future__ import annotations
 
+import math
 import pickle
 import sys
 import tempfile
@@ -77,6 +78,9 @@ class LiveResult:
     problems: tuple[Problem, ...] = ()
     compute_s: float = 0.0  # oracle time
     wait_s: float = 0.0  # from the frame's marker arriving to the result
+    #: When the frame's first input reached the monitor (CLOCK_MONOTONIC s, shared by the
+    #: processes of one machine; 0: not said): the verdict's latency counts from it.
+    arrived_s: float = 0.0
     session: str = ""  # the monitor process's start token
     run: str = ""  # the run judged (the player's run id; "" = none known)
     #: Stack mode: this module's last frame at or before collision frame N (-1: not one):
@@ -124,6 +128,7 @@ class LiveResult:
             "problems": [p.to_dict() for p in self.problems],
             "compute_s": self.compute_s,
             "wait_s": self.wait_s,
+            **({"arrived_s": self.arrived_s} if self.arrived_s > 0 else {}),
             "session": self.session,
             **({"run": self.run} if self.run else {}),
             **({"closes_collision": self.closes_collision} if self.closes_collision >= 0 else {}),
@@ -171,6 +176,7 @@ class LiveResult:
             problems=tuple(problems_from_list(d.get("problems"))),
             compute_s=float(d.get("compute_s", 0.0)),
             wait_s=float(d.get("wait_s", 0.0)),
+            arrived_s=_seconds(d.get("arrived_s", 0.0)),
             session=str(d.get("session", "")),
             run=str(d.get("run") or ""),
             closes_collision=bounded_int(
@@ -198,6 +204,14 @@ def missing_folders(incomplete: tuple[str, ...]) -> list[str]:
 def no_record(folder: str) -> str:
     """The ``incomplete`` reason of a result judged without ``folder``'s record."""
     return f"{_NO_RECORD[0]}{folder}{_NO_RECORD[1]}"
+
+
+def _seconds(value: object) -> float:
+    """A document's clock reading: a finite non-negative number, else 0 (not said)."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return 0.0
+    seconds = float(value)
+    return seconds if math.isfinite(seconds) and seconds > 0 else 0.0
 
 
 def _text_or_none(value: object) -> str | None:
@@ -348,6 +362,9 @@ class ResultStore:
             )
             for m in MODULES
         }
+        #: Per frame index, the earliest time a monitor said the frame reached it (one
+        #: column for the four modules: 8 bytes a frame).
+        self._arrivals = Columns(arrived=np.float64)
 
     def put(self, result: LiveResult) -> bool:
         """Keep ``result`` unless a higher revision is held (or its index is absurd)."""
@@ -371,6 +388,10 @@ class ResultStore:
             length=len(data),
         )
         self._end += len(data)
+        if result.arrived_s > 0 and self._arrivals.accepts(index):
+            held = self._arrivals.has(index)
+            if not held or result.arrived_s < self._arrivals.get("arrived", index):
+                self._arrivals.set(index, arrived=result.arrived_s)
         return True
 
     def has(self, module: Module, index: int) -> bool:
@@ -378,6 +399,12 @@ class ResultStore:
 
     def collision_frame(self, module: Module, index: int) -> int:
         return int(self._modules[module].get("collision", index))
+
+    def arrived(self, index: int) -> float | None:
+        """The earliest time a monitor said frame ``index`` reached it (None: none said)."""
+        if not self._arrivals.has(index):
+            return None
+        return float(self._arrivals.get("arrived", index))
 
     def result(self, module: Module, index: int) -> OracleResult:
         """The held result (read back from the file)."""

@@ -50,7 +50,9 @@ import numpy as np
 from ads_rca.capabilities import JUDGED, complete, judged_modules
 from ads_rca.contract.ego_paths import EgoPathRow, snapshots_from_rows
 from ads_rca.diagnosis.engine import evaluate_frame
+from ads_rca.diagnosis.events import threat_at
 from ads_rca.diagnosis.perceived import perceived_reference
+from ads_rca.live.diagnostics import CollisionWarning
 from ads_rca.live.results import FollowsRunEnd, FrameMarker, LiveResult, RunEnd, no_record
 from ads_rca.live.row_paths import JudgedRow, RowPaths, rescored_incomplete
 from ads_rca.model import (
@@ -154,6 +156,8 @@ class MonitorCore(FollowsRunEnd):
         #: Stack mode (docs/live-graph.md): frames come whole from the stamp sync, a
         #: collision closes the frames up to it (look-ahead and view cut at the collision).
         self.stack = stack
+        #: The last frame looked at for a collision warning (:meth:`collision_warnings`).
+        self._warned_through = -1
         #: Stack mode: no frame at or before the collision frame is still to come.
         self.horizon_closed = False
         self.collision_at: float | None = None
@@ -393,6 +397,37 @@ class MonitorCore(FollowsRunEnd):
         self._trim()
         return results
 
+    # --- warning ---------------------------------------------------------------------
+
+    def collision_warnings(self) -> list[CollisionWarning]:
+        """Each frame come in since the last call, before any collision is known, whose
+        actors kept at their velocity meet the ego within ``event_ttc_s`` (or are within
+        ``event_clearance``): computed as the frame arrives, without the look-ahead the
+        rules wait for (docs/live-graph.md "Collision warning"). A monitor that does not
+        judge planning, or whose mode reads no actors, warns of nothing."""
+        if (
+            "planning" not in self.modules
+            or self.collision_frame >= 0
+            or self.metadata is None
+            or "actors" not in self.records
+            or "pose" not in self.records
+        ):
+            return []
+        actors, poses = self.records["actors"], self.records["pose"]
+        new = sorted(s for s in actors if s > self._warned_through and s in poses)
+        if not new:
+            return []
+        self._warned_through = new[-1]
+        log = self.view()
+        out = []
+        for ts in new:
+            found = threat_at(log, self.params, ts)
+            if found is not None:
+                gap, ttc, actor = found
+                frame = int(frame_number(ts, log.frame_ms))
+                out.append(CollisionWarning(ts, frame, gap, ttc, actor))
+        return out
+
     # --- judging ---------------------------------------------------------------------
 
     def view(self, cut_ms: int | None = None) -> RunLog:
@@ -493,6 +528,7 @@ class MonitorCore(FollowsRunEnd):
                         problems=tuple(new_problems(ctx.problems, self._reported)),
                         compute_s=spent,
                         wait_s=max(0.0, now - entry.arrived),
+                        arrived_s=entry.arrived,
                         session=self.session,
                         run=self.run,
                         closes_collision=self.collision_frame if stamp == closing else -1,

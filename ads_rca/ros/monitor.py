@@ -291,9 +291,19 @@ class MonitorUnit:
         )
 
     def poll(self) -> None:
-        """Publish the results of every frame that became ready."""
+        """Publish the results of every frame that became ready, then the collision warning
+        of the frames that came in (before any collision: docs/live-graph.md)."""
         self.last_poll = now = time.monotonic()
         self.publish(self.core.poll(now))
+        planning = self.nodes.get("planning")
+        if planning is not None and planning.publish_diagnostics:
+            threshold = planning.params.event_ttc_s
+            warning = diag.collision_warning(
+                self.core.collision_warnings(), threshold, planning.hardware_id, self.core.run
+            )
+            if warning is not None:
+                stamp = planning.get_clock().now().nanoseconds
+                planning.diag_pub.publish(diag.encode_array(stamp, [warning]))
 
     def publish(self, results: list[LiveResult]) -> None:
         """Each module's results on its node (one /diagnostics status per module)."""

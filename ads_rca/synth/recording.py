@@ -23,7 +23,7 @@ import math
 import os
 import sqlite3
 import uuid
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
@@ -208,9 +208,10 @@ def _probability(value: float) -> float:
 # --- message building ------------------------------------------------------------------------
 
 
-class _Messages:
+class MessageBuilder:
     """Builds rosbags message objects of the store's types (short names for the nested
-    geometry every message repeats)."""
+    geometry every message repeats); the test fixtures' writers of other stacks' bags
+    build on it."""
 
     def __init__(self, store: Typestore) -> None:
         self.types = store.types
@@ -227,7 +228,7 @@ class _Messages:
     def header(self, ns: int, frame_id: str = "map") -> Any:
         return self.new("std_msgs/msg/Header", stamp=self.time(ns), frame_id=frame_id)
 
-    def vector3(self, v: FloatArray) -> Any:
+    def vector3(self, v: FloatArray | Sequence[float]) -> Any:
         return self.new("geometry_msgs/msg/Vector3", x=float(v[0]), y=float(v[1]), z=float(v[2]))
 
     def poses(self, xyz: FloatArray, quaternions: FloatArray) -> list[Any]:
@@ -366,7 +367,7 @@ class _Writer:
     def __init__(self, log: RunLog, profile: str) -> None:
         self.log = log
         self.profile = profile
-        self.m = _Messages(typestore())
+        self.m = MessageBuilder(typestore())
         self.numbers = actor_numbers(log)
         self.frame_step_ns = log.frame_ms * _NS_PER_MS
 

@@ -45,6 +45,7 @@ from ads_rca.sources.bag.profiles.frames import (
 from ads_rca.synth.recording import (
     EPOCH_NS,
     MSG_DIR,
+    MessageBuilder,
     autoware_label,
     object_uuid,
     path_headings,
@@ -54,7 +55,6 @@ from ads_rca.synth.recording import (
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore
 
-    from ads_rca.synth.geometry import FloatArray
 
 STORAGES = ("mcap", "sqlite3", "humble")
 #: Rates of a real vehicle: localisation and the velocity report, perception and the rest.
@@ -225,11 +225,11 @@ def _closure(name: str) -> list[str]:
 # --- messages ----------------------------------------------------------------------------------
 
 
-class _Messages:
+class _Messages(MessageBuilder):
     """Message objects of the store's types, current or legacy."""
 
     def __init__(self, legacy: bool) -> None:
-        self.types = typestore().types
+        super().__init__(typestore())
         self.legacy = legacy
         self.perception = (
             "autoware_auto_perception_msgs/msg/" if legacy else "autoware_perception_msgs/msg/"
@@ -237,30 +237,6 @@ class _Messages:
         self.planning = (
             "autoware_auto_planning_msgs/msg/" if legacy else "autoware_planning_msgs/msg/"
         )
-
-    def new(self, name: str, **fields: Any) -> Any:
-        return self.types[name](**fields)
-
-    def time(self, ns: int) -> Any:
-        return self.new("builtin_interfaces/msg/Time", sec=ns // 10**9, nanosec=ns % 10**9)
-
-    def duration(self, ns: int) -> Any:
-        return self.new("builtin_interfaces/msg/Duration", sec=ns // 10**9, nanosec=ns % 10**9)
-
-    def header(self, ns: int, frame_id: str = "map") -> Any:
-        return self.new("std_msgs/msg/Header", stamp=self.time(ns), frame_id=frame_id)
-
-    def vector3(self, v: Any) -> Any:
-        return self.new("geometry_msgs/msg/Vector3", x=float(v[0]), y=float(v[1]), z=float(v[2]))
-
-    def poses(self, xyz: FloatArray, quaternions: FloatArray) -> list[Any]:
-        point = self.types["geometry_msgs/msg/Point"]
-        quaternion = self.types["geometry_msgs/msg/Quaternion"]
-        pose = self.types["geometry_msgs/msg/Pose"]
-        return [
-            pose(position=point(*p), orientation=quaternion(*q))
-            for p, q in zip(xyz.tolist(), quaternions.tolist(), strict=True)
-        ]
 
     def with_covariance(self, kind: str, value: Any, name: str) -> Any:
         return self.new(

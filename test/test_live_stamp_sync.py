@@ -8,6 +8,8 @@ it. Then: 2 % of one topic dropped, duplicates, late messages and floods.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 
@@ -262,3 +264,32 @@ def test_an_unknown_topic_is_refused() -> None:
     sync: StampSync[str] = StampSync(SyncSettings(("a",)))
     with pytest.raises(ConfigError, match="topic 'b' is not an input of the stamp sync"):
         sync.add("b", 0, "", 0.0)
+
+
+def test_an_input_never_heard_stops_holding_frames_once_given_up_on() -> None:
+    """Input b never comes: the first frames wait their timeout, then b is given up on
+    and later frames go as soon as a has come (``absent``, b named missing), without a
+    timeout each. A message of b brings it back. The node gives an input up at once when
+    its topic has no publisher (give_up)."""
+    settings = SyncSettings(("a", "b"), period_ms=50.0, measure_stamps=2, input_timeout_s=5.0)
+    sync: StampSync[str] = StampSync(settings)
+    out: list[Any] = []
+    for i, stamp in enumerate(range(0, 500, 50)):  # 10 frames, 0.1 s apart
+        now = i * 0.1
+        out += sync.add(ODOMETRY, stamp, f"o{stamp}", now) + sync.add("a", stamp, f"a{stamp}", now)
+    assert out == []  # b never heard, no timeout yet: held
+    out = sync.poll(5.0)  # frame 0 timed out: b given up, every held frame goes now
+    assert [f.stamp_ms for f in out] == list(range(0, 500, 50))
+    assert out[0].reason == "timeout" and {f.reason for f in out[1:]} == {"absent"}
+    assert all(f.missing == ("b",) for f in out) and sync.absent == {"b"}
+    released = sync.add(ODOMETRY, 500, "o500", 5.1) + sync.add("a", 500, "a500", 5.1)
+    assert [(f.stamp_ms, f.reason) for f in released] == [(500, "absent")]
+    sync.add("b", 550, "b550", 5.2)  # b is heard: awaited again
+    assert sync.absent == set()
+    assert sync.add(ODOMETRY, 550, "o550", 5.2) + sync.add("a", 550, "a550", 5.2) != []
+    fresh: StampSync[str] = StampSync(settings)
+    fresh.give_up(["b", "not an input"])
+    assert fresh.absent == {"b"}
+    fresh.add(ODOMETRY, 0, "o0", 0.0)
+    fresh.add(ODOMETRY, 50, "o50", 0.0)
+    assert [f.stamp_ms for f in fresh.add("a", 0, "a0", 0.0)] == [0]  # no wait for b

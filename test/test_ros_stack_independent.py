@@ -218,3 +218,33 @@ def test_a_volatile_collision_publisher_is_heard(
     # One reader of the two cannot match a volatile publisher: no warning says it did not.
     for output in graph.outputs.values():
         assert "incompatible" not in output.lower(), output
+
+
+def test_an_input_the_stack_never_publishes_does_not_hold_the_frames(
+    ros_env: RosEnv, tmp_path: Path
+) -> None:
+    """The stack runs without /perception/detections_2d (no publisher at all): with
+    input_timeout_s 5, every frame used to wait 5 s for it, so judging lagged the stack by
+    5 s. Once the monitors find no publisher, frames go without it: the later frames'
+    first judgements lag by the look-ahead only, and perception says what it lacked."""
+    metrics = tmp_path / "metrics.jsonl"
+    stack = ["--log", log_folder(tmp_path, CASE), "--seed", "3", "--rate", "1.0"]
+    stack += ["--drop-input", "bboxes"]
+    graph = run_beside(
+        ros_env,
+        tmp_path,
+        [stack],
+        {"semantics": "corrected", "input_timeout_s": 5.0},
+        verdicts=1,
+        aggregator_only={"metrics_log": str(metrics)},
+    )
+    [verdict] = graph.verdicts
+    assert verdict["collision_frame"] == 78 and verdict["conclusive"] is False
+    first = [
+        r for r in statuses(metrics) if not r.get("revision") and r["frame"] >= 40
+    ]  # the run's second half: past the discovery grace
+    assert first, "no results"
+    waits = sorted(float(r["wait_s"]) for r in first)
+    assert waits[len(waits) // 2] < 1.5, waits[-5:]  # look-ahead 0.5 s, not the 5 s timeout
+    perception = [r for r in first if r["module"] == "perception"]
+    assert perception and all("no bboxes record" in r["incomplete"] for r in perception)

@@ -305,7 +305,9 @@ class StackFeed:
             if episode.origin_ms is None:
                 episode.origin_ms = frame.stamp_ms
             index = round((frame.stamp_ms - episode.origin_ms) / period)
-            core.add_marker(FrameMarker(index, frame.stamp_ms, wanted), now)
+            # Its wait (and the verdict's latency) counts from its reference's arrival, the
+            # time the sync held it for its inputs included.
+            core.add_marker(FrameMarker(index, frame.stamp_ms, wanted), now, frame.arrived_s)
 
     def _check_ego(self, record: Record) -> None:
         if self._ego_seen or not isinstance(record, Actors):

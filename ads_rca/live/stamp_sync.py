@@ -20,6 +20,12 @@ frames:
   reference stamps were seen (the start settles, the period is measured); a frame more than
   1.5 periods after the last released one (a gap: the frame between may still come,
   reordered) waits for it until its own timeout.
+- **Inputs never heard**: an input no message has come on is given up once a frame timed
+  out waiting for it, or once the node finds no publisher of its topic
+  (:meth:`StampSync.give_up`): later frames no longer wait for it (released ``absent``, the
+  input named missing, so the modules that read it say so), until a message of it comes.
+  A monitor that joined a stack running without one input lags one ``input_timeout_s`` at
+  most, not every frame.
 - **Late, duplicate**: a message whose nearest frame was already released (the newest
   released frame, or older) is dropped and counted ``late``; a second message with a stamp
   already held on its topic is dropped (the first kept) and counted ``duplicates``.
@@ -50,7 +56,7 @@ P = TypeVar("P")
 EGO_POSE_TOPIC = FOLDER_TOPICS["pose"]
 
 #: Why a frame was released.
-Reason = Literal["complete", "timeout", "overflow", "flush"]
+Reason = Literal["complete", "absent", "timeout", "overflow", "flush"]
 
 #: A head frame after a gap of more than this many periods waits for the frame in between.
 GAP_PERIODS = 1.5
@@ -98,6 +104,8 @@ class SyncedFrame(Generic[P]):
     stamps: dict[str, int]
     missing: tuple[str, ...]
     reason: Reason
+    #: When its reference message arrived (monotonic s): the frame's wait counts from it.
+    arrived_s: float = 0.0
 
     @property
     def complete(self) -> bool:
@@ -188,6 +196,10 @@ class StampSync(Generic[P]):
         self._frames = _Held[tuple[P, float]]()  # reference stamp -> (payload, arrival)
         self._held = {topic: _Held[P]() for topic in settings.inputs}
         self._seen: list[int] = []  # the first reference stamps, to measure the period
+        self._heard: set[str] = set()  # inputs any message came on
+        #: Inputs given up on (never heard; a frame timed out on them, or no publisher):
+        #: frames do not wait for them until one of their messages comes.
+        self.absent: set[str] = set()
 
     # --- feeding ---------------------------------------------------------------------
 
@@ -216,6 +228,8 @@ class StampSync(Generic[P]):
                     self.period_ms = self.measured_ms
 
     def _add_input(self, topic: str, stamp: int, payload: P) -> None:
+        self._heard.add(topic)
+        self.absent.discard(topic)
         if self.is_late(stamp):
             self.counts.late += 1
             return
@@ -254,10 +268,12 @@ class StampSync(Generic[P]):
             head = self._frames.stamps[0]
             arrived = self._frames.payloads[0][1]
             picks = self._picks(head)
-            if len(picks) == len(self._held) and self._may_release_early(head):
-                reason: Reason = "complete"
+            awaited = [t for t in self._held if t not in picks and t not in self.absent]
+            if not awaited and self._may_release_early(head):
+                reason: Reason = "complete" if len(picks) == len(self._held) else "absent"
             elif now_s - arrived >= self.settings.input_timeout_s:
                 reason = "timeout"
+                self.give_up(awaited)
             elif len(self._frames.stamps) > self.settings.max_pending_frames:
                 self.counts.overflow += 1
                 reason = "overflow"
@@ -265,6 +281,11 @@ class StampSync(Generic[P]):
                 break
             out.append(self._release(picks, reason))
         return out
+
+    def give_up(self, topics: Iterable[str]) -> None:
+        """Stop waiting for those of ``topics`` that never had a message (the node found no
+        publisher of them, or a frame timed out on them)."""
+        self.absent.update(t for t in topics if t in self._held and t not in self._heard)
 
     def flush(self) -> list[SyncedFrame[P]]:
         """Release every held frame with what arrived (the end of a run)."""
@@ -298,7 +319,7 @@ class StampSync(Generic[P]):
 
     def _release(self, picks: dict[str, int], reason: Reason) -> SyncedFrame[P]:
         """Release the head frame with ``picks``; drop what can no longer match a frame."""
-        head, (payload, _arrived) = self._frames.take(0)
+        head, (payload, arrived) = self._frames.take(0)
         inputs = {self.settings.reference: payload}
         stamps = {self.settings.reference: head}
         for topic, at in picks.items():
@@ -311,7 +332,7 @@ class StampSync(Generic[P]):
             self.counts.unmatched += held.cut_through(min(stale, head + self.slop_ms))
         missing = tuple(t for t in self.settings.inputs if t not in picks)
         self.counts.incomplete += bool(missing)
-        return SyncedFrame(head, inputs, stamps, missing, reason)
+        return SyncedFrame(head, inputs, stamps, missing, reason, arrived)
 
     # --- state -----------------------------------------------------------------------
 

@@ -283,9 +283,11 @@ class MonitorCore(FollowsRunEnd):
             self.row_paths.add(row, self._floor())
             self._settle(now)
 
-    def add_marker(self, marker: FrameMarker, now: float) -> None:
+    def add_marker(self, marker: FrameMarker, now: float, arrived: float | None = None) -> None:
+        """One frame's marker; ``arrived``: when the frame first reached the node (stack
+        mode: its reference message, before the sync held it for its inputs), else now."""
         self._touch(now)
-        entry = _Entry(marker, now)
+        entry = _Entry(marker, now if arrived is None else arrived)
         self._markers.append(entry)
         self.end.marker()
         if marker.index is not None:

@@ -73,6 +73,12 @@ def stack_qos(best_effort: bool) -> QoSProfile:
 
 #: Stack mode auto: messages kept while deciding (the first frames of a stack's run).
 MAX_WAITING = 10_000
+#: How long after stack mode began an input's topic with no publisher is given up on, and
+#: how often it is asked. The stack's publishers existed before its first message came, so
+#: discovery had begun; one found later only costs frames judged without it (said so), and
+#: its first message has it awaited again.
+DISCOVERY_GRACE_S = 1.0
+PUBLISHER_CHECK_S = 0.5
 
 
 class StackSubscriber:
@@ -101,6 +107,8 @@ class StackSubscriber:
         self._facts_said = 0
         self._facts_at = 0.0
         self._sync_at = 0.0
+        self._started_at: float | None = None
+        self._publishers_at = 0.0
         qos = stack_qos(config.best_effort)
         folders = {*unit.core.folders, config.reference}
         self.topics = config.input_topics(folders)
@@ -167,11 +175,30 @@ class StackSubscriber:
         self.unit.publish(ended)
         self.unit.poll()
         self._say_facts()
+        if now - self._publishers_at >= PUBLISHER_CHECK_S:
+            self._publishers_at = now
+            self._give_up_unpublished(now)
         if now - self._sync_at >= 1.0:  # what the sync dropped: at most a line a second
             self._sync_at = now
             news = self.feed.sync_news()
             if news is not None:
                 self.node.get_logger().warning(news)
+
+    def _give_up_unpublished(self, now: float) -> None:
+        """The inputs whose topic has no publisher :data:`DISCOVERY_GRACE_S` after stack
+        mode began: the stack runs without them, so frames stop waiting for them (the
+        modules that read them say so); a message of one brings it back."""
+        if self._started_at is None:
+            self._started_at = now
+        if self.feed is None or now - self._started_at < DISCOVERY_GRACE_S:
+            return
+        silent = [
+            folder
+            for folder in self.feed.settings.inputs
+            if self.node.count_publishers(self.topics[folder]) == 0
+        ]
+        if silent:
+            self.feed.sync.give_up(silent)
 
     def _follow(self) -> None:
         """The unit judges the current episode's core; what the feed says of episodes is

@@ -16,6 +16,8 @@ Reported, over every crash:
   to its result; results judged again at the collision waited for it) p50 / p95 / p99.
   It holds the look-ahead the rules wait for by design (``prediction_window`` frames:
   0.5 s at 20 Hz), so what lies above 0.5 s is the monitors' backlog;
+- where the time goes: the oracles' own time per frame (``compute_s`` of its four
+  results, re-judgements included) p50 / p99, against the 50 ms frame period;
 - the whole bench's wall and CPU time (this process and every node process).
 
 Usage: ``python bench/bench_stack_latency.py [--crashes 8] [--actors 50] [--rate 1.0]
@@ -140,6 +142,7 @@ def main(argv: list[str] | None = None) -> int:
         process.start()
     latency: list[float] = []
     lag: list[float] = []
+    compute: dict[tuple[str, int], float] = {}  # (crash, frame) -> oracle seconds, 4 modules
     judged = 0
     try:
         with tempfile.TemporaryDirectory(prefix="stack_latency_") as scratch, Clock() as clock:
@@ -153,6 +156,9 @@ def main(argv: list[str] | None = None) -> int:
                 # A result judged again at the collision (revision > 0) waited for it by
                 # design: the lag is the first judgement's.
                 lag.extend(float(r.get("wait_s", 0.0)) for r in results if not r.get("revision"))
+                for r in results:
+                    key = (f"{case}", int(r["index"]))
+                    compute[key] = compute.get(key, 0.0) + float(r.get("compute_s", 0.0))
                 print(
                     f"{case[0]:20s} {case[1]:11s} latency {document['verdict_latency_s']:.3f} s "
                     f"({document['verdict_latency_from']}); verdict: {document['verdict']}"
@@ -167,6 +173,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"verdict latency (s)      p50 {p50:.3f}  p99 {p99:.3f}  max {top:.3f}")
     print(f"judging lag (s)          p50 {l50:.3f}  p95 {l95:.3f}  p99 {l99:.3f}")
     print("  (it holds the look-ahead the rules wait for: prediction_window frames, 0.5 s)")
+    c50, c99 = percentiles([1000 * c for c in compute.values()], 50, 99)
+    print(f"oracle time a frame (ms, 4 modules, every judgement) p50 {c50:.1f}  p99 {c99:.1f}")
     timing = clock.timing
     print(f"whole bench: {timing.wall_s:.1f} s wall, {timing.cpu_s:.1f} s CPU")
     return 0

@@ -167,6 +167,19 @@ BENCHES: tuple[Bench, ...] = (
         ("rclpy",),
     ),
     Bench(
+        "bench_stack_latency.py",
+        "stack mode beside an independent stack over DDS: verdict latency, judging lag",
+        ("--crashes", "8"),
+        ("--crashes", "2", "--actors", "20"),
+        ("rclpy",),
+    ),
+    Bench(
+        "bench_real_drive_bags.py",
+        "attribution on real-drive-shaped bags through inspect and diagnose --event-time",
+        ("5",),
+        ("1", "--scenarios", "cut_in", "--faults", "prediction,planning"),
+    ),
+    Bench(
         "accuracy.py",
         "attribution accuracy of the corrected semantics on synthesised faults",
         ("20",),

@@ -6,8 +6,8 @@ not match, and nothing would arrive). Used by the recorder and the Zenoh bridge 
 topics they find by discovery.
 
 A topic read from the start, before its publishers are known (a collision topic), gets
-:func:`any_durability` instead: one latched reader and one volatile best-effort reader, so
-every publisher matches one of them whatever it offers.
+:func:`any_durability` instead: latched, volatile reliable and volatile best-effort
+readers, so every publisher matches one of them, as reliably as it offers.
 """
 
 from __future__ import annotations
@@ -39,27 +39,32 @@ def offered_qos(node: Node, name: str, keep_all: bool = False, depth: int = 1000
 def any_durability(
     node: Node, msg_type: Any, name: str, callback: Callable[[Any], None], depth: int = 10
 ) -> list[Subscription[Any]]:
-    """Two readers of ``name`` that together match any publisher: TRANSIENT_LOCAL reliable
-    (a latched publisher's last messages reach a late reader) and VOLATILE best-effort (a
-    publisher with the default QoS, as CARLA's collision sensor, or a sensor QoS; a
-    latched reader matches neither). A publisher both match delivers each message twice:
-    ``callback`` must take a repeat as a no-op (a collision frame heard again is)."""
-    latched = QoSProfile(
-        history=HistoryPolicy.KEEP_LAST,
-        depth=depth,
-        reliability=ReliabilityPolicy.RELIABLE,
-        durability=DurabilityPolicy.TRANSIENT_LOCAL,
-    )
-    volatile = QoSProfile(
-        history=HistoryPolicy.KEEP_LAST,
-        depth=depth,
-        reliability=ReliabilityPolicy.BEST_EFFORT,
-        durability=DurabilityPolicy.VOLATILE,
-    )
-    # The latched reader cannot match a volatile publisher; the other one reads it, so rcl's
+    """Readers of ``name`` that together match any publisher, each as reliably as it
+    offers: TRANSIENT_LOCAL reliable (a latched publisher's last messages reach a late
+    reader), VOLATILE reliable (the default QoS, as CARLA's collision sensor offers it: no
+    message lost under load) and VOLATILE best-effort (a sensor QoS). A publisher several
+    match delivers each message more than once: ``callback`` must take a repeat as a no-op
+    (a collision frame heard again is)."""
+
+    def qos(reliability: ReliabilityPolicy, durability: DurabilityPolicy) -> QoSProfile:
+        return QoSProfile(
+            history=HistoryPolicy.KEEP_LAST,
+            depth=depth,
+            reliability=reliability,
+            durability=durability,
+        )
+
+    # A reader that cannot match some publisher leaves it to another one, so rcl's
     # "incompatible QoS: no messages will be received" warning would be false: not logged.
     quiet = SubscriptionEventCallbacks(incompatible_qos=lambda _event: None)
+    reliable, best_effort = ReliabilityPolicy.RELIABLE, ReliabilityPolicy.BEST_EFFORT
+    latched, volatile = DurabilityPolicy.TRANSIENT_LOCAL, DurabilityPolicy.VOLATILE
     return [
-        node.create_subscription(msg_type, name, callback, latched, event_callbacks=quiet),
-        node.create_subscription(msg_type, name, callback, volatile),
+        node.create_subscription(
+            msg_type, name, callback, qos(reliable, latched), event_callbacks=quiet
+        ),
+        node.create_subscription(
+            msg_type, name, callback, qos(reliable, volatile), event_callbacks=quiet
+        ),
+        node.create_subscription(msg_type, name, callback, qos(best_effort, volatile)),
     ]

@@ -293,3 +293,5 @@ def test_an_input_never_heard_stops_holding_frames_once_given_up_on() -> None:
     fresh.add(ODOMETRY, 0, "o0", 0.0)
     fresh.add(ODOMETRY, 50, "o50", 0.0)
     assert [f.stamp_ms for f in fresh.add("a", 0, "a0", 0.0)] == [0]  # no wait for b
+    fresh.resume(["b"])  # a publisher of b was found: frames wait for it again
+    assert fresh.absent == set() and fresh.add("a", 50, "a50", 0.1) == []

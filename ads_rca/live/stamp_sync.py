@@ -287,6 +287,10 @@ class StampSync(Generic[P]):
         publisher of them, or a frame timed out on them)."""
         self.absent.update(t for t in topics if t in self._held and t not in self._heard)
 
+    def resume(self, topics: Iterable[str]) -> None:
+        """Wait again for those of ``topics`` given up on (a publisher of them was found)."""
+        self.absent.difference_update(topics)
+
     def flush(self) -> list[SyncedFrame[P]]:
         """Release every held frame with what arrived (the end of a run)."""
         out: list[SyncedFrame[P]] = []

@@ -74,10 +74,10 @@ def stack_qos(best_effort: bool) -> QoSProfile:
 #: Stack mode auto: messages kept while deciding (the first frames of a stack's run).
 MAX_WAITING = 10_000
 #: How long after stack mode began an input's topic with no publisher is given up on, and
-#: how often it is asked. The stack's publishers existed before its first message came, so
-#: discovery had begun; one found later only costs frames judged without it (said so), and
-#: its first message has it awaited again.
-DISCOVERY_GRACE_S = 1.0
+#: how often it is asked: DDS discovery on one machine takes up to ~2.5 s (environment.md),
+#: longer under load. A publisher found later has its input awaited again (a companion
+#: node, such as a predictor, may start after the stack).
+DISCOVERY_GRACE_S = 3.0
 PUBLISHER_CHECK_S = 0.5
 
 
@@ -192,13 +192,12 @@ class StackSubscriber:
             self._started_at = now
         if self.feed is None or now - self._started_at < DISCOVERY_GRACE_S:
             return
-        silent = [
-            folder
+        published = {
+            folder: self.node.count_publishers(self.topics[folder]) > 0
             for folder in self.feed.settings.inputs
-            if self.node.count_publishers(self.topics[folder]) == 0
-        ]
-        if silent:
-            self.feed.sync.give_up(silent)
+        }
+        self.feed.sync.give_up([f for f, yes in published.items() if not yes])
+        self.feed.sync.resume([f for f, yes in published.items() if yes])
 
     def _follow(self) -> None:
         """The unit judges the current episode's core; what the feed says of episodes is

@@ -416,6 +416,12 @@ def test_monitors_skip_and_report_malformed_messages_and_judge_the_rest(ros_env:
         while any(pubs[k].get_subscription_count() < 1 for k in keys):
             assert time.monotonic() < deadline, monitors.output
             spin(0.05)
+        # The flood goes on while the run plays: wait until the foreign process (a slow
+        # start under load) has matched the monitors and sends.
+        deadline = time.monotonic() + 60
+        while "sent" not in foreign.output:
+            assert time.monotonic() < deadline, foreign.output
+            spin(0.05)
         run = "hostile-test-run"
         pubs[topics.METADATA].publish(playback.metadata_message(log, run=run))
         hostile_frame = 10

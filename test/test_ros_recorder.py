@@ -135,14 +135,15 @@ def test_sigterm_finalises_the_bag(ros_env: RosEnv, tmp_path: Path, log_dir: Pat
     assert_logs_equal(read_run_log(log_dir), read_bag(bag))
 
 
-def _complete_messages(mcap: Path, snapshot: Path) -> int:
-    """Messages of the complete chunks ``mcap`` has on disk so far (0 before its header),
-    read from a copy: the reader takes the file's size once, and this one is growing."""
+def _complete_messages(mcap: Path, snapshot: Path) -> list[str]:
+    """Topics of the messages in the complete chunks ``mcap`` has on disk so far (none
+    before its header), read from a copy: the reader takes the file's size once, and this
+    one is growing."""
     try:
         shutil.copyfile(mcap, snapshot)
-        return len(list(iter_mcap_stream(snapshot)))
+        return [m.topic for m in iter_mcap_stream(snapshot)]
     except (FileNotFoundError, InputError):
-        return 0
+        return []
 
 
 def test_sigkill_keeps_every_complete_chunk(ros_env: RosEnv, tmp_path: Path, log_dir: Path) -> None:
@@ -154,14 +155,16 @@ def test_sigkill_keeps_every_complete_chunk(ros_env: RosEnv, tmp_path: Path, log
         player = start_player(launcher, log_dir, ns, loop=True)
         deadline = time.monotonic() + 30
         mcap = bag / "bag_0.mcap"
-        # Until complete chunks on disk hold over 20 messages (3 chunks' bytes alone were not
-        # always that many: which topics fill the first chunks varies with the load).
-        before = 0
-        while before <= 20:
+        # Until complete chunks on disk hold over 20 messages and the run's metadata (3
+        # chunks' bytes alone were not always that many, and under load the latched metadata
+        # topic is discovered after the data: which topics fill the first chunks varies).
+        on_disk: list[str] = []
+        while len(on_disk) <= 20 or not any(t.endswith(topics.METADATA) for t in on_disk):
             assert time.monotonic() < deadline, recorder.output
             assert recorder.returncode is None, recorder.output
             time.sleep(0.05)
-            before = _complete_messages(mcap, tmp_path / "snapshot.mcap")
+            on_disk = _complete_messages(mcap, tmp_path / "snapshot.mcap")
+        before = len(on_disk)
         recorder.process.send_signal(signal.SIGKILL)
         assert recorder.wait(10) == -signal.SIGKILL
         player.process.kill()  # it would wait wait_timeout_s for the dead recorder's acks

@@ -11,7 +11,8 @@ this process's own (no DDS: the nodes add decoding and publishing on top).
   target at 20 Hz is p99 < 10 ms), and the whole stream's wall and CPU time per frame, on a
   ``lead_braking`` crash with ``--actors`` background actors, both modes;
 * verdict: wall and CPU time from the collision announcement to the verdict (re-judging the
-  held history and attributing), default history and a whole-run history;
+  held history, less what was judged ahead against the warned actor, and attributing),
+  default history and a whole-run history;
 * long runs: records held, the Python heap the monitor side allocated and still holds
   (tracemalloc, started after the stream was built) after N frames of ``cruise`` judged
   live, and the verdict's wall and CPU time for a collision announced at the last frame: flat
@@ -81,6 +82,8 @@ def play(log: RunLog, mode: str, history: int) -> dict[str, float]:
             results = core.poll(now)
             for result in results:
                 aggregator.add_result(result, now)
+            core.collision_warnings()  # as the monitors node polls: warn, judge ahead
+            core.prepare()
             if results:
                 frame_s.append((time.perf_counter() - started) / (len(results) / len(MODULES)))
     frames = max(1, len(log.unique_frames))

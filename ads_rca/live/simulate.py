@@ -45,6 +45,9 @@ class LiveRun:
     feed: StackFeed | None = None
     #: Stack mode: each episode that ended (a later one began), in order.
     episodes: list[EpisodeReport] = field(default_factory=list)
+    #: Stack mode: the results the monitors node publishes after the others of their poll
+    #: (:attr:`MonitorCore.deferred`).
+    deferred: list[LiveResult] = field(default_factory=list)
 
 
 def run_live(
@@ -239,6 +242,7 @@ def run_stack(
     collisions: Sequence[tuple[float, int]] | None = None,
     skipped: SkipReport | None = None,
     aggregator_hears: bool = True,
+    warned: Callable[[MonitorCore], None] | None = None,
 ) -> LiveRun:
     """Play ``stream`` through stack mode's cores: one :class:`MonitorCore` for the four
     modules fed by a :class:`StackFeed`, and the aggregator, on simulated time (the
@@ -246,7 +250,8 @@ def run_stack(
     default the log's collision when the stream says (a run can collide several times);
     ``skipped`` hears of every message that could not be read; not ``aggregator_hears``:
     the announcements reach the monitors only (the aggregator matched the latched event
-    too late)."""
+    too late); ``warned``: called with the core after each collision warning check, before
+    it judges ahead (a test can name another actor as the threat)."""
     from ads_rca.live.episodes import EpisodeAggregator, EpisodeReport
     from ads_rca.live.stack_feed import StackFeed
 
@@ -258,9 +263,15 @@ def run_stack(
 
     def pump(now: float) -> None:
         ended = feed.poll(now)  # an ended episode's last results, then the current one's
-        for result in ended + feed.core.poll(now):
+        polled = feed.core.poll(now)
+        run.deferred.extend(polled[len(polled) - feed.core.deferred :])
+        for result in ended + polled:
             run.results[result.module].append(result)
             aggregator.add_result(result, now)
+        feed.core.collision_warnings()  # as the monitors node polls
+        if warned is not None:
+            warned(feed.core)
+        feed.core.prepare()
         for module in core.modules:
             run.max_held_records[module] = max(
                 run.max_held_records.get(module, 0), feed.core.held_records()

@@ -73,6 +73,10 @@ from ads_rca.problems import Problem, ProblemLog, new_problems
 #: A snapshot row's paths, awaited by the planning module like an input folder.
 EGO_PATHS = "ego_paths"
 
+#: Stack mode: the oracle time one :meth:`MonitorCore.prepare` call may spend judging held
+#: frames ahead against a warned actor (a fifth of a 20 Hz stack's frame period).
+PREPARE_BUDGET_S = 0.01
+
 
 @dataclass
 class _Entry:
@@ -83,6 +87,14 @@ class _Entry:
     settled: bool = False  # own inputs in, or given up on
     missing: tuple[str, ...] = ()
     revision: int = 0
+    #: Its last results (one per module), and whether a collision announced since left
+    #: their data as it was (no cut inside its look-ahead): then the results stand when
+    #: the frame's partner did not change (:meth:`MonitorCore._kept_results`).
+    results: list[LiveResult] = field(default_factory=list)
+    data_unchanged: bool = False
+    #: Results judged ahead against a warned actor (:meth:`MonitorCore.prepare`), and it.
+    prepared: list[LiveResult] = field(default_factory=list)
+    prepared_for: str | None = None
 
 
 @dataclass
@@ -100,6 +112,11 @@ class WindowSettings:
 class _Stats:
     evaluated: int = 0
     incomplete: int = 0
+    #: Frames a collision sent back whose results stood (same partner, same data).
+    kept: int = 0
+    #: Frames judged ahead against a warned actor, and the time it took.
+    prepared: int = 0
+    prepare_s: float = 0.0
     max_records: int = 0
     compute_s: list[float] = field(default_factory=list)
 
@@ -158,6 +175,15 @@ class MonitorCore(FollowsRunEnd):
         self.stack = stack
         #: The last frame looked at for a collision warning (:meth:`collision_warnings`).
         self._warned_through = -1
+        #: How many of the last :meth:`poll`'s results, at its end, decide no verdict
+        #: (kept results before the effect window: :meth:`_judge`).
+        self.deferred = 0
+        #: The actor of the latest collision warning, the likely partner (:meth:`prepare`),
+        #: and the stamp it was warned of at.
+        self.threat: str | None = None
+        self.threat_ms = -1
+        #: :meth:`prepare`'s context: its actor, and the last stamp its view holds whole.
+        self._ahead: tuple[str, RunContext, int] | None = None
         #: Stack mode: no frame at or before the collision frame is still to come.
         self.horizon_closed = False
         self.collision_at: float | None = None
@@ -215,17 +241,19 @@ class MonitorCore(FollowsRunEnd):
             return False
         previous, self.collision_frame = self.collision_frame, frame
         self.collision_at, self.horizon_closed = now, False
+        self._ahead = None
         if self.semantics.uses_partner:
             again = list(self._judged)
             self._judged.clear()
+            cuts = self._cuts(frame, previous)
+            for entry in again:
+                entry.data_unchanged = not any(self._reaches(entry, c) for c in cuts)
         elif self.stack and self._judged:
             # Judged before the run's end was known, a frame whose look-ahead may reach past
             # the collision read as if the run went on: judged again, the data ending there.
-            assert self.metadata is not None
-            frame_ms = self.metadata.timesteps_per_frame
             # So was one judged on the data up to the previous collision: the run went on.
-            cuts = [c * frame_ms for c in (frame, previous) if c >= 0]
-            again = [e for e in self._judged if any(self._reaches(e, c, frame_ms) for c in cuts)]
+            cuts = self._cuts(frame, previous)
+            again = [e for e in self._judged if any(self._reaches(e, c) for c in cuts)]
             taken = {id(e) for e in again}
             self._judged = deque(e for e in self._judged if id(e) not in taken)
             if not again and not self._pending_through(frame):
@@ -239,9 +267,18 @@ class MonitorCore(FollowsRunEnd):
             self.pending.appendleft(entry)
         return bool(again)
 
-    def _reaches(self, entry: _Entry, cf_ms: int, frame_ms: int) -> bool:
+    def _cuts(self, frame: int, previous: int) -> list[int]:
+        """Stack mode: the stamps where the data of frames judged before collision
+        ``frame`` was, or now is, cut (the new collision and the ``previous`` one)."""
+        if not self.stack or self.metadata is None:
+            return []
+        return [c * self.metadata.timesteps_per_frame for c in (frame, previous) if c >= 0]
+
+    def _reaches(self, entry: _Entry, cf_ms: int) -> bool:
         """Whether a judged frame's look-ahead reaches the collision (it read the run as
         going on past it)."""
+        assert self.metadata is not None
+        frame_ms = self.metadata.timesteps_per_frame
         stamp = entry.marker.stamp_ms
         return stamp + self._lookahead_frames(entry) * frame_ms >= cf_ms
 
@@ -374,12 +411,16 @@ class MonitorCore(FollowsRunEnd):
         return out
 
     def poll(self, now: float | None = None) -> list[LiveResult]:
-        """Judge every frame that became ready (in order); their results."""
+        """Judge every frame that became ready (in order); their results. The last
+        :attr:`deferred` of them may be published after the others (:meth:`_judge`)."""
         now = time.monotonic() if now is None else now
+        self.deferred = 0
         if self.metadata is None:
             return []
         self._settle(now)
-        return self._judge_ready(now) + self._rescore()
+        judged = self._judge_ready(now)
+        split = len(judged) - self.deferred
+        return judged[:split] + self._rescore() + judged[split:]
 
     def _judge_ready(self, now: float) -> list[LiveResult]:
         stalled = self.stalled(now)
@@ -428,7 +469,90 @@ class MonitorCore(FollowsRunEnd):
                 gap, ttc, actor = found
                 frame = int(frame_number(ts, log.frame_ms))
                 out.append(CollisionWarning(ts, frame, gap, ttc, actor))
+        if out:
+            self.threat, self.threat_ms = out[-1].actor, out[-1].stamp_ms
         return out
+
+    def _threat_current(self) -> bool:
+        """A warning within the last effect window of the frames come in (a collision
+        later than that is not the one warned of)."""
+        if self.threat is None or self.metadata is None or self.complete_through is None:
+            return False
+        frame_ms = self.metadata.timesteps_per_frame
+        window = self.semantics.window_frames(self.params, frame_ms) * frame_ms
+        return self.complete_through - self.threat_ms <= window
+
+    # --- preparing a verdict ---------------------------------------------------------
+
+    def prepare(self, budget_s: float = PREPARE_BUDGET_S) -> int:
+        """Stack mode, a collision warned of (within the last effect window) and not yet
+        come: judge held frames again against the warned actor, newest first, for at most
+        ``budget_s`` of oracle time; the number of frames judged.
+
+        Why: a collision sends every held frame back to be judged against its partner, and
+        judging a whole window at once was most of the verdict's latency. Results judged
+        ahead are kept on their frame, never published as they are: the collision uses them
+        only when its partner is the warned actor and the frame's data did not change
+        (:meth:`_kept_results`), where judging again would give the same results."""
+        actor = self.threat
+        if (
+            actor is None
+            or not self._threat_current()
+            or not self.stack
+            or not self.semantics.uses_partner
+            or self.collision_frame >= 0
+            or self.metadata is None
+        ):
+            return 0
+        todo = [
+            e
+            for e in reversed(self._judged)
+            if e.prepared_for != actor and any(r.partner_id != actor for r in e.results)
+        ]
+        if not todo:
+            return 0
+        started = time.perf_counter()
+        done = 0
+        while todo and time.perf_counter() - started < budget_s:
+            ctx, covered = self._ahead_context(actor, todo)
+            if not covered:  # their look-ahead is not all in yet
+                break
+            for entry in covered:
+                seen = set(self._reported)  # said when the results are used, not now
+                entry.prepared = self._evaluate(ctx, entry, (), 0.0, None, seen)
+                entry.prepared_for = actor
+                todo.remove(entry)
+                done += 1
+                if time.perf_counter() - started >= budget_s:
+                    break
+        self.stats.prepared += done
+        self.stats.prepare_s += time.perf_counter() - started
+        return done
+
+    def _ahead_context(self, actor: str, todo: list[_Entry]) -> tuple[RunContext, list[_Entry]]:
+        """A context judging against ``actor``, and the frames of ``todo`` whose look-ahead
+        its view holds. One context serves many calls (its caches are what make judging
+        ahead cheap): a new one is built only when it covers none of ``todo``."""
+        assert self.metadata is not None
+        frame_ms = self.metadata.timesteps_per_frame
+
+        def covered(through: int) -> list[_Entry]:
+            return [
+                e
+                for e in todo
+                if e.marker.stamp_ms + self._lookahead_frames(e) * frame_ms <= through
+            ]
+
+        if self._ahead is not None and self._ahead[0] == actor:
+            found = covered(self._ahead[2])
+            if found:
+                return self._ahead[1], found
+        ctx = self._context(self.view())
+        ctx.scorer_state = {}  # judged ahead: no run figures pool these results
+        self.semantics.judge_against(ctx, actor)
+        through = self.complete_through if self.complete_through is not None else -1
+        self._ahead = (actor, ctx, through)
+        return ctx, covered(through)
 
     # --- judging ---------------------------------------------------------------------
 
@@ -473,15 +597,31 @@ class MonitorCore(FollowsRunEnd):
 
     def _judge(self, ready: list[tuple[_Entry, tuple[str, ...]]], now: float) -> list[LiveResult]:
         """Judge ``ready`` in order, on one view per cut (stack mode: frames up to the
-        collision see no data after it)."""
+        collision see no data after it).
+
+        Results kept as published before, of frames before the effect window, come last:
+        they changed only in the collision they name, and the verdict reads nothing else of
+        them (which frames failed), so the aggregator hears the results that decide it
+        first. Results judged ahead (:meth:`prepare`) were never published: they are not
+        deferred."""
         out: list[LiveResult] = []
+        later: list[LiveResult] = []
         groups: dict[int | None, list[tuple[_Entry, tuple[str, ...]]]] = {}
         for item in ready:
             groups.setdefault(self._cut_ms(item[0].marker.stamp_ms), []).append(item)
         for cut, group in groups.items():
-            out.extend(self._judge_on(self.view(cut), group, now))
+            out.extend(self._judge_on(self.view(cut), group, now, later))
         del self.stats.compute_s[:-10000]
-        return out
+        self.deferred = len(later)
+        return out + later
+
+    def _window_start_ms(self) -> int | None:
+        """The first stamp of the collision's effect window (None: no collision)."""
+        if self.collision_frame < 0 or self.metadata is None:
+            return None
+        frame_ms = self.metadata.timesteps_per_frame
+        w = self.semantics.window_frames(self.params, frame_ms)
+        return (self.collision_frame - w) * frame_ms
 
     def _closing_stamp(self) -> int | None:
         """Stack mode: the frame whose result tells the aggregator this monitor is complete
@@ -501,47 +641,116 @@ class MonitorCore(FollowsRunEnd):
         return tuple(no_record(f) for f in entry.missing if f in reads)
 
     def _judge_on(
-        self, log: RunLog, ready: list[tuple[_Entry, tuple[str, ...]]], now: float
+        self,
+        log: RunLog,
+        ready: list[tuple[_Entry, tuple[str, ...]]],
+        now: float,
+        later: list[LiveResult],
     ) -> list[LiveResult]:
+        """The results of ``ready`` on ``log``; kept ones before the effect window go to
+        ``later`` (:meth:`_judge`)."""
         ctx = self._context(log)
         closing = self._closing_stamp()
-        out = []
+        window_start = self._window_start_ms()
+        out: list[LiveResult] = []
         for entry, blockers in ready:
             stamp = entry.marker.stamp_ms
-            partner = self._partner(ctx, stamp)
-            self.stats.evaluated += 1
-            self.stats.incomplete += bool(blockers or entry.missing)
-            for module, oracle in self.oracles.items():
-                incomplete = blockers + self._missing(entry, module)
-                started = time.perf_counter()
-                result = evaluate_frame(ctx, {module: oracle}, stamp).results[module]
-                spent = time.perf_counter() - started
-                self.stats.compute_s.append(spent)
-                out.append(
-                    LiveResult(
-                        index=int(entry.marker.index or 0),
-                        result=result,
-                        frame=frame_number(stamp, log.frame_ms),
+            kept = self._kept_results(entry, blockers, self._partner(ctx, stamp))
+            # The results published before stand: only the collision they name changes.
+            unchanged = bool(kept) and kept is entry.results
+            entry.data_unchanged, entry.prepared, entry.prepared_for = False, [], None
+            if kept:
+                self.stats.kept += 1
+                entry.results = [
+                    replace(
+                        r,
                         collision_frame=self.collision_frame,
-                        incomplete=incomplete,
                         revision=entry.revision,
-                        ego_id=ctx.ego_id,
-                        partner_id=partner,
-                        problems=tuple(new_problems(ctx.problems, self._reported)),
-                        compute_s=spent,
+                        problems=tuple(new_problems(r.problems, self._reported)),
+                        compute_s=0.0,
                         wait_s=max(0.0, now - entry.arrived),
-                        arrived_s=entry.arrived,
-                        session=self.session,
-                        run=self.run,
                         closes_collision=self.collision_frame if stamp == closing else -1,
-                        frame_ms=log.frame_ms if self.stack else 0,
-                        episode=self.episode,
-                        extra={"derived": list(self.derived)} if self.derived else {},
                     )
-                )
-                if module == "planning" and self.rescores_rows and entry.marker.snapshot:
-                    self.row_paths.judged_row(out[-1])
+                    for r in kept
+                ]
+            else:
+                self.stats.evaluated += 1
+                self.stats.incomplete += bool(blockers or entry.missing)
+                entry.results = self._evaluate(ctx, entry, blockers, now, closing, self._reported)
+                self.stats.compute_s.extend(r.compute_s for r in entry.results)
+            early = unchanged and window_start is not None and stamp < window_start
+            (later if early else out).extend(entry.results)
+            if self.rescores_rows and entry.marker.snapshot:
+                self.row_paths.judged_row(next(r for r in entry.results if r.module == "planning"))
         return out
+
+    def _evaluate(
+        self,
+        ctx: RunContext,
+        entry: _Entry,
+        blockers: tuple[str, ...],
+        now: float,
+        closing: int | None,
+        reported: set[tuple[str, str, str]],
+    ) -> list[LiveResult]:
+        """The frame's result of each module on ``ctx`` (the problems not in ``reported``)."""
+        stamp = entry.marker.stamp_ms
+        partner = self._partner(ctx, stamp)
+        frame_ms = ctx.log.frame_ms
+        out = []
+        for module, oracle in self.oracles.items():
+            started = time.perf_counter()
+            result = evaluate_frame(ctx, {module: oracle}, stamp).results[module]
+            spent = time.perf_counter() - started
+            out.append(
+                LiveResult(
+                    index=int(entry.marker.index or 0),
+                    result=result,
+                    frame=frame_number(stamp, frame_ms),
+                    collision_frame=self.collision_frame,
+                    incomplete=blockers + self._missing(entry, module),
+                    revision=entry.revision,
+                    ego_id=ctx.ego_id,
+                    partner_id=partner,
+                    problems=tuple(new_problems(ctx.problems, reported)),
+                    compute_s=spent,
+                    wait_s=max(0.0, now - entry.arrived),
+                    arrived_s=entry.arrived,
+                    session=self.session,
+                    run=self.run,
+                    closes_collision=self.collision_frame if stamp == closing else -1,
+                    frame_ms=frame_ms if self.stack else 0,
+                    episode=self.episode,
+                    extra={"derived": list(self.derived)} if self.derived else {},
+                )
+            )
+        return out
+
+    def _kept_results(
+        self, entry: _Entry, blockers: tuple[str, ...], partner: str | None
+    ) -> list[LiveResult]:
+        """The results a frame sent back by a collision keeps (empty: judge it again).
+
+        Why: a `corrected` result reads the frame's data and its partner only. A frame
+        judged before the collision against the provisional partner (the most threatening
+        actor), whose look-ahead ends before the collision, is judged on the same data
+        against the same actor when the collision partner is that actor: its result stands,
+        and only the collision it was judged with changes; so for results judged ahead
+        against the partner (:meth:`prepare`). Re-judging the held window at the collision
+        was most of the verdict's latency (docs/live-graph.md "Verdict latency")."""
+        if not entry.data_unchanged or blockers or entry.missing or self.rescores_rows:
+            return []
+        previous = entry.prepared if entry.prepared_for == partner else entry.results
+        if len(previous) != len(self.oracles) or any(
+            r.partner_id != partner
+            or partner is None
+            or r.incomplete
+            or r.result.internal_error
+            or r.result.missing_input
+            for r in previous
+        ):
+            return []
+        return previous
 
     def _rescore(self) -> list[LiveResult]:
         """The planning result, again with ``revision`` + 1, of each judged row a later

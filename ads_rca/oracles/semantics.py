@@ -231,6 +231,10 @@ class Semantics:
         """Judge ``ctx``'s frames before any collision against a provisional partner (a
         live stack, where the collision may never come); modes without a partner ignore it."""
 
+    def judge_against(self, ctx: RunContext, actor: str) -> None:
+        """Judge ``ctx``'s frames against ``actor`` as the partner (a live stack judging
+        ahead against a warned actor); modes without a partner ignore it."""
+
     def partner_at(self, ctx: RunContext, ts: int) -> str | None:
         """The partner frame ts was judged against: the collision partner, or before a
         collision the provisional one (None: not used, or no collision and none asked)."""

@@ -294,16 +294,24 @@ class MonitorUnit:
         """Publish the results of every frame that became ready, then the collision warning
         of the frames that came in (before any collision: docs/live-graph.md)."""
         self.last_poll = now = time.monotonic()
-        self.publish(self.core.poll(now))
+        results = self.core.poll(now)
+        deciding = len(results) - self.core.deferred
+        self.publish(results[:deciding])  # what the verdict waits for, first
+        self.publish(results[deciding:])
         planning = self.nodes.get("planning")
-        if planning is not None and planning.publish_diagnostics:
+        said = planning is not None and planning.publish_diagnostics
+        if not (said or self.core.stack):
+            return
+        warnings = self.core.collision_warnings()  # stack mode: the threat judged ahead
+        if planning is not None and said:
             threshold = planning.params.event_ttc_s
             warning = diag.collision_warning(
-                self.core.collision_warnings(), threshold, planning.hardware_id, self.core.run
+                warnings, threshold, planning.hardware_id, self.core.run
             )
             if warning is not None:
                 stamp = planning.get_clock().now().nanoseconds
                 planning.diag_pub.publish(diag.encode_array(stamp, [warning]))
+        self.core.prepare()  # stack mode, a collision warned of: judge ahead against it
 
     def publish(self, results: list[LiveResult]) -> None:
         """Each module's results on its node (one /diagnostics status per module)."""

@@ -132,7 +132,7 @@ class StackSubscriber:
         namespace = next(iter(unit.nodes.values())).namespace
         self.subscriptions.extend(
             listen_for_collisions(
-                self.node, unit, namespace, self.runs, self._skip, collide=feed.set_collision
+                self.node, unit, namespace, self.runs, self._skip, collide=self._collide
             )
         )
         self.node.create_timer(unit.poll_period, self._poll)
@@ -166,6 +166,14 @@ class StackSubscriber:
                 self._start()
 
         return on_message
+
+    def _collide(self, frame: int, now: float) -> bool:
+        """A collision heard: judged up to it at once, not at the next poll (the verdict
+        waits for it); True when held frames are judged again."""
+        assert self.feed is not None
+        again = self.feed.set_collision(frame, now)
+        self._poll()
+        return again
 
     def _poll(self) -> None:
         assert self.feed is not None

@@ -245,6 +245,9 @@ class CorrectedSemantics(Semantics):
         """Before a collision, the most threatening actor is the partner (:mod:`.threat`)."""
         corrected_context(ctx).judge_without_collision(most_threatening)
 
+    def judge_against(self, ctx: RunContext, actor: str) -> None:
+        corrected_context(ctx).judge_without_collision(lambda _judging, _ts: actor)
+
     def partner_at(self, ctx: RunContext, ts: int) -> str | None:
         return corrected_context(ctx).partner_at(ts)
 

@@ -37,9 +37,11 @@ def main() -> int:
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(0))
     run = run_live(read_run_log(args.log), make_params("corrected"))
     assert run.outcome is not None
+    # As a replay publishes them: the provisional results as the run plays, the final
+    # ones once the collision frame is in (docs/live-graph.md "Provisional results").
     results = sorted(
         (r for module_results in run.results.values() for r in module_results),
-        key=lambda r: (r.index, r.module),
+        key=lambda r: (not r.provisional, r.index, r.module),
     )
     publisher = ZenohPublisher(RemoteState(args.prefix), listen=[args.listen]).open()
     try:

@@ -10,10 +10,12 @@ when it was not judged.
 
 from __future__ import annotations
 
+import io
 import json
 from typing import Any
 
 import pytest
+from rich.console import Console
 
 from ads_rca.capabilities import JUDGED, NOT_JUDGED
 from ads_rca.diagnosis.conclusion import PARTLY_JUDGED
@@ -34,6 +36,7 @@ from ads_rca.remote.view import (
     parse_key,
     read_verdict,
 )
+from ads_rca.remote.watch import module_table
 
 
 def result(index: int, module: str = "planning", failed: bool = False, **extra: Any) -> str:
@@ -262,3 +265,22 @@ def test_a_latest_result_that_raised_or_was_not_judged_is_shown_as_such() -> Non
     assert module_state({"missing_input": True}, None) == (INCOMPLETE, "")
     assert module_state({"failed": True}, "judged") == (FAILING, "")
     assert module_state({"failed": False}, None) == (OK, "")
+
+
+@pytest.mark.parametrize("value", [True, "true", 1, None])
+def test_a_provisional_result_is_shown_provisional_until_its_final_one(value: object) -> None:
+    """A replay's monitors judge frames provisionally as it plays (the collision partner
+    not known yet); the final result of the frame replaces it. Only a literal true is
+    provisional: anything else on the wire is not taken as a mark."""
+    model = DashboardModel()
+    model.apply("c/ads_rca/modules/planning.json", result(3, provisional=value), 1.0)
+    module = model.summary(1.0)["runs"][0]["modules"]["planning"]
+    assert module["provisional"] is (value is True)
+    assert module["state"] == OK and module["judged"] == 1
+    buffer = io.StringIO()
+    Console(file=buffer, width=120).print(module_table(model.summary(1.0)["runs"][0]["modules"]))
+    assert ("OK (provisional)" in buffer.getvalue()) is (value is True)
+    model.apply("c/ads_rca/modules/planning.json", result(3, failed=True), 2.0)
+    module = model.summary(2.0)["runs"][0]["modules"]["planning"]
+    assert module["provisional"] is False
+    assert (module["state"], module["judged"], module["failed_frames"]) == (FAILING, 1, 1)

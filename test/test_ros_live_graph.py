@@ -247,10 +247,12 @@ def test_stalled_input_is_reported_and_not_waited_on_forever(
 
 
 def _stream(path: Path) -> dict[str, list[dict[str, Any]]]:
-    volatile = {"compute_s", "wait_s", "arrived_s", "session", "run"}  # run: each replay's own id
+    # run: each replay's own id; revision: 1 where the frame was first judged provisionally
+    volatile = {"compute_s", "wait_s", "arrived_s", "session", "run", "revision"}
     out: dict[str, list[dict[str, Any]]] = {m: [] for m in MODULES}
-    for row in jsonl(path):
-        out[row["module"]].append({k: v for k, v in row.items() if k not in volatile})
+    for row in jsonl(path):  # the final results: which frames were judged provisionally
+        if not row.get("provisional"):  # first depends on when the collision frame came
+            out[row["module"]].append({k: v for k, v in row.items() if k not in volatile})
     return out
 
 

@@ -255,6 +255,8 @@ class AggregatorCore(FollowsRunEnd):
 
     def add_result(self, result: LiveResult, now: float) -> None:
         self.last_input = now
+        if result.provisional:  # shown while the run plays; its final revision decides
+            return
         if self.stack:
             result = self._stack_frame(result, now)
             if result.index < 0:

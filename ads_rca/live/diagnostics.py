@@ -217,6 +217,11 @@ def result_status(live: LiveResult, semantics: str, hardware_id: str) -> Status:
         )
     else:
         level, message = OK, f"frame {live.frame}: ok"
+    if live.provisional:
+        message += (
+            f" (provisional: judged against actor {live.partner_id}, the most threatening, "
+            "before the collision frame arrived)"
+        )
     head: dict[str, Any] = {
         "semantics": semantics,
         "frame": live.frame,
@@ -228,6 +233,7 @@ def result_status(live: LiveResult, semantics: str, hardware_id: str) -> Status:
         "ids": list(r.ids),
         "revision": live.revision,
         "compute_s": live.compute_s,
+        **({"provisional": True} if live.provisional else {}),
     }
     if live.run:
         head[RUN_KEY] = live.run

@@ -91,6 +91,10 @@ class LiveResult:
     #: Stack mode: the episode judged (1, 2, ...: the stamps went back, a new run began);
     #: the aggregator keys results by it, so two episodes never mix.
     episode: int = 1
+    #: Judged before the collision partner was known, against the mode's provisional
+    #: partner (``partner_id``): shown while the run plays, never part of a verdict; a
+    #: later revision replaces it (docs/live-graph.md "Provisional results").
+    provisional: bool = False
     extra: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -134,6 +138,7 @@ class LiveResult:
             **({"closes_collision": self.closes_collision} if self.closes_collision >= 0 else {}),
             **({"frame_ms": self.frame_ms} if self.frame_ms > 0 else {}),
             **({"episode": self.episode} if self.frame_ms > 0 or self.episode != 1 else {}),
+            **({"provisional": True} if self.provisional else {}),
             **self.extra,
         }
 
@@ -184,6 +189,7 @@ class LiveResult:
             ),
             frame_ms=bounded_int(d.get("frame_ms", 0), "frame_ms", 0, MAX_STAMP),
             episode=bounded_int(d.get("episode", 1), "episode", 1, MAX_FRAME),
+            provisional=d.get("provisional") is True,
         )
 
 

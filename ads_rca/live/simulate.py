@@ -45,7 +45,7 @@ class LiveRun:
     feed: StackFeed | None = None
     #: Stack mode: each episode that ended (a later one began), in order.
     episodes: list[EpisodeReport] = field(default_factory=list)
-    #: Stack mode: the results the monitors node publishes after the others of their poll
+    #: The results a monitor node publishes after the others of their poll
     #: (:attr:`MonitorCore.deferred`).
     deferred: list[LiveResult] = field(default_factory=list)
 
@@ -96,9 +96,16 @@ def run_live(
 
     def pump() -> None:
         for core in cores:
-            for result in core.poll(now()):
-                run.results[result.module].append(result)
-                aggregator.add_result(result, now())
+            polled = core.poll(now())
+            deciding = len(polled) - core.deferred
+            run.deferred.extend(polled[deciding:])
+            # As the node publishes: what the verdict waits for first, the rest after.
+            for part in (polled[:deciding], polled[deciding:]):
+                for result in part:
+                    run.results[result.module].append(result)
+                    aggregator.add_result(result, now())
+                if run.outcome is None and part:
+                    run.outcome = aggregator.poll(now())
             for module in core.modules:
                 run.max_held_records[module] = max(
                     run.max_held_records.get(module, 0), core.held_records()

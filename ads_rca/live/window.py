@@ -73,6 +73,9 @@ from ads_rca.problems import Problem, ProblemLog, new_problems
 #: A snapshot row's paths, awaited by the planning module like an input folder.
 EGO_PATHS = "ego_paths"
 
+#: What holds a frame in `corrected` while the collision frame (its partner) is to come.
+PARTNER_UNKNOWN = "collision partner unknown (collision frame not received)"
+
 #: Stack mode: the oracle time one :meth:`MonitorCore.prepare` call may spend judging held
 #: frames ahead against a warned actor (a fifth of a 20 Hz stack's frame period).
 PREPARE_BUDGET_S = 0.01
@@ -95,6 +98,8 @@ class _Entry:
     #: Results judged ahead against a warned actor (:meth:`MonitorCore.prepare`), and it.
     prepared: list[LiveResult] = field(default_factory=list)
     prepared_for: str | None = None
+    #: Its results were published provisionally (judged before the partner was known).
+    provisional: bool = False
 
 
 @dataclass
@@ -114,6 +119,8 @@ class _Stats:
     incomplete: int = 0
     #: Frames a collision sent back whose results stood (same partner, same data).
     kept: int = 0
+    #: Frames judged provisionally, before the collision partner was known.
+    provisional: int = 0
     #: Frames judged ahead against a warned actor, and the time it took.
     prepared: int = 0
     prepare_s: float = 0.0
@@ -182,6 +189,8 @@ class MonitorCore(FollowsRunEnd):
         #: and the stamp it was warned of at.
         self.threat: str | None = None
         self.threat_ms = -1
+        #: A module of this run is scored (its figures pool the run): nothing judged ahead.
+        self.scored = False
         #: :meth:`prepare`'s context: its actor, and the last stamp its view holds whole.
         self._ahead: tuple[str, RunContext, int] | None = None
         #: Stack mode: no frame at or before the collision frame is still to come.
@@ -407,7 +416,7 @@ class MonitorCore(FollowsRunEnd):
             and self.collision_frame >= 0
             and not self._through(self.collision_frame * frame_ms)
         ):
-            out.append("collision partner unknown (collision frame not received)")
+            out.append(PARTNER_UNKNOWN)
         return out
 
     def poll(self, now: float | None = None) -> list[LiveResult]:
@@ -425,20 +434,51 @@ class MonitorCore(FollowsRunEnd):
     def _judge_ready(self, now: float) -> list[LiveResult]:
         stalled = self.stalled(now)
         ready: list[tuple[_Entry, tuple[str, ...]]] = []
+        waiting: list[_Entry] = []  # held for the partner alone: judged provisionally
         for entry in self.pending:
             blockers = self._blockers(entry)
             if blockers and not stalled:
                 if len(self.pending) - len(ready) <= self.settings.max_pending_frames:
-                    break
+                    if blockers != [PARTNER_UNKNOWN]:
+                        break
+                    if not entry.provisional:
+                        waiting.append(entry)
+                    continue
                 blockers.append("pending queue full")
             ready.append((entry, tuple(blockers)))
         if not ready:
-            return []
+            return self._judge_provisionally(waiting, now)
         results = self._judge(ready, now)
         for _ in ready:
             self._judged.append(self.pending.popleft())
         self._trim()
         return results
+
+    def _judge_provisionally(self, entries: list[_Entry], now: float) -> list[LiveResult]:
+        """`corrected`, a collision known whose frame has not come (a replay announces it
+        in its metadata): judge frames otherwise ready against the most threatening actor,
+        as stack mode does before a collision, and publish them marked ``provisional``, so a
+        module's state shows while the run plays. They stay queued: once the partner is
+        known each is judged for good with a higher revision, its provisional results kept
+        where the actor was the partner (:meth:`_kept_results`)."""
+        if not entries:
+            return []
+        ctx = self._context(self.view(collision_frame=-1))
+        ctx.scorer_state = {}  # provisional: no run figures pool these results
+        self.semantics.judge_without_collision(ctx)
+        out: list[LiveResult] = []
+        cuts = self._cuts(self.collision_frame, -1)
+        for entry in entries:
+            results = self._evaluate(ctx, entry, (), now, None, self._reported)
+            entry.results = [replace(r, provisional=True, collision_frame=-1) for r in results]
+            entry.provisional, entry.revision = True, entry.revision + 1
+            # A scorer's figures pool the run so far: one scored apart is judged again.
+            entry.data_unchanged = not ctx.scorer_state and not any(
+                self._reaches(entry, c) for c in cuts
+            )
+            self.stats.provisional += 1
+            out.extend(entry.results)
+        return out
 
     # --- warning ---------------------------------------------------------------------
 
@@ -497,6 +537,7 @@ class MonitorCore(FollowsRunEnd):
         actor = self.threat
         if (
             actor is None
+            or self.scored
             or not self._threat_current()
             or not self.stack
             or not self.semantics.uses_partner
@@ -513,7 +554,7 @@ class MonitorCore(FollowsRunEnd):
             return 0
         started = time.perf_counter()
         done = 0
-        while todo and time.perf_counter() - started < budget_s:
+        while todo and not self.scored and time.perf_counter() - started < budget_s:
             ctx, covered = self._ahead_context(actor, todo)
             if not covered:  # their look-ahead is not all in yet
                 break
@@ -521,6 +562,10 @@ class MonitorCore(FollowsRunEnd):
                 seen = set(self._reported)  # said when the results are used, not now
                 entry.prepared = self._evaluate(ctx, entry, (), 0.0, None, seen)
                 entry.prepared_for = actor
+                if ctx.scorer_state:  # a scorer's figures pool the run so far: a module
+                    entry.prepared_for = None  # scored apart is never used, and this
+                    self.scored = True  # run's modules are scored: nothing judged ahead
+                    break
                 todo.remove(entry)
                 done += 1
                 if time.perf_counter() - started >= budget_s:
@@ -556,11 +601,14 @@ class MonitorCore(FollowsRunEnd):
 
     # --- judging ---------------------------------------------------------------------
 
-    def view(self, cut_ms: int | None = None) -> RunLog:
+    def view(self, cut_ms: int | None = None, collision_frame: int | None = None) -> RunLog:
         """The window as a RunLog (records shared, dicts copied: tables are per view);
-        ``cut_ms``: nothing stamped after it (stack mode, a frame before the collision)."""
+        ``cut_ms``: nothing stamped after it (stack mode, a frame before the collision);
+        ``collision_frame``: in place of the known one (-1: judged as if none was known)."""
         assert self.metadata is not None
-        metadata = replace(self.metadata, collision_frame=self.collision_frame)
+        if collision_frame is None:
+            collision_frame = self.collision_frame
+        metadata = replace(self.metadata, collision_frame=collision_frame)
         frames = tuple(self.analysed[i] for i in sorted(self.analysed))
         records = self.records
         if cut_ms is not None:  # the run's data ends at the collision, as a crash log's
@@ -656,14 +704,16 @@ class MonitorCore(FollowsRunEnd):
         for entry, blockers in ready:
             stamp = entry.marker.stamp_ms
             kept = self._kept_results(entry, blockers, self._partner(ctx, stamp))
-            # The results published before stand: only the collision they name changes.
-            unchanged = bool(kept) and kept is entry.results
+            # The final results published before stand: only the collision they name
+            # changes (provisional ones never reached a verdict: not these).
+            unchanged = bool(kept) and kept is entry.results and not kept[0].provisional
             entry.data_unchanged, entry.prepared, entry.prepared_for = False, [], None
             if kept:
                 self.stats.kept += 1
                 entry.results = [
                     replace(
                         r,
+                        provisional=False,
                         collision_frame=self.collision_frame,
                         revision=entry.revision,
                         problems=tuple(new_problems(r.problems, self._reported)),

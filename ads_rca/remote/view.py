@@ -333,6 +333,8 @@ class RunView:
                 "failed_frames": self.failures.get(module, 0),
                 "state": state,
                 "detail": detail,
+                # Judged before the collision partner was known (docs/live-graph.md).
+                "provisional": latest is not None and latest.get("provisional") is True,
                 "latest": None
                 if latest is None
                 else {

@@ -233,7 +233,11 @@ def progress_line(run: Mapping[str, Any], now: float) -> Text:
 
 
 def module_status(entry: Mapping[str, Any]) -> Text:
+    """The module's state; "(provisional)" while its latest result was judged before the
+    collision partner was known."""
     label, style = STATE_LABELS.get(str(entry.get("state")), STATE_LABELS[WAITING])
+    if entry.get("provisional") is True:
+        label += " (provisional)"
     return Text(label, style=style)
 
 

@@ -169,10 +169,14 @@ class StackSubscriber:
 
     def _collide(self, frame: int, now: float) -> bool:
         """A collision heard: judged up to it at once, not at the next poll (the verdict
-        waits for it); True when held frames are judged again."""
+        waits for it); True when held frames are judged again. A repeat, or a flood of
+        announcements, polls no more often than the timer would (a quarter period apart)."""
         assert self.feed is not None
+        before = self.feed.core.collision_frame
         again = self.feed.set_collision(frame, now)
-        self._poll()
+        changed = again or self.feed.core.collision_frame != before
+        if changed and now - self.unit.last_poll >= self.unit.poll_period / 4:
+            self._poll()
         return again
 
     def _poll(self) -> None:

@@ -197,8 +197,9 @@
     const state = typeof m.state === "string" ? m.state : "waiting";
     const detail = typeof m.detail === "string" ? m.detail : "";
     // The detail is the status in words ("not judged (no detections_2d)"); a skip's is
-    // only its reason.
-    return { state: state, text: state === "skipped" ? "skipped: " + detail : detail || state };
+    // only its reason. A provisional result (the collision partner not known yet) says so.
+    const text = state === "skipped" ? "skipped: " + detail : detail || state;
+    return { state: state, text: m.provisional === true ? text + " (provisional)" : text };
   }
 
   function renderRun(state) {

@@ -413,7 +413,10 @@ def test_bad_options_are_one_line_and_exit_status_2() -> None:
             "port in use": (["--port", taken], "cannot serve on 127.0.0.1 port"),
             "any interface": (["--host", "0.0.0.0"], "--allow-remote"),
             "another host": (["--host", "192.0.2.7"], "not a loopback address"),
-            "remote zenoh": (["--connect", "tcp/192.0.2.7:7447"], "not on loopback"),
+            "remote zenoh": (
+                ["--connect", "tcp/192.0.2.7:7447"],
+                "not on loopback; give --allow-remote",
+            ),
             "bad endpoint": (["--connect", "http://x"], "PROTOCOL/HOST:PORT"),
             "bad prefix": (["--prefix", "car/*"], "--prefix"),
         }

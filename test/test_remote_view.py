@@ -184,6 +184,23 @@ INCONCLUSIVE_VERDICT: dict[str, Any] = {
         {"modules_judged": ["judged"]},
         {"conclusive": True},  # yet it lists why not
         {"conclusive": True, "why_inconclusive": [], "internal_errors": [{"module": "x"}]},
+        # the fields a dashboard shows, of another shape
+        {"primary_root_cause": {"module": "planning"}},
+        {"primary_root_cause": ["planning"]},
+        {"primary_root_cause": 3},
+        {"contributing": "planning"},
+        {"root_causes": [{"m": 1}]},
+        {"attribution_basis": ["judged"]},
+        {"semantics": 1},
+        {"verdict": {"text": "x"}},
+        {"collision_frame": "81"},
+        {"collision_frame": True},
+        {"collision_frame": 8.5},
+        {"partner_id": {"id": 7}},
+        {"partner_id": False},
+        {"thresholds": [1, 2]},
+        {"evidence": "all"},
+        {"modules": []},
     ],
 )
 def test_a_verdict_with_unreadable_conclusion_fields_is_counted_and_dropped(
@@ -284,3 +301,18 @@ def test_a_provisional_result_is_shown_provisional_until_its_final_one(value: ob
     module = model.summary(2.0)["runs"][0]["modules"]["planning"]
     assert module["provisional"] is False
     assert (module["state"], module["judged"], module["failed_frames"]) == (FAILING, 1, 1)
+
+
+def test_the_frame_rate_of_a_burst_is_frames_per_second_not_per_millisecond() -> None:
+    """The end of a corrected run comes in one burst (every frame judged at once): it
+    read "199191.9 frames/s". A rate is measured over at least a second, up to now."""
+    model = DashboardModel()
+    for index in range(100):  # 20 Hz for 5 s
+        model.apply("c/ads_rca/modules/planning.json", result(index), 1.0 + index * 0.05)
+    steady = model.runs["c"].rate(1.0 + 99 * 0.05)
+    assert 19.0 <= steady <= 21.0
+    for index in range(100, 300):  # 200 frames within 10 ms
+        model.apply("c/ads_rca/modules/planning.json", result(index), 7.0 + index * 0.00005)
+    assert model.runs["c"].rate(7.02) <= 200.0
+    assert model.runs["c"].rate(9.0) <= 100.0  # decays as time passes
+    assert model.runs["c"].rate(20.0) == 0.0  # idle

@@ -54,8 +54,9 @@ HOSTILE_VERDICT = {
     "partner_id": "\x1b]0;owned\x07[red]x[/red]",
     "attribution_basis": "line1\nline2",
     "contributing": ["[link=http://e.vil]x[/link]"],
-    "collision_frame": ":warning:",
-    "modules": "nonsense",
+    # collision_frame ":warning:" or modules "nonsense": the verdict is dropped (test_remote_view)
+    "collision_frame": 81,
+    "modules": {"perception": {"[b]why[/b]": "\x1b[2J"}},
     "thresholds": {"safety_margin": "\x1b[31m"},
 }
 HOSTILE_RESULT = {
@@ -510,6 +511,8 @@ def test_bad_values_are_one_line_and_exit_2(args: list[str]) -> None:
     assert done.stdout == ""
     lines = done.stderr.splitlines()
     assert len(lines) == 1 and lines[0].startswith("ads-rca watch: error: "), done.stderr
+    if args[1] == "tcp/10.0.0.5:7447":  # the option to give, as this command spells it
+        assert "not on loopback; give --allow-remote" in lines[0]
     assert "\x1b" not in done.stderr
 
 

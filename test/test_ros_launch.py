@@ -373,7 +373,10 @@ def test_launch_arguments_start_the_bridge_only_on_request() -> None:
     )
     for bad, message in (
         ({"zenoh": "yes"}, "zenoh must be true or false"),
-        ({"zenoh": "true", "zenoh_listen": "tcp/0.0.0.0:1"}, "not on loopback"),
+        (
+            {"zenoh": "true", "zenoh_listen": "tcp/0.0.0.0:1"},
+            "not on loopback; give zenoh_allow_remote:=true",
+        ),
         ({"zenoh": "true", "zenoh_linger": "-3"}, "zenoh_linger"),
     ):
         with pytest.raises(AdsRcaError, match=message):

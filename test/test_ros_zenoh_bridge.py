@@ -212,7 +212,10 @@ def test_bridge_survives_its_peer_going_away_and_stops_cleanly(
 @pytest.mark.parametrize(
     ("params", "message"),
     [
-        ({"zenoh_listen": ("tcp/0.0.0.0:7447",)}, "not on loopback"),
+        (
+            {"zenoh_listen": ("tcp/0.0.0.0:7447",)},
+            "not on loopback; give -p zenoh_allow_remote:=true",
+        ),
         ({"zenoh_listen": ("http://x",)}, "is not PROTOCOL/HOST:PORT"),
         ({"zenoh_mode": "router"}, "is not one of peer, client"),
         ({"zenoh_mode": "client"}, "give at least one connect endpoint"),
@@ -244,7 +247,7 @@ def test_bad_bridge_parameters_are_one_line_and_exit_2(
 @pytest.mark.parametrize(
     ("options", "message"),
     [
-        (["--zenoh-listen", "tcp/192.0.2.1:7447"], "not on loopback"),
+        (["--zenoh-listen", "tcp/192.0.2.1:7447"], "not on loopback; give --zenoh-allow-remote"),
         (["--zenoh-connect", "tcp/127.0.0.1:99999"], "out of range"),
         (["--zenoh-prefix", "a/$x"], "chunk '$x'"),
         (["--rate-modules", "nan"], "rate_modules"),

@@ -59,9 +59,11 @@ def session_config(
     listen: Sequence[str] = (DEFAULT_ENDPOINT,),
     connect: Sequence[str] = (),
     allow_remote: bool = False,
+    allow_option: str = "--allow-remote",
 ) -> str:
     """The JSON5 text of a Zenoh config: ``mode``, the listen and connect endpoints,
-    multicast and gossip scouting off. Non-loopback endpoints need ``allow_remote``."""
+    multicast and gossip scouting off. Non-loopback endpoints need ``allow_remote``, which
+    the refusal names as the user gives it (``allow_option``: the front end's option)."""
     if mode not in MODES:
         raise ConfigError(f"zenoh mode: {mode[:40]!r} is not one of {', '.join(MODES)}")
     listened = [parse_endpoint(e, "zenoh listen endpoint") for e in listen]
@@ -72,7 +74,7 @@ def session_config(
         for endpoint in (*listened, *connected):
             if not endpoint.loopback:
                 raise ConfigError(
-                    f"zenoh endpoint {endpoint}: not on loopback; pass allow_remote to use "
+                    f"zenoh endpoint {endpoint}: not on loopback; give {allow_option} to use "
                     "another interface (and configure Zenoh's TLS and access control)"
                 )
     config = {

@@ -30,9 +30,10 @@ class ZenohPublisher(SessionOwner):
         connect: Sequence[str] = (),
         allow_remote: bool = False,
         clock: Callable[[], float] = time.time,
+        allow_option: str = "-p zenoh_allow_remote:=true",
     ) -> None:
         self.state = state
-        self.config_text = session_config(mode, listen, connect, allow_remote)
+        self.config_text = session_config(mode, listen, connect, allow_remote, allow_option)
         self.clock = clock
         self.lock = threading.Lock()
         self.puts = 0

@@ -54,6 +54,8 @@ DEFAULT_MARGIN = 0.5
 MAX_RUNS = 64
 #: Wall-clock span over which the frame rate is measured (s).
 RATE_SPAN = 5.0
+#: The shortest span a rate is measured over (s): a burst is not a rate.
+RATE_MIN_SPAN = 1.0
 #: ``collision`` of a verdict (docs/verdicts.md).
 COLLISION_STATES = (COLLISION_YES, COLLISION_NO, COLLISION_UNKNOWN_STATE)
 #: What a verdict says, as every dashboard names it: a root cause named (conclusive or
@@ -135,12 +137,35 @@ def _texts(value: object) -> bool:
     return isinstance(value, list) and all(isinstance(item, str) for item in value)
 
 
+#: The verdict fields a dashboard shows, and the shapes it can show them in (a field that
+#: is absent is no error; one of another shape drops the verdict).
+_TEXT_OR_NULL = ("primary_root_cause", "attribution_basis", "semantics", "verdict")
+_TEXT_LISTS = ("root_causes", "contributing")
+_OBJECTS = ("thresholds", "evidence", "modules")
+
+
 def check_verdict(document: Mapping[str, Any]) -> None:
     """Refuse (:class:`MalformedMessage`) a verdict a dashboard cannot read safely: no
-    ``primary_root_cause``, or conclusion fields (docs/verdicts.md) of the wrong type or
-    contradicting each other. A missing conclusion field is no error (:func:`read_verdict`)."""
+    ``primary_root_cause``, a field it shows of another shape (``primary_root_cause`` an
+    object...), or conclusion fields (docs/verdicts.md) of the wrong type or contradicting
+    each other. A missing conclusion field is no error (:func:`read_verdict`)."""
     if "primary_root_cause" not in document:
         raise MalformedMessage("verdict without primary_root_cause")
+    for name in _TEXT_OR_NULL:
+        if document.get(name) is not None and not isinstance(document[name], str):
+            raise MalformedMessage(f"verdict: {name} is not a text or null")
+    for name in _TEXT_LISTS:
+        if name in document and not _texts(document[name]):
+            raise MalformedMessage(f"verdict: {name} is not a list of texts")
+    for name in _OBJECTS:
+        if name in document and not isinstance(document[name], dict):
+            raise MalformedMessage(f"verdict: {name} is not an object")
+    frame = document.get("collision_frame")
+    if frame is not None and (not isinstance(frame, int) or isinstance(frame, bool)):
+        raise MalformedMessage("verdict: collision_frame is not an integer or null")
+    partner = document.get("partner_id")
+    if (partner is not None and not isinstance(partner, str | int)) or isinstance(partner, bool):
+        raise MalformedMessage("verdict: partner_id is not a text, an integer or null")
     conclusive = document.get("conclusive")
     if "conclusive" in document and not isinstance(conclusive, bool):
         raise MalformedMessage("verdict: conclusive is not true or false")
@@ -314,12 +339,15 @@ class RunView:
             self.near_misses.extend(kept)
 
     def rate(self, now: float) -> float:
-        """Analysed frames per second over the last few seconds of arrivals (0: idle)."""
+        """New analysed frames per second over the last :data:`RATE_SPAN` seconds (0:
+        idle). The span runs to ``now`` and is at least a second: a burst (the end of a
+        run judged at once, a catch-up) reads as the frames it brought per second, not
+        as the frames over the milliseconds they took, and an idle run decays to 0."""
         recent = [(t, i) for t, i in self._arrivals if now - t <= RATE_SPAN]
         if len(recent) < 2:
             return 0.0
-        span = recent[-1][0] - recent[0][0]
-        return (recent[-1][1] - recent[0][1]) / span if span > 0 else 0.0
+        span = max(now - recent[0][0], RATE_MIN_SPAN)
+        return (recent[-1][1] - recent[0][1]) / span
 
     def summary(self, now: float) -> dict[str, Any]:
         """A JSON-ready digest: what a dashboard draws (every float finite or None)."""

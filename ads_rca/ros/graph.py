@@ -189,14 +189,16 @@ def bridge_params(
     allow_remote: bool,
     rate_modules: object,
     linger_s: object,
+    allow_option: str = "--zenoh-allow-remote",
 ) -> dict[str, ParamValue]:
     """The Zenoh bridge's parameters from ``replay``'s options or the launch arguments,
-    checked as the node checks them (ConfigError, one line), before any node starts."""
+    checked as the node checks them (ConfigError, one line), before any node starts;
+    ``allow_option``: how the refusal of a remote endpoint names the way to allow it."""
     from ads_rca.remote.config import DEFAULT_ENDPOINT, session_config
     from ads_rca.remote.keys import check_prefix
 
     listen = listen or (DEFAULT_ENDPOINT,)
-    session_config(mode, listen, connect, allow_remote)
+    session_config(mode, listen, connect, allow_remote, allow_option)
     params: dict[str, ParamValue] = {
         "zenoh_mode": mode,
         "zenoh_prefix": check_prefix(prefix, "zenoh_prefix"),
@@ -387,6 +389,7 @@ def spec_from_arguments(values: Mapping[str, str]) -> GraphSpec:
             _flag("zenoh_allow_remote", value("zenoh_allow_remote")),
             value("rate_modules"),
             value("zenoh_linger"),
+            allow_option="zenoh_allow_remote:=true",
         )
         if zenoh
         else None

@@ -68,6 +68,8 @@ def bridge_parameters(values: dict[str, str]) -> dict[str, Any]:
         values["zenoh_allow_remote"].lower() == "true",
         values["rate_modules"],
         0.0,
+        allow_option="zenoh_allow_remote:=true",
+        listen_option="zenoh_listen:=tcp/127.0.0.1:PORT",
     )
     return {
         name: list(value) if isinstance(value, tuple) else value for name, value in params.items()

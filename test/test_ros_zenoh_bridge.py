@@ -361,3 +361,23 @@ def test_results_reach_watch_while_a_replay_plays_at_log_rate(
         failed = sum(bool(f[module]["failed"]) for f in offline["frames"])
         counts = {k: final["modules"][module][k] for k in ("judged", "failed_frames")}
         assert counts == {"judged": frames, "failed_frames": failed}, module
+
+
+def test_a_busy_zenoh_port_is_refused_in_one_line_before_any_node(
+    ros_env: RosEnv, log_dirs: Callable[[str, str], Path]
+) -> None:
+    """Another replay's bridge holds the port: the second replay's bridge could not listen,
+    and the replay exited 1 after 17 s with no verdict. Now it is refused at once, naming
+    the endpoint and the option to give."""
+    port = free_port()
+    with socket.socket() as holder:
+        holder.bind(("127.0.0.1", port))
+        holder.listen()
+        argv = [sys.executable, "-m", "ads_rca.cli", "replay", str(log_dirs("cut_in", "none"))]
+        argv += ["--domain-id", str(ros_env.domain_id), "--zenoh"]
+        argv += ["--zenoh-listen", f"tcp/127.0.0.1:{port}"]
+        replay = ManagedProcess("replay", argv, ros_env.env)
+        assert replay.wait(30) == 2, replay.output
+    lines = [line for line in replay.output.splitlines() if line.strip()]
+    assert len(lines) == 1, replay.output
+    assert f"tcp/127.0.0.1:{port}: in use" in lines[0] and "give --zenoh-listen" in lines[0]

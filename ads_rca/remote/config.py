@@ -9,9 +9,11 @@ the way to expose it).
 
 from __future__ import annotations
 
+import errno
 import ipaddress
 import json
 import re
+import socket
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -52,6 +54,28 @@ def parse_endpoint(text: str, what: str) -> Endpoint:
     if not 1 <= port <= 65535:
         raise ConfigError(f"{what}: port {port} is out of range [1, 65535]")
     return Endpoint(found.group(1), found.group(2), port)
+
+
+def check_listen_free(listen: Sequence[str], option: str) -> None:
+    """ConfigError (one line) when a TCP endpoint to listen on is taken, checked by binding
+    it a moment: a peer that cannot listen fails in its own process later, after the graph
+    began (another replay's bridge holds the default port). ``option``: what to give to
+    listen elsewhere, as the front end spells it. A race with a later taker stays possible."""
+    for text in listen:
+        endpoint = parse_endpoint(text, "zenoh listen endpoint")
+        if endpoint.protocol != "tcp":
+            continue
+        host = endpoint.host.strip("[]")
+        family = socket.AF_INET6 if ":" in host else socket.AF_INET
+        with socket.socket(family, socket.SOCK_STREAM) as probe:
+            try:
+                probe.bind((host, endpoint.port))
+            except OSError as error:
+                reason = "in use" if error.errno == errno.EADDRINUSE else error.strerror
+                raise ConfigError(
+                    f"zenoh listen endpoint {endpoint}: {reason} (another bridge or Zenoh "
+                    f"router?); give {option} with a free port"
+                ) from None
 
 
 def session_config(

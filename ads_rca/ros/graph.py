@@ -190,11 +190,13 @@ def bridge_params(
     rate_modules: object,
     linger_s: object,
     allow_option: str = "--zenoh-allow-remote",
+    listen_option: str = "--zenoh-listen",
 ) -> dict[str, ParamValue]:
     """The Zenoh bridge's parameters from ``replay``'s options or the launch arguments,
-    checked as the node checks them (ConfigError, one line), before any node starts;
-    ``allow_option``: how the refusal of a remote endpoint names the way to allow it."""
-    from ads_rca.remote.config import DEFAULT_ENDPOINT, session_config
+    checked as the node checks them (ConfigError, one line), before any node starts, and
+    its listen endpoints free; ``allow_option`` and ``listen_option``: how the refusals
+    name the options to give instead."""
+    from ads_rca.remote.config import DEFAULT_ENDPOINT, check_listen_free, session_config
     from ads_rca.remote.keys import check_prefix
 
     listen = listen or (DEFAULT_ENDPOINT,)
@@ -208,6 +210,7 @@ def bridge_params(
     }
     if mode == "peer":
         params["zenoh_listen"] = listen
+        check_listen_free(listen, listen_option)  # last: every value is right
     if connect:
         params["zenoh_connect"] = connect
     return params
@@ -390,6 +393,7 @@ def spec_from_arguments(values: Mapping[str, str]) -> GraphSpec:
             value("rate_modules"),
             value("zenoh_linger"),
             allow_option="zenoh_allow_remote:=true",
+            listen_option="zenoh_listen:=tcp/127.0.0.1:PORT",
         )
         if zenoh
         else None

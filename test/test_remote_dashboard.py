@@ -117,10 +117,14 @@ class Dashboard:
     url: str
     process: subprocess.Popen[str]
 
-    def get(self, path: str, host: str | None = None) -> tuple[int, dict[str, str], bytes]:
+    def get(
+        self, path: str, host: str | None = None, origin: str | None = None
+    ) -> tuple[int, dict[str, str], bytes]:
         request = urllib.request.Request(self.url + path.lstrip("/"))
         if host is not None:
             request.add_header("Host", host)
+        if origin is not None:
+            request.add_header("Origin", origin)
         try:
             with urllib.request.urlopen(request, timeout=10) as response:
                 return response.status, dict(response.headers), response.read()
@@ -437,17 +441,52 @@ def test_bad_options_are_one_line_and_exit_status_2() -> None:
             assert cases[name][1] in lines[0], (name, lines[0])
 
 
-def _open_stream(url: str) -> socket.socket:
+def _open_stream(url: str, origin: str = "") -> socket.socket:
     """A raw event-stream request, its first event read: a browser that stays connected."""
     host, port = re.findall(r"http://([^:/]+):(\d+)/", url)[0]
     stream = socket.create_connection((host, int(port)), timeout=10)
-    stream.sendall(f"GET /events HTTP/1.1\r\nHost: {host}:{port}\r\n\r\n".encode())
+    said = f"Origin: {origin}\r\n" if origin else ""
+    stream.sendall(f"GET /events HTTP/1.1\r\nHost: {host}:{port}\r\n{said}\r\n".encode())
     received = b""
     while b"event: runs" not in received:
         chunk = stream.recv(65536)
         assert chunk, "stream closed"
         received += chunk
     return stream
+
+
+def test_foreign_origins_are_refused_and_one_address_cannot_take_every_stream() -> None:
+    """Any page could hold event streams until the user's own page got 503 (32 slots):
+    a request whose Origin is not this server's is refused; one address holds at most 8
+    streams (429 beyond), the rest stay for others."""
+    from ads_rca.remote.web import MAX_CLIENTS_PER_ADDRESS
+
+    with dashboard(f"tcp/127.0.0.1:{free_port()}") as board:
+        own = board.url.rstrip("/")
+        for path in ("/events", "/api/runs", "/"):
+            for foreign in ("http://evil.example", "null", own.replace("http", "https")):
+                assert board.get(path, origin=foreign)[0] == 403, (path, foreign)
+        assert board.get("/api/runs", origin=own)[0] == 200
+        streams = [_open_stream(board.url, origin=own) for _ in range(MAX_CLIENTS_PER_ADDRESS)]
+        try:
+            status, _, body = board.get("/events")
+            assert status == 429 and b"from this address" in body
+        finally:
+            for stream in streams:
+                stream.close()
+        deadline = time.monotonic() + 10  # closed streams are noticed within a second
+        while _events_status(board.url) != 200:
+            assert time.monotonic() < deadline, "a closed stream's slot never came back"
+            time.sleep(0.2)
+
+
+def _events_status(url: str) -> int:
+    """The status an event-stream request gets now (the stream is closed at once)."""
+    host, port = re.findall(r"http://([^:/]+):(\d+)/", url)[0]
+    with socket.create_connection((host, int(port)), timeout=10) as stream:
+        stream.sendall(f"GET /events HTTP/1.1\r\nHost: {host}:{port}\r\n\r\n".encode())
+        first = stream.recv(64).split(b"\r\n", 1)[0]
+    return int(first.split()[1])
 
 
 def test_sigint_and_sigterm_stop_it_cleanly_with_streams_open() -> None:

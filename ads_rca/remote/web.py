@@ -52,6 +52,8 @@ LIVENESS = 1.0
 WRITE_TIMEOUT = 10.0
 #: Browsers streaming at once; more get 503.
 MAX_CLIENTS = 32
+#: Streams one address may hold at once (a client cannot take every slot); more get 429.
+MAX_CLIENTS_PER_ADDRESS = 8
 #: How often the pump drains the Zenoh queue (s), and how many samples one pass applies.
 PUMP_PERIOD = 0.05
 PUMP_BATCH = 2000
@@ -163,6 +165,8 @@ class Client:
     """One browser's event stream: which version of each run it was last sent."""
 
     wake: asyncio.Event = field(default_factory=asyncio.Event)
+    #: The peer's address (the per-client limit counts streams by it).
+    address: str = ""
     sent: dict[str, tuple[int, int]] = field(default_factory=dict)
     sent_global: int = -1
     sent_names: list[str] | None = None
@@ -412,13 +416,16 @@ async def _timeline(request: web.Request) -> web.Response:
 
 async def _events(request: web.Request) -> web.StreamResponse:
     hub = request.app[HUB]
+    address = request.remote or ""
     if len(hub.clients) >= MAX_CLIENTS:
         raise web.HTTPServiceUnavailable(text="too many dashboard pages open\n")
+    if sum(c.address == address for c in hub.clients) >= MAX_CLIENTS_PER_ADDRESS:
+        raise web.HTTPTooManyRequests(text="too many dashboard pages open from this address\n")
     response = web.StreamResponse(
         headers={"Content-Type": "text/event-stream", "X-Accel-Buffering": "no"}
     )
     await response.prepare(request)
-    client = Client()
+    client = Client(address=address)
     hub.clients.add(client)
     try:
         await asyncio.wait_for(response.write(b"retry: 2000\n\n"), WRITE_TIMEOUT)
@@ -449,10 +456,16 @@ async def _events(request: web.Request) -> web.StreamResponse:
 
 @web.middleware
 async def _guard(request: web.Request, handler: Callable[[web.Request], Any]) -> web.StreamResponse:
-    """Refuse a ``Host`` that is not this server's loopback name (DNS rebinding)."""
+    """Refuse a ``Host`` that is not this server's loopback name (DNS rebinding), and a
+    request a page of another origin made (its ``Origin`` is not this server's: a foreign
+    page could hold event streams until the user's own page gets none). A request with no
+    ``Origin`` (the page's own, a command-line client) is served."""
     allowed = request.app[ALLOWED_HOSTS]
     if allowed and request.host.lower() not in allowed:
         raise web.HTTPMisdirectedRequest(text="unexpected Host header\n")
+    origin = request.headers.get("Origin")
+    if origin is not None and origin.lower() != f"{request.scheme}://{request.host}".lower():
+        raise web.HTTPForbidden(text="foreign origin\n")
     response: web.StreamResponse = await handler(request)
     return response
 

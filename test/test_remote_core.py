@@ -200,6 +200,8 @@ def test_the_verdict_waits_for_the_results_it_counts() -> None:
         assert [k for k, _ in late.flush(at, force=force)] == ["car1/ads_rca/verdict.json"]
         assert late.status(at)["verdict_ahead_of_results"] == 3
         assert late.status(at)["state"] == "verdict"
+        # The bridge's last heartbeat: it stopped, after its verdict too.
+        assert late.status(at, "stopped")["state"] == "stopped"
 
 
 @pytest.mark.parametrize(

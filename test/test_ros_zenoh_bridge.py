@@ -51,6 +51,7 @@ def test_replay_over_zenoh_gives_every_result_the_verdict_and_late_catch_up(
     log_dir = log_dirs("cut_in", "perception")
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     live_rows, late_rows = tmp_path / "live.jsonl", tmp_path / "late.jsonl"
+    end_rows = tmp_path / "end.jsonl"
     remote = listener(ros_env.env, live_rows, "--connect", endpoint, "--until-verdict")
     out = tmp_path / "verdict.json"
     argv = [sys.executable, "-m", "ads_rca.cli", "replay", str(log_dir), "--json", str(out)]
@@ -68,9 +69,15 @@ def test_replay_over_zenoh_gives_every_result_the_verdict_and_late_catch_up(
             *("--query", "car1/ads_rca/verdict", "--query", "car1/ads_rca/frames?since=40"),
         )
         assert late.wait(60) == 0, late.output
+        # Until the bridge ends: its last heartbeat says it stopped, the verdict out or not.
+        ending = listener(ros_env.env, end_rows, "--connect", endpoint, "--timeout", "60")
         assert replay.wait(120) == 0, replay.output
+        ending.signal(signal.SIGTERM)
+        ending.wait(10)
     finally:
         replay.stop()
+    heartbeats = [r for r in rows(end_rows) if r.get("key") == "car1/ads_rca/status.json"]
+    assert heartbeats and strictjson.loads(heartbeats[-1]["text"])["state"] == "stopped"
     live = json.loads(out.read_text())
     offline = diagnose(read_run_log(log_dir), make_params("corrected")).to_json()
     received = rows(live_rows)
@@ -200,6 +207,13 @@ def test_bridge_survives_its_peer_going_away_and_stops_cleanly(
         assert time.monotonic() - started < 5
         assert "Traceback" not in bridge.output
         assert "bridged" in bridge.output
+
+        # Its last heartbeat says it stopped (it said "verdict" when it had forwarded one).
+        def last_state() -> object:
+            found = [r for r in rows(peer_rows[1]) if r.get("key") == "car1/ads_rca/status.json"]
+            return found and strictjson.loads(found[-1]["text"]).get("state") == "stopped"
+
+        wait_for(last_state, 10, "a last heartbeat saying stopped")
         again.signal(signal.SIGTERM)
         assert again.wait(10) == 0, again.output
     finally:

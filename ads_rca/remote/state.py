@@ -156,9 +156,12 @@ class RemoteState:
         return self.limiter.offer(self.verdict_key, strictjson.dumps(document), now)
 
     def status(self, now: float, state: str = "running") -> dict[str, Any]:
-        """The heartbeat: what was seen so far."""
+        """The heartbeat: what was seen so far; ``stopped`` wins over a verdict (the bridge
+        is gone; the verdict stays on its own key)."""
+        if state != "stopped" and self.verdict is not None:
+            state = "verdict"
         return {
-            "state": "verdict" if self.verdict is not None else state,
+            "state": state,
             "run": self.run,
             "time": now,
             "last_index": self.last_index,

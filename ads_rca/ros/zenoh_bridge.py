@@ -259,7 +259,7 @@ class ZenohBridge(Node):
         try:
             for key, (payload, kind) in self.raw_limiter.flush(time.monotonic(), force=True):
                 self.zenoh.put_raw(key, payload, kind)
-            self.zenoh.finish("verdict" if self.zenoh.state.verdict is not None else "stopped")
+            self.zenoh.finish("stopped")  # a verdict is its own key: the bridge is gone
         finally:
             self.zenoh.close()
         state = self.zenoh.state

@@ -216,3 +216,24 @@ def test_remote_state_counts_what_is_not_a_result_and_forwards_nothing(text: str
     assert state.on_verdict(text, 0.0) == []
     assert state.malformed == 2
     assert "\n" not in state.last_problem and len(state.last_problem) < 260
+
+
+def test_the_bridge_counts_final_results_only_and_holds_the_verdict_for_them() -> None:
+    """A replay's monitors publish provisional results as it plays, then each frame's
+    final one; the verdict counts the final ones (live.results_received). Counting the
+    provisional ones let the verdict overtake the last finals (CI: 11 planning frames)."""
+    from ads_rca.foundation import strictjson
+    from ads_rca.remote.state import RemoteState
+
+    state = RemoteState("car1", rates={"modules": 0.0})
+    for index in range(3):
+        document = {"module": "planning", "index": index, "stamp_ms": 50 * index}
+        document |= {"frame": index, "failed": False, "provisional": True}
+        state.on_result(strictjson.dumps(document), 1.0)
+    verdict = {"primary_root_cause": None, "live": {"results_received": {"planning": 3}}}
+    assert state.on_verdict(strictjson.dumps(verdict), 1.0) == []  # held: no final yet
+    for index in range(3):
+        document = {"module": "planning", "index": index, "stamp_ms": 50 * index}
+        puts = state.on_result(strictjson.dumps(document | {"frame": index, "failed": False}), 1.1)
+    assert "car1/ads_rca/verdict.json" in [k for k, _ in puts]
+    assert state.status(1.2)["results"] == {"planning": 3}

@@ -439,7 +439,7 @@ class MonitorCore(FollowsRunEnd):
             blockers = self._blockers(entry)
             if blockers and not stalled:
                 if len(self.pending) - len(ready) <= self.settings.max_pending_frames:
-                    if blockers != [PARTNER_UNKNOWN]:
+                    if blockers != [PARTNER_UNKNOWN] or self.stack:
                         break
                     if not entry.provisional:
                         waiting.append(entry)

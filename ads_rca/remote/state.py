@@ -108,7 +108,8 @@ class RemoteState:
         }
         entry["modules"][result.module] = document
         self.history.add_frame(result.index, entry)
-        self.results[result.module] = self.results.get(result.module, 0) + 1
+        if not result.provisional:  # as the aggregator counts (a verdict is held for these)
+            self.results[result.module] = self.results.get(result.module, 0) + 1
         self.last_index = max(self.last_index, result.index)
         puts = self.limiter.offer(self.module_key(result.module), _dumps(document), now)
         return puts + self._release(now) if self._held is not None else puts

@@ -18,7 +18,8 @@ import signal
 import socket
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -279,6 +280,29 @@ def test_bad_replay_zenoh_options_are_one_line_before_any_node(
     assert len(lines) == 1 and message in lines[0], replay.output
 
 
+@contextmanager
+def watch_and_replay(
+    ros_env: RosEnv, log_dir: Path, options: Sequence[str] = ()
+) -> Iterator[tuple[ManagedProcess, ManagedProcess]]:
+    """``watch --json --exit-on-verdict`` started first, then ``replay --zenoh`` of
+    ``log_dir`` (with ``options``) on a free port; after the block, both must end with
+    status 0 (both are stopped however the block ends)."""
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    watch_argv = [sys.executable, "-m", "ads_rca.cli", "watch", "--connect", endpoint]
+    watch = ManagedProcess("watch", [*watch_argv, "--json", "--exit-on-verdict"], ros_env.env)
+    argv = [sys.executable, "-m", "ads_rca.cli", "replay", str(log_dir), *options]
+    argv += ["--domain-id", str(ros_env.domain_id), "--namespace", ros_env.namespace]
+    argv += ["--zenoh", "--zenoh-listen", endpoint, "--zenoh-linger", "10", "--timeout", "90"]
+    replay = ManagedProcess("replay", argv, ros_env.env)
+    try:
+        yield watch, replay
+        assert watch.wait(120) == 0, watch.output
+        assert replay.wait(120) == 0, replay.output
+    finally:
+        for process in (watch, replay):
+            process.stop()
+
+
 @pytest.mark.slow
 def test_watch_started_before_a_rate_limited_replay_ends_with_every_frame_counted(
     ros_env: RosEnv, tmp_path: Path, log_dirs: Callable[[str, str], Path]
@@ -287,32 +311,29 @@ def test_watch_started_before_a_rate_limited_replay_ends_with_every_frame_counte
     verdict is in, ``watch`` fetches the rest from the frame history before its final
     digest, so its counts are the run's."""
     log_dir = log_dirs("cut_in", "perception")
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
-    watch_argv = [sys.executable, "-m", "ads_rca.cli", "watch", "--connect", endpoint]
-    watch = ManagedProcess("watch", [*watch_argv, "--json", "--exit-on-verdict"], ros_env.env)
-    argv = [sys.executable, "-m", "ads_rca.cli", "replay", str(log_dir)]
-    argv += ["--domain-id", str(ros_env.domain_id), "--namespace", ros_env.namespace]
-    argv += ["--zenoh", "--zenoh-listen", endpoint, "--zenoh-linger", "10", "--timeout", "90"]
-    replay = ManagedProcess("replay", argv, ros_env.env)
-    try:
-        assert watch.wait(120) == 0, watch.output
-        assert replay.wait(120) == 0, replay.output
-    finally:
-        for process in (watch, replay):
-            process.stop()
+    with watch_and_replay(ros_env, log_dir) as (watch, _replay):
+        pass  # until both end
     events = [json.loads(line) for line in watch.output.splitlines() if line.startswith("{")]
     live = [e for e in events if e["kind"] == "module"]
+    final = assert_final_digest_is_diagnoses(events, log_dir)
+    assert len(live) < 4 * (final["last_index"] + 1)  # rate-limited live
+    assert final["semantics"] == "corrected"
+    for module in MODULES:
+        assert final["modules"][module]["state"] in ("ok", "failing", "skipped"), module
+
+
+def assert_final_digest_is_diagnoses(events: list[dict[str, Any]], log_dir: Path) -> Any:
+    """``watch --json``'s final digest: diagnose's root cause, and each module's frames
+    judged and failed counted once each (a frame judged again is not counted twice)."""
     final = next(e for e in events if e["kind"] == "final")
     offline = diagnose(read_run_log(log_dir), make_params("corrected")).to_json()
-    frames = len(offline["frames"])
-    assert len(live) < 4 * frames  # rate-limited live
     assert final["primary_root_cause"] == offline["primary_root_cause"]
-    assert final["semantics"] == "corrected"
+    frames = len(offline["frames"])
     for module in MODULES:
         failed = sum(bool(f[module]["failed"]) for f in offline["frames"])
         counts = {k: final["modules"][module][k] for k in ("judged", "failed_frames")}
         assert counts == {"judged": frames, "failed_frames": failed}, module
-        assert final["modules"][module]["state"] in ("ok", "failing", "skipped"), module
+    return final
 
 
 def test_the_bridge_starts_from_its_config_file(ros_env: RosEnv) -> None:
@@ -340,41 +361,22 @@ def test_results_reach_watch_while_a_replay_plays_at_log_rate(
     Zenoh and ``watch --json`` before the verdict, marked provisional; the final digest is
     diagnose's. Before, every result came within 0.2 s at the end."""
     log_dir = log_dirs("cut_in", "perception")
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
-    watch_argv = [sys.executable, "-m", "ads_rca.cli", "watch", "--connect", endpoint]
-    watch = ManagedProcess("watch", [*watch_argv, "--json", "--exit-on-verdict"], ros_env.env)
     out = tmp_path / "verdict.json"
-    argv = [sys.executable, "-m", "ads_rca.cli", "replay", str(log_dir), "--rate", "1"]
-    argv += ["--json", str(out), "--domain-id", str(ros_env.domain_id)]
-    argv += ["--namespace", ros_env.namespace, "--rate-modules", "0"]
-    argv += ["--zenoh", "--zenoh-listen", endpoint, "--zenoh-linger", "10", "--timeout", "90"]
-    replay = ManagedProcess("replay", argv, ros_env.env)
+    options = ["--rate", "1", "--json", str(out), "--rate-modules", "0"]
+    with watch_and_replay(ros_env, log_dir, options) as (watch, replay):
 
-    def provisional_heard() -> bool:
-        for line in list(watch.lines):
-            if line.startswith("{") and json.loads(line).get("kind") == "module":
-                document = json.loads(line).get("result") or {}
-                if document.get("provisional") is True:
-                    return True
-        return False
+        def provisional_heard() -> bool:
+            for line in list(watch.lines):
+                if line.startswith("{") and json.loads(line).get("kind") == "module":
+                    document = json.loads(line).get("result") or {}
+                    if document.get("provisional") is True:
+                        return True
+            return False
 
-    try:
         wait_for(provisional_heard, 60.0, "a provisional result on watch --json")
         assert not out.exists() and replay.returncode is None  # still playing
-        assert watch.wait(120) == 0, watch.output
-        assert replay.wait(120) == 0, replay.output
-    finally:
-        for process in (watch, replay):
-            process.stop()
     events = [json.loads(line) for line in watch.output.splitlines() if line.startswith("{")]
-    final = next(e for e in events if e["kind"] == "final")
-    offline = diagnose(read_run_log(log_dir), make_params("corrected")).to_json()
-    assert final["primary_root_cause"] == offline["primary_root_cause"]
-    frames = len(offline["frames"])
-    for module in MODULES:
-        failed = sum(bool(f[module]["failed"]) for f in offline["frames"])
-        counts = {k: final["modules"][module][k] for k in ("judged", "failed_frames")}
-        assert counts == {"judged": frames, "failed_frames": failed}, module
+    assert_final_digest_is_diagnoses(events, log_dir)
 
 
 def test_a_busy_zenoh_port_is_refused_in_one_line_before_any_node(

@@ -248,6 +248,12 @@ def test_the_page_follows_a_live_replay_without_reload(browser: Any) -> None:
             """() => Array.from(document.querySelectorAll('#modules .status'))
                      .every((cell) => !cell.textContent.includes('provisional'))"""
         )
+        blamed = page.eval_on_selector(  # the verdict's root cause: red, never a green "ok"
+            "#modules tr[data-module=perception] .status",
+            "node => [node.textContent, getComputedStyle(node).color]",
+        )
+        assert blamed[0].startswith("root cause in the verdict (latest frame"), blamed
+        assert blamed[1] != GOOD
         assert page.evaluate("window.sameDocument") is True  # updated in place, never reloaded
         assert page.locator("#timeline-box polyline").count() == 1
         assert page.text_content("#runs tbody tr[data-run='car1'] td:last-child") == "perception"
@@ -302,6 +308,8 @@ def test_an_inconclusive_verdict_shows_inconclusive_with_its_reasons_never_green
             assert outcome.get_attribute("class") == "outcome outcome-inconclusive"
             assert outcome.evaluate("node => getComputedStyle(node).color") == WARN
             assert page.text_content("#verdict-conclusive") == "no"
+            assert sent["primary_root_cause"] is None  # said as such, not as a dash
+            assert page.text_content("#verdict-primary") == "none found (inconclusive)"
             reasons = page.eval_on_selector_all(
                 "#verdict-reasons li", "els => els.map(e => e.textContent)"
             )

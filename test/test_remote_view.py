@@ -20,6 +20,7 @@ from rich.console import Console
 from ads_rca.capabilities import JUDGED, NOT_JUDGED
 from ads_rca.diagnosis.conclusion import PARTLY_JUDGED
 from ads_rca.remote.view import (
+    BLAMED,
     FAILING,
     INCOMPLETE,
     INCONCLUSIVE,
@@ -316,3 +317,18 @@ def test_the_frame_rate_of_a_burst_is_frames_per_second_not_per_millisecond() ->
     assert model.runs["c"].rate(7.02) <= 200.0
     assert model.runs["c"].rate(9.0) <= 100.0  # decays as time passes
     assert model.runs["c"].rate(20.0) == 0.0  # idle
+
+
+def test_the_module_a_verdict_blames_is_never_shown_ok() -> None:
+    """A root cause's failure is in the effect window; its latest frame may pass. The
+    table said a green "ok" for the blamed module: it says root cause now."""
+    model = DashboardModel()
+    model.apply("c/ads_rca/modules/planning.json", result(3), 1.0)
+    model.apply("c/ads_rca/modules/perception.json", result(3, "perception", failed=True), 1.0)
+    verdict = {**INCONCLUSIVE_VERDICT, "primary_root_cause": "planning", "root_causes": []}
+    verdict |= {"conclusive": True, "why_inconclusive": [], "modules_judged": {}}
+    assert model.apply("c/ads_rca/verdict.json", json.dumps(verdict), 2.0) is not None
+    modules = model.summary(2.0)["runs"][0]["modules"]
+    assert modules["planning"]["state"] == BLAMED
+    assert modules["planning"]["detail"] == "root cause in the verdict (latest frame ok)"
+    assert modules["perception"]["state"] == FAILING  # failing, not blamed

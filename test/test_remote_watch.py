@@ -208,7 +208,8 @@ def terminal(command: list[str]) -> Iterator[Terminal]:
 def module_rows(screen: str) -> dict[str, tuple[str, int, int]]:
     """``module → (status, judged, failed)`` from the screen's module table."""
     rows = re.findall(
-        r"^(perception|prediction|planning|controller)\s+(OK|FAILED|skipped|no data)\s+"
+        r"^(perception|prediction|planning|controller)\s+"
+        r"(OK|FAILED|ROOT CAUSE|skipped|no data)\s+"
         r"(\d+)\s+(\d+)",
         screen,
         re.MULTILINE,
@@ -245,7 +246,7 @@ def test_watch_started_before_the_feed_shows_the_modules_and_the_verdict() -> No
     assert "partner: 2486" in screen and "collision frame: 81" in screen
     rows = module_rows(screen)
     assert set(rows) == {"perception", "prediction", "planning", "controller"}, screen
-    assert rows["perception"][1:] == (81, 13)
+    assert rows["perception"] == ("ROOT CAUSE", 81, 13)
     assert all(judged == 81 for _, judged, _ in rows.values())
     assert "near misses: 13" in screen
 
@@ -256,7 +257,8 @@ def test_watch_started_after_the_verdict_catches_up_and_ctrl_c_exits_130() -> No
         running.expect("VERDICT")
         with terminal(watch_command("--connect", endpoint)) as term:
             screen = term.wait_for("primary root cause: perception", "status verdict")
-            assert module_rows(screen)["perception"] == ("OK", 81, 13)
+            # The verdict's root cause, its latest frame ok: never shown "OK".
+            assert module_rows(screen)["perception"] == ("ROOT CAUSE", 81, 13)
             assert "EXIT:" not in screen  # the live screen, not the final print
             pressed = time.monotonic()
             term.keys("C-c")
@@ -388,7 +390,7 @@ def test_hostile_strings_from_the_wire_show_literally_and_inertly() -> None:
     assert "[link=http://e.vil]x[/link]" in screen
     assert r"[blink]corrected\x1b[5m semantics" in screen
     assert r"\x1b[2J[red]f[/red]" in screen  # the result's frame
-    assert module_rows(screen)["perception"] == ("FAILED", 1, 1)
+    assert module_rows(screen)["perception"] == ("ROOT CAUSE", 1, 1)  # the verdict blames it
 
 
 def test_render_is_a_pure_function_whose_wire_text_is_inert() -> None:

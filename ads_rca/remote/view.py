@@ -68,6 +68,9 @@ UNSTATED = "the verdict does not say whether it is conclusive (an ads_rca older 
 WAITING, OK, FAILING, SKIPPED = "waiting", "ok", "failing", "skipped"
 INCOMPLETE = "incomplete inputs"
 INTERNAL_ERROR = "internal error"
+#: A module the verdict names as a root cause: never shown "ok" because its latest frame
+#: passed (the failure that decided is in the effect window, not at the run's end).
+BLAMED = "root cause"
 
 
 def parse_key(key: str) -> tuple[str, str, str | None] | None:
@@ -268,6 +271,16 @@ def module_state(latest: Mapping[str, Any] | None, verdict_status: object) -> tu
     return OK, ""
 
 
+def blamed(verdict: Mapping[str, Any] | None) -> set[str]:
+    """The modules a (checked) verdict names as root causes: its primary and the rest."""
+    if verdict is None:
+        return set()
+    named = verdict.get("root_causes")
+    out = {m for m in named if m in MODULES} if isinstance(named, list) else set()
+    primary = verdict.get("primary_root_cause")
+    return out | ({primary} if primary in MODULES else set())
+
+
 @dataclass
 class RunView:
     """One run's state as a dashboard shows it."""
@@ -356,6 +369,9 @@ class RunView:
         for module in MODULES:
             latest = self.modules.get(module)
             state, detail = module_state(latest, judged.get(module))
+            if state in (OK, FAILING) and module in blamed(self.verdict):
+                was = "latest frame failing" if state == FAILING else "latest frame ok"
+                state, detail = BLAMED, f"root cause in the verdict ({was})"
             modules[module] = {
                 "judged": self.judged.get(module, 0),
                 "failed_frames": self.failures.get(module, 0),

@@ -43,6 +43,7 @@ from ads_rca.remote.client import RemoteClient
 from ads_rca.remote.config import DEFAULT_ENDPOINT
 from ads_rca.remote.keys import SAMPLE_SUFFIX, check_prefix
 from ads_rca.remote.view import (
+    BLAMED,
     FAILING,
     INCOMPLETE,
     INTERNAL_ERROR,
@@ -94,6 +95,7 @@ STATE_LABELS: Mapping[str, tuple[str, str]] = {
     PARTLY_JUDGED: ("partly judged", "yellow"),
     INTERNAL_ERROR: ("INTERNAL ERROR", "bold red"),
     INCOMPLETE: ("incomplete inputs", "yellow"),
+    BLAMED: ("ROOT CAUSE", "bold red"),
 }
 #: The verdict panel's colour for what the verdict says: never green unless conclusive.
 VERDICT_STYLES: Mapping[str, str] = {ROOT_CAUSE: "red", NO_FAULT_FOUND: "green"}

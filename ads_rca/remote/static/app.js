@@ -272,7 +272,12 @@
     outcome.className = "outcome outcome-" + (o.conclusive || o.kind === "root cause" ? o.kind : "inconclusive").replace(/[^a-z]+/g, "-");
     $("verdict-conclusive").textContent = o.conclusive ? "yes" : o.stated ? "no" : "not stated: read as no";
     $("verdict-reasons").replaceChildren(...o.reasons.map((reason) => el("li", {}, fmt(reason))));
-    $("verdict-primary").textContent = fmt(v.primary_root_cause);
+    // No primary is an answer too: none, as conclusive or not as the verdict is.
+    const primary = v.primary_root_cause;
+    $("verdict-primary").textContent =
+      primary === null || primary === undefined
+        ? o.conclusive ? "none (no fault found)" : "none found (inconclusive)"
+        : fmt(primary);
     $("download").setAttribute("href", "/api/runs/" + runSegment(state.digest) + "/verdict.json");
     $("verdict-semantics").textContent = fmt(v.semantics);
     const list = (value) => (Array.isArray(value) ? (value.length ? value.map((x) => fmt(x)).join(", ") : "none") : fmt(value));

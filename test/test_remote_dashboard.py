@@ -254,6 +254,20 @@ def test_the_page_follows_a_live_replay_without_reload(browser: Any) -> None:
         )
         assert blamed[0].startswith("root cause in the verdict (latest frame"), blamed
         assert blamed[1] != GOOD
+        cells = page.eval_on_selector_all(  # the key metrics shown, every one in the tooltip
+            "#modules td.metrics",
+            "els => els.map(e => [e.textContent.split(' · ').length,"
+            " (e.getAttribute('title') || '').split('\\n').length])",
+        )
+        assert all(shown <= 4 and shown <= total for shown, total in cells), cells
+        assert any(total > 4 for _, total in cells), cells
+        page.set_viewport_size({"width": 360, "height": 800})  # a phone: names never split
+        lines = page.eval_on_selector_all(
+            "#modules tr[data-module] td:first-child",
+            "els => els.map(e => { const r = document.createRange(); r.selectNodeContents(e);"
+            " return r.getClientRects().length; })",
+        )
+        assert lines == [1, 1, 1, 1], lines
         assert page.evaluate("window.sameDocument") is True  # updated in place, never reloaded
         assert page.locator("#timeline-box polyline").count() == 1
         assert page.text_content("#runs tbody tr[data-run='car1'] td:last-child") == "perception"

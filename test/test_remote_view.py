@@ -332,3 +332,16 @@ def test_the_module_a_verdict_blames_is_never_shown_ok() -> None:
     assert modules["planning"]["state"] == BLAMED
     assert modules["planning"]["detail"] == "root cause in the verdict (latest frame ok)"
     assert modules["perception"]["state"] == FAILING  # failing, not blamed
+
+
+def test_a_table_shows_the_key_metrics_of_a_result_not_all_of_them() -> None:
+    """A result carries 20-30 metrics; the dashboards show the module's key ones first,
+    at most :data:`METRICS_SHOWN`."""
+    from ads_rca.remote.view import METRICS_SHOWN
+
+    metrics = {f"m{i}": float(i) for i in range(25)} | {"c_gt": 1.0, "ttc_gt": 2.0}
+    model = DashboardModel()
+    model.apply("c/ads_rca/modules/planning.json", result(3, metrics=metrics), 1.0)
+    shown = model.summary(1.0)["runs"][0]["modules"]["planning"]["key_metrics"]
+    assert shown[:2] == ["c_gt", "ttc_gt"] and len(shown) == METRICS_SHOWN
+    assert model.summary(1.0)["runs"][0]["modules"]["perception"]["key_metrics"] == []

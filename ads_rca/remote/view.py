@@ -271,6 +271,35 @@ def module_state(latest: Mapping[str, Any] | None, verdict_status: object) -> tu
     return OK, ""
 
 
+#: The metrics shown first for each module's latest result, when it has them; the list is
+#: filled up to :data:`METRICS_SHOWN` with its other plain metrics, in its own order (a
+#: result carries 20-30: the rest stay in the result, and in the page's tooltip).
+KEY_METRICS: Mapping[str, tuple[str, ...]] = {
+    "perception": ("recall", "precision", "mean_iou", "partner_matched"),
+    "prediction": ("ade", "fde", "displacement_error", "miss_rate"),
+    "planning": ("c_gt", "c_plan", "ttc_gt", "partner_in_planner_inputs"),
+    "controller": (
+        "tracking_failure",
+        "speed_tracking_error",
+        "lateral_tracking_error",
+        "toward_partner",
+    ),
+}
+METRICS_SHOWN = 4
+
+
+def key_metric_names(module: str, metrics: Mapping[str, Any]) -> list[str]:
+    """The names of the metrics a dashboard shows of a result (:data:`KEY_METRICS`)."""
+    names = [n for n in KEY_METRICS.get(module, ()) if n in metrics]
+    for name, value in metrics.items():
+        if len(names) >= METRICS_SHOWN:
+            break
+        plain = value is None or isinstance(value, str | int | float)
+        if name not in names and plain:
+            names.append(name)
+    return names[:METRICS_SHOWN]
+
+
 def blamed(verdict: Mapping[str, Any] | None) -> set[str]:
     """The modules a (checked) verdict names as root causes: its primary and the rest."""
     if verdict is None:
@@ -379,6 +408,10 @@ class RunView:
                 "detail": detail,
                 # Judged before the collision partner was known (docs/live-graph.md).
                 "provisional": latest is not None and latest.get("provisional") is True,
+                # What a table shows of the latest result's metrics (the rest: on demand).
+                "key_metrics": key_metric_names(module, metrics)
+                if latest is not None and isinstance(metrics := latest.get("metrics"), dict)
+                else [],
                 "latest": None
                 if latest is None
                 else {

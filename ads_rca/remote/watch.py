@@ -53,6 +53,7 @@ from ads_rca.remote.view import (
     SKIPPED,
     WAITING,
     DashboardModel,
+    key_metric_names,
     read_verdict,
 )
 
@@ -70,20 +71,6 @@ REFRESH_S = 0.25
 NEAR_MISSES_SHOWN = 4
 #: Longest text drawn from the wire in one cell.
 TEXT_LIMIT = 80
-#: The metrics drawn first for each module's latest result, when it has them; the row is
-#: filled up to :data:`METRICS_SHOWN` with its other plain metrics, in its own order.
-KEY_METRICS: Mapping[str, tuple[str, ...]] = {
-    "perception": ("recall", "precision", "mean_iou", "partner_matched"),
-    "prediction": ("ade", "fde", "displacement_error", "miss_rate"),
-    "planning": ("c_gt", "c_plan", "ttc_gt", "partner_in_planner_inputs"),
-    "controller": (
-        "tracking_failure",
-        "speed_tracking_error",
-        "lateral_tracking_error",
-        "toward_partner",
-    ),
-}
-METRICS_SHOWN = 4
 #: How the module table names each module state (``view.module_state``), and its style:
 #: nothing but a judged, passing result is green.
 STATE_LABELS: Mapping[str, tuple[str, str]] = {
@@ -250,15 +237,8 @@ def key_metrics(module: str, latest: Mapping[str, Any]) -> Text:
     metrics = latest.get("metrics")
     if not isinstance(metrics, Mapping):
         return Text("")
-    names = [n for n in KEY_METRICS.get(module, ()) if n in metrics]
-    for name, value in metrics.items():
-        if len(names) >= METRICS_SHOWN:
-            break
-        plain = value is None or isinstance(value, str | int | float)
-        if name not in names and plain:
-            names.append(name)
     text = Text()
-    for name in names[:METRICS_SHOWN]:
+    for name in key_metric_names(module, metrics):
         if text:
             text.append("  ")
         text.append(safe(name, 30), style="dim")

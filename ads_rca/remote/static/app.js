@@ -215,10 +215,15 @@
     const rows = MODULES.map((module) => {
       const m = d.modules[module] || { judged: 0, failed_frames: 0, latest: null, nonfinite: {} };
       const status = moduleStatus(m);
+      // The key metrics in the cell (view.key_metric_names), every one in its tooltip.
       const metrics = [];
+      const all = [];
+      const shown = Array.isArray(m.key_metrics) ? m.key_metrics : [];
       if (m.latest && m.latest.metrics && typeof m.latest.metrics === "object") {
         for (const [key, value] of Object.entries(m.latest.metrics)) {
-          metrics.push(key + " " + fmt(value, m.nonfinite, "/metrics/" + pointerToken(key)));
+          const text = key + " " + fmt(value, m.nonfinite, "/metrics/" + pointerToken(key));
+          all.push(text);
+          if (shown.includes(key)) metrics.push(text);
         }
       }
       const row = el(
@@ -229,7 +234,7 @@
         el("td", { class: "judged" }, String(m.judged)),
         el("td", { class: "failed" }, String(m.failed_frames)),
         el("td", {}, m.latest ? fmt(m.latest.frame) : "—"),
-        el("td", { class: "metrics" }, metrics.join(" · "))
+        el("td", { class: "metrics", title: all.join("\n") }, metrics.join(" · "))
       );
       row.dataset.module = module;
       return row;

@@ -23,7 +23,7 @@ from ads_rca.live.simulate import run_live
 from ads_rca.live.window import MonitorCore, WindowSettings
 from ads_rca.model import RunLog
 from ads_rca.oracles.base import MODULES
-from ads_rca.params import make_params
+from ads_rca.params import Params, make_params
 from ads_rca.problems import Problem
 from ads_rca.sources.log.reader import read_run_log
 from ads_rca.synth import FAULTS, SCENARIOS, synthesise
@@ -182,15 +182,22 @@ def test_result_json_round_trip_is_exact() -> None:
             assert dumps_json(back.to_document()) == dumps_json(result.to_document())
 
 
-def test_lost_results_do_not_hold_the_verdict() -> None:
-    log = synth("cut_in", "perception")
-    params = make_params("reference")
-    run = run_live(log, params)
-    aggregator = AggregatorCore(params, verdict_timeout_s=100.0)
+def ended_run(log: RunLog, params: Params, **options: Any) -> AggregatorCore:
+    """An aggregator (``options``: its own) that heard ``log``'s metadata, every frame
+    marker and the end of the run, and no result yet."""
+    aggregator = AggregatorCore(params, **options)
     aggregator.set_metadata(log.metadata, log.source, 0.0)
     for n, ts in enumerate(log.frames):
         aggregator.add_marker(FrameMarker(n, ts), 0.0)
     aggregator.set_finished(0.0)
+    return aggregator
+
+
+def test_lost_results_do_not_hold_the_verdict() -> None:
+    log = synth("cut_in", "perception")
+    params = make_params("reference")
+    run = run_live(log, params)
+    aggregator = ended_run(log, params, verdict_timeout_s=100.0)
     for module in MODULES:
         for result in run.results[module]:
             if not (module == "planning" and 10 <= result.index < 20):  # monitor was down
@@ -248,11 +255,7 @@ def test_a_hostile_arrival_time_is_not_said_and_the_latency_says_so(value: objec
     log = synth("cut_in", "perception")
     params = make_params("reference")
     run = run_live(log, params)
-    aggregator = AggregatorCore(params)
-    aggregator.set_metadata(log.metadata, log.source, 0.0)
-    for n, ts in enumerate(log.frames):
-        aggregator.add_marker(FrameMarker(n, ts), 0.0)
-    aggregator.set_finished(0.0)
+    aggregator = ended_run(log, params)
     for module in MODULES:
         for result in run.results[module]:
             document = {**result.to_document(), "arrived_s": value}

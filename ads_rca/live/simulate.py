@@ -46,7 +46,7 @@ class LiveRun:
     #: Stack mode: each episode that ended (a later one began), in order.
     episodes: list[EpisodeReport] = field(default_factory=list)
     #: The results a monitor node publishes after the others of their poll
-    #: (:attr:`MonitorCore.deferred`).
+    #: (:meth:`MonitorCore.poll_in_order`).
     deferred: list[LiveResult] = field(default_factory=list)
 
 
@@ -96,11 +96,10 @@ def run_live(
 
     def pump() -> None:
         for core in cores:
-            polled = core.poll(now())
-            deciding = len(polled) - core.deferred
-            run.deferred.extend(polled[deciding:])
+            deciding, later = core.poll_in_order(now())
+            run.deferred.extend(later)
             # As the node publishes: what the verdict waits for first, the rest after.
-            for part in (polled[:deciding], polled[deciding:]):
+            for part in (deciding, later):
                 for result in part:
                     run.results[result.module].append(result)
                     aggregator.add_result(result, now())
@@ -270,9 +269,9 @@ def run_stack(
 
     def pump(now: float) -> None:
         ended = feed.poll(now)  # an ended episode's last results, then the current one's
-        polled = feed.core.poll(now)
-        run.deferred.extend(polled[len(polled) - feed.core.deferred :])
-        for result in ended + polled:
+        deciding, later = feed.core.poll_in_order(now)
+        run.deferred.extend(later)
+        for result in ended + deciding + later:
             run.results[result.module].append(result)
             aggregator.add_result(result, now)
         feed.core.collision_warnings()  # as the monitors node polls

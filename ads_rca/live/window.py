@@ -182,9 +182,6 @@ class MonitorCore(FollowsRunEnd):
         self.stack = stack
         #: The last frame looked at for a collision warning (:meth:`collision_warnings`).
         self._warned_through = -1
-        #: How many of the last :meth:`poll`'s results, at its end, decide no verdict
-        #: (kept results before the effect window: :meth:`_judge`).
-        self.deferred = 0
         #: The actor of the latest collision warning, the likely partner (:meth:`prepare`),
         #: and the stamp it was warned of at.
         self.threat: str | None = None
@@ -420,18 +417,21 @@ class MonitorCore(FollowsRunEnd):
         return out
 
     def poll(self, now: float | None = None) -> list[LiveResult]:
-        """Judge every frame that became ready (in order); their results. The last
-        :attr:`deferred` of them may be published after the others (:meth:`_judge`)."""
-        now = time.monotonic() if now is None else now
-        self.deferred = 0
-        if self.metadata is None:
-            return []
-        self._settle(now)
-        judged = self._judge_ready(now)
-        split = len(judged) - self.deferred
-        return judged[:split] + self._rescore() + judged[split:]
+        """Judge every frame that became ready (in order); their results."""
+        deciding, later = self.poll_in_order(now)
+        return deciding + later
 
-    def _judge_ready(self, now: float) -> list[LiveResult]:
+    def poll_in_order(self, now: float | None = None) -> tuple[list[LiveResult], list[LiveResult]]:
+        """:meth:`poll`'s results in two parts: those to publish first, and those a node
+        may publish after them, which decide no verdict (:meth:`_judge`)."""
+        now = time.monotonic() if now is None else now
+        if self.metadata is None:
+            return [], []
+        self._settle(now)
+        judged, later = self._judge_ready(now)
+        return judged + self._rescore(), later
+
+    def _judge_ready(self, now: float) -> tuple[list[LiveResult], list[LiveResult]]:
         stalled = self.stalled(now)
         ready: list[tuple[_Entry, tuple[str, ...]]] = []
         waiting: list[_Entry] = []  # held for the partner alone: judged provisionally
@@ -447,7 +447,7 @@ class MonitorCore(FollowsRunEnd):
                 blockers.append("pending queue full")
             ready.append((entry, tuple(blockers)))
         if not ready:
-            return self._judge_provisionally(waiting, now)
+            return self._judge_provisionally(waiting, now), []
         results = self._judge(ready, now)
         for _ in ready:
             self._judged.append(self.pending.popleft())
@@ -643,9 +643,11 @@ class MonitorCore(FollowsRunEnd):
             self.semantics.judge_without_collision(ctx)
         return ctx
 
-    def _judge(self, ready: list[tuple[_Entry, tuple[str, ...]]], now: float) -> list[LiveResult]:
+    def _judge(
+        self, ready: list[tuple[_Entry, tuple[str, ...]]], now: float
+    ) -> tuple[list[LiveResult], list[LiveResult]]:
         """Judge ``ready`` in order, on one view per cut (stack mode: frames up to the
-        collision see no data after it).
+        collision see no data after it); the results, and those that may come last.
 
         Results kept as published before, of frames before the effect window, come last:
         they changed only in the collision they name, and the verdict reads nothing else of
@@ -660,8 +662,7 @@ class MonitorCore(FollowsRunEnd):
         for cut, group in groups.items():
             out.extend(self._judge_on(self.view(cut), group, now, later))
         del self.stats.compute_s[:-10000]
-        self.deferred = len(later)
-        return out + later
+        return out, later
 
     def _window_start_ms(self) -> int | None:
         """The first stamp of the collision's effect window (None: no collision)."""

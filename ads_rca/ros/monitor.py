@@ -294,10 +294,9 @@ class MonitorUnit:
         """Publish the results of every frame that became ready, then the collision warning
         of the frames that came in (before any collision: docs/live-graph.md)."""
         self.last_poll = now = time.monotonic()
-        results = self.core.poll(now)
-        deciding = len(results) - self.core.deferred
-        self.publish(results[:deciding])  # what the verdict waits for, first
-        self.publish(results[deciding:])
+        deciding, later = self.core.poll_in_order(now)
+        self.publish(deciding)  # what the verdict waits for, first
+        self.publish(later)
         planning = self.nodes.get("planning")
         said = planning is not None and planning.publish_diagnostics
         if not (said or self.core.stack):

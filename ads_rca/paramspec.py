@@ -34,8 +34,9 @@ class Range:
         return f"[{_number_text(self.low)}, {_number_text(self.high)}]{unit}"
 
     def check(self, name: str, value: float) -> None:
-        """Raise ConfigError unless ``low <= value <= high`` (NaN and infinities never are)."""
-        if not (math.isfinite(value) and self.low <= value <= self.high):
+        """Raise ConfigError unless ``low <= value <= high``: NaN never is, and infinity only
+        where a bound is infinite (:data:`LINGER`'s "until stopped")."""
+        if math.isnan(value) or not self.low <= value <= self.high:
             raise ConfigError(
                 f"parameter {name}: {_number_text(value)} is out of range {self.text()}"
             )
@@ -298,6 +299,9 @@ SPECS: dict[str, ParamSpec] = {
 MAX_FILE_MB = Range(0.001, 1_048_576.0, unit="MB")
 #: A node's timeout or period, in seconds (up to an hour).
 SECONDS = Range(0.0, 3600.0, unit="s")
+#: How long the Zenoh bridge serves a run to late dashboards after its verdict
+#: (``--zenoh-linger``, ``linger_s``): inf serves it until the bridge is stopped.
+LINGER = Range(0.0, math.inf, unit="s")
 #: Stack mode's ``episode_rewind_s``: how far the reference stamps may go back before a new
 #: episode begins (0: never; up to a day).
 EPISODE_REWIND = Range(0.0, 86_400.0, unit="s")

@@ -12,7 +12,8 @@ How it ends (launch's own ``OnProcessExit`` and ``Shutdown``, per ``graph.exit_o
   subscriber (the recorder among them): the launch shuts down, SIGINT to the rest, the
   recorder finalises its bag, every node exits 0, and ``ros2 launch`` exits 0; with
   ``zenoh:=true`` the Zenoh bridge ends the run instead, once it forwarded the verdict and
-  answered late dashboards for ``zenoh_linger`` seconds;
+  answered late dashboards for ``zenoh_linger`` seconds (30; ``inf``: until Ctrl-C), every
+  node running until then;
 - a node exits non-zero (the player's 2 for an unusable log, a crash): every node is
   stopped and the launch fails (status 1: ``ros2 launch`` has no other failure status),
   its error line naming the node and its exit status;

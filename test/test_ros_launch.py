@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import math
 import os
 import shutil
 import subprocess
@@ -354,6 +355,20 @@ def test_ros2_launch_with_the_bridge_ends_once_it_forwarded_the_verdict(
     assert json.loads(verdicts[0]["text"])["primary_root_cause"] == "perception"
 
 
+def test_the_bridge_lingers_30_s_by_default_and_inf_serves_until_stopped() -> None:
+    """Late dashboards get the run for 30 s after its verdict, in replay and in the launch;
+    ``inf`` keeps the bridge serving until Ctrl-C."""
+    from loopback import free_port
+
+    replay = build_parser("replay").parse_args(["replay", str(EXAMPLE)])
+    assert float(replay.zenoh_linger) == float(LAUNCH_ARGUMENTS["zenoh_linger"].default) == 30
+    for given, linger in (({}, 30.0), ({"zenoh_linger": "inf"}, math.inf)):
+        listen = f"tcp/127.0.0.1:{free_port()}"
+        values = {"log_path": str(EXAMPLE), "zenoh": "true", "zenoh_listen": listen, **given}
+        spec = spec_from_arguments(values)
+        assert spec.zenoh_params is not None and spec.zenoh_params["linger_s"] == linger
+
+
 def test_launch_arguments_start_the_bridge_only_on_request() -> None:
     base = {"log_path": str(EXAMPLE)}
     assert spec_from_arguments(base).zenoh_params is None
@@ -378,6 +393,10 @@ def test_launch_arguments_start_the_bridge_only_on_request() -> None:
             "not on loopback; give zenoh_allow_remote:=true",
         ),
         ({"zenoh": "true", "zenoh_linger": "-3"}, "zenoh_linger"),
+        ({"zenoh": "true", "zenoh_linger": "-inf"}, "zenoh_linger: -inf is out of range"),
+        ({"zenoh": "true", "zenoh_linger": "nan"}, "zenoh_linger: nan is out of range"),
+        ({"zenoh": "true", "zenoh_linger": "soon"}, "zenoh_linger: 'soon' is not a number"),
+        ({"zenoh": "true", "zenoh_linger": ""}, "zenoh_linger: '' is not a number"),
     ):
         with pytest.raises(AdsRcaError, match=message):
             spec_from_arguments({**base, **bad})

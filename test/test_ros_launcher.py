@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import sys
 from pathlib import Path
 
@@ -24,6 +25,7 @@ def test_parameters_are_formatted_for_ros_args() -> None:
     assert format_param(True) == "true"
     assert format_param(3) == "3"
     assert format_param(0.0) == "0.0"
+    assert format_param(math.inf) == ".inf"  # YAML's: a double to rcl and to PyYAML
     assert format_param("123") == '"123"'
     assert ros_args({"rate": 2.0}, "p.yaml") == [
         "--ros-args",

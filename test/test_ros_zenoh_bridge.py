@@ -4,6 +4,8 @@
   result of every module and the verdict, identical to what the replay and ``diagnose``
   say; the raw CDR samples decode with rosbags into the original messages; a dashboard
   that connects after the verdict gets it, and the frames it missed, from the queryables;
+  with the default linger, ``watch`` started after the replay printed its verdict gets it,
+  and Ctrl-C during the linger loses nothing (status 0, JSON and bag complete);
 - the bridge node on its own survives its Zenoh peer going away and coming back, counts a
   malformed result instead of forwarding it, and stops cleanly (exit 0, session closed)
   on SIGINT and on SIGTERM;
@@ -24,6 +26,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import pytest
+from logcompare import assert_logs_equal
 from loopback import free_port
 from rosbags.typesys import Stores, get_typestore
 from rosrun import listener, rows, wait_for
@@ -35,6 +38,7 @@ from ads_rca.foundation import strictjson
 from ads_rca.oracles.base import MODULES
 from ads_rca.params import make_params
 from ads_rca.ros.launcher import ManagedProcess, ros_args
+from ads_rca.sources.bag.reader import read_bag
 from ads_rca.sources.log.reader import read_run_log
 
 if TYPE_CHECKING:
@@ -135,6 +139,66 @@ def test_replay_over_zenoh_gives_every_result_the_verdict_and_late_catch_up(
     history = strictjson.loads(replies["car1/ads_rca/frames"]["text"])
     assert [f["index"] for f in history["frames"]] == list(range(41, frames))
     assert set(history["frames"][-1]["modules"]) == set(MODULES)
+
+
+@pytest.mark.slow
+def test_watch_started_after_the_verdict_gets_it_and_ctrl_c_in_the_linger_loses_nothing(
+    ros_env: RosEnv, tmp_path: Path, log_dirs: Callable[[str, str], Path]
+) -> None:
+    """``replay --zenoh`` with the default linger (30 s): every output is written and every
+    other node stopped before the bridge lingers, so ``watch`` started after the replay
+    printed its verdict gets it, and Ctrl-C then ends the replay with the run's status (0),
+    the JSON as printed and the recording finalised. Before, the bridge was gone 2 s after
+    the verdict and such a ``watch`` timed out (exit 3)."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    log_dir = log_dirs("cut_in", "perception")
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    out, bag = tmp_path / "verdict.json", tmp_path / "bag"
+    argv = [sys.executable, "-m", "ads_rca.cli", "replay", str(log_dir), "--json", str(out)]
+    argv += ["--record", str(bag), "--domain-id", str(ros_env.domain_id)]
+    argv += ["--namespace", ros_env.namespace, "--zenoh", "--zenoh-listen", endpoint]
+    replay = ManagedProcess("replay", [*argv, "--timeout", "90"], ros_env.env)
+    watch_argv = [sys.executable, "-m", "ads_rca.cli", "watch", "--json", "--exit-on-verdict"]
+    watch_argv += ["--timeout", "20", "--connect", endpoint]
+    watch: ManagedProcess | None = None
+    try:
+
+        def serving() -> str | None:
+            return next((x for x in list(replay.lines) if "late dashboards on" in x), None)
+
+        line = wait_for(serving, 90, "the replay to serve late dashboards")
+        assert f"on {endpoint} for 30 s" in line, replay.output
+        assert out.is_file() and (bag / "verdict.json").is_file()
+        watch = ManagedProcess("watch", watch_argv, ros_env.env)
+        assert watch.wait(60) == 0, watch.output
+        assert replay.returncode is None, replay.output  # still lingering
+        replay.signal(signal.SIGINT)
+        assert replay.wait(30) == 0, replay.output
+    finally:
+        for process in (watch, replay):
+            if process is not None:
+                process.stop()
+    printed = json.loads(out.read_text())
+    assert f"verdict: {printed['verdict']}  [{printed['attribution_basis']}]" in replay.lines
+    assert json.loads((bag / "verdict.json").read_text()) == printed
+    assert "stopped by SIGINT while serving late dashboards" in replay.output
+    final = [json.loads(x) for x in watch.output.splitlines() if x.startswith("{")][-1]
+    assert final["kind"] == "final"
+    assert final["primary_root_cause"] == printed["primary_root_cause"] is not None
+    # The recording is finalised (summary and metadata), its verdict the one printed, and
+    # it rebuilds the log that was played.
+    assert (bag / "metadata.yaml").is_file()
+    with next(bag.glob("*.mcap")).open("rb") as stream:
+        reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+        summary = reader.get_summary()
+        topic = f"{ros_env.namespace}/verdict/json"
+        recorded = [m.data for _s, _c, _r, m in reader.iter_decoded_messages(topics=[topic])]
+    assert summary is not None and summary.statistics is not None
+    assert summary.statistics.message_count > 0
+    assert [json.loads(text) for text in recorded] == [printed]
+    assert_logs_equal(read_run_log(log_dir), read_bag(bag))
 
 
 def bridge_process(ros_env: RosEnv, name: str, **params: Any) -> ManagedProcess:
@@ -238,6 +302,8 @@ def test_bridge_survives_its_peer_going_away_and_stops_cleanly(
         ({"bridge_topics": ("a b",)}, "chunk 'a b'"),
         ({"rate_modules": -1.0}, "rate_modules: -1 is out of range"),
         ({"history_frames": 0}, "history_frames: 0 is out of range"),
+        ({"linger_s": -1.0}, "linger_s: -1 is out of range [0, inf] s"),
+        ({"linger_s": "soon"}, "linger_s: 'soon' is not a number"),
         ({"zenoh_listen": ("tcp/127.0.0.1:{busy}",)}, "cannot open the Zenoh session"),
     ],
 )
@@ -267,6 +333,10 @@ def test_bad_bridge_parameters_are_one_line_and_exit_2(
         (["--zenoh-prefix", "a/$x"], "chunk '$x'"),
         (["--rate-modules", "nan"], "rate_modules"),
         (["--zenoh-linger", "-1"], "zenoh_linger"),
+        (["--zenoh-linger=-inf"], "zenoh_linger: -inf is out of range [0, inf] s"),
+        (["--zenoh-linger", "nan"], "zenoh_linger: nan is out of range"),
+        (["--zenoh-linger", "soon"], "zenoh_linger: 'soon' is not a number"),
+        (["--zenoh-linger", ""], "zenoh_linger: '' is not a number"),
     ],
 )
 def test_bad_replay_zenoh_options_are_one_line_before_any_node(
@@ -349,6 +419,23 @@ def test_the_bridge_starts_from_its_config_file(ros_env: RosEnv) -> None:
     try:
         wait_for(lambda: "parameters in force" in bridge.output, 30, "the bridge to start")
         assert "rate_modules=20.0" in bridge.output and "history_frames=2000" in bridge.output
+        bridge.signal(signal.SIGINT)
+        assert bridge.wait(10) == 0, bridge.output
+    finally:
+        bridge.stop()
+
+
+@pytest.mark.parametrize("typed", ["inf", ".inf"])
+def test_the_bridge_takes_an_endless_linger(ros_env: RosEnv, typed: str) -> None:
+    """``linger_s`` inf (as typed, or as ``replay --zenoh-linger inf`` passes it): serve
+    late dashboards until stopped, which still ends the bridge cleanly."""
+    argv = [sys.executable, "-m", "ads_rca.ros.zenoh_bridge", "--ros-args"]
+    argv += ["-p", "exit_after_verdict:=true", "-p", f"linger_s:={typed}"]
+    argv += ["-p", f'zenoh_listen:=["tcp/127.0.0.1:{free_port()}"]']
+    bridge = ManagedProcess("bridge", argv, ros_env.env)
+    try:
+        wait_for(lambda: "parameters in force" in bridge.output, 30, "the bridge to start")
+        assert "linger_s=inf" in bridge.output
         bridge.signal(signal.SIGINT)
         assert bridge.wait(10) == 0, bridge.output
     finally:

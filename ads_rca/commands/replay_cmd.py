@@ -2,8 +2,10 @@
 
 Starts the player, the four monitors, the aggregator (and the recorder with ``--record``) as
 separate processes on a DDS domain of their own with local-only discovery, waits for the
-aggregator's verdict, prints it like ``diagnose`` does, writes the JSON (the ``diagnose
---json`` contract plus ``verdict_latency_s`` and ``live``) and stops everything cleanly. The
+aggregator's verdict, stops the nodes cleanly (the recorder finalising its bag), prints the
+verdict like ``diagnose`` does and writes the JSON (the ``diagnose --json`` contract plus
+``verdict_latency_s`` and ``live``). With ``--zenoh`` the bridge alone then serves the run to
+late dashboards for ``--zenoh-linger`` seconds; a stop signal then loses nothing. The
 monitors run the engine's oracles and the aggregator its attribution, so for a log that ends
 at its collision (as recorded crashes do) the verdict equals ``ads-rca diagnose``'s.
 """
@@ -12,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import itertools
+import math
 import os
 import re
 import shutil
@@ -19,6 +22,7 @@ import signal
 import subprocess
 import sys
 import tempfile
+import time
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager, suppress
 from pathlib import Path
@@ -194,7 +198,8 @@ def start_reaper(work: Path) -> subprocess.Popen[bytes] | None:
 
 class Interrupted(AdsRcaError):
     """A stop signal (SIGINT, SIGTERM, SIGHUP) arrived: stop the graph and exit (caught by
-    ``replay`` itself, which says which signal and exits 128 + its number)."""
+    ``replay`` itself, which says which signal and exits 128 + its number; while the bridge
+    lingers after the verdict, with the run's status: its outputs are written)."""
 
     def __init__(self, signum: int) -> None:
         super().__init__(signal.Signals(signum).name)
@@ -234,7 +239,9 @@ def _replay(
     record: Path | None,
     graphs: list[Graph],
 ) -> int:
-    from ads_rca.ros.graph import Graph
+    """Run the graph to its verdict and report it; with ``--zenoh``, every output written
+    and every other node stopped, the bridge then serves the run to late dashboards."""
+    from ads_rca.ros.graph import BRIDGE_NAME, Graph
 
     echo = sys.stdout if args.verbose else None
     graph = Graph(spec, env, echo=echo)
@@ -243,30 +250,61 @@ def _replay(
         with graph:
             graph.start()
             document = graph.wait_verdict(args.timeout)
-            failed = graph.failed() if document is None else {}
-            if document is not None and spec.zenoh_params is not None:
-                wait_bridge(graph, float(args.zenoh_linger))
-            codes = graph.stop()
-            outputs = {name: p.output for name, p in graph.processes.items()}
+            if document is None:
+                failed = graph.failed()
+                codes = graph.stop()
+                return no_verdict(args, failed, codes, node_outputs(graph))
+            zenoh = spec.zenoh_params
+            if zenoh is not None:
+                wait_forwarded(graph)
+            graph.stop(keep=(BRIDGE_NAME,) if zenoh is not None else ())
+            status = report_verdict(args, document, record, node_outputs(graph))
+            if zenoh is not None:
+                serve_late_dashboards(graph, zenoh, float(args.zenoh_linger))
+            return status
     except Interrupted:
         graph.launcher.stop_all()  # again: the signal may have cut the first stop short
         raise
-    if document is None:
-        for name, code in failed.items():
-            last = next((x for x in reversed(outputs[name].splitlines()) if x.strip()), "")
-            print(
-                printable(
-                    f"ads-rca replay: no verdict: {name} exited early ({exit_status(code)})"
-                    + (f": {last.strip()}" if last else "")
-                ),
-                file=sys.stderr,
-            )
-        if not failed:
-            print(f"ads-rca replay: no verdict within {args.timeout:g} s", file=sys.stderr)
-        for name, text in outputs.items():
-            tail = "\n".join(text.splitlines()[-8:])
-            print(printable_lines(f"--- {name} (exit {codes.get(name)}):\n{tail}"), file=sys.stderr)
-        return 2 if codes.get("player") == 2 else 1
+
+
+def node_outputs(graph: Graph) -> dict[str, str]:
+    """Every node's output so far, by name."""
+    return {name: p.output for name, p in graph.processes.items()}
+
+
+def no_verdict(
+    args: argparse.Namespace,
+    failed: Mapping[str, int],
+    codes: Mapping[str, int],
+    outputs: Mapping[str, str],
+) -> int:
+    """Why there is no verdict (the nodes that exited early, or the timeout) and each node's
+    last lines, on stderr; 2 when the player found the input unusable, else 1."""
+    for name, code in failed.items():
+        last = next((x for x in reversed(outputs[name].splitlines()) if x.strip()), "")
+        print(
+            printable(
+                f"ads-rca replay: no verdict: {name} exited early ({exit_status(code)})"
+                + (f": {last.strip()}" if last else "")
+            ),
+            file=sys.stderr,
+        )
+    if not failed:
+        print(f"ads-rca replay: no verdict within {args.timeout:g} s", file=sys.stderr)
+    for name, text in outputs.items():
+        tail = "\n".join(text.splitlines()[-8:])
+        print(printable_lines(f"--- {name} (exit {codes.get(name)}):\n{tail}"), file=sys.stderr)
+    return 2 if codes.get("player") == 2 else 1
+
+
+def report_verdict(
+    args: argparse.Namespace,
+    document: dict[str, Any],
+    record: Path | None,
+    outputs: Mapping[str, str],
+) -> int:
+    """The summary, ``--json``, the recording's verdict.json and any internal error, as
+    ``diagnose`` gives them; the exit status they make (0, or :data:`EXIT_INTERNAL_ERROR`)."""
     print(live_summary(document))
     if args.json_out:
         write_json(document, Path(args.json_out))
@@ -314,14 +352,70 @@ def logged_traceback(outputs: Mapping[str, str], module: str) -> str:
     return ""
 
 
-def wait_bridge(graph: Graph, linger_s: float) -> None:
-    """Let the Zenoh bridge forward the verdict and answer late queries for ``linger_s``
-    (it exits by itself then); a bridge that does not is stopped with the rest."""
+def wait_forwarded(graph: Graph) -> None:
+    """Until the Zenoh bridge forwarded the verdict (it logs
+    :data:`~ads_rca.ros.graph.BRIDGE_FORWARDED`), so stopping the rest of the graph takes
+    nothing from it; at most its hold for the results the verdict counts and 5 s more,
+    then the graph is stopped anyway, saying so."""
+    from ads_rca.remote.state import VERDICT_HOLD_S
+    from ads_rca.ros.graph import BRIDGE_FORWARDED, BRIDGE_NAME
+
+    bridge = graph.processes.get(BRIDGE_NAME)
+    wait = VERDICT_HOLD_S + 5.0
+    deadline = time.monotonic() + wait
+    while bridge is not None and bridge.returncode is None:
+        if BRIDGE_FORWARDED in bridge.output:
+            return
+        if time.monotonic() >= deadline:
+            print(
+                f"ads-rca replay: the Zenoh bridge did not forward the verdict within "
+                f"{wait:g} s; stopping the graph anyway",
+                file=sys.stderr,
+            )
+            return
+        time.sleep(0.05)
+
+
+def serve_late_dashboards(graph: Graph, zenoh: Mapping[str, ParamValue], linger_s: float) -> None:
+    """The run's outputs are written and the rest of the graph stopped: the bridge serves the
+    run to late dashboards for ``linger_s`` (it exits by itself then; inf: until a stop
+    signal), and is stopped. A stop signal now loses nothing, so it only ends this wait:
+    ``replay`` exits with the run's status, not 128 + the signal."""
     from ads_rca.ros.graph import BRIDGE_NAME
 
     bridge = graph.processes.get(BRIDGE_NAME)
-    if bridge is not None and bridge.wait(linger_s + 10.0) is None:
-        print("ads-rca replay: the Zenoh bridge did not finish; stopping it", file=sys.stderr)
+    if bridge is None or bridge.returncode is not None:
+        return
+    try:
+        print(lingering_line(zenoh, linger_s), flush=True)
+        if bridge.wait(None if math.isinf(linger_s) else linger_s + 10.0) is None:
+            print("ads-rca replay: the Zenoh bridge did not finish; stopping it", file=sys.stderr)
+        graph.launcher.stop_all()
+    except Interrupted as stop:
+        print(
+            f"ads-rca replay: stopped by {stop} while serving late dashboards; "
+            "every output was written",
+            file=sys.stderr,
+        )
+        graph.launcher.stop_all()  # a second signal SIGKILLs it (stop_signals)
+
+
+def lingering_line(zenoh: Mapping[str, ParamValue], linger_s: float) -> str:
+    """Where and how long the bridge serves the run after its verdict, and that stopping it
+    sooner loses nothing."""
+    listen, connect = _texts(zenoh.get("zenoh_listen")), _texts(zenoh.get("zenoh_connect"))
+    where = f"on {', '.join(listen)}" if listen else f"through {', '.join(connect)}"
+    prefix = str(zenoh.get("zenoh_prefix") or "")
+    under = f" under prefix {prefix}" if prefix else ""
+    until = "until Ctrl-C" if math.isinf(linger_s) else f"for {linger_s:g} s (Ctrl-C ends it)"
+    return printable(
+        f"Zenoh bridge: serving this run to late dashboards {where}{under} {until}; "
+        "every output is written, nothing is lost by stopping it"
+    )
+
+
+def _texts(value: ParamValue | None) -> tuple[str, ...]:
+    return tuple(str(v) for v in value) if isinstance(value, tuple) else ()
 
 
 def live_summary(document: dict[str, Any]) -> str:

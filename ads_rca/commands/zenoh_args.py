@@ -47,9 +47,10 @@ def add_zenoh_arguments(parser: argparse.ArgumentParser) -> None:
     )
     group.add_argument(
         "--zenoh-linger",
-        default="2",
+        default="30",
         metavar="S",
-        help="keep the bridge answering queries this long after the verdict (default 2 s)",
+        help="after the verdict, outputs written and every other node stopped, the bridge "
+        "serves the run to late dashboards this long (default 30 s; inf: until Ctrl-C)",
     )
 
 

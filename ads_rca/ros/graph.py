@@ -25,7 +25,7 @@ import json
 import signal
 import sys
 import time
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
@@ -38,7 +38,7 @@ from ads_rca.live.runid import new_run_id
 from ads_rca.oracles.base import MODULES, Module
 from ads_rca.oracles.semantics import EVENT_PARAMETERS
 from ads_rca.params import SEMANTICS, Params, params_from_sources
-from ads_rca.paramspec import MAX_FILE_MB, RATE, SECONDS, check_number
+from ads_rca.paramspec import LINGER, MAX_FILE_MB, RATE, check_number
 from ads_rca.ros.launcher import Launcher, ManagedProcess, ParamValue, ros_args
 from ads_rca.sources.bag.profiles import BUILTIN_PROFILES
 from ads_rca.sources.formats import AUTO, SOURCE_PARAMS, SourceOptions
@@ -53,6 +53,9 @@ BRIDGE = "ads_rca.ros.zenoh_bridge"
 MONITORS: dict[str, Module] = {f"{module}_monitor": module for module in MODULES}
 #: The bridge's node, process and executable name.
 BRIDGE_NAME = "zenoh_bridge"
+#: What the bridge logs once it forwarded the verdict: ``replay`` stops the rest of the
+#: graph only then (nothing the bridge still had to hear is lost), the bridge lingering on.
+BRIDGE_FORWARDED = "verdict forwarded"
 #: The executable that runs all four monitors in one process.
 GROUP = "monitors"
 MONITORS_SHARED = "shared"
@@ -206,7 +209,7 @@ def bridge_params(
         "zenoh_prefix": check_prefix(prefix, "zenoh_prefix"),
         "zenoh_allow_remote": allow_remote,
         "rate_modules": float(check_number("rate_modules", rate_modules, RATE)),
-        "linger_s": float(check_number("zenoh_linger", linger_s, SECONDS)),
+        "linger_s": float(check_number("zenoh_linger", linger_s, LINGER)),
     }
     if mode == "peer":
         params["zenoh_listen"] = listen
@@ -328,8 +331,9 @@ LAUNCH_ARGUMENTS: dict[str, LaunchArgument] = {
         "20.0", "Most JSON samples per second per module key on Zenoh (0 = all).", "rate_modules"
     ),
     "zenoh_linger": LaunchArgument(
-        "2.0",
-        "The bridge keeps answering queries this long after the verdict; the run ends then.",
+        "30.0",
+        "Seconds the bridge keeps serving the run to late dashboards after the verdict "
+        "(inf: until Ctrl-C); the run ends then.",
         "zenoh_linger",
     ),
 }
@@ -517,12 +521,13 @@ class Graph:
             if (code := p.returncode) is not None and (name != "player" or code != 0)
         }
 
-    def stop(self, player_grace_s: float = 10.0) -> dict[str, int]:
-        """Let the player finish (it exits after its acks), then stop the rest in reverse."""
+    def stop(self, player_grace_s: float = 10.0, keep: Collection[str] = ()) -> dict[str, int]:
+        """Let the player finish (it exits after its acks), then stop the rest in reverse,
+        but the nodes named in ``keep`` (``replay``'s lingering bridge)."""
         player = self.processes.get("player")
         if player is not None:
             player.wait(player_grace_s)
-        return self.launcher.stop_all()
+        return self.launcher.stop_all(keep=keep)
 
     def __enter__(self) -> Graph:
         return self

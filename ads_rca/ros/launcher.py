@@ -15,13 +15,14 @@ Pure Python: no rclpy import.
 
 from __future__ import annotations
 
+import math
 import os
 import signal
 import subprocess
 import sys
 import threading
 import time
-from collections.abc import Iterable, Mapping
+from collections.abc import Collection, Iterable, Mapping
 from types import TracebackType
 from typing import TextIO
 
@@ -32,8 +33,9 @@ ParamValue = bool | int | float | str | tuple[str, ...]
 
 
 def format_param(value: ParamValue) -> str:
-    """A value as ``-p name:=value`` wants it (YAML): floats keep a '.', strings are quoted,
-    a tuple of strings is a YAML flow list (a string array; rcl cannot type an empty one)."""
+    """A value as ``-p name:=value`` wants it (YAML): floats keep a '.' (infinity is YAML's
+    ``.inf``, a double to rcl and to PyYAML alike), strings are quoted, a tuple of strings
+    is a YAML flow list (a string array; rcl cannot type an empty one)."""
     if isinstance(value, tuple):
         if not value:
             raise ValueError("an empty list parameter has no type: leave it out")
@@ -43,7 +45,7 @@ def format_param(value: ParamValue) -> str:
     if isinstance(value, int):
         return str(value)
     if isinstance(value, float):
-        return repr(value)
+        return (".inf" if value > 0 else "-.inf") if math.isinf(value) else repr(value)
     escaped = value.replace("\\", "\\\\").replace('"', '\\"')
     return f'"{escaped}"'
 
@@ -183,9 +185,13 @@ class Launcher:
             out[name] = self.processes[name].wait(remaining)
         return out
 
-    def stop_all(self, timeout: float = 5.0) -> dict[str, int]:
-        """Stop every process, last started first."""
-        return {name: process.stop(timeout) for name, process in reversed(self.processes.items())}
+    def stop_all(self, timeout: float = 5.0, keep: Collection[str] = ()) -> dict[str, int]:
+        """Stop every process but those named in ``keep``, last started first."""
+        return {
+            name: process.stop(timeout)
+            for name, process in reversed(self.processes.items())
+            if name not in keep
+        }
 
     def kill_all(self) -> None:
         """SIGKILL every process group now (an impatient second stop request)."""

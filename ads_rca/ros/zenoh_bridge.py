@@ -14,12 +14,15 @@ The JSON side is :class:`~ads_rca.remote.state.RemoteState` behind a
 :class:`~ads_rca.remote.publisher.ZenohPublisher`; this node only moves bytes. The Zenoh
 session is loopback-only unless ``zenoh_allow_remote`` (docs/remote.md) and is closed on
 every exit path (SIGINT and SIGTERM included: ``run_node`` calls :meth:`ZenohBridge.close`).
-With ``exit_after_verdict`` it stops ``linger_s`` seconds after forwarding the verdict
-(``ads-rca replay --zenoh``), answering late queries until then.
+Once the verdict went out it logs :data:`~ads_rca.ros.graph.BRIDGE_FORWARDED` (``replay``
+stops the rest of its graph only then). With ``exit_after_verdict`` it stops ``linger_s``
+seconds later (``ads-rca replay --zenoh``: 30 s; ``inf``: not before it is stopped),
+answering late dashboards' queries until then.
 """
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 from typing import Any
@@ -33,12 +36,13 @@ from ads_rca.contract.errors import DOCUMENT_ERRORS, MalformedMessage
 from ads_rca.errors import AdsRcaError, ConfigError
 from ads_rca.live.runid import checked_run_id
 from ads_rca.oracles.base import MODULES
-from ads_rca.paramspec import RATE, SECONDS, Range
+from ads_rca.paramspec import LINGER, RATE, SECONDS, Range
 from ads_rca.remote.config import DEFAULT_ENDPOINT
 from ads_rca.remote.keys import ros_key
 from ads_rca.remote.publisher import ZenohPublisher
 from ads_rca.remote.rate import RateLimiter
 from ads_rca.remote.state import RemoteState
+from ads_rca.ros.graph import BRIDGE_FORWARDED
 from ads_rca.ros.nodemain import run_node, subscribe_ready_once_matched
 from ads_rca.ros.nodeparams import (
     NodeParameter,
@@ -88,7 +92,11 @@ PARAMETERS: dict[str, NodeParameter] = {
     "heartbeat_s": (1.0, "Period of the status heartbeat (0 = none).", SECONDS),
     "run_id": ("", "Forward only this run's results and verdict ('' = any run)."),
     "exit_after_verdict": (False, "Exit (status 0) linger_s after forwarding the verdict."),
-    "linger_s": (0.0, "With exit_after_verdict: keep answering queries this long.", SECONDS),
+    "linger_s": (
+        0.0,
+        "With exit_after_verdict: keep answering queries this long (.inf: until stopped).",
+        LINGER,
+    ),
     "graph_wait_s": (
         0.0,
         "With run_id: be counted by the run's player only once the graph's outputs it "
@@ -234,9 +242,16 @@ class ZenohBridge(Node):
         return on_message
 
     def _note_verdict(self, now: float) -> None:
-        """When the verdict went out (it waits for the results it counts: RemoteState)."""
+        """When the verdict went out (it waits for the results it counts: RemoteState),
+        said once: the graph's other nodes may stop then."""
         if self.zenoh.state.verdict is not None and self.verdict_at is None:
             self.verdict_at = now
+            serving = ""
+            if self.exit_after_verdict:
+                serving = "; serving late dashboards " + (
+                    "until stopped" if math.isinf(self.linger_s) else f"for {self.linger_s:g} s"
+                )
+            self.get_logger().info(BRIDGE_FORWARDED + serving)
 
     def _tick(self) -> None:
         now = time.monotonic()

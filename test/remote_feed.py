@@ -1,10 +1,11 @@
 """A run's results on Zenoh without ROS: the bridge's Zenoh side fed from the simulated graph.
 
 Usage: ``python test/remote_feed.py LOG_FOLDER --listen tcp/127.0.0.1:PORT [--prefix P]
-[--pace S] [--hold S]``. Plays ``LOG_FOLDER`` through the live cores in memory (the same
+[--pace S] [--hold S] [--run ID]``. Plays ``LOG_FOLDER`` through the live cores in memory (the same
 classes the nodes run), then puts every monitor result (``--pace`` seconds apart) and the
 verdict through :class:`~ads_rca.remote.publisher.ZenohPublisher`, heartbeats while it
-holds, and answers the queryables for ``--hold`` seconds (or until SIGTERM). Prints
+holds, and answers the queryables for ``--hold`` seconds (or until SIGTERM). ``--run``
+names the graph's run id in every result and the verdict, as a replay's graph does. Prints
 ``READY`` once listening and ``VERDICT`` after the verdict is put. Tests of ``watch`` and
 ``dashboard`` use it where a full ROS graph adds nothing.
 """
@@ -33,6 +34,7 @@ def main() -> int:
     parser.add_argument("--pace", type=float, default=0.0)
     parser.add_argument("--hold", type=float, default=60.0)
     parser.add_argument("--start-after", type=float, default=0.0)
+    parser.add_argument("--run", default="")
     args = parser.parse_args()
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(0))
     run = run_live(read_run_log(args.log), make_params("corrected"))
@@ -48,11 +50,17 @@ def main() -> int:
         print("READY", flush=True)
         time.sleep(args.start_after)
         for result in results:
-            publisher.on_result(dumps_json(result.to_document()))
+            document = result.to_document()
+            if args.run:
+                document["run"] = args.run
+            publisher.on_result(dumps_json(document))
             publisher.tick(heartbeat=False)
             if args.pace:
                 time.sleep(args.pace)
-        publisher.on_verdict(dumps_json(run.outcome.document))
+        verdict = run.outcome.document
+        if args.run:
+            verdict = {**verdict, "live": {**verdict.get("live", {}), "run": args.run}}
+        publisher.on_verdict(dumps_json(verdict))
         publisher.finish("verdict")
         print("VERDICT", flush=True)
         end = time.monotonic() + args.hold

@@ -9,6 +9,7 @@ The event stream's coalescing and its dropping of closed streams are checked in-
 from __future__ import annotations
 
 import asyncio
+import io
 import json
 import os
 import queue
@@ -97,12 +98,19 @@ class Feed:
 
 @contextmanager
 def feed(
-    prefix: str, pace: float = 0.0, start_after: float = 0.0, log: Path = EXAMPLE
+    prefix: str,
+    pace: float = 0.0,
+    start_after: float = 0.0,
+    log: Path = EXAMPLE,
+    endpoint: str = "",
+    run: str = "",
 ) -> Iterator[Feed]:
-    """``remote_feed.py`` playing ``log`` (the bundled crash) onto Zenoh under ``prefix``."""
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    """``remote_feed.py`` playing ``log`` (the bundled crash) onto Zenoh under ``prefix``
+    (on ``endpoint``, a free port by default; its results naming ``run``)."""
+    endpoint = endpoint or f"tcp/127.0.0.1:{free_port()}"
     argv = [sys.executable, str(FEED), str(log), "--listen", endpoint, "--prefix", prefix]
     argv += ["--pace", str(pace), "--start-after", str(start_after), "--hold", "90"]
+    argv += ["--run", run]
     process = subprocess.Popen(argv, stdout=subprocess.PIPE, text=True, env=_env())
     try:
         lines = Lines(process)
@@ -136,6 +144,16 @@ class Dashboard:
         assert status == 200
         document: dict[str, Any] = json.loads(body)
         return document
+
+    def runs_by_id(self) -> dict[str, Any]:
+        return {run["id"]: run for run in self.runs()["runs"]}
+
+
+def _wait_until(condition: Callable[[], bool], timeout: float = 30.0) -> None:
+    end = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < end, "timed out"
+        time.sleep(0.1)
 
 
 def start_dashboard(*connect: str) -> tuple[subprocess.Popen[str], Lines]:
@@ -172,7 +190,8 @@ def feed_verdict(endpoint: str, prefix: str) -> dict[str, Any]:
         client.catch_up()
         for key, payload in client.drain():
             model.apply(key, payload, time.time())
-    verdict = model.runs[prefix].verdict
+    view = model.find(prefix)
+    verdict = None if view is None else view.verdict
     assert verdict is not None
     return verdict
 
@@ -202,6 +221,40 @@ def browser() -> Iterator[Any]:
             yield launched
         finally:
             launched.close()
+
+
+#: The page's colours as pixels (app.css --good, --bad).
+GOOD_PIXEL, BAD_PIXEL = (30, 123, 52), (179, 38, 30)
+
+
+def colours_shown(shot: bytes) -> set[str]:
+    """Which of the page's good (green) and bad (red) colours a screenshot shows: what a
+    user sees, after the CSS and the fonts, not what the DOM says."""
+    from PIL import Image
+
+    image = Image.open(io.BytesIO(shot)).convert("RGB")
+    found = set()
+    for count, colour in image.getcolors(maxcolors=1 << 20) or []:
+        rgb: tuple[int, int, int] = colour  # type: ignore[assignment]
+        for name, target in (("good", GOOD_PIXEL), ("bad", BAD_PIXEL)):
+            near = sum(abs(int(a) - b) for a, b in zip(rgb, target, strict=True)) < 40
+            if count >= 3 and near:
+                found.add(name)
+    return found
+
+
+def screenshot(page: Any, selector: str) -> tuple[str, bytes, str]:
+    """The element's text, a screenshot of where it is, and its text again: the page
+    redraws its tables as events come, so an element may be replaced while it is shot
+    (its place stays; compare the two texts to know the shot shows that text)."""
+    for _ in range(50):
+        before = page.text_content(selector) or ""
+        box = page.locator(selector).bounding_box()  # None: replaced just now
+        if box is not None:
+            shot = page.screenshot(clip=box)
+            return before, shot, page.text_content(selector) or ""
+        time.sleep(0.02)
+    raise AssertionError(f"{selector}: never stayed on the page long enough to be shot")
 
 
 def _module_statuses(page: Any) -> dict[str, tuple[str, int]]:
@@ -239,6 +292,17 @@ def test_the_page_follows_a_live_replay_without_reload(browser: Any) -> None:
         for status, judged in statuses.values():  # while it plays: judged provisionally
             assert status in ("ok (provisional)", "failing (provisional)"), status
             assert judged > 0
+        # Screenshots during the run: each module's status in its colour, as seen.
+        assert page.text_content("#connection") == "live"
+        assert colours_shown(screenshot(page, "#connection")[1]) == {"good"}
+        checked = 0
+        for module in MODULES:
+            before, shot, after = screenshot(page, f"#modules tr[data-module={module}] .status")
+            if before == after and before.startswith(("ok", "failing")):  # not redrawn between
+                expected = {"good"} if before.startswith("ok") else {"bad"}
+                assert colours_shown(shot) == expected, (module, before)
+                checked += 1
+        assert checked >= 2, "the statuses changed under every screenshot"
         page.wait_for_function(
             "() => document.getElementById('verdict-primary').textContent === 'perception'",
             timeout=30_000,
@@ -254,6 +318,11 @@ def test_the_page_follows_a_live_replay_without_reload(browser: Any) -> None:
         )
         assert blamed[0].startswith("root cause in the verdict (latest frame"), blamed
         assert blamed[1] != GOOD
+        # Screenshots after the run: the blamed module and the verdict in red, never green.
+        perception = screenshot(page, "#modules tr[data-module=perception]")[1]
+        assert colours_shown(perception) == {"bad"}
+        assert colours_shown(screenshot(page, "#verdict-outcome")[1]) == {"bad"}
+        assert page.screenshot(full_page=True)  # the whole page renders
         cells = page.eval_on_selector_all(  # the key metrics shown, every one in the tooltip
             "#modules td.metrics",
             "els => els.map(e => [e.textContent.split(' · ').length,"
@@ -271,6 +340,7 @@ def test_the_page_follows_a_live_replay_without_reload(browser: Any) -> None:
         assert page.evaluate("window.sameDocument") is True  # updated in place, never reloaded
         assert page.locator("#timeline-box polyline").count() == 1
         assert page.text_content("#runs tbody tr[data-run='car1'] td:last-child") == "perception"
+        assert page.text_content("#runs tbody tr[data-run='car1'] td:first-child") == "car1"
         facts = page.text_content("#verdict-facts")
         assert "collision frame81" in facts and "semantics modecorrected" in facts
         assert page.locator("#verdict-thresholds tr").count() > 10
@@ -292,6 +362,63 @@ def test_the_page_follows_a_live_replay_without_reload(browser: Any) -> None:
         assert "default-src 'self'" in csp and "unsafe-inline" not in csp
         assert headers["x-content-type-options"] == "nosniff"
         assert requested and all(url.startswith(board.url) for url in requested)
+        page.close()
+
+
+def _connection(page: Any, text: str, timeout: float = 30_000) -> None:
+    page.wait_for_function(
+        f"() => document.getElementById('connection').textContent === {json.dumps(text)}",
+        timeout=timeout,
+    )
+
+
+@pytest.mark.slow
+def test_the_page_says_whether_zenoh_is_reached_and_recovers_after_an_outage(
+    browser: Any,
+) -> None:
+    """Issue 38 items 4 and 5. Green "live" only while Zenoh is reached, as seen on a
+    screenshot; each endpoint's state; a bridge that goes away is said within seconds, and
+    one back with another run on the same prefix and endpoint is followed again, its run
+    beside the first (never erasing it)."""
+    endpoint, other = (f"tcp/127.0.0.1:{free_port()}" for _ in range(2))
+    with dashboard(endpoint, other) as board:
+        page = browser.new_page()
+        page.goto(board.url)
+        _connection(page, "zenoh not connected: no results can arrive")
+        links = page.text_content("#zenoh") or ""
+        assert f"{endpoint} not connected" in links and f"{other} not connected" in links
+        assert colours_shown(screenshot(page, "#connection")[1]) == {"bad"}
+        with feed("car1", endpoint=endpoint, run="first"):
+            _connection(page, "live · zenoh 1 of 2 connected")
+            page.wait_for_function(
+                "() => document.getElementById('verdict-primary').textContent === 'perception'"
+            )
+            assert colours_shown(screenshot(page, "#connection")[1]) == set()  # amber, not green
+            assert f"{endpoint} connected" in (page.text_content("#zenoh") or "")
+            first = board.runs()["runs"]
+        _connection(page, "zenoh not connected: no results can arrive")  # the outage, said
+        assert re.search(
+            f"{re.escape(endpoint)} not connected since .+ \\(reconnecting\\)",
+            page.text_content("#zenoh") or "",
+        )
+        with feed("car1", endpoint=endpoint, run="second"), feed("car1", endpoint=other, run="x"):
+            _connection(page, "live")
+            assert colours_shown(screenshot(page, "#connection")[1]) == {"good"}
+            page.wait_for_function("() => document.querySelectorAll('#runs tbody tr').length === 3")
+            rows = page.eval_on_selector_all(
+                "#runs tbody tr", "rows => rows.map(r => r.cells[0].textContent)"
+            )
+            assert rows == ["car1 · run first", "car1 · run second", "car1 · run x"]
+            runs = {run["id"]: run for run in board.runs()["runs"]}
+            (before,) = first
+            assert runs["car1@first"]["modules"] == before["modules"]  # kept whole
+            for name in ("car1@second", "car1@x"):
+
+                def judged(name: str = name) -> bool:
+                    return board.runs_by_id().get(name, {}).get("verdict") is not None
+
+                _wait_until(judged)
+                assert board.runs_by_id()[name]["verdict"]["primary_root_cause"] == "perception"
         page.close()
 
 

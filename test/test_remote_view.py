@@ -81,7 +81,7 @@ def test_counts_near_misses_and_re_judged_frames() -> None:
     assert run["modules"]["planning"]["failed_frames"] == 1
     # c_gt 0.0 < 0.5 at frame 4, judged twice: one near miss, the latest judgement's
     assert [(m["index"], m["clearance"]) for m in run["near_misses"]] == [(4, 0.0)]
-    assert list(model.runs["c"].timeline) == [(i, 2.0 - i * 0.5) for i in range(5)]
+    assert list(model.runs["c@r1"].timeline) == [(i, 2.0 - i * 0.5) for i in range(5)]
 
 
 def test_a_re_judged_frame_is_one_near_miss_with_its_latest_clearance() -> None:
@@ -97,14 +97,81 @@ def test_a_re_judged_frame_is_one_near_miss_with_its_latest_clearance() -> None:
     assert run["modules"]["planning"]["judged"] == 5
 
 
-def test_a_new_run_under_the_same_prefix_starts_over() -> None:
+def test_a_new_run_under_the_same_prefix_is_a_run_of_its_own() -> None:
     model = DashboardModel()
     model.apply("c/ads_rca/modules/planning.json", result(0, failed=True), 1.0)
     model.apply("c/ads_rca/modules/planning.json", result(0, run="r2"), 2.0)
-    run = model.summary(2.0)["runs"][0]
-    assert run["run_id"] == "r2"
-    assert run["modules"]["planning"] == {**run["modules"]["planning"], "judged": 1}
-    assert run["modules"]["planning"]["failed_frames"] == 0
+    first, second = model.summary(2.0)["runs"]
+    assert (first["name"], first["run_id"], second["name"], second["run_id"]) == (
+        "c@r1",
+        "r1",
+        "c@r2",
+        "r2",
+    )
+    assert second["modules"]["planning"] == {**second["modules"]["planning"], "judged": 1}
+    assert second["modules"]["planning"]["failed_frames"] == 0
+    assert first["modules"]["planning"]["failed_frames"] == 1
+
+
+def test_a_stray_sample_of_another_run_never_erases_a_run() -> None:
+    """Issue 38 item 5: one forged sample naming another run, then the two runs' samples
+    interleaved, then a verdict for each: every count and verdict stays with its run."""
+    model = DashboardModel()
+    key = "car1/ads_rca/modules/planning.json"
+    for index in range(10):
+        model.apply(key, result(index, failed=index == 7), 1.0 + index)
+    event = model.apply(key, result(3, run="forged"), 20.0)
+    assert event is not None and event["name"] == "car1@forged"
+    for index in range(10, 20):  # two runs under one prefix, interleaved
+        model.apply(key, result(index), 21.0 + index)
+        model.apply(key, result(index - 10, run="r2", failed=True), 21.5 + index)
+    for at, run in enumerate(("r1", "r2")):
+        document = {"primary_root_cause": "planning" if run == "r2" else None}
+        verdict = {**document, "live": {"run": run}, "conclusive": True, "collision": "yes"}
+        model.apply("car1/ads_rca/verdict.json", json.dumps(verdict), 50.0 + at)
+    runs = {run["name"]: run for run in model.summary(51.0)["runs"]}
+    assert sorted(runs) == ["car1@forged", "car1@r1", "car1@r2"]
+    judged = {
+        name: (r["modules"]["planning"]["judged"], r["modules"]["planning"]["failed_frames"])
+        for name, r in runs.items()
+    }
+    assert judged == {"car1@r1": (20, 1), "car1@r2": (10, 10), "car1@forged": (1, 0)}
+    assert runs["car1@r1"]["last_index"] == 19 and runs["car1@r2"]["last_index"] == 9
+    assert runs["car1@r1"]["verdict"]["primary_root_cause"] is None
+    assert runs["car1@r2"]["verdict"]["primary_root_cause"] == "planning"
+    assert runs["car1@forged"]["verdict"] is None
+    # A bare prefix (a hand-typed URL) names its run updated last.
+    found = model.find("car1")
+    assert found is not None and found.run_id == "r2"
+
+
+def test_documents_naming_no_run_join_the_prefix_s_run() -> None:
+    """A bridge's status beside a stack names no run: it goes to the prefix's run updated
+    last; a status first, then results naming a run, make one run, not two."""
+    model = DashboardModel()
+    status = {"state": "running", "run": ""}
+    model.apply("s/ads_rca/status.json", json.dumps(status), 1.0)
+    model.apply("s/ads_rca/modules/planning.json", result(0), 2.0)
+    model.apply("s/ads_rca/modules/planning.json", result(0, run="r2"), 3.0)
+    model.apply("s/ads_rca/status.json", json.dumps({**status, "state": "verdict"}), 4.0)
+    runs = {run["name"]: run for run in model.summary(4.0)["runs"]}
+    assert sorted(runs) == ["s@r1", "s@r2"]
+    assert runs["s@r1"]["status"]["state"] == "running"
+    assert runs["s@r2"]["status"]["state"] == "verdict"
+
+
+@pytest.mark.parametrize("run", [7, True, [], {}, "a b", "r" * 65, "<b>", "run@1", "../x"])
+def test_a_run_that_is_no_run_id_is_a_problem(run: object) -> None:
+    model = DashboardModel()
+    model.apply("c/ads_rca/modules/planning.json", result(0), 1.0)
+    document = {**json.loads(result(1)), "run": run}
+    assert model.apply("c/ads_rca/modules/planning.json", json.dumps(document), 2.0) is None
+    verdict = {"primary_root_cause": None, "live": {"run": run}}
+    assert model.apply("c/ads_rca/verdict.json", json.dumps(verdict), 2.0) is None
+    assert model.problems == 2 and "run id" in model.last_problem
+    assert [r["name"] for r in model.summary(2.0)["runs"]] == ["c@r1"]
+    assert model.apply("a@b/ads_rca/modules/planning.json", result(0), 2.0) is None
+    assert model.problems == 3 and [r["name"] for r in model.summary(2.0)["runs"]] == ["c@r1"]
 
 
 def test_a_frames_reply_fills_what_rate_limits_skipped() -> None:
@@ -112,7 +179,7 @@ def test_a_frames_reply_fills_what_rate_limits_skipped() -> None:
     model.apply("c/ads_rca/modules/planning.json", result(9), 1.0)
     frames = [{"index": i, "modules": {"planning": json.loads(result(i))}} for i in range(10)]
     event = model.apply("c/ads_rca/frames", json.dumps({"since": -1, "frames": frames}), 2.0)
-    assert event == {"run": "c", "kind": "frames", "results": 10}
+    assert event == {"run": "c", "kind": "frames", "results": 10, "runs": ["c@r1"]}
     assert model.summary(2.0)["runs"][0]["modules"]["planning"]["judged"] == 10
 
 
@@ -310,13 +377,13 @@ def test_the_frame_rate_of_a_burst_is_frames_per_second_not_per_millisecond() ->
     model = DashboardModel()
     for index in range(100):  # 20 Hz for 5 s
         model.apply("c/ads_rca/modules/planning.json", result(index), 1.0 + index * 0.05)
-    steady = model.runs["c"].rate(1.0 + 99 * 0.05)
+    steady = model.runs["c@r1"].rate(1.0 + 99 * 0.05)
     assert 19.0 <= steady <= 21.0
     for index in range(100, 300):  # 200 frames within 10 ms
         model.apply("c/ads_rca/modules/planning.json", result(index), 7.0 + index * 0.00005)
-    assert model.runs["c"].rate(7.02) <= 200.0
-    assert model.runs["c"].rate(9.0) <= 100.0  # decays as time passes
-    assert model.runs["c"].rate(20.0) == 0.0  # idle
+    assert model.runs["c@r1"].rate(7.02) <= 200.0
+    assert model.runs["c@r1"].rate(9.0) <= 100.0  # decays as time passes
+    assert model.runs["c@r1"].rate(20.0) == 0.0  # idle
 
 
 def test_the_module_a_verdict_blames_is_never_shown_ok() -> None:

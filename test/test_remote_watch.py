@@ -9,6 +9,7 @@ this process answering on the dashboard keys.
 
 from __future__ import annotations
 
+import contextlib
 import io
 import itertools
 import json
@@ -402,7 +403,7 @@ def test_render_is_a_pure_function_whose_wire_text_is_inert() -> None:
     assert model.apply(f"{base}/status", json.dumps(HOSTILE_STATUS), 1.0)
     assert model.apply(f"{base}/verdict", json.dumps(HOSTILE_VERDICT), 1.0)
     model.apply("\x1b[2J/ads_rca/verdict", b"[red]not json", 1.0)  # counted, shown escaped
-    header = Header(("tcp/127.0.0.1:7447",), "connected")
+    header = Header(({"endpoint": "tcp/127.0.0.1:7447", "state": "connected"},))
     screen = render(model.summary(2.0), header, 2.0)
     coloured, plain = io.StringIO(), io.StringIO()
     Console(file=coloured, force_terminal=True, color_system="truecolor", width=140).print(screen)
@@ -421,9 +422,11 @@ def test_render_before_anything_arrived() -> None:
     from rich.console import Console
 
     buffer = io.StringIO()
-    header = Header(("tcp/127.0.0.1:7447",), "connecting (retrying)", prefix="car1")
+    link = {"endpoint": "tcp/127.0.0.1:7447", "state": "connecting", "error": "\x1b[2Jno"}
+    header = Header((link,), prefix="car1")
     Console(file=buffer, width=100).print(render(DashboardModel().summary(0.0), header, 0.0))
     assert "runs 0" in buffer.getvalue() and "waiting for a run" in buffer.getvalue()
+    assert "tcp/127.0.0.1:7447 connecting (retrying): \\x1b[2Jno" in buffer.getvalue()
 
 
 _JSON = st.recursive(
@@ -482,7 +485,7 @@ def test_render_survives_any_document_shape(
     model.apply("r/ads_rca/status", json.dumps(status), 1.0)
     model.apply("r/ads_rca/verdict", json.dumps({**verdict, "primary_root_cause": None}), 1.0)
     buffer = io.StringIO()
-    header = Header(("tcp/127.0.0.1:7447",), "connected")
+    header = Header(({"endpoint": "tcp/127.0.0.1:7447", "state": "connected"},))
     Console(file=buffer, width=120).print(render(model.summary(2.0), header, 2.0))
     assert not re.search("[\x00-\x09\x0b-\x1f\x7f-\x9f]", buffer.getvalue())
 
@@ -577,3 +580,61 @@ def test_a_stop_signal_while_waiting_exits_128_plus_it(signum: int) -> None:
     assert process.returncode == 128 + signum
     assert took < 5.0
     assert out == "" and "Traceback" not in err
+
+
+def test_every_endpoint_s_runs_are_shown_and_each_endpoint_s_own_state() -> None:
+    """Issue 38 items 2 and 5: two bridges on two endpoints publish two runs under one
+    prefix, a third endpoint never answers. ``watch`` shows both runs whole and apart (each
+    its verdict and counts), and says each endpoint's state, on stderr and on the screen."""
+    primary, indices = expected_run()
+    up = [f"tcp/127.0.0.1:{free_port()}" for _ in range(2)]
+    down = f"tcp/127.0.0.1:{free_port()}"
+    connect = [arg for endpoint in (*up, down) for arg in ("--connect", endpoint)]
+    with feed(up[0], "--run", "first"), feed(up[1], "--run", "second") as running:
+        running.expect("VERDICT")
+        watcher = spawn_watch(*connect, "--json", "--timeout", "8")
+        out, err = watcher.communicate(timeout=60)
+        with terminal(watch_command(*connect, "--timeout", "6")) as term:
+            assert term.exit_status() == 0
+            screen = term.screen()
+    assert watcher.returncode == 0, err
+    finals = {e["name"]: e for e in map(_strict, out.splitlines()) if e["kind"] == "final"}
+    assert sorted(finals) == ["car1@first", "car1@second"]
+    for name, final in finals.items():
+        assert final["run"] == "car1" and final["run_id"] == name.split("@")[1]
+        assert final["primary_root_cause"] == primary
+        for module, seen in indices.items():
+            assert final["modules"][module]["judged"] == len(seen), (name, module)
+    notes = err.splitlines()
+    assert f"ads-rca watch: {up[0]} connected" in notes
+    assert f"ads-rca watch: {up[1]} connected" in notes
+    (waiting,) = [note for note in notes if down in note]
+    assert waiting.startswith(f"ads-rca watch: waiting: {down} connecting (retrying): ")
+    assert "run car1 · id first" in screen and "run car1 · id second" in screen
+    words = " ".join(screen.split())  # the header may wrap at the terminal's width
+    assert f"{up[0]} connected · {up[1]} connected · {down} connecting (retrying)" in words
+    assert screen.count(f"primary root cause: {primary}") == 2, screen
+
+
+def test_an_idle_screen_is_redrawn_once_a_second_not_at_every_look() -> None:
+    """Issue 38 item 10: nothing arrives and no link changes, so the screen is drawn once
+    a second (it was drawn at every look, 4 a second: 7 % of a core idle)."""
+    from ads_rca.remote import watch as watch_module
+
+    drawn: list[float] = []
+    original = watch_module.Watcher.screen
+
+    def counted(self: Any) -> Any:
+        drawn.append(time.monotonic())
+        return original(self)
+
+    endpoint = f"tcp/127.0.0.1:{free_port()}"  # nothing listens: no sample, one state
+    options = watch_module.WatchOptions(connect=(endpoint,), timeout=3.2)
+    watch_module.Watcher.screen = counted  # type: ignore[method-assign]
+    try:
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+            assert watch_module.watch(options) == watch_module.EXIT_NO_VERDICT
+    finally:
+        watch_module.Watcher.screen = original  # type: ignore[method-assign]
+    looks = 3.2 / watch_module.REFRESH_S
+    assert 3 <= len(drawn) <= 6 < looks, drawn

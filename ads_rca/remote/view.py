@@ -35,6 +35,7 @@ from ads_rca.diagnosis.conclusion import (
     COLLISION_YES,
     PARTLY_JUDGED,
 )
+from ads_rca.live.runid import RUN_ID_PATTERN
 from ads_rca.oracles.base import MODULES
 from ads_rca.remote.keys import DASHBOARD_ROOT, SAMPLE_SUFFIX
 
@@ -56,6 +57,8 @@ MAX_RUNS = 64
 RATE_SPAN = 5.0
 #: The shortest span a rate is measured over (s): a burst is not a rate.
 RATE_MIN_SPAN = 1.0
+#: The name of the run with neither a prefix nor a run id (:func:`run_name`).
+ROOT_NAME = "@"
 #: ``collision`` of a verdict (docs/verdicts.md).
 COLLISION_STATES = (COLLISION_YES, COLLISION_NO, COLLISION_UNKNOWN_STATE)
 #: What a verdict says, as every dashboard names it: a root cause named (conclusive or
@@ -121,19 +124,27 @@ def margin_of(document: Mapping[str, Any]) -> float:
 
 def run_of(kind: str, document: Mapping[str, Any]) -> str:
     """The graph's run id a document names ("" if none): a result's and the status's
-    ``run``, the verdict's ``live.run``, a frames reply's first result's."""
+    ``run``, the verdict's ``live.run``. A run that is no run id (``live/runid.py``: it
+    could never come from a graph) is refused (:class:`MalformedMessage`)."""
     if kind == "verdict":
         live = document.get("live")
         found = live.get("run") if isinstance(live, Mapping) else None
-    elif kind == "frames":
-        frames = document.get("frames")
-        first = frames[0] if isinstance(frames, list) and frames else None
-        modules = first.get("modules") if isinstance(first, Mapping) else None
-        result = next(iter(modules.values()), None) if isinstance(modules, Mapping) else None
-        found = result.get("run") if isinstance(result, Mapping) else None
     else:
         found = document.get("run")
-    return found[:100] if isinstance(found, str) else ""
+    if found is None or found == "":
+        return ""
+    if not isinstance(found, str) or not RUN_ID_PATTERN.fullmatch(found):
+        raise MalformedMessage("run is not a run id (1 to 64 letters, digits or '_')")
+    return found
+
+
+def run_name(prefix: str, run_id: str) -> str:
+    """A run's name among the dashboards' runs and in URLs: its prefix (``@`` for none),
+    then ``@<run id>`` when its documents name one. Unique: neither a run id nor a prefix
+    the model keeps holds ``@``."""
+    if run_id:
+        return f"{prefix}@{run_id}"
+    return prefix or ROOT_NAME
 
 
 def _texts(value: object) -> bool:
@@ -315,8 +326,8 @@ class RunView:
     """One run's state as a dashboard shows it."""
 
     prefix: str
-    #: The graph's run id its documents name ("" until one does): a new run under the same
-    #: prefix starts a new view instead of adding to this one's counts.
+    #: The graph's run id its documents name ("" until one does): each run under a prefix
+    #: has a view of its own, so one run's samples never add to or erase another's.
     run_id: str = ""
     modules: dict[str, dict[str, Any]] = field(default_factory=dict)
     failures: dict[str, int] = field(default_factory=dict)
@@ -331,6 +342,12 @@ class RunView:
     last_frame: Any = None
     updated: float = 0.0
     _seen: dict[tuple[str, int], int] = field(default_factory=dict)
+
+    @property
+    def name(self) -> str:
+        """Its name among the runs and in URLs (:func:`run_name`)."""
+        return run_name(self.prefix, self.run_id)
+
     _arrivals: deque[tuple[float, int]] = field(default_factory=lambda: deque(maxlen=4096))
 
     def add_result(self, module: str, document: dict[str, Any], now: float) -> None:
@@ -427,6 +444,7 @@ class RunView:
         return {
             "run": self.prefix,
             "run_id": self.run_id,
+            "name": self.name,
             "last_index": self.last_index,
             "last_frame": self.last_frame,
             "rate": round(self.rate(now), 2),
@@ -434,36 +452,67 @@ class RunView:
             "near_misses": list(self.near_misses),
             "status": self.status,
             "verdict": self.verdict,
+            "updated": self.updated,
         }
 
 
 class DashboardModel:
-    """Every run seen, fed sample by sample (see the module doc)."""
+    """Every run seen, fed sample by sample (see the module doc). A run is a prefix and
+    the run id its documents name: two graphs publishing under one prefix, or one stray
+    sample naming another run, make two runs, never one reset view. A document naming no
+    run (a bridge's status beside a stack, an older tool's result) goes to the prefix's
+    run updated last; the first document naming a run adopts the prefix's unnamed run."""
 
     def __init__(self, prefix: str | None = None) -> None:
         self.only = prefix  # watch one prefix (None: every run)
+        #: By :func:`run_name`.
         self.runs: dict[str, RunView] = {}
         self.problems = 0
         self.last_problem = ""
 
-    def run(self, prefix: str) -> RunView:
-        view = self.runs.get(prefix)
-        if view is None:
-            if len(self.runs) >= MAX_RUNS:
-                oldest = min(self.runs.values(), key=lambda v: v.updated)
-                del self.runs[oldest.prefix]
-            view = self.runs[prefix] = RunView(prefix)
+    def run(self, prefix: str, run_id: str = "") -> RunView:
+        """The view of ``run_id`` under ``prefix`` (see the class doc), made if new."""
+        if not run_id:
+            under = [view for view in self.runs.values() if view.prefix == prefix]
+            if under:
+                return max(under, key=lambda view: view.updated)
+        view = self.runs.get(run_name(prefix, run_id))
+        if view is not None:
+            return view
+        unnamed = self.runs.pop(run_name(prefix, ""), None)
+        if unnamed is not None:
+            unnamed.run_id = run_id
+            self.runs[unnamed.name] = unnamed
+            return unnamed
+        if len(self.runs) >= MAX_RUNS:
+            oldest = min(self.runs.values(), key=lambda v: v.updated)
+            del self.runs[oldest.name]
+        view = RunView(prefix, run_id)
+        self.runs[view.name] = view
         return view
 
+    def find(self, name: str) -> RunView | None:
+        """The run of that name; a bare prefix names its run updated last."""
+        view = self.runs.get(name)
+        if view is not None or "@" in name:
+            return view
+        under = [view for view in self.runs.values() if view.prefix == name]
+        return max(under, key=lambda view: view.updated) if under else None
+
     def apply(self, key: str, payload: bytes | str, now: float) -> dict[str, Any] | None:
-        """One sample or reply; the event it makes (``{"run", "kind", ...}``), or None when
-        it was dropped (and counted as a problem) or not ours."""
+        """One sample or reply; the event it makes, or None when it was dropped (and
+        counted as a problem) or not ours. An event has ``run`` (the prefix), ``kind`` and
+        ``run_id`` and ``name`` (:func:`run_name`); a frames reply's, the names of the
+        ``runs`` its results went to."""
         parsed = parse_key(key)
         if parsed is None:
             self._problem(f"not a dashboard key: {key[:80]!r}")
             return None
         prefix, kind, module = parsed
         if self.only is not None and prefix != self.only:
+            return None
+        if "@" in prefix:  # a Zenoh verbatim chunk: never a bridge's prefix (keys.py)
+            self._problem(f"{key[:80]}: '@' in the prefix")
             return None
         if len(payload) > MAX_PAYLOAD:
             self._problem(f"{key[:80]}: payload larger than {MAX_PAYLOAD} bytes")
@@ -476,46 +525,47 @@ class DashboardModel:
         if not isinstance(document, dict):
             self._problem(f"{key[:80]}: not a JSON object")
             return None
-        view = self.run(prefix)
-        run_id = run_of(kind, document)
-        if run_id:
-            if view.run_id and run_id != view.run_id:
-                view = self.runs[prefix] = RunView(prefix)
-            view.run_id = run_id
         try:
+            if kind == "frames":
+                return self._frames(prefix, document, now)
+            view = self.run(prefix, run_of(kind, document))
+            head = {"run": prefix, "run_id": view.run_id, "name": view.name}
             if kind == "modules":
                 assert module is not None
                 view.add_result(module, document, now)
-                return {"run": prefix, "kind": "module", "module": module, "result": document}
-            if kind == "frames":
-                return self._frames(view, document, now)
+                return {**head, "kind": "module", "module": module, "result": document}
             if kind == "verdict":
                 check_verdict(document)
                 view.verdict = document
                 view.updated = now
                 conclusive = read_verdict(document).conclusive
-                return {"run": prefix, "kind": kind, kind: document, "conclusive": conclusive}
+                return {**head, "kind": kind, kind: document, "conclusive": conclusive}
             view.status = document
             view.updated = now
-            return {"run": prefix, "kind": kind, kind: document}
+            return {**head, "kind": kind, kind: document}
         except MalformedMessage as error:
             self._problem(f"{key[:80]}: {str(error)[:120]}")
             return None
 
-    def _frames(self, view: RunView, document: dict[str, Any], now: float) -> dict[str, Any]:
+    def _frames(self, prefix: str, document: dict[str, Any], now: float) -> dict[str, Any]:
+        """A frames reply: each result goes to the run it names (a bridge beside a stack
+        keeps several runs' frames)."""
         frames = document.get("frames")
         if not isinstance(frames, list):
             raise MalformedMessage("frames reply without a frames list")
         added = 0
+        names: dict[str, None] = {}
         for entry in frames:
             modules = entry.get("modules") if isinstance(entry, dict) else None
             if not isinstance(modules, dict):
                 raise MalformedMessage("frames entry without modules")
             for module, result in modules.items():
                 if module in MODULES and isinstance(result, dict):
+                    view = self.run(prefix, run_of("modules", result))
                     view.add_result(module, result, now)
+                    names[view.name] = None
                     added += 1
-        return {"run": view.prefix, "kind": "frames", "results": added}
+        return {"run": prefix, "kind": "frames", "results": added, "runs": list(names)}
 
     def _problem(self, reason: str) -> None:
         self.problems += 1
@@ -523,7 +573,7 @@ class DashboardModel:
 
     def summary(self, now: float) -> dict[str, Any]:
         return {
-            "runs": [self.runs[p].summary(now) for p in sorted(self.runs)],
+            "runs": [self.runs[name].summary(now) for name in sorted(self.runs)],
             "problems": self.problems,
             "last_problem": self.last_problem,
         }

@@ -1,7 +1,7 @@
 """``ads-rca watch``: a terminal dashboard of the runs on Zenoh, with no ROS at run time.
 
-A Zenoh client session (:class:`~ads_rca.remote.client.RemoteClient`) feeds every sample
-into a :class:`~ads_rca.remote.view.DashboardModel`; :func:`render` draws the model's
+A Zenoh client session per endpoint (:class:`~ads_rca.remote.client.RemoteLinks`) feeds
+every sample into a :class:`~ads_rca.remote.view.DashboardModel`; :func:`render` draws the model's
 summary with rich (a pure function: tests render it without a terminal) and ``--json``
 prints the model's events as JSON lines instead. It works whenever it is started: before
 the run (the session is retried until the peer listens, the subscription waits), during or
@@ -39,7 +39,7 @@ from ads_rca.diagnosis.conclusion import PARTLY_JUDGED
 from ads_rca.diagnosis.summary import count_columns
 from ads_rca.foundation.text import printable
 from ads_rca.oracles.base import MODULES
-from ads_rca.remote.client import RemoteClient
+from ads_rca.remote.client import CONNECTED, CONNECTING, DISCONNECTED, RemoteLinks
 from ads_rca.remote.config import DEFAULT_ENDPOINT
 from ads_rca.remote.keys import SAMPLE_SUFFIX, check_prefix
 from ads_rca.remote.view import (
@@ -59,14 +59,16 @@ from ads_rca.remote.view import (
 
 #: Exit status when ``--timeout`` passes without a verdict.
 EXIT_NO_VERDICT = 3
-#: Seconds between attempts to open the session while the peer is not up.
-RETRY_S = 0.5
 #: Seconds between catch-up queries while nothing has been received.
 CATCH_UP_EVERY_S = 2.0
 #: How long one catch-up query waits for its replies (s).
 CATCH_UP_TIMEOUT_S = 2.0
-#: Seconds between screen refreshes (and checks of the stop flag).
+#: Seconds between looks at what arrived (and checks of the stop flag).
 REFRESH_S = 0.25
+#: Seconds between redraws of a screen nothing changed on.
+IDLE_REDRAW_S = 1.0
+#: Runs drawn at once: the ones updated last (the rest are counted in the header).
+RUNS_SHOWN = 4
 #: Near-miss warnings drawn per run (the newest).
 NEAR_MISSES_SHOWN = 4
 #: Longest text drawn from the wire in one cell.
@@ -141,12 +143,24 @@ def line(*parts: tuple[object, str] | str) -> Text:
 
 @dataclass(frozen=True)
 class Header:
-    """What the screen says about the watcher itself, beside the model's summary."""
+    """What the screen says about the watcher itself, beside the model's summary: each
+    endpoint's link (``client.Link.describe``), the prefix watched, samples dropped."""
 
-    endpoints: tuple[str, ...]
-    connection: str
+    links: tuple[Mapping[str, Any], ...]
     prefix: str | None = None
     dropped: int = 0
+
+
+def link_text(link: Mapping[str, Any]) -> str:
+    """An endpoint and its state in words: "connected", "connecting (retrying): <why>",
+    "not connected (reconnecting): <why>"."""
+    state = link.get("state")
+    text = f"{link.get('endpoint')} {state}"
+    if state != CONNECTED:
+        text += " (reconnecting)" if state == DISCONNECTED else " (retrying)"
+        if link.get("error"):
+            text += f": {link.get('error')}"
+    return printable(text)
 
 
 def render(summary: Mapping[str, Any], header: Header, now: float) -> RenderableType:
@@ -155,11 +169,10 @@ def render(summary: Mapping[str, Any], header: Header, now: float) -> Renderable
     problems = int(summary.get("problems") or 0) + header.dropped
     top = Text()
     top.append("ads-rca watch", style="bold")
-    top.append(f"  runs {len(runs)}  ·  ")
-    top.append(", ".join(header.endpoints))
-    top.append("  ")
-    connected = header.connection == "connected"
-    top.append(printable(header.connection), style="green" if connected else "yellow")
+    top.append(f"  runs {len(runs)}")
+    for link in header.links:
+        top.append("  ·  ")
+        top.append(link_text(link), style="green" if link.get("state") == CONNECTED else "yellow")
     if header.prefix is not None:
         top.append("  ·  prefix ")
         top.append(printable(header.prefix or "(none)"))
@@ -170,9 +183,19 @@ def render(summary: Mapping[str, Any], header: Header, now: float) -> Renderable
         parts.append(line("last problem: ", (summary.get("last_problem"), "red")))
     if not runs:
         parts.append(Text("waiting for a run's results and verdict…", style="dim"))
-    for run in runs:
+    newest = sorted(runs, key=lambda run: _number(run.get("updated")), reverse=True)
+    if len(runs) > RUNS_SHOWN:
+        hidden = len(runs) - RUNS_SHOWN
+        parts.append(Text(f"{hidden} older runs not shown (--prefix picks one)", style="dim"))
+    for run in sorted(newest[:RUNS_SHOWN], key=lambda run: str(run.get("name"))):
         parts.extend(render_run(run, now))
     return Group(*parts)
+
+
+def _number(value: object) -> float:
+    """A number from the wire for sorting (anything else sorts first)."""
+    ok = isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+    return float(value) if ok else -math.inf  # type: ignore[arg-type]
 
 
 def render_run(run: Mapping[str, Any], now: float) -> list[RenderableType]:
@@ -180,6 +203,9 @@ def render_run(run: Mapping[str, Any], now: float) -> list[RenderableType]:
     name = run.get("run")
     title = Text("run ", style="bold")
     title.append(safe(name) if name else "(no prefix)", style="bold cyan")
+    if run.get("run_id"):
+        title.append(" · id ", style="bold")
+        title.append(safe(run.get("run_id")), style="cyan")
     parts: list[RenderableType] = [Rule(title, align="left")]
     parts.append(progress_line(run, now))
     parts.append(module_table(run.get("modules") or {}))
@@ -410,25 +436,8 @@ def thresholds_line(verdict: Mapping[str, Any]) -> Text:
 # ------------------------------------------------------------------------- the loop
 
 
-class WatchClient(RemoteClient):
-    """The client, plus whether its session reaches a peer or a router right now."""
-
-    def connected(self) -> bool:
-        session = self._session
-        if session is None:
-            return False
-        info = session.info
-        return bool(list(info.peers_zid()) or list(info.routers_zid()))
-
-
-def _one_line(error: BaseException) -> str:
-    """Zenoh's error text without its source location, on one line."""
-    text = str(error).split(" at /", 1)[0].strip() or type(error).__name__
-    return printable(text)[:160]
-
-
 class Watcher:
-    """The session (opened, retried, caught up) and the model it feeds."""
+    """The sessions (one per endpoint: opened, retried, caught up) and the model they feed."""
 
     def __init__(
         self,
@@ -438,61 +447,47 @@ class Watcher:
         clock: Callable[[], float] = time.time,
     ) -> None:
         self.prefix = None if prefix is None else check_prefix(prefix)
-        self.endpoints = tuple(connect)
         # Checks the endpoints and the prefix now (ConfigError: one line, exit 2).
-        self.client = WatchClient(self.endpoints, self.prefix, allow_remote=allow_remote)
+        self.links = RemoteLinks(
+            connect, self.prefix, "client", allow_remote, CATCH_UP_TIMEOUT_S, wall=clock
+        )
+        self.endpoints = self.links.endpoints
         self.model = DashboardModel(self.prefix)
         self.clock = clock
-        self.opened = False
-        self.connected = False
-        self.error = ""
         self.received = 0
         self.verdicts = 0
-        self._next_open = 0.0
+        self._started = False
         self._next_catch_up = 0.0
         #: When a live verdict asked for a catch-up (0: none), and when the last finished one
         #: began: the bridge rate-limits each module's live samples, so the frames in
         #: between are fetched from its history once the verdict is in, before the final
         #: counts.
         self._verdict_catch_up = 0.0
-        self._caught_up = 0.0
         #: The begin time of the last finished catch-up whose replies were all drained.
         self._drained_through = 0.0
-        self._catch_up = threading.Event()
-        self._stopping = threading.Event()
-        self._thread: threading.Thread | None = None
 
     def connection(self) -> str:
-        if self.connected:
-            return "connected"
-        if not self.opened:
-            why = f": {self.error}" if self.error else ""
-            return f"connecting{why} (retrying)"
-        return "not connected (reconnecting)"
+        """Each endpoint and its state, in words."""
+        return "; ".join(link_text(state) for state in self.links.states())
 
     def header(self) -> Header:
-        return Header(self.endpoints, self.connection(), self.prefix, self.client.dropped)
+        return Header(tuple(self.links.states()), self.prefix, self.links.dropped)
 
     def step(self) -> list[dict[str, Any]]:
-        """Open the session if due, ask for a catch-up if due, and apply what arrived:
-        the model's events, oldest first."""
+        """Apply what arrived (the links' thread opens, reopens and catches up), and ask
+        for a catch-up every few seconds until anything arrives (the bridge may join the
+        router after ``watch`` does): the model's events, oldest first."""
+        if not self._started:
+            self._started = True
+            self.links.start()
         tick = time.monotonic()
-        # Read before draining: the catch-up thread queues its replies, then says when that
-        # query began, so every reply of a query begun by then is drained below.
-        finished = self._caught_up
-        if not self.opened and tick >= self._next_open:
-            self._open(tick)
-        if not self.opened:
-            return []
-        connected = self.client.connected()
-        # Ask what was missed on every (re)connection, and every few seconds until
-        # anything arrives (the bridge may join the router later).
-        arrived = connected and not self.connected
-        if arrived or (connected and not self.received and tick >= self._next_catch_up):
+        # Read before draining: the links' thread queues a catch-up's replies, then says
+        # when that query began, so every reply of a query begun by then is drained below.
+        finished = self.links.caught_up
+        if self.links.any_connected() and not self.received and tick >= self._next_catch_up:
             self._request_catch_up(tick)
-        self.connected = connected
         events = []
-        for key, payload in self.client.drain():
+        for key, payload in self.links.drain():
             self.received += 1
             event = self.model.apply(key, payload, self.clock())
             if event is not None:
@@ -515,56 +510,30 @@ class Watcher:
             or time.monotonic() - asked > 3 * CATCH_UP_TIMEOUT_S + 1.0
         )
 
-    def _open(self, tick: float) -> None:
-        try:
-            self.client.open()
-        except Exception as error:  # zenoh.ZError: the peer is not listening (yet)
-            self.error = _one_line(error)
-            self._next_open = tick + RETRY_S
-            return
-        self.opened, self.error = True, ""
-        self._thread = threading.Thread(target=self._catch_up_loop, daemon=True)
-        self._thread.start()
-
     def _request_catch_up(self, tick: float) -> None:
         self._next_catch_up = tick + CATCH_UP_EVERY_S
-        self._catch_up.set()
-
-    def _catch_up_loop(self) -> None:
-        """On its own thread: a query waits for its replies, the screen must not."""
-        while not self._stopping.is_set():
-            if not self._catch_up.wait(REFRESH_S):
-                continue
-            self._catch_up.clear()
-            began = time.monotonic()
-            try:
-                self.client.catch_up(timeout=CATCH_UP_TIMEOUT_S)
-            except Exception as error:  # the session closing under it, or the peer gone
-                self.error = _one_line(error)
-            self._caught_up = began  # when the finished query began (its replies are queued)
+        self.links.request_catch_up()
 
     def close(self) -> None:
-        """Stop the catch-up thread and close the session (safe to call twice)."""
-        self._stopping.set()
-        self.client.close()  # ends a query in progress
-        if self._thread is not None:
-            self._thread.join(CATCH_UP_TIMEOUT_S + 1.0)
-            self._thread = None
+        """Stop the links' thread and close every session (safe to call twice)."""
+        self.links.close()
 
     def screen(self) -> RenderableType:
         now = self.clock()
         return render(self.model.summary(now), self.header(), now)
 
-    def final_event(self, run: str) -> dict[str, Any] | None:
+    def final_event(self, name: str) -> dict[str, Any] | None:
         """A run's digest once its verdict is in: the cause, the mode and the counts."""
-        view = self.model.runs.get(run)
+        view = self.model.runs.get(name)
         if view is None or view.verdict is None:
             return None
         summary = view.summary(self.clock())
         verdict = view.verdict
         reading = read_verdict(verdict)
         return {
-            "run": run,
+            "run": view.prefix,
+            "run_id": view.run_id,
+            "name": view.name,
             "kind": "final",
             "semantics": verdict.get("semantics"),
             "verdict": reading.text,
@@ -675,31 +644,43 @@ def _json_loop(watcher: Watcher, options: WatchOptions, stop: StopSignals, out: 
     deadline = _deadline(options)
     printed: dict[str, Any] = {}
     finals: list[str] = []  # runs whose final digest waits for the verdict's catch-up
-    waiting_noted = False
+    noted: dict[str, str] = {}  # each endpoint's state as said on stderr
     while True:
         events = watcher.step()
-        if not watcher.opened and watcher.error and not waiting_noted:
-            waiting_noted = True  # once, on stderr: stdout holds JSON only
-            print(f"ads-rca watch: waiting: {watcher.connection()}", file=sys.stderr, flush=True)
+        for link in watcher.header().links:
+            _note_link(link, noted)
         for event in events:
             if event["kind"] == "verdict":
-                if printed.get(event["run"]) == event["verdict"]:
+                if printed.get(event["name"]) == event["verdict"]:
                     continue
-                printed[event["run"]] = event["verdict"]
+                printed[event["name"]] = event["verdict"]
                 _write(out, event)
-                finals.append(event["run"])
+                finals.append(event["name"])
             else:
                 _write(out, event)
         done = _done(watcher, options, stop, deadline)
         if finals and (watcher.settled() or done):
-            for run in dict.fromkeys(finals):
-                final = watcher.final_event(run)
+            for name in dict.fromkeys(finals):
+                final = watcher.final_event(name)
                 if final is not None:
                     _write(out, final)
             finals.clear()
         if done:
             return _code(watcher)
         stop.wait(REFRESH_S)
+
+
+def _note_link(link: Mapping[str, Any], noted: dict[str, str]) -> None:
+    """On stderr (stdout holds JSON only): an endpoint that does not answer yet, once, with
+    why; then each change of its state."""
+    endpoint, state = str(link.get("endpoint")), str(link.get("state"))
+    said = noted.get(endpoint)
+    if state == CONNECTING and (said is not None or not link.get("error")):
+        return
+    if said != state:
+        noted[endpoint] = state
+        waiting = "waiting: " if state == CONNECTING else ""
+        print(f"ads-rca watch: {waiting}{link_text(link)}", file=sys.stderr, flush=True)
 
 
 def _write(out: IO[bytes], event: Mapping[str, Any]) -> None:
@@ -714,6 +695,7 @@ def _screen_loop(watcher: Watcher, options: WatchOptions, stop: StopSignals) -> 
 
     console = Console()
     deadline = _deadline(options)
+    drawn_at, drawn_links = -math.inf, None
     with Live(
         console=console,
         screen=console.is_terminal,
@@ -722,12 +704,18 @@ def _screen_loop(watcher: Watcher, options: WatchOptions, stop: StopSignals) -> 
         redirect_stderr=False,
     ) as live:
         while True:
-            watcher.step()
-            screen = watcher.screen()
-            live.update(screen, refresh=True)
+            events = watcher.step()
+            links = watcher.header().links
+            tick = time.monotonic()
+            # Drawn when something came or a link changed, else once a second (ages and
+            # rates move): drawing every check was 7 % of a core for an idle screen.
+            if events or links != drawn_links or tick - drawn_at >= IDLE_REDRAW_S:
+                screen = watcher.screen()
+                live.update(screen, refresh=True)
+                drawn_at, drawn_links = tick, links
             if _done(watcher, options, stop, deadline):
                 break
             stop.wait(REFRESH_S)
     if watcher.verdicts and not stop.signum and console.is_terminal:
-        console.print(screen)
+        console.print(watcher.screen())
     return _code(watcher)

@@ -1,9 +1,11 @@
 """``ads-rca dashboard``'s web side: an aiohttp app showing the runs seen on Zenoh, live.
 
 One :class:`Hub` owns the :class:`~ads_rca.remote.view.DashboardModel`; a background task
-(:meth:`Hub.pump`) drains the :class:`~ads_rca.remote.client.RemoteClient` into it on the
-event loop (zenoh calls back on its own threads) and asks the queryables for what was missed
-when the dashboard starts or a run it had not seen appears. The browser gets one static
+(:meth:`Hub.pump`) drains the :class:`~ads_rca.remote.client.RemoteLinks` (a Zenoh session
+per endpoint) into it on the event loop (zenoh calls back on its own threads) and asks the
+queryables for what was missed when the dashboard starts, a link (re)connects or a run it
+had not seen appears. Each link's state is part of every event, so the page says whether
+Zenoh is reached, not only whether its own stream is. The browser gets one static
 page (HTML, JS and CSS served from ``static/``, nothing fetched from elsewhere) and
 server-sent events (``/events``).
 
@@ -38,13 +40,14 @@ import orjson
 from aiohttp import web
 
 from ads_rca.errors import ConfigError, InputError
-from ads_rca.remote.client import RemoteClient
+from ads_rca.remote.client import RemoteLinks
 from ads_rca.remote.keys import SAMPLE_SUFFIX
 from ads_rca.remote.view import RATE_SPAN, DashboardModel, RunView, margin_of, read_verdict
 
 #: Least time between two events to one browser (s): at most ~10 updates a second.
 MIN_INTERVAL = 0.1
-#: A comment line on an idle stream this often (s), so proxies keep it open.
+#: A `ping` event on an idle stream this often (s): proxies keep it open, and the page
+#: opens a new stream when none came for 2.5 times this long.
 KEEPALIVE = 15.0
 #: How often a stream checks that its browser is still there while idle (s).
 LIVENESS = 1.0
@@ -65,8 +68,6 @@ MAX_TEXT = 500
 MAX_ITEMS = 60
 MAX_KEYS = 120
 MAX_DEPTH = 8
-#: The run with no prefix, in URLs.
-ROOT_RUN_ID = "@"
 #: Sent with every response.
 SECURITY_HEADERS = {
     "Content-Security-Policy": (
@@ -113,11 +114,6 @@ def clip(value: Any, depth: int = 0) -> Any:
     return value
 
 
-def run_id(prefix: str) -> str:
-    """A run's name in URLs (the run without a prefix is ``@``, which no prefix can be)."""
-    return prefix or ROOT_RUN_ID
-
-
 def _nonfinite(document: dict[str, Any] | None, under: str) -> dict[str, Any]:
     """The strict-JSON annotation entries of ``document`` that point under ``under``."""
     found = (document or {}).get("$nonfinite")
@@ -152,9 +148,8 @@ def run_digest(view: RunView, now: float) -> dict[str, Any]:
     summary.pop("verdict", None)
     for module, entry in summary["modules"].items():
         entry["nonfinite"] = _nonfinite(view.modules.get(module), "/metrics/")
-    summary["id"] = run_id(view.prefix)
+    summary["id"] = view.name
     summary["has_verdict"] = view.verdict is not None
-    summary["updated"] = view.updated
     summary["timeline_points"] = len(view.timeline)
     summary["timeline_last"] = view.timeline[-1][0] if view.timeline else None
     return dict(clip(summary))
@@ -188,7 +183,10 @@ class Hub:
         self.catch_up_error = ""
         self._digests: dict[str, tuple[int, dict[str, Any]]] = {}
         self._verdicts: dict[str, tuple[int, dict[str, Any] | None]] = {}
-        self._catch_up: asyncio.Task[int] | None = None
+        #: Each Zenoh link's state (``client.Link.describe``), as last sent.
+        self.links: list[dict[str, Any]] = []
+        #: When the pending catch-up was asked for (monotonic; None: none pending).
+        self._catch_up_asked: float | None = None
         self._catch_up_wanted = True
         self._last_catch_up = -1e9
         self._rates_at = 0.0
@@ -204,10 +202,10 @@ class Hub:
             event = self.model.apply(key, payload, now)
             if event is None:
                 continue
-            run = event["run"]
-            self.versions[run] = next(self._counter)
+            for name in event["runs"] if event["kind"] == "frames" else (event["name"],):
+                self.versions[name] = next(self._counter)
             if event["kind"] == "verdict":
-                self.verdict_versions[run] = next(self._counter)
+                self.verdict_versions[event["name"]] = next(self._counter)
                 if key.endswith(SAMPLE_SUFFIX):  # live: fetch the frames rate limits skipped
                     self._catch_up_wanted = True
             changed = True
@@ -226,78 +224,73 @@ class Hub:
         if now - self._rates_at < 1.0:
             return
         self._rates_at = now
-        fresh = [p for p, v in self.model.runs.items() if now - v.updated <= RATE_SPAN + 1.5]
-        for prefix in fresh:
-            self.versions[prefix] = next(self._counter)
+        fresh = [n for n, v in self.model.runs.items() if now - v.updated <= RATE_SPAN + 1.5]
+        for name in fresh:
+            self.versions[name] = next(self._counter)
         if fresh:
             self.notify()
 
     def _forget_gone(self) -> None:
         for table in (self.versions, self.verdict_versions, self._digests, self._verdicts):
-            for prefix in [p for p in table if p not in self.model.runs]:
-                del table[prefix]
+            for name in [n for n in table if n not in self.model.runs]:
+                del table[name]
 
     def notify(self) -> None:
         for client in self.clients:
             client.wake.set()
 
-    async def pump(self, client: RemoteClient) -> None:
-        """Drain ``client`` into the model until cancelled; catch up through the
-        queryables at start and when a new run appears (at most every few seconds)."""
-        try:
-            while True:
-                now = time.time()
-                self.feed(client.drain(PUMP_BATCH), now)
-                if client.dropped != self.dropped:
-                    self.dropped = client.dropped
-                    self.global_version += 1
-                    self.notify()
-                self.refresh_rates(now)
-                self._maybe_catch_up(client)
-                await asyncio.sleep(PUMP_PERIOD)
-        finally:
-            if self._catch_up is not None:  # its thread uses the session: let it end first
-                with contextlib.suppress(Exception):
-                    await asyncio.shield(self._catch_up)
+    async def pump(self, links: RemoteLinks) -> None:
+        """Drain ``links`` into the model until cancelled; catch up through the
+        queryables at start and when a new run appears (at most every few seconds; the
+        links catch up by themselves when one (re)connects); say each link's state."""
+        while True:
+            now = time.time()
+            self.feed(links.drain(PUMP_BATCH), now)
+            states = links.states()
+            if links.dropped != self.dropped or states != self.links:
+                self.dropped, self.links = links.dropped, states
+                self.global_version += 1
+                self.notify()
+            self.refresh_rates(now)
+            self._maybe_catch_up(links)
+            await asyncio.sleep(PUMP_PERIOD)
 
-    def _maybe_catch_up(self, client: RemoteClient) -> None:
-        running = self._catch_up
-        if running is not None:
-            if not running.done():
+    def _maybe_catch_up(self, links: RemoteLinks) -> None:
+        asked = self._catch_up_asked
+        if asked is not None:
+            if links.caught_up < asked:
                 return
-            self._catch_up = None
+            self._catch_up_asked = None
             self._last_catch_up = time.monotonic()
-            error = running.exception()
-            if error is not None:
-                self.catch_up_error = str(error)[:200]
+            if links.catch_up_error != self.catch_up_error:
+                self.catch_up_error = links.catch_up_error
                 self.global_version += 1
             # Its replies are all queued now: the runs they name are no reason for another.
-            while batch := client.drain(PUMP_BATCH):
+            while batch := links.drain(PUMP_BATCH):
                 self.feed(batch, time.time())
             self._catch_up_wanted = False
         if not self._catch_up_wanted or time.monotonic() - self._last_catch_up < CATCH_UP_GAP:
             return
         self._catch_up_wanted = False
-        self._catch_up = asyncio.ensure_future(
-            asyncio.to_thread(client.catch_up, -1, CATCH_UP_TIMEOUT)
-        )
+        self._catch_up_asked = time.monotonic()
+        links.request_catch_up()
 
     # Drawing -------------------------------------------------------------------------
 
-    def digest(self, prefix: str, now: float) -> dict[str, Any]:
+    def digest(self, name: str, now: float) -> dict[str, Any]:
         """The run's digest, computed once per version."""
-        version = self.versions.get(prefix, 0)
-        cached = self._digests.get(prefix)
+        version = self.versions.get(name, 0)
+        cached = self._digests.get(name)
         if cached is None or cached[0] != version:
-            cached = self._digests[prefix] = (version, run_digest(self.model.runs[prefix], now))
+            cached = self._digests[name] = (version, run_digest(self.model.runs[name], now))
         return cached[1]
 
-    def verdict(self, prefix: str) -> dict[str, Any] | None:
-        version = self.verdict_versions.get(prefix, 0)
-        cached = self._verdicts.get(prefix)
+    def verdict(self, name: str) -> dict[str, Any] | None:
+        version = self.verdict_versions.get(name, 0)
+        cached = self._verdicts.get(name)
         if cached is None or cached[0] != version:
-            view = self.model.runs[prefix]
-            cached = self._verdicts[prefix] = (version, verdict_digest(view.verdict))
+            view = self.model.runs[name]
+            cached = self._verdicts[name] = (version, verdict_digest(view.verdict))
         return cached[1]
 
     def header(self, now: float) -> dict[str, Any]:
@@ -308,13 +301,14 @@ class Hub:
             "last_problem": self.model.last_problem,
             "dropped": self.dropped,
             "catch_up_error": self.catch_up_error,
+            "zenoh": self.links,
         }
 
     def snapshot(self, now: float) -> dict[str, Any]:
         """Every run with its verdict: ``GET /api/runs``."""
         runs = [
-            {**self.digest(prefix, now), "verdict": self.verdict(prefix)}
-            for prefix in sorted(self.model.runs)
+            {**self.digest(name, now), "verdict": self.verdict(name)}
+            for name in sorted(self.model.runs)
         ]
         return {**self.header(now), "runs": runs, "clients": len(self.clients)}
 
@@ -322,16 +316,16 @@ class Hub:
         """The event ``client`` is owed (the runs changed since its last one), None when
         it is up to date."""
         runs = []
-        for prefix in sorted(self.model.runs):
-            current = (self.versions.get(prefix, 0), self.verdict_versions.get(prefix, 0))
-            before = client.sent.get(prefix)
+        for name in sorted(self.model.runs):
+            current = (self.versions.get(name, 0), self.verdict_versions.get(name, 0))
+            before = client.sent.get(name)
             if before == current:
                 continue
-            entry = dict(self.digest(prefix, now))
+            entry = dict(self.digest(name, now))
             if before is None or before[1] != current[1]:
-                entry["verdict"] = self.verdict(prefix)
+                entry["verdict"] = self.verdict(name)
             runs.append(entry)
-            client.sent[prefix] = current
+            client.sent[name] = current
         names = sorted(self.model.runs)
         for gone in [p for p in client.sent if p not in self.model.runs]:
             del client.sent[gone]
@@ -350,9 +344,7 @@ STATIC: web.AppKey[dict[str, bytes]] = web.AppKey("static", dict)
 
 def _view_of(request: web.Request) -> RunView:
     """The run named in the URL, among the known runs only (never used as a path)."""
-    name = request.match_info["run"]
-    prefix = "" if name == ROOT_RUN_ID else name
-    view = request.app[HUB].model.runs.get(prefix)
+    view = request.app[HUB].model.find(request.match_info["run"])
     if view is None:
         raise web.HTTPNotFound(text="no such run\n")
     return view
@@ -390,7 +382,8 @@ async def _verdict(request: web.Request) -> web.Response:
     view = _view_of(request)
     if view.verdict is None:
         raise web.HTTPNotFound(text="no verdict yet\n")
-    safe = re.sub(r"[^A-Za-z0-9_.-]", "_", view.prefix) or "root"
+    safe = re.sub(r"[^A-Za-z0-9_.-]", "_", "-".join(filter(None, (view.prefix, view.run_id))))
+    safe = safe or "root"
     return web.Response(
         body=orjson.dumps(view.verdict),
         content_type="application/json",
@@ -408,6 +401,7 @@ async def _timeline(request: web.Request) -> web.Response:
     planning = view.modules.get("planning")
     document = {
         "run": view.prefix,
+        "run_id": view.run_id,
         "points": points,
         "margin": margin_of(planning) if planning is not None else None,
     }
@@ -444,7 +438,10 @@ async def _events(request: web.Request) -> web.StreamResponse:
                 if transport is None or transport.is_closing():
                     break
                 if time.monotonic() - quiet_since >= KEEPALIVE:
-                    await asyncio.wait_for(response.write(b": keep-alive\n\n"), WRITE_TIMEOUT)
+                    # An event, not a comment: the page sees it and opens a new stream when
+                    # none came for a while (a connection that died without closing).
+                    ping = b"event: ping\ndata: " + orjson.dumps({"now": time.time()}) + b"\n\n"
+                    await asyncio.wait_for(response.write(ping), WRITE_TIMEOUT)
                     quiet_since = time.monotonic()
             client.wake.clear()
     except (ConnectionError, TimeoutError):
@@ -556,9 +553,9 @@ def _url(host: str, port: int) -> str:
     return f"http://[{host}]:{port}/" if ":" in host else f"http://{host}:{port}/"
 
 
-async def serve(options: Options, client: RemoteClient, ready: Callable[[str], None]) -> int:
+async def serve(options: Options, links: RemoteLinks, ready: Callable[[str], None]) -> int:
     """Serve until SIGINT (returns 130) or SIGTERM (returns 0), then close the Zenoh
-    session and the web server (on every path: an open session hangs the interpreter at
+    sessions and the web server (on every path: an open session hangs the interpreter at
     exit). ``ready`` gets the page's URL once the port is bound and Zenoh is open."""
     loop = asyncio.get_running_loop()
     stop: asyncio.Future[int] = loop.create_future()
@@ -584,8 +581,8 @@ async def serve(options: Options, client: RemoteClient, ready: Callable[[str], N
         port = int(runner.addresses[0][1])
         if not options.allow_remote:
             app[ALLOWED_HOSTS].update(loopback_hosts(port))
-        _open(client)
-        pump = asyncio.create_task(hub.pump(client))
+        _open(links)
+        pump = asyncio.create_task(hub.pump(links.start()))
         try:
             ready(_url(host, port))
             return await stop
@@ -594,16 +591,17 @@ async def serve(options: Options, client: RemoteClient, ready: Callable[[str], N
             with contextlib.suppress(asyncio.CancelledError):
                 await pump
     finally:
-        client.close()
+        links.close()
         await runner.cleanup()
         for sig in (signal.SIGINT, signal.SIGTERM):
             loop.remove_signal_handler(sig)
 
 
-def _open(client: RemoteClient) -> None:
-    """Open the Zenoh session; its own errors (an endpoint it cannot use) as one line."""
+def _open(links: RemoteLinks) -> None:
+    """Open the Zenoh sessions (a peer's opens with its peer down: the links retry); their
+    own errors (an endpoint Zenoh cannot use) as one line."""
     try:
-        client.open()
+        links.open_now()
     except Exception as error:
         if type(error).__module__.split(".")[0] != "zenoh":
             raise
@@ -613,8 +611,12 @@ def _open(client: RemoteClient) -> None:
 def run(options: Options) -> int:
     """Run the dashboard in this thread until stopped (see :func:`serve`); a bad option
     is a ConfigError before anything starts."""
-    client = RemoteClient(
-        options.connect, options.prefix, mode="peer", allow_remote=options.allow_remote
+    links = RemoteLinks(
+        options.connect,
+        options.prefix,
+        mode="peer",
+        allow_remote=options.allow_remote,
+        catch_up_timeout=CATCH_UP_TIMEOUT,
     )
 
     def ready(url: str) -> None:
@@ -628,4 +630,4 @@ def run(options: Options) -> int:
                 flush=True,
             )
 
-    return asyncio.run(serve(options, client, ready))
+    return asyncio.run(serve(options, links, ready))

@@ -61,8 +61,11 @@
     return text.length > 300 ? text.slice(0, 300) + "…" : text;
   }
 
-  function runLabel(name) {
-    return name === "" ? "(no prefix)" : name;
+  // A run is its prefix and the run id its documents name (two graphs may share a
+  // prefix): the label shows both.
+  function runLabel(digest) {
+    const prefix = digest.run === "" ? "(no prefix)" : String(digest.run);
+    return digest.run_id ? prefix + " · run " + digest.run_id : prefix;
   }
 
   function runSegment(digest) {
@@ -89,10 +92,10 @@
       if (!names.has(name)) runs.delete(name);
     }
     for (const entry of message.runs) {
-      const state = runs.get(entry.run) || { digest: null, verdict: null, timeline: newTimeline() };
+      const state = runs.get(entry.id) || { digest: null, verdict: null, timeline: newTimeline() };
       if (Object.prototype.hasOwnProperty.call(entry, "verdict")) state.verdict = entry.verdict;
       state.digest = entry;
-      runs.set(entry.run, state);
+      runs.set(entry.id, state);
     }
     if (selected === null || !runs.has(selected)) {
       selected = runs.size ? Array.from(runs.keys()).sort()[0] : null;
@@ -100,22 +103,97 @@
     render();
   }
 
+  // The stream to the dashboard server, and through it each Zenoh link's state: "live"
+  // (green) only while the stream is open and every link reaches its peer. A stream the
+  // browser gave up on (a refusal, or no event for STALE_MS) is opened afresh, so the page
+  // recovers from outages of any length.
+  const STALE_MS = 40000;
+  const REOPEN_MS = 2000;
+  let source = null;
+  let streamOpen = false;
+  let lastEvent = 0;
+
   function connect() {
-    const source = new EventSource("/events");
-    source.addEventListener("runs", onRuns);
-    source.addEventListener("open", () => setConnection("live", "live"));
-    source.addEventListener("error", () => setConnection("down", "disconnected: retrying"));
+    source = new EventSource("/events");
+    lastEvent = Date.now();
+    source.addEventListener("runs", (event) => {
+      lastEvent = Date.now();
+      onRuns(event);
+    });
+    source.addEventListener("ping", () => {
+      lastEvent = Date.now();
+    });
+    source.addEventListener("open", () => {
+      streamOpen = true;
+      lastEvent = Date.now();
+      renderConnection();
+    });
+    source.addEventListener("error", () => {
+      streamOpen = false;
+      renderConnection();
+      if (source.readyState === EventSource.CLOSED) reopen();
+    });
   }
 
-  function setConnection(kind, text) {
+  function reopen() {
+    if (source) source.close();
+    source = null;
+    setTimeout(() => {
+      if (source === null) connect();
+    }, REOPEN_MS);
+  }
+
+  function watchStream() {
+    if (source !== null && Date.now() - lastEvent > STALE_MS) {
+      streamOpen = false;
+      renderConnection();
+      reopen();
+    }
+  }
+
+  function linkText(link) {
+    let text = String(link.endpoint) + " " + String(link.state);
+    if (link.state !== "connected") {
+      if (typeof link.since === "number" && link.since > 0) {
+        text += " since " + new Date(link.since * 1000).toLocaleTimeString();
+      }
+      text += link.state === "not connected" ? " (reconnecting)" : " (retrying)";
+      if (link.error) text += ": " + String(link.error);
+    }
+    return text;
+  }
+
+  function renderConnection() {
     const node = $("connection");
+    const links = header && Array.isArray(header.zenoh) ? header.zenoh : [];
+    const up = links.filter((link) => link && link.state === "connected").length;
+    let kind;
+    let text;
+    if (!streamOpen) {
+      kind = "down";
+      text = "dashboard server not reached: retrying";
+    } else if (links.length && up === links.length) {
+      kind = "live";
+      text = "live";
+    } else if (up > 0) {
+      kind = "partial";
+      text = "live · zenoh " + up + " of " + links.length + " connected";
+    } else {
+      kind = "down";
+      text = "zenoh not connected: no results can arrive";
+    }
     node.className = "connection " + kind;
     node.textContent = text;
+    $("zenoh").replaceChildren(
+      ...links.map((link) => el("span", { class: "link link-" + String(link.state).replace(/ /g, "-") }, linkText(link)))
+    );
+    $("zenoh").hidden = !streamOpen;
   }
 
   // --- drawing ----------------------------------------------------------------------------
 
   function render() {
+    renderConnection();
     $("problems").textContent = header ? String(header.problems) : "0";
     const notes = [];
     if (header && header.last_problem) notes.push("last wire problem: " + header.last_problem);
@@ -134,7 +212,7 @@
     $("no-runs").hidden = names.length > 0;
     select.replaceChildren(
       ...names.map((name) => {
-        const option = el("option", {}, runLabel(name));
+        const option = el("option", {}, runLabel(runs.get(name).digest));
         option.value = name;
         return option;
       })
@@ -146,7 +224,7 @@
       const row = el(
         "tr",
         {},
-        el("td", {}, runLabel(name)),
+        el("td", {}, runLabel(d)),
         el("td", {}, stateText(d)),
         el("td", {}, fmt(d.last_frame)),
         el("td", {}, fmt(d.rate)),
@@ -204,7 +282,7 @@
 
   function renderRun(state) {
     const d = state.digest;
-    $("run-name").textContent = runLabel(d.run);
+    $("run-name").textContent = runLabel(d);
     $("frame").textContent = fmt(d.last_frame);
     $("index").textContent = String(d.last_index);
     $("rate").textContent = fmt(d.rate);
@@ -352,7 +430,7 @@
       t.scheduled = true;
       setTimeout(() => {
         t.scheduled = false;
-        if (runs.get(d.run) === state) updateTimeline(state);
+        if (runs.get(d.id) === state) updateTimeline(state);
       }, wait);
       return;
     }
@@ -371,7 +449,7 @@
         }
         if (t.points.length > TIMELINE_LIMIT) t.points.splice(0, t.points.length - TIMELINE_LIMIT);
         t.margin = typeof doc.margin === "number" ? doc.margin : null;
-        if (runs.get(d.run) === state && selected === d.run) {
+        if (runs.get(d.id) === state && selected === d.id) {
           drawTimeline(state);
           updateTimeline(state);
         }
@@ -430,5 +508,6 @@
   document.addEventListener("DOMContentLoaded", () => {
     $("run-select").addEventListener("change", (event) => select_(event.target.value));
     connect();
+    setInterval(watchStream, 5000);
   });
 })();

@@ -30,6 +30,7 @@ from typing import Any
 
 import orjson
 import pytest
+from headless import chromium
 from loopback import free_port
 from unsure_run import unsure_copy
 
@@ -44,7 +45,6 @@ pytestmark = pytest.mark.timeout(120)
 REPO = Path(__file__).resolve().parents[1]
 EXAMPLE = REPO / "examples" / "cut_in_perception"
 FEED = REPO / "test" / "remote_feed.py"
-CHROMIUM = Path("/usr/bin/chromium")
 #: Markup that runs script if it is ever parsed as HTML.
 HOSTILE = '<img src=x onerror="window.pwned=1">'
 
@@ -198,29 +198,8 @@ def feed_verdict(endpoint: str, prefix: str) -> dict[str, Any]:
 
 @pytest.fixture(scope="module")
 def browser() -> Iterator[Any]:
-    if not CHROMIUM.exists():
-        pytest.skip("Debian's chromium is not installed (apt-get install chromium)")
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as playwright:
-        # The background-networking flags keep chromium itself off the network.
-        launched = playwright.chromium.launch(
-            executable_path=str(CHROMIUM),
-            headless=True,
-            args=[
-                "--no-sandbox",
-                "--disable-gpu",
-                "--disable-quic",
-                "--no-first-run",
-                "--disable-background-networking",
-                "--disable-component-update",
-                "--disable-sync",
-            ],
-        )
-        try:
-            yield launched
-        finally:
-            launched.close()
+    with chromium() as launched:
+        yield launched
 
 
 #: The page's colours as pixels (app.css --good, --bad).

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import base64
 import json
+import re
 import signal
 import socket
 import sys
@@ -26,6 +27,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import pytest
+from headless import chromium
 from logcompare import assert_logs_equal
 from loopback import free_port
 from rosbags.typesys import Stores, get_typestore
@@ -352,12 +354,12 @@ def test_bad_replay_zenoh_options_are_one_line_before_any_node(
 
 @contextmanager
 def watch_and_replay(
-    ros_env: RosEnv, log_dir: Path, options: Sequence[str] = ()
+    ros_env: RosEnv, log_dir: Path, options: Sequence[str] = (), endpoint: str = ""
 ) -> Iterator[tuple[ManagedProcess, ManagedProcess]]:
     """``watch --json --exit-on-verdict`` started first, then ``replay --zenoh`` of
-    ``log_dir`` (with ``options``) on a free port; after the block, both must end with
-    status 0 (both are stopped however the block ends)."""
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    ``log_dir`` (with ``options``) on ``endpoint`` (a free port by default); after the
+    block, both must end with status 0 (both are stopped however the block ends)."""
+    endpoint = endpoint or f"tcp/127.0.0.1:{free_port()}"
     watch_argv = [sys.executable, "-m", "ads_rca.cli", "watch", "--connect", endpoint]
     watch = ManagedProcess("watch", [*watch_argv, "--json", "--exit-on-verdict"], ros_env.env)
     argv = [sys.executable, "-m", "ads_rca.cli", "replay", str(log_dir), *options]
@@ -442,30 +444,69 @@ def test_the_bridge_takes_an_endless_linger(ros_env: RosEnv, typed: str) -> None
         bridge.stop()
 
 
-def test_results_reach_watch_while_a_replay_plays_at_log_rate(
+def test_results_reach_watch_and_the_page_while_a_replay_plays_at_log_rate(
     ros_env: RosEnv, tmp_path: Path, log_dirs: Callable[[str, str], Path]
 ) -> None:
     """A replay in `corrected` at log rate: the monitors judge each frame provisionally as
     it plays (the partner is read at the collision frame, the run's last), so results reach
-    Zenoh and ``watch --json`` before the verdict, marked provisional; the final digest is
-    diagnose's. Before, every result came within 0.2 s at the end."""
+    Zenoh, ``watch --json`` and the dashboard's page in chromium before the verdict, marked
+    provisional; the final digest is diagnose's and the page ends on the verdict. Before,
+    every result came within 0.2 s at the end."""
     log_dir = log_dirs("cut_in", "perception")
     out = tmp_path / "verdict.json"
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
     options = ["--rate", "1", "--json", str(out), "--rate-modules", "0"]
-    with watch_and_replay(ros_env, log_dir, options) as (watch, replay):
+    board = ManagedProcess(
+        "dashboard",
+        [sys.executable, "-m", "ads_rca.cli", "dashboard", "--port", "0", "--connect", endpoint],
+        ros_env.env,
+    )
+    try:
+        wait_for(lambda: "http://" in board.output, 30.0, "the dashboard's URL")
+        url = re.search(r"http://\S+/", board.output)
+        assert url is not None
+        with (
+            chromium() as browser,
+            watch_and_replay(ros_env, log_dir, options, endpoint) as (
+                watch,
+                replay,
+            ),
+        ):
+            page = browser.new_page()
+            page.goto(url.group(0))
 
-        def provisional_heard() -> bool:
-            for line in list(watch.lines):
-                if line.startswith("{") and json.loads(line).get("kind") == "module":
-                    document = json.loads(line).get("result") or {}
-                    if document.get("provisional") is True:
-                        return True
-            return False
+            def provisional_heard() -> bool:
+                for line in list(watch.lines):
+                    if line.startswith("{") and json.loads(line).get("kind") == "module":
+                        document = json.loads(line).get("result") or {}
+                        if document.get("provisional") is True:
+                            return True
+                return False
 
-        wait_for(provisional_heard, 60.0, "a provisional result on watch --json")
-        assert not out.exists() and replay.returncode is None  # still playing
+            wait_for(provisional_heard, 60.0, "a provisional result on watch --json")
+            page.wait_for_function(
+                """() => Array.from(document.querySelectorAll('#modules .status'))
+                         .some((cell) => cell.textContent.endsWith('(provisional)'))""",
+                timeout=60_000,
+            )
+            assert page.text_content("#connection") == "live"
+            assert not out.exists() and replay.returncode is None  # still playing
+            primary = json.dumps(diagnose_primary(log_dir))
+            page.wait_for_function(
+                f"() => document.getElementById('verdict-primary').textContent === {primary}",
+                timeout=90_000,
+            )
+            page.close()
+    finally:
+        board.stop()
     events = [json.loads(line) for line in watch.output.splitlines() if line.startswith("{")]
     assert_final_digest_is_diagnoses(events, log_dir)
+
+
+def diagnose_primary(log_dir: Path) -> str:
+    """The primary root cause ``diagnose`` names for ``log_dir``."""
+    offline = diagnose(read_run_log(log_dir), make_params("corrected")).to_json()
+    return str(offline["primary_root_cause"])
 
 
 def test_a_busy_zenoh_port_is_refused_in_one_line_before_any_node(

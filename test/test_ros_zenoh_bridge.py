@@ -358,7 +358,8 @@ def watch_and_replay(
 ) -> Iterator[tuple[ManagedProcess, ManagedProcess]]:
     """``watch --json --exit-on-verdict`` started first, then ``replay --zenoh`` of
     ``log_dir`` (with ``options``) on ``endpoint`` (a free port by default); after the
-    block, both must end with status 0 (both are stopped however the block ends)."""
+    block, ``watch`` must end with status 0, and the replay too once Ctrl-C ended its
+    bridge's linger (both are stopped however the block ends)."""
     endpoint = endpoint or f"tcp/127.0.0.1:{free_port()}"
     watch_argv = [sys.executable, "-m", "ads_rca.cli", "watch", "--connect", endpoint]
     watch = ManagedProcess("watch", [*watch_argv, "--json", "--exit-on-verdict"], ros_env.env)
@@ -369,7 +370,10 @@ def watch_and_replay(
     try:
         yield watch, replay
         assert watch.wait(120) == 0, watch.output
-        assert replay.wait(120) == 0, replay.output
+        # The replay's outputs are written before its bridge lingers: end the linger.
+        wait_for(lambda: "late dashboards on" in replay.output, 60, "the replay's linger")
+        replay.signal(signal.SIGINT)
+        assert replay.wait(60) == 0, replay.output
     finally:
         for process in (watch, replay):
             process.stop()

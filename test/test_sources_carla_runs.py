@@ -78,6 +78,9 @@ def test_the_csv_gives_the_ego_alone(tmp_path: Path) -> None:
     assert log.inputs["actors"].state == "derived"
     assert "no other actor" in log.inputs["actors"].reason
     assert math.isnan(log.metadata.raw["run_figures"]["min_ttc_s"] or math.nan)
+    # No actor is recorded: the collision count is unknown, never 0 (issue 39 item 5).
+    count = log.metadata.raw["run_figures"]["collision_count"]
+    assert count is None or math.isnan(count), count
 
 
 def test_the_reference_path_is_a_plan_of_the_next_ten_frames(tmp_path: Path) -> None:

@@ -88,6 +88,28 @@ def test_the_reversing_car_as_ego_has_a_negative_speed(scene: Path) -> None:
     assert log.inputs["ego"].state == "real" and "chosen by ego_agent" in log.inputs["ego"].reason
 
 
+def test_the_speed_sign_follows_the_dlp_api_however_small_the_motion(tmp_path: Path) -> None:
+    """Issue 39 item 6: the API (``Dataset.states_from_utm``) negates the speed wherever
+    the heading points against the motion from the previous to the next instance, even a
+    4 mm jitter of a car standing still; exactly no motion keeps the sign. Car 1 stands
+    at (10, 20) heading east, its position at frame 11 measured 4 mm west."""
+    path = write_dlp_scene(tmp_path / "scene", FRAMES)
+    instances_file = path.parent / f"{STEM}_instances.json"
+    instances = json.loads(instances_file.read_text())
+    car = scene_agents(FRAMES)[0]
+    for frame in range(car.first, car.last + 1):
+        instance = instances[car.instance(frame)]
+        instance["coords"] = [9.996 if frame == 11 else 10.0, 20.0]
+        instance["speed"] = 0.02
+    instances_file.write_text(json.dumps(instances))
+    log = read_dlp_scene(path, source=SourceOptions(ego_agent=ids()[1]))
+    speeds = {log.frames.index(ts): log.pose[ts].speed for ts in log.frames}
+    assert speeds[10] == -0.02  # next (frame 11) - previous (frame 9) points west
+    assert speeds[12] == 0.02  # frame 13 - frame 11 points east
+    assert speeds[11] == 0.02  # frames 10 and 12 stand at one place: no motion
+    assert {speeds[f] for f in speeds if f not in (10, 11, 12)} == {0.02}
+
+
 def test_the_ego_by_token_and_its_mirrored_heading(scene: Path) -> None:
     walker = scene_agents(FRAMES)[2]
     log = read_dlp_scene(scene, source=SourceOptions(ego_agent=walker.token))

@@ -158,13 +158,17 @@ def _rms(values: FloatArray) -> float:
     return float(np.sqrt(np.mean(finite * finite))) if finite.size else float("nan")
 
 
-def run_figures(ego: EgoTrack, rows: ActorRows, dt: float) -> dict[str, Any]:
-    """The figures of :data:`FIGURE_KEYS` (NaN where a run cannot give one)."""
+def run_figures(
+    ego: EgoTrack, rows: ActorRows, dt: float, actors_recorded: bool = True
+) -> dict[str, Any]:
+    """The figures of :data:`FIGURE_KEYS` (NaN where a run cannot give one: a run that
+    records no actors at all, ``telemetry.csv``, has an unknown collision count, not 0)."""
     along, across = accelerations(ego, dt)
     jerk_along = np.diff(along, prepend=0.0) / dt
     jerk_across = np.diff(across, prepend=0.0) / dt
+    collisions = overlap_episodes(rows, overlaps(ego, rows)) if actors_recorded else math.nan
     return {
-        "collision_count": overlap_episodes(rows, overlaps(ego, rows)),
+        "collision_count": collisions,
         "min_ttc_s": min_time_to_collision(ego, rows),
         "hard_brake_count": int(np.count_nonzero(along < HARD_BRAKE_MS2)),
         "jerk_rms_longitudinal": _rms(jerk_along),

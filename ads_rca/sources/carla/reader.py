@@ -146,7 +146,7 @@ def read_carla_run(
     found = _actor_table(telemetry, ticks)
     rows = found.rows
     dt = 1.0 / fps
-    figures = run_figures(ego, rows, dt)
+    figures = run_figures(ego, rows, dt, actors_recorded=telemetry.schema != "csv")
     hit = overlaps(ego, rows)
     collision_frame = -1
     if derived_collision and hit.any():

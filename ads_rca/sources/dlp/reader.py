@@ -87,9 +87,6 @@ DEFAULT_HALF_HEIGHT = 0.75
 DEFAULT_SIZES: Mapping[str, tuple[float, float]] = {"pedestrian": (0.83, 0.83)}
 DEFAULT_SIZE = (4.6, 1.9)
 MAX_TEXT = 64
-#: A displacement shorter than this (m) between an ego's neighbouring instances says
-#: nothing about its direction of travel: its speed keeps its sign.
-STILL_M = 0.01
 #: The most (ego tick, obstacle) pairs the derived collision check holds at once.
 OVERLAP_BLOCK = 1_000_000
 SOURCE_FRAME = (
@@ -428,16 +425,18 @@ def _choose_ego(agents: Agents, table: Table, wanted: str) -> tuple[int, str]:
 
 
 def _signed_speed(xy: FloatArray, heading: FloatArray, speed: FloatArray) -> FloatArray:
-    """DLP's unsigned speeds signed by the API's rule: negative where the heading points
-    against the motion from the previous to the next instance (reversing)."""
+    """DLP's speeds signed by the API's rule (``Dataset.states_from_utm``): negated where
+    the heading points against the motion from the previous to the next instance (the
+    first and last use themselves), however small that motion: a parked car whose position
+    jitters by millimetres backwards reads negative there, as in the API; exactly no motion
+    keeps the sign. Negated, not made negative: the API multiplies the file's speed by -1."""
     if len(xy) < 2:
         return speed.copy()
     ahead = np.vstack([xy[1:], xy[-1:]])
     behind = np.vstack([xy[:1], xy[:-1]])
     motion = ahead - behind
-    moving = np.hypot(motion[:, 0], motion[:, 1]) > STILL_M
     along = motion[:, 0] * np.cos(heading) + motion[:, 1] * np.sin(heading)
-    out: FloatArray = np.where(moving & (along < 0), -np.abs(speed), np.abs(speed))
+    out: FloatArray = np.where(along < 0, -speed, speed)
     return out
 
 

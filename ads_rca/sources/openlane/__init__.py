@@ -2,7 +2,8 @@
 for a map-perception model.
 
 ``SOURCE``: a segment folder (an ``info/`` of ``<timestamp>.json`` files and no running log's
-``actors/``), that ``info/`` itself, or a dataset root holding ``data_dict_*.json``.
+``actors/``), that ``info/`` itself, a dataset root holding ``data_dict_*.json``, or a split
+folder (``val/``: segment folders); the last two are read as one line naming their segments.
 """
 
 from __future__ import annotations
@@ -19,6 +20,8 @@ if TYPE_CHECKING:
 #: The folder of a segment's per-frame files, and the split index's prefix.
 INFO = "info"
 INDEX_PREFIX = "data_dict_"
+#: Entries of a folder looked at for a segment folder (a split holds hundreds).
+SPLIT_LOOK = 64
 
 
 def _detect(path: Path) -> bool:
@@ -30,7 +33,11 @@ def _detect(path: Path) -> bool:
     try:
         if info.is_dir() and any(n.endswith(".json") for n in os.listdir(info)):
             return True
-        return any(n.startswith(INDEX_PREFIX) and n.endswith(".json") for n in os.listdir(path))
+        names = os.listdir(path)
+        if any(n.startswith(INDEX_PREFIX) and n.endswith(".json") for n in names):
+            return True
+        # A split folder: its entries are segment folders (names and stat only).
+        return any((path / n / INFO).is_dir() for n in sorted(names)[:SPLIT_LOOK])
     except OSError:
         return False
 

@@ -5,8 +5,9 @@ from __future__ import annotations
 import functools
 import json
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from fractions import Fraction
+from typing import Any
 
 import numpy as np
 import pytest
@@ -28,6 +29,17 @@ from ads_rca.sources.openlane.scores import (
 )
 
 RED, GREEN = 1, 2
+
+
+def evaluate_frames(pairs: Iterable[tuple[LaneGraph, LaneGraph]], **options: Any) -> Any:
+    """The devkit's ``evaluate()`` on a ground truth already collected: the hand-made lanes
+    here are scored as given (``point_interval`` 1), the collection step is tested apart."""
+    return score_frames(pairs, point_interval=1, **options)
+
+
+def evaluate_frame(gt: LaneGraph, pred: LaneGraph) -> Any:
+    """:func:`evaluate_frames`'s match of one frame."""
+    return match_frame(gt, pred, point_interval=1)
 
 
 def line(x0: float, x1: float, y: float = 0.0, points: int = 3) -> np.ndarray:
@@ -231,7 +243,7 @@ def test_a_perfect_prediction_scores_one_everywhere() -> None:
         lane_lane=FORK_LINKS,
         lane_element=FORK_ELEMENTS,
     )
-    s = score_frames([(fork_truth(), pred)])
+    s = evaluate_frames([(fork_truth(), pred)])
     assert (s.det_l, s.det_t, s.top_ll, s.top_lt, s.ols) == (1.0, 1.0, 1.0, 1.0, 1.0)
     assert s.det_l_ap == {1.0: 1.0, 2.0: 1.0, 3.0: 1.0}
     assert s.det_t_ap == {"red": 1.0, "green": 1.0}
@@ -242,7 +254,7 @@ def test_a_lane_shifted_1_5_m_counts_at_2_and_3_m_only() -> None:
     # at 2 and 3 m (AP 1): DET_l = 2/3. TOP_ll at 1 m: the ground-truth lane is unmatched,
     # so its self-link is set to the opposite of the truth (a link at 0.5 + eps): out and in
     # APs 0; at 2 and 3 m no link either side: 1 and 1. (0 + 0 + 4 * 1) / 6 = 2/3
-    s = score_frames([(graph([line(0, 10)]), graph([line(0, 10, y=1.5)], scores=[0.9]))])
+    s = evaluate_frames([(graph([line(0, 10)]), graph([line(0, 10, y=1.5)], scores=[0.9]))])
     assert s.det_l_ap == {1.0: 0.0, 2.0: 1.0, 3.0: 1.0}
     assert s.det_l == pytest.approx(2 / 3)
     assert s.top_ll == pytest.approx(2 / 3)
@@ -254,14 +266,14 @@ def test_a_lane_shifted_1_5_m_counts_at_2_and_3_m_only() -> None:
 def test_devkit_empty_scores_empty_classes_one_and_empty_topology_zero() -> None:
     # as above, but the devkit's values: 13 empty attributes at AP 1, TOP_lt 0
     pairs = [(graph([line(0, 10)]), graph([line(0, 10, y=1.5)], scores=[0.9]))]
-    s = score_frames(pairs, devkit_empty=True)
+    s = evaluate_frames(pairs, devkit_empty=True)
     assert s.det_t == 1.0 and len(s.det_t_ap) == 13 and s.top_lt == 0.0
     assert s.ols == pytest.approx((2 / 3 + 1 + math.sqrt(2 / 3) + 0) / 4)
 
 
 def test_a_far_lane_is_relaxed() -> None:
     # nearest point 150 m: factor 0.5, so 1.5 m off counts as 0.75 m: a hit at every threshold
-    s = score_frames([(graph([line(150, 160)]), graph([line(150, 160, y=1.5)], scores=[0.9]))])
+    s = evaluate_frames([(graph([line(150, 160)]), graph([line(150, 160, y=1.5)], scores=[0.9]))])
     assert s.det_l == 1.0
 
 
@@ -271,7 +283,7 @@ def test_greedy_matching_follows_confidence_not_distance() -> None:
     # 3 m A takes it first and B is a false positive: ranked TP, FP: AP 1.
     truth = graph([line(0, 10)])
     pred = graph([line(0, 10, y=1.5), line(0, 10, y=0.2)], scores=[0.9, 0.6])
-    s = score_frames([(truth, pred)])
+    s = evaluate_frames([(truth, pred)])
     assert s.det_l_ap == {1.0: 0.5, 2.0: 1.0, 3.0: 1.0}
     assert s.det_l == pytest.approx(5 / 6)
 
@@ -283,7 +295,7 @@ def test_a_second_prediction_does_not_fall_back_to_its_second_nearest_lane() -> 
     # ground truths at every threshold: recall 1/2 at most: (6 * 1 + 5 * 0) / 11 = 6/11
     truth = graph([line(0, 10), line(0, 10, y=3.0)])
     pred = graph([line(0, 10, y=0.5), line(0, 10, y=1.0)], scores=[0.9, 0.8])
-    s = score_frames([(truth, pred)])
+    s = evaluate_frames([(truth, pred)])
     assert s.det_l == pytest.approx(6 / 11)
 
 
@@ -292,9 +304,9 @@ def test_a_false_positive_ranked_between_hits_lowers_ap_as_worked() -> None:
     # AP 28/33 at every threshold (see test_average_precision_eleven_points)
     truth = graph([line(0, 10), line(0, 10, y=10.0)])
     pred = graph([line(0, 10), line(0, 10, y=-20.0), line(0, 10, y=10.0)], scores=[0.9, 0.8, 0.7])
-    assert score_frames([(truth, pred)]).det_l == pytest.approx(28 / 33)
+    assert evaluate_frames([(truth, pred)]).det_l == pytest.approx(28 / 33)
     without = graph([line(0, 10), line(0, 10, y=10.0)], scores=[0.9, 0.7])
-    assert score_frames([(truth, without)]).det_l == 1.0
+    assert evaluate_frames([(truth, without)]).det_l == 1.0
 
 
 def test_det_t_averages_two_attributes() -> None:
@@ -309,7 +321,7 @@ def test_det_t_averages_two_attributes() -> None:
         attributes=(RED, GREEN, RED),
         element_scores=(0.9, 0.8, 0.95),
     )
-    s = score_frames([(truth, pred)])
+    s = evaluate_frames([(truth, pred)])
     assert s.det_t_ap == {"red": 0.5, "green": 1.0}
     assert s.det_t == pytest.approx(0.75)
 
@@ -319,7 +331,7 @@ def test_an_iou_of_exactly_a_quarter_does_not_match() -> None:
     # not below 0.75
     truth = graph([], boxes=BOXES[1:], attributes=(GREEN,))
     pred = graph([], boxes=((26, 0, 36, 10),), attributes=(GREEN,), element_scores=(0.9,))
-    assert score_frames([(truth, pred)]).det_t == 0.0
+    assert evaluate_frames([(truth, pred)]).det_t == 0.0
 
 
 def test_topology_with_one_wrong_link() -> None:
@@ -341,7 +353,7 @@ def test_topology_with_one_wrong_link() -> None:
         lane_lane=links,
         lane_element=elements,
     )
-    s = score_frames([(fork_truth(), pred)])
+    s = evaluate_frames([(fork_truth(), pred)])
     assert (s.det_l, s.det_t) == (1.0, 1.0)
     assert s.top_ll == pytest.approx(7 / 12)
     assert s.top_lt == pytest.approx(3 / 5)
@@ -356,7 +368,7 @@ def test_links_of_unmatched_predicted_lanes_are_not_looked_at() -> None:
         scores=[0.9, 0.8],
         lane_lane=np.array([[0, 0.9], [0.9, 0]]),
     )
-    s = score_frames([(graph([line(0, 10)]), pred)])
+    s = evaluate_frames([(graph([line(0, 10)]), pred)])
     assert s.top_ll == 1.0
 
 
@@ -366,12 +378,12 @@ def test_a_segment_pools_its_frames_before_ap() -> None:
     # not the mean of the frames' APs (1 and 0).
     one = (graph([line(0, 10)]), graph([line(0, 10)], scores=[0.6]))
     two = (graph([line(0, 10)]), graph([line(0, 10, y=-20.0)], scores=[0.9]))
-    matches = [match_frame(*one), match_frame(*two)]
+    matches = [evaluate_frame(*one), evaluate_frame(*two)]
     assert scores_from(matches[:1]).det_l == 1.0
     assert scores_from(matches[1:]).det_l == 0.0
     pooled = scores_from(matches)
     assert pooled.det_l == pytest.approx(3 / 11) and pooled.frames == 2
-    assert score_frames([one, two]).det_l == pooled.det_l
+    assert evaluate_frames([one, two]).det_l == pooled.det_l
 
 
 # ---------------------------------------------------------------------------------------------
@@ -379,24 +391,24 @@ def test_a_segment_pools_its_frames_before_ap() -> None:
 
 
 def test_no_frames_and_empty_frames_are_undefined() -> None:
-    for s in (score_frames([]), score_frames([(LaneGraph.empty(), LaneGraph.empty())])):
+    for s in (evaluate_frames([]), evaluate_frames([(LaneGraph.empty(), LaneGraph.empty())])):
         assert all(math.isnan(v) for v in (s.det_l, s.det_t, s.top_ll, s.top_lt, s.ols))
         doc = s.to_dict()
         assert doc["ols"] is None and doc["det_l_ap"] == {"1": None, "2": None, "3": None}
         json.dumps(doc, allow_nan=False)
-    devkit = score_frames([(LaneGraph.empty(), LaneGraph.empty())], devkit_empty=True)
+    devkit = evaluate_frames([(LaneGraph.empty(), LaneGraph.empty())], devkit_empty=True)
     # DET_l 1, DET_t 1, TOP_ll 0, TOP_lt 0: (1 + 1 + 0 + 0) / 4
     assert devkit.ols == pytest.approx(0.5)
 
 
 def test_ground_truth_without_any_prediction_scores_zero() -> None:
-    s = score_frames([(fork_truth(), LaneGraph.empty())])
+    s = evaluate_frames([(fork_truth(), LaneGraph.empty())])
     # every vertex unmatched: every per-vertex AP 0
     assert (s.det_l, s.det_t, s.top_ll, s.top_lt, s.ols) == (0.0, 0.0, 0.0, 0.0, 0.0)
 
 
 def test_predictions_without_ground_truth_are_false_positives_and_no_topology() -> None:
-    s = score_frames([(LaneGraph.empty(), graph([line(0, 10)], scores=[0.9]))])
+    s = evaluate_frames([(LaneGraph.empty(), graph([line(0, 10)], scores=[0.9]))])
     assert s.det_l == 0.0 and math.isnan(s.top_ll) and s.pred_lanes == 1
 
 
@@ -408,7 +420,7 @@ def test_lanes_with_non_finite_or_no_points_are_dropped_and_counted() -> None:
     flat = np.zeros((0, 3))
     planar = line(0, 10)[:, :2]
     pred = graph([line(0, 10), flat, planar, np.full((3, 3), np.inf)], scores=[0.9] * 4)
-    s = score_frames([(truth, pred)])
+    s = evaluate_frames([(truth, pred)])
     assert s.dropped_lanes == 4 and s.gt_lanes == 1 and s.pred_lanes == 1
     assert (s.det_l, s.top_ll) == (1.0, 1.0)
 
@@ -421,7 +433,7 @@ def test_bad_boxes_are_dropped_and_counted() -> None:
         attributes=(RED, GREEN, GREEN),
         element_scores=(0.9, 0.9, 0.9),
     )
-    s = score_frames([(truth, pred)])
+    s = evaluate_frames([(truth, pred)])
     # the inverted and the NaN box dropped: red found (1), green missed (0)
     assert s.dropped_elements == 2 and s.det_t_ap == {"red": 1.0, "green": 0.0}
 
@@ -429,11 +441,11 @@ def test_bad_boxes_are_dropped_and_counted() -> None:
 def test_a_prediction_without_confidences_ranks_in_list_order() -> None:
     # no confidence at all: ranked as listed, FP then TP: AP 1/2 at every threshold
     truth = graph([line(0, 10)])
-    s = score_frames([(truth, graph([line(0, 10, y=-20.0), line(0, 10)]))])
+    s = evaluate_frames([(truth, graph([line(0, 10, y=-20.0), line(0, 10)]))])
     assert s.det_l == pytest.approx(0.5) and s.unscored == 2
     # a stated confidence ranks before a missing one: TP then FP, AP 1
     mixed = graph([line(0, 10, y=-20.0), line(0, 10)], scores=[np.nan, 0.1])
-    assert score_frames([(truth, mixed)]).det_l == 1.0
+    assert evaluate_frames([(truth, mixed)]).det_l == 1.0
 
 
 def test_a_nan_link_between_matched_lanes_counts_as_wrong() -> None:
@@ -443,7 +455,7 @@ def test_a_nan_link_between_matched_lanes_counts_as_wrong() -> None:
     pred = graph([line(0, 10), line(10, 20)], scores=[0.9, 0.8], lane_lane=np.full((2, 2), np.nan))
     # rows: L0 true {1}, predicted {0} (self): 0; L1 true {}, predicted {1}: 0; columns the
     # same: 0
-    assert score_frames([(truth, pred)]).top_ll == 0.0
+    assert evaluate_frames([(truth, pred)]).top_ll == 0.0
     assert UNMATCHED_LINK > 0.5
 
 
@@ -464,5 +476,5 @@ def test_an_element_of_no_known_attribute_counts_for_no_class_but_links() -> Non
         element_scores=(0.9,),
         lane_element=[[0.9]],
     )
-    s = score_frames([(truth, pred)])
+    s = evaluate_frames([(truth, pred)])
     assert math.isnan(s.det_t) and s.det_t_ap == {} and s.top_lt == 1.0

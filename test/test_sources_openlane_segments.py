@@ -98,9 +98,15 @@ def test_lanes_are_mirrored_and_their_topology_kept(segment: Path) -> None:
     log = read_openlane_segment(segment)
     graph = log.lanes[log.frames[0]]
     assert graph.lane_ids == ("1", "2", "3") and graph.element_ids == ("10", "11")
+    # Every released point is kept (the scores thin the ground truth, not the reader).
     # B at y = 3.5 left is y = -3.5 in the model; C's (25, 1.5) is (25, -1.5).
-    assert graph.lanes[1].tolist() == [[0.0, -3.5, 0.0], [10.0, -3.5, 0.0], [20.0, -3.5, 0.0]]
-    assert graph.lanes[2][1].tolist() == [25.0, -1.5, 0.0]
+    assert [len(lane) for lane in graph.lanes] == [201, 201, 201]
+    assert graph.lanes[1][::100].tolist() == [
+        [0.0, -3.5, 0.0],
+        [10.0, -3.5, 0.0],
+        [20.0, -3.5, 0.0],
+    ]
+    assert graph.lanes[2][100].tolist() == [25.0, -1.5, 0.0]
     assert graph.lane_lane.tolist() == [[0, 0, 1], [0, 0, 0], [0, 0, 0]]
     assert graph.lane_element.tolist() == [[1, 0], [0, 1], [0, 0]]
     assert np.isnan(graph.lane_scores).all() and np.isnan(graph.element_scores).all()
@@ -234,6 +240,20 @@ def test_a_dataset_root_is_one_line_naming_its_segments(segment: Path, tmp_path:
         read_openlane_segment(tmp_path)
 
 
+def test_a_split_folder_in_auto_is_one_line_naming_its_segments(segment: Path) -> None:
+    """Issue 39 item 4: ``--format auto`` on ``val/`` said "not an ADS running log"."""
+    split = segment.parent
+    write_openlane_segment(split.parent, "00556")
+    assert detect_format(split) == "openlane"
+    with pytest.raises(InputError) as error:
+        open_run(split)
+    message = str(error.value)
+    assert "\n" not in message and "2 segments (00492, 00556)" in message
+    done = run_script("diagnose", str(split))
+    assert done.returncode == 2 and done.stdout == ""
+    assert done.stderr.count("\n") == 1 and "2 segments (00492, 00556)" in done.stderr
+
+
 # --- a model's results -------------------------------------------------------------------
 
 
@@ -299,8 +319,8 @@ def test_bad_result_files_are_reported_and_the_rest_read(segment: Path, tmp_path
     assert any("1 prediction files name no frame" in p for p in found)
     assert any("pred/README.json file name: not <timestamp>.json" in p for p in found), found
     assert any("3 frames have no usable prediction" in p for p in found)
-    assert any("traffic_element[0].confidence: '0.9' is not a number" in p for p in found)
-    assert any("lane_centerline[1].confidence: nan is not a number" in p for p in found)
+    assert any("traffic_element[0].confidence: '0.9' is not a finite number" in p for p in found)
+    assert any("lane_centerline[1].confidence: nan is not a finite number" in p for p in found)
     fourth = log.lanes_predicted[log.frames[3]]
     # The lane and the element dropped with their rows and columns of the topology.
     assert fourth.lane_ids == ("p0", "p2") and fourth.element_ids == ("101",)

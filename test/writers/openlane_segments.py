@@ -12,7 +12,10 @@ every value worked out by hand:
   roll :data:`ROLL_DEG`: ``pose.rotation`` = Rz(yaw) Ry(pitch) Rx(roll);
 - three lane centerlines in the ego frame (x forward, y left): ``A`` straight ahead from
   (0, 0) to (20, 0), ``B`` beside it on the left (y = 3.5), ``C`` continuing ``A`` to the
-  left from (20, 0) to (30, 5); ``topology_lclc`` A -> C;
+  left from (20, 0) to (30, 5); ``topology_lclc`` A -> C. Written as the released files
+  hold lanes: :data:`RELEASED_POINTS` points (100 between each two of the three key
+  points), so the official evaluation's thinning to every 20th point (11) keeps the key
+  points (:func:`scored_points`);
 - two traffic elements: a red light (category 1, attribute 1) at [[100, 200], [120, 260]]
   governing A, a go-straight sign (category 2, attribute 4) at [[300, 100], [340, 140]]
   governing B (``topology_lcte``);
@@ -21,7 +24,8 @@ every value worked out by hand:
 
 ``write_openlane_predictions(folder, segment, variant)`` writes a model's per-frame results
 for the same frames, one ``<timestamp>.json`` each, with its own ids (unique per frame only):
-``perfect`` repeats the ground truth (confidence 0.9, true links 0.8 and the others 0.1), so
+``perfect`` repeats the ground truth as the devkit scores it (the 11 points the official
+evaluation keeps; confidence 0.9, true links 0.8 and the others 0.1), so
 DET_l = DET_t = TOP_ll = TOP_lt = 1 and OLS = 1; ``missing_sign`` leaves out the sign and
 its link, so DET_t is 0.5 (the red light's class found, go-straight's not) while DET_l stays
 1. ``wrap`` chooses the document's shape: the devkit's per-frame result (``predictions``),
@@ -55,6 +59,10 @@ ELEMENTS = (
     {"category": 1, "attribute": 1, "points": [[100.0, 200.0], [120.0, 260.0]]},
     {"category": 2, "attribute": 4, "points": [[300.0, 100.0], [340.0, 140.0]]},
 )
+#: Points per lane in the released info files.
+RELEASED_POINTS = 201
+#: Every this-many-th point is what the official val/test evaluation scores.
+SCORED_EVERY = 20
 LANE_LANE = [[0, 0, 1], [0, 0, 0], [0, 0, 0]]
 LANE_ELEMENT = [[1, 0], [0, 1], [0, 0]]
 
@@ -94,11 +102,31 @@ def element_ids(text_ids: bool) -> list[int | str]:
     return [f"te-{n}" if text_ids else n for n in (10, 11)]
 
 
+def released_points(key_points: list[list[float]]) -> list[list[float]]:
+    """A lane of :data:`RELEASED_POINTS` points through its three key points (100 evenly
+    spaced per leg)."""
+    legs = len(key_points) - 1
+    per_leg = (RELEASED_POINTS - 1) // legs
+    out = []
+    for leg in range(legs):
+        start, end = key_points[leg], key_points[leg + 1]
+        for step in range(per_leg):
+            t = step / per_leg
+            out.append([a + (b - a) * t for a, b in zip(start, end, strict=True)])
+    out.append(list(key_points[-1]))
+    return out
+
+
+def scored_points(key_points: list[list[float]]) -> list[list[float]]:
+    """What the official evaluation keeps of the released lane: every 20th point (11)."""
+    return released_points(key_points)[::SCORED_EVERY]
+
+
 def annotation(text_ids: bool) -> dict[str, Any]:
     """The ground truth of every frame (the scene ahead does not change)."""
     return {
         "lane_centerline": [
-            {"id": ident, "points": points, "is_intersection_or_connector": False}
+            {"id": ident, "points": released_points(points), "is_intersection_or_connector": False}
             for ident, points in zip(lane_ids(text_ids), LANES.values(), strict=True)
         ],
         "traffic_element": [
@@ -157,7 +185,7 @@ def write_openlane_segment(
 def predicted_annotation(variant: str) -> dict[str, Any]:
     """A model's result for every frame (see the module docstring)."""
     lanes = [
-        {"id": f"p{n}", "points": points, "confidence": 0.9}
+        {"id": f"p{n}", "points": scored_points(points), "confidence": 0.9}
         for n, points in enumerate(LANES.values())
     ]
     keep = len(ELEMENTS) if variant == "perfect" else 1

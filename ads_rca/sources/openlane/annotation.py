@@ -5,7 +5,10 @@ centerlines, traffic elements and topology, ground truth or a model's prediction
 The info file's ``annotation`` and a prediction file share one schema (docs/formats.md
 "OpenLane-V2 segments"), so one parser reads both: ids (integers or text) as text, lane
 points mirrored from the right-handed ego frame (y' = -y), a prediction's confidences kept.
-JSON numbers only: a number written as text, a boolean or NaN is not one. A bad lane or
+JSON numbers only: a number written as text, a boolean or NaN is not one (but a
+topology matrix's ``true``/``false`` are 1 and 0, as numpy reads them in the devkit). A
+prediction's confidences are any finite number and a traffic element's ``category`` may
+be absent: the devkit's format check accepts both (docs/openlane-metrics.md). A bad lane or
 element is dropped with its row and column of the topology (which follow the file's list
 order); a repeated id keeps the first; a matrix of the wrong shape is read as no links; each
 reported with its file and field.
@@ -23,7 +26,12 @@ from ads_rca.foundation.geometry import FloatArray
 from ads_rca.model import Boxes
 from ads_rca.problems import DROPPED_RECORD, SKIPPED_FILE, ProblemLog, Severity
 from ads_rca.sources.log.records import as_float, json_number
-from ads_rca.sources.openlane.lanes import ELEMENT_ATTRIBUTES, ELEMENT_CATEGORIES, LaneGraph
+from ads_rca.sources.openlane.lanes import (
+    ELEMENT_ATTRIBUTES,
+    ELEMENT_CATEGORIES,
+    UNSPECIFIED_CATEGORY,
+    LaneGraph,
+)
 
 #: Ids longer than this are not kept.
 MAX_TEXT = 64
@@ -77,18 +85,11 @@ def lane_graph(
         if ident is None:
             continue
         corners = finite_array(entry.get("points"), (2, 2))
-        category = _integer(entry.get("category"))
         attribute = _integer(entry.get("attribute"))
         if corners is None:
             report(f"{field}.points", "not [[x1, y1], [x2, y2]] finite numbers", DROPPED_RECORD)
             continue
-        if category not in ELEMENT_CATEGORIES:
-            report(
-                f"{field}.category",
-                f"{shown(entry.get('category'))} is not 1 or 2",
-                DROPPED_RECORD,
-            )
-            continue
+        category = _category(entry, field, report)
         if attribute is None or not 0 <= attribute < len(ELEMENT_ATTRIBUTES):
             bound = len(ELEMENT_ATTRIBUTES) - 1
             report(
@@ -169,16 +170,32 @@ def _entry_id(entry: object, field: str, seen: list[str], report: _Reporter) -> 
     return ident
 
 
+def _category(entry: Mapping[str, Any], field: str, report: _Reporter) -> int:
+    """A traffic element's category: 1 light, 2 sign, else :data:`UNSPECIFIED_CATEGORY`.
+    The devkit's format check asks for none (its baseline writes none, its tutorial 0) and
+    its scores never read it, so an element is never dropped for it; a value other than
+    0, 1 or 2 is reported."""
+    if "category" not in entry:
+        return UNSPECIFIED_CATEGORY
+    category = _integer(entry.get("category"))
+    if category in ELEMENT_CATEGORIES:
+        return category
+    given = shown(entry.get("category"))
+    report(f"{field}.category", f"{given} is not 0, 1 or 2", "read as unspecified", "warning")
+    return UNSPECIFIED_CATEGORY
+
+
 def _score(
     entry: Mapping[str, Any], field: str, predicted: bool, report: _Reporter
 ) -> float | None:
-    """NaN for the ground truth; a prediction's confidence in [0, 1], or None (reported)."""
+    """NaN for the ground truth; a prediction's confidence, any finite number (the devkit
+    only ranks by it: logits score as probabilities do), or None (reported)."""
     if not predicted:
         return math.nan
     value = json_number(entry.get("confidence"))
-    if not 0.0 <= value <= 1.0:
+    if not math.isfinite(value):
         given = shown(entry.get("confidence"))
-        report(f"{field}.confidence", f"{given} is not a number in [0, 1]", DROPPED_RECORD)
+        report(f"{field}.confidence", f"{given} is not a finite number", DROPPED_RECORD)
         return None
     return value
 
@@ -192,8 +209,10 @@ def _topology(
     report: _Reporter,
 ) -> FloatArray:
     """An adjacency matrix of the file's list order; no links (zeros) when missing or of
-    the wrong shape; text, NaN and out-of-range entries read as 0 (or clipped, or a ground
-    truth's non-0/1 as 1 past 0.5), each kind reported once."""
+    the wrong shape; ``true``/``false`` as 1/0 (numpy reads them so in the devkit); text
+    and NaN entries read as 0, a ground truth's non-0/1 as 1 past 0.5, each kind reported
+    once. A prediction's link confidences are kept as given, any finite number: the devkit
+    links past 0.5 and ranks by them."""
     field = _at(where, key)
     zeros = np.zeros(shape)
     value = annotation.get(key)
@@ -213,7 +232,7 @@ def _topology(
         return zeros
     flat = found.ravel()
     numeric = np.fromiter(
-        (type(v) in (int, float) for v in flat.tolist()), dtype=bool, count=flat.size
+        (type(v) in (int, float, bool) for v in flat.tolist()), dtype=bool, count=flat.size
     )
     matrix = np.full(flat.size, np.nan)
     matrix[numeric] = [as_float(v) for v in flat[numeric].tolist()]
@@ -222,12 +241,7 @@ def _topology(
     if bad.any():
         report(field, f"{int(bad.sum())} entries are not finite numbers", "read as 0")
         matrix[bad] = 0.0
-    if predicted:
-        outside = (matrix < 0.0) | (matrix > 1.0)
-        if outside.any():
-            report(field, f"{int(outside.sum())} confidences outside [0, 1]", "clipped", "warning")
-            matrix = np.clip(matrix, 0.0, 1.0)
-    else:
+    if not predicted:
         odd = (matrix != 0.0) & (matrix != 1.0)
         if odd.any():
             report(

@@ -22,8 +22,10 @@ import numpy.typing as npt
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 
-#: OpenLane-V2's traffic-element categories.
-ELEMENT_CATEGORIES = {1: "traffic_light", 2: "road_sign"}
+#: OpenLane-V2's traffic-element categories; 0: not given (the devkit baseline writes
+#: none, its tutorial 0). The scores never use the category (docs/openlane-metrics.md).
+UNSPECIFIED_CATEGORY = 0
+ELEMENT_CATEGORIES = {UNSPECIFIED_CATEGORY: "unspecified", 1: "traffic_light", 2: "road_sign"}
 #: OpenLane-V2's traffic-element attributes (the index is the file's ``attribute``).
 ELEMENT_ATTRIBUTES = (
     "unknown",
@@ -48,7 +50,7 @@ class LaneGraph:
 
     ``lanes[i]`` is centerline i's (P_i, 3) points in order of travel; ``lane_scores`` its
     confidence (NaN for ground truth). ``element_boxes`` rows are (x1, y1, x2, y2) image
-    pixels; ``element_category`` 1 light / 2 sign, ``element_attribute`` an index of
+    pixels; ``element_category`` 1 light / 2 sign / 0 not given, ``element_attribute`` an index of
     :data:`ELEMENT_ATTRIBUTES`. ``lane_lane`` is (n, n) with [i, j] the link i -> j;
     ``lane_element`` (n, k) with [i, j] lane i governed by element j. Rows and columns follow
     the list order.

@@ -47,6 +47,7 @@ from ads_rca.params import Params
 from ads_rca.sources.openlane.lanes import LaneGraph
 from ads_rca.sources.openlane.scores import (
     ELEMENT_IOU_DISTANCE,
+    GT_POINT_INTERVAL,
     LANE_THRESHOLDS_M,
     LINK_CONFIDENCE,
     RELAX_FLOOR,
@@ -68,6 +69,7 @@ TRUTH_ONLY = "ground truth only: nothing predicted"
 PREDICTION_ONLY = "prediction only: no ground truth"
 #: The rules that produced the figures (the verdict JSON's ``rules``).
 RULES: dict[str, Metric] = {
+    "ground_truth_points": f"every {GT_POINT_INTERVAL}th (the devkit's val/test collection)",
     "lane_frechet_thresholds_m": list(LANE_THRESHOLDS_M),
     "lane_relaxation": f"max({RELAX_FLOOR}, 1 - {RELAX_PER_M} * d_nearest_m)",
     "element_iou_above": round(1.0 - ELEMENT_IOU_DISTANCE, 6),

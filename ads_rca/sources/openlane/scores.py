@@ -85,6 +85,11 @@ LANE_THRESHOLDS_M = (1.0, 2.0, 3.0)
 ELEMENT_IOU_DISTANCE = 0.75
 #: A link is predicted iff its confidence exceeds this.
 LINK_CONFIDENCE = 0.5
+#: The official val/test evaluation scores ground-truth lanes thinned to every 20th point
+#: (the devkit's ``collect(..., point_interval=20)``, run when its ground truth is
+#: gathered): a released lane's 201 points become 11. 1 scores the points as given (what
+#: ``evaluate()`` does with a ground truth already collected).
+GT_POINT_INTERVAL = 20
 #: A ground-truth lane's distances are scaled by max(RELAX_FLOOR, 1 - RELAX_PER_M * d).
 RELAX_PER_M = 5e-3
 RELAX_FLOOR = 0.5
@@ -358,7 +363,9 @@ class _Usable:
     dropped_elements: int
 
 
-def _usable(graph: LaneGraph) -> _Usable:
+def _usable(graph: LaneGraph, point_interval: int = 1) -> _Usable:
+    """The graph's scorable part: lanes of finite (P, 3) points (every ``point_interval``-th
+    kept, the first included), boxes finite and not inverted; their links."""
     keep_l = np.array(
         [
             lane.ndim == 2
@@ -374,7 +381,7 @@ def _usable(graph: LaneGraph) -> _Usable:
     keep_e &= boxes[:, 3] >= boxes[:, 1]
     li, ei = np.flatnonzero(keep_l), np.flatnonzero(keep_e)
     return _Usable(
-        lanes=tuple(np.asarray(graph.lanes[i], dtype=np.float64) for i in li),
+        lanes=tuple(np.asarray(graph.lanes[i], dtype=np.float64)[::point_interval] for i in li),
         lane_confidence=np.asarray(graph.lane_scores, dtype=np.float64)[li],
         boxes=boxes[ei],
         attribute=graph.element_attribute[ei],
@@ -390,9 +397,19 @@ def _truth(adjacency: FloatArray) -> BoolArray:
     return np.asarray(np.isfinite(adjacency) & (adjacency != 0), dtype=np.bool_)
 
 
-def match_frame(gt: LaneGraph, pred: LaneGraph) -> FrameMatch:
-    """One frame's ground truth against a prediction: every match the metrics need."""
-    g, p = _usable(gt), _usable(pred)
+def match_frame(
+    gt: LaneGraph, pred: LaneGraph, point_interval: int = GT_POINT_INTERVAL
+) -> FrameMatch:
+    """One frame's ground truth against a prediction: every match the metrics need. The
+    ground truth's lanes are thinned as the official evaluation collects them
+    (:data:`GT_POINT_INTERVAL`); the prediction's points are scored as given."""
+    if (
+        isinstance(point_interval, bool)
+        or not isinstance(point_interval, int)
+        or point_interval < 1
+    ):
+        raise ValueError(f"point_interval: a whole number >= 1, not {point_interval!r}")
+    g, p = _usable(gt, point_interval), _usable(pred)
     n_gt, n_gte = len(g.lanes), g.attribute.size
     lane_dist = lane_distance_matrix(g.lanes, p.lanes, cutoff=max(LANE_THRESHOLDS_M))
     lane_match = [greedy_match(lane_dist, p.lane_confidence, t) for t in LANE_THRESHOLDS_M]
@@ -564,7 +581,13 @@ def scores_from(matches: Sequence[FrameMatch], *, devkit_empty: bool = False) ->
 
 
 def score_frames(
-    pairs: Iterable[tuple[LaneGraph, LaneGraph]], *, devkit_empty: bool = False
+    pairs: Iterable[tuple[LaneGraph, LaneGraph]],
+    *,
+    devkit_empty: bool = False,
+    point_interval: int = GT_POINT_INTERVAL,
 ) -> OpenLaneScores:
-    """OpenLane-V2's figures of (ground truth, prediction) frames: one frame, a segment, a split."""
-    return scores_from([match_frame(gt, pred) for gt, pred in pairs], devkit_empty=devkit_empty)
+    """OpenLane-V2's figures of (ground truth, prediction) frames: one frame, a segment, a
+    split; the ground truth's lanes thinned as the official val/test evaluation does
+    (``point_interval``, :data:`GT_POINT_INTERVAL`)."""
+    matches = [match_frame(gt, pred, point_interval) for gt, pred in pairs]
+    return scores_from(matches, devkit_empty=devkit_empty)

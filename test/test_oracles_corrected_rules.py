@@ -490,9 +490,11 @@ def _frames(
     unconditioned: dict[Module, Iterable[int]] | None = None,
     last: int | None = None,
     conflict: Iterable[int] = (),
+    plan_clearance: dict[int, float] | None = None,
 ) -> tuple[list[FrameResults], RunContext]:
     """Fake per-frame results for frames 1..last with the given failing frames (and
-    ``real_conflict`` true at the ``conflict`` frames)."""
+    ``real_conflict`` true at the ``conflict`` frames; planning's ``c_plan`` where
+    ``plan_clearance`` gives one)."""
     end = last if last is not None else max(cf, 1)
     log = build_log(straight(0.0, 0.0, end + 2), straight(3.0, 0.0, end + 2), end, cf)
     ctx = context(log)
@@ -507,6 +509,8 @@ def _frames(
                 "unconditioned": f in uncond.get(m, set()),
                 "real_conflict": f in conflicts,
             }
+            if m == "planning" and plan_clearance and f in plan_clearance:
+                metrics["c_plan"] = plan_clearance[f]
             frame.results[m] = OracleResult(m, f * TPF, f in fail.get(m, set()), metrics)
         frames.append(frame)
     return frames, ctx
@@ -572,6 +576,49 @@ def test_a_prediction_that_recovered_before_planning_failed_is_contributing(
     assert a.root_causes == ["prediction", "planning"]
     assert a.primary_root_cause == primary
     assert a.contributing == [m for m in ("prediction", "planning") if m != primary]
+
+
+#: The planner's own inputs show the conflict (c_plan below the 0.5 m margin) or do not.
+SHOWN, HIDDEN = 0.1, 2.0
+
+
+@pytest.mark.parametrize(
+    ("upstream", "failing", "clearances", "primary"),
+    [
+        # A sharp lane change: the stack's prediction misses by a metre at frames 22-24
+        # while the planner, shown the car (c_plan below the margin), ignores it.
+        ("prediction", [22, 23, 24], {f: SHOWN for f in range(22, 29)}, "planning"),
+        # The same with the prediction failing first, at frames 20-21, where the plan
+        # looked safe on it: the planner was misled there.
+        (
+            "prediction",
+            [20, 21, 22],
+            {20: HIDDEN, 21: HIDDEN, **{f: SHOWN for f in range(22, 29)}},
+            "prediction",
+        ),
+        # Perception noise (ten times today's) during a planning fault: shown, not misled.
+        ("perception", [21, 22, 23], {f: SHOWN for f in range(18, 29)}, "planning"),
+        # A missed partner: absent from the planner's inputs (no c_plan): misled.
+        ("perception", [20, 21, 22], {f: SHOWN for f in range(23, 29)}, "perception"),
+        # An upstream failure that begins after planning's has nothing to mislead before it.
+        ("prediction", [25, 26], {f: SHOWN for f in range(22, 29)}, "planning"),
+    ],
+)
+def test_an_upstream_failure_must_have_misled_the_planner(
+    upstream: Module, failing: list[int], clearances: dict[int, float], primary: str
+) -> None:
+    """Issue 40 item 2 (rule 7): perception and prediction are primary over planning only
+    if, at one of their counted frames up to planning's first, the planner's inputs hid
+    the threat (no c_plan below the margin there)."""
+    frames, ctx = _frames(
+        30,
+        {upstream: failing, "planning": range(22, 29)},
+        plan_clearance=clearances,
+    )
+    a = attribute_corrected(frames, ctx)
+    assert a.root_causes == [upstream, "planning"]
+    assert a.primary_root_cause == primary
+    assert a.contributing == [m for m in (upstream, "planning") if m != primary]
 
 
 def test_a_recovered_prediction_before_planning_after_control_leaves_control() -> None:

@@ -10,7 +10,10 @@ except that a planning failure whose first counted frame is strictly after the
 controller's is contributing, not primary (the planner plans from the state the controller
 delivered), and so is a prediction failure that had ended where planning's counted failure
 begins, prediction judged right there in a real conflict (the planner then failed on a
-correct prediction with a safer plan at hand). With a collision but no counted failure,
+correct prediction with a safer plan at hand), and so is a perception or prediction failure
+that never misled the planner before planning's counted failure began (the planner's own
+inputs showed the conflict at each of its frames: :func:`_misled`). With a collision but no
+counted failure,
 the unconditioned tests of perception and prediction (``metrics["unconditioned"]``) are
 used the same way, and the basis says so.
 Otherwise "no fault found" with its reason. Each blamed module carries its evidence.
@@ -18,6 +21,7 @@ Otherwise "no fault found" with its reason. Each blamed module carries its evide
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 from ads_rca.diagnosis.verdict import (
@@ -35,6 +39,8 @@ from ads_rca.params import Params
 
 #: Modules with an unconditioned test, for the fallback (pipeline order).
 FALLBACK_MODULES: tuple[Module, ...] = ("perception", "prediction")
+#: Modules whose failure reaches the planner through its inputs (:func:`_misled`).
+UPSTREAM_OF_PLANNING: tuple[Module, ...] = ("perception", "prediction")
 
 
 def persistence(params: Params, module: Module) -> int:
@@ -131,7 +137,14 @@ def attribute_corrected(frames: Sequence[FrameResults], ctx: RunContext) -> Attr
     root_causes = [m for m in MODULES if m in runs_by_module]
     first = {m: runs[0][0] for m, runs in runs_by_module.items()}
     recovered = "planning" in first and _recovered(window, first["planning"])
-    primary = _primary(root_causes, first, recovered)
+    harmless = {
+        m
+        for m in UPSTREAM_OF_PLANNING
+        if m in runs_by_module
+        and "planning" in first
+        and not _misled(window, runs_by_module[m], first["planning"], params.safety_margin)
+    }
+    primary = _primary(root_causes, first, recovered, harmless)
     for module in root_causes:
         modules[module].evidence = _evidence(window, runs_by_module[module], module, basis)
     reason = None
@@ -165,12 +178,49 @@ def _recovered(window: Sequence[FrameResults], planning_start: int) -> bool:
     return judged_right and not any(_failed(f, "prediction") for f in window[planning_start:])
 
 
+def _misled(
+    window: Sequence[FrameResults],
+    runs: list[tuple[int, int]],
+    planning_start: int,
+    margin: float,
+) -> bool:
+    """Whether an upstream module's counted failure hid the threat from the planner at one
+    of its frames up to planning's first counted frame (window positions): planning there
+    has no clearance below ``margin`` against its own inputs (the partner absent from them,
+    a plan clear of what it was given, or planning not judged: not knowing is misled)."""
+    for start, end in runs:
+        for position in range(start, min(end, planning_start) + 1):
+            if not _plan_saw_threat(window[position].results.get("planning"), margin):
+                return True
+    return False
+
+
+def _plan_saw_threat(result: OracleResult | None, margin: float) -> bool:
+    """Planning judged the frame and its plan's clearance against its own inputs (the
+    partner's raw boxes) was below ``margin``: the planner was shown the conflict."""
+    if result is None or result.skipped is not None:
+        return False
+    clearance = result.metrics.get("c_plan")
+    return (
+        isinstance(clearance, int | float)
+        and not isinstance(clearance, bool)
+        and math.isfinite(clearance)
+        and clearance < margin
+    )
+
+
 def _primary(
-    root_causes: list[Module], first: dict[Module, int], prediction_recovered: bool
+    root_causes: list[Module],
+    first: dict[Module, int],
+    prediction_recovered: bool,
+    harmless: set[Module],
 ) -> Module | None:
-    """Most upstream, skipping planning when it began strictly after the controller, and
-    prediction when it had recovered before planning failed."""
+    """Most upstream, skipping planning when it began strictly after the controller,
+    prediction when it had recovered before planning failed, and an upstream module that
+    never misled the planner (``harmless``)."""
     for module in root_causes:
+        if module in harmless:
+            continue
         if (
             module == "planning"
             and "controller" in root_causes

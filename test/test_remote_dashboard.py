@@ -191,8 +191,8 @@ def feed_verdict(endpoint: str, prefix: str) -> dict[str, Any]:
         for key, payload in client.drain():
             model.apply(key, payload, time.time())
     view = model.find(prefix)
-    verdict = None if view is None else view.verdict
-    assert verdict is not None
+    assert view is not None and view.verdict_payload is not None
+    verdict: dict[str, Any] = json.loads(view.verdict_payload)  # the document as received
     return verdict
 
 
@@ -754,3 +754,95 @@ def test_what_is_sent_is_bounded() -> None:
     assert len(clipped["s"]) == MAX_TEXT + 1
     assert len(clipped["l"]) == MAX_ITEMS + 1
     assert len(json.dumps(clipped)) < 2000
+
+
+def _peak_rss_mb(pid: int) -> float:
+    """The process's peak resident set (VmHWM), MB."""
+    for text in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if text.startswith("VmHWM:"):
+            return int(text.split()[1]) / 1024
+    raise AssertionError("no VmHWM")
+
+
+def _limited() -> None:
+    import resource
+
+    resource.setrlimit(resource.RLIMIT_AS, (3 << 29, 3 << 29))  # 1.5 GiB of address space
+
+
+def test_forged_large_verdicts_are_bounded_in_memory() -> None:
+    """Issue 41 item 7: twelve forged 10 MB verdicts (each under its own run id) took the
+    dashboard to 600-680 MB and a MemoryError; under a 1.5 GB address-space cap it died.
+    Now the per-frame list is not kept (its length is), the documents kept for download
+    are bounded in bytes, and a sample over its key's limit is dropped before it is
+    decoded or queued. The dashboard keeps serving, every run's verdict reads, and the
+    downloads give the documents as received."""
+    import zenoh
+
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    frame = {"index": 0, "frame": 1, "results": {"perception": {"metrics": {"x": "y" * 2000}}}}
+    BLOCK = zenoh.CongestionControl.BLOCK  # as the bridge puts: a large sample is not dropped
+    session = zenoh.open(zenoh.Config.from_json5(session_config("peer", listen=[endpoint])))
+    argv = [sys.executable, "-m", "ads_rca.cli", "dashboard", "--port", "0"]
+    process = subprocess.Popen(
+        [*argv, "--connect", endpoint],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=_env(),
+        preexec_fn=_limited,  # noqa: PLW1509 (setrlimit only, before exec)
+    )
+    try:
+        lines = Lines(process)
+        found = re.search(r"http://\S+/", lines.wait_for("^ads-rca dashboard: http://"))
+        assert found is not None
+        board = Dashboard(found.group(0), process)
+        _wait_until(lambda: any(link["state"] == "connected" for link in board.runs()["zenoh"]))
+        sizes = []
+        for n in range(12):
+            verdict = {
+                "primary_root_cause": None,
+                "conclusive": False,
+                "why_inconclusive": ["forged"],
+                "live": {"run": f"forged{n}"},
+                "frames": [frame] * 4900,
+            }
+            payload = json.dumps(verdict).encode()
+            sizes.append(len(payload))
+            session.put("car1/ads_rca/verdict.json", payload, congestion_control=BLOCK)
+        oversize = json.dumps({"primary_root_cause": None, "frames": ["x" * (65 << 20)]})
+        session.put("car1/ads_rca/verdict.json", oversize.encode(), congestion_control=BLOCK)
+        _wait_until(lambda: sum(r["verdict"] is not None for r in board.runs()["runs"]) == 12, 60)
+        assert min(sizes) > 10_000_000
+        _wait_until(lambda: board.runs()["dropped"] == 1, 60)  # the 65 MB one, never decoded
+        snapshot = board.runs()
+        assert all(r["verdict"]["frames_count"] == 4900 for r in snapshot["runs"])
+        status, _, body = board.get("/api/runs/car1%40forged11/verdict.json")
+        assert status == 200 and len(body) == sizes[11]
+        peak = _peak_rss_mb(process.pid)
+        assert peak < 450, f"peak resident set {peak:.0f} MB"
+        assert process.poll() is None
+    finally:
+        close_session(session, ())
+        _stop(process)
+    assert "Traceback" not in (process.stderr.read() if process.stderr else "")
+
+
+def test_an_over_long_request_line_is_one_log_line() -> None:
+    """Issue 41 item 8: aiohttp logged a traceback (``LineTooLong``) per refused request."""
+    process, lines = start_dashboard(f"tcp/127.0.0.1:{free_port()}")
+    try:
+        found = re.search(r"http://(\S+):(\d+)/", lines.wait_for("^ads-rca dashboard: http://"))
+        assert found is not None
+        for _ in range(3):
+            with socket.create_connection((found.group(1), int(found.group(2))), 10) as stream:
+                stream.sendall(b"GET /" + b"a" * 20_000 + b" HTTP/1.1\r\nHost: x\r\n\r\n")
+                reply = stream.recv(200)
+            assert reply.split(b"\r\n")[0].endswith(b" 400 Bad Request"), reply
+        process.send_signal(signal.SIGINT)
+        _, err = process.communicate(timeout=10)
+    finally:
+        _stop(process)
+    refused = [line for line in err.splitlines() if "refused a bad request" in line]
+    assert len(refused) == 3, err
+    assert "Traceback" not in err and "LineTooLong" not in err.replace("Line is too long", "")

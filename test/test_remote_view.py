@@ -412,3 +412,33 @@ def test_a_table_shows_the_key_metrics_of_a_result_not_all_of_them() -> None:
     shown = model.summary(1.0)["runs"][0]["modules"]["planning"]["key_metrics"]
     assert shown[:2] == ["c_gt", "ttc_gt"] and len(shown) == METRICS_SHOWN
     assert model.summary(1.0)["runs"][0]["modules"]["perception"]["key_metrics"] == []
+
+
+def test_verdict_documents_are_bounded_in_bytes_and_lose_their_frames(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Issue 41 item 7: the per-frame list is counted, not kept; the documents kept for
+    download together stay under the bound, the runs updated longest ago let go first."""
+    import ads_rca.remote.view as view_module
+
+    monkeypatch.setattr(view_module, "MAX_VERDICT_BYTES", 3000)  # two of the three
+    model = DashboardModel()
+    for n in range(3):
+        verdict: dict[str, Any] = {
+            "primary_root_cause": None,
+            "live": {"run": f"r{n}"},
+            "frames": [{}] * 300,
+        }
+        model.apply("car1/ads_rca/verdict.json", json.dumps(verdict), float(n))
+    runs = {name: model.runs[name] for name in model.runs}
+    assert [runs[f"car1@r{n}"].verdict_payload is not None for n in range(3)] == [
+        False,
+        True,
+        True,
+    ]
+    for n in range(3):
+        kept = runs[f"car1@r{n}"]
+        assert kept.verdict is not None and "frames" not in kept.verdict
+        assert kept.verdict_frames == 300
+    assert model.apply("car1/ads_rca/modules/planning.json", "x" * (1 << 20) + "y", 4.0) is None
+    assert "payload larger than 1048576 bytes" in model.last_problem

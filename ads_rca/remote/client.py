@@ -26,10 +26,13 @@ from ads_rca.foundation.text import printable
 from ads_rca.remote.config import DEFAULT_ENDPOINT, session_config
 from ads_rca.remote.keys import DASHBOARD_ROOT, SAMPLE_SUFFIX, check_prefix
 from ads_rca.remote.session import SessionOwner, close_session
+from ads_rca.remote.view import payload_limit
 
-#: Samples waiting for the caller beyond this are dropped (and counted): a stalled UI must
-#: not grow memory without bound.
+#: Samples waiting for the caller beyond this many, or these many bytes, are dropped (and
+#: counted): a stalled UI, or a peer putting large samples, must not grow memory without
+#: bound.
 QUEUE_LIMIT = 100_000
+QUEUE_BYTES = 256 * 1024 * 1024
 #: Seconds between attempts to open a session whose peer does not answer.
 RETRY_S = 0.5
 #: A session that has reached no peer or router this long is closed and opened afresh.
@@ -48,6 +51,36 @@ def root_expression(prefix: str | None) -> str:
     return f"{base}/{DASHBOARD_ROOT}" if base else DASHBOARD_ROOT
 
 
+class SampleQueue(queue.Queue[tuple[str, bytes]]):
+    """Samples (key, payload) for the caller, bounded in count (:data:`QUEUE_LIMIT`) and
+    in bytes (:data:`QUEUE_BYTES`)."""
+
+    def __init__(self, limit: int = QUEUE_LIMIT, max_bytes: int = QUEUE_BYTES) -> None:
+        super().__init__(limit)
+        self.max_bytes = max_bytes
+        self.bytes = 0
+
+    def offer(self, item: tuple[str, bytes]) -> bool:
+        """Queue ``item`` unless that would pass either bound; whether it was queued."""
+        with self.mutex:
+            if self.bytes + len(item[1]) > self.max_bytes:
+                return False
+        try:
+            self.put_nowait(item)
+        except queue.Full:
+            return False
+        return True
+
+    def _put(self, item: tuple[str, bytes]) -> None:  # under the queue's mutex
+        self.queue.append(item)
+        self.bytes += len(item[1])
+
+    def _get(self) -> tuple[str, bytes]:  # under the queue's mutex
+        item: tuple[str, bytes] = self.queue.popleft()
+        self.bytes -= len(item[1])
+        return item
+
+
 class RemoteClient(SessionOwner):
     """A Zenoh session subscribed to ``<prefix>/ads_rca/**`` (every prefix by default)."""
 
@@ -58,13 +91,15 @@ class RemoteClient(SessionOwner):
         mode: str = "client",
         listen: Sequence[str] = (),
         allow_remote: bool = False,
-        samples: queue.Queue[tuple[str, bytes]] | None = None,
+        samples: SampleQueue | None = None,
     ) -> None:
         self.config_text = session_config(mode, listen, connect, allow_remote)
         self.root = root_expression(prefix)
         #: Where samples and replies go (several clients may share one).
-        self.samples: queue.Queue[tuple[str, bytes]] = samples or queue.Queue(QUEUE_LIMIT)
+        self.samples = samples or SampleQueue()
         self.dropped = 0
+        #: Of :attr:`dropped`, those refused for their size (``view.payload_limit``).
+        self.oversize = 0
         self._lock = threading.Lock()
         self._session: Any = None
         self._subscriber: Any = None
@@ -84,12 +119,19 @@ class RemoteClient(SessionOwner):
         return self
 
     def _on_sample(self, sample: Any) -> None:  # on a zenoh thread
-        self._offer(str(sample.key_expr), sample.payload.to_bytes())
+        self._offer(str(sample.key_expr), sample.payload)
 
-    def _offer(self, key: str, payload: bytes) -> None:
-        try:
-            self.samples.put_nowait((key, payload))
-        except queue.Full:
+    def _offer(self, key: str, payload: Any) -> None:
+        """Queue a sample's key and bytes; one over its key's size limit is counted and
+        dropped before it is copied out of Zenoh's buffer, and so is one that would take
+        the queue past :data:`QUEUE_BYTES`."""
+        if len(payload) > payload_limit(key):
+            with self._lock:
+                self.oversize += 1
+                self.dropped += 1
+            return
+        data = payload if isinstance(payload, bytes) else payload.to_bytes()
+        if not self.samples.offer((key, data)):
             with self._lock:
                 self.dropped += 1
 
@@ -106,7 +148,7 @@ class RemoteClient(SessionOwner):
         ):
             for reply in self._session.get(selector, timeout=timeout):
                 if reply.ok is not None:
-                    self._offer(str(reply.ok.key_expr), reply.ok.payload.to_bytes())
+                    self._offer(str(reply.ok.key_expr), reply.ok.payload)
                     count += 1
         return count
 
@@ -216,7 +258,7 @@ class RemoteLinks:
         catch_up_timeout: float = 2.0,
         wall: Callable[[], float] = time.time,
     ) -> None:
-        self.samples: queue.Queue[tuple[str, bytes]] = queue.Queue(QUEUE_LIMIT)
+        self.samples = SampleQueue()
         # Every endpoint is checked here (ConfigError: one line) before anything opens.
         self.links = [
             Link(

@@ -41,8 +41,14 @@ from ads_rca.remote.keys import DASHBOARD_ROOT, SAMPLE_SUFFIX
 
 #: The queryables a dashboard asks on connecting.
 QUERIES = ("verdict", "status", "frames")
-#: Largest payload accepted (a verdict with every frame of a long run stays far below).
+#: Largest verdict or frames reply accepted (a verdict carries every frame, about 2.5 kB
+#: each: 64 MiB holds a run of about 25,000 frames, 21 minutes at 20 Hz).
 MAX_PAYLOAD = 64 * 1024 * 1024
+#: Largest module result or heartbeat accepted (a result is a few kB).
+MAX_SMALL_PAYLOAD = 1024 * 1024
+#: Verdict documents kept for download, all runs together (bytes as received); past it the
+#: documents of the runs updated longest ago are let go (their digests stay).
+MAX_VERDICT_BYTES = 256 * 1024 * 1024
 #: Clearance points kept per run for the timeline.
 TIMELINE_POINTS = 5000
 #: Near-miss warnings kept per run.
@@ -92,6 +98,18 @@ def parse_key(key: str) -> tuple[str, str, str | None] | None:
         if sample and len(rest) == 2 and rest[0] == "modules" and rest[1] in MODULES:
             return prefix, "modules", rest[1]
     return None
+
+
+def payload_limit(key: str) -> int:
+    """The largest payload taken for ``key``, judged from the key alone (before anything is
+    decoded or queued): verdicts and frames replies :data:`MAX_PAYLOAD`, the rest (module
+    results, heartbeats, keys that are not ours) :data:`MAX_SMALL_PAYLOAD`."""
+    parsed = parse_key(key)
+    return (
+        MAX_PAYLOAD
+        if parsed is not None and parsed[1] in ("verdict", "frames")
+        else (MAX_SMALL_PAYLOAD)
+    )
 
 
 def _number(value: object) -> float | None:
@@ -337,7 +355,13 @@ class RunView:
     )
     near_misses: deque[dict[str, Any]] = field(default_factory=lambda: deque(maxlen=NEAR_MISSES))
     status: dict[str, Any] | None = None
+    #: The verdict without its per-frame list (what every dashboard shows; the list can be
+    #: tens of MB of objects), with the list's length in :attr:`verdict_frames`.
     verdict: dict[str, Any] | None = None
+    verdict_frames: int | None = None
+    #: The verdict as received, for download (None: none, or let go to bound memory:
+    #: :data:`MAX_VERDICT_BYTES`).
+    verdict_payload: bytes | None = None
     last_index: int = -1
     last_frame: Any = None
     updated: float = 0.0
@@ -514,8 +538,9 @@ class DashboardModel:
         if "@" in prefix:  # a Zenoh verbatim chunk: never a bridge's prefix (keys.py)
             self._problem(f"{key[:80]}: '@' in the prefix")
             return None
-        if len(payload) > MAX_PAYLOAD:
-            self._problem(f"{key[:80]}: payload larger than {MAX_PAYLOAD} bytes")
+        limit = payload_limit(key)
+        if len(payload) > limit:
+            self._problem(f"{key[:80]}: payload larger than {limit} bytes")
             return None
         try:
             document = orjson.loads(payload)
@@ -536,7 +561,11 @@ class DashboardModel:
                 return {**head, "kind": "module", "module": module, "result": document}
             if kind == "verdict":
                 check_verdict(document)
-                view.verdict = document
+                frames = document.get("frames")
+                view.verdict = {k: v for k, v in document.items() if k != "frames"}
+                view.verdict_frames = len(frames) if isinstance(frames, list) else None
+                raw = payload if isinstance(payload, bytes) else payload.encode()
+                self._keep_verdict(view, raw)
                 view.updated = now
                 conclusive = read_verdict(document).conclusive
                 return {**head, "kind": kind, kind: document, "conclusive": conclusive}
@@ -566,6 +595,23 @@ class DashboardModel:
                     names[view.name] = None
                     added += 1
         return {"run": prefix, "kind": "frames", "results": added, "runs": list(names)}
+
+    def _keep_verdict(self, view: RunView, payload: bytes) -> None:
+        """Keep ``payload`` for download, letting go of the documents of the runs updated
+        longest ago while all of them together exceed :data:`MAX_VERDICT_BYTES` (twelve
+        forged 10 MB verdicts once took a dashboard to 680 MB and a MemoryError)."""
+        view.verdict_payload = payload
+        kept = [v for v in self.runs.values() if v.verdict_payload is not None]
+        total = sum(len(v.verdict_payload or b"") for v in kept)
+        for old in sorted(kept, key=lambda v: v.updated):
+            if total <= MAX_VERDICT_BYTES:
+                break
+            if old is view:
+                continue
+            total -= len(old.verdict_payload or b"")
+            old.verdict_payload = None
+        if total > MAX_VERDICT_BYTES:  # this one alone is over the bound
+            view.verdict_payload = None
 
     def _problem(self, reason: str) -> None:
         self.problems += 1

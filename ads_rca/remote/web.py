@@ -27,19 +27,22 @@ import asyncio
 import contextlib
 import ipaddress
 import itertools
+import logging
 import re
 import signal
 import sys
 import time
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from importlib import resources
 from typing import Any
 
 import orjson
 from aiohttp import web
+from aiohttp.http_exceptions import HttpProcessingError
 
 from ads_rca.errors import ConfigError, InputError
+from ads_rca.foundation.text import printable
 from ads_rca.remote.client import RemoteLinks
 from ads_rca.remote.keys import SAMPLE_SUFFIX
 from ads_rca.remote.view import RATE_SPAN, DashboardModel, RunView, margin_of, read_verdict
@@ -122,15 +125,17 @@ def _nonfinite(document: dict[str, Any] | None, under: str) -> dict[str, Any]:
     return {k: v for k, v in found.items() if isinstance(k, str) and k.startswith(under)}
 
 
-def verdict_digest(verdict: dict[str, Any] | None) -> dict[str, Any] | None:
-    """What the page shows of a verdict: all of it but the per-frame list (counted), and
-    ``outcome``, how it reads (``view.read_verdict``: the page never decides that itself)."""
+def verdict_digest(view: RunView) -> dict[str, Any] | None:
+    """What the page shows of a run's verdict: all of it but the per-frame list (counted:
+    the model keeps only its length), and ``outcome``, how it reads (``view.read_verdict``:
+    the page never decides that itself)."""
+    verdict = view.verdict
     if verdict is None:
         return None
     digest = {k: v for k, v in verdict.items() if k not in ("frames", "$nonfinite")}
     digest["outcome"] = read_verdict(verdict).to_dict()
-    frames = verdict.get("frames")
-    digest["frames_count"] = len(frames) if isinstance(frames, list) else None
+    digest["frames_count"] = view.verdict_frames
+    digest["downloadable"] = view.verdict_payload is not None
     problems = verdict.get("input_problems")
     digest["input_problems"] = len(problems) if isinstance(problems, list) else problems
     annotation = {
@@ -290,7 +295,7 @@ class Hub:
         cached = self._verdicts.get(name)
         if cached is None or cached[0] != version:
             view = self.model.runs[name]
-            cached = self._verdicts[name] = (version, verdict_digest(view.verdict))
+            cached = self._verdicts[name] = (version, verdict_digest(view))
         return cached[1]
 
     def header(self, now: float) -> dict[str, Any]:
@@ -382,10 +387,12 @@ async def _verdict(request: web.Request) -> web.Response:
     view = _view_of(request)
     if view.verdict is None:
         raise web.HTTPNotFound(text="no verdict yet\n")
+    if view.verdict_payload is None:
+        raise web.HTTPGone(text="the verdict document was let go to bound memory\n")
     safe = re.sub(r"[^A-Za-z0-9_.-]", "_", "-".join(filter(None, (view.prefix, view.run_id))))
     safe = safe or "root"
     return web.Response(
-        body=orjson.dumps(view.verdict),
+        body=view.verdict_payload,
         content_type="application/json",
         headers={"Content-Disposition": f'attachment; filename="verdict-{safe}.json"'},
     )
@@ -549,6 +556,34 @@ class Options:
     allow_remote: bool
 
 
+class BadRequestLines(logging.Filter):
+    """aiohttp logs a request it could not parse (an over-long request line or header, a
+    malformed one: ``HttpProcessingError``) with a traceback. That is a peer's bad input:
+    one line, the address and why, instead. Any other exception keeps its traceback (a bug
+    in our code is never reported as bad input)."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        error = record.exc_info[1] if record.exc_info else None
+        if isinstance(error, HttpProcessingError):
+            peer = record.args[0] if isinstance(record.args, tuple) and record.args else "?"
+            why = printable(str(error).splitlines()[0] if str(error) else type(error).__name__)
+            record.msg = "ads-rca dashboard: refused a bad request from %s: %s"
+            record.args = (peer, why[:200])
+            record.exc_info = record.exc_text = None
+        return True
+
+
+@contextlib.contextmanager
+def bad_requests_in_one_line() -> Iterator[None]:
+    """:class:`BadRequestLines` on aiohttp's server logger while the dashboard serves."""
+    logger, found = logging.getLogger("aiohttp.server"), BadRequestLines()
+    logger.addFilter(found)
+    try:
+        yield
+    finally:
+        logger.removeFilter(found)
+
+
 def _url(host: str, port: int) -> str:
     return f"http://[{host}]:{port}/" if ":" in host else f"http://{host}:{port}/"
 
@@ -630,4 +665,5 @@ def run(options: Options) -> int:
                 flush=True,
             )
 
-    return asyncio.run(serve(options, links, ready))
+    with bad_requests_in_one_line():
+        return asyncio.run(serve(options, links, ready))

@@ -197,7 +197,7 @@
     $("problems").textContent = header ? String(header.problems) : "0";
     const notes = [];
     if (header && header.last_problem) notes.push("last wire problem: " + header.last_problem);
-    if (header && header.dropped) notes.push(header.dropped + " samples dropped (queue full)");
+    if (header && header.dropped) notes.push(header.dropped + " samples dropped before decoding (too big, or the queue full)");
     if (header && header.catch_up_error) notes.push("catch-up failed: " + header.catch_up_error);
     $("problem-line").textContent = notes.join(" · ");
     renderRunList();
@@ -362,6 +362,8 @@
         ? o.conclusive ? "none (no fault found)" : "none found (inconclusive)"
         : fmt(primary);
     $("download").setAttribute("href", "/api/runs/" + runSegment(state.digest) + "/verdict.json");
+    // A document let go to bound the dashboard's memory (docs/dashboard.md) cannot be had.
+    $("download").hidden = v.downloadable === false;
     $("verdict-semantics").textContent = fmt(v.semantics);
     const list = (value) => (Array.isArray(value) ? (value.length ? value.map((x) => fmt(x)).join(", ") : "none") : fmt(value));
     const judged = v.modules_judged && typeof v.modules_judged === "object" ? v.modules_judged : {};

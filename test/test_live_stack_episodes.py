@@ -13,13 +13,22 @@ test_ros_stack_independent.py.
 from __future__ import annotations
 
 import itertools
+from dataclasses import replace
 
 import pytest
 from stackgraph import crash, offline, same_verdict
 from stacksettings import config
 
 from ads_rca.live.aggregate import AggregatorCore, VerdictOutcome
-from ads_rca.live.episodes import CURRENT, NEW, NEXT, PREVIOUS, EpisodeAggregator, EpisodeClock
+from ads_rca.live.episodes import (
+    CURRENT,
+    NEW,
+    NEXT,
+    PREVIOUS,
+    EpisodeAggregator,
+    EpisodeClock,
+    ForwardJumps,
+)
 from ads_rca.live.results import LiveResult
 from ads_rca.live.simulate import LiveRun, run_stack, stack_episodes
 from ads_rca.live.window import WindowSettings
@@ -151,3 +160,49 @@ def test_late_results_of_an_ended_episode_stay_in_it(mode: str) -> None:
         assert document["live"]["collision_source"] == "event"
         assert document["live"]["complete"] is True, document["live"]
     assert episodes.dropped == 0
+
+
+def test_forward_jumps_are_skipped_unless_confirmed() -> None:
+    jumps = ForwardJumps(jump_ms=10_000.0)
+    assert jumps.check(100, None) == "plausible"  # nothing accepted yet
+    assert jumps.check(150, 100) == "plausible"
+    assert jumps.check(2**32 * 1000, 150) == "skipped"  # a glitch: the grid does not move
+    assert jumps.check(200, 150) == "plausible"  # the real stream goes on
+    assert jumps.check(60_200, 200) == "skipped"  # a real jump (the stack's clock moved)
+    assert jumps.check(60_250, 200) == "skipped"
+    assert jumps.check(60_300, 200) == "confirmed"  # the third in a row: taken
+    assert (jumps.skipped, jumps.confirmed) == (3, 1)
+    assert ForwardJumps(jump_ms=0.0).check(2**40, 150) == "plausible"  # 0: never skip
+
+
+@pytest.mark.parametrize(("mode", "rewind_s"), [("reference", 0.0), ("corrected", 1.0)])
+def test_one_odometry_message_far_in_the_future_moves_nothing(mode: str, rewind_s: float) -> None:
+    """Issue 41 item 6: one reference message stamped 2^32 s ahead made the last frame
+    42,949,672,959 and dropped 200-340 later messages as late. One stamped 68 years ahead
+    (a header's int32 seconds hold no more) is skipped and counted; every later message is
+    judged, and the verdict is diagnose's. Without episodes (``episode_rewind_s`` 0) the
+    glitch's frame was released and every later message dropped as late; with them, the
+    glitch and the real stamps after it were split into episodes."""
+    from ads_rca.contract import topics
+    from ads_rca.live.simulate import StackMessage, stack_stream
+
+    log = crash(*FIRST)
+    stream = stack_stream(log, seed=3)
+    pose = next(t for t in topics.DATA if t.folder == "pose")
+    middle = sorted(log.folder("pose"))[40]
+    future = (2**31 - 10) * 1000  # 68 years on: the largest a header's int32 seconds holds
+    payload = pose.codec.encode(log.folder("pose")[middle], future, log.frame_ms)
+    at = next(m.arrival_s for m in stream.messages if m.stamp_ms == middle and m.folder == "pose")
+    stream.messages.append(StackMessage(at + 0.001, "pose", future, payload))
+    stream.messages.sort(key=lambda m: m.arrival_s)
+    settings = replace(config(), episode_rewind_s=rewind_s)
+    run = run_stack(log, make_params(mode), stream, settings, WHOLE_HISTORY, drain_s=30.0)
+    assert run.episodes == []
+    assert run.feed is not None
+    counts = run.feed.sync.counts
+    assert (counts.implausible, counts.late) == (1, 0), counts
+    assert "1 reference stamps implausibly far ahead skipped" in counts.text()
+    [verdict] = run.verdicts
+    assert same_verdict(verdict.document, offline(*FIRST, mode).to_json())
+    stamps = {r.stamp_ms for r in run.results["controller"]}
+    assert stamps == set(log.unique_frames)

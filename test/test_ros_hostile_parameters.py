@@ -82,6 +82,11 @@ RANGE_CASES = [
         "parameter episode_rewind_s: nan is out of range [0, 86400] s",
     ),
     (
+        "monitors",
+        "stamp_jump_s:=-.inf",
+        "parameter stamp_jump_s: -inf is out of range [0, 86400] s",
+    ),
+    (
         "ads_rca.ros.aggregator",
         "episode_rewind_s:=-1.0",
         "parameter episode_rewind_s: -1 is out of range [0, 86400] s",

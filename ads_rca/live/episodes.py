@@ -89,6 +89,45 @@ class EpisodeClock:
         self.previous_ms = None
 
 
+#: Reference stamps in a row, each near the one before, that confirm a forward jump.
+JUMP_CONFIRM = 3
+#: What :meth:`ForwardJumps.check` says of a reference stamp.
+Jump = Literal["plausible", "skipped", "confirmed"]
+
+
+@dataclass
+class ForwardJumps:
+    """Reference stamps implausibly far ahead (issue 41): one odometry message stamped
+    2^32 s ahead moved the frame grid, and every later real message was dropped as late.
+    A stamp more than ``jump_ms`` ahead of the newest accepted one is skipped and counted,
+    unless it is the :data:`JUMP_CONFIRM`-th such stamp in a row, each within ``jump_ms``
+    after the one before: then the jump is real (a stack that moved its clock on), that
+    stamp is taken and the grid follows it; the ones before it stay skipped. A plausible
+    stamp in between discards the candidates. ``jump_ms`` 0: never skip."""
+
+    jump_ms: float
+    #: The candidate jump's stamps so far.
+    candidates: list[int] = field(default_factory=list)
+    skipped: int = 0
+    confirmed: int = 0
+
+    def check(self, stamp_ms: int, newest_ms: int | None) -> Jump:
+        """``stamp_ms``, a reference stamp, against the episode's newest accepted one."""
+        if self.jump_ms <= 0 or newest_ms is None or stamp_ms - newest_ms <= self.jump_ms:
+            self.candidates.clear()
+            return "plausible"
+        last = self.candidates[-1] if self.candidates else None
+        if last is not None and not 0 < stamp_ms - last <= self.jump_ms:
+            self.candidates.clear()
+        self.candidates.append(stamp_ms)
+        if len(self.candidates) < JUMP_CONFIRM:
+            self.skipped += 1
+            return "skipped"
+        self.candidates.clear()
+        self.confirmed += 1
+        return "confirmed"
+
+
 # --- the aggregator's side -------------------------------------------------------------------
 
 

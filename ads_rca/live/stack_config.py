@@ -72,6 +72,13 @@ STACK_PARAMETERS: dict[str, tuple[Any, str] | tuple[Any, str, Range]] = {
         "a new episode (a stack or simulator restarted; 0: never).",
         EPISODE_REWIND,
     ),
+    "stamp_jump_s": (
+        10.0,
+        "Stack mode: a reference header stamp more than this ahead of the newest one is "
+        "implausible (a clock glitch) and skipped, counted, unless the next 3 stamps "
+        "confirm the jump (0: never skip).",
+        EPISODE_REWIND,
+    ),
     "inputs_best_effort": (
         False,
         "Stack mode: subscribe BEST_EFFORT (a stack publishing best effort; reliable "
@@ -116,6 +123,8 @@ class StackConfig:
     not_provided: tuple[str, ...] = field(default=())
     #: Stamps going back by more than this begin a new episode (0: never).
     episode_rewind_s: float = 1.0
+    #: A reference stamp more than this ahead of the newest is skipped unless confirmed.
+    stamp_jump_s: float = 10.0
 
     def __post_init__(self) -> None:
         if self.mode not in STACK_MODES:
@@ -172,6 +181,7 @@ class StackConfig:
             best_effort=bool(values.get("inputs_best_effort", False)),
             not_provided=tuple(absent),
             episode_rewind_s=float(values.get("episode_rewind_s", 1.0)),
+            stamp_jump_s=float(values.get("stamp_jump_s", 10.0)),
         )
 
     def sync_settings(self, folders: Iterable[str], reference: str = "") -> SyncSettings:

@@ -30,7 +30,7 @@ from typing import Any
 
 from ads_rca.contract.errors import MalformedMessage, NoStamp
 from ads_rca.contract.stack_layouts import Decoder
-from ads_rca.live.episodes import NEW, NEXT, PREVIOUS, EpisodeClock
+from ads_rca.live.episodes import NEW, NEXT, PREVIOUS, EpisodeClock, ForwardJumps
 from ads_rca.live.results import FrameMarker, LiveResult
 from ads_rca.live.stack_config import StackConfig, period_to_frame_ms
 from ads_rca.live.stamp_sync import StampSync, SyncedFrame
@@ -84,6 +84,7 @@ class StackFeed:
         self._period_checked = False
         self._sync_said = ""  # the sync's counts as last said
         self.clock = EpisodeClock(config.episode_rewind_s * 1000.0)
+        self.jumps = ForwardJumps(config.stamp_jump_s * 1000.0)
         self.episode = self._episode(1, core)
         #: The episode before, while its late messages still come (None: none).
         self.ending: _Episode | None = None
@@ -129,6 +130,9 @@ class StackFeed:
             self.skipped(folder, str(error))
             return
         if folder == self.config.reference:
+            if self.jumps.check(stamp, self.clock.newest_ms) == "skipped":
+                self.sync.counts.implausible += 1  # a clock glitch must not move the grid
+                return
             place = self.clock.reference(stamp)
             if place == NEW:
                 self._begin(stamp, now)

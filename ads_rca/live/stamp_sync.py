@@ -124,6 +124,8 @@ class SyncCounts:
     incomplete: int = 0
     #: messages of an episode that had ended (stack mode's episodes, live/episodes.py)
     ended_episode: int = 0
+    #: reference stamps implausibly far ahead, skipped (live/episodes.py ForwardJumps)
+    implausible: int = 0
 
     def text(self) -> str:
         """The non-zero counts, one line ('' when nothing was dropped)."""
@@ -139,6 +141,7 @@ COUNT_LABELS = {
     "dropped": "messages dropped (too many held)",
     "incomplete": "frames released incomplete",
     "ended_episode": "messages of an ended episode dropped",
+    "implausible": "reference stamps implausibly far ahead skipped",
 }
 
 

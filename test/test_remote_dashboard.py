@@ -9,6 +9,7 @@ The event stream's coalescing and its dropping of closed streams are checked in-
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import io
 import json
 import os
@@ -846,3 +847,64 @@ def test_an_over_long_request_line_is_one_log_line() -> None:
     refused = [line for line in err.splitlines() if "refused a bad request" in line]
     assert len(refused) == 3, err
     assert "Traceback" not in err and "LineTooLong" not in err.replace("Line is too long", "")
+
+
+def _few_files() -> None:
+    import resource
+
+    resource.setrlimit(resource.RLIMIT_NOFILE, (256, 256))
+
+
+def test_a_slow_request_flood_is_bounded_and_the_dashboard_recovers() -> None:
+    """Issue 43 item 5: at ``ulimit -n 1024``, 1,100 half-open requests took the dashboard
+    past its file descriptors (EMFILE tracebacks, unreachable until they stopped). Here at
+    256 descriptors, 300 requests whose headers never end: the connections over the bound
+    are closed at once, the slow ones after the request timeout, the process keeps its
+    descriptors, says so in one line, and serves the page again while the flood's sockets
+    are still open on the attacker's side."""
+    from ads_rca.remote.connections import REQUEST_TIMEOUT_S
+
+    argv = [sys.executable, "-m", "ads_rca.cli", "dashboard", "--port", "0"]
+    process = subprocess.Popen(
+        [*argv, "--connect", f"tcp/127.0.0.1:{free_port()}"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=_env(),
+        preexec_fn=_few_files,  # noqa: PLW1509 (setrlimit only, before exec)
+    )
+    flood: list[socket.socket] = []
+    try:
+        lines = Lines(process)
+        found = re.search(r"http://(\S+):(\d+)/", lines.wait_for("^ads-rca dashboard: http://"))
+        assert found is not None
+        address = (found.group(1), int(found.group(2)))
+        for _ in range(300):
+            with contextlib.suppress(OSError):
+                stream = socket.create_connection(address, 5)
+                stream.sendall(b"GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n")  # never ends
+                flood.append(stream)
+        assert len(flood) > 100
+        start = time.monotonic()
+
+        def served() -> bool:
+            try:
+                with urllib.request.urlopen(f"http://{address[0]}:{address[1]}/", timeout=2) as r:
+                    return bool(r.status == 200)
+            except OSError:
+                return False
+
+        _wait_until(served, REQUEST_TIMEOUT_S + 15)
+        assert time.monotonic() - start < REQUEST_TIMEOUT_S + 15
+        assert process.poll() is None
+        fds = len(os.listdir(f"/proc/{process.pid}/fd"))
+        assert fds < 200, fds
+        process.send_signal(signal.SIGINT)
+        _, err = process.communicate(timeout=10)
+    finally:
+        for stream in flood:
+            stream.close()
+        _stop(process)
+    assert "Traceback" not in err and "Too many open files" not in err, err[-2000:]
+    said = [line for line in err.splitlines() if "connections refused over the limit" in line]
+    assert 1 <= len(said) <= 3, err[-2000:]

@@ -44,9 +44,12 @@ from aiohttp.http_exceptions import HttpProcessingError
 from ads_rca.errors import ConfigError, InputError
 from ads_rca.foundation.text import printable
 from ads_rca.remote.client import RemoteLinks
+from ads_rca.remote.connections import ConnectionGuard, GuardedProtocol, connection_bounds
 from ads_rca.remote.keys import SAMPLE_SUFFIX
 from ads_rca.remote.view import RATE_SPAN, DashboardModel, RunView, margin_of, read_verdict
 
+#: Seconds an idle kept-alive connection stays open (aiohttp's default is an hour).
+KEEPALIVE_TIMEOUT_S = 15.0
 #: Least time between two events to one browser (s): at most ~10 updates a second.
 MIN_INTERVAL = 0.1
 #: A `ping` event on an idle stream this often (s): proxies keep it open, and the page
@@ -343,6 +346,7 @@ class Hub:
 
 
 HUB: web.AppKey[Hub] = web.AppKey("hub", Hub)
+GUARD: web.AppKey[ConnectionGuard] = web.AppKey("guard", ConnectionGuard)
 ALLOWED_HOSTS: web.AppKey[set[str]] = web.AppKey("allowed_hosts", set)
 STATIC: web.AppKey[dict[str, bytes]] = web.AppKey("static", dict)
 
@@ -464,6 +468,9 @@ async def _guard(request: web.Request, handler: Callable[[web.Request], Any]) ->
     request a page of another origin made (its ``Origin`` is not this server's: a foreign
     page could hold event streams until the user's own page gets none). A request with no
     ``Origin`` (the page's own, a command-line client) is served."""
+    guard = request.app.get(GUARD)
+    if guard is not None:  # a complete request came: no longer a slow one
+        guard.started(request.transport)
     allowed = request.app[ALLOWED_HOSTS]
     if allowed and request.host.lower() not in allowed:
         raise web.HTTPMisdirectedRequest(text="unexpected Host header\n")
@@ -603,17 +610,17 @@ async def serve(options: Options, links: RemoteLinks, ready: Callable[[str], Non
         loop.add_signal_handler(sig, stop_with, code)
     hub = Hub(DashboardModel(options.prefix))
     app = make_app(hub)
-    runner = web.AppRunner(app, access_log=None, shutdown_timeout=2.0)
+    app[GUARD] = guard = ConnectionGuard(*connection_bounds())
+    runner = web.AppRunner(
+        app, access_log=None, shutdown_timeout=2.0, keepalive_timeout=KEEPALIVE_TIMEOUT_S
+    )
+    listener: asyncio.Server | None = None
     try:
         await runner.setup()
         # "localhost" may resolve to two addresses, which port 0 would give two ports.
         host = "127.0.0.1" if options.host.lower() == "localhost" else options.host
-        try:
-            await web.TCPSite(runner, host, options.port).start()
-        except OSError as error:
-            reason = error.strerror or str(error)
-            raise InputError(f"cannot serve on {host} port {options.port}: {reason}") from None
-        port = int(runner.addresses[0][1])
+        listener = await _listen(runner, host, options.port, guard)
+        port = int(listener.sockets[0].getsockname()[1])
         if not options.allow_remote:
             app[ALLOWED_HOSTS].update(loopback_hosts(port))
         _open(links)
@@ -627,9 +634,28 @@ async def serve(options: Options, links: RemoteLinks, ready: Callable[[str], Non
                 await pump
     finally:
         links.close()
+        if listener is not None:
+            listener.close()
         await runner.cleanup()
         for sig in (signal.SIGINT, signal.SIGTERM):
             loop.remove_signal_handler(sig)
+
+
+async def _listen(
+    runner: web.AppRunner, host: str, port: int, guard: ConnectionGuard
+) -> asyncio.Server:
+    """Accept connections on ``host``:``port`` for ``runner``'s app, each behind ``guard``
+    (connections.py); a port that cannot be had is one line (InputError)."""
+    factory = runner.server
+    assert factory is not None, "the runner is set up first"
+    loop = asyncio.get_running_loop()
+    try:
+        return await loop.create_server(
+            lambda: GuardedProtocol(factory(), guard), host, port, reuse_address=True
+        )
+    except OSError as error:
+        reason = error.strerror or str(error)
+        raise InputError(f"cannot serve on {host} port {port}: {reason}") from None
 
 
 def _open(links: RemoteLinks) -> None:

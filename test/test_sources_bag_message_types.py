@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import sqlite3
+import time
 from pathlib import Path
 from typing import Any
 
@@ -18,7 +19,12 @@ from rosbags.typesys.store import Typestore
 
 from ads_rca.contract.errors import MalformedMessage
 from ads_rca.errors import InputError
-from ads_rca.sources.bag.message_types import MAX_NESTING, BagTypes
+from ads_rca.sources.bag.message_types import (
+    MAX_DEFINITION_LINES,
+    MAX_FIELDS,
+    MAX_NESTING,
+    BagTypes,
+)
 from ads_rca.sources.bag.reader import load_bag
 from ads_rca.sources.bag.storage import MAX_DEFINITION_BYTES
 
@@ -435,6 +441,18 @@ HOSTILE: dict[str, tuple[str, str | None, str]] = {
         "evil_msgs/msg/Infinite.HUGE is inf",
         "unusable definition of evil_msgs/msg/Infinite: evil_msgs/msg/Infinite.HUGE is inf",
     ),
+    "evil_msgs/msg/Fields": (
+        "".join(f"int8 f{i}\n" for i in range(MAX_FIELDS + 1)),
+        f"its definition declares {MAX_FIELDS + 1} fields and constants (limit {MAX_FIELDS})",
+        f"unusable definition of evil_msgs/msg/Fields: its definition declares {MAX_FIELDS + 1} "
+        f"fields and constants (limit {MAX_FIELDS})",
+    ),
+    "evil_msgs/msg/Blank": (
+        "int8 x\n" + "\n" * MAX_DEFINITION_LINES,
+        f"its definition has {MAX_DEFINITION_LINES + 2} lines (limit {MAX_DEFINITION_LINES})",
+        f"unusable definition of evil_msgs/msg/Blank: its definition has "
+        f"{MAX_DEFINITION_LINES + 2} lines (limit {MAX_DEFINITION_LINES})",
+    ),
 }
 
 
@@ -486,3 +504,148 @@ def test_a_constant_is_data_never_code() -> None:
     types = BagTypes("bag", {"evil_msgs/msg/C": ("ros2msg", f'string CODE="{code}"\nint32 x\n')})
     decoded = types.decode(b"\x00\x01\x00\x00\x07\x00\x00\x00", "evil_msgs/msg/C")
     assert (decoded.x, decoded.CODE) == (7, code)
+
+
+# --- what a definition may cost ------------------------------------------------------------
+
+#: The field bomb of issue 41: one 1 MB text of 88,123 fields (parsed and registered, it took
+#: 80 s and 1.1 GB).
+FIELD_BOMB = "".join(f"int8 f{i}\n" for i in range(88_123))
+
+
+def test_a_closure_over_the_caps_is_refused_though_each_text_is_under_them() -> None:
+    """Each text within the caps, the closure of a type not: refused before the rest is
+    parsed or anything registered."""
+    half = MAX_FIELDS // 2 + 1
+    wide = {
+        "evil_msgs/msg/Wide": ("ros2msg", "evil_msgs/A a\nevil_msgs/B b\n"),
+        "evil_msgs/msg/A": ("ros2msg", "".join(f"int8 a{i}\n" for i in range(half))),
+        "evil_msgs/msg/B": ("ros2msg", "".join(f"int8 b{i}\n" for i in range(half))),
+    }
+    with pytest.raises(InputError) as error:
+        BagTypes("bag", wide).require(["evil_msgs/msg/Wide"])
+    assert str(error.value) == (
+        "bag: unusable definition of evil_msgs/msg/Wide: its types hold more than "
+        f"{MAX_FIELDS} fields and constants"
+    )
+    parts = 5
+    blank = "int8 x\n" + "\n" * (MAX_DEFINITION_LINES // parts)
+    long = {f"evil_msgs/msg/L{i}": ("ros2msg", blank) for i in range(parts)}
+    long["evil_msgs/msg/Long"] = (
+        "ros2msg",
+        "".join(f"evil_msgs/L{i} l{i}\n" for i in range(parts)),
+    )
+    types = BagTypes("bag", long)
+    with pytest.raises(InputError) as error:
+        types.require(["evil_msgs/msg/Long"])
+    assert str(error.value) == (
+        "bag: unusable definition of evil_msgs/msg/Long: its types' definitions hold more than "
+        f"{MAX_DEFINITION_LINES} lines"
+    )
+    assert len(types._texts) >= 1  # the texts past the budget were never parsed
+
+
+def test_an_idl_text_of_too_many_members_is_refused() -> None:
+    """An IDL text may hold every member on one line: each ``;`` counts as a line, and the
+    parsed members as fields."""
+    members = " ".join(f"int8 f{i};" for i in range(MAX_FIELDS + 1))
+    idl = f"module evil_msgs {{ module msg {{ struct Idl {{ {members} }}; }}; }};\n"
+    types = BagTypes("bag", {"evil_msgs/msg/Idl": ("ros2idl", idl)})
+    with pytest.raises(InputError) as error:
+        types.require(["evil_msgs/msg/Idl"])
+    assert str(error.value) == (
+        f"bag: unusable definition of evil_msgs/msg/Idl: its definition declares "
+        f"{MAX_FIELDS + 1} fields and constants (limit {MAX_FIELDS})"
+    )
+    one_line = " ".join(f"int8 f{i};" for i in range(MAX_DEFINITION_LINES))
+    idl = f"module evil_msgs {{ module msg {{ struct Idl {{ {one_line} }}; }}; }};"
+    types = BagTypes("bag", {"evil_msgs/msg/Idl": ("ros2idl", idl)})
+    with pytest.raises(InputError) as error:
+        types.require(["evil_msgs/msg/Idl"])
+    assert str(error.value).endswith(
+        f"its definition has {MAX_DEFINITION_LINES + 4} lines (limit {MAX_DEFINITION_LINES})"
+    )
+
+
+def test_a_msg_path_file_over_the_caps_is_refused_naming_the_file(tmp_path: Path) -> None:
+    folder = tmp_path / "msgs" / "evil_msgs" / "msg"
+    folder.mkdir(parents=True)
+    (folder / "Bomb.msg").write_text(FIELD_BOMB, encoding="utf-8")
+    types = BagTypes("bag", {}, msg_path=tmp_path / "msgs")
+    reason = f"its definition declares 88123 fields and constants (limit {MAX_FIELDS})"
+    assert [(p.file, p.field, p.issue) for p in types.problems] == [
+        (str(folder / "Bomb.msg"), "evil_msgs/msg/Bomb", reason)
+    ]
+    with pytest.raises(InputError) as error:
+        types.require(["evil_msgs/msg/Bomb"], {"/bomb": "evil_msgs/Bomb"})
+    assert (
+        str(error.value)
+        == f"bag: unusable definition of evil_msgs/msg/Bomb (topic /bomb): {reason}"
+    )
+
+
+def test_a_refused_text_of_a_standard_type_is_not_replaced_by_the_standard_one() -> None:
+    """The bag's bytes were written with its own text: a refused one leaves the type
+    unusable, even the first time it is asked for (it was Kilted's layout then)."""
+    types = BagTypes("bag", {"nav_msgs/msg/Odometry": ("ros2msg", FIELD_BOMB)})
+    assert types.source("nav_msgs/msg/Odometry") is None
+    with pytest.raises(InputError):
+        types.require(["nav_msgs/msg/Odometry"])
+
+
+def test_the_real_definitions_are_far_below_the_caps() -> None:
+    """The stacks' real definitions (the synthesiser's published .msg files, the shipped
+    legacy Autoware ones, Kilted's) as rosbag2 stores them, each with every dependency:
+    usable, and at most a tenth of each cap."""
+    from writers.autoware_bags import _closure, definition, typestore
+
+    store = typestore()
+    for name, (consts, fields) in store.fielddefs.items():
+        text = definition(name)
+        encoding = "ros2idl" if text.startswith(SEP + "IDL: ") else "ros2msg"
+        assert BagTypes("bag", {name: (encoding, text)}).lacking([name]) == ([], []), name
+        assert (text.count("\n") + text.count(";") + 1) * 10 <= MAX_DEFINITION_LINES, name
+        closure = [store.fielddefs[n] for n in _closure(name)]
+        declared = len(consts) + len(fields) + sum(len(c) + len(f) for c, f in closure)
+        assert declared * 10 <= MAX_FIELDS, name
+
+
+#: (storage, where the bomb is) of each bag the command line reads
+BOMBED = {
+    "mcap": (StoragePlugin.MCAP, "bag"),
+    "sqlite3": (StoragePlugin.SQLITE3, "bag"),
+    "msg-path": (StoragePlugin.SQLITE3, "msg-path"),
+}
+
+
+@pytest.mark.parametrize("command", ["inspect", "diagnose"])
+@pytest.mark.parametrize("kind", sorted(BOMBED))
+def test_a_field_bomb_is_one_line_through_the_command_line(
+    tmp_path: Path, kind: str, command: str
+) -> None:
+    """A real bag whose DetectedObjects definition is the field bomb (stored in the bag, or
+    in a ``--msg-path`` file beside a bag that stores none), read through the autoware
+    profile by the command a user runs, its memory limited: one line naming the type and
+    the topic, exit 2, within seconds (it took 80 s and 1.1 GB)."""
+    from commandline import assert_clean, run_limited
+
+    storage, where = BOMBED[kind]
+    options: list[str] = []
+    if where == "bag":
+        bag = write_bag(tmp_path / "bag", storage, definitions={DETECTED: FIELD_BOMB})
+    else:
+        bag = old_sqlite3_bag(tmp_path / "bag")
+        folder = tmp_path / "msgs" / "autoware_perception_msgs" / "msg"
+        folder.mkdir(parents=True)
+        (folder / "DetectedObjects.msg").write_text(FIELD_BOMB, encoding="utf-8")
+        options = ["--msg-path", str(tmp_path / "msgs")]
+    started = time.perf_counter()
+    done = run_limited(command, str(bag), "--profile", "autoware", *options, timeout=30)
+    elapsed = time.perf_counter() - started
+    assert_clean(done, 2)
+    topic = MESSAGES[0][0]
+    assert done.stderr.splitlines() == [
+        f"ads-rca {command}: error: {bag}: unusable definition of {DETECTED} (topic {topic}): "
+        f"its definition declares 88123 fields and constants (limit {MAX_FIELDS})"
+    ]
+    assert elapsed < 15, elapsed

@@ -21,6 +21,23 @@ a line of code per element), no fixed array of length 0 (a zero-size element wou
 sequence count run unbounded over no bytes), no ``inf``/``nan`` constant (rosbags would write
 Python that does not run). A definition that fails is a Problem naming the bag and the type; a type
 asked for that cannot be used is one :class:`~ads_rca.errors.InputError` line.
+
+What a definition costs is bounded too, before the parser sees it: at most
+:data:`~ads_rca.sources.bag.storage.MAX_DEFINITION_BYTES` of text (checked as the storage is
+read), :data:`MAX_DEFINITION_LINES` lines and :data:`MAX_FIELDS` fields and constants in one
+text, :data:`MAX_FIELDS` in one type's closure. rosbags' ``.msg`` parser takes ~25 µs a line,
+blank or not, and the code it generates for a type grows faster than its fields: a 1 MB text
+of 88,123 fields took 75 s of CPU and 1.1 GB to register, a 1 MB text of newlines 25 s to
+parse. At the caps a definition costs under a second (``bench/bench_definition_bomb.py``).
+The real ones are far below them: the largest stored definition measured,
+``visualization_msgs/msg/InteractiveMarkerUpdate`` with every dependency and all their
+comments (ROS 2 common_interfaces, 2024-11), is 15 KB in 406 lines, its closure 112 fields
+and constants in 17 types nested 7 deep; Autoware's ``PredictedObjects`` (the synthesiser's
+published ``.msg`` files) is 6.5 KB, 168 lines, 67 fields in 21 types, the legacy
+``autoware_auto_*`` IDL shipped here 4.4 KB, 50 ``;``; the most in one type,
+``type_description_interfaces/msg/FieldType``, 93 (mostly constants). So each cap is 36 times
+the largest real value or more, and a stack's own types of hundreds of fields (a vehicle's
+CAN report) still read.
 Pure: no rclpy, and the process-wide store of the contract path (``contract.rosmsg``) is not
 touched.
 """
@@ -60,9 +77,17 @@ if TYPE_CHECKING:
     #: rosbags' (constants, fields) of one type
     TypeDef: TypeAlias = tuple[Constdefs, Fielddefs]
 
-#: Deepest chain of nested types accepted (real messages nest about 8 deep; rosbags'
+#: Deepest chain of nested types accepted (real messages nest at most 7 deep; rosbags'
 #: generated readers recurse once per level).
 MAX_NESTING = 64
+#: Most lines in one definition text, each ``;`` counted as a line too (an IDL text may hold
+#: every member on one line): parsing costs ~25 µs a line, so ~0.4 s at the cap (the largest
+#: real text, comments included, has 406 lines).
+MAX_DEFINITION_LINES = 16384
+#: Most fields and constants in the types one text defines, and in the closure of one type
+#: (each type once): rosbags' generated code grows faster than the fields (4,096: ~0.8 s to
+#: parse, register and decode once; 16,384: ~5 s). The largest real closure has 112.
+MAX_FIELDS = 4096
 #: Most elements of fixed arrays of strings or messages in one type's closure: rosbags'
 #: generated reader has a line of code per such element (real types have none).
 MAX_UNROLLED = 1024
@@ -217,6 +242,10 @@ class BagTypes:
         if not _TYPE_NAME.match(name):
             self._refuse(name, "not a message type name (package/msg/Type)", where)
             return None
+        too_large = _too_large(encoding, text)
+        if too_large is not None:
+            self._refuse(name, too_large, where)
+            return None
         try:
             if encoding == "ros2msg":
                 parsed = get_types_from_msg(text, name)
@@ -230,6 +259,9 @@ class BagTypes:
             self._refuse(name, f"unreadable definition: {detail or type(error).__name__}", where)
             return None
         bad = _bad_name(parsed)
+        declared = sum(_declarations(typedef) for typedef in parsed.values())
+        if bad is None and declared > MAX_FIELDS:
+            bad = f"its definition declares {declared} fields and constants (limit {MAX_FIELDS})"
         if bad is None and name not in parsed:
             bad = f"the text does not define {name}"
         if bad is not None:
@@ -247,6 +279,8 @@ class BagTypes:
         if name in self._refused:
             return None
         found = self._store.fielddefs.get(name) or self._bag_text(name)
+        if name in self._refused:  # the bag's own text, just refused: its bytes are not another's
+            return None
         for layer in (self._embedded, self._from_msg_path):
             if found is None:
                 found = layer.get(name)
@@ -290,6 +324,8 @@ class BagTypes:
         missing: list[str] = []
         broken: str | None = self._refused.get(root)
         depth: dict[str, int] = {}
+        declared = 0  # fields and constants of the closure's types so far
+        lines = 0  # lines of the bag's texts parsed for it so far
         on_path: list[str] = []
         stack: list[tuple[str, int]] = [(root, 0)]  # (type, 0 = enter / 1 = leave)
         while stack and broken is None:
@@ -309,7 +345,15 @@ class BagTypes:
                 cycle = " → ".join([*on_path[on_path.index(name) :], name])
                 broken = f"a type contains itself ({cycle})"
                 break
+            lines += self._pending_lines(name)
+            if lines > MAX_DEFINITION_LINES:
+                broken = f"its types' definitions hold more than {MAX_DEFINITION_LINES} lines"
+                break
             typedef = self._lookup(name)
+            declared += _declarations(typedef)
+            if declared > MAX_FIELDS:
+                broken = f"its types hold more than {MAX_FIELDS} fields and constants"
+                break
             if typedef is None:
                 if name in self._refused:
                     why = self._refused[name]
@@ -337,6 +381,14 @@ class BagTypes:
                     broken = f"{name} embeds a definition of {dep} other than the one used"
         return order, sorted(set(missing)), broken
 
+    def _pending_lines(self, name: str) -> int:
+        """The lines of the bag's text for ``name`` that looking it up would parse (0: none
+        to parse, or one refused unparsed, which says why itself)."""
+        pending = self._texts.get(name)
+        if pending is None or name in self._store.fielddefs or _too_large(*pending) is not None:
+            return 0
+        return _lines(pending[1])
+
     def lacking(self, types: Iterable[str]) -> tuple[list[str], list[str]]:
         """What keeps ``types`` from being decoded: the types without a definition ("T",
         or "U (needed by T)"), and the unusable ones ("T: why"). Both empty: all can be."""
@@ -350,12 +402,13 @@ class BagTypes:
                 unusable.append(f"{name}: {broken}")
         return list(dict.fromkeys(missing)), list(dict.fromkeys(unusable))
 
-    def require(self, types: Iterable[str]) -> None:
+    def require(self, types: Iterable[str], topics: Mapping[str, str] | None = None) -> None:
         """Make ``types`` decodable, or raise one InputError naming every type that is
-        not (and suggesting ``--msg-path`` for those the bag does not define)."""
+        not (and suggesting ``--msg-path`` for those the bag does not define). ``topics``
+        (topic → stored type): the topics to name beside an unusable type."""
         wanted = [normalise(t) for t in types]
         missing, unusable = self.lacking(wanted)
-        said = [f"unusable definition of {entry}" for entry in unusable]
+        said = [f"unusable definition of {_on_topics(entry, topics)}" for entry in unusable]
         if missing:
             listed = ", ".join(missing)
             said.insert(0, f"no definition for {listed} (the bag carries none; {MSG_PATH_HINT})")
@@ -394,6 +447,16 @@ class BagTypes:
         except DECODE_ERRORS as error:
             detail = str(error).splitlines()[0] if str(error) else type(error).__name__
             raise MalformedMessage(f"cannot decode this {name}: {detail}") from error
+
+
+def _on_topics(entry: str, topics: Mapping[str, str] | None) -> str:
+    """``T: why`` as ``T (topic /a, /b): why`` with the topics stored as ``T``."""
+    name, _, why = entry.partition(": ")
+    on = sorted(topic for topic, stored in (topics or {}).items() if normalise(stored) == name)
+    if not on:
+        return entry
+    shown = ", ".join(on[:3]) + (f" and {len(on) - 3} more" if len(on) > 3 else "")
+    return f"{name} ({'topic' if len(on) == 1 else 'topics'} {shown}): {why}"
 
 
 def _directories(
@@ -452,6 +515,34 @@ def _unrolled(typedef: TypeDef | None) -> int:
         for _named_type, one_by_one, fixed in [_named(desc)]
         if one_by_one and fixed is not None
     )
+
+
+def _lines(text: str) -> int:
+    """Lines of a definition text, each ``;`` counted as one more (what parsing it costs)."""
+    return text.count("\n") + text.count(";") + 1
+
+
+def _too_large(encoding: str, text: str) -> str | None:
+    """Why a definition text is too large to parse (None: it is not), told from the text
+    alone: its ``.msg`` declarations (lines that are not blank, comments or rosbag2's
+    separators), then its lines."""
+    if encoding == "ros2msg":
+        declared = sum(
+            1
+            for line in text.splitlines()
+            if (kept := line.strip()) and not kept.startswith(("#", "MSG:", "=" * 80))
+        )
+        if declared > MAX_FIELDS:
+            return f"its definition declares {declared} fields and constants (limit {MAX_FIELDS})"
+    lines = _lines(text)
+    if lines > MAX_DEFINITION_LINES:
+        return f"its definition has {lines} lines (limit {MAX_DEFINITION_LINES})"
+    return None
+
+
+def _declarations(typedef: TypeDef | None) -> int:
+    """Fields and constants of one type (0: none known)."""
+    return 0 if typedef is None else len(typedef[0]) + len(typedef[1])
 
 
 def _children(typedef: TypeDef | None) -> list[str]:

@@ -40,8 +40,12 @@ def read_recording(
     chosen = profile if isinstance(profile, Profile) else load_profile(profile)
     contents = contents if contents is not None else load_bag(path)
     types = contents.types(msg_path)
+    read = {spec.topic for spec in chosen.inputs.values()}
     try:
-        types.require(stored_types(contents.topics, chosen))
+        types.require(
+            stored_types(contents.topics, chosen),
+            {topic: kind for topic, kind in contents.topics.items() if topic in read},
+        )
     except InputError as error:
         other = mismatches(contents.topics, chosen)
         if not other:

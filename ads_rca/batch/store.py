@@ -1,29 +1,34 @@
 """A batch's output folder, written as the runs finish.
 
 ``OUT/runs/<run_id>.json``
-    the verdict JSON of each diagnosed run (``diagnose --json``'s bytes), written atomically;
+    the verdict JSON of each diagnosed run (``diagnose --json``'s bytes), written atomically
+    (:mod:`ads_rca.foundation.atomic_write`: a temporary file, synced, renamed);
 ``OUT/results.csv``
-    one row per finished run (:data:`~ads_rca.batch.rows.COLUMNS`), appended and flushed as
-    each run finishes: the record of what is done. A row is appended only after its JSON is
-    in place, so an interrupted batch (Ctrl-C, a kill, a power cut) loses no finished run;
-    at worst the last line is cut short, and ``--resume`` drops it and redoes that run;
+    one row per finished run (:data:`~ads_rca.batch.rows.COLUMNS`), appended with one
+    unbuffered write as each run finishes: the record of what is done. A row is appended
+    only after its JSON is in place, so an interrupted batch (Ctrl-C, a kill, a power cut)
+    loses no finished run; at worst the last line is cut short, and ``--resume`` drops it
+    and redoes that run. A row that cannot be written whole (a full disk) is cut off again
+    (the file truncated to its rows before it);
 ``OUT/results.parquet``
-    the same rows with typed columns, rewritten atomically (a temporary file renamed) every
-    :data:`PARQUET_EVERY` rows or :data:`PARQUET_SECONDS` seconds and at the end.
+    the same rows with typed columns, rewritten atomically every :data:`PARQUET_EVERY` rows
+    or :data:`PARQUET_SECONDS` seconds and at the end.
 
+A write that fails (a full disk) raises :class:`StoreError`, one line naming the file and
+saying how many finished runs are kept: every row and file written before stays whole.
 ``--resume`` reads ``results.csv`` back: its run ids are skipped, its rows kept.
 """
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import os
-import tempfile
 import time
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any
 
 from ads_rca.batch.rows import (
     BOOL,
@@ -37,6 +42,7 @@ from ads_rca.batch.rows import (
     to_text,
 )
 from ads_rca.errors import InputError
+from ads_rca.foundation.atomic_write import replace_bytes, replacing_binary
 from ads_rca.foundation.text import printable
 
 CSV_NAME = "results.csv"
@@ -46,23 +52,30 @@ PARQUET_EVERY = 200
 PARQUET_SECONDS = 30.0
 
 
+class StoreError(InputError):
+    """A file of the output folder could not be written (a full disk): one line; what was
+    written before it is whole."""
+
+
 class ResultStore:
     """The output folder ``out`` (see the module docstring); ``resume`` keeps its rows."""
 
     def __init__(self, out: Path, resume: bool = False) -> None:
         self.out = out
         self.rows: dict[str, Row] = {}
-        out.mkdir(parents=True, exist_ok=True)
-        (out / RUNS_DIR).mkdir(exist_ok=True)
+        self.failed = False
+        self._csv: int | None = None
         csv_path = out / CSV_NAME
-        if resume and csv_path.exists():
-            for row in read_csv(csv_path):
-                self.rows[row["run_id"]] = row
-            self._rewrite_csv()  # without a line cut short by an interrupted batch
-        else:
-            _atomic_write(csv_path, _csv_text([]).encode("utf-8"))
-        self._csv: TextIO | None = csv_path.open("a", encoding="utf-8", newline="")
-        self._writer = csv.writer(self._csv)
+        with self.writing(out):
+            (out / RUNS_DIR).mkdir(parents=True, exist_ok=True)
+            if resume and csv_path.exists():
+                for row in read_csv(csv_path):
+                    self.rows[row["run_id"]] = row
+                self._rewrite_csv()  # without a line cut short by an interrupted batch
+            else:
+                replace_bytes(csv_path, _csv_text([]).encode("utf-8"))
+            self._csv = os.open(csv_path, os.O_WRONLY | os.O_APPEND | os.O_CLOEXEC)
+            self._csv_size = os.fstat(self._csv).st_size
         self._unsaved = 0
         self._saved_at = time.monotonic()
 
@@ -72,32 +85,70 @@ class ResultStore:
         return set(self.rows)
 
     def add(self, row: Row, document: bytes | None) -> None:
-        """Record one finished run: its JSON first, then its row (flushed)."""
+        """Record one finished run: its JSON first, then its row (one write)."""
         row = storable(row)
         if document is not None:
-            _atomic_write(self.out / RUNS_DIR / f"{row['run_id']}.json", document)
-        assert self._csv is not None
-        self._writer.writerow([to_text(name, row[name]) for name in COLUMNS])
-        self._csv.flush()
+            json_path = self.out / RUNS_DIR / f"{row['run_id']}.json"
+            with self.writing(json_path):
+                replace_bytes(json_path, document)
+        buffer = io.StringIO()
+        csv.writer(buffer).writerow([to_text(name, row[name]) for name in COLUMNS])
+        with self.writing(self.out / CSV_NAME):
+            self._append(buffer.getvalue().encode("utf-8"))
         self.rows[row["run_id"]] = row
         self._unsaved += 1
         if self._unsaved >= PARQUET_EVERY or time.monotonic() - self._saved_at > PARQUET_SECONDS:
             self.save_parquet()
 
     def save_parquet(self) -> None:
-        write_parquet(self.out / PARQUET_NAME, self.rows.values())
+        path = self.out / PARQUET_NAME
+        with self.writing(path):
+            write_parquet(path, self.rows.values())
         self._unsaved = 0
         self._saved_at = time.monotonic()
 
     def close(self) -> None:
-        """Flush everything: the CSV closed, the Parquet file written with every row."""
-        if self._csv is not None:
-            self._csv.close()
-            self._csv = None
+        """Flush everything: the CSV closed, the Parquet file written with every row. After
+        a failed write (already raised) only what can still be written is: no second error."""
+        if self._csv is None:
+            return
+        fd, self._csv = self._csv, None
+        os.close(fd)
+        failed = self.failed
+        try:
             self.save_parquet()
+        except StoreError:
+            if not failed:
+                raise
+
+    def _append(self, data: bytes) -> None:
+        """``data`` at the end of the CSV, whole or not at all (cut off again on failure)."""
+        assert self._csv is not None
+        view = memoryview(data)
+        try:
+            while view:
+                view = view[os.write(self._csv, view) :]
+        except OSError:
+            with contextlib.suppress(OSError):
+                os.ftruncate(self._csv, self._csv_size)
+            raise
+        self._csv_size += len(data)
+
+    @contextlib.contextmanager
+    def writing(self, path: Path) -> Iterator[None]:
+        """An ``OSError`` writing ``path`` as a :class:`StoreError` (one line)."""
+        try:
+            yield
+        except OSError as error:
+            self.failed = True
+            why = error.strerror or str(error)
+            raise StoreError(
+                f"--out {printable(path)}: cannot write ({why}); the {len(self.rows)} finished "
+                "runs written before are kept (--resume continues the batch)"
+            ) from None
 
     def _rewrite_csv(self) -> None:
-        _atomic_write(self.out / CSV_NAME, _csv_text(self.rows.values()).encode("utf-8"))
+        replace_bytes(self.out / CSV_NAME, _csv_text(self.rows.values()).encode("utf-8"))
 
 
 def read_csv(path: Path) -> list[Row]:
@@ -149,29 +200,11 @@ def write_parquet(path: Path, rows: Iterable[Row]) -> None:
     schema = pa.schema([(name, kinds.get(TYPES[name], pa.string())) for name in COLUMNS])
     listed = list(rows)
     table = pa.table({name: [row[name] for row in listed] for name in COLUMNS}, schema=schema)
-    fd, temporary = tempfile.mkstemp(prefix=".results.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    try:
-        pq.write_table(table, temporary)
-        os.replace(temporary, path)
-    except BaseException:
-        os.unlink(temporary)
-        raise
+    with replacing_binary(path) as out:
+        pq.write_table(table, out)
 
 
 def read_parquet(path: Path) -> list[dict[str, Any]]:
     import pyarrow.parquet as pq
 
     return list(pq.read_table(path).to_pylist())
-
-
-def _atomic_write(path: Path, data: bytes) -> None:
-    fd, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(data)
-        os.replace(temporary, path)
-    except BaseException:
-        if os.path.exists(temporary):
-            os.unlink(temporary)
-        raise

@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from ads_rca.batch.rows import Row
+from ads_rca.foundation.atomic_write import replace_text
 from ads_rca.foundation.text import printable
 from ads_rca.oracles.base import MODULES
 
@@ -121,10 +122,9 @@ def _numbers(rows: Sequence[Row], column: str) -> list[float]:
 
 
 def write_html(rows: Sequence[Row], path: Path, title: str = "") -> None:
-    """The HTML summary of ``rows`` (see the module docstring)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
+    """The HTML summary of ``rows`` (see the module docstring), replacing ``path`` whole."""
     # A lone surrogate from a log (JSON's "\ud800") cannot be UTF-8: written as its escape.
-    path.write_text(render_html(rows, title), encoding="utf-8", errors="backslashreplace")
+    replace_text(path, render_html(rows, title), errors="backslashreplace")
 
 
 def render_html(rows: Sequence[Row], title: str = "") -> str:

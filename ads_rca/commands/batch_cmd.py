@@ -7,9 +7,11 @@ Without ``--scheduler`` a local cluster of ``--workers`` processes is started on
 (its dashboard on a random loopback port); with ``--scheduler tcp://host:port`` the same
 tasks go to an existing cluster, which must see the inputs at the same paths
 (docs/scaling.md). Every exit path closes the client and the cluster; Ctrl-C keeps every
-finished row and exits 130. A batch in which no run could be diagnosed exits
-:data:`EXIT_NONE_DIAGNOSED` once every output is written: a script must not read "all runs
-failed" as success.
+finished row and exits 130. A write that fails mid-batch (a full disk) is one line and exit
+status 2, every row and file written before it whole
+(:class:`~ads_rca.batch.store.StoreError`). A batch in which no run could be diagnosed
+exits :data:`EXIT_NONE_DIAGNOSED` once every output is written: a script must not read "all
+runs failed" as success.
 """
 
 from __future__ import annotations
@@ -152,7 +154,8 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return EXIT_INTERRUPTED
-    write_html(rows, out / HTML_NAME, str(out))
+    with store.writing(out / HTML_NAME):
+        write_html(rows, out / HTML_NAME, str(out))
     print(printable(f"results: {out / PARQUET_NAME}, {out / CSV_NAME}, {out / RUNS_DIR}/"))
     print(printable(f"HTML summary: {out / HTML_NAME}"))
     counts = Counts.of(rows)

@@ -20,12 +20,13 @@ from ads_rca.commands.input_args import (
     max_file_mb_from_args,
     source_options_from_args,
 )
-from ads_rca.commands.outputs import check_output_file
+from ads_rca.commands.outputs import check_output_file, unwritten
 from ads_rca.commands.progress_bar import terminal_bar
 from ads_rca.diagnosis.compare import why_modes_differ
 from ads_rca.diagnosis.engine import Diagnosis, diagnose
 from ads_rca.diagnosis.summary import summary_text
 from ads_rca.errors import EXIT_INTERNAL_ERROR, ConfigError, InputError
+from ads_rca.foundation.atomic_write import replacing_text
 from ads_rca.foundation.indented_json import write_indented
 from ads_rca.foundation.quick_exit import keep_until_exit
 from ads_rca.foundation.text import printable
@@ -234,21 +235,22 @@ def _write_report(result: Diagnosis, path: Path) -> None:
     try:
         write_report(result, path)
     except OSError as error:  # checked up front; this is a failure during the write
-        raise InputError(f"--report {path}: {error.strerror}") from None
+        raise unwritten("--report", path, error) from None
 
 
-def write_json(document: dict[str, Any], path: Path) -> None:
+def write_json(document: dict[str, Any], path: Path, option: str = "--json") -> None:
     """The verdict JSON (the contract; NaN and infinity are already null).
 
     The same bytes as ``json.dumps(document, indent=1)`` plus a newline, written by
-    :mod:`ads_rca.foundation.indented_json` (1.6 to 4.5 times faster) piece by piece.
-    The path was checked before the work started; a write that fails all the same (disk
-    full, a file that refuses data) is still one line, not a traceback.
+    :mod:`ads_rca.foundation.indented_json` (1.6 to 4.5 times faster) piece by piece, into
+    a file that replaces ``path`` whole (:mod:`ads_rca.foundation.atomic_write`). The path
+    was checked before the work started; a write that fails all the same (disk full, a file
+    that refuses data) is still one line naming ``option``, not a traceback, and an earlier
+    file at ``path`` is left whole.
     """
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with path.open("w", encoding="utf-8", buffering=1 << 16) as out:
+        with replacing_text(path, buffering=1 << 16) as out:
             write_indented(document, out)
             out.write("\n")
     except OSError as error:
-        raise InputError(f"{path}: cannot write the verdict JSON ({error.strerror})") from None
+        raise unwritten(option, path, error) from None

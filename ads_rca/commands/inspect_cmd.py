@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import tempfile
 from collections import Counter
 from pathlib import Path
 from typing import Any
@@ -30,10 +29,11 @@ from ads_rca.commands.input_args import (
     max_file_mb_from_args,
     source_options_from_args,
 )
-from ads_rca.commands.outputs import check_output_file
+from ads_rca.commands.outputs import check_output_file, unwritten
 from ads_rca.commands.progress_bar import terminal_bar
 from ads_rca.diagnosis.conclusion import COLLISION_NO, COLLISION_UNKNOWN_STATE, collision_state
 from ads_rca.errors import InputError
+from ads_rca.foundation.atomic_write import replace_text
 from ads_rca.foundation.strictjson import dumps
 from ads_rca.foundation.text import printable
 from ads_rca.model import FOLDERS, InputStatus, RunLog
@@ -290,15 +290,10 @@ def _write_profile(target: Path, survey: BagSurvey) -> dict[str, Any]:
     """Write the bag's starting profile to ``target`` (whole or not at all: a temporary
     file beside it, then renamed), and say what it maps."""
     text = starting_profile(survey, profile_name(target))
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, temporary = tempfile.mkstemp(prefix=".ads_rca_profile_", dir=target.parent)
     try:
-        with os.fdopen(fd, "w", encoding="utf-8") as out:
-            out.write(text)
-        os.replace(temporary, target)
-    except BaseException:
-        os.unlink(temporary)
-        raise
+        replace_text(target, text)
+    except OSError as error:
+        raise unwritten("--write-profile", target, error) from None
     chosen = picks(survey.topics)
     return {"path": str(target), "inputs": {name: t.name for name, t in chosen.items()}}
 

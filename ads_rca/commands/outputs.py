@@ -3,10 +3,17 @@ after minutes of work.
 
 Every command that writes (``--json``, ``--report``, ``convert``'s OUT, ``replay --record``,
 ``demo --out``) checks its paths here first. The writers create missing parent folders, so
-a path is usable when its nearest existing ancestor is a directory we can create files in,
-or when it is an existing file we can open for writing. Both are tested for real (a probe
-file created and removed; an open without truncation), not with ``os.access``: root passes
-every permission check, yet cannot write in ``/proc`` or on a read-only mount.
+a path is usable when its nearest existing ancestor is a directory we can create files in.
+An output file replaces an existing one whole (:mod:`ads_rca.foundation.atomic_write`: a
+temporary file beside it, renamed), so an existing regular file needs its folder writable
+too; one that is no regular file (``/dev/stdout``, a FIFO) is written in place and must
+open for writing. Both are tested for real (a probe file created and removed; an open
+without truncation), not with ``os.access``: root passes every permission check, yet
+cannot write in ``/proc`` or on a read-only mount.
+
+A write that fails all the same once the work is done (a disk that filled meanwhile) is
+:func:`unwritten`'s one line, exit status 2, as a path refused up front; the earlier file is
+left whole.
 """
 
 from __future__ import annotations
@@ -24,10 +31,20 @@ def check_output_file(path: str | os.PathLike[str], option: str) -> Path:
     if target.is_dir():
         raise InputError(f"{option} {target}: is a directory (expected a file name)")
     if os.path.lexists(target):
-        _probe_open(target, option)
+        if os.path.exists(target) and not os.path.isfile(target):
+            _probe_open(target, option)
+        else:  # replaced by a rename in its (or its symlink's target's) folder
+            _check_can_create_in(target, option, Path(os.path.realpath(target)))
         return target
     _check_can_create_in(target, option)
     return target
+
+
+def unwritten(option: str, path: str | os.PathLike[str], error: OSError) -> InputError:
+    """The one line of an output ``path`` (of ``option``) whose write failed with ``error``
+    (a full disk): it was replaced whole or not at all, so it is left as it was."""
+    why = error.strerror or str(error)
+    return InputError(f"{option} {Path(path)}: cannot write ({why}); left as it was")
 
 
 def check_output_dir(path: str | os.PathLike[str], option: str, empty: bool = True) -> Path:
@@ -44,8 +61,9 @@ def check_output_dir(path: str | os.PathLike[str], option: str, empty: bool = Tr
     return target
 
 
-def _check_can_create_in(target: Path, option: str) -> None:
-    ancestor = target.absolute().parent
+def _check_can_create_in(target: Path, option: str, real: Path | None = None) -> None:
+    """A file ``target`` (at ``real``, a symlink's target) can be created."""
+    ancestor = (real or target).absolute().parent
     while not os.path.lexists(ancestor) and ancestor != ancestor.parent:
         ancestor = ancestor.parent
     if not ancestor.is_dir():

@@ -310,7 +310,7 @@ def report_verdict(
         write_json(document, Path(args.json_out))
         print(printable(f"verdict JSON: {args.json_out}"))
     if record is not None:
-        write_json(document, record / "verdict.json")
+        write_json(document, record / "verdict.json", "--record")
         print(
             printable(
                 f"MCAP recording: {record} (verdict JSON beside it: {record / 'verdict.json'})"

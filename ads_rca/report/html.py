@@ -27,6 +27,7 @@ from ads_rca.capabilities import JUDGED
 from ads_rca.diagnosis.conclusion import COLLISION_UNKNOWN_STATE
 from ads_rca.diagnosis.engine import Diagnosis
 from ads_rca.diagnosis.summary import collision_text, window_text
+from ads_rca.foundation.atomic_write import replace_text
 from ads_rca.oracles.base import MODULES
 from ads_rca.report.figures import (
     Skipped,
@@ -98,9 +99,10 @@ def join(children: Iterable[object]) -> Html:
 
 
 def write_report(result: Diagnosis, path: Path) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
+    """The report at ``path``, replacing it whole (an earlier one is kept if the write
+    fails: :mod:`ads_rca.foundation.atomic_write`)."""
     # A lone surrogate from a log (JSON's "\ud800") cannot be UTF-8: written as its escape.
-    path.write_text(render(result), encoding="utf-8", errors="backslashreplace")
+    replace_text(path, render(result), errors="backslashreplace")
 
 
 def render(result: Diagnosis) -> str:

@@ -6,12 +6,13 @@ owns the Dask client (and, locally, the :class:`~distributed.LocalCluster`, boun
 Without ``--scheduler`` a local cluster of ``--workers`` processes is started on loopback
 (its dashboard on a random loopback port); with ``--scheduler tcp://host:port`` the same
 tasks go to an existing cluster, which must see the inputs at the same paths
-(docs/scaling.md). Every exit path closes the client and the cluster; Ctrl-C keeps every
-finished row and exits 130. A write that fails mid-batch (a full disk) is one line and exit
-status 2, every row and file written before it whole
-(:class:`~ads_rca.batch.store.StoreError`). A batch in which no run could be diagnosed
-exits :data:`EXIT_NONE_DIAGNOSED` once every output is written: a script must not read "all
-runs failed" as success.
+(docs/scaling.md); a ``tcp://`` address is first checked to speak Dask
+(:mod:`ads_rca.batch.scheduler`: else one line within the connect timeout). Every exit path
+closes the client and the cluster; Ctrl-C keeps every finished row and exits 130. A write
+that fails mid-batch (a full disk) is one line and exit status 2, every row and file
+written before it whole (:class:`~ads_rca.batch.store.StoreError`). A batch in which no run
+could be diagnosed exits :data:`EXIT_NONE_DIAGNOSED` once every output is written: a script
+must not read "all runs failed" as success.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from typing import Any
 
 from ads_rca.batch.inputs import expand_inputs
 from ads_rca.batch.rows import error_row
+from ads_rca.batch.scheduler import TIMEOUT, check_scheduler
 from ads_rca.batch.store import CSV_NAME, PARQUET_NAME, RUNS_DIR, ResultStore
 from ads_rca.batch.summary import Counts, summary_text, write_html
 from ads_rca.batch.work import Job, Outcome, diagnose_job
@@ -51,7 +53,7 @@ EXIT_INTERRUPTED = 130
 EXIT_NONE_DIAGNOSED = 3
 HTML_NAME = "summary.html"
 #: Seconds to wait for ``--scheduler`` to answer.
-CONNECT_TIMEOUT = 15
+CONNECT_TIMEOUT = TIMEOUT
 SCHEMES = ("tcp://", "tls://", "ucx://", "inproc://", "ws://", "wss://")
 
 
@@ -119,6 +121,8 @@ def run(args: argparse.Namespace) -> int:
             f"--out {out}: exists and is not empty (--resume continues the batch there)"
         )
     check_output_dir(out, "--out", empty=not args.resume)
+    if args.scheduler:
+        check_scheduler(args.scheduler, CONNECT_TIMEOUT)
     store = ResultStore(out, resume=args.resume)
     jobs = [
         Job(

@@ -1,12 +1,13 @@
-"""``ads-rca batch`` given hostile inputs: a ``--scheduler`` that is no Dask scheduler
-(issue 41).
+"""``ads-rca batch`` given hostile inputs: a ``--scheduler`` that is no Dask scheduler, a
+glob over a tree with symlink loops (issue 41).
 
 No mocks: real TCP servers on 127.0.0.1 (threads of this test) against the command in a
-subprocess with its address space limited. Checked: an HTTP server and a server that
-accepts and stays silent are each one line on stderr, exit status 2, within the connect
-timeout, no traceback, nothing allocated on the peer's say-so (1.5 GB of address space is
-plenty); a peer that closes or refuses is one line too; a real Dask scheduler passes the
-check.
+subprocess with its address space limited; real trees with real symlink loops. Checked:
+an HTTP server and a server that accepts and stays silent are each one line on stderr,
+exit status 2, within the connect timeout, no traceback, nothing allocated on the peer's
+say-so (1.5 GB of address space is plenty); a real Dask scheduler passes the check; a
+``'root/**'`` over ``a/b -> ..`` loops ends within seconds with the runs found and a line
+saying the loops were skipped; the walk's bounds (depth, entries) hold.
 """
 
 from __future__ import annotations
@@ -23,7 +24,10 @@ from pathlib import Path
 
 import pytest
 
+from ads_rca.batch import inputs
+from ads_rca.batch.inputs import MAX_GLOB_DEPTH, expand_inputs, run_id
 from ads_rca.batch.scheduler import TIMEOUT, check_scheduler
+from ads_rca.batch.store import read_csv
 from ads_rca.errors import InputError
 from ads_rca.sources.log.writer import write_run_log
 from ads_rca.synth import synthesise
@@ -161,6 +165,8 @@ def test_a_silent_scheduler_is_one_line_within_the_timeout(
 
 def test_a_peer_that_closes_or_refuses_is_one_line() -> None:
     def close(connection: socket.socket) -> None:
+        connection.settimeout(5)
+        connection.recv(65536)  # our handshake read first: a clean close, not a reset
         connection.close()
 
     for port in serve(close):
@@ -185,3 +191,64 @@ def test_a_real_scheduler_passes_the_check() -> None:
         dashboard_address="127.0.0.1:0",
     ) as cluster:
         check_scheduler(cluster.scheduler_address, timeout=10)
+
+
+def loop_tree(root: Path, run: Path) -> Path:
+    """``root`` holding a copy of ``run`` and two loops, ``a/b -> ..`` and ``c/d -> ..``."""
+    root.mkdir()
+    os.symlink(run, root / "run_0")
+    for folder, link in (("a", "b"), ("c", "d")):
+        (root / folder).mkdir()
+        (root / folder / link).symlink_to("..")
+    return root
+
+
+def test_a_glob_over_symlink_loops_ends_with_the_runs_found(
+    small_run: Path, tmp_path: Path
+) -> None:
+    root = loop_tree(tmp_path / "root", small_run)
+    out = tmp_path / "out"
+    done, seconds = batch(f"{root}/**", "--out", str(out), "--workers", "1", timeout=60)
+    assert "Traceback" not in done.stdout + done.stderr
+    assert done.returncode == 0, done.stderr
+    assert f"{root}/**: 2 symlink loop(s) not followed (a folder inside itself)" in done.stderr
+    rows = {row["path"]: row for row in read_csv(out / "results.csv")}
+    real = os.path.realpath
+    assert rows[real(small_run)]["error"] == ""  # the run, found through its symlink
+    assert {real(root), real(root / "a"), real(root / "c")} <= set(rows)  # each folder once
+    assert seconds < 45
+
+
+def test_the_walk_skips_loops_and_second_paths_and_says_so(small_run: Path, tmp_path: Path) -> None:
+    root = loop_tree(tmp_path / "root", small_run)
+    os.symlink(small_run, root / "again")  # the same run by another path: not a loop
+    notes: list[str] = []
+    start = time.process_time()
+    runs = expand_inputs([f"{root}/**/actors"], notes.append)
+    assert time.process_time() - start < 1
+    assert [run.path for run in runs] == [os.path.realpath(small_run / "actors")]
+    assert notes == [
+        f"{root}/**/actors: 2 symlink loop(s) not followed (a folder inside itself)",
+        f"{root}/**/actors: 1 folder(s) reached again by another path, searched once",
+    ]
+
+
+def test_the_walk_is_bounded_in_depth_and_entries(
+    small_run: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    deep = tmp_path / "deep"
+    folder = deep
+    for _ in range(MAX_GLOB_DEPTH + 3):
+        folder = folder / "d"
+    folder.mkdir(parents=True)
+    os.symlink(small_run, folder / "run")  # below the bound: not found
+    os.symlink(small_run, deep / "d" / "run")
+    notes: list[str] = []
+    runs = expand_inputs([f"{deep}/**/run"], notes.append)
+    assert [run.run_id for run in runs] == [run_id(small_run)]
+    assert notes == [
+        f"{deep}/**/run: 1 folder(s) more than {MAX_GLOB_DEPTH} levels below '**' not searched"
+    ]
+    monkeypatch.setattr(inputs, "MAX_GLOB_ENTRIES", 50)
+    with pytest.raises(InputError, match=r"the glob's walk passed 50 entries: narrow it"):
+        expand_inputs([f"{deep}/**/run"])

@@ -114,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(
             f"--scheduler {printable(args.scheduler)}: expected an address like tcp://host:8786"
         )
-    runs = expand_inputs(args.inputs)
+    runs = expand_inputs(args.inputs, _note)
     out = Path(args.out)
     if not args.resume and out.is_dir() and any(out.iterdir()):
         raise InputError(
@@ -167,6 +167,11 @@ def run(args: argparse.Namespace) -> int:
         print(f"ads-rca batch: no run could be diagnosed ({counts.failed} failed)", file=sys.stderr)
         return EXIT_NONE_DIAGNOSED
     return 0
+
+
+def _note(line: str) -> None:
+    """What the inputs' expansion skipped (a symlink loop...): one line on stderr."""
+    print(printable(f"ads-rca batch: {line}"), file=sys.stderr)
 
 
 def _absolute(bag: BagOptions) -> BagOptions:

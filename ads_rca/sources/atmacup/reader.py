@@ -41,6 +41,7 @@ from ads_rca.capabilities import source_statuses
 from ads_rca.errors import InputError
 from ads_rca.foundation.files import DEFAULT_MAX_FILE_MB, read_regular
 from ads_rca.foundation.geometry import FloatArray
+from ads_rca.foundation.text import printable
 from ads_rca.model import (
     INPUTS_KEY,
     Actors,
@@ -70,7 +71,7 @@ from ads_rca.sources.csv_table import (
 )
 from ads_rca.sources.formats import SourceOptions
 from ads_rca.sources.log.reader import UNUSABLE, check_max_file_mb, decode_file
-from ads_rca.sources.log.records import is_json_number, json_number
+from ads_rca.sources.log.records import json_number
 
 FORMAT_NAME = "atmacup"
 LIGHTS_FOLDER = "traffic_lights"
@@ -150,6 +151,8 @@ def read_atmacup_table(
     unknown_columns(table, KNOWN_COLUMNS, problems)
     labels = _labels(table)
     rows = _usable_rows(table, labels, problems)
+    if not rows.ids:
+        raise InputError(f"{file}: {_no_rows(table, problems)}")
     vehicle = _vehicle(table, labels, rows, problems)
     gear = _gears(table, labels, rows, problems)
     realised = _targets(table, labels, rows, problems)
@@ -265,6 +268,16 @@ def _usable_rows(table: CsvTable, labels: Sequence[str], problems: ProblemLog) -
     return Rows(np.asarray(keep, dtype=np.int64), tuple(cells[n] for n in keep), used)
 
 
+def _no_rows(table: CsvTable, problems: ProblemLog) -> str:
+    """Why a table gives no usable row, in words (its header alone, or every row unusable:
+    the last error said about the table), escaped for one line."""
+    if not len(table):
+        return "no data rows: the table holds its header alone"
+    said = [p for p in problems if p.file == table.name and p.severity == "error"]
+    why = f" ({said[-1].field}: {said[-1].issue})" if said else ""
+    return printable(f"{ID_COLUMN}: none of its {len(table)} data rows is usable{why}")
+
+
 def _vehicle(
     table: CsvTable, labels: Sequence[str], rows: Rows, problems: ProblemLog
 ) -> dict[str, FloatArray]:
@@ -325,7 +338,7 @@ def _targets(
             "missing target columns",
             "those coordinates unknown: the rows' paths are not scored",
         )
-    flat = out.reshape(len(rows.ids), -1)
+    flat = out.reshape(len(rows.ids), len(TARGET_COLUMNS))
     for n, column in enumerate(TARGET_COLUMNS):
         if table.has(column):
             flat[:, n] = numbers(table, column, labels, problems, rows.used)[rows.positions]
@@ -408,7 +421,8 @@ def _boxes(document: Any, where: str, issues: dict[tuple[str, str], list[str]]) 
             _note(issues, "bbox", "not four finite numbers", where)
             continue
         index = entry.get("index")
-        if not (is_json_number(index) and float(index).is_integer() and 0 <= index <= MAX_INDEX):
+        number = json_number(index)  # 10**400 too: past the float range, infinite
+        if not (number.is_integer() and 0 <= number <= MAX_INDEX):
             _note(issues, "index", "not an integer 0 to 999999: the list position used", where)
             index = n
         kind = entry.get("class")

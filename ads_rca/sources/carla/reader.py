@@ -89,7 +89,7 @@ from ads_rca.sources.carla.telemetry import (
     valid_fps,
 )
 from ads_rca.sources.log.reader import UNUSABLE, check_max_file_mb, decode_file
-from ads_rca.sources.log.records import FieldReader
+from ads_rca.sources.log.records import FieldReader, is_json_number, json_number
 
 FORMAT_NAME = "carla_experiment_client"
 RUN_METADATA = "run_metadata.json"
@@ -475,9 +475,7 @@ def _run_facts(facts: Mapping[str, Any]) -> dict[str, Any]:
         value = facts.get(key)
         if isinstance(value, str):
             out[key] = bounded(value, MAX_KIND)
-        elif (
-            isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
-        ):
+        elif is_json_number(value) and math.isfinite(json_number(value)):  # 10**400 is not
             out[key] = value
     return out
 

@@ -161,7 +161,7 @@ def read_dlp_scene(
     for (field_name, issue), count in sorted(instances.dropped.items()):
         problems.add(names["instances"], field_name, f"{count} instances: {issue}", DROPPED_RECORD)
     table = _table(instances)
-    ego, chosen_by = _choose_ego(agents, table, source.ego_agent)
+    ego, chosen_by = _choose_ego(agents, table, source.ego_agent, files["instances"])
     return _run_log(files, names, scene, agents, stamps, table, ego, chosen_by, source, problems)
 
 
@@ -239,7 +239,7 @@ def _agents(
             else []
         )
         heading = json_number(entry.get("heading")) if isinstance(entry, dict) else math.nan
-        if len(tok) > MAX_TEXT or len(xy) != 2 or not all(map(math.isfinite, [*xy, heading])):
+        if len(tok) > MAX_TEXT or len(xy) != 2 or not _finite_pose(xy, heading):
             problems.add(names["obstacles"], where, "no finite coords and heading", DROPPED_RECORD)
             continue
         kind = _text(entry.get("type"), "Undefined")
@@ -250,6 +250,11 @@ def _agents(
         )
         out.obstacle_pose.append((xy[0], 0.0 - xy[1], 0.0 - math.degrees(heading)))
     return out
+
+
+def _finite_pose(xy: list[float], heading: float) -> bool:
+    """Finite coordinates, and a heading whose degrees are finite too (1e308 rad is not)."""
+    return all(map(math.isfinite, [*xy, math.degrees(heading)]))
 
 
 def _half(
@@ -304,7 +309,8 @@ def _frame_list(
             break
         seconds, following = entry
         visited.add(current)
-        stamp = round(seconds * 1000.0) if math.isfinite(seconds) else None
+        ms = seconds * 1000.0  # 1e308 s is finite, its milliseconds are not
+        stamp = round(ms) if math.isfinite(ms) else None
         if stamp is None or not 0 <= stamp <= MAX_TIMESTAMP_MS or (stamps and stamp <= stamps[-1]):
             untimed.append((current, seconds))
         else:
@@ -342,8 +348,9 @@ def _instances(
         if not isinstance(entry, dict):
             out.drop("", "not an object")
             continue
-        frame = frame_order.get(entry.get("frame_token"))  # type: ignore[arg-type]
-        agent = index.get(entry.get("agent_token"))  # type: ignore[arg-type]
+        frame_token, agent_token = entry.get("frame_token"), entry.get("agent_token")
+        frame = frame_order.get(frame_token) if isinstance(frame_token, str) else None
+        agent = index.get(agent_token) if isinstance(agent_token, str) else None
         if frame is None:
             out.drop("frame_token", "no frame on the list")
             continue
@@ -357,7 +364,7 @@ def _instances(
             else []
         )
         heading, speed = json_number(entry.get("heading")), json_number(entry.get("speed"))
-        if len(xy) != 2 or not all(map(math.isfinite, [*xy, heading])):
+        if len(xy) != 2 or not _finite_pose(xy, heading):
             out.drop("coords, heading", "not finite numbers")
             continue
         out.frame.append(frame)
@@ -399,8 +406,9 @@ def _table(instances: Instances) -> Table:
     )
 
 
-def _choose_ego(agents: Agents, table: Table, wanted: str) -> tuple[int, str]:
-    """The ego's agent row and how it was chosen."""
+def _choose_ego(agents: Agents, table: Table, wanted: str, instances: Path) -> tuple[int, str]:
+    """The ego's agent row and how it was chosen (``instances``: the file named when no
+    agent has a usable instance)."""
     lives = np.bincount(table.agent, minlength=agents.moving)
     if wanted:
         if wanted in agents.tokens[: agents.moving]:
@@ -418,7 +426,9 @@ def _choose_ego(agents: Agents, table: Table, wanted: str) -> tuple[int, str]:
     cars = [n for n in range(agents.moving) if agents.kinds[n].lower() == "car" and lives[n] > 0]
     candidates = cars or [n for n in range(agents.moving) if lives[n] > 0]
     if not candidates:
-        raise InputError("the scene has no agent with a usable instance: nothing can be the ego")
+        raise InputError(
+            f"{instances}: no agent has a usable instance in the scene: nothing can be the ego"
+        )
     row = max(candidates, key=lambda n: (lives[n], -n))
     rule = "the longest-lived moving car" if cars else "the longest-lived agent (no car moves)"
     return row, f"default: {rule}"

@@ -34,7 +34,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from accuracy import SUSPECTED, Tally, fault_names, report_level
+from accuracy import SUSPECTED, Tally, drop_2d, fault_names, report_level
 from sumo_world.env import DEFAULT_VENV, binary_version, ensure_sumo
 from sumo_world.families import FAMILIES
 from sumo_world.runs import LOGS, Outcome, build_seed, cache_key
@@ -51,11 +51,15 @@ from ads_rca.synth.noise import LEVELS, Noise
 DEFAULT_FAMILIES = ("curve", "merge", "intersection", "dense")
 
 
-def judge(outcome: Outcome, params: Any) -> tuple[str, str, Timing, int]:
+def judge(outcome: Outcome, params: Any, three_d: bool = False) -> tuple[str, str, Timing, int]:
     """The primary root cause named for ``outcome``'s log ("none", or ``suspected``), a
-    one-line account of the verdict, the diagnosis time and the frames analysed."""
+    one-line account of the verdict, the diagnosis time and the frames analysed.
+    ``three_d``: judged as a 3-D stack's recording (bench/accuracy.py ``--drop-2d``), which is
+    where the perception variants (a shifted, shrunk or wrong-velocity 3-D object) show."""
     assert outcome.folder is not None
     log = read_run_log(outcome.folder)
+    if three_d:
+        drop_2d(log)
     found, took = timed(lambda: diagnose(log, params))
     attribution = found.attribution
     suspected = attribution.primary_root_cause is None and bool(found.conclusion.suspected)
@@ -86,6 +90,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--noise", type=float, default=1.0, help="synthesiser noise level K")
     parser.add_argument("--venv", type=Path, default=DEFAULT_VENV, help="SUMO's venv")
     parser.add_argument("--rebuild", action="store_true", help="ignore the cached set")
+    parser.add_argument(
+        "--drop-2d",
+        action="store_true",
+        help="judge each log without its 2-D boxes and predictions on truth (a 3-D stack)",
+    )
     args = parser.parse_args(argv)
     families = [f for f in args.families.split(",") if f]
     unknown = sorted(set(families) - set(FAMILIES))
@@ -115,7 +124,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     clean: Counter[tuple[str, str]] = Counter()
     with Clock() as diagnosing:
         for outcome in made:
-            got, account, took, frames = judge(outcome, params)
+            got, account, took, frames = judge(outcome, params, args.drop_2d)
             per_frame.append(Timing(took.wall_s * 1000 / frames, took.cpu_s * 1000 / frames))
             tally.times.append(per_frame[-1])
             injected = canonical_fault(outcome.fault)

@@ -150,13 +150,12 @@ def test_under_noise_the_floors_find_the_injected_fault(case: tuple[str, str, in
     found = diagnose(log, make_params("corrected"))
     assert found.attribution.primary_root_cause == fault
     assert found.attribution.root_causes == [fault]
-    # Without the floors the noise counts as perception failures. A planning fault is still
-    # found (perception never misled the planner, which was shown the conflict: rule 7);
-    # a controller fault is not.
+    # Without the floors the noise counts as perception failures, which rule 7 now keeps
+    # from the blame: perception never misled the planner (it was shown the conflict), and
+    # its noise counted only after the controller had failed (issue 40).
     off = diagnose(log, make_params("corrected", {"noise_floor_factor": 0.0}))
     assert "perception" in off.attribution.root_causes
-    expected = "planning" if fault == "planning" else "perception"
-    assert off.attribution.primary_root_cause == expected
+    assert off.attribution.primary_root_cause == fault
 
 
 def test_floors_are_reported_with_their_basis_and_parameters() -> None:

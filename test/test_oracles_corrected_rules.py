@@ -544,6 +544,29 @@ def test_window_and_persistence_runs() -> None:
     assert evidence["runs"] == [[24, 25]]
 
 
+@pytest.mark.parametrize(
+    ("upstream", "upstream_from", "primary"),
+    [
+        ("prediction", 25, "controller"),  # a turning partner's arc, after the controller
+        ("perception", 24, "controller"),
+        ("prediction", 22, "prediction"),  # the same frame: not after
+        ("prediction", 20, "prediction"),
+    ],
+)
+def test_an_upstream_failure_after_control_is_contributing(
+    upstream: Module, upstream_from: int, primary: str
+) -> None:
+    """Issue 40 (third-party world): a controller fault at an intersection, the stack's
+    constant-acceleration prediction of the turning partner failing ten frames later. The
+    ego was already off its plan: what came after is a consequence (rule 7)."""
+    frames, ctx = _frames(
+        30, {"controller": range(22, 30), upstream: range(upstream_from, upstream_from + 4)}
+    )
+    a = attribute_corrected(frames, ctx)
+    assert a.root_causes == [upstream, "controller"]
+    assert a.primary_root_cause == primary
+
+
 @pytest.mark.parametrize(("planning_from", "primary"), [(24, "controller"), (20, "planning")])
 def test_planning_after_control_is_contributing(planning_from: int, primary: str) -> None:
     frames, ctx = _frames(

@@ -6,9 +6,9 @@ A module's failing frames in the window count only in runs of at least its persi
 (perception and prediction ``min_persistence``, planning ``planning_min_persistence``,
 control ``control_min_persistence``); runs are maximal runs of consecutive analysed frames
 inside the window. The primary root cause is the most upstream module with counted failures,
-except that a planning failure whose first counted frame is strictly after the
-controller's is contributing, not primary (the planner plans from the state the controller
-delivered), and so is a prediction failure that had ended where planning's counted failure
+except that a failure whose first counted frame is strictly after the controller's is
+contributing, not primary (the ego was already off its plan: the planner plans from the
+state the controller delivered, and what perception and prediction then get wrong follows), and so is a prediction failure that had ended where planning's counted failure
 begins, prediction judged right there in a real conflict (the planner then failed on a
 correct prediction with a safer plan at hand), and so is a perception or prediction failure
 that never misled the planner before planning's counted failure began (the planner's own
@@ -215,18 +215,18 @@ def _primary(
     prediction_recovered: bool,
     harmless: set[Module],
 ) -> Module | None:
-    """Most upstream, skipping planning when it began strictly after the controller,
-    prediction when it had recovered before planning failed, and an upstream module that
-    never misled the planner (``harmless``)."""
+    """Most upstream, skipping a module that began strictly after the controller (the ego
+    was already off its plan), prediction when it had recovered before planning failed, and
+    an upstream module that never misled the planner (``harmless``)."""
     for module in root_causes:
         if module in harmless:
             continue
         if (
-            module == "planning"
+            module != "controller"
             and "controller" in root_causes
-            and first["planning"] > first["controller"]
+            and first[module] > first["controller"]
         ):
-            continue
+            continue  # the ego was already off its plan: a consequence
         if module == "prediction" and prediction_recovered:
             continue
         return module

@@ -8,14 +8,14 @@ control ``control_min_persistence``); runs are maximal runs of consecutive analy
 inside the window. The primary root cause is the most upstream module with counted failures,
 except that a failure whose first counted frame is strictly after the controller's is
 contributing, not primary (the ego was already off its plan: the planner plans from the
-state the controller delivered, and what perception and prediction then get wrong follows), and so is a prediction failure that had ended where planning's counted failure
+state the controller delivered, and what perception and prediction then get wrong
+follows); so is a prediction failure that had ended where planning's counted failure
 begins, prediction judged right there in a real conflict (the planner then failed on a
-correct prediction with a safer plan at hand), and so is a perception or prediction failure
-that never misled the planner before planning's counted failure began (the planner's own
-inputs showed the conflict at each of its frames: :func:`_misled`). With a collision but no
-counted failure,
-the unconditioned tests of perception and prediction (``metrics["unconditioned"]``) are
-used the same way, and the basis says so.
+correct prediction with a safer plan at hand); and so is a perception or prediction
+failure that never misled the planner before planning's counted failure began (the
+planner's own inputs showed the conflict at each of its frames: :func:`_misled`). With a
+collision but no counted failure, the unconditioned tests of perception and prediction
+(``metrics["unconditioned"]``) are used the same way, and the basis says so.
 Otherwise "no fault found" with its reason. Each blamed module carries its evidence.
 """
 

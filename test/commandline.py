@@ -57,6 +57,16 @@ def assert_clean(done: subprocess.CompletedProcess[str], code: int = 0) -> None:
     assert done.returncode == code, output
 
 
+def assert_one_line(done: subprocess.CompletedProcess[str], message: str) -> None:
+    """A refusal as every command gives one: exit 2, one stderr line holding ``message``,
+    no traceback."""
+    output = done.stdout + done.stderr
+    assert "Traceback" not in output, output
+    assert done.returncode == 2, output
+    assert done.stderr.count("\n") == 1, done.stderr
+    assert message in done.stderr, done.stderr
+
+
 def convert_example(out: Path, *options: str) -> Path:
     """The bundled example converted to a bag at ``out`` by ``ads-rca convert`` (in process)."""
     assert cli(["convert", str(EXAMPLE), str(out), *options]) == 0

@@ -23,6 +23,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
+from commandline import assert_one_line
 
 from ads_rca.batch import inputs
 from ads_rca.batch.inputs import MAX_GLOB_DEPTH, expand_inputs, run_id
@@ -126,14 +127,6 @@ def small_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A synthesised log folder (120 frames)."""
     root = tmp_path_factory.mktemp("hostile_batch")
     return write_run_log(synthesise("cut_in", "perception", 0, frames=120), root / "run_0")
-
-
-def assert_one_line(done: subprocess.CompletedProcess[str], message: str) -> None:
-    output = done.stdout + done.stderr
-    assert "Traceback" not in output, output
-    assert done.returncode == 2, output
-    assert done.stderr.count("\n") == 1, done.stderr
-    assert message in done.stderr, done.stderr
 
 
 def test_a_scheduler_answering_http_is_one_line_at_once(

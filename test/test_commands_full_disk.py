@@ -18,6 +18,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from commandline import assert_one_line
 from fulldisk import fill, small_tmpfs
 
 from ads_rca.batch.rows import error_row
@@ -41,14 +42,6 @@ def ads_rca(*args: str, timeout: float = 180) -> subprocess.CompletedProcess[str
         env=env,
         check=False,
     )
-
-
-def assert_one_line(done: subprocess.CompletedProcess[str], message: str) -> None:
-    output = done.stdout + done.stderr
-    assert "Traceback" not in output, output
-    assert done.returncode == 2, output
-    assert done.stderr.count("\n") == 1, done.stderr
-    assert message in done.stderr, done.stderr
 
 
 @pytest.mark.parametrize("option", ["--json", "--report"])

@@ -71,6 +71,16 @@ class SampleQueue(queue.Queue[tuple[str, bytes]]):
             return False
         return True
 
+    def drain(self, limit: int) -> list[tuple[str, bytes]]:
+        """What is queued (at most ``limit``), oldest first, without waiting."""
+        out: list[tuple[str, bytes]] = []
+        while len(out) < limit:
+            try:
+                out.append(self.get_nowait())
+            except queue.Empty:
+                break
+        return out
+
     def _put(self, item: tuple[str, bytes]) -> None:  # under the queue's mutex
         self.queue.append(item)
         self.bytes += len(item[1])
@@ -154,13 +164,7 @@ class RemoteClient(SessionOwner):
 
     def drain(self, limit: int = 10_000) -> list[tuple[str, bytes]]:
         """Samples received since the last call (at most ``limit``), oldest first."""
-        out: list[tuple[str, bytes]] = []
-        while len(out) < limit:
-            try:
-                out.append(self.samples.get_nowait())
-            except queue.Empty:
-                break
-        return out
+        return self.samples.drain(limit)
 
     def connected(self) -> bool:
         """The session reaches a peer or a router right now."""
@@ -316,13 +320,7 @@ class RemoteLinks:
 
     def drain(self, limit: int = 10_000) -> list[tuple[str, bytes]]:
         """Samples and replies of every link since the last call, oldest first."""
-        out: list[tuple[str, bytes]] = []
-        while len(out) < limit:
-            try:
-                out.append(self.samples.get_nowait())
-            except queue.Empty:
-                break
-        return out
+        return self.samples.drain(limit)
 
     def _run(self) -> None:
         while not self._stopping.is_set():

@@ -83,8 +83,9 @@ def check_scheduler(address: str, timeout: float = TIMEOUT) -> None:
             raise InputError(f"{where}: cannot connect ({error.strerror or error})") from None
 
 
-class _NotDask(Exception):
-    """What the peer sent is no Dask handshake (the message says how)."""
+class _NotDask(InputError):
+    """What the peer sent is no Dask handshake (the message says how); caught here and
+    said as one line naming the address."""
 
 
 def _handshake() -> bytes:

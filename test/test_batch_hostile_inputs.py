@@ -245,3 +245,26 @@ def test_the_walk_is_bounded_in_depth_and_entries(
     monkeypatch.setattr(inputs, "MAX_GLOB_ENTRIES", 50)
     with pytest.raises(InputError, match=r"the glob's walk passed 50 entries: narrow it"):
         expand_inputs([f"{deep}/**/run"])
+
+
+def test_a_bag_reached_through_a_link_without_suffix_is_read_as_given(tmp_path: Path) -> None:
+    """Issue 43 item 3: a content-addressed store (DVC-style) names its files by hash, and
+    the runs are links to them. `diagnose runs/crash.mcap` read the bag; `batch` resolved
+    the link first, lost the `.mcap` name and refused it ("not a folder"). The format is
+    now decided from the path given; the run id still comes from the resolved path."""
+    from commandline import convert_example
+
+    bag = convert_example(tmp_path / "bag", "--storage", "mcap")
+    (stored,) = list(bag.glob("*.mcap"))
+    store = tmp_path / "store"
+    store.mkdir()
+    blob = store / "3f9a0c5e1b7d2a46"
+    stored.rename(blob)
+    runs = tmp_path / "runs"
+    runs.mkdir()
+    (runs / "crash.mcap").symlink_to(blob)
+    done, _ = batch(str(runs / "crash.mcap"), "--out", str(tmp_path / "out"), "--workers", "1")
+    assert done.returncode == 0, done.stderr
+    (row,) = read_csv(tmp_path / "out" / "results.csv")
+    assert row["error"] == "" and row["primary_root_cause"] == "perception", row
+    assert row["run_id"] == run_id(blob)  # one run, however it is reached

@@ -17,7 +17,8 @@ callback). A glob whose walk lists more than :data:`MAX_GLOB_ENTRIES` entries is
 (narrow it, or list the runs in a paths file). Measured in ``bench/bench_batch_glob.py``.
 
 Each run gets a **run id**: the first 16 hex digits of the SHA-256 of its resolved absolute
-path (``os.path.realpath``). The same run reached by two inputs is diagnosed once, and the
+path (``os.path.realpath``), where it is read too, unless only the name it was given says
+its format (:func:`read_path`). The same run reached by two inputs is diagnosed once, and the
 id is stable across batches on the same machine (``--resume`` matches on it); on a cluster
 the same shared path gives the same id on every node.
 """
@@ -48,7 +49,7 @@ MAX_GLOB_DEPTH = 64
 
 @dataclass(frozen=True)
 class Run:
-    """One run to diagnose: its resolved path and id."""
+    """One run to diagnose: the path it is read at (:func:`read_path`) and its id."""
 
     run_id: str
     path: str
@@ -60,6 +61,16 @@ def run_id(path: str | os.PathLike[str]) -> str:
     return hashlib.sha256(resolved.encode("utf-8", "surrogateescape")).hexdigest()[:16]
 
 
+def read_path(path: str) -> str:
+    """Where a run is read: its resolved path, unless only the name it was given says its
+    format (a bag linked from a content-addressed store, DVC-style: ``crash.mcap -> store/
+    3f9a...``, issue 43), when the link itself is read."""
+    resolved, given = os.path.realpath(path), os.path.abspath(path)
+    if given.endswith(BAG_SUFFIXES) and not resolved.endswith(BAG_SUFFIXES):
+        return given
+    return resolved
+
+
 def expand_inputs(inputs: list[str], note: Callable[[str], None] = lambda line: None) -> list[Run]:
     """The runs ``inputs`` name, in order, each once; :class:`InputError` for a bad input.
     ``note`` is given one line per kind of thing a glob's walk skipped."""
@@ -68,7 +79,7 @@ def expand_inputs(inputs: list[str], note: Callable[[str], None] = lambda line: 
     runs: dict[str, Run] = {}
     for item in inputs:
         for path in _expand(item, note):
-            run = Run(run_id(path), os.path.realpath(path))
+            run = Run(run_id(path), read_path(path))
             runs.setdefault(run.run_id, run)
     if not runs:
         raise InputError("the inputs name no run")

@@ -312,9 +312,6 @@ class RemoteLinks:
     def states(self) -> list[dict[str, Any]]:
         return [link.describe() for link in self.links]
 
-    def any_opened(self) -> bool:
-        return any(link.opened for link in self.links)
-
     def any_connected(self) -> bool:
         return any(link.connected for link in self.links)
 

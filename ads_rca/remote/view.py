@@ -497,9 +497,9 @@ class DashboardModel:
     def run(self, prefix: str, run_id: str = "") -> RunView:
         """The view of ``run_id`` under ``prefix`` (see the class doc), made if new."""
         if not run_id:
-            under = [view for view in self.runs.values() if view.prefix == prefix]
-            if under:
-                return max(under, key=lambda view: view.updated)
+            latest = self.latest_under(prefix)
+            if latest is not None:
+                return latest
         view = self.runs.get(run_name(prefix, run_id))
         if view is not None:
             return view
@@ -515,13 +515,17 @@ class DashboardModel:
         self.runs[view.name] = view
         return view
 
+    def latest_under(self, prefix: str) -> RunView | None:
+        """The run under ``prefix`` updated last (None: none)."""
+        under = [view for view in self.runs.values() if view.prefix == prefix]
+        return max(under, key=lambda view: view.updated) if under else None
+
     def find(self, name: str) -> RunView | None:
         """The run of that name; a bare prefix names its run updated last."""
         view = self.runs.get(name)
         if view is not None or "@" in name:
             return view
-        under = [view for view in self.runs.values() if view.prefix == name]
-        return max(under, key=lambda view: view.updated) if under else None
+        return self.latest_under(name)
 
     def apply(self, key: str, payload: bytes | str, now: float) -> dict[str, Any] | None:
         """One sample or reply; the event it makes, or None when it was dropped (and

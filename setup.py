@@ -17,7 +17,7 @@ NODES = {
     "controller_monitor": "ads_rca.ros.monitor:controller_main",
     "monitors": "ads_rca.ros.monitor:group_main",
     "aggregator": "ads_rca.ros.aggregator:main",
-    "zenoh_bridge": "ads_rca.ros.zenoh_bridge:main",
+    "zenoh_bridge": "ads_rca.ros.zenoh_bridge:entry",
 }
 
 setup(

@@ -64,11 +64,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 def entry() -> None:
     """The ``ads-rca`` program: :func:`main`, then the end of the process (at once, when the
     command kept what it loaded: :mod:`ads_rca.foundation.quick_exit`)."""
-    quick_exit.allow()
-    status = main()
-    if quick_exit.requested():
-        quick_exit.exit_now(status)
-    sys.exit(status)
+    quick_exit.run_program(main)
 
 
 def run(argv: Sequence[str] | None) -> int:

@@ -25,7 +25,7 @@ from typing import Any
 from ads_rca.foundation.text import printable
 from ads_rca.remote.config import DEFAULT_ENDPOINT, session_config
 from ads_rca.remote.keys import DASHBOARD_ROOT, SAMPLE_SUFFIX, check_prefix
-from ads_rca.remote.session import SessionOwner, close_session
+from ads_rca.remote.session import SessionOwner, close_session, open_session
 from ads_rca.remote.view import payload_limit
 
 #: Samples waiting for the caller beyond this many, or these many bytes, are dropped (and
@@ -115,9 +115,7 @@ class RemoteClient(SessionOwner):
         self._subscriber: Any = None
 
     def open(self) -> RemoteClient:
-        import zenoh
-
-        self._session = zenoh.open(zenoh.Config.from_json5(self.config_text))
+        self._session = open_session(self.config_text)
         try:
             # Only the JSON samples: raw CDR keys of the graph's namespace share the root.
             self._subscriber = self._session.declare_subscriber(

@@ -15,7 +15,7 @@ from typing import Any
 
 from ads_rca.errors import ConfigError
 from ads_rca.remote.config import session_config
-from ads_rca.remote.session import SessionOwner, close_session
+from ads_rca.remote.session import SessionOwner, close_session, open_session
 from ads_rca.remote.state import Put, RemoteState
 
 
@@ -45,9 +45,7 @@ class ZenohPublisher(SessionOwner):
         self._raw_publishers: dict[str, Any] = {}
 
     def open(self) -> ZenohPublisher:
-        import zenoh
-
-        self._session = zenoh.open(zenoh.Config.from_json5(self.config_text))
+        self._session = open_session(self.config_text)
         try:
             for key in self.state.queries.values():
                 self._declared.append(self._session.declare_queryable(key, self._answerer(key)))

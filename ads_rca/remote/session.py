@@ -1,8 +1,10 @@
-"""Closing a Zenoh session so the process can exit.
+"""Opening and closing a Zenoh session so the process can exit.
 
 A process that exits with an open session holding subscribers, publishers or queryables
 hangs at interpreter exit, so every owner undeclares what it declared and closes the session
-on every exit path, through this one function.
+on every exit path, through :func:`close_session`. Zenoh's threads outlive the session, so
+a program that opened one ends without finalizing the interpreter
+(:func:`ads_rca.foundation.quick_exit.require`).
 """
 
 from __future__ import annotations
@@ -11,6 +13,17 @@ import contextlib
 from collections.abc import Iterable
 from types import TracebackType
 from typing import Any, Self
+
+from ads_rca.foundation import quick_exit
+
+
+def open_session(config_text: str) -> Any:
+    """A Zenoh session of the JSON5 configuration ``config_text`` (``zenoh.ZError`` when it
+    cannot open)."""
+    import zenoh
+
+    quick_exit.require()
+    return zenoh.open(zenoh.Config.from_json5(config_text))
 
 
 def close_session(session: Any, declared: Iterable[Any]) -> None:

@@ -23,7 +23,6 @@ answering late dashboards' queries until then.
 from __future__ import annotations
 
 import math
-import sys
 import time
 from typing import Any
 
@@ -34,6 +33,7 @@ from ads_rca.contract import live_topics, rosmsg, topics
 from ads_rca.contract.cdr_decode import decode_string
 from ads_rca.contract.errors import DOCUMENT_ERRORS, MalformedMessage
 from ads_rca.errors import AdsRcaError, ConfigError
+from ads_rca.foundation import quick_exit
 from ads_rca.live.runid import checked_run_id
 from ads_rca.oracles.base import MODULES
 from ads_rca.paramspec import LINGER, RATE, SECONDS, Range
@@ -296,5 +296,11 @@ def main(args: list[str] | None = None) -> int:
     return run_node("zenoh_bridge", ZenohBridge, args, (AdsRcaError,))
 
 
+def entry() -> None:
+    """The node as a program: it ends without finalizing the interpreter once its Zenoh
+    session is closed (:mod:`ads_rca.foundation.quick_exit`)."""
+    quick_exit.run_program(main)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    entry()

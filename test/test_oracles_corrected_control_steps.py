@@ -31,9 +31,10 @@ from ads_rca.params import make_params
 TPF = 50
 
 
-def bits(step: Step) -> tuple[str, str, str]:
-    """A step's three values as exact hex (NaN equals NaN)."""
-    return (float.hex(step.speed), float.hex(step.lateral), float.hex(step.decel))
+def bits(step: Step) -> tuple[str, str, str, str]:
+    """A step's four values as exact hex (NaN equals NaN)."""
+    values = (step.speed, step.lateral, step.decel, step.curve)
+    return (float.hex(values[0]), float.hex(values[1]), float.hex(values[2]), float.hex(values[3]))
 
 
 def hostile_log(seed: int, frames: int = 3 * BLOCK, rough: float = 1.0) -> RunLog:

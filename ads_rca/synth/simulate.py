@@ -45,12 +45,12 @@ from ads_rca.synth.perception import Detector, Tracker
 from ads_rca.synth.perception3d import Misperception, Output3D
 from ads_rca.synth.planning import Planner
 from ads_rca.synth.prediction import predict_positions, state_from_history, wrong_model
+from ads_rca.synth.steering import WHEELBASE, PathFollower, VehicleState, start_state, step
 from ads_rca.synth.world import PAD, Scene
 
 TPF_MS = 50
 CAMERA_LOC = (1.3, 0.0, 1.8)
 PREDICTION_ON_TRUTH_RANGE = 80.0
-WHEELBASE = 2.9  # m, for the steering angle that follows the path's curvature
 
 
 @dataclass
@@ -69,10 +69,16 @@ def _f32(a: FloatArray) -> FloatArray:
 
 
 def simulate(
-    scene: Scene, fault: FaultSpec, seed: int, horizon: int = 30, noise: Noise = DEFAULT_NOISE
+    scene: Scene,
+    fault: FaultSpec,
+    seed: int,
+    horizon: int = 30,
+    noise: Noise = DEFAULT_NOISE,
+    follower: PathFollower | None = None,
 ) -> SimResult:
     """Run ``scene`` in closed loop with ``fault`` at ``noise`` until a collision or the last
-    frame."""
+    frame. ``follower``: the ego steers along its path with these lateral dynamics (None:
+    it rides the path exactly, as in our synthesised worlds)."""
     n = len(scene.actor_ids)
     rng = np.random.default_rng([seed, 7])
     detector = Detector(rng, n, never_miss=scene.partner, noise=noise)
@@ -96,6 +102,7 @@ def simulate(
 
     log = RunLog(metadata=RunMetadata(TPF_MS, CAMERA_LOC, -1, 0), frames=())
     s, v = 0.0, scene.ego_speed
+    vehicle = None if follower is None else start_state(scene.path, s)
     collision, collided, reaction = -1, -1, -1
     frames: list[int] = []
     last = scene.frames
@@ -103,8 +110,11 @@ def simulate(
         ts = f * TPF_MS
         i = f + PAD
         xy, yaw = scene.xy[i], scene.yaw[i]
-        pose_xy, pose_yaw_arr = scene.path.at(np.asarray(s))
-        pose_yaw = float(pose_yaw_arr)
+        if vehicle is None:
+            pose_xy, pose_yaw_arr = scene.path.at(np.asarray(s))
+            pose_yaw = float(pose_yaw_arr)
+        else:
+            pose_xy, pose_yaw = vehicle.xy, vehicle.yaw
         # Where the stack believes it is (the true pose without localisation error).
         offset = None if localisation is None else localisation[f - 1]
         localised = pose_xy if offset is None else pose_xy + offset
@@ -184,23 +194,35 @@ def simulate(
         log.waypoints[ts] = Plan(plan_keys, _shift(result.xy, offset), result.speed.copy())
         log.detections_3d[ts] = _placed(output_3d.detections(det, pose_xy), offset)
         log.tracks_3d[ts] = _placed(output_3d.tracks(tracker, rows), offset)
-        log.controls[ts] = _command(scene, s, v, float(result.speed[1]))
+        log.controls[ts] = _command(scene, s, v, float(result.speed[1]), vehicle)
         if collision >= 0:
             last = f
             break
 
         # Control.
         controller.brake_gain = BRAKE_GAIN if fault.active("controller", f) else 1.0
-        s, v = controller.step(s, v, float(result.speed[1]))
+        s_next, v_next = controller.step(s, v, float(result.speed[1]))
+        if vehicle is not None and follower is not None:
+            vehicle = step(follower, scene.path, vehicle, s_next - s, v, TPF_MS / 1000.0)
+            s_next = vehicle.s
+        s, v = s_next, v_next
 
     log.frames = tuple(frames)
     log.metadata = RunMetadata(TPF_MS, CAMERA_LOC, collision, last)
     return SimResult(log, collision, collided, reaction)
 
 
-def _command(scene: Scene, s: float, v: float, target: float) -> ControlCommand:
+def _command(
+    scene: Scene, s: float, v: float, target: float, vehicle: VehicleState | None
+) -> ControlCommand:
     """The command to the controller: the plan's next speed, the acceleration to reach it in
-    one frame, and the steering angle of the path's curvature (CARLA sign: + turns right)."""
+    one frame, and the steering angle (CARLA sign: + turns right): the path follower's, else
+    that of the path's curvature."""
+    if vehicle is not None:
+        steer = float(np.degrees(vehicle.steer))
+        return ControlCommand(
+            steer=steer, acceleration=(target - v) / TPF_MS * 1000.0, speed=target
+        )
     _, yaw = scene.path.at(np.array([s - 0.5, s + 0.5]))
     curvature = float(yaw[1] - yaw[0])  # rad per metre (1 m apart)
     steer = float(np.degrees(np.arctan(WHEELBASE * curvature)))

@@ -40,14 +40,10 @@ our ego, blind to it, would. Faulty runs then replay that last world open-loop: 
 onset, followers and lane changers still react to the fault-free ego's motion, not to the
 faulty one's (a faulty ego brakes less, so nothing behind it is hit because of that).
 
-**Lateral dynamics (not done).** ``simulate()`` keeps the ego exactly on its path and
-controls only its speed; the path is SUMO's lane centre line, so curve entries show no
-path-following error. A kinematic bicycle with pure pursuit cannot be added from here: the
-pose (``scene.path.at(s)``), the planner's ego boxes and the recorded plan all read the same
-``Path``, so a wrapper cannot move the pose off the path without moving the plan with it.
-It needs ``ads_rca/synth/simulate.py`` to keep a vehicle state (x, y, yaw) integrated by the
-bicycle from a pure-pursuit steering command on ``scene.path``, to use that state for the
-camera, the collision check and the recorded pose and actors, to take ``s`` as the state's
-projection onto the path for the planner, and to record the steering it applied in
-``controls``.
+**Lateral dynamics.** The ego steers along SUMO's lane centre line as a vehicle does
+(``runs.FOLLOWER``: pure pursuit on a kinematic bicycle with a steering lag,
+``ads_rca.synth.steering``): its pose, camera, collision check and recorded pose leave the
+plan at a curve's entry by centimetres a step, as a sound path follower's do, and the
+commands record the steering it applied. The plan stays the centre line from the ego's pose
+(a reference-path planner's), so a curve shows the lag a judge of control must not blame.
 """

@@ -37,6 +37,7 @@ from ads_rca.synth import FAULTS, VARIANT_FAULTS, canonical_fault
 from ads_rca.synth.faults import NO_FAULT, FaultSpec, onset_for
 from ads_rca.synth.noise import Noise
 from ads_rca.synth.simulate import SimResult, simulate
+from ads_rca.synth.steering import PathFollower
 from sumo_world import families, record
 from sumo_world.env import CACHE, SUMO_VERSION, Sumo, client
 from sumo_world.scene import Built, build_scene, centres
@@ -49,6 +50,9 @@ TIMED_S = 0.1
 DEFAULT_FRAMES = 200
 DEFAULT_HORIZON = 30
 CONVERGED_M = 0.05
+#: The ego's lateral dynamics: it steers along SUMO's lane centre line as a vehicle does
+#: (pure pursuit on a kinematic bicycle), so a curve's entry shows a path follower's error.
+FOLLOWER = PathFollower()
 INAPPLICABLE = {
     ("crossing", "perception:shrunk"): (
         "a pedestrian's 0.5 m box shrunk recedes 0.35 m, less than the planner's 1 m margin"
@@ -117,7 +121,7 @@ def record_world(
     previous: dict[int, tuple[float, float, float]] | None = None
     passes = 1
     while True:
-        twin = simulate(built.scene, NO_FAULT, sub_seed, horizon, noise)
+        twin = simulate(built.scene, NO_FAULT, sub_seed, horizon, noise, FOLLOWER)
         track = _track(built, twin)
         shift = 0.0
         if director.timed:
@@ -149,7 +153,7 @@ def _timing_error(
     reach its mark ``director.late`` s after that."""
     ego_mark, partner_mark = director.marks(sumolib)
     scene = built.scene
-    blind = simulate(scene, FaultSpec("planning", 1), sub_seed, horizon, noise)
+    blind = simulate(scene, FaultSpec("planning", 1), sub_seed, horizon, noise, FOLLOWER)
     target = built.to_scene(ego_mark)
     arrival = None
     for ts in blind.log.frames:
@@ -215,7 +219,7 @@ def judge(
     sub_seed = seed * 1000 + attempt
     runs: dict[str, SimResult] = {"none": twin}
     for module in FAULTS[1:]:
-        run = simulate(scene, FaultSpec(module, onset), sub_seed, horizon, noise)
+        run = simulate(scene, FaultSpec(module, onset), sub_seed, horizon, noise, FOLLOWER)
         runs[module] = run
         if run.collision_frame < 0 or run.collided_row != scene.partner:
             return f"the {module} fault did not crash into the partner"
@@ -257,7 +261,7 @@ def build_seed(
         for fault in list(pending):
             if fault not in runs:
                 runs[fault] = simulate(
-                    scene, FaultSpec.named(fault, onset), sub_seed, horizon, noise
+                    scene, FaultSpec.named(fault, onset), sub_seed, horizon, noise, FOLLOWER
                 )
             run = runs[fault]
             if fault in VARIANT_FAULTS and (

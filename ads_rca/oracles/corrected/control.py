@@ -58,6 +58,7 @@ class Step:
     speed: float  # realised speed at t + frame_ms − plan[t]'s step-1 speed
     lateral: float  # signed offset of pose[t + frame_ms] from plan[t]'s polyline
     decel: float  # commanded deceleration (step-0 − step-1 speed) / dt; NaN without step 0
+    curve: float  # lateral acceleration plan[t] asks for: step-1 speed² × |curvature|
 
 
 #: A step, or the first missing (folder, timestamp) it needs.
@@ -147,16 +148,50 @@ def step_block(judging: CorrectedContext, start: int) -> StepBlock:
         speed = np.array([plans[t].speed for t in times])[:, order]
         v1 = speed[:, rows[1]].tolist()
         v0 = speed[:, rows[0]].tolist() if 0 in rows else [math.nan] * len(times)
+        ahead = np.array([plans[t].xy for t in times])[:, order[sorted_steps >= 1]]
+        curves = lateral_demands(ahead, speed[:, rows[1]])
         for n, i in enumerate(members):
             steps[i] = _step(
-                after[n].speed - v1[n], lateral[n], (v0[n] - v1[n]) / (frame_ms / 1000.0)
+                after[n].speed - v1[n],
+                lateral[n],
+                (v0[n] - v1[n]) / (frame_ms / 1000.0),
+                curves[n],
             )
     return StepBlock(start, steps)
 
 
-def _step(speed: float, lateral: float, decel: float) -> Step:
-    """``Step(speed, lateral, decel)`` (a block makes 32)."""
-    return _made(Step, speed=speed, lateral=lateral, decel=decel)
+def _step(speed: float, lateral: float, decel: float, curve: float) -> Step:
+    """``Step(speed, lateral, decel, curve)`` (a block makes 32)."""
+    return _made(Step, speed=speed, lateral=lateral, decel=decel, curve=curve)
+
+
+#: Plan points from step 1 over which a plan's curvature is read (about 0.5 s at 20 Hz).
+CURVATURE_POINTS = 11
+#: Shorter segments (m) give no heading worth reading: a plan of a car at a standstill.
+CURVATURE_MIN_SEGMENT = 0.1
+
+
+def lateral_demands(ahead: FloatArray, speed_1: FloatArray) -> list[float]:
+    """The lateral acceleration each plan asks for near its start: its step-1 speed² ×
+    |curvature|, the curvature being the heading change from the segment of its first two
+    points ``ahead`` (K, M, 2: from step 1, in step order) to the segment ending at its
+    :data:`CURVATURE_POINTS`-th, over the distance between those segments' midpoints (0
+    with fewer than three points, a segment shorter than :data:`CURVATURE_MIN_SEGMENT`, or
+    a value that is not finite)."""
+    points = ahead[:, :CURVATURE_POINTS]
+    if points.shape[1] < 3:
+        return [0.0] * len(ahead)
+    first = points[:, 1] - points[:, 0]
+    last = points[:, -1] - points[:, -2]
+    turn = np.arctan2(last[:, 1], last[:, 0]) - np.arctan2(first[:, 1], first[:, 0])
+    turn = (turn + math.pi) % (2.0 * math.pi) - math.pi
+    gap = 0.5 * (points[:, -1] + points[:, -2] - points[:, 1] - points[:, 0])
+    distance = np.hypot(gap[:, 0], gap[:, 1])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        demand = speed_1 * speed_1 * np.abs(turn) / distance
+    shortest = np.minimum(np.hypot(first[:, 0], first[:, 1]), np.hypot(last[:, 0], last[:, 1]))
+    usable = np.isfinite(demand) & (distance > 0.0) & (shortest >= CURVATURE_MIN_SEGMENT)
+    return cast("list[float]", np.where(usable, demand, 0.0).tolist())
 
 
 def _made(cls: type[_T], **fields: object) -> _T:
@@ -208,7 +243,9 @@ def _control_step(judging: CorrectedContext, t: int) -> Step | tuple[str, int]:
     before, after = judging.log.pose[t], judging.log.pose[t + frame_ms]
     v1 = plan.speed_of(1)
     lateral = plan.lateral_offset(after.x, after.y, before.yaw)
-    step = Step(after.speed - v1, lateral, (plan.speed_of(0) - v1) / (frame_ms / 1000.0))
+    (curve,) = lateral_demands(plan.xy[plan.steps >= 1][None], np.array([v1]))
+    decel = (plan.speed_of(0) - v1) / (frame_ms / 1000.0)
+    step = Step(after.speed - v1, lateral, decel, curve)
     cache.put(t, step)
     return step
 
@@ -383,7 +420,10 @@ def control(ctx: RunContext, ts: int) -> OracleResult:
     thr_v = max(p.control_speed_threshold, spread * speed_floor.value)
     if decels:
         thr_v = max(thr_v, p.actuator_delay * max_decel)
-    thr_lat = max(p.control_lateral_threshold, spread * lateral_floor.value)
+    # a path follower's lag on a curved plan (rule 5, "Curves")
+    demands = [s.curve for s in steps]
+    curve_allowance = p.actuator_delay * p.actuator_delay * exact_sum(demands)
+    thr_lat = max(p.control_lateral_threshold, spread * lateral_floor.value) + curve_allowance
     thresholds["speed_threshold"] = thr_v
     thresholds["lateral_threshold"] = thr_lat
     speed_fail = abs(sum_v) > thr_v
@@ -395,6 +435,8 @@ def control(ctx: RunContext, ts: int) -> OracleResult:
         "sum_lateral_innovation": sum_lat,
         "speed_threshold": thr_v,
         "lateral_threshold": thr_lat,
+        "curve_allowance": curve_allowance,
+        "max_lateral_acceleration": max(demands),
         **speed_floor.metrics("speed"),
         **lateral_floor.metrics("lateral"),
         "max_commanded_decel": max_decel,

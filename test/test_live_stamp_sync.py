@@ -227,13 +227,33 @@ def test_memory_stays_bounded_under_a_flood() -> None:
     sync: StampSync[int] = StampSync(SyncSettings(("a",), period_ms=50.0, max_pending_frames=limit))
     released: list[SyncedFrame[int]] = []
     for i in range(10_000):
-        released += sync.add(ODOMETRY, 1_000_000 + i, i, 0.0)  # no input: nothing completes
-        released += sync.add("a", 10_000_000 + 7 * i, i, 0.0)  # far from every frame
+        released += sync.add(ODOMETRY, 1_000_000 + 50 * i, i, 0.0)  # no input: none completes
+        released += sync.add("a", 100_000_000 + 7 * i, i, 0.0)  # far from every frame
         assert sync.held_frames <= limit and sync.held_messages <= limit
-    assert [f.stamp_ms for f in released] == list(range(1_000_000, 1_000_000 + 10_000 - limit))
+    want = list(range(1_000_000, 1_000_000 + 50 * (10_000 - limit), 50))
+    assert [f.stamp_ms for f in released] == want
     assert all(f.reason == "overflow" and f.missing == ("a",) for f in released)
     assert (sync.counts.overflow, sync.counts.dropped) == (10_000 - limit, 10_000 - limit)
     assert len(sync.flush()) == limit and sync.held_frames == 0
+
+
+def test_a_flood_of_reference_stamps_makes_at_most_two_frames_a_period() -> None:
+    """Issue 43: 4,000 reference messages a second, a quarter of a millisecond apart, each
+    made a frame (4,764 flood frames judged). Once the period is known, a stamp less than
+    half a period from a held or released frame's is skipped and counted; a duplicate is
+    still a duplicate."""
+    sync: StampSync[int] = StampSync(SyncSettings(("a",), period_ms=50.0))
+    for j in range(4000):
+        sync.add(ODOMETRY, 1000 + j // 4, j, 0.0)
+    assert sync.held_frames == 40  # 1000, 1025, 1050, ...: at most two a period
+    assert sync.counts.crowded == 4000 - 40 * 4 and sync.counts.duplicates == 40 * 3
+    assert "reference stamps within half a period of a frame skipped (a flood)" in (
+        sync.counts.text()
+    )
+    measuring: StampSync[int] = StampSync(SyncSettings(("a",)))  # the period not known yet
+    for stamp in (0, 1, 2):
+        measuring.add(ODOMETRY, stamp, stamp, 0.0)
+    assert measuring.held_frames == 3 and measuring.counts.crowded == 0
 
 
 def test_period_is_the_median_of_positive_differences() -> None:

@@ -97,6 +97,10 @@ def layout(folder: str, name: str) -> Layout:
     return known[name]
 
 
+#: The ego pose record's numbers, checked on a reference pose's arrival.
+POSE_NUMBERS = ("x", "y", "z", "roll", "pitch", "yaw", "speed")
+
+
 class Decoder:
     """Reads one input's messages (``payload``: CDR bytes for a raw layout, else the message
     object) in two steps: :meth:`stamp_ms` on arrival (cheap: frames are formed by stamp)
@@ -130,6 +134,26 @@ class Decoder:
 
     def record(self, payload: Any, timesteps_per_frame: int) -> Record:
         return self._record(payload, timesteps_per_frame)
+
+    def pose_numbers(self, payload: Any) -> dict[str, float] | None:
+        """An ego pose message's numbers by name, read on arrival (a reference pose is
+        checked before it may define a frame); None for another input. MalformedMessage
+        for a message that cannot be read."""
+        if self.folder != "pose":
+            return None
+        if self.layout.name == CONTRACT:
+            pose = self._contract(payload, 1)  # a pose reads no frame period
+            return {name: getattr(pose, name) for name in POSE_NUMBERS}
+        at = payload.pose
+        return {
+            "x": at.position.x,
+            "y": at.position.y,
+            "z": at.position.z,
+            "qx": at.orientation.x,
+            "qy": at.orientation.y,
+            "qz": at.orientation.z,
+            "qw": at.orientation.w,
+        }
 
     def _contract(self, data: bytes, frame_ms: int) -> Record:
         return topics.decode_record(self._key, data, frame_ms)  # type: ignore[no-any-return]

@@ -101,15 +101,26 @@ class ForwardJumps:
     2^32 s ahead moved the frame grid, and every later real message was dropped as late.
     A stamp more than ``jump_ms`` ahead of the newest accepted one is skipped and counted,
     unless it is the :data:`JUMP_CONFIRM`-th such stamp in a row, each within ``jump_ms``
-    after the one before: then the jump is real (a stack that moved its clock on), that
-    stamp is taken and the grid follows it; the ones before it stay skipped. A plausible
-    stamp in between discards the candidates. ``jump_ms`` 0: never skip."""
+    after the one before, and the stack's other inputs moved on too (with ``corroborate``:
+    a message of another input stamped within ``jump_ms`` of the candidates, told by
+    :meth:`other`): then the jump is real (a stack that moved its clock on), that stamp is
+    taken and the grid follows it; the ones before it stay skipped. A plausible stamp in
+    between discards the candidates. ``jump_ms`` 0: never skip.
+
+    Why the other inputs (issue 43): three messages in a row stamped far ahead, a clock
+    glitch of the odometry alone (wall time beside simulated time) or a forged writer,
+    confirmed the jump and blinded the monitors for the rest of the run; a stack whose
+    clock really moved on stamps its other topics ahead as well."""
 
     jump_ms: float
+    #: Whether a confirmation needs another input stamped near the candidates.
+    corroborate: bool = False
     #: The candidate jump's stamps so far.
     candidates: list[int] = field(default_factory=list)
     skipped: int = 0
     confirmed: int = 0
+    #: The newest other input's stamp that lay more than ``jump_ms`` ahead (None: none).
+    ahead_ms: int | None = None
 
     def check(self, stamp_ms: int, newest_ms: int | None) -> Jump:
         """``stamp_ms``, a reference stamp, against the episode's newest accepted one."""
@@ -120,12 +131,20 @@ class ForwardJumps:
         if last is not None and not 0 < stamp_ms - last <= self.jump_ms:
             self.candidates.clear()
         self.candidates.append(stamp_ms)
-        if len(self.candidates) < JUMP_CONFIRM:
+        moved = self.ahead_ms is not None and abs(self.ahead_ms - stamp_ms) <= self.jump_ms
+        if len(self.candidates) < JUMP_CONFIRM or (self.corroborate and not moved):
             self.skipped += 1
             return "skipped"
         self.candidates.clear()
+        self.ahead_ms = None
         self.confirmed += 1
         return "confirmed"
+
+    def other(self, stamp_ms: int, newest_ms: int | None) -> None:
+        """Another input's stamp: one more than ``jump_ms`` ahead of the newest reference
+        stamp may confirm a jump of the reference stamps near it."""
+        if self.jump_ms > 0 and newest_ms is not None and stamp_ms - newest_ms > self.jump_ms:
+            self.ahead_ms = stamp_ms
 
 
 # --- the aggregator's side -------------------------------------------------------------------

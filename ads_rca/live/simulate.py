@@ -249,6 +249,7 @@ def run_stack(
     skipped: SkipReport | None = None,
     aggregator_hears: bool = True,
     warned: Callable[[MonitorCore], None] | None = None,
+    writer: Callable[[StackMessage], bytes | None] | None = None,
 ) -> LiveRun:
     """Play ``stream`` through stack mode's cores: one :class:`MonitorCore` for the four
     modules fed by a :class:`StackFeed`, and the aggregator, on simulated time (the
@@ -257,7 +258,8 @@ def run_stack(
     ``skipped`` hears of every message that could not be read; not ``aggregator_hears``:
     the announcements reach the monitors only (the aggregator matched the latched event
     too late); ``warned``: called with the core after each collision warning check, before
-    it judges ahead (a test can name another actor as the threat)."""
+    it judges ahead (a test can name another actor as the threat); ``writer``: each
+    message's publisher GID (None: unknown, as without it)."""
     from ads_rca.live.episodes import EpisodeAggregator, EpisodeReport
     from ads_rca.live.stack_feed import StackFeed
 
@@ -307,7 +309,8 @@ def run_stack(
             at, frame = due.popleft()
             collide(frame, at)
         if message.folder in feed.decoders:
-            feed.add(message.folder, message.payload, now)
+            gid = writer(message) if writer is not None else None
+            feed.add(message.folder, message.payload, now, gid)
         pump(now)
     for at, frame in due:
         now = max(now, at)

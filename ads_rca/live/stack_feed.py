@@ -33,6 +33,7 @@ from ads_rca.contract.stack_layouts import Decoder
 from ads_rca.live.episodes import NEW, NEXT, PREVIOUS, EpisodeClock, ForwardJumps
 from ads_rca.live.results import FrameMarker, LiveResult
 from ads_rca.live.stack_config import StackConfig, period_to_frame_ms
+from ads_rca.live.stack_guard import StackGuard, pose_problem
 from ads_rca.live.stamp_sync import StampSync, SyncedFrame
 from ads_rca.live.window import MonitorCore
 from ads_rca.model import OPTIONAL_FOLDERS, Actors, Record
@@ -63,11 +64,19 @@ class StackFeed:
     """Feed :meth:`add` every stack message and call :meth:`poll` on a timer; judge and
     publish :attr:`core` (the current episode's) and what :meth:`poll` returns."""
 
-    def __init__(self, config: StackConfig, core: MonitorCore, skipped: SkipReport) -> None:
+    def __init__(
+        self,
+        config: StackConfig,
+        core: MonitorCore,
+        skipped: SkipReport,
+        reference_topic: str = "",
+    ) -> None:
         self.config = config
         self.skipped = skipped
         folders = {*core.folders, config.reference}
         self.settings = config.sync_settings(folders)
+        #: What was refused on the inputs, over every episode (live/stack_guard.py).
+        self.guard = StackGuard(reference_topic or config.reference)
         self.expected = (config.reference, *self.settings.inputs)
         #: The judged modules' inputs the stack does not provide (their results say so).
         #: A stack's inputs are the seed format's folders; the optional ones of recordings
@@ -84,7 +93,8 @@ class StackFeed:
         self._period_checked = False
         self._sync_said = ""  # the sync's counts as last said
         self.clock = EpisodeClock(config.episode_rewind_s * 1000.0)
-        self.jumps = ForwardJumps(config.stamp_jump_s * 1000.0)
+        # A jump is confirmed by the other inputs moving on too (when there are any).
+        self.jumps = ForwardJumps(config.stamp_jump_s * 1000.0, bool(self.settings.inputs))
         self.episode = self._episode(1, core)
         #: The episode before, while its late messages still come (None: none).
         self.ending: _Episode | None = None
@@ -120,33 +130,55 @@ class StackFeed:
         decoders = {f: Decoder(f, config.inputs[f].layout.name) for f in self.expected}
         return _Episode(number, core, StampSync(self.settings), decoders)
 
-    def add(self, folder: str, payload: Any, now: float) -> None:
-        """One received message of ``folder``'s topic (``now``: monotonic seconds)."""
+    def add(self, folder: str, payload: Any, now: float, writer: bytes | None = None) -> bool:
+        """One received message of ``folder``'s topic (``now``: monotonic seconds;
+        ``writer``: its publisher GID, None when unknown). False when it was refused as
+        another writer's on the reference topic (the node may find the locked writer gone:
+        :meth:`~ads_rca.live.stack_guard.WriterLock.release`, then add it again)."""
+        reference = folder == self.config.reference
+        if reference and not self.guard.lock.accept(writer):
+            return False  # before it is read: a flood of them costs little
+        decoder = self.decoders[folder]
         try:
-            stamp = self.decoders[folder].stamp_ms(payload)
+            stamp = decoder.stamp_ms(payload)
+            numbers = decoder.pose_numbers(payload) if reference else None
         except NoStamp:  # an empty MarkerArray: nothing seen, nothing to judge
-            return
+            return True
         except MalformedMessage as error:
             self.skipped(folder, str(error))
-            return
-        if folder == self.config.reference:
+            return True
+        if reference:
+            problem = pose_problem(numbers) if numbers is not None else None
+            if problem is not None:  # a NaN pose never makes a frame
+                self.guard.malformed += 1
+                self.skipped(folder, problem)
+                return True
             if self.jumps.check(stamp, self.clock.newest_ms) == "skipped":
                 self.sync.counts.implausible += 1  # a clock glitch must not move the grid
-                return
+                self.guard.implausible += 1
+                return True
             place = self.clock.reference(stamp)
             if place == NEW:
                 self._begin(stamp, now)
         else:
+            self.jumps.other(stamp, self.clock.newest_ms)
             place = self.clock.place(stamp)
             if place == NEXT and self.sync.is_late(stamp):  # the next episode's, maybe
                 self._ahead.append((folder, payload, now))
-                return
+                return True
         episode = self.ending if place == PREVIOUS else self.episode
         if episode is None:
             self.sync.counts.ended_episode += 1
-            return
+            return True
         episode.core.last_input = now
-        self._feed(episode, episode.sync.add(folder, stamp, payload, now), now)
+        sync = episode.sync
+        late, late_reference, crowded = sync.counts.late, sync.late_reference, sync.counts.crowded
+        frames = sync.add(folder, stamp, payload, now)
+        lost = sync.late_reference - late_reference
+        self.guard.count_late(lost, sync.counts.late - late - lost, now)
+        self.guard.crowded += sync.counts.crowded - crowded
+        self._feed(episode, frames, now)
+        return True
 
     def set_collision(self, frame: int, now: float) -> bool:
         """A collision heard: the current episode's, unless its frame lies more than the
@@ -269,6 +301,7 @@ class StackFeed:
         while self._ahead and now - self._ahead[0][2] >= timeout:
             self._ahead.popleft()
             self.sync.counts.late += 1
+            self.guard.count_late(0, 1, now)
         due = [c for c in self._collisions_ahead if now - c[1] >= timeout]
         self._collisions_ahead = [c for c in self._collisions_ahead if now - c[1] < timeout]
         for frame, heard in due:

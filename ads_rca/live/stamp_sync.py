@@ -29,6 +29,10 @@ frames:
 - **Late, duplicate**: a message whose nearest frame was already released (the newest
   released frame, or older) is dropped and counted ``late``; a second message with a stamp
   already held on its topic is dropped (the first kept) and counted ``duplicates``.
+- **A flood**: once the period is known, a reference stamp less than half a period from a
+  held or released frame's stamp (not equal to it: a duplicate) is dropped and counted
+  ``crowded``: at most two frames a period, so thousands of messages a second on the
+  reference topic cannot each become a frame and starve the real ones (issue 43).
 - **Bounded memory**: at most ``max_pending_frames`` frames and as many messages per topic
   are held; past that the oldest frame is released (incomplete if it is) and counted
   ``overflow``, the oldest message dropped and counted ``dropped``.
@@ -126,6 +130,8 @@ class SyncCounts:
     ended_episode: int = 0
     #: reference stamps implausibly far ahead, skipped (live/episodes.py ForwardJumps)
     implausible: int = 0
+    #: reference stamps less than half a period from a frame's (a flood), skipped
+    crowded: int = 0
 
     def text(self) -> str:
         """The non-zero counts, one line ('' when nothing was dropped)."""
@@ -142,6 +148,7 @@ COUNT_LABELS = {
     "incomplete": "frames released incomplete",
     "ended_episode": "messages of an ended episode dropped",
     "implausible": "reference stamps implausibly far ahead skipped",
+    "crowded": "reference stamps within half a period of a frame skipped (a flood)",
 }
 
 
@@ -196,6 +203,8 @@ class StampSync(Generic[P]):
         self.measured_ms: float | None = None
         self.counts = SyncCounts()
         self.released_ms: int | None = None  #: the newest released frame's stamp
+        #: Reference messages dropped as late (their frames lost), of ``counts.late``.
+        self.late_reference = 0
         self._frames = _Held[tuple[P, float]]()  # reference stamp -> (payload, arrival)
         self._held = {topic: _Held[P]() for topic in settings.inputs}
         self._seen: list[int] = []  # the first reference stamps, to measure the period
@@ -219,6 +228,10 @@ class StampSync(Generic[P]):
     def _add_reference(self, stamp: int, payload: P, now_s: float) -> None:
         if self.released_ms is not None and stamp <= self.released_ms:
             self.counts.late += 1
+            self.late_reference += 1
+            return
+        if self._crowded(stamp):
+            self.counts.crowded += 1
             return
         if not self._frames.add(stamp, (payload, now_s)):
             self.counts.duplicates += 1
@@ -229,6 +242,22 @@ class StampSync(Generic[P]):
                 self.measured_ms = measure_period(self._seen)
                 if self.period_ms is None:
                     self.period_ms = self.measured_ms
+
+    def _crowded(self, stamp: int) -> bool:
+        """Whether ``stamp`` lies less than half a period from a held or released frame's
+        stamp but is not that stamp (a duplicate): a frame rate far above the period's
+        (a flood on the reference topic) would otherwise make a frame of every message and
+        starve the real ones. Frames are at most two a period; until the period is known,
+        nothing is crowded."""
+        if self.period_ms is None:
+            return False
+        half = self.period_ms / 2
+        frames = self._frames.stamps
+        at = bisect.bisect_left(frames, stamp)
+        near = [frames[i] for i in (at - 1, at) if 0 <= i < len(frames)]
+        if self.released_ms is not None:
+            near.append(self.released_ms)
+        return any(0 < abs(stamp - other) < half for other in near)
 
     def _add_input(self, topic: str, stamp: int, payload: P) -> None:
         self._heard.add(topic)

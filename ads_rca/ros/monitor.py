@@ -56,6 +56,7 @@ from ads_rca.live.numeric import NumericLayout
 from ads_rca.live.results import FrameMarker, LiveResult
 from ads_rca.live.runid import RUN_KEY, RunFilter, checked_run_id
 from ads_rca.live.stack_config import STACK_PARAMETERS, StackConfig
+from ads_rca.live.stack_guard import StackGuard
 from ads_rca.live.window import MonitorCore, WindowSettings
 from ads_rca.model import RunMetadata
 from ads_rca.oracles.base import Module
@@ -145,6 +146,8 @@ class Monitor(Node):
             if f in self.stack_config.not_provided
         )
         self.core: MonitorCore | None = None  # set by the unit that judges this module
+        #: Stack mode: what was refused on the stack's inputs (set by its subscriber).
+        self.guard: StackGuard | None = None
         self.skipped = SkippedMessages()  # shared with the unit's inputs
         self._stale_since_report = False
         self.started = time.monotonic()
@@ -210,11 +213,16 @@ class Monitor(Node):
         now = time.monotonic()
         last = core.last_input if core.last_input is not None else self.started
         silent = now - last
+        # Stack mode: never OK while the stack's inputs are refused or its frames lost.
+        level, refused, counts = (
+            self.guard.report(now) if self.guard is not None else (diag.OK, "", {})
+        )
         statuses = [
             diag.simple_status(
                 diag.heartbeat_name(self.module),
-                diag.OK,
-                f"judged {core.stats.evaluated}, pending {len(core.pending)}",
+                level,
+                f"judged {core.stats.evaluated}, pending {len(core.pending)}"
+                + (f"; {refused}" if refused else ""),
                 self.hardware_id,
                 {
                     RUN_KEY: core.run,
@@ -226,6 +234,7 @@ class Monitor(Node):
                     "finished": core.finished,
                     "skipped_messages": self.skipped.total,
                     **({"episode": core.episode} if core.stack else {}),
+                    **counts,
                 },
             )
         ]

@@ -28,6 +28,7 @@ from ads_rca.live.results import collision_frame
 from ads_rca.live.runid import RunFilter
 from ads_rca.live.stack_config import StackConfig
 from ads_rca.live.stack_feed import StackFeed
+from ads_rca.live.stack_guard import gid_text, writer_gid
 from ads_rca.ros.diagnostics import array as diagnostic_array
 from ads_rca.ros.qos_match import any_durability
 
@@ -79,6 +80,11 @@ MAX_WAITING = 10_000
 #: node, such as a predictor, may start after the stack).
 DISCOVERY_GRACE_S = 3.0
 PUBLISHER_CHECK_S = 0.5
+#: The reference topic's writer lock passes on only when its writer is gone from the graph
+#: and silent this long (the graph may lag a writer just heard); another writer's message
+#: asks the graph at most this often (a flood of them must not).
+WRITER_GONE_S = 0.5
+WRITER_CHECK_S = 0.2
 
 
 class StackSubscriber:
@@ -103,7 +109,10 @@ class StackSubscriber:
         self.decide = decide
         self.feed: StackFeed | None = None
         self.runs = RunFilter("")
-        self.waiting: deque[tuple[str, Any, float]] = deque(maxlen=MAX_WAITING)
+        self.waiting: deque[tuple[str, Any, float, bytes | None]] = deque(maxlen=MAX_WAITING)
+        self._writer_heard_at = 0.0  # the locked reference writer's last message
+        self._writer_checked_at = 0.0
+        self._guard_said = ""
         self._facts_said = 0
         self._facts_at = 0.0
         self._sync_at = 0.0
@@ -128,7 +137,9 @@ class StackSubscriber:
     def _start(self) -> None:
         """Stack mode from now on: the feed, the collision topic, the poll timer."""
         config, unit = self.config, self.unit
-        feed = self.feed = StackFeed(config, unit.core, self._skip)
+        feed = self.feed = StackFeed(config, unit.core, self._skip, self.topics[config.reference])
+        for node in unit.nodes.values():
+            node.guard = feed.guard  # the heartbeat says what it refused
         namespace = next(iter(unit.nodes.values())).namespace
         self.subscriptions.extend(
             listen_for_collisions(
@@ -143,7 +154,8 @@ class StackSubscriber:
             + (f"; not provided: {', '.join(feed.unprovided)}" if feed.unprovided else "")
         )
         while self.waiting:
-            feed.add(*self.waiting.popleft())
+            folder, msg, now, writer = self.waiting.popleft()
+            self._add(folder, msg, now, writer)
 
     def close(self) -> None:
         """Not a stack's run after all: unsubscribe, forget what was kept."""
@@ -154,18 +166,55 @@ class StackSubscriber:
         self.decide = None
 
     def _callback(self, folder: str) -> Any:
-        def on_message(msg: Any) -> None:
+        reference = folder == self.config.reference
+
+        def on_message(msg: Any, info: Any) -> None:
             now = time.monotonic()
+            writer = writer_gid(info) if reference else None
             if self.feed is not None:
-                self.feed.add(folder, msg, now)
+                self._add(folder, msg, now, writer)
                 if self.feed.core is not self.unit.core:  # a new episode began
                     self._follow()
                 return
-            self.waiting.append((folder, msg, now))
-            if folder == self.config.reference and self.decide is not None and self.decide():
+            self.waiting.append((folder, msg, now, writer))
+            if reference and self.decide is not None and self.decide():
                 self._start()
 
-        return on_message
+        if reference:  # the writer lock reads the MessageInfo
+            return on_message
+        return lambda msg: on_message(msg, None)
+
+    def _add(self, folder: str, msg: Any, now: float, writer: bytes | None) -> None:
+        """One message into the feed; the reference topic's from another writer than the
+        locked one is skipped, unless the locked one has left the graph (a stack restarted
+        as a new process): then the lock passes to this writer."""
+        assert self.feed is not None
+        if self.feed.add(folder, msg, now, writer):
+            if folder == self.config.reference and writer is not None:
+                self._writer_heard_at = now
+            return
+        if now - self._writer_checked_at >= WRITER_CHECK_S:
+            self._writer_checked_at = now
+            if self._release_gone_writer(now) and self.feed.add(folder, msg, now, writer):
+                self._writer_heard_at = now
+
+    def _release_gone_writer(self, now: float) -> bool:
+        """Release the reference topic's writer lock when its writer is no longer among the
+        topic's publishers and has been silent :data:`WRITER_GONE_S`; True if released."""
+        assert self.feed is not None
+        lock = self.feed.guard.lock
+        if lock.writer is None or now - self._writer_heard_at < WRITER_GONE_S:
+            return False
+        topic = self.topics[self.config.reference]
+        present = {bytes(p.endpoint_gid) for p in self.node.get_publishers_info_by_topic(topic)}
+        if lock.writer in present:
+            return False
+        self.node.get_logger().info(
+            f"the writer of {topic} ({gid_text(lock.writer)}) left the graph: the next one "
+            "heard is taken"
+        )
+        lock.release()
+        return True
 
     def _collide(self, frame: int, now: float) -> bool:
         """A collision heard: judged up to it at once, not at the next poll (the verdict
@@ -195,6 +244,20 @@ class StackSubscriber:
             news = self.feed.sync_news()
             if news is not None:
                 self.node.get_logger().warning(news)
+            self._say_guard()
+
+    def _say_guard(self) -> None:
+        """What the guard refused, a warning when it changed (the heartbeat says it too)."""
+        assert self.feed is not None
+        guard = self.feed.guard
+        said = "; ".join(guard.lines())
+        if said == self._guard_said:
+            return
+        self._guard_said = said
+        writers = ", ".join(gid_text(w) for w in guard.lock.ignored)
+        locked = gid_text(guard.lock.writer) if guard.lock.writer is not None else "none"
+        who = f" (taken: {locked}; ignored: {writers})" if writers else ""
+        self.node.get_logger().warning(f"stack inputs refused: {said}{who}")
 
     def _give_up_unpublished(self, now: float) -> None:
         """The inputs whose topic has no publisher :data:`DISCOVERY_GRACE_S` after stack

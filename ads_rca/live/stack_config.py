@@ -75,8 +75,8 @@ STACK_PARAMETERS: dict[str, tuple[Any, str] | tuple[Any, str, Range]] = {
     "stamp_jump_s": (
         10.0,
         "Stack mode: a reference header stamp more than this ahead of the newest one is "
-        "implausible (a clock glitch) and skipped, counted, unless the next 3 stamps "
-        "confirm the jump (0: never skip).",
+        "implausible (a clock glitch) and skipped, counted, unless 3 in a row and another "
+        "input's stamps confirm the jump (0: never skip).",
         EPISODE_REWIND,
     ),
     "inputs_best_effort": (

@@ -18,7 +18,13 @@ frames, windows, partner and collisions of the old one are never seen by the new
 old episode ends: for ``input_timeout_s`` its late messages still reach it and it is
 judged as they come, then its held frames are released, its collision closed,
 and it is judged to its end; :meth:`StackFeed.poll` returns its results. Every result
-carries its episode's number. Pure: no rclpy; the monitor node is a thin shell over it.
+carries its episode's number.
+
+The reference input is guarded (:mod:`ads_rca.live.stack_guard`, issue 43): only its first
+writer is taken, a NaN/inf pose never makes a frame, a forward jump is confirmed only when
+another input moved on too, and what was refused is counted over every episode
+(:attr:`StackFeed.guard`, for the monitors' heartbeat). Pure: no rclpy; the monitor node
+is a thin shell over it.
 """
 
 from __future__ import annotations

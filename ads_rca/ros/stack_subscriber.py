@@ -8,7 +8,9 @@ went back, :mod:`ads_rca.live.episodes`). On ``/diagnostics`` it says what the s
 not give:
 a module whose inputs the stack does not provide, or stopped providing, is STALE with the
 reason (never OK), and a run fact found wrong (an ``ego_id`` never among the actors) is a
-WARN status ``ads_rca/run_facts``.
+WARN status ``ads_rca/run_facts``. The reference topic's callback reads the MessageInfo:
+its messages are taken from one writer only (:mod:`ads_rca.live.stack_guard`), passed on
+when that writer left the graph; what was refused is logged and on every heartbeat.
 """
 
 from __future__ import annotations

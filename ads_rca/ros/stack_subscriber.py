@@ -59,16 +59,22 @@ def message_class(type_name: str) -> type[Any]:
 #: judgement) loses nothing it was sent: 1000 messages is 50 s of a 20 Hz topic. A reader
 #: 100 deep lost a frame's messages in a CI run: DDS had acknowledged them.
 STACK_READER_DEPTH = 1000
+#: The reference topic's reader history: DDS keeps one history for every writer of a topic,
+#: so another writer's flood (4,000 messages a second, issue 43) pushed the stack's own
+#: messages out of a 1000-deep one on a loaded machine before the writer lock saw them.
+#: Odometry is small (10,000 of them: about 7 MB); another reference input keeps the
+#: default depth.
+REFERENCE_READER_DEPTH = 10_000
 
 
-def stack_qos(best_effort: bool) -> QoSProfile:
-    """A stack's topics: KEEP_LAST :data:`STACK_READER_DEPTH`, reliable unless its
-    publishers are best effort."""
+def stack_qos(best_effort: bool, depth: int = STACK_READER_DEPTH) -> QoSProfile:
+    """A stack's topics: KEEP_LAST ``depth``, reliable unless its publishers are best
+    effort."""
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
     return QoSProfile(
         history=HistoryPolicy.KEEP_LAST,
-        depth=STACK_READER_DEPTH,
+        depth=depth,
         reliability=ReliabilityPolicy.BEST_EFFORT if best_effort else ReliabilityPolicy.RELIABLE,
         durability=DurabilityPolicy.VOLATILE,
     )
@@ -121,6 +127,7 @@ class StackSubscriber:
         self._started_at: float | None = None
         self._publishers_at = 0.0
         qos = stack_qos(config.best_effort)
+        reference_qos = stack_qos(config.best_effort, REFERENCE_READER_DEPTH)
         folders = {*unit.core.folders, config.reference}
         self.topics = config.input_topics(folders)
         self.subscriptions = [
@@ -128,7 +135,7 @@ class StackSubscriber:
                 message_class(config.inputs[folder].layout.type_name),
                 topic,
                 self._callback(folder),
-                qos,
+                reference_qos if folder == config.reference == "pose" else qos,
                 raw=config.inputs[folder].layout.raw,
             )
             for folder, topic in self.topics.items()

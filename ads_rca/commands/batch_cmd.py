@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from ads_rca.batch.inputs import expand_inputs
+from ads_rca.batch.options import OPTIONS_NAME, check_resume, options_record, write_record
 from ads_rca.batch.rows import error_row
 from ads_rca.batch.scheduler import TIMEOUT, check_scheduler
 from ads_rca.batch.store import CSV_NAME, PARQUET_NAME, RUNS_DIR, ResultStore
@@ -121,9 +122,14 @@ def run(args: argparse.Namespace) -> int:
             f"--out {out}: exists and is not empty (--resume continues the batch there)"
         )
     check_output_dir(out, "--out", empty=not args.resume)
+    record = options_record(params, max_file_mb, source, bag)
+    if args.resume:
+        _check_resume(out, record)
     if args.scheduler:
         check_scheduler(args.scheduler, CONNECT_TIMEOUT)
     store = ResultStore(out, resume=args.resume)
+    with store.writing(out / OPTIONS_NAME):
+        write_record(out, record)
     jobs = [
         Job(
             r.run_id,
@@ -167,6 +173,14 @@ def run(args: argparse.Namespace) -> int:
         print(f"ads-rca batch: no run could be diagnosed ({counts.failed} failed)", file=sys.stderr)
         return EXIT_NONE_DIAGNOSED
     return 0
+
+
+def _check_resume(out: Path, record: dict[str, Any]) -> None:
+    """``--resume`` only with the options ``out``'s rows were made with (one line when
+    not; :mod:`ads_rca.batch.options`)."""
+    old = check_resume(out, record)
+    if old:
+        _note(old)
 
 
 def _note(line: str) -> None:

@@ -6,6 +6,7 @@ type it lacks; ``--msg-path`` supplies them; hostile definitions are refused, on
 from __future__ import annotations
 
 import dataclasses
+import os
 import sqlite3
 import time
 from pathlib import Path
@@ -259,7 +260,43 @@ def test_a_missing_dependency_is_named_with_the_type_needing_it(tmp_path: Path) 
     needed = f"autoware_perception_msgs/msg/DetectedObject (needed by {DETECTED})"
     with pytest.raises(InputError) as error:
         types.require([DETECTED])
-    assert str(error.value) == f"{bag}: no definition for {needed} {HINT}"
+    assert str(error.value) == (
+        f"{bag}: no definition for {needed} (the bag carries none; no .msg file for "
+        f"autoware_perception_msgs/msg/DetectedObject under --msg-path {tmp_path / 'msgs'})"
+    )
+
+
+#: how a ``.msg`` file under ``--msg-path`` is made unusable → what the error says of it
+REFUSED_MSG_FILES = {
+    "too big": f"larger than {MAX_DEFINITION_BYTES} bytes",
+    "FIFO": "FIFO",
+    "not UTF-8": "not UTF-8",
+}
+
+
+@pytest.mark.parametrize("kind", sorted(REFUSED_MSG_FILES))
+def test_a_refused_msg_path_file_is_named_with_why(tmp_path: Path, kind: str) -> None:
+    """A type whose only ``.msg`` under ``--msg-path`` was refused (too big, a FIFO, not
+    UTF-8) names that file and why, not "give --msg-path DIR" (issue 43, item 6a)."""
+    bag = old_sqlite3_bag(tmp_path / "old", [MESSAGES[1]])
+    folder = tmp_path / "msgs" / "carla_msgs" / "msg"
+    folder.mkdir(parents=True)
+    file = folder / "CarlaCollisionEvent.msg"
+    source = SYNTH_MSGS / "carla_msgs" / "msg" / file.name
+    if kind == "too big":
+        file.write_bytes(source.read_bytes() + b"#" * MAX_DEFINITION_BYTES)
+    elif kind == "FIFO":
+        os.mkfifo(file)
+    else:
+        file.write_bytes(source.read_bytes() + "# caf\xe9\n".encode("latin-1"))
+    types = load_bag(bag).types(msg_path=tmp_path / "msgs")
+    with pytest.raises(InputError) as error:
+        types.require([COLLISION])
+    message = str(error.value)
+    assert message.startswith(f"{bag}: no definition for {COLLISION} (the bag carries none; ")
+    assert f"{file} refused (" in message
+    assert REFUSED_MSG_FILES[kind] in message
+    assert "give --msg-path" not in message
 
 
 def test_msg_path_must_be_a_directory(tmp_path: Path) -> None:
@@ -580,7 +617,8 @@ def test_a_msg_path_file_over_the_caps_is_refused_naming_the_file(tmp_path: Path
         types.require(["evil_msgs/msg/Bomb"], {"/bomb": "evil_msgs/Bomb"})
     assert (
         str(error.value)
-        == f"bag: unusable definition of evil_msgs/msg/Bomb (topic /bomb): {reason}"
+        == f"bag: unusable definition of evil_msgs/msg/Bomb (topic /bomb): {reason} "
+        f"(in {folder / 'Bomb.msg'})"
     )
 
 
@@ -644,8 +682,9 @@ def test_a_field_bomb_is_one_line_through_the_command_line(
     elapsed = time.perf_counter() - started
     assert_clean(done, 2)
     topic = MESSAGES[0][0]
+    file = "" if where == "bag" else f" (in {tmp_path / 'msgs' / Path(DETECTED + '.msg')})"
     assert done.stderr.splitlines() == [
         f"ads-rca {command}: error: {bag}: unusable definition of {DETECTED} (topic {topic}): "
-        f"its definition declares 88123 fields and constants (limit {MAX_FIELDS})"
+        f"its definition declares 88123 fields and constants (limit {MAX_FIELDS}){file}"
     ]
     assert elapsed < 15, elapsed

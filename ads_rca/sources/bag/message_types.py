@@ -184,7 +184,11 @@ class BagTypes:
         self._embeds: dict[str, Typesdict] = {}
         self._embedded: dict[str, TypeDef] = {}
         self._from_msg_path: dict[str, TypeDef] = {}
-        for directory in _directories(msg_path):
+        #: the ``--msg-path`` folders, and type → its ``.msg`` file there that was refused
+        #: and why (a type without a definition then says so, not "give --msg-path")
+        self._msg_paths = _directories(msg_path)
+        self._msg_path_refused: dict[str, str] = {}
+        for directory in self._msg_paths:
             self._read_msg_path(directory)
         self._store = get_typestore(Stores.EMPTY)
 
@@ -225,16 +229,24 @@ class BagTypes:
                 continue
             data = read_regular(file, MAX_DEFINITION_BYTES)
             if isinstance(data, Unreadable):
-                self.problems.append(Problem(str(file), name, data.issue, _NOT_DEFINED))
+                why = data.issue
+                if why.startswith("larger than"):  # its cap is no max_file_mb
+                    why = f"larger than {MAX_DEFINITION_BYTES} bytes, a definition's limit"
+                self._msg_path_refused.setdefault(name, f"{file} refused ({why})")
+                self.problems.append(Problem(str(file), name, why, _NOT_DEFINED))
                 continue
             try:
                 text = data.decode("utf-8")
             except UnicodeDecodeError as error:
-                self.problems.append(Problem(str(file), name, f"not UTF-8: {error}", _NOT_DEFINED))
+                why = f"not UTF-8: {error}"
+                self._msg_path_refused.setdefault(name, f"{file} refused ({why})")
+                self.problems.append(Problem(str(file), name, why, _NOT_DEFINED))
                 continue
             parsed = self._parse(name, "ros2msg", text, str(file))
             if parsed is not None:
                 self._from_msg_path.setdefault(name, parsed[name])
+            elif name in self._refused and str(file) not in self._refused[name]:
+                self._refused[name] += f" (in {file})"  # which file, when the type is named
 
     def _parse(self, name: str, encoding: str, text: str, where: str) -> Typesdict | None:
         """The types one definition text holds, every name checked (None: refused, and
@@ -411,11 +423,27 @@ class BagTypes:
         said = [f"unusable definition of {_on_topics(entry, topics)}" for entry in unusable]
         if missing:
             listed = ", ".join(missing)
-            said.insert(0, f"no definition for {listed} (the bag carries none; {MSG_PATH_HINT})")
+            said.insert(
+                0, f"no definition for {listed} (the bag carries none; {self._hint(missing)})"
+            )
         if said:
             raise InputError(printable(f"{self.bag}: " + "; ".join(said)))
         for name in wanted:
             self._register(name)
+
+    def _hint(self, missing: list[str]) -> str:
+        """Where the definitions of ``missing`` ("T" or "U (needed by T)") could come from:
+        the ``.msg`` files under ``--msg-path`` that were refused and why, the types none
+        there defines, or ``--msg-path`` when none was given."""
+        names = [entry.split(" ", 1)[0] for entry in missing]
+        said = [self._msg_path_refused[n] for n in names if n in self._msg_path_refused]
+        absent = [n for n in names if n not in self._msg_path_refused]
+        if absent and self._msg_paths:
+            folders = ", ".join(map(str, self._msg_paths))
+            said.append(f"no .msg file for {', '.join(absent)} under --msg-path {folders}")
+        elif absent:
+            said.append(MSG_PATH_HINT)
+        return "; ".join(said)
 
     def _register(self, name: str) -> None:
         """Register ``name`` and its closure with this bag's store (once)."""

@@ -3,7 +3,8 @@
 Every input is checked before any work starts, and refused in one line: a path that does not
 exist, a glob that matches nothing, a paths file with a line that is no usable path (control
 characters, a missing path). A paths file lists one run per line; blank lines and lines
-starting with ``#`` are skipped, relative paths are relative to the file's folder.
+starting with ``#`` are skipped, relative paths are relative to the file's folder; a leading
+UTF-8 byte order mark is dropped.
 
 A glob is expanded as ``glob.glob(pattern, recursive=True)`` would (``**`` any number of
 folders, names starting with ``.`` only matched by a part starting with ``.``, symlinks to
@@ -283,6 +284,8 @@ def read_paths_file(name: str) -> list[str]:
         raise InputError(
             f"{printable(name)}: not UTF-8 text (byte {error.start}); expected one path a line"
         ) from None
+    # An editor's UTF-8 byte order mark (Notepad's) is no part of the first path.
+    text = text.removeprefix("\ufeff")
     base = Path(name).parent
     paths: list[str] = []
     for number, raw in enumerate(text.splitlines(), 1):

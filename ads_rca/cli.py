@@ -2,10 +2,11 @@
 
 Every subcommand is a thin shell over the same core the ROS nodes use. Bad input never
 produces a traceback: an :class:`~ads_rca.errors.AdsRcaError` (a log, a path or a parameter
-that cannot be used) becomes one line on stderr and exit status 2. Like any Unix filter, the
-command ends quietly when the reader of its output goes away (``ads-rca ... | head``): no
-BrokenPipeError traceback, exit status 141 (128 + SIGPIPE, what the shell reports for ``cat``
-in the same place), as Ctrl-C gives 130.
+that cannot be used) becomes one line on stderr and exit status 2, as does an option given
+``--`` for a value (``--timeout=--``: argparse passes it on as an empty list). Like any
+Unix filter, the command ends quietly when the reader of its output goes away
+(``ads-rca ... | head``): no BrokenPipeError traceback, exit status 141 (128 + SIGPIPE, what
+the shell reports for ``cat`` in the same place), as Ctrl-C gives 130.
 """
 
 from __future__ import annotations
@@ -67,9 +68,28 @@ def entry() -> None:
     quick_exit.run_program(main)
 
 
+def dash_dash_value(words: Sequence[str]) -> str | None:
+    """The first ``--option=--`` before the end of the options (a bare ``--``): argparse
+    gives such an option an empty list for a value, whatever its type, and the command
+    then raised a TypeError on it (``batch --timeout=--``, issue 43)."""
+    for word in words:
+        if word == "--":
+            return None
+        if word.startswith("--") and word.endswith("=--") and len(word) > 5:
+            return word
+    return None
+
+
 def run(argv: Sequence[str] | None) -> int:
     words = sys.argv[1:] if argv is None else list(argv)
-    args = build_parser(command_named(words)).parse_args(words)
+    command = command_named(words)
+    odd = dash_dash_value(words)
+    if odd is not None:
+        prog = f"ads-rca {command}" if command else "ads-rca"
+        option = odd.removesuffix("=--")
+        print(printable(f"{prog}: error: {odd}: '--' is no value of {option}"), file=sys.stderr)
+        return 2
+    args = build_parser(command).parse_args(words)
     try:
         return int(args.run(args))
     except AdsRcaError as error:

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import math
 import os
 import signal
 import sys
@@ -48,6 +49,7 @@ from ads_rca.errors import InputError
 from ads_rca.foundation.text import printable
 from ads_rca.foundation.workers import checked_workers
 from ads_rca.sources.bag.options import BagOptions
+from ads_rca.sources.formats import shown
 
 EXIT_INTERRUPTED = 130
 #: Every run failed (no verdict, or an internal error): as ``watch``'s "no verdict".
@@ -55,6 +57,9 @@ EXIT_NONE_DIAGNOSED = 3
 HTML_NAME = "summary.html"
 #: Seconds to wait for ``--scheduler`` to answer.
 CONNECT_TIMEOUT = TIMEOUT
+DEFAULT_TIMEOUT = 600.0
+#: ``--timeout`` must be below this (about 116 days: a typo, not a limit).
+MAX_TIMEOUT = 1e7
 SCHEMES = ("tcp://", "tls://", "ucx://", "inproc://", "ws://", "wss://")
 
 
@@ -81,8 +86,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     )
     parser.add_argument(
         "--timeout",
-        type=float,
-        default=600.0,
+        default=DEFAULT_TIMEOUT,
         metavar="SECONDS",
         help="per-run limit: a run still going is killed and reported (default 600)",
     )
@@ -107,8 +111,7 @@ def run(args: argparse.Namespace) -> int:
     source = source_options_from_args(args)
     bag = _absolute(bag_options_from_args(args))
     checked_workers(args.workers)
-    if not 0 < args.timeout < 1e7:
-        raise InputError(f"--timeout {args.timeout:g}: expected a positive number of seconds")
+    args.timeout = checked_timeout(args.timeout)
     if not 0 <= args.retries <= 100:
         raise InputError(f"--retries {args.retries}: expected 0 to 100")
     if args.scheduler is not None and not args.scheduler.startswith(SCHEMES):
@@ -173,6 +176,29 @@ def run(args: argparse.Namespace) -> int:
         print(f"ads-rca batch: no run could be diagnosed ({counts.failed} failed)", file=sys.stderr)
         return EXIT_NONE_DIAGNOSED
     return 0
+
+
+def checked_timeout(value: str | float) -> float:
+    """``--timeout`` as seconds: a number in (0, :data:`MAX_TIMEOUT`), else one line
+    (text, not argparse's float: an empty or hostile value was a usage block or, for
+    ``--timeout=--``, a TypeError traceback)."""
+    try:
+        seconds = float(value)
+    except (TypeError, ValueError):
+        seconds = math.nan
+    if not 0 < seconds < MAX_TIMEOUT:  # nan, inf, 1e999 (inf) and -1 fail here too
+        raise InputError(
+            f"--timeout {_given(value)}: expected a positive number of seconds "
+            f"below {MAX_TIMEOUT:,.0f}"
+        )
+    return seconds
+
+
+def _given(value: object) -> str:
+    """A value as typed when it reads plainly (``-1``), else quoted and escaped."""
+    text = str(value)
+    plain = text.strip() == text and text.isprintable() and 0 < len(text) <= 40
+    return text if plain else shown(value)
 
 
 def _check_resume(out: Path, record: dict[str, Any]) -> None:

@@ -261,6 +261,49 @@ def test_an_unusable_scene_is_one_line(scene: Path, damage: str, expected: str) 
     assert len(done.stderr.strip().splitlines()) == 1, done.stderr
 
 
+def test_no_usable_instance_names_the_file_and_the_cause(scene: Path) -> None:
+    """Every agent's instances unusable (NaN coords, tokens of no agent): one line naming
+    the instances file and why, counted (issue 43, item 6b: it said neither)."""
+    instances_file = scene.with_name(f"{STEM}_instances.json")
+
+    def damage(document: dict[str, Any]) -> None:
+        for n, entry in enumerate(document.values()):
+            if n % 2:
+                entry["coords"] = [float("nan"), 0]
+            else:
+                entry["agent_token"] = "nobody"
+
+    _edit(instances_file, damage)
+    total = len(json.loads(instances_file.read_text()))
+    done = run_script("diagnose", str(scene))
+    assert done.returncode == 2 and "Traceback" not in done.stderr, done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1, done.stderr
+    assert f"{instances_file}: no agent has a usable instance in the scene" in done.stderr
+    assert f"0 of its {total} instances usable" in done.stderr
+    assert f"agent_token: {total - total // 2} instances: no agent of the agents file" in (
+        done.stderr
+    )
+    assert f"coords, heading: {total // 2} instances: not finite numbers" in done.stderr
+
+
+def test_an_ego_agent_without_a_usable_instance_names_the_file_and_the_cause(
+    scene: Path,
+) -> None:
+    instances_file = scene.with_name(f"{STEM}_instances.json")
+    car = scene_agents(FRAMES)[0]
+    _edit(
+        instances_file,
+        lambda d: [d[car.instance(f)].update(heading=None) for f in range(FRAMES)],
+    )
+    with pytest.raises(InputError) as error:
+        read_dlp_scene(scene, source=SourceOptions(ego_agent=car.token))
+    message = str(error.value)
+    assert message.startswith(
+        f"{instances_file}: ego_agent {car.token}: agent {car.token} has no usable instance ("
+    )
+    assert f"coords, heading: {FRAMES} instances: not finite numbers" in message
+
+
 def test_ego_agent_elsewhere_is_one_line(tmp_path: Path) -> None:
     from writers.carla_runs import write_carla_run
 

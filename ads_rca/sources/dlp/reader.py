@@ -161,7 +161,16 @@ def read_dlp_scene(
     for (field_name, issue), count in sorted(instances.dropped.items()):
         problems.add(names["instances"], field_name, f"{count} instances: {issue}", DROPPED_RECORD)
     table = _table(instances)
-    ego, chosen_by = _choose_ego(agents, table, source.ego_agent, files["instances"])
+    why = _why_unusable(
+        agents,
+        instances,
+        [
+            f"{p.field}: {p.issue}" if p.field else p.issue
+            for p in problems
+            if p.file == names["instances"]
+        ],
+    )
+    ego, chosen_by = _choose_ego(agents, table, source.ego_agent, files["instances"], why)
     return _run_log(files, names, scene, agents, stamps, table, ego, chosen_by, source, problems)
 
 
@@ -406,9 +415,23 @@ def _table(instances: Instances) -> Table:
     )
 
 
-def _choose_ego(agents: Agents, table: Table, wanted: str, instances: Path) -> tuple[int, str]:
-    """The ego's agent row and how it was chosen (``instances``: the file named when no
-    agent has a usable instance)."""
+def _why_unusable(agents: Agents, instances: Instances, issues: list[str]) -> str:
+    """Why the instances file left an agent without a usable instance, briefly: for the
+    one line naming it (issue 43: "no agent has a usable instance" said neither)."""
+    if not agents.moving:
+        return "the agents file lists no agent"
+    read = len(instances.agent) + sum(instances.dropped.values())
+    if not read and not issues:
+        return "the file lists no instance"
+    kept = f"{len(instances.agent)} of its {read} instances usable"
+    return "; ".join([kept, *issues[:3]]) + ("; ..." if len(issues) > 3 else "")
+
+
+def _choose_ego(
+    agents: Agents, table: Table, wanted: str, instances: Path, why: str = ""
+) -> tuple[int, str]:
+    """The ego's agent row and how it was chosen (``instances``: the file named, with
+    ``why``, when the agent wanted or every agent has no usable instance)."""
     lives = np.bincount(table.agent, minlength=agents.moving)
     if wanted:
         if wanted in agents.tokens[: agents.moving]:
@@ -421,13 +444,17 @@ def _choose_ego(agents: Agents, table: Table, wanted: str, instances: Path) -> t
                 f"1 to {agents.moving} in token order)"
             )
         if lives[row] == 0:
-            raise InputError(f"ego_agent {wanted}: that agent has no usable instance")
+            raise InputError(
+                f"{instances}: ego_agent {wanted}: agent {agents.tokens[row]} has no usable "
+                f"instance ({why})"
+            )
         return row, "ego_agent"
     cars = [n for n in range(agents.moving) if agents.kinds[n].lower() == "car" and lives[n] > 0]
     candidates = cars or [n for n in range(agents.moving) if lives[n] > 0]
     if not candidates:
         raise InputError(
-            f"{instances}: no agent has a usable instance in the scene: nothing can be the ego"
+            f"{instances}: no agent has a usable instance in the scene, so nothing can be the "
+            f"ego ({why})"
         )
     row = max(candidates, key=lambda n: (lives[n], -n))
     rule = "the longest-lived moving car" if cars else "the longest-lived agent (no car moves)"

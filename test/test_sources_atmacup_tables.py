@@ -290,6 +290,49 @@ def test_nan_text_and_short_rows_in_a_submission_leave_the_rest_scored(table: Pa
     assert scores_of(log)["scored"] == 0
 
 
+def huge_paths(rows: int) -> list[Path3]:
+    """Paths of ±1e308 m: finite, but their differences and squares overflow."""
+    return [tuple((1e308 if n % 2 else -1e308, -1e308, 1e308) for n in range(6))] * rows
+
+
+def test_a_submission_of_huge_figures_is_input_problems_not_scores(table: Path) -> None:
+    """±1e308 everywhere (issue 43, item 6d): it printed numpy's overflow warnings and
+    'MAE None' while claiming '3 of 3 rows scored' and 0 input problems."""
+    sub = write_submission(table / "sub.csv", huge_paths(len(ROWS)))
+    done = run_script("diagnose", str(table), "--submission", str(sub))
+    assert done.returncode == 0, done.stderr
+    assert done.stderr == ""  # no RuntimeWarning: overflow encountered ...
+    assert "MAE None" not in done.stdout and "None m" not in done.stdout
+    assert f"trajectory scores (0 of {len(ROWS)} rows scored)" in done.stdout, done.stdout
+    assert "input problems: 18" in done.stdout, done.stdout
+    assert (
+        f"sub.csv: x_0: {len(ROWS)} rows: beyond ±1e+150, too large to compute with (the "
+        "first: data row 1, '-1e+308')" in done.stdout
+    )
+
+
+def test_one_huge_row_is_a_problem_and_the_rest_scored(table: Path) -> None:
+    paths = hand_paths()
+    paths[1] = huge_paths(1)[0]
+    log = read(table, write_submission(table / "sub.csv", paths))
+    assert sum("too large to compute with" in p for p in problems_of(log)) == 18
+    scores = scores_of(log)
+    assert scores["scored"] == 2 and scores["no_prediction"] == 1
+    assert scores["mae"] == pytest.approx((6 + 5.4) / 36)
+
+
+def test_scores_without_finite_figures_are_not_shown_as_none() -> None:
+    from ads_rca.sources.atmacup.trajectory_scores import trajectory_lines
+
+    lines = trajectory_lines(
+        {"rows": 3, "scored": 3, "no_truth": 0, "no_prediction": 0, "mae": None, "ade": None}
+    )
+    assert lines == [
+        "trajectory scores (3 of 3 rows scored; 0 without a realised path, 0 without a "
+        "prediction): MAE, ADE, FDE: not computed (a figure is no finite number)"
+    ]
+
+
 def test_a_submission_lacking_a_column_is_one_line(table: Path) -> None:
     sub = table / "sub.csv"
     header = ",".join(TARGETS[:-1])

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import csv
 import io
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -121,10 +122,12 @@ def numbers(
     labels: Sequence[str],
     problems: ProblemLog,
     used: npt.NDArray[np.bool_] | None = None,
+    bound: float = math.inf,
 ) -> FloatArray:
     """A column as floats; a cell that is no finite number is NaN, reported once for the
     column (how many, the first by its label in ``labels``) among the ``used`` rows (all by
-    default). Rows of the wrong length are NaN unreported (their own problem said so)."""
+    default); so is one beyond ±``bound`` (too large to compute with). Rows of the wrong
+    length are NaN unreported (their own problem said so)."""
     cells = table.cells(column)
     try:
         values = np.array(cells, dtype=np.float64)
@@ -141,6 +144,18 @@ def numbers(
             "read as NaN",
         )
         values[bad] = np.nan
+    huge = np.isfinite(values) & (np.abs(values) > bound) & ~table.short
+    huge &= True if used is None else used
+    if huge.any():
+        first = int(np.argmax(huge))
+        problems.add(
+            table.name,
+            shown(column),
+            f"{int(huge.sum())} rows: beyond ±{bound:g}, too large to compute with (the "
+            f"first: {labels[first]}, {shown(cells[first])!r})",
+            "read as NaN",
+        )
+        values[huge] = np.nan
     return values
 
 

@@ -57,6 +57,7 @@ from ads_rca.sources.atmacup import TABLE_FILES
 from ads_rca.sources.atmacup.snapshots import (
     BOOLEAN_COLUMNS,
     HORIZONS_S,
+    MAX_PATH_VALUE,
     TARGET_COLUMNS,
     VEHICLE_COLUMNS,
     EgoSnapshots,
@@ -341,7 +342,8 @@ def _targets(
     flat = out.reshape(len(rows.ids), len(TARGET_COLUMNS))
     for n, column in enumerate(TARGET_COLUMNS):
         if table.has(column):
-            flat[:, n] = numbers(table, column, labels, problems, rows.used)[rows.positions]
+            read = numbers(table, column, labels, problems, rows.used, MAX_PATH_VALUE)
+            flat[:, n] = read[rows.positions]
     out[:, :, 1] = 0.0 - out[:, :, 1]  # right-handed y (left) -> the model's (right); no -0.0
     return out
 

@@ -30,6 +30,11 @@ FloatArray = npt.NDArray[np.float64]
 
 #: The future instants of a row's path, seconds after the row's moment.
 HORIZONS_S = (0.5, 1.0, 1.5, 2.0, 2.5, 3.0)
+#: The largest coordinate of a path (metres) that can be scored: a difference of two, its
+#: square and the sums over every row stay finite. A larger one (``1e308``) overflowed into
+#: numpy warnings and an MAE of inf shown as "None" (issue 43): it is read as no value and
+#: reported, its row not scored.
+MAX_PATH_VALUE = 1e150
 #: The table's target columns in the competition's order: x_0, y_0, z_0, …, z_5.
 TARGET_COLUMNS = tuple(f"{axis}_{n}" for n in range(len(HORIZONS_S)) for axis in "xyz")
 #: The table's CAN fields kept per row (numbers; the booleans as 1.0 / 0.0).

@@ -8,8 +8,9 @@ reported), in any order. Without one, data row k is the table's data row k (a ta
 the reader skipped takes its submission row with it, so the others stay aligned).
 
 A submission that cannot be used at all (unreadable, no header, a target column missing)
-is one line (InputError); a row whose values are not all finite numbers, too few or too
-many rows, IDs that match nothing are reported, and the rest is scored.
+is one line (InputError); a row whose values are not all finite numbers (or are too large
+to compute with: beyond ±``MAX_PATH_VALUE``), too few or too many rows, IDs that match
+nothing are reported, and the rest is scored.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ import numpy.typing as npt
 from ads_rca.errors import InputError
 from ads_rca.foundation.geometry import FloatArray
 from ads_rca.problems import IGNORED, ProblemLog
-from ads_rca.sources.atmacup.snapshots import HORIZONS_S, TARGET_COLUMNS
+from ads_rca.sources.atmacup.snapshots import HORIZONS_S, MAX_PATH_VALUE, TARGET_COLUMNS
 from ads_rca.sources.csv_table import numbers, read_csv_table, shown, unknown_columns
 
 ID_COLUMN = "ID"
@@ -59,7 +60,10 @@ def read_submission(
         if by_id
         else [f"data row {n + 1}" for n in range(len(table))]
     )
-    values = np.stack([numbers(table, c, labels, problems) for c in TARGET_COLUMNS], axis=1)
+    values = np.stack(
+        [numbers(table, c, labels, problems, bound=MAX_PATH_VALUE) for c in TARGET_COLUMNS],
+        axis=1,
+    )
     if by_id:
         source_rows = _match_ids(table.cells(ID_COLUMN), ids, name, problems)
     else:

@@ -16,8 +16,10 @@ at t + 0.5 … 3.0 s and, with a submission, where a model said it would be:
 - the :data:`WORST_ROWS` rows of the largest ADE, with their IDs (bounded text), worst
   first, ties in table order.
 
-A row is scored when all 36 of its values (realised and predicted) are finite numbers;
-rows lacking either are counted (``no_truth``, ``no_prediction``), not guessed. A test
+A row is scored when all 36 of its values (realised and predicted) are finite numbers
+within ±``MAX_PATH_VALUE`` (the readers report larger ones as input problems: their
+differences would overflow); rows lacking either are counted (``no_truth``,
+``no_prediction``), not guessed. A test
 table has no realised paths: nothing is scored, and the document says why.
 
 Pure numpy over all rows at once (43,000 rows in a few milliseconds).
@@ -25,17 +27,19 @@ Pure numpy over all rows at once (43,000 rows in a few milliseconds).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ads_rca.diagnosis.scoring import FrameScores, Scorer
 from ads_rca.diagnosis.verdict import FrameResults, Metric
 from ads_rca.foundation.text import metres, precise, short, shown_id
 from ads_rca.model import RunLog
 from ads_rca.params import Params
-from ads_rca.sources.atmacup.snapshots import HORIZONS_S, EgoSnapshots
+from ads_rca.sources.atmacup.snapshots import HORIZONS_S, MAX_PATH_VALUE, EgoSnapshots
 
 #: Key of the verdict JSON holding the scores.
 TRAJECTORY_SCORES_KEY = "trajectory_scores"
@@ -52,8 +56,8 @@ def _bounded(text: str) -> str:
 def trajectory_scores(snapshots: EgoSnapshots, worst: int = WORST_ROWS) -> dict[str, Any]:
     """The scores of ``snapshots``' predicted paths (see the module docstring)."""
     realised, predicted = snapshots.realised, snapshots.predicted
-    truth = np.isfinite(realised).all(axis=(1, 2))
-    guess = np.isfinite(predicted).all(axis=(1, 2))
+    truth = _usable(realised)
+    guess = _usable(predicted)
     scored = truth & guess
     out: dict[str, Any] = {
         "rows": len(snapshots),
@@ -70,12 +74,13 @@ def trajectory_scores(snapshots: EgoSnapshots, worst: int = WORST_ROWS) -> dict[
         out["note"] = "no submission given (--submission FILE): nothing to score"
         return out
     if not scored.any():
-        out["note"] = (
-            "no row has both a realised and a predicted path (a test table has no targets: "
-            "score against a train table's rows)"
-            if not truth.any()
-            else "no row has both a realised and a predicted path"
-        )
+        if not truth.any():
+            why = " (a test table has no targets: score against a train table's rows)"
+        elif not guess.any():
+            why = ": the submission gives no usable predicted path (see the input problems)"
+        else:
+            why = ""
+        out["note"] = f"no row has both a realised and a predicted path{why}"
         return out
     error = realised[scored] - predicted[scored]  # (S, 6, 3)
     absolute = np.abs(error)
@@ -121,6 +126,14 @@ def trajectory_scores(snapshots: EgoSnapshots, worst: int = WORST_ROWS) -> dict[
     return out
 
 
+def _usable(paths: npt.NDArray[np.float64]) -> npt.NDArray[np.bool_]:
+    """Per row: every value a finite number that can be computed with."""
+    with np.errstate(invalid="ignore"):
+        fits = np.abs(paths) <= MAX_PATH_VALUE  # NaN compares False
+    usable: npt.NDArray[np.bool_] = np.asarray(fits.all(axis=(1, 2)), dtype=bool)
+    return usable
+
+
 def frame_scores(log: RunLog, timestamp_ms: int) -> dict[str, float | str]:
     """One frame's row scored (the planning module's metrics where the verdict rules cannot
     judge planning, offline and on the live monitor): its ID and its ADE, FDE and MAE as in
@@ -130,7 +143,7 @@ def frame_scores(log: RunLog, timestamp_ms: int) -> dict[str, float | str]:
     if snapshots is None or row is None:
         return {}
     realised, predicted = snapshots.realised[row], snapshots.predicted[row]
-    if not (np.isfinite(realised).all() and np.isfinite(predicted).all()):
+    if not (_usable(realised[None]).all() and _usable(predicted[None]).all()):
         return {}
     error = realised - predicted
     distance = np.sqrt((error**2).sum(axis=1))
@@ -151,6 +164,13 @@ def trajectory_lines(scores: object, shown: int = 10) -> list[str]:
     head = f"trajectory scores ({scores.get('scored')} of {scores.get('rows')} rows scored"
     if not scores.get("scored"):
         return [f"{head}): {scores.get('note', 'nothing scored')}"]
+    figures = [scores.get(name) for name in ("mae", "ade", "fde")]
+    if not all(isinstance(v, float) and math.isfinite(v) for v in figures):
+        return [
+            f"{head}; {scores.get('no_truth')} without a realised path, "
+            f"{scores.get('no_prediction')} without a prediction): MAE, ADE, FDE: not "
+            "computed (a figure is no finite number)"
+        ]
     lines = [
         f"{head}; {scores.get('no_truth')} without a realised path, "
         f"{scores.get('no_prediction')} without a prediction): MAE {precise(scores.get('mae'))} "

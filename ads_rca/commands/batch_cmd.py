@@ -18,22 +18,25 @@ must not read "all runs failed" as success.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
 import math
 import os
 import signal
 import sys
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 from ads_rca.batch.inputs import expand_inputs
+from ads_rca.batch.interruption import Interruption
 from ads_rca.batch.options import OPTIONS_NAME, check_resume, options_record, write_record
 from ads_rca.batch.rows import error_row
 from ads_rca.batch.scheduler import TIMEOUT, check_scheduler
 from ads_rca.batch.store import CSV_NAME, PARQUET_NAME, RUNS_DIR, ResultStore
 from ads_rca.batch.summary import Counts, summary_text, write_html
+from ads_rca.batch.window import Window, window_size
 from ads_rca.batch.work import Job, Outcome, diagnose_job
 from ads_rca.commands import command_parser
 from ads_rca.commands.diagnose_cmd import add_engine_arguments, params_from_args
@@ -60,6 +63,8 @@ CONNECT_TIMEOUT = TIMEOUT
 DEFAULT_TIMEOUT = 600.0
 #: ``--timeout`` must be below this (about 116 days: a typo, not a limit).
 MAX_TIMEOUT = 1e7
+#: Seconds the client and the local cluster get to close (then they are left to the exit).
+CLOSE_TIMEOUT = 10
 SCHEMES = ("tcp://", "tls://", "ucx://", "inproc://", "ws://", "wss://")
 
 
@@ -133,31 +138,27 @@ def run(args: argparse.Namespace) -> int:
     store = ResultStore(out, resume=args.resume)
     with store.writing(out / OPTIONS_NAME):
         write_record(out, record)
-    jobs = [
-        Job(
-            r.run_id,
-            r.path,
-            params,
-            max_file_mb,
-            bag,
-            args.timeout,
-            source,
-        )
+    done = store.done
+    todo = sum(1 for r in runs if r.run_id not in done)
+    # Made one at a time as the window takes them: the client never holds every job.
+    jobs = (
+        Job(r.run_id, r.path, params, max_file_mb, bag, args.timeout, source)
         for r in runs
-        if r.run_id not in store.done
-    ]
-    skipped = len(runs) - len(jobs)
+        if r.run_id not in done
+    )
+    skipped = len(runs) - todo
     if skipped:
         print(printable(f"--resume: {skipped} of {len(runs)} runs already done in {out}"))
-    interrupted = False
-    try:
-        if jobs:
-            _run_jobs(jobs, store, args)
-    except KeyboardInterrupt:
-        interrupted = True
-    finally:
-        with _no_interrupt():
-            store.close()
+    interruption = Interruption(_exit_now)
+    with interruption.installed():
+        try:
+            if todo:
+                _run_jobs(jobs, todo, store, args, interruption)
+        except KeyboardInterrupt:
+            interruption.requested = True
+        finally:
+            store.close()  # a second Ctrl-C meanwhile exits at once (the rows are whole)
+    interrupted = interruption.requested
     rows = list(store.rows.values())
     print(summary_text(rows, str(out), interrupted))
     if interrupted:
@@ -223,29 +224,74 @@ def _absolute(bag: BagOptions) -> BagOptions:
     return BagOptions(profile, remap, tuple(os.path.abspath(p) for p in bag.msg_path))
 
 
-def _run_jobs(jobs: list[Job], store: ResultStore, args: argparse.Namespace) -> None:
+def _run_jobs(
+    jobs: Iterable[Job],
+    total: int,
+    store: ResultStore,
+    args: argparse.Namespace,
+    interruption: Interruption,
+) -> None:
+    """Diagnose ``jobs`` through a :class:`~ads_rca.batch.window.Window` of tasks, writing
+    each row as it comes; on Ctrl-C (or any error) the tasks in flight are cancelled."""
     from distributed import as_completed
 
     with _client(args) as client:
-        futures = [
-            client.submit(diagnose_job, job, key=f"ads-rca-batch-{job.run_id}", pure=False)
-            for job in jobs
-        ]
-        by_key = {future.key: job for future, job in zip(futures, jobs, strict=False)}
-        update = _progress(len(jobs))
+        answers = as_completed()
+
+        def submit(job: Job) -> Any:
+            future = client.submit(diagnose_job, job, key=f"ads-rca-batch-{job.run_id}", pure=False)
+            answers.add(future)
+            return future
+
+        window: Window[Job] = Window(jobs, submit, window_size(_threads(client, args)))
+        update = _progress(total)
         try:
-            for future in as_completed(futures):
-                job = by_key.pop(future.key)
+            window.fill()
+            while not window.done:
+                with interruption.waiting():
+                    future = next(answers)
+                job = window.answered(future)  # and the next run submitted
                 outcome = _outcome(future, job)
-                store.add(outcome.row, outcome.json)
                 future.release()
+                store.add(outcome.row, outcome.json)
+                del future, outcome  # nothing of the run kept once its row is written
                 update()
+                interruption.check()
         except BaseException:
-            with _no_interrupt():
-                client.cancel(list(futures))
+            _quiet()
+            with contextlib.suppress(Exception):
+                client.cancel(window.stop())
             raise
         finally:
             update(done=True)
+
+
+def _threads(client: Any, args: argparse.Namespace) -> int:
+    """Worker threads to keep busy: ``--workers`` locally, the cluster's at the start."""
+    if not args.scheduler:
+        return int(args.workers)
+    try:
+        workers = client.scheduler_info()["workers"].values()
+        return sum(int(w.get("nthreads", 1)) for w in workers) or 1
+    except Exception:  # the window is a bound, not a promise: any size works
+        return int(args.workers)
+
+
+def _quiet() -> None:
+    """Nothing distributed logs from here on is news: closing with tasks in flight makes it
+    say so per task (issue 43: ~12,000 lines of stderr on Ctrl-C at 100k runs)."""
+    logging.disable(logging.CRITICAL)
+
+
+def _exit_now() -> NoReturn:
+    """A second Ctrl-C: the local workers killed, exit 130 without waiting for anything."""
+    import multiprocessing
+
+    for child in multiprocessing.active_children():
+        with contextlib.suppress(Exception):
+            child.kill()
+    os.write(2, b"ads-rca batch: interrupted again: exiting now\n")
+    os._exit(EXIT_INTERRUPTED)
 
 
 def _outcome(future: Any, job: Job) -> Outcome:
@@ -293,16 +339,19 @@ def _client(args: argparse.Namespace) -> Iterator[Any]:
                 client = Client(cluster)
             yield client
     finally:
-        with _no_interrupt():
+        _quiet()  # what closing logs (tasks cancelled, workers gone) is no news
+        try:
             if client is not None:
-                client.close()
+                client.close(timeout=CLOSE_TIMEOUT)
             if cluster is not None:
-                cluster.close()
+                cluster.close(timeout=CLOSE_TIMEOUT)
+        finally:
+            logging.disable(logging.NOTSET)
 
 
 @contextmanager
 def _no_interrupt() -> Iterator[None]:
-    """Ctrl-C again while the cluster closes or the results are flushed: ignored."""
+    """SIGINT ignored in the block: the local workers started in it inherit that."""
     try:
         previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
     except ValueError:  # not the main thread

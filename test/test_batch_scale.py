@@ -197,3 +197,28 @@ def _lines(path: Path) -> int:
             return handle.read().count(b"\n")
     except FileNotFoundError:
         return 0
+
+
+def test_parquet_rewrites_take_a_tenth_of_the_time_at_most(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from ads_rca.batch import store as store_module
+    from ads_rca.batch.rows import error_row
+
+    rewrites: list[int] = []
+
+    def slow_rewrite(path: Path, rows: object) -> None:
+        rewrites.append(1)
+        time.sleep(0.05)  # as a rewrite of many rows
+
+    monkeypatch.setattr(store_module, "PARQUET_EVERY", 1)
+    monkeypatch.setattr(store_module, "write_parquet", slow_rewrite)
+    store = store_module.ResultStore(tmp_path / "out")
+    started = time.monotonic()
+    for i in range(40):
+        store.add(error_row(f"{i:016x}", f"/runs/{i}", "not a log"), None)
+    elapsed = time.monotonic() - started
+    # Every row due, but each rewrite waits 9 times its own time: ~1 in 10 of the time.
+    assert len(rewrites) <= 1 + elapsed / (0.05 * 10), (len(rewrites), elapsed)
+    store.close()
+    assert len(rewrites) >= 2  # the last rewrite, at the end, is never skipped

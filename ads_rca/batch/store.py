@@ -12,7 +12,8 @@
     (the file truncated to its rows before it);
 ``OUT/results.parquet``
     the same rows with typed columns, rewritten atomically every :data:`PARQUET_EVERY` rows
-    or :data:`PARQUET_SECONDS` seconds and at the end.
+    or :data:`PARQUET_SECONDS` seconds (no sooner than :data:`PARQUET_PAUSE` times the
+    last rewrite's time after it) and at the end.
 
 A write that fails (a full disk) raises :class:`StoreError`, one line naming the file and
 saying how many finished runs are kept: every row and file written before stays whole.
@@ -50,6 +51,10 @@ PARQUET_NAME = "results.parquet"
 RUNS_DIR = "runs"
 PARQUET_EVERY = 200
 PARQUET_SECONDS = 30.0
+#: A rewrite of the Parquet file waits this many times as long as the last one took: each
+#: rewrites every row (~2 s at 100k rows), so every 200 rows would make the batch's cost
+#: grow with the square of its size; this keeps rewrites to a tenth of the time at most.
+PARQUET_PAUSE = 9.0
 
 
 class StoreError(InputError):
@@ -78,6 +83,7 @@ class ResultStore:
             self._csv_size = os.fstat(self._csv).st_size
         self._unsaved = 0
         self._saved_at = time.monotonic()
+        self._next_save = self._saved_at
 
     @property
     def done(self) -> set[str]:
@@ -97,15 +103,19 @@ class ResultStore:
             self._append(buffer.getvalue().encode("utf-8"))
         self.rows[row["run_id"]] = row
         self._unsaved += 1
-        if self._unsaved >= PARQUET_EVERY or time.monotonic() - self._saved_at > PARQUET_SECONDS:
+        now = time.monotonic()
+        due = self._unsaved >= PARQUET_EVERY or now - self._saved_at > PARQUET_SECONDS
+        if due and now >= self._next_save:
             self.save_parquet()
 
     def save_parquet(self) -> None:
         path = self.out / PARQUET_NAME
+        started = time.monotonic()
         with self.writing(path):
             write_parquet(path, self.rows.values())
         self._unsaved = 0
         self._saved_at = time.monotonic()
+        self._next_save = self._saved_at + PARQUET_PAUSE * (self._saved_at - started)
 
     def close(self) -> None:
         """Flush everything: the CSV closed, the Parquet file written with every row. After

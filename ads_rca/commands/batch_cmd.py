@@ -2,7 +2,8 @@
 
 The shell around :mod:`ads_rca.batch`: it checks every input and option before any work,
 owns the Dask client (and, locally, the :class:`~distributed.LocalCluster`, bound to
-127.0.0.1), submits one task per run, writes each row as it arrives and prints the summary.
+127.0.0.1), submits one task per run through a bounded window
+(:mod:`ads_rca.batch.window`), writes each row as it arrives and prints the summary.
 Without ``--scheduler`` a local cluster of ``--workers`` processes is started on loopback
 (its dashboard on a random loopback port); with ``--scheduler tcp://host:port`` the same
 tasks go to an existing cluster, which must see the inputs at the same paths

@@ -1,7 +1,12 @@
 """Benchmark: ``ads-rca batch`` at scale: first-row time, client memory, Ctrl-C to exit.
 
     python bench/bench_batch_scale.py [--runs 100000 30000] [--workers 2] [--rows 200]
-                                      [--tree LABEL=PATH ...] [--dir DIR]
+                                      [--after S] [--tree LABEL=PATH ...] [--dir DIR]
+
+    # before and after issue 43's fix, side by side:
+    git worktree add --detach /tmp/b43 2cd545f
+    python bench/bench_batch_scale.py --tree before=/tmp/b43 after=.
+    git worktree remove /tmp/b43
 
 Issue 43: at 100k runs the first row came after ~90 s, the command held 1.7 GB, and
 Ctrl-C exited 1 after ~80 s with a traceback and thousands of lines of stderr. Each
@@ -15,7 +20,8 @@ every 0.1 s:
 * **first row**: wall seconds from start to the first row in ``results.csv`` and the CPU
   seconds (user + system) the command and its descendants spent until then;
 * **client MB**: the command's own peak resident set (``VmHWM`` in ``/proc/PID/status``,
-  last read before it exits; the workers are not counted);
+  last read before it exits): the client, and the local cluster's scheduler, which runs
+  in the command's process; the workers are not counted;
 * **Ctrl-C**: after ``--rows`` rows the group is sent SIGINT (as a terminal does); wall
   seconds to exit, the CPU spent meanwhile (``wait4``'s total, the command and everything
   it reaped, minus what the command and its live descendants had spent at the signal),

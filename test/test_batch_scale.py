@@ -157,7 +157,7 @@ def test_ctrl_c_at_100k_runs_exits_130_quickly_quietly_with_whole_rows(
     try:
         first_row = _wait(lambda: _lines(csv) >= 2, process, FIRST_ROW_S)
         peak_mb = _peak_mb(process.pid)
-        workers = [p.pid for p in psutil.Process(process.pid).children(recursive=True)]
+        workers = [p for p in psutil.Process(process.pid).children(recursive=True)]
         for _ in range(presses):
             process.send_signal(signal.SIGINT)
             time.sleep(0.1)
@@ -175,6 +175,7 @@ def test_ctrl_c_at_100k_runs_exits_130_quickly_quietly_with_whole_rows(
         f"first row {first_row:.1f} s, client {peak_mb:.0f} MB, exit {exit_s:.1f} s, "
         f"status {process.returncode}, {stderr.count(chr(10))} stderr lines"
     )
+    print(figures)
     assert first_row < FIRST_ROW_S, figures
     assert peak_mb < CLIENT_MB, figures
     assert exit_s < EXIT_S and process.returncode == 130, figures
@@ -188,7 +189,20 @@ def test_ctrl_c_at_100k_runs_exits_130_quickly_quietly_with_whole_rows(
         assert len(read_parquet(out / "results.parquet")) == len(rows)
         assert "batch interrupted:" in stdout, stdout
     time.sleep(0.5)
-    assert not [pid for pid in workers if psutil.pid_exists(pid)]  # no worker left behind
+    left = [p for p in workers if _alive(p)]
+    assert not left, [(p.pid, p.status(), p.cmdline()) for p in left]  # no process left behind
+
+
+def _alive(process: object) -> bool:
+    """Whether a process still runs (a zombie, left for an init that does not reap, does
+    not)."""
+    import psutil
+
+    assert isinstance(process, psutil.Process)
+    try:
+        return process.is_running() and process.status() != psutil.STATUS_ZOMBIE
+    except psutil.NoSuchProcess:
+        return False
 
 
 def _lines(path: Path) -> int:

@@ -272,8 +272,7 @@ def _threads(client: Any, args: argparse.Namespace) -> int:
     if not args.scheduler:
         return int(args.workers)
     try:
-        workers = client.scheduler_info()["workers"].values()
-        return sum(int(w.get("nthreads", 1)) for w in workers) or 1
+        return sum(int(n) for n in client.nthreads().values()) or 1
     except Exception:  # the window is a bound, not a promise: any size works
         return int(args.workers)
 

@@ -27,6 +27,16 @@ every 0.1 s:
   it reaped, minus what the command and its live descendants had spent at the signal),
   the exit status, stderr's line count and whether it holds a traceback. A command still
   running 180 s after the signal is killed (status -9).
+
+Measured on 2 cores loaded by other work (load average ~7), 2 workers, Ctrl-C at 200 rows:
+
+    code        runs first row s  (CPU s)  client MB  rows  Ctrl-C s  (CPU s) status  traceback
+    before    100000        79.0     39.8       1537   200      62.8     64.5    130        yes
+    after     100000         8.1      4.9        137   200       1.9      2.3    130         no
+    before     30000        20.8     12.4        526   200      13.1     14.6    130        yes
+    after      30000         5.0      2.8        117   200       1.1      2.1    130         no
+    before       100         3.2      1.9        104    52       1.1      0.9    130         no
+    after        100         3.4      2.0        103    51       1.1      0.9    130         no
 """
 
 from __future__ import annotations

@@ -105,7 +105,7 @@ def _tree_cpu_s(pid: int) -> float:
                 total += t.user + t.system
             except psutil.Error:
                 pass
-        return total
+        return float(total)
     except psutil.Error:
         return float("nan")
 

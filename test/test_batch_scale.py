@@ -44,7 +44,12 @@ def test_the_window_draws_runs_lazily_and_never_holds_more_than_its_size() -> No
             yield run
 
     submitted: list[int] = []
-    window: Window[int] = Window(runs(), lambda run: submitted.append(run) or f"h{run}", 8)
+
+    def submit(run: int) -> str:
+        submitted.append(run)
+        return f"h{run}"
+
+    window: Window[int] = Window(runs(), submit, 8)
     window.fill()
     assert submitted == list(range(8)) and len(drawn) == 8 and len(window) == 8
     assert window.answered("h3") == 3 and len(window) == 8 and submitted[-1] == 8
@@ -52,15 +57,15 @@ def test_the_window_draws_runs_lazily_and_never_holds_more_than_its_size() -> No
     for _ in range(100):
         answered.add(window.answered(window.in_flight[0]))
         assert len(window) == 8
-    assert len(drawn) == 109 and not window.done
-    assert sorted(window.stop()) == sorted(f"h{run}" for run in set(drawn) - answered)
+    assert len(drawn) == 109 and window.in_flight  # runs still out: not done
+    assert sorted(map(str, window.stop())) == sorted(f"h{run}" for run in set(drawn) - answered)
     assert window.done and len(window) == 0 and len(drawn) == 109  # nothing more drawn
 
 
 def test_the_window_ends_when_every_run_is_answered() -> None:
     window: Window[str] = Window(iter(["a", "b", "c"]), lambda run: run.upper(), 8)
     window.fill()
-    assert sorted(window.in_flight) == ["A", "B", "C"] and window.exhausted
+    assert sorted(map(str, window.in_flight)) == ["A", "B", "C"] and window.exhausted
     assert [window.answered(h) for h in ("B", "A", "C")] == ["b", "a", "c"] and window.done
     with pytest.raises(ValueError):
         Window(iter([]), str, 0)
@@ -200,7 +205,7 @@ def _alive(process: object) -> bool:
 
     assert isinstance(process, psutil.Process)
     try:
-        return process.is_running() and process.status() != psutil.STATUS_ZOMBIE
+        return bool(process.is_running() and process.status() != psutil.STATUS_ZOMBIE)
     except psutil.NoSuchProcess:
         return False
 

@@ -7,7 +7,9 @@ the PATH). A run that outlives ``timeout`` raises ``TimeoutExpired``: a hang fai
 
 from __future__ import annotations
 
+import os
 import resource
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -17,7 +19,8 @@ from ads_rca.cli import main as cli
 
 #: The console script beside this interpreter.
 ADS_RCA = str(Path(sys.executable).with_name("ads-rca"))
-EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "cut_in_perception"
+REPO = Path(__file__).resolve().parents[1]
+EXAMPLE = REPO / "examples" / "cut_in_perception"
 #: Address space of a :func:`run_limited` run: plenty for a diagnosis, far below the
 #: machine's memory (reading /dev/zero until memory runs out fails the test, not the machine).
 MEMORY_LIMIT = 3 << 30
@@ -34,6 +37,29 @@ def run_cli(
     if check:
         assert done.returncode == 0, done.stderr
     return done
+
+
+def start_cli(*args: str) -> subprocess.Popen[str]:
+    """``ads-rca ARGS`` started as at a terminal, output on pipes, this checkout first on
+    the path: with SIGINT's default action, whatever this test run inherited (a suite
+    started as a background job of a script ignores SIGINT, and the command rightly keeps an
+    ignored SIGINT ignored: a Ctrl-C test then saw a finished command)."""
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO), env.get("PYTHONPATH")]))
+    # A Python handler here is the default action in the child (an exec resets handlers,
+    # not an ignored disposition).
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        return subprocess.Popen(
+            [sys.executable, "-m", "ads_rca.cli", *args],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env=env,
+            cwd=REPO,
+        )
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def run_script(*args: str, timeout: float = 300) -> subprocess.CompletedProcess[str]:

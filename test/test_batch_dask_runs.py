@@ -23,6 +23,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+from commandline import start_cli
 
 from ads_rca.batch.inputs import run_id
 from ads_rca.batch.rows import COLUMNS
@@ -65,23 +66,7 @@ def batch(*args: str, timeout: float = 300) -> subprocess.CompletedProcess[str]:
 
 
 def start_batch(*args: str) -> subprocess.Popen[str]:
-    """A batch as started at a terminal: with SIGINT's default action, whatever this test
-    run inherited (a suite started as a background job of a script ignores SIGINT, and the
-    batch rightly keeps an ignored SIGINT ignored: its Ctrl-C test then saw a finished
-    batch)."""
-    # A Python handler here is the default action in the child (an exec resets handlers,
-    # not an ignored disposition).
-    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
-    try:
-        return subprocess.Popen(
-            [sys.executable, "-m", "ads_rca.cli", "batch", *args],
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-            env=_env(),
-        )
-    finally:
-        signal.signal(signal.SIGINT, previous)
+    return start_cli("batch", *args)
 
 
 @pytest.fixture(scope="module")

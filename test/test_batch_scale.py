@@ -14,13 +14,13 @@ from __future__ import annotations
 import os
 import signal
 import subprocess
-import sys
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import NoReturn
 
 import pytest
+from commandline import start_cli
 
 from ads_rca.batch.interruption import Interruption
 from ads_rca.batch.store import read_csv, read_parquet
@@ -114,21 +114,7 @@ def listing(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def _start(*args: str) -> subprocess.Popen[str]:
-    """The command as at a terminal (SIGINT's default action; see test_batch_dask_runs)."""
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO), env.get("PYTHONPATH")]))
-    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
-    try:
-        return subprocess.Popen(
-            [sys.executable, "-m", "ads_rca.cli", "batch", *args],
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-            env=env,
-            cwd=REPO,
-        )
-    finally:
-        signal.signal(signal.SIGINT, previous)
+    return start_cli("batch", *args)
 
 
 def _wait(until: Callable[[], bool], process: subprocess.Popen[str], limit: float) -> float:

@@ -18,6 +18,7 @@ may be unknown; anything else is reported and the file skipped.
 from __future__ import annotations
 
 import math
+from array import array as c_array
 from collections.abc import Callable, Mapping, Sequence
 from itertools import accumulate, chain
 from operator import itemgetter
@@ -290,16 +291,18 @@ def prediction_parts(document: Any) -> PredictionParts | None:
     what is wrong). A reader process packs these pieces without making the tracks."""
     if not isinstance(document, Mapping):
         return None
+    if not document:  # no track (every frame of a quiet run): no array calls
+        return (), [], _NO_OFFSETS
     try:
         tracks = list(document.values())
         steps = map(_STEP_XYZ, chain.from_iterable(map(dict.values, tracks)))
-        flat = np.array(list(chain.from_iterable(steps)))  # 1-D: numpy discovers it faster
+        flat = finite_floats(list(chain.from_iterable(steps)))
         keys = [tuple(track) for track in tracks]
-    except (KeyError, TypeError, ValueError, AttributeError):
+    except (KeyError, TypeError, AttributeError):
         return None
-    if not _clean(flat, 3):
+    if flat is None:
         return None
-    return tuple(map(str, document)), keys, flat.astype(np.float64).reshape(-1, 3)
+    return tuple(map(str, document)), keys, flat.reshape(-1, 3)
 
 
 def _predictions_fast(document: Mapping[str, Any]) -> Predictions | None:
@@ -343,11 +346,11 @@ def parse_plan(document: Any, file: str, problems: ProblemLog, ts: int) -> Plan 
         return None
     keys = tuple(str(k) for k in document)
     try:
-        table = np.array([(p["x"], p["y"], p["speed"]) for p in document.values()])
-        if _clean(table, 3, ndim=2):
-            table = table.astype(np.float64).reshape(-1, 3)
+        flat = finite_floats([v for p in document.values() for v in (p["x"], p["y"], p["speed"])])
+        if flat is not None:
+            table = flat.reshape(-1, 3)
             return Plan(keys, table[:, :2].copy(), table[:, 2].copy())
-    except (KeyError, TypeError, ValueError, AttributeError):
+    except (KeyError, TypeError, AttributeError):
         pass
     rows = [
         [
@@ -505,6 +508,29 @@ def _control(document: Any) -> ControlCommand:
 parse_objects_3d = _strict_file(_objects_3d)
 #: ``control/`` files: steer, acceleration, speed (numbers or null).
 parse_control = _strict_file(_control)
+
+
+#: The offsets of a predictions file without tracks (never written to: shared).
+_NO_OFFSETS: FloatArray = np.zeros((0, 3))
+
+
+def finite_floats(values: list[Any]) -> FloatArray | None:
+    """``values`` as a float64 array when every one is a number (an int, a float or a
+    boolean: ``True`` is 1.0) and finite, else None (text, ``null``, a list, an integer
+    past the float range, NaN or infinity: the caller's slow path reports it).
+
+    The C loop of :mod:`array`'s ``array("d")`` converts a flat list of floats two to three
+    times as fast as ``np.array`` discovers it, to the same numbers (each ``float(value)``,
+    correctly rounded). It takes what ``np.array`` refuses in one case only: a finite
+    integer outside numpy's 64-bit range (2**70), which the slow path reads as the same
+    float without a report, so the record is the same either way."""
+    try:
+        numbers = np.frombuffer(c_array("d", values))
+    except (TypeError, OverflowError):
+        return None
+    if not np.isfinite(numbers).all():
+        return None
+    return numbers
 
 
 def _clean(array: np.ndarray, width: int, ndim: int = 1) -> bool:

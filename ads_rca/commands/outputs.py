@@ -19,7 +19,6 @@ left whole.
 from __future__ import annotations
 
 import os
-import tempfile
 from pathlib import Path
 
 from ads_rca.errors import InputError
@@ -81,13 +80,24 @@ def _probe_open(target: Path, option: str) -> None:
     os.close(fd)
 
 
+#: How the probe file is created: as ``tempfile.mkstemp`` creates one (a new name only,
+#: never a link followed), without importing tempfile and random into every start-up.
+_PROBE_FLAGS = os.O_RDWR | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC
+
+
 def _probe(directory: Path, target: Path, option: str) -> None:
     """Create and remove a file in ``directory``: the only check root cannot pass wrongly."""
-    try:
-        fd, name = tempfile.mkstemp(prefix=".ads_rca_probe_", dir=directory)
-    except OSError as error:
-        raise InputError(
-            f"{option} {target}: cannot write in {directory} ({error.strerror})"
-        ) from None
-    os.close(fd)
-    os.unlink(name)
+    for _ in range(100):
+        name = os.path.join(directory, f".ads_rca_probe_{os.urandom(6).hex()}")
+        try:
+            fd = os.open(name, _PROBE_FLAGS, 0o600)
+        except FileExistsError:
+            continue
+        except OSError as error:
+            raise InputError(
+                f"{option} {target}: cannot write in {directory} ({error.strerror})"
+            ) from None
+        os.close(fd)
+        os.unlink(name)
+        return
+    raise InputError(f"{option} {target}: cannot write in {directory} (no free file name)")

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import secrets
 import stat
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -110,7 +109,7 @@ def _replacing(
 def _create_temporary(folder: str, name: str) -> tuple[int, str]:
     """A new file beside the output, opened for writing: its descriptor and path."""
     for _ in range(100):
-        temporary = os.path.join(folder, f".{name[:_NAME_CHARS]}.{secrets.token_hex(6)}.tmp")
+        temporary = os.path.join(folder, f".{name[:_NAME_CHARS]}.{os.urandom(6).hex()}.tmp")
         try:
             return os.open(temporary, _CREATE, 0o666), temporary
         except FileExistsError:

@@ -22,7 +22,6 @@ is kept, and the objects are freed as usual when the command returns.
 from __future__ import annotations
 
 import contextlib
-import logging
 import os
 import sys
 from collections.abc import Callable
@@ -71,7 +70,9 @@ def requested() -> bool:
 def exit_now(status: int) -> NoReturn:
     """Flush the log handlers and the standard streams and end the process with
     ``status``, freeing nothing."""
-    logging.shutdown()
+    logging = sys.modules.get("logging")  # imported by what logs: none, no handler to flush
+    if logging is not None:
+        logging.shutdown()
     flush_standard_streams()
     os._exit(status)
 

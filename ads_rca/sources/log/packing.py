@@ -29,7 +29,6 @@ import contextlib
 import itertools
 import mmap
 import os
-import tempfile
 from collections.abc import Iterable
 from typing import Any
 
@@ -162,6 +161,8 @@ class SharedNumbers:
         :data:`SHARED_FREE_SHARE` of its file system free."""
         if not _room_for(numbers.nbytes):
             return None
+        import tempfile  # in reading workers only: not in every start-up (with random)
+
         try:
             fd, path = tempfile.mkstemp(prefix=prefix, suffix=".f64", dir=SHARED_DIR)
         except OSError:

@@ -138,7 +138,7 @@ def test_nan_poses_are_malformed_never_frames() -> None:
     assert run.feed is not None
     assert run.feed.guard.malformed == 200
     assert said[0] == (
-        "a pose with non-finite x, y, z, roll, pitch, yaw, speed cannot define a frame; skipped"
+        "pose not finite (x, y, z, roll, pitch, yaw, speed): it cannot define a frame; skipped"
     )
     assert run.feed.guard.report(100.0)[1] == "200 malformed pose messages skipped (NaN/inf pose)"
 

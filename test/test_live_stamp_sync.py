@@ -315,3 +315,19 @@ def test_an_input_never_heard_stops_holding_frames_once_given_up_on() -> None:
     assert [f.stamp_ms for f in fresh.add("a", 0, "a0", 0.0)] == [0]  # no wait for b
     fresh.resume(["b"])  # a publisher of b was found: frames wait for it again
     assert fresh.absent == set() and fresh.add("a", 50, "a50", 0.1) == []
+
+
+def test_a_stamp_on_the_grid_is_a_whole_number_of_periods_from_the_newest_frame() -> None:
+    sync: StampSync[str] = StampSync(SyncSettings(("a",), period_ms=50.0, measure_stamps=2))
+    assert not sync.on_grid(0)  # no frame yet: no grid
+    for i, stamp in enumerate((1000, 1050)):
+        sync.add(ODOMETRY, stamp, f"odom{stamp}", float(i))
+    assert [sync.on_grid(s) for s in (1100, 1103, 1150, 1250, 1075, 1090, 1010)] == [
+        True,
+        True,  # within a tenth of a period
+        True,
+        True,
+        False,  # between two frames
+        False,
+        False,
+    ]

@@ -334,7 +334,10 @@ def _client(args: argparse.Namespace) -> Iterator[Any]:
                         processes=True,
                         host="127.0.0.1",
                         dashboard_address="127.0.0.1:0",  # None still starts one on :8787
-                        silence_logs=logging.ERROR,
+                        # A run's failure is its row; what a worker logs on its own is
+                        # no news, and while the cluster closes it is a scheduler gone
+                        # (a heartbeat's traceback on a loaded machine, after Ctrl-C).
+                        silence_logs=logging.CRITICAL,
                     )
                 client = Client(cluster)
             yield client

@@ -155,7 +155,9 @@ class StackFeed:
             return True
         if reference:
             problem = pose_problem(numbers) if numbers is not None else None
-            if problem is not None:  # a NaN pose never makes a frame
+            # A NaN pose makes no frame of its own; on the stream's grid its frame is
+            # still the stack's, judged incomplete (its pose record reported missing).
+            if problem is not None and not self.sync.on_grid(stamp):
                 self.guard.malformed += 1
                 self.skipped(folder, problem)
                 return True

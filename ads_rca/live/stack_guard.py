@@ -83,7 +83,7 @@ def pose_problem(numbers: Mapping[str, float]) -> str | None:
     bad = [name for name, value in numbers.items() if not math.isfinite(value)]
     if not bad:
         return None
-    return f"a pose with non-finite {', '.join(bad)} cannot define a frame; skipped"
+    return f"pose not finite ({', '.join(bad)}): it cannot define a frame; skipped"
 
 
 @dataclass

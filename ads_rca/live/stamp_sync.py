@@ -259,6 +259,17 @@ class StampSync(Generic[P]):
             near.append(self.released_ms)
         return any(0 < abs(stamp - other) < half for other in near)
 
+    def on_grid(self, stamp: int) -> bool:
+        """Whether ``stamp`` is where the stream's next frames fall: the period is known and
+        the stamp lies within a tenth of a period of the newest frame's stamp plus a whole
+        number of periods (a stamp between two frames is not)."""
+        frames = self._frames.stamps
+        anchor = frames[-1] if frames else self.released_ms
+        if self.period_ms is None or anchor is None:
+            return False
+        phase = (stamp - anchor) / self.period_ms
+        return abs(phase - round(phase)) * self.period_ms <= self.period_ms / 10
+
     def _add_input(self, topic: str, stamp: int, payload: P) -> None:
         self._heard.add(topic)
         self.absent.discard(topic)

@@ -20,7 +20,7 @@ from ads_rca.live.results import LiveResult, plain
 from ads_rca.model import RunLog
 from ads_rca.params import make_params
 from ads_rca.ros.graph import AGGREGATOR, GROUP, MONITOR
-from ads_rca.ros.launcher import Launcher, ParamValue, ros_args
+from ads_rca.ros.launcher import Launcher, ManagedProcess, ParamValue, ros_args
 from ads_rca.synth import synthesise
 
 PUBLISHER = Path(__file__).resolve().parent / "stack_publisher.py"
@@ -37,6 +37,15 @@ class StackRun:
     publisher: dict[str, Any]  # the test stack's summary line
     diagnostics: list[dict[str, Any]]
     outputs: dict[str, str]
+
+
+def start_judges(
+    launcher: Launcher, diag: Path, monitors: list[str], aggregator: list[str]
+) -> tuple[ManagedProcess, ManagedProcess, ManagedProcess]:
+    """The diagnostics probe (writing ``diag``), then the ``monitors`` and ``aggregator``
+    commands (given whole: their parameters differ per test), started in that order."""
+    probe = launcher.start("diag_probe", [sys.executable, str(PROBE), str(diag)])
+    return probe, launcher.start("monitors", monitors), launcher.start("aggregator", aggregator)
 
 
 def run_stack_graph(
@@ -69,13 +78,12 @@ def run_stack_graph(
         **(executables or {}),
     }
     with Launcher(env, echo=sys.stderr) as launcher:
-        probe = launcher.start("diag_probe", [sys.executable, str(PROBE), str(diag)])
         watched = {k: v for k, v in shared.items() if k not in AGGREGATOR_ONLY}
-        monitors = launcher.start(
-            "monitors", [*commands["monitors"], *ros_args(watched, params_file)]
-        )
-        aggregator = launcher.start(
-            "aggregator", [*commands["aggregator"], *ros_args(agg, params_file)]
+        probe, monitors, aggregator = start_judges(
+            launcher,
+            diag,
+            [*commands["monitors"], *ros_args(watched, params_file)],
+            [*commands["aggregator"], *ros_args(agg, params_file)],
         )
         started = [launcher.start(name, argv) for name, argv in (companions or {}).items()]
         stack = launcher.start(

@@ -24,7 +24,7 @@ from typing import Any
 import pytest
 from conftest import RosEnv
 from rosrun import wait_for
-from stackgraph import crash, offline
+from stackgraph import crash, offline, start_judges
 
 from ads_rca.oracles.base import MODULES
 from ads_rca.ros.graph import AGGREGATOR, GROUP, MONITOR
@@ -36,7 +36,6 @@ pytestmark = pytest.mark.timeout(240)
 HERE = Path(__file__).resolve().parent
 STACK = HERE / "independent_stack.py"
 HOSTILE = HERE / "hostile_publisher.py"
-PROBE = HERE / "diag_probe.py"
 CARLA = HERE.parent / "config" / "stack_carla.yaml"
 ODOMETRY = "/carla/ego_vehicle/odometry"
 CASE = ("lead_braking", "prediction")  # collision at frame 78
@@ -67,12 +66,11 @@ def test_a_second_writer_on_the_reference_topic_is_ignored_and_said(
     }
     python = sys.executable
     with Launcher(ros_env.env, echo=sys.stderr) as launcher:
-        probe = launcher.start("diag_probe", [python, str(PROBE), str(diag)])
-        monitors = launcher.start(
-            "monitors", [python, "-m", MONITOR, GROUP, *ros_args(shared, CARLA)]
-        )
-        aggregator = launcher.start(
-            "aggregator", [python, "-m", AGGREGATOR, *ros_args(aggregator_params, CARLA)]
+        probe, monitors, aggregator = start_judges(
+            launcher,
+            diag,
+            [python, "-m", MONITOR, GROUP, *ros_args(shared, CARLA)],
+            [python, "-m", AGGREGATOR, *ros_args(aggregator_params, CARLA)],
         )
         # The real stack is the first writer: the attack begins after 15 of its frames.
         hostile = launcher.start("hostile", [python, str(HOSTILE), "--topic", ODOMETRY])

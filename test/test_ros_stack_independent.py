@@ -20,7 +20,7 @@ from typing import Any
 import pytest
 from conftest import RosEnv
 from rosrun import wait_for
-from stackgraph import crash, offline
+from stackgraph import crash, offline, start_judges
 
 from ads_rca.diagnosis.engine import diagnose
 from ads_rca.params import make_params
@@ -33,7 +33,6 @@ pytestmark = pytest.mark.timeout(240)
 
 HERE = Path(__file__).resolve().parent
 STACK = HERE / "independent_stack.py"
-PROBE = HERE / "diag_probe.py"
 CARLA = HERE.parent / "config" / "stack_carla.yaml"
 CASE = ("lead_braking", "prediction")  # collision at frame 78
 FIRST = ("cut_in", "perception")  # collision at frame 103, its partner another actor
@@ -78,12 +77,11 @@ def run_beside(
     }
     python = sys.executable
     with Launcher(ros_env.env, echo=sys.stderr) as launcher:
-        probe = launcher.start("diag_probe", [python, str(PROBE), str(diag)])
-        monitors = launcher.start(
-            "monitors", [python, "-m", MONITOR, GROUP, *ros_args(shared, CARLA)]
-        )
-        aggregator = launcher.start(
-            "aggregator", [python, "-m", AGGREGATOR, *ros_args(aggregator_params, CARLA)]
+        probe, monitors, aggregator = start_judges(
+            launcher,
+            diag,
+            [python, "-m", MONITOR, GROUP, *ros_args(shared, CARLA)],
+            [python, "-m", AGGREGATOR, *ros_args(aggregator_params, CARLA)],
         )
         for n, argv in enumerate(stacks):
             stack = launcher.start(

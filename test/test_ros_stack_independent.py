@@ -105,14 +105,16 @@ def run_beside(
 def test_inputs_left_out_or_stopped_are_said_never_no_fault_found(
     ros_env: RosEnv, tmp_path: Path
 ) -> None:
-    """One input never sent, another stopping inside the effect window (frame 75 of 78)."""
+    """One input never sent, another stopping inside the effect window (frame 75 of 78).
+    Frames wait 3 s for an input: a message of frame 74 delayed past 1 s on a loaded
+    machine once made it a fifth frame without boxes."""
     stack = ["--log", log_folder(tmp_path, CASE), "--seed", "2"]
     stack += ["--drop-input", "predictions_with_perception", "--stop-input", "bboxes:75"]
     graph = run_beside(
         ros_env,
         tmp_path,
         [stack],
-        {"semantics": "reference", "input_timeout_s": 1.0},
+        {"semantics": "reference", "input_timeout_s": 3.0},
         verdicts=1,
         said="no predictions_with_perception input",
     )

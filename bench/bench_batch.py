@@ -1,17 +1,23 @@
 """Benchmark: ``ads-rca batch`` throughput (runs per minute) with 1 and 2 local workers.
 
     python bench/bench_batch.py [--runs 1000] [--frames 200] [--workers 1 2] [--distinct K]
-                                [--dir DIR]
+                                [--repeat N] [--dir DIR]
+
+    # small logs, where the batch's own per-run cost shows (issue 42):
+    python bench/bench_batch.py --runs 60 --frames 150 --distinct 20 --repeat 3
 
 Synthesises ``--runs`` crash logs of ``--frames`` frames (scenarios and faults cycled,
 written once under ``--dir`` and reused by later runs of the bench), then times the whole
 command (cluster start, every run diagnosed, results and summary written) once per worker
 count, each into a fresh output folder. Prints the command's wall time and CPU time (user
 + system from ``wait4``: the command, its cluster and its workers), runs/min per worker
-count (by wall time) and the scaling figure (runs/min with N workers over runs/min with the
-first count). The summary's
-per-run diagnose time (median) is printed too: with one core per worker the rest is the
-cluster's and the command's own overhead.
+count (by wall time), the CPU per run (the whole command's CPU over the runs: diagnosis,
+workers, client and start-up) and the scaling figure (runs/min with N workers over runs/min
+with the first count). With ``--repeat N`` each worker count is timed N times and the
+median wall and the median CPU are printed. The summary's per-run diagnose time (median) is
+printed too: with one core per worker the rest is the cluster's and the command's own
+overhead. The load average before and after is printed: on a shared machine, read the CPU
+columns first.
 """
 
 from __future__ import annotations
@@ -25,7 +31,7 @@ import tempfile
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
-from timing import Clock, Timing, run_child
+from timing import Clock, Timing, median, run_child
 
 REPO = Path(__file__).resolve().parents[1]
 SCENARIOS = ("cut_in", "lead_braking", "pedestrian_crossing", "left_turn")
@@ -90,6 +96,7 @@ def main() -> None:
     parser.add_argument(
         "--distinct", type=int, default=0, help="synthesise this many logs, copy for the rest"
     )
+    parser.add_argument("--repeat", type=int, default=1, help="times each count, the median")
     parser.add_argument(
         "--dir", type=Path, default=Path(tempfile.gettempdir()) / "ads_rca_bench_batch"
     )
@@ -103,22 +110,37 @@ def main() -> None:
     )
     listing = args.dir / f"paths_{args.runs}_{args.frames}.txt"
     listing.write_text("".join(f"{p}\n" for p in paths))
+    print(f"load average before: {_load()}")
     print(
-        f"{'workers':>8}{'wall s':>9}{'CPU s':>9}{'runs/min':>10}{'scaling':>9}"
-        f"{'median run s':>14}{'errors':>8}"
+        f"{'workers':>8}{'wall s':>9}{'CPU s':>9}{'runs/min':>10}{'CPU ms/run':>12}"
+        f"{'scaling':>9}{'median run s':>14}{'errors':>8}"
     )
     base = None
     for workers in args.workers:
-        out = args.dir / f"out_w{workers}"
-        shutil.rmtree(out, ignore_errors=True)
-        took, seconds, errors = time_batch(listing, workers, out)
+        timings: list[Timing] = []
+        seconds: list[float] = []
+        errors = 0
+        for _ in range(max(args.repeat, 1)):
+            out = args.dir / f"out_w{workers}"
+            shutil.rmtree(out, ignore_errors=True)
+            took, run_seconds, run_errors = time_batch(listing, workers, out)
+            timings.append(took)
+            seconds += run_seconds
+            errors = max(errors, run_errors)
+        took = median(timings)
         rate = len(paths) / took.wall_s * 60
         base = base or rate
         print(
-            f"{workers:>8}{took.wall_s:>9.1f}{took.cpu_s:>9.1f}{rate:>10.0f}{rate / base:>9.2f}"
+            f"{workers:>8}{took.wall_s:>9.1f}{took.cpu_s:>9.1f}{rate:>10.0f}"
+            f"{took.cpu_s / len(paths) * 1000:>12.0f}{rate / base:>9.2f}"
             f"{statistics.median(seconds):>14.3f}{errors:>8}",
             flush=True,
         )
+    print(f"load average after: {_load()}")
+
+
+def _load() -> str:
+    return " ".join(f"{x:.2f}" for x in os.getloadavg())
 
 
 if __name__ == "__main__":

@@ -140,16 +140,14 @@ def step_block(judging: CorrectedContext, start: int) -> StepBlock:
         before = [pose[t] for t in times]
         after = [pose[t + frame_ms] for t in times]
         # (np.array of same-shape arrays: np.stack's copy without its per-array Python work)
+        xy = np.array([plans[t].xy for t in times])[:, order]
         lateral = _lateral_offsets(
-            np.array([plans[t].xy for t in times])[:, order],
-            np.array([[p.x, p.y] for p in after]),
-            [p.yaw for p in before],
+            xy, np.array([[p.x, p.y] for p in after]), [p.yaw for p in before]
         )
         speed = np.array([plans[t].speed for t in times])[:, order]
         v1 = speed[:, rows[1]].tolist()
         v0 = speed[:, rows[0]].tolist() if 0 in rows else [math.nan] * len(times)
-        ahead = np.array([plans[t].xy for t in times])[:, order[sorted_steps >= 1]]
-        curves = lateral_demands(ahead, speed[:, rows[1]])
+        curves = lateral_demands(xy[:, sorted_steps >= 1], speed[:, rows[1]])
         for n, i in enumerate(members):
             steps[i] = _step(
                 after[n].speed - v1[n],

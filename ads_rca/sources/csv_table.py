@@ -133,29 +133,26 @@ def numbers(
         values = np.array(cells, dtype=np.float64)
     except ValueError:
         values = np.array([_float(cell) for cell in cells], dtype=np.float64)
-    bad = ~np.isfinite(values) & ~table.short & (True if used is None else used)
-    if bad.any():
-        first = int(np.argmax(bad))
-        problems.add(
-            table.name,
-            shown(column),
-            f"{int(bad.sum())} rows: not a finite number (the first: {labels[first]}, "
-            f"{shown(cells[first])!r})",
-            "read as NaN",
-        )
-        values[bad] = np.nan
-    huge = np.isfinite(values) & (np.abs(values) > bound) & ~table.short
-    huge &= True if used is None else used
-    if huge.any():
-        first = int(np.argmax(huge))
-        problems.add(
-            table.name,
-            shown(column),
-            f"{int(huge.sum())} rows: beyond ±{bound:g}, too large to compute with (the "
-            f"first: {labels[first]}, {shown(cells[first])!r})",
-            "read as NaN",
-        )
-        values[huge] = np.nan
+    judged = ~table.short & (True if used is None else used)
+
+    def refuse(rows: npt.NDArray[np.bool_], why: str) -> None:
+        """The ``rows`` read as NaN, said once: how many, why, the first."""
+        if rows.any():
+            first = int(np.argmax(rows))
+            problems.add(
+                table.name,
+                shown(column),
+                f"{int(rows.sum())} rows: {why} (the first: {labels[first]}, "
+                f"{shown(cells[first])!r})",
+                "read as NaN",
+            )
+            values[rows] = np.nan
+
+    refuse(~np.isfinite(values) & judged, "not a finite number")
+    refuse(
+        np.isfinite(values) & (np.abs(values) > bound) & judged,
+        f"beyond ±{bound:g}, too large to compute with",
+    )
     return values
 
 

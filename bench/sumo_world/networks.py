@@ -125,24 +125,41 @@ def arc(
     return points
 
 
+def bent_road(
+    lead: float,
+    radius: float,
+    angle: float,
+    tail: float,
+    lanes: tuple[int, int],
+    speed: float,
+    names: tuple[str, str, str],
+) -> Network:
+    """Straight ``lead`` m, an arc of ``radius`` turning ``angle`` (rad, + left), straight
+    ``tail`` m; ``lanes`` in the direction of travel and back; its three edges ``names``
+    (each way back is the name with a leading "-")."""
+    net = Network()
+    points = arc((lead, 0.0), 0.0, radius, angle)
+    end = points[-1]
+    out = (end[0] + tail * math.cos(angle), end[1] + tail * math.sin(angle))
+    net.node("n0", 0.0, 0.0)
+    net.node("n1", lead, 0.0)
+    net.node("n2", *end)
+    net.node("n3", *out)
+    ahead, back = lanes
+    first, bend, last = names
+    net.edge(first, "n0", "n1", ahead, speed)
+    net.edge(bend, "n1", "n2", ahead, speed, shape=points)
+    net.edge(last, "n2", "n3", ahead, speed)
+    net.edge(f"-{last}", "n3", "n2", back, speed)
+    net.edge(f"-{bend}", "n2", "n1", back, speed, shape=points[::-1])
+    net.edge(f"-{first}", "n1", "n0", back, speed)
+    return net
+
+
 def curve(radius: float, angle: float, speed: float) -> Network:
     """Straight 350 m, an arc of ``radius`` turning ``angle`` (rad, + left), straight 300 m;
     three lanes in the direction of travel, two back."""
-    net = Network()
-    points = arc((350.0, 0.0), 0.0, radius, angle)
-    end = points[-1]
-    out = (end[0] + 300.0 * math.cos(angle), end[1] + 300.0 * math.sin(angle))
-    net.node("n0", 0.0, 0.0)
-    net.node("n1", 350.0, 0.0)
-    net.node("n2", *end)
-    net.node("n3", *out)
-    net.edge("in", "n0", "n1", 3, speed)
-    net.edge("curve", "n1", "n2", 3, speed, shape=points)
-    net.edge("out", "n2", "n3", 3, speed)
-    net.edge("-out", "n3", "n2", 2, speed)
-    net.edge("-curve", "n2", "n1", 2, speed, shape=points[::-1])
-    net.edge("-in", "n1", "n0", 2, speed)
-    return net
+    return bent_road(350.0, radius, angle, 300.0, (3, 2), speed, ("in", "curve", "out"))
 
 
 def merge(accel_length: float, speed: float, ramp_speed: float) -> Network:
@@ -192,21 +209,7 @@ def intersection(speed: float, side_speed: float) -> Network:
 def dense(speed: float, bend: float) -> Network:
     """Four lanes (three back) over 1300 m: straight 500 m, a gentle bend of radius 400 m by
     ``bend`` rad, straight on."""
-    net = Network()
-    points = arc((500.0, 0.0), 0.0, 400.0, bend)
-    end = points[-1]
-    out = (end[0] + 600.0 * math.cos(bend), end[1] + 600.0 * math.sin(bend))
-    net.node("n0", 0.0, 0.0)
-    net.node("n1", 500.0, 0.0)
-    net.node("n2", *end)
-    net.node("n3", *out)
-    net.edge("a", "n0", "n1", 4, speed)
-    net.edge("b", "n1", "n2", 4, speed, shape=points)
-    net.edge("c", "n2", "n3", 4, speed)
-    net.edge("-c", "n3", "n2", 3, speed)
-    net.edge("-b", "n2", "n1", 3, speed, shape=points[::-1])
-    net.edge("-a", "n1", "n0", 3, speed)
-    return net
+    return bent_road(500.0, 400.0, bend, 600.0, (4, 3), speed, ("a", "b", "c"))
 
 
 def crossing(speed: float) -> Network:

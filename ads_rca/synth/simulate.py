@@ -220,12 +220,10 @@ def _command(
     that of the path's curvature."""
     if vehicle is not None:
         steer = float(np.degrees(vehicle.steer))
-        return ControlCommand(
-            steer=steer, acceleration=(target - v) / TPF_MS * 1000.0, speed=target
-        )
-    _, yaw = scene.path.at(np.array([s - 0.5, s + 0.5]))
-    curvature = float(yaw[1] - yaw[0])  # rad per metre (1 m apart)
-    steer = float(np.degrees(np.arctan(WHEELBASE * curvature)))
+    else:
+        _, yaw = scene.path.at(np.array([s - 0.5, s + 0.5]))
+        curvature = float(yaw[1] - yaw[0])  # rad per metre (1 m apart)
+        steer = float(np.degrees(np.arctan(WHEELBASE * curvature)))
     return ControlCommand(steer=steer, acceleration=(target - v) / TPF_MS * 1000.0, speed=target)
 
 

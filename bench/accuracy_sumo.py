@@ -46,9 +46,8 @@ from ads_rca.sources.log.reader import read_run_log
 from ads_rca.synth import FAULTS, VARIANT_FAULTS, canonical_fault, fault_module
 from ads_rca.synth.noise import LEVELS, Noise
 
-#: The families run unless ``--families`` says otherwise (``crossing`` is available but
-#: rarely gives an acceptable scene: see bench/sumo_world/families.py).
-DEFAULT_FAMILIES = ("curve", "merge", "intersection", "dense")
+#: The families run unless ``--families`` says otherwise.
+DEFAULT_FAMILIES = FAMILIES
 
 
 def judge(outcome: Outcome, params: Any, three_d: bool = False) -> tuple[str, str, Timing, int]:

@@ -22,11 +22,12 @@ ghosts) and, through a :class:`~sumo_world.record.Director`, makes one road user
   beside it in a neighbouring lane, 0.5…10 m ahead and 2…8 m/s slower, is asked over TraCI to
   change into the ego's lane; LC2013 performs the change over ``--lanechange.duration``
   (2…3.5 s), avoiding only immediate collisions: a sharp cut-in;
-- ``crossing`` (not in the default set): a pedestrian waiting at a zebra crossing
-  (pedestrians have priority) starts across as the ego approaches; SUMO's striping model walks
-  it. Few of its scenes are acceptable: the cars ahead of the ego stop for the pedestrian
-  first, and our ego, braking for ghosts among the sidewalk's pedestrians, is rarely where
-  the pedestrian is timed to meet it.
+- ``crossing``: a pedestrian standing at a zebra crossing (pedestrians have priority) sets
+  off at 1.2…2 m/s, timed to reach the ego's lane 0.3 s before to 0.4 s after our ego would;
+  SUMO's striping model walks it across the walking area and the crossing. As the
+  synthesiser's ``pedestrian_crossing``, nothing else comes within a lane of the ego's path:
+  no car on its side of the road (a leader would stop for the pedestrian first, a car
+  beside it is a ghost conflict), walkers only on the far sidewalk.
 
 What is SUMO's: the road geometry, every trajectory (the partner's manoeuvre included, once
 asked for), the traffic's reactions. What is ours: the trigger (which road user, when, and
@@ -53,14 +54,27 @@ CARS = ((4.90, 2.13, 1.51), (4.79, 2.16, 1.49), (4.55, 2.01, 1.53), (5.03, 2.15,
 EGO_SIZE = CARS[0]
 
 
-def vtypes(assertive: float = 5.0, ego_factor: float = 1.0) -> str:
-    """The vehicle and pedestrian types every family uses."""
+#: Traffic that yields to a pedestrian on a crossing only once it is within 3 m of its lane
+#: (``jmCrossingGap``, SUMO's default 10 m): the oncoming cars do not brake ahead of the ego
+#: while the pedestrian is still on the ego's side.
+LATE_YIELD = 'jmCrossingGap="3"'
+#: A pedestrian walking at exactly the speed it is given (no spread of speed factors).
+WALKER = (
+    '<vType id="walker" vClass="pedestrian" length="0.5" width="0.5" height="1.8" '
+    'speedFactor="1" speedDev="0"/>'
+)
+
+
+def vtypes(assertive: float = 5.0, ego_factor: float = 1.0, traffic: str = "") -> str:
+    """The vehicle and pedestrian types every family uses (``traffic``: attributes added to
+    every car type)."""
     lines = []
+    extra = f" {traffic}" if traffic else ""
     for n, (length, width, height) in enumerate(CARS):
         lines.append(
             f'<vType id="car{n}" length="{length}" width="{width}" height="{height}" '
             'accel="2.6" decel="4.5" emergencyDecel="9" sigma="0.5" tau="1.0" '
-            'speedFactor="normc(1,0.1,0.7,1.3)" lcAssertive="1.3"/>'
+            f'speedFactor="normc(1,0.1,0.7,1.3)" lcAssertive="1.3"{extra}/>'
         )
     lines.append('<vTypeDistribution id="cars" vTypes="car0 car1 car2 car3"/>')
     length, width, height = EGO_SIZE
@@ -89,8 +103,10 @@ def flow(name: str, route: str, per_lane: float, lanes: int, lane: str = "random
     )
 
 
-def demand(body: list[str], assertive: float = 5.0, ego_factor: float = 1.0) -> str:
-    types = vtypes(assertive, ego_factor)
+def demand(
+    body: list[str], assertive: float = 5.0, ego_factor: float = 1.0, traffic: str = ""
+) -> str:
+    types = vtypes(assertive, ego_factor, traffic)
     return "<routes>\n" + types + "\n" + "\n".join(body) + "\n</routes>\n"
 
 
@@ -381,95 +397,138 @@ class Junction(Director):
         return self.detect(traci, k)
 
 
+@dataclass
+class ZebraMarks:
+    """Where the ego's centre (on its lane's centre line) and the pedestrian (on the crossing)
+    meet, SUMO frame, and the pedestrian's way there from the kerb (m)."""
+
+    ego: FloatArray
+    walker: FloatArray
+    walk_m: float
+
+
+#: s the pedestrian first sets off before it is timed to: the replays move it later, which
+#: only lengthens the window's lead-in (an earlier start could leave the window the first
+#: run fixed).
+EARLY_S = 1.5
+#: m before its sidewalk's end the pedestrian stands.
+KERB_M = 1.0
+
+
 class ZebraCrossing(Director):
-    """A pedestrian waiting at a zebra crossing starts across as the ego approaches."""
+    """A pedestrian standing at a zebra crossing starts across as the ego approaches.
+
+    As in the synthesiser's ``pedestrian_crossing``, no other road user is within a lane of
+    the ego's path (its background keeps two lanes or 8.2 m away): the ego drives the middle
+    of three lanes with no other car on its side of the road (a leader would stop for the
+    pedestrian first; a car beside it, slowing for the pedestrian or not, is a ghost conflict
+    to our noisy predictor: 1.4 m of clearance against the planner's 1 m margin), the
+    oncoming traffic is 7 m or more away, and walkers use only the far sidewalk (the near
+    one is 6.9 m from the ego lane's centre, where our predictor's noise on them made the
+    ego brake hard). The pedestrian stands still on the kerb (speed 0: a waiting stage
+    would draw it 3 m off the sidewalk and jump it back as it sets off) until its walk,
+    measured along its way across the walking area, is timed to meet the ego.
+    """
 
     persons = True
     timed = True
     observed = True
 
-    def __init__(
-        self,
-        rng: np.random.Generator,
-        arm: float,
-        to_lane: float,
-        flows: list[str],
-    ) -> None:
+    def __init__(self, rng: np.random.Generator, flows: list[str]) -> None:
         self.ego_route = ("wc", "ce")
-        self.ego_lane = 2  # the middle lane (0 is the sidewalk): 6.5 m or more from sidewalks
-        # and oncoming traffic
-        self.ego_factor = float(rng.uniform(0.75, 0.9))  # a calm driver: gaps open ahead
+        self.ego_lane = 2  # the middle lane (0 is the sidewalk)
+        self.ego_factor = float(rng.uniform(0.75, 0.9))  # a calm driver
         self.ego_depart_s = float(rng.uniform(25.0, 45.0))
         self.insert_at = float(rng.uniform(140.0, 170.0))
         self.walk_speed = float(rng.uniform(1.2, 2.0))
         self.late = float(rng.uniform(-0.3, 0.4))
-        self.arm = arm
-        self.to_lane = to_lane  # m the pedestrian walks to the ego lane's centre
         self.flows = flows
-        self.start = -1
+        self.start = -1  # the step it sets off
+        self.zebra: ZebraMarks | None = None
 
     def routes(self) -> str:
         body = [
             '<route id="r_we" edges="wc ce"/>',
             '<route id="r_ew" edges="ec cw"/>',
+            WALKER,
             *self.flows,
         ]
-        for n, (a, b) in enumerate((("wc", "ce"), ("ce", "wc"), ("ec", "cw"), ("cw", "ec"))):
+        for n, (a, b) in enumerate((("ec", "cw"), ("cw", "ec"))):  # the far sidewalk
             body.append(
                 f'<personFlow id="pf{n}" type="ped" begin="0" end="600" period="{8 + 2 * n}">'
                 f'<walk from="{a}" to="{b}"/></personFlow>'
             )
-        return demand(body, ego_factor=self.ego_factor)
+        return demand(body, ego_factor=self.ego_factor, traffic=LATE_YIELD)
+
+    def _marks(self, sumolib: Any) -> ZebraMarks:
+        """Where the ego and the pedestrian meet, and the pedestrian's way there (computed
+        once)."""
+        from sumo_world.scene import net_of, resample, route_polyline
+
+        if self.zebra is not None:
+            return self.zebra
+        net = net_of(str(self.net), sumolib)
+        ego = resample(route_polyline(net, [f"wc_{self.ego_lane}"], self.ego_route), 0.25)
+        crossing = next(e for e in net.getEdges(withInternal=True) if e.getFunction() == "crossing")
+        shape = np.asarray(crossing.getLanes()[0].getShape(), dtype=np.float64)
+        walk = resample(shape, 0.1)
+        d = np.hypot(ego[:, None, 0] - walk[None, :, 0], ego[:, None, 1] - walk[None, :, 1])
+        i, j = np.unravel_index(int(np.argmin(d)), d.shape)
+        kerb = net.getLane("wc_0")
+        stand = np.asarray(
+            sumolib.geomhelper.positionAtShapeOffset(kerb.getShape(), kerb.getLength() - KERB_M),
+            dtype=np.float64,
+        )
+        # From the kerb across the walking area to the crossing's near end, then along it.
+        ends = shape[[0, -1]]
+        near = ends[int(np.argmin(np.hypot(*(ends - stand).T)))]
+        walk_m = float(np.hypot(*(near - stand)) + np.hypot(*(walk[j] - near)))
+        self.zebra = ZebraMarks(ego[i], walk[j], walk_m)
+        return self.zebra
+
+    def marks(self, sumolib: Any) -> tuple[FloatArray, FloatArray]:
+        zebra = self._marks(sumolib)
+        return zebra.ego, zebra.walker
 
     def step(self, traci: ModuleType, k: int) -> Event | None:
         if self.start < 0:
             if traci.vehicle.getRoadID(EGO) != "wc":
                 raise Refused("the ego passed the crossing before the pedestrian was placed")
-            to_go = traci.lane.getLength("wc_1") - traci.vehicle.getLanePosition(EGO)
+            from sumo_world.env import client_modules
+
+            zebra = self._marks(client_modules()[1])
+            # The road runs west to east: the ego's centre reaches its mark this far on.
+            x_front = traci.vehicle.getPosition(EGO)[0]
+            to_go = float(zebra.ego[0]) - x_front + EGO_SIZE[0] / 2
             if to_go > self.insert_at:
                 return None
             v_ego = max(traci.vehicle.getSpeed(EGO), 5.0)
-            leader = traci.vehicle.getLeader(EGO, 150.0)
-            if leader and leader[0] and leader[1] < 2.5 * v_ego:
-                # A leader this close would stop for the pedestrian first: wait for a gap.
-                if to_go < self.insert_at - 40.0:
-                    raise Refused("no gap in front of the ego to meet the pedestrian")
-                return None
-            wait = to_go / v_ego + self.late - self.to_lane / self.walk_speed
+            wait = to_go / v_ego + self.late - zebra.walk_m / self.walk_speed - EARLY_S
             if wait < 2.8:
                 raise Refused("the ego is too close to let the pedestrian wait")
-            pos = traci.lane.getLength("wc_0") - 1.0
-            self.do(traci, k, "person", "add", PARTNER, "wc", pos, -3, "ped")
-            self.do(traci, k, "person", "appendWaitingStage", PARTNER, wait)
+            pos = traci.lane.getLength("wc_0") - KERB_M
+            self.do(traci, k, "person", "add", PARTNER, "wc", pos, -3, "walker")
             self.do(traci, k, "person", "appendWalkingStage", PARTNER, ["wc", "cw"], 5.0)
-            self.do(traci, k, "person", "setSpeed", PARTNER, self.walk_speed)
+            self.do(traci, k, "person", "setSpeed", PARTNER, 0.0)
             self.start = k + round(wait / STEP_S)
             return None
+        if k == self.start:
+            self.do(traci, k, "person", "setSpeed", PARTNER, self.walk_speed)
         return self.detect(traci, k)
 
     def detect(self, traci: ModuleType, k: int) -> Event | None:
         if PARTNER not in traci.person.getIDList():
             return None
-        if traci.person.getSpeed(PARTNER) > 0.2:  # it has stopped waiting
+        if traci.person.getSpeed(PARTNER) > 0.2:  # it has set off
             return Event(PARTNER, k, "keep_lane")
         return None
 
-    def marks(self, sumolib: Any) -> tuple[FloatArray, FloatArray]:
-        from sumo_world.scene import net_of, resample, route_polyline
-
-        net = net_of(str(self.net), sumolib)
-        ego = resample(route_polyline(net, [f"wc_{self.ego_lane}"], self.ego_route), 0.25)
-        crossing = next(e for e in net.getEdges(withInternal=True) if e.getFunction() == "crossing")
-        walk = resample(np.asarray(crossing.getLanes()[0].getShape(), dtype=np.float64), 0.1)
-        d = np.hypot(ego[:, None, 0] - walk[None, :, 0], ego[:, None, 1] - walk[None, :, 1])
-        i, j = np.unravel_index(int(np.argmin(d)), d.shape)
-        return ego[i], walk[j]
-
     def shift(self, seconds: float) -> None:
+        placed = next(k for k, _, method, _ in self.actions if method == "add")
         for n, (k, domain, method, args) in enumerate(self.actions):
-            if method == "appendWaitingStage":
-                wait = max(float(args[1]) + seconds, 0.5)
-                self.actions[n] = (k, domain, method, (args[0], wait))
+            if method == "setSpeed" and float(args[1]) > 0.0:
+                later = max(k + round(seconds / STEP_S), placed + round(0.5 / STEP_S))
+                self.actions[n] = (later, domain, method, args)
 
 
 def _shift_position(director: Director, metres: float) -> None:
@@ -486,7 +545,7 @@ def build(family: str, rng: np.random.Generator) -> Setup:
     """A ``family`` instance drawn from ``rng``."""
     per_lane = float(rng.uniform(1100.0, 1600.0))
     duration = float(rng.uniform(2.0, 3.5))
-    options = ("--lanechange.duration", f"{duration:.2f}")
+    options: tuple[str, ...] = ("--lanechange.duration", f"{duration:.2f}")
     params: dict[str, float | str] = {"veh_per_hour_lane": round(per_lane)}
     if family == "curve":
         radius = float(rng.uniform(80.0, 200.0))
@@ -539,11 +598,9 @@ def build(family: str, rng: np.random.Generator) -> Setup:
     elif family == "crossing":
         speed = float(rng.uniform(11.0, 13.9))
         net = networks.crossing(speed)
-        flows = [flow("f_we", "r_we", per_lane * 0.6, 3), flow("f_ew", "r_ew", per_lane * 0.3, 3)]
-        zebra = ZebraCrossing(rng, 400.0, 0.0, flows)
-        # From the sidewalk's end: to the crossing, then across the sidewalk and lanes.
-        zebra.to_lane = 1.25 + (3 - zebra.ego_lane) * 3.5 + 1.75
-        director = zebra
+        flows = [flow("f_ew", "r_ew", per_lane * 0.3, 3)]  # only oncoming (see ZebraCrossing)
+        director = zebra = ZebraCrossing(rng, flows)
+        options += ("--pedestrian.striping.dawdling", "0")  # it walks at the speed it is given
         params |= {"speed_limit": round(speed, 2), "walk_speed": round(zebra.walk_speed, 2)}
     else:
         raise ValueError(f"unknown family {family!r}; choose from {', '.join(FAMILIES)}")

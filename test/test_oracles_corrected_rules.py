@@ -700,9 +700,19 @@ def test_missing_input_is_reported_and_check_skipped() -> None:
     assert [p.file for p in ctx.problems] == [f"bboxes/bboxes-{CALM_TS}.json"]
 
 
-def test_engine_style_run_over_a_whole_log() -> None:
+@pytest.mark.parametrize(
+    ("vanishes", "primary"),
+    [
+        (36, "perception"),
+        # Over its 15 steps the plan runs into the partner from frame 37, braking still
+        # keeping clear (rule 4 over the plan's horizon): a planner that saw it there and
+        # kept going failed before perception lost it.
+        (38, "planning"),
+    ],
+)
+def test_engine_style_run_over_a_whole_log(vanishes: int, primary: str) -> None:
     log = head_on_log()
-    for f in range(38, 54):  # the partner vanishes from detection and tracking
+    for f in range(vanishes, 54):  # the partner vanishes from detection and tracking
         _undetected(log, f * TPF)
         log.predictions[f * TPF] = {}
     ctx = context(log)
@@ -712,7 +722,8 @@ def test_engine_style_run_over_a_whole_log() -> None:
         frame.results = {m: ORACLES[m](ctx, ts) for m in MODULES}
         frames.append(frame)
     a = attribute_corrected(frames, ctx)
-    assert a.primary_root_cause == "perception"
+    assert a.root_causes == ["perception", *(["planning"] if primary == "planning" else [])]
+    assert a.primary_root_cause == primary
     assert json.dumps(json_safe(a.modules["perception"].evidence), allow_nan=False)
 
 

@@ -13,7 +13,8 @@ follows); so is a prediction failure that had ended where planning's counted fai
 begins, prediction judged right there in a real conflict (the planner then failed on a
 correct prediction with a safer plan at hand); and so is a perception or prediction
 failure that never misled the planner before planning's counted failure began (the
-planner's own inputs showed the conflict at each of its frames: :func:`_misled`). With a
+planner's own inputs, within W or over the plan's own horizon, showed the conflict at each
+of its frames: :func:`_misled`). With a
 collision but no counted failure, the unconditioned tests of perception and prediction
 (``metrics["unconditioned"]``) are used the same way, and the basis says so.
 Otherwise "no fault found" with its reason. Each blamed module carries its evidence.
@@ -41,6 +42,9 @@ from ads_rca.params import Params
 FALLBACK_MODULES: tuple[Module, ...] = ("perception", "prediction")
 #: Modules whose failure reaches the planner through its inputs (:func:`_misled`).
 UPSTREAM_OF_PLANNING: tuple[Module, ...] = ("perception", "prediction")
+#: The plan's clearances against its own inputs: over W, and over the plan's own horizon
+#: (reported where below the margin).
+PLAN_CLEARANCES = ("c_plan", "c_plan_horizon")
 
 
 def persistence(params: Params, module: Module) -> int:
@@ -187,7 +191,8 @@ def _misled(
     """Whether an upstream module's counted failure hid the threat from the planner at one
     of its frames up to planning's first counted frame (window positions): planning there
     has no clearance below ``margin`` against its own inputs (the partner absent from them,
-    a plan clear of what it was given, or planning not judged: not knowing is misled)."""
+    a plan clear of what it was given within W and over its horizon, or planning not
+    judged: not knowing is misled)."""
     for start, end in runs:
         for position in range(start, min(end, planning_start) + 1):
             if not _plan_saw_threat(window[position].results.get("planning"), margin):
@@ -197,10 +202,14 @@ def _misled(
 
 def _plan_saw_threat(result: OracleResult | None, margin: float) -> bool:
     """Planning judged the frame and its plan's clearance against its own inputs (the
-    partner's raw boxes) was below ``margin``: the planner was shown the conflict."""
+    partner's raw boxes), over W or over the plan's own horizon, was below ``margin``: the
+    planner was shown the conflict."""
     if result is None or result.skipped is not None:
         return False
-    clearance = result.metrics.get("c_plan")
+    return any(_below(result.metrics.get(name), margin) for name in PLAN_CLEARANCES)
+
+
+def _below(clearance: Metric | None, margin: float) -> bool:
     return (
         isinstance(clearance, int | float)
         and not isinstance(clearance, bool)

@@ -24,7 +24,7 @@ import numpy.typing as npt
 
 from ads_rca.diagnosis.critical_event import explained_event
 from ads_rca.foundation.geometry import FloatArray, box_signed_distance
-from ads_rca.model import FOLDERS, EgoPose, Record, RunLog, Track
+from ads_rca.model import FOLDERS, EgoPose, Plan, Record, RunLog, Track
 from ads_rca.oracles.base import RunContext
 from ads_rca.oracles.cache import CACHE_SIZE, LRU, Slide
 from ads_rca.oracles.corrected.boxes import (
@@ -34,10 +34,14 @@ from ads_rca.oracles.corrected.boxes import (
     build_plan,
     build_plans,
     build_predicted,
+    key_steps,
 )
 from ads_rca.params import Params
 
 V = TypeVar("V")
+#: A rule that looks over the stack's own plan looks at most this far ahead (s), whatever
+#: steps a plan names.
+PLAN_HORIZON_MAX_S = 10.0
 
 
 def window_terms(params: Params, frame_ms: int) -> dict[str, int]:
@@ -239,6 +243,12 @@ class CorrectedContext:
             )
         return build_plan(plan, pose, self.ego_half, self.window)
 
+    def plan_horizon(self, plan: Plan) -> int:
+        """The plan's own horizon in frames: its last integer step, at most
+        :data:`PLAN_HORIZON_MAX_S` (-1 without an integer step)."""
+        last = int(key_steps(plan.keys).max(initial=-1))
+        return min(last, round(PLAN_HORIZON_MAX_S * 1000 / self.frame_ms))
+
     # -- actors -----------------------------------------------------------------------------
     def actor_state(self, actor_id: str, ts: int) -> tuple[FloatArray, float] | None:
         """An actor's world location (2,) and yaw (deg) at ts, if it has an entry there."""
@@ -364,10 +374,16 @@ class CorrectedContext:
         return Series(center, yaw, np.asarray(extent[:2], dtype=np.float64))
 
     def predicted_series(
-        self, track: Track, pose: EgoPose, actor_id: str, ts: int
+        self,
+        track: Track,
+        pose: EgoPose,
+        actor_id: str,
+        ts: int,
+        horizon: int | None = None,
+        half: FloatArray | None = None,
     ) -> Series | None:
         """Predicted boxes of an actor (the prediction frame): key k at index k + 1, anchored
-        at the pose."""
+        at the pose; indices 0..W, or 0..``horizon``; the actor's half extent, or ``half``."""
         extent = self.log.actor_extents.get(actor_id)
         if extent is None:
             return None
@@ -376,8 +392,8 @@ class CorrectedContext:
             track,
             pose,
             state,
-            np.asarray(extent[:2], dtype=np.float64),
-            self.window,
+            np.asarray(extent[:2], dtype=np.float64) if half is None else half,
+            self.window if horizon is None else horizon,
             self.params.heading_min_step,
         )
 

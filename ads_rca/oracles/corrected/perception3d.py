@@ -24,7 +24,7 @@ import numpy as np
 
 from ads_rca.foundation.geometry import FloatArray
 from ads_rca.oracles.base import Metric, OracleResult, RunContext
-from ads_rca.oracles.corrected.boxes import Series, build_plan, key_steps
+from ads_rca.oracles.corrected.boxes import Series, build_plan
 from ads_rca.oracles.corrected.clearance import (
     Clearance,
     displacement,
@@ -168,8 +168,6 @@ class Misled:
 
 
 NAN2 = (math.nan, math.nan)
-#: The velocity test looks at most this far ahead (s), whatever steps a plan names.
-MISLED_MAX_S = 10.0
 PARTNER: CacheName[PartnerPerception | None] = CacheName("partner_perception")
 
 
@@ -297,14 +295,12 @@ def _misled(
     judging: CorrectedContext, ts: int, real: Motion, seen: Motion, allowance: float
 ) -> Misled | None:
     """The velocity test at ts over every step of the stack's plan at ts (at most
-    ``MISLED_MAX_S``), optimistic by ``understate_min`` plus the noise ``allowance``; None
+    ``PLAN_HORIZON_MAX_S``), optimistic by ``understate_min`` plus the noise ``allowance``; None
     without a plan with a step beyond 0 or a pose at ts."""
     plan, pose = judging.log.waypoints.get(ts), judging.log.pose.get(ts)
     if plan is None or pose is None:
         return None
-    horizon = min(
-        int(key_steps(plan.keys).max(initial=-1)), round(MISLED_MAX_S * 1000 / judging.frame_ms)
-    )
+    horizon = judging.plan_horizon(plan)
     built = build_plan(plan, pose, judging.ego_half, horizon) if horizon >= 1 else None
     if built is None:
         return None

@@ -37,6 +37,9 @@ pytestmark = pytest.mark.timeout(600)
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "cut_in_perception"
 ADS_RCA = Path(sys.executable).parent / "ads-rca"
 CUT = "the messages before the cut are used"
+#: MCAP's opcode of a message index record, and how many of them one cut sample stands for.
+MESSAGE_INDEX = 0x07
+MESSAGE_INDEX_STRIDE = 10
 
 
 @pytest.fixture(scope="module")
@@ -103,13 +106,20 @@ def test_every_cut_of_an_mcap_is_said(
 ) -> None:
     """Cut at and around every record boundary, in the middle of every record, at 0 and 8
     bytes and just before the end magic: either a log with a truncation problem saying how
-    many messages were kept, or one InputError."""
+    many messages were kept, or one InputError. Message indexes (nine after each chunk,
+    three quarters of the records, alike but for their counts) are cut around every
+    :data:`MESSAGE_INDEX_STRIDE`-th one, the first and the last."""
     bag = bags[kind]
     data = storage_file(bag).read_bytes()
     total = len(list(iter_mcap_stream(storage_file(bag))))
     cuts = {0, 1, 8, 9, 20, len(data) - 8, len(data) - 1}
-    for offset, _opcode, length in record_offsets(data):
-        cuts |= {offset - 1, offset + 1, offset + 9 + length // 2}
+    records = record_offsets(data)
+    indexes = [offset for offset, opcode, _n in records if opcode == MESSAGE_INDEX]
+    sampled = {*indexes[::MESSAGE_INDEX_STRIDE], indexes[-1]}
+    assert len(indexes) > 5 * len(sampled)
+    for offset, opcode, length in records:
+        if opcode != MESSAGE_INDEX or offset in sampled:
+            cuts |= {offset - 1, offset + 1, offset + 9 + length // 2}
     outcomes = {"error": 0, "partial": 0}
     for cut in sorted(c for c in cuts if 0 <= c < len(data)):
         copy = copy_bag(bag, tmp_path / "cut", data[:cut], with_yaml)

@@ -26,6 +26,7 @@ from test_oracles_corrected_rules import (
     Traj,
     build_log,
     context,
+    judged_frames,
     plan_along,
     run,
     straight,
@@ -36,7 +37,7 @@ from ads_rca.diagnosis.verdict import FrameResults
 from ads_rca.foundation.geometry import FloatArray, box_signed_distance, world_to_ego
 from ads_rca.model import RunLog, Track
 from ads_rca.oracles.base import MODULES, Metric, OracleResult
-from ads_rca.oracles.corrected import ORACLES, attribute_corrected
+from ads_rca.oracles.corrected import attribute_corrected
 
 #: The plan's and the predictions' steps (1.5 s, as the SUMO bench's stack).
 STEPS = 30
@@ -99,12 +100,7 @@ def dropped_partner_log(partner: Traj, pace: float) -> RunLog:
 def verdict(log: RunLog) -> tuple[str | None, list[str]]:
     """The primary root cause and the root causes, every frame judged as the engine does."""
     ctx = context(log)
-    frames = []
-    for ts in log.unique_frames:
-        frame = FrameResults(ts, ts // TPF)
-        frame.results = {m: ORACLES[m](ctx, ts) for m in MODULES}
-        frames.append(frame)
-    found = attribute_corrected(frames, ctx)
+    found = attribute_corrected(judged_frames(log, ctx), ctx)
     return found.primary_root_cause, list(found.root_causes)
 
 

@@ -167,6 +167,16 @@ def run(log: RunLog, module: Module, ts: int, **overrides: float) -> OracleResul
     return ORACLES[module](context(log, **overrides), ts)
 
 
+def judged_frames(log: RunLog, ctx: RunContext) -> list[FrameResults]:
+    """Every frame of ``log`` judged by the four oracles, as the engine judges them."""
+    frames = []
+    for ts in log.unique_frames:
+        frame = FrameResults(ts, ts // TPF)
+        frame.results = {m: ORACLES[m](ctx, ts) for m in MODULES}
+        frames.append(frame)
+    return frames
+
+
 def value(result: OracleResult, key: str) -> float:
     """A numeric metric of a result."""
     number = result.metrics[key]
@@ -716,12 +726,7 @@ def test_engine_style_run_over_a_whole_log(vanishes: int, primary: str) -> None:
         _undetected(log, f * TPF)
         log.predictions[f * TPF] = {}
     ctx = context(log)
-    frames = []
-    for ts in log.unique_frames:
-        frame = FrameResults(ts, ts // TPF)
-        frame.results = {m: ORACLES[m](ctx, ts) for m in MODULES}
-        frames.append(frame)
-    a = attribute_corrected(frames, ctx)
+    a = attribute_corrected(judged_frames(log, ctx), ctx)
     assert a.root_causes == ["perception", *(["planning"] if primary == "planning" else [])]
     assert a.primary_root_cause == primary
     assert json.dumps(json_safe(a.modules["perception"].evidence), allow_nan=False)

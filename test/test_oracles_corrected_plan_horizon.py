@@ -33,11 +33,12 @@ from test_oracles_corrected_rules import (
     value,
 )
 
+from ads_rca.diagnosis.engine import evaluate_frame
 from ads_rca.diagnosis.verdict import FrameResults
 from ads_rca.foundation.geometry import FloatArray, box_signed_distance, world_to_ego
-from ads_rca.model import RunLog, Track
+from ads_rca.model import Plan, RunLog, Track
 from ads_rca.oracles.base import MODULES, Metric, OracleResult
-from ads_rca.oracles.corrected import attribute_corrected
+from ads_rca.oracles.corrected import ORACLES, attribute_corrected
 
 #: The plan's and the predictions' steps (1.5 s, as the SUMO bench's stack).
 STEPS = 30
@@ -211,3 +212,42 @@ def test_a_prediction_is_misleading_only_if_the_plans_horizon_showed_nothing(
     found = attribute_corrected(frames, ctx)
     assert found.root_causes == ["prediction", "planning"]
     assert found.primary_root_cause == primary
+
+
+@pytest.mark.parametrize(
+    "damage",
+    [
+        "a step a billion frames on",
+        "negative and non-integer keys",
+        "NaN and huge points",
+        "every seventh step only",
+        "no step beyond 0",
+    ],
+)
+def test_hostile_plans_are_judged_over_a_bounded_horizon(damage: str) -> None:
+    """The plan's own horizon comes from keys a log writes: a step a billion frames on is
+    read as the 10 s cap (never a billion boxes), keys that are no step are ignored, NaN
+    and huge points give an undefined or reported clearance, never an error."""
+    ego, partner = straight(0.0, EGO_SPEED, 80), straight(30.0, 0.0, 80)
+    log = build_log(ego, partner, 53, 53)
+    ts = 37 * TPF
+    plan = log.waypoints[ts]
+    keys, xy, speed = list(plan.keys), plan.xy.copy(), plan.speed.copy()
+    if damage == "a step a billion frames on":
+        keys[-1] = "1000000000"
+    elif damage == "negative and non-integer keys":
+        keys[3], keys[4] = "-5", "1e9"
+    elif damage == "NaN and huge points":
+        xy[5], speed[6] = (math.nan, 1e308), -1e308
+    elif damage == "every seventh step only":
+        keys = [str(7 * n) for n in range(len(keys))]
+    else:
+        keys, xy, speed = keys[:1], xy[:1], speed[:1]
+    log.waypoints[ts] = Plan(tuple(keys), xy, speed)
+    result = evaluate_frame(context(log), ORACLES, ts).results["planning"]  # as the engine
+    assert result.internal_error is None
+    horizon = result.metrics.get("plan_horizon")
+    assert horizon is None or (isinstance(horizon, int) and 0 < horizon <= 10 * 1000 // TPF)
+    for name in ("c_plan_horizon", "horizon_braking_clearance"):
+        number = result.metrics.get(name)
+        assert number is None or (isinstance(number, float) and not math.isinf(number))

@@ -400,6 +400,40 @@ def test_the_velocity_test_runs_only_above_its_threshold() -> None:
     assert "misled_horizon" not in unknown.metrics and unknown.metrics["misled"] is False
 
 
+def stepping_in_at_frame_10(perceived_vy: float) -> RunLog:
+    """The pedestrian of :func:`crossing` standing until frame 10 and stepping in after it:
+    at frame 10 the next frame's velocity is 1.6 m/s, the last frame's 0."""
+    log = crossing(perceived_vy)
+    for f in range(1, 61):
+        log.actors[f * TPF].location[1, 1] = -1.0 + STEP_IN * max(f - 10, 0) * DT
+    return log
+
+
+def test_a_tracker_that_has_not_seen_a_step_yet_is_not_wrong() -> None:
+    """The real velocity at ts looks one frame ahead; a tracker at ts has seen the motion
+    up to ts only. A walker setting off at frame 10, still tracked standing there, is 1.6
+    m/s off the next frame's velocity and right about the last one: the change across ts
+    (1.6 m/s) raises the limit, so this is no velocity error (it was, misleading, before)."""
+    result = run(stepping_in_at_frame_10(0.0), "perception", 10 * TPF)
+    assert number(result, "partner_velocity_error") == pytest.approx(STEP_IN)
+    assert result.metrics["velocity_wrong"] is False and result.metrics["misled"] is False
+    assert result.metrics["unconditioned"] is False
+    assert number(result, "partner_velocity_change") == pytest.approx(STEP_IN)
+
+
+def test_a_velocity_wrong_beyond_the_change_across_ts_still_misleads() -> None:
+    """Seen walking back as it sets off: 3.2 m/s off, past 1.5 + the 1.6 m/s change."""
+    result = run(stepping_in_at_frame_10(-STEP_IN), "perception", 10 * TPF)
+    assert number(result, "partner_velocity_error") == pytest.approx(2 * STEP_IN)
+    assert result.metrics["velocity_wrong"] is True and result.metrics["misled"] is True
+
+
+def test_on_steady_motion_the_change_across_ts_is_nothing() -> None:
+    result = run(crossing(-STEP_IN), "perception", 10 * TPF)
+    assert number(result, "partner_velocity_change") == pytest.approx(0.0, abs=1e-9)
+    assert result.metrics["velocity_wrong"] is True
+
+
 def test_a_plan_naming_a_huge_step_is_looked_at_for_ten_seconds_only() -> None:
     ts = 10 * TPF
     log = crossing(-STEP_IN)

@@ -132,6 +132,7 @@ class PartnerPerception:
     offset: FloatArray | None = None
     floor: Floor = NO_FLOOR  # the displacement noise floor (matched only)
     velocity_floor: Floor = NO_FLOOR  # the velocity-error noise floor (matched only)
+    velocity_change: float = 0.0  # |the real velocity's change across ts| (matched only)
     allowance: float = 0.0  # noise_floor_factor × floor (m)
     by_allowance: bool = False  # paired with its object only within the noise allowance
 
@@ -197,6 +198,18 @@ def real_velocity(judging: CorrectedContext, actor_id: str, ts: int) -> FloatArr
     if earlier is not None:
         return np.asarray((now[0] - earlier[0]) / dt, dtype=np.float64)
     return np.full(2, np.nan)
+
+
+def velocity_change(judging: CorrectedContext, actor_id: str, ts: int) -> float:
+    """How much the actor's real velocity changes across ts: |v(ts → ts + tpf) − v(ts − tpf →
+    ts)| (m/s), 0 where either is unknown. :func:`real_velocity` looks one frame ahead, which
+    a tracker at ts has not seen: an error within this change is any tracker's lag."""
+    states = [judging.actor_state(actor_id, ts + k * judging.frame_ms) for k in (-1, 0, 1)]
+    if any(state is None for state in states):
+        return 0.0
+    before, now, after = (state[0] for state in states if state is not None)
+    change = float(np.hypot(*(after - 2.0 * now + before))) / (judging.frame_ms / 1000.0)
+    return change if math.isfinite(change) else 0.0
 
 
 @dataclass(frozen=True)
@@ -265,7 +278,8 @@ def _assess(judging: CorrectedContext, ts: int, partner: str | None) -> PartnerP
     )
     size = 2.0 * (seen.half - real.half)
     velocity_error = float(np.hypot(*(o_velocity - velocity))) if known else math.nan
-    v_limit = p.perc3d_velocity_error + p.noise_floor_factor * v_floor.value
+    change = velocity_change(judging, partner, ts)
+    v_limit = p.perc3d_velocity_error + p.noise_floor_factor * v_floor.value + change
     velocity_wrong = velocity_error > v_limit  # False for NaN
     misled = _misled(judging, ts, real, seen, allowance) if velocity_wrong else None
     return PartnerPerception(
@@ -286,6 +300,7 @@ def _assess(judging: CorrectedContext, ts: int, partner: str | None) -> PartnerP
         offset=seen_boxes.center - real_boxes.center,
         floor=floor,
         velocity_floor=v_floor,
+        velocity_change=change,
         allowance=allowance,
         by_allowance=by_allowance,
     )
@@ -364,6 +379,7 @@ def perception3d(ctx: RunContext, ts: int) -> OracleResult:
         metrics.update(
             **seen.floor.metrics("perception"),
             **seen.velocity_floor.metrics("velocity"),
+            partner_velocity_change=seen.velocity_change,
             noise_allowance=seen.allowance,
             partner_paired_by_allowance=seen.by_allowance,
         )

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 import shapely
 
-from ads_rca.diagnosis.engine import diagnose
+from ads_rca.diagnosis.engine import diagnose, evaluate_frame
 from ads_rca.errors import ConfigError
 from ads_rca.foundation.geometry import FloatArray, bev_iou, box_corners, world_to_ego
 from ads_rca.model import Actors, Boxes, EgoPose, Objects3D, Plan, RunLog, RunMetadata, Track
@@ -432,6 +432,28 @@ def test_on_steady_motion_the_change_across_ts_is_nothing() -> None:
     result = run(crossing(-STEP_IN), "perception", 10 * TPF)
     assert number(result, "partner_velocity_change") == pytest.approx(0.0, abs=1e-9)
     assert result.metrics["velocity_wrong"] is True
+
+
+@pytest.mark.parametrize("damage", ["absent the frame before", "NaN", "1e308 the frame after"])
+def test_a_change_across_ts_that_cannot_be_read_allows_nothing(damage: str) -> None:
+    """The change is read from the partner's real positions around ts, which a log writes:
+    a frame without the partner, a NaN or a position whose difference overflows gives 0
+    (the fixed limit and the floor alone), never a NaN or infinite limit that no error
+    could exceed."""
+    log = stepping_in_at_frame_10(-STEP_IN)
+    actors = log.actors[(9 if damage != "1e308 the frame after" else 11) * TPF]
+    if damage == "absent the frame before":
+        log.actors[9 * TPF] = Actors(
+            actors.ids[:1], actors.location[:1], actors.rotation[:1], actors.extent[:1]
+        )
+    else:
+        actors.location[1, 0] = math.nan if damage == "NaN" else 1e308
+    result = evaluate_frame(
+        RunContext.create(log, make_params("corrected")), ORACLES, 10 * TPF
+    ).results["perception"]
+    assert result.internal_error is None
+    change = result.metrics.get("partner_velocity_change")
+    assert change is None or change == 0.0
 
 
 def test_a_plan_naming_a_huge_step_is_looked_at_for_ten_seconds_only() -> None:

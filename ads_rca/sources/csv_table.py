@@ -133,27 +133,46 @@ def numbers(
         values = np.array(cells, dtype=np.float64)
     except ValueError:
         values = np.array([_float(cell) for cell in cells], dtype=np.float64)
-    judged = ~table.short & (True if used is None else used)
-
-    def refuse(rows: npt.NDArray[np.bool_], why: str) -> None:
-        """The ``rows`` read as NaN, said once: how many, why, the first."""
-        if rows.any():
-            first = int(np.argmax(rows))
-            problems.add(
-                table.name,
-                shown(column),
-                f"{int(rows.sum())} rows: {why} (the first: {labels[first]}, "
-                f"{shown(cells[first])!r})",
-                "read as NaN",
-            )
-            values[rows] = np.nan
-
-    refuse(~np.isfinite(values) & judged, "not a finite number")
-    refuse(
+    judged = _judged(table, used)
+    said = (table, column, labels, problems)
+    _read_as_nan(said, values, ~np.isfinite(values) & judged, "not a finite number")
+    _read_as_nan(
+        said,
+        values,
         np.isfinite(values) & (np.abs(values) > bound) & judged,
         f"beyond ±{bound:g}, too large to compute with",
     )
     return values
+
+
+#: A column as its refusals name it: its table, its name, the rows' labels, where to say.
+_Column = tuple[CsvTable, str, Sequence[str], ProblemLog]
+
+
+def _judged(table: CsvTable, used: npt.NDArray[np.bool_] | None) -> npt.NDArray[np.bool_]:
+    """The rows whose cells are judged: of the header's length, and ``used`` (all by
+    default)."""
+    judged: npt.NDArray[np.bool_] = ~table.short & (True if used is None else used)
+    return judged
+
+
+def _read_as_nan(
+    column: _Column, values: FloatArray, rows: npt.NDArray[np.bool_], why: str
+) -> None:
+    """``rows`` of ``column`` read as NaN in ``values``, said once: how many, why, the first
+    by its label."""
+    if not rows.any():
+        return
+    table, name, labels, problems = column
+    first = int(np.argmax(rows))
+    problems.add(
+        table.name,
+        shown(name),
+        f"{int(rows.sum())} rows: {why} (the first: {labels[first]}, "
+        f"{shown(table.cells(name)[first])!r})",
+        "read as NaN",
+    )
+    values[rows] = np.nan
 
 
 def _float(cell: str) -> float:
@@ -185,16 +204,8 @@ def booleans(
         dtype=np.float64,
     ).reshape(-1)
     values: FloatArray = lookup[inverse.reshape(-1)] if len(texts) else np.zeros(0)
-    bad = np.isnan(values) & ~table.short & (True if used is None else used)
-    if bad.any():
-        first = int(np.argmax(bad))
-        problems.add(
-            table.name,
-            shown(column),
-            f"{int(bad.sum())} rows: not true or false (the first: {labels[first]}, "
-            f"{shown(table.cells(column)[first])!r})",
-            "read as NaN",
-        )
+    said = (table, column, labels, problems)
+    _read_as_nan(said, values, np.isnan(values) & _judged(table, used), "not true or false")
     return values
 
 

@@ -273,7 +273,7 @@ def test_the_page_follows_a_live_replay_without_reload(browser: Any) -> None:
             assert status in ("ok (provisional)", "failing (provisional)"), status
             assert judged > 0
         # Screenshots during the run: each module's status in its colour, as seen.
-        assert page.text_content("#connection") == "live"
+        _connection(page, "live", timeout=10_000)  # the link's state is looked at apart
         assert colours_shown(screenshot(page, "#connection")[1]) == {"good"}
         checked = 0
         for module in MODULES:

@@ -1,4 +1,4 @@
-"""A predictions or waypoint file's numbers go through records.finite_floats (``array("d")``)
+"""A predictions or waypoint file's numbers go through records.finite_floats (``struct``)
 instead of ``np.array``: on clean, hostile and randomly damaged documents the record and the
 problems are what the walk (the reader's slow path, which says what is wrong) gives."""
 

@@ -47,8 +47,11 @@ _NUMERIC_KINDS = "fiub"
 #: Exact types of a strict JSON number, and of one that may be unknown (null).
 _NUMBER_TYPES: frozenset[type] = frozenset((int, float))
 _MAYBE_NUMBER_TYPES: frozenset[type] = frozenset((int, float, type(None)))
-#: A prediction step's numbers, in a C loop (a predictions file holds thousands of steps).
+#: A 3-D point's numbers, in a C loop.
 _STEP_XYZ = itemgetter("x", "y", "z")
+#: A prediction step's numbers one at a time, each mapped over every step of a file (a
+#: predictions file holds thousands of steps).
+_STEP_X, _STEP_Y, _STEP_Z = itemgetter("x"), itemgetter("y"), itemgetter("z")
 #: A box's corners and id.
 _BOUNDING_BOX, _ID = itemgetter("bounding_box"), itemgetter("id")
 #: A 3-D object's parts.
@@ -288,21 +291,25 @@ PredictionParts = tuple[tuple[str, ...], list[tuple[str, ...]], FloatArray]
 def prediction_parts(document: Any) -> PredictionParts | None:
     """All tracks of a predictions file in one array conversion, or None unless every step
     of every track has numeric, finite x, y and z (then :func:`parse_predictions` says
-    what is wrong). A reader process packs these pieces without making the tracks."""
+    what is wrong). A reader process packs these pieces without making the tracks.
+
+    The numbers are taken a column at a time (every x, then every y, then every z: three
+    C loops of one key each, no tuple a step to chain) and copied transposed into rows:
+    30 instead of 37 us for a file of 300 steps."""
     if not isinstance(document, Mapping):
         return None
     if not document:  # no track (every frame of a quiet run): no array calls
         return (), [], _NO_OFFSETS
     try:
         tracks = list(document.values())
-        steps = map(_STEP_XYZ, chain.from_iterable(map(dict.values, tracks)))
-        flat = finite_floats(list(chain.from_iterable(steps)))
+        steps = list(chain.from_iterable(map(dict.values, tracks)))
+        columns = finite_floats([*map(_STEP_X, steps), *map(_STEP_Y, steps), *map(_STEP_Z, steps)])
         keys = [tuple(track) for track in tracks]
     except (KeyError, TypeError, AttributeError):
         return None
-    if flat is None:
+    if columns is None:
         return None
-    return tuple(map(str, document)), keys, flat.reshape(-1, 3)
+    return tuple(map(str, document)), keys, columns.reshape(3, -1).T.copy()
 
 
 def _predictions_fast(document: Mapping[str, Any]) -> Predictions | None:

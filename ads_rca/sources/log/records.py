@@ -49,9 +49,9 @@ _NUMBER_TYPES: frozenset[type] = frozenset((int, float))
 _MAYBE_NUMBER_TYPES: frozenset[type] = frozenset((int, float, type(None)))
 #: A 3-D point's numbers, in a C loop.
 _STEP_XYZ = itemgetter("x", "y", "z")
-#: A prediction step's numbers one at a time, each mapped over every step of a file (a
-#: predictions file holds thousands of steps).
-_STEP_X, _STEP_Y, _STEP_Z = itemgetter("x"), itemgetter("y"), itemgetter("z")
+#: A prediction step's or a plan point's numbers one at a time, each mapped over every
+#: step or point of a file (a predictions file holds thousands of steps).
+_X, _Y, _Z, _SPEED = itemgetter("x"), itemgetter("y"), itemgetter("z"), itemgetter("speed")
 #: A box's corners and id.
 _BOUNDING_BOX, _ID = itemgetter("bounding_box"), itemgetter("id")
 #: A 3-D object's parts.
@@ -308,7 +308,7 @@ def prediction_parts(document: Any) -> PredictionParts | None:
     try:
         tracks = list(document.values())
         steps = list(chain.from_iterable(map(dict.values, tracks)))
-        columns = finite_floats([*map(_STEP_X, steps), *map(_STEP_Y, steps), *map(_STEP_Z, steps)])
+        columns = finite_floats([*map(_X, steps), *map(_Y, steps), *map(_Z, steps)])
         keys = [tuple(track) for track in tracks]
     except (KeyError, TypeError, AttributeError):
         return None
@@ -357,11 +357,14 @@ def parse_plan(document: Any, file: str, problems: ProblemLog, ts: int) -> Plan 
         reader.report("", f"expected an object, found {_type(document)}", SKIPPED_FILE)
         return None
     keys = tuple(str(k) for k in document)
-    try:
-        flat = finite_floats([v for p in document.values() for v in (p["x"], p["y"], p["speed"])])
-        if flat is not None:
-            table = flat.reshape(-1, 3)
-            return Plan(keys, table[:, :2].copy(), table[:, 2].copy())
+    try:  # a column at a time, as prediction steps (:func:`prediction_parts`)
+        points = list(document.values())
+        columns = finite_floats([*map(_X, points), *map(_Y, points), *map(_SPEED, points)])
+        if columns is not None:
+            count = len(points)
+            return Plan(
+                keys, columns[: 2 * count].reshape(2, -1).T.copy(), columns[2 * count :].copy()
+            )
     except (KeyError, TypeError, AttributeError):
         pass
     rows = [

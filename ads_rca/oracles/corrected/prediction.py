@@ -66,15 +66,19 @@ def displacement_metrics(
     count = finite.sum(axis=1)
     has = count > 0
     ade = np.where(has, np.where(finite, err, 0.0).sum(axis=1) / np.maximum(count, 1), np.nan)
-    last = w - 1 - np.argmax(finite[:, ::-1], axis=1)
+    last = w - 1 - finite[:, ::-1].argmax(axis=1)
     fde = np.where(has, err[np.arange(len(ids)), last], np.nan)
-    if has.any():
-        out["ade"] = float(ade[has].mean())
-        out["fde"] = float(fde[has].mean())
-        out["miss_rate"] = float((fde[has] > MISS_DISTANCE).mean())
-        out["missed_actors"] = [ids[n] for n in np.flatnonzero(fde > MISS_DISTANCE)]
+    fdes: list[float] = fde.tolist()
+    n = int(np.count_nonzero(has))
+    if n:
+        # a mean is the sum over the count (what ndarray.mean computes, without its wrapper)
+        out["ade"] = float(ade[has].sum()) / n
+        out["fde"] = float(fde[has].sum()) / n
+        missed: list[Metric] = [a for a, v in zip(ids, fdes, strict=True) if v > MISS_DISTANCE]
+        out["miss_rate"] = len(missed) / n
+        out["missed_actors"] = missed
     out["ade_per_actor"] = dict(zip(ids, ade.tolist(), strict=True))
-    out["fde_per_actor"] = dict(zip(ids, fde.tolist(), strict=True))
+    out["fde_per_actor"] = dict(zip(ids, fdes, strict=True))
     return out
 
 

@@ -1,6 +1,7 @@
-"""A predictions or waypoint file's numbers go through records.finite_floats (``struct``)
-instead of ``np.array``: on clean, hostile and randomly damaged documents the record and the
-problems are what the walk (the reader's slow path, which says what is wrong) gives."""
+"""A predictions, waypoint or boxes file's numbers go through records.finite_floats
+(``struct``) instead of ``np.array``: on clean, hostile and randomly damaged documents the
+record and the problems are what the walk (the reader's slow path, which says what is
+wrong) gives."""
 
 from __future__ import annotations
 
@@ -11,12 +12,14 @@ from typing import Any
 import numpy as np
 import pytest
 
-from ads_rca.model import Plan, Predictions
+from ads_rca.model import Boxes, Plan, Predictions
 from ads_rca.problems import ProblemLog
 from ads_rca.sources.log.records import (
     FieldReader,
     _track,
+    boxes_walked,
     finite_floats,
+    parse_boxes,
     parse_plan,
     parse_predictions,
 )
@@ -85,6 +88,28 @@ def same_plan(document: dict[str, Any]) -> None:
     assert list(problems) == want_problems
 
 
+def walked_boxes(document: list[Any]) -> tuple[Boxes, list[Any]]:
+    problems = ProblemLog()
+    return boxes_walked(document, FieldReader("b.json", problems, 1)), list(problems)
+
+
+def same_boxes(document: list[Any]) -> None:
+    problems = ProblemLog()
+    got = parse_boxes(document, "b.json", problems, 1)
+    want, want_problems = walked_boxes(document)
+    assert got is not None and got.ids == want.ids and got.extras == want.extras
+    assert got.corners.dtype == np.float64 and got.corners.shape == want.corners.shape
+    assert got.corners.tobytes() == want.corners.tobytes()
+    assert list(problems) == want_problems
+
+
+def boxes(n: int = 3) -> list[Any]:
+    return [
+        {"id": 7 + i, "bounding_box": [[i * 1.5, -i / 3], [i * 1.5 + 2.0, 1.25]], "score": 0.9}
+        for i in range(n)
+    ]
+
+
 def predictions(n: int = 3, steps: int = 4) -> dict[str, Any]:
     return {
         str(9000 + i): {str(k): {"x": i + k * 0.1, "y": -k / 3, "z": 0.0} for k in range(steps)}
@@ -106,11 +131,23 @@ def test_one_hostile_value_gives_what_the_walk_gives(value: Any) -> None:
         document = plan()
         document["3"][name] = value
         same_plan(document)
+    for point in (0, 1):
+        for coordinate in (0, 1):
+            corners = boxes()
+            corners[1]["bounding_box"][point][coordinate] = value
+            same_boxes(corners)
+        corners = boxes()
+        corners[2]["bounding_box"][point] = value  # a point that is no [x, y]
+        same_boxes(corners)
+    corners = boxes()
+    corners[0]["bounding_box"] = value  # no pair of points
+    same_boxes(corners)
 
 
 def test_empty_files_give_empty_records() -> None:
     same_predictions({})
     same_plan({})
+    same_boxes([])
     assert parse_predictions({}, "p.json", ProblemLog(), 1) == {}
 
 
@@ -138,3 +175,8 @@ def test_randomly_damaged_documents_give_what_the_walk_gives() -> None:
                 VALUES
             )
         same_plan(waypoints)
+        damaged = copy.deepcopy(boxes(4))
+        for _edit in range(rng.randint(1, 3)):
+            box = damaged[rng.randrange(len(damaged))]
+            box["bounding_box"][rng.randrange(2)][rng.randrange(2)] = rng.choice(VALUES)
+        same_boxes(damaged)

@@ -207,6 +207,12 @@ def parse_boxes(document: Any, file: str, problems: ProblemLog, ts: int) -> Boxe
     fast = _boxes_fast(document)
     if fast is not None:
         return fast
+    return boxes_walked(document, reader)
+
+
+def boxes_walked(document: list[Any], reader: FieldReader) -> Boxes:
+    """A boxes file read box by box, each problem reported: what :func:`_boxes_fast` gives
+    on a file it takes (a test holds them equal on hostile values)."""
     ids: list[str] = []
     corners: list[list[float]] = []
     extras: list[Mapping[str, Any]] = []

@@ -19,6 +19,7 @@ import pytest
 import zenoh
 from loopback import free_port
 
+from ads_rca.remote import client as client_module
 from ads_rca.remote.client import (
     CONNECTED,
     CONNECTING,
@@ -150,3 +151,30 @@ def test_each_link_asks_its_own_queryables_when_it_connects() -> None:
             assert links.caught_up > 0 and links.catch_up_error == ""
         finally:
             links.close()
+
+
+def test_a_sample_through_a_link_not_yet_marked_connected_is_looked_at_at_once(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A peer session connects on Zenoh's own retry, between two looks at the link: its
+    first sample wakes the links' thread, so the link says connected beside it, not at the
+    period's end (the dashboard's page said "zenoh not connected" beside results)."""
+    monkeypatch.setattr(client_module, "LINK_PERIOD_S", 40.0)  # no look but the first
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    links = RemoteLinks([endpoint], mode="peer")
+    links.open_now()
+    links.start()
+    try:
+        until(lambda: links.states()[0]["state"] == DISCONNECTED)  # the first look: nobody
+        with peer(endpoint) as bridge:
+            heard: list[str] = []
+
+            def a_sample_came() -> bool:
+                bridge.put("car1/ads_rca/status.json", b"{}")
+                heard.extend(key for key, _ in links.drain())
+                return bool(heard)
+
+            until(a_sample_came)
+            until(lambda: links.states()[0]["state"] == CONNECTED, timeout=5.0)
+    finally:
+        links.close()

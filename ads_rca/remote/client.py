@@ -20,6 +20,7 @@ import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 from ads_rca.foundation.text import printable
@@ -102,11 +103,14 @@ class RemoteClient(SessionOwner):
         listen: Sequence[str] = (),
         allow_remote: bool = False,
         samples: SampleQueue | None = None,
+        on_sample: Callable[[], None] | None = None,
     ) -> None:
         self.config_text = session_config(mode, listen, connect, allow_remote)
         self.root = root_expression(prefix)
         #: Where samples and replies go (several clients may share one).
         self.samples = samples or SampleQueue()
+        #: Called on Zenoh's thread after each sample is queued (None: nothing).
+        self.on_sample = on_sample
         self.dropped = 0
         #: Of :attr:`dropped`, those refused for their size (``view.payload_limit``).
         self.oversize = 0
@@ -128,6 +132,8 @@ class RemoteClient(SessionOwner):
 
     def _on_sample(self, sample: Any) -> None:  # on a zenoh thread
         self._offer(str(sample.key_expr), sample.payload)
+        if self.on_sample is not None:
+            self.on_sample()
 
     def _offer(self, key: str, payload: Any) -> None:
         """Queue a sample's key and bytes; one over its key's size limit is counted and
@@ -271,6 +277,8 @@ class RemoteLinks:
             )
             for endpoint in dict.fromkeys(connect)
         ]
+        for link in self.links:
+            link.client.on_sample = partial(self._heard, link)
         self.catch_up_timeout = catch_up_timeout
         self.wall = wall
         #: When the last finished catch-up began (monotonic; its replies are queued).
@@ -279,6 +287,8 @@ class RemoteLinks:
         self.catch_up_error = ""
         self._lock = threading.Lock()
         self._wanted = threading.Event()
+        #: Set to look at the links before the period ends.
+        self._look = threading.Event()
         self._stopping = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -307,6 +317,13 @@ class RemoteLinks:
         """Ask every connected link's queryables again, on the links' thread."""
         self._wanted.set()
 
+    def _heard(self, link: Link) -> None:
+        """A sample came through ``link`` (on a Zenoh thread). Not marked connected yet (it
+        connected since the last look): look now, not at the period's end, so that no
+        dashboard says "not connected" beside results that came through it."""
+        if not link.connected:
+            self._look.set()
+
     def states(self) -> list[dict[str, Any]]:
         return [link.describe() for link in self.links]
 
@@ -328,7 +345,8 @@ class RemoteLinks:
                 self._wanted.clear()
                 # Begun after the request it answers was seen (``Watcher.settled``).
                 self._catch_up(time.monotonic())
-            self._stopping.wait(LINK_PERIOD_S)
+            self._look.wait(LINK_PERIOD_S)
+            self._look.clear()
 
     def _catch_up(self, began: float) -> None:
         error = ""
@@ -346,6 +364,7 @@ class RemoteLinks:
         """Stop the thread (a query in progress ends with its session) and close every
         session; safe to call twice."""
         self._stopping.set()
+        self._look.set()
         for link in self.links:
             link.client.close()
         if self._thread is not None:

@@ -103,14 +103,13 @@ class RemoteClient(SessionOwner):
         listen: Sequence[str] = (),
         allow_remote: bool = False,
         samples: SampleQueue | None = None,
-        on_sample: Callable[[], None] | None = None,
     ) -> None:
         self.config_text = session_config(mode, listen, connect, allow_remote)
         self.root = root_expression(prefix)
         #: Where samples and replies go (several clients may share one).
         self.samples = samples or SampleQueue()
         #: Called on Zenoh's thread after each sample is queued (None: nothing).
-        self.on_sample = on_sample
+        self.on_sample: Callable[[], None] | None = None
         self.dropped = 0
         #: Of :attr:`dropped`, those refused for their size (``view.payload_limit``).
         self.oversize = 0

@@ -7,6 +7,7 @@ component updates or sync).
 
 from __future__ import annotations
 
+import json
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -42,3 +43,23 @@ def chromium() -> Iterator[Any]:
             yield launched
         finally:
             launched.close()
+
+
+def wait_for_connection(page: Any, text: str, timeout: float = 30_000, context: str = "") -> None:
+    """Wait until the dashboard page's connection line reads ``text``. The link's state is
+    set on the links' thread and results are drawn from the samples' path, so the line may
+    follow a result by a moment; if it never comes, fail with each link's state and error
+    as the page shows them, and ``context`` (say, the dashboard's output)."""
+    from playwright.sync_api import TimeoutError as PlaywrightTimeout
+
+    try:
+        page.wait_for_function(
+            f"() => document.getElementById('connection').textContent === {json.dumps(text)}",
+            timeout=timeout,
+        )
+    except PlaywrightTimeout:
+        shown = page.text_content("#connection")
+        links = page.text_content("#zenoh")
+        raise AssertionError(
+            f"connection {shown!r}, not {text!r}; links {links!r}; {context}"
+        ) from None

@@ -31,7 +31,7 @@ from typing import Any
 
 import orjson
 import pytest
-from headless import chromium
+from headless import chromium, wait_for_connection
 from loopback import free_port
 from unsure_run import unsure_copy
 
@@ -273,7 +273,7 @@ def test_the_page_follows_a_live_replay_without_reload(browser: Any) -> None:
             assert status in ("ok (provisional)", "failing (provisional)"), status
             assert judged > 0
         # Screenshots during the run: each module's status in its colour, as seen.
-        _connection(page, "live", timeout=10_000)  # the link's state is looked at apart
+        wait_for_connection(page, "live", timeout=10_000)
         assert colours_shown(screenshot(page, "#connection")[1]) == {"good"}
         checked = 0
         for module in MODULES:
@@ -345,13 +345,6 @@ def test_the_page_follows_a_live_replay_without_reload(browser: Any) -> None:
         page.close()
 
 
-def _connection(page: Any, text: str, timeout: float = 30_000) -> None:
-    page.wait_for_function(
-        f"() => document.getElementById('connection').textContent === {json.dumps(text)}",
-        timeout=timeout,
-    )
-
-
 @pytest.mark.slow
 def test_the_page_says_whether_zenoh_is_reached_and_recovers_after_an_outage(
     browser: Any,
@@ -364,25 +357,25 @@ def test_the_page_says_whether_zenoh_is_reached_and_recovers_after_an_outage(
     with dashboard(endpoint, other) as board:
         page = browser.new_page()
         page.goto(board.url)
-        _connection(page, "zenoh not connected: no results can arrive")
+        wait_for_connection(page, "zenoh not connected: no results can arrive")
         links = page.text_content("#zenoh") or ""
         assert f"{endpoint} not connected" in links and f"{other} not connected" in links
         assert colours_shown(screenshot(page, "#connection")[1]) == {"bad"}
         with feed("car1", endpoint=endpoint, run="first"):
-            _connection(page, "live · zenoh 1 of 2 connected")
+            wait_for_connection(page, "live · zenoh 1 of 2 connected")
             page.wait_for_function(
                 "() => document.getElementById('verdict-primary').textContent === 'perception'"
             )
             assert colours_shown(screenshot(page, "#connection")[1]) == set()  # amber, not green
             assert f"{endpoint} connected" in (page.text_content("#zenoh") or "")
             first = board.runs()["runs"]
-        _connection(page, "zenoh not connected: no results can arrive")  # the outage, said
+        wait_for_connection(page, "zenoh not connected: no results can arrive")  # the outage, said
         assert re.search(
             f"{re.escape(endpoint)} not connected since .+ \\(reconnecting\\)",
             page.text_content("#zenoh") or "",
         )
         with feed("car1", endpoint=endpoint, run="second"), feed("car1", endpoint=other, run="x"):
-            _connection(page, "live")
+            wait_for_connection(page, "live")
             assert colours_shown(screenshot(page, "#connection")[1]) == {"good"}
             page.wait_for_function("() => document.querySelectorAll('#runs tbody tr').length === 3")
             rows = page.eval_on_selector_all(

@@ -27,10 +27,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import pytest
-from headless import chromium
+from headless import chromium, wait_for_connection
 from logcompare import assert_logs_equal
 from loopback import free_port
-from playwright.sync_api import TimeoutError as PlaywrightTimeout
 from rosbags.typesys import Stores, get_typestore
 from rosrun import listener, rows, wait_for
 from verdicts import failed_flags, verdict_keys
@@ -494,16 +493,7 @@ def test_results_reach_watch_and_the_page_while_a_replay_plays_at_log_rate(
                          .some((cell) => cell.textContent.endsWith('(provisional)'))""",
                 timeout=60_000,
             )
-            # The link's state is looked at every 0.25 s on a thread of its own: a result
-            # that came in the moment the link connected can be drawn before it says so.
-            try:
-                page.wait_for_function(
-                    "() => document.getElementById('connection').textContent === 'live'",
-                    timeout=10_000,
-                )
-            except PlaywrightTimeout:
-                links = page.text_content("#zenoh")
-                raise AssertionError(f"links {links!r}; dashboard: {board.output}") from None
+            wait_for_connection(page, "live", 10_000, f"dashboard: {board.output}")
             assert not out.exists() and replay.returncode is None  # still playing
             primary = json.dumps(diagnose_primary(log_dir))
             page.wait_for_function(

@@ -237,6 +237,14 @@ def screenshot(page: Any, selector: str) -> tuple[str, bytes, str]:
     raise AssertionError(f"{selector}: never stayed on the page long enough to be shot")
 
 
+#: The number of lines each module's name takes in the modules table, in page script.
+NAME_LINES = (
+    "Array.from(document.querySelectorAll('#modules tr[data-module] td:first-child'))"
+    ".map((e) => { const r = document.createRange(); r.selectNodeContents(e);"
+    " return r.getClientRects().length; })"
+)
+
+
 def _module_statuses(page: Any) -> dict[str, tuple[str, int]]:
     found: dict[str, tuple[str, int]] = page.evaluate(
         """() => Object.fromEntries(
@@ -311,11 +319,10 @@ def test_the_page_follows_a_live_replay_without_reload(browser: Any) -> None:
         assert all(shown <= 4 and shown <= total for shown, total in cells), cells
         assert any(total > 4 for _, total in cells), cells
         page.set_viewport_size({"width": 360, "height": 800})  # a phone: names never split
-        lines = page.eval_on_selector_all(
-            "#modules tr[data-module] td:first-child",
-            "els => els.map(e => { const r = document.createRange(); r.selectNodeContents(e);"
-            " return r.getClientRects().length; })",
-        )
+        # Read once laid out at the new width: once in CI every name read 0 lines just
+        # after the resize. Then exactly one line each.
+        page.wait_for_function(f"() => {NAME_LINES}.every((count) => count > 0)")
+        lines = page.evaluate(f"() => {NAME_LINES}")
         assert lines == [1, 1, 1, 1], lines
         assert page.evaluate("window.sameDocument") is True  # updated in place, never reloaded
         assert page.locator("#timeline-box polyline").count() == 1

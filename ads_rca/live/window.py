@@ -211,6 +211,9 @@ class MonitorCore(FollowsRunEnd):
         #: Per module, the traceback of the first exception its oracle raised in any
         #: window (a bug in our code: the node logs it once; the result says which error).
         self.tracebacks: dict[Module, str] = {}
+        #: What the oracles carry from one view's context to the next
+        #: (:attr:`RunContext.carried`): a floor's samples of the frames views share.
+        self.carried: dict[str, Any] = {}
 
     # --- feeding ---------------------------------------------------------------------
 
@@ -639,6 +642,7 @@ class MonitorCore(FollowsRunEnd):
             self.ego_id, self.ego_resolved = ctx.ego_id, True
         ctx.scorer_state = self.scorer_state  # the run so far: every judged frame's
         ctx.tracebacks = self.tracebacks  # the first per module, of every window
+        ctx.carried = self.carried  # per-frame values its views share (floor samples)
         if self.judge_without_collision and self.collision_frame < 0:
             self.semantics.judge_without_collision(ctx)
         return ctx

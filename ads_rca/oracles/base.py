@@ -52,6 +52,11 @@ class RunContext:
     #: Per module, the traceback of the first exception its oracle raised (a bug in our
     #: code: the command prints it; the verdict names the module's internal error).
     tracebacks: dict[Module, str] = field(default_factory=dict, repr=False)
+    #: Per-frame values the oracles carry from one context of the run to the next, by name
+    #: (:class:`~ads_rca.oracles.cache.Carry`): a live monitor judges each frame on a new
+    #: view of its window and gives every one the same dict. None: nothing carried
+    #: (``diagnose`` judges a run on one context, whose own caches suffice).
+    carried: dict[str, Any] | None = field(default=None, repr=False)
 
     @classmethod
     def create(cls, log: RunLog, params: Params) -> RunContext:

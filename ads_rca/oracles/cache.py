@@ -6,7 +6,9 @@ overlapping horizons) build each thing once, but a live monitor runs for hours, 
 cache must be bounded. One class instead of a hand-rolled dict per use; and for a floor,
 which reads a value per frame of a window that slides by one frame per timestamp, one
 that keeps the last window's values, so reading the next costs one new value, not a
-lookup per frame.
+lookup per frame. A live monitor judges each frame on a new view of its window, so it
+also carries per-frame values from one view's context to the next, each with the records it
+was computed from.
 """
 
 from __future__ import annotations
@@ -90,3 +92,30 @@ class Slide(Generic[V]):
             values = [compute(k) for k in keys]
         self._keys, self._values, self._tag = keys, values, tag
         return values
+
+
+class Carry(Generic[K, V]):
+    """Values kept from one context of a run to the next (a live monitor builds one per view
+    of its window), each with the records it was computed from: a value is reused only
+    while every one of them is the very same object, so a record that arrived since, or a
+    view that lacks one, computes afresh. Bounded: least recently used."""
+
+    def __init__(self, size: int = CACHE_SIZE) -> None:
+        self._data: LRU[K, tuple[tuple[object, ...], V]] = LRU(size)
+
+    def get(self, key: K, sources: tuple[object, ...], compute: Callable[[], V]) -> V:
+        """The value kept for ``key`` if it was computed from ``sources`` (by identity),
+        else ``compute()``, kept with them."""
+        found = self._data.lookup(key)
+        if found is not None:
+            kept = found[0]
+            if len(kept) == len(sources) and all(
+                a is b for a, b in zip(kept, sources, strict=True)
+            ):
+                return found[1]
+        value = compute()
+        self._data.put(key, (sources, value))
+        return value
+
+    def __len__(self) -> int:
+        return len(self._data)

@@ -26,7 +26,7 @@ from ads_rca.diagnosis.critical_event import explained_event
 from ads_rca.foundation.geometry import FloatArray, box_signed_distance
 from ads_rca.model import FOLDERS, EgoPose, Plan, Record, RunLog, Track
 from ads_rca.oracles.base import RunContext
-from ads_rca.oracles.cache import CACHE_SIZE, LRU, Slide
+from ads_rca.oracles.cache import CACHE_SIZE, LRU, Carry, Slide
 from ads_rca.oracles.corrected.boxes import (
     PlanData,
     Series,
@@ -179,6 +179,20 @@ class CorrectedContext:
             self.caches[name.name] = LRU(self.cache_size)
         # The name's type parameter is the one promise about what its cache holds.
         return cast("LRU[int, V]", self.caches[name.name])
+
+    def carried(
+        self, name: CacheName[V], ts: int, sources: tuple[object, ...], compute: Callable[[], V]
+    ) -> V:
+        """``compute()``'s value at ts, carried from an earlier context of the run while
+        it read the same ``sources`` (records, by identity; :attr:`RunContext.carried`),
+        computed here when the run carries nothing."""
+        store = self.ctx.carried
+        if store is None:
+            return compute()
+        carry = store.get(name.name)
+        if carry is None:
+            carry = store[name.name] = Carry(self.cache_size)
+        return cast("Carry[int, V]", carry).get(ts, sources, compute)
 
     def slide(self, name: CacheName[V]) -> Slide[V]:
         """A named sliding run of per-frame values (created on first use)."""

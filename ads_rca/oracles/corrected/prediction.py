@@ -138,7 +138,26 @@ def prediction_samples(judging: CorrectedContext, u: int) -> Samples:
     over the horizon of |predicted − real| centre, of every non-ego actor's track predicted on
     truth; without predictions on truth (the 3-D perception rule's reading), of every raw
     track the 3-D match paired, against reality as perceived."""
-    return judging.cache(PREDICTION_SAMPLES).get(u, lambda: _prediction_samples(judging, u))
+    return judging.cache(PREDICTION_SAMPLES).get(u, lambda: _carried_samples(judging, u))
+
+
+def _carried_samples(judging: CorrectedContext, u: int) -> Samples:
+    """The samples at u, carried from the run's last context that read the same records
+    (a live monitor's views overlap on every floor frame but the newest); on truth only:
+    the raw reading's samples also depend on the perception match."""
+    if judging.ctx.carried is None or raw_without_predictions_on_truth(judging):
+        return _prediction_samples(judging, u)
+    log, frame_ms = judging.log, judging.frame_ms
+    sources = (
+        judging.params,
+        judging.ego_id,
+        frame_ms,
+        judging.window,
+        log.pose.get(u),
+        log.predictions_with_perception.get(u),
+        *[log.actors.get(u + j * frame_ms) for j in range(1, judging.window + 1)],
+    )
+    return judging.carried(PREDICTION_SAMPLES, u, sources, lambda: _prediction_samples(judging, u))
 
 
 def _prediction_samples(judging: CorrectedContext, u: int) -> Samples:

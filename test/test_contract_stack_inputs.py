@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import itertools
 import math
-from functools import cache
+import random
+from collections.abc import Callable
+from functools import cache, partial
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -19,11 +21,12 @@ import pytest
 
 from ads_rca.contract import convert, stack_inputs
 from ads_rca.contract.errors import MalformedMessage
-from ads_rca.model import RunLog
+from ads_rca.model import Actors, RunLog
 from ads_rca.synth import SCENARIOS, synthesise
 
 if TYPE_CHECKING:
     from geometry_msgs.msg import PoseStamped
+    from visualization_msgs.msg import MarkerArray
 
 TOL = 1e-9
 
@@ -231,3 +234,78 @@ def test_bad_carla_markers_raise_the_contract_error() -> None:
     foreign.markers[0].header.frame_id = "ego_vehicle"
     with pytest.raises(MalformedMessage, match="frame 'ego_vehicle'"):
         stack_inputs.carla_markers_to_actors(foreign)
+
+
+def _outcome(read: Callable[[], Actors]) -> tuple[str, ...]:
+    """A reading's records as bytes, or its error's text."""
+    try:
+        actors = read()
+    except MalformedMessage as error:
+        return ("error", str(error))
+    arrays = (actors.location, actors.rotation, actors.extent)
+    shapes = repr([a.shape for a in arrays])
+    return ("actors", repr(actors.ids), shapes, *(a.tobytes().hex() for a in arrays))
+
+
+def _hostile_markers(rng: random.Random, actors: Actors, t: int) -> MarkerArray:
+    """The bridge's cubes of ``actors`` with a few hostile changes."""
+    from geometry_msgs.msg import Point
+    from std_msgs.msg import ColorRGBA
+    from visualization_msgs.msg import Marker
+
+    msg = stack_inputs.actors_to_carla_markers(actors, t)
+    values = [math.nan, math.inf, -math.inf, 0.0, -0.0, 1e308, -5e-324, 2.0**70]
+    for _ in range(rng.choice((0, 1, 1, 2, 3))):
+        if not msg.markers:
+            break
+        m = rng.choice(msg.markers)
+        change = rng.randrange(9)
+        if change == 0:
+            field = rng.choice(("position", "orientation"))
+            setattr(getattr(m.pose, field), rng.choice("xyz"), rng.choice(values))
+        elif change == 1:
+            m.pose.orientation.x = m.pose.orientation.y = m.pose.orientation.z = 0.0
+            m.pose.orientation.w = rng.choice((0.0, -0.0, 1e-12))
+        elif change == 2:
+            setattr(m.scale, rng.choice("xyz"), rng.choice(values))
+        elif change == 3:
+            m.header.frame_id = rng.choice(("", "odom", "map ", "mäp", "m" * 300))
+        elif change == 4:
+            m.id = rng.choice((msg.markers[0].id, -(2**31), 2**31 - 1, 0))
+        elif change == 5:
+            m.action = rng.choice((Marker.DELETE, Marker.DELETEALL, 5))
+        elif change == 6:
+            m.type = rng.choice((Marker.ARROW, Marker.SPHERE, Marker.TEXT_VIEW_FACING, 99))
+        elif change == 7:  # fields the bridge leaves empty, filled
+            m.text, m.ns = "actor", "carla"
+            m.points = [Point(x=1.0, y=2.0, z=3.0)]
+            m.mesh_resource = "package://car.dae"
+            m.colors = [ColorRGBA(r=1.0)]
+        else:
+            msg.markers.insert(rng.randrange(len(msg.markers) + 1), Marker(type=Marker.CUBE))
+    return msg
+
+
+def test_carla_marker_bytes_read_as_the_message_objects_do() -> None:
+    """The monitors subscribe to the CARLA markers as CDR bytes: their reading must give the
+    records and the errors the message objects give, on hostile values too (NaN, ±inf,
+    zero quaternions, foreign frames, repeated ids, other types and actions, filled fields,
+    a default marker), and refuse bytes that are no MarkerArray."""
+    from rclpy.serialization import serialize_message
+
+    rng = random.Random(15)
+    log = run_log("cut_in")
+    seen = {"error": 0, "actors": 0}
+    for case in range(600):
+        t = log.frames[case % len(log.frames)]
+        msg = _hostile_markers(rng, log.actors[t], t)
+        data = serialize_message(msg)
+        want = _outcome(partial(stack_inputs.carla_markers_to_actors, msg))
+        got = _outcome(partial(stack_inputs.decode_carla_markers, data))
+        assert got == want, (case, want[:2], got[:2])
+        seen[want[0]] += 1
+    assert seen["error"] > 100 and seen["actors"] > 100
+    empty = serialize_message(stack_inputs.actors_to_carla_markers(log.actors[log.frames[0]], 0))
+    for bad in (b"", b"\x00\x01\x00\x00", empty[:-7], b"\x00\x01\x00\x00\xff\xff\xff\xff"):
+        with pytest.raises(MalformedMessage):
+            stack_inputs.decode_carla_markers(bad)

@@ -16,6 +16,7 @@ from functools import cache
 from typing import Any
 
 import pytest
+from rclpy.serialization import serialize_message
 from stackgraph import crash, offline
 
 from ads_rca.contract import stack_inputs
@@ -289,15 +290,18 @@ LAYOUTS: dict[str, tuple[str, Callable[[RunLog, int, int], Any]]] = {
         "path",
         lambda log, t, at: stack_inputs.plan_to_path(log.waypoints[t], at, log.frame_ms),
     ),
-    "actors": (
+    "actors": (  # subscribed raw: the bytes DDS would deliver
         "carla_markers",
-        lambda log, t, at: stack_inputs.actors_to_carla_markers(log.actors[t], at),
+        lambda log, t, at: serialize_message(
+            stack_inputs.actors_to_carla_markers(log.actors[t], at)
+        ),
     ),
 }
 
 
 def as_layouts(log: RunLog, sent: StackStream, folders: list[str]) -> StackStream:
-    """``sent`` with ``folders`` as message objects of their stack layout (same stamps)."""
+    """``sent`` with ``folders`` in their stack layout (same stamps): message objects, or
+    CDR bytes for a layout read raw."""
 
     def build(message: StackMessage) -> Any:
         logged = message.stamp_ms - sent.offsets_ms[message.folder]

@@ -249,12 +249,17 @@ class MarkerFields:
     scales: np.ndarray  # (N, 3)
     points: list[np.ndarray]  # (K, 3) each
     texts: list[str]
+    #: Each kept marker's type, action and header frame, when asked (``kinds``), else empty.
+    types: list[int]
+    actions: list[int]
+    frames: list[str]
 
 
 @_typed
-def read_markers(data: bytes) -> MarkerFields:
+def read_markers(data: bytes, kinds: bool = False) -> MarkerFields:
     """Walk every field of every Marker; keep id, pose, scale, points and text of the markers
-    whose action is not DELETEALL (as convert.py's ``_added``).
+    whose action is not DELETEALL (as convert.py's ``_added``), and with ``kinds`` their type,
+    action and header frame too (a layout of markers other than ours filters on them).
 
     The hot path of every subscriber (~250 markers a frame at 50 actors), so the walk is one
     flat loop on local offsets (no reader method calls), and pose and scale are gathered for
@@ -269,12 +274,16 @@ def read_markers(data: bytes) -> MarkerFields:
     ids: list[int] = []
     spans: list[tuple[int, int]] = []
     texts: list[str] = []
+    types: list[int] = []
+    actions: list[int] = []
+    frames: list[str] = []
     (n,) = u32(view, 0)
     pos = 4
     check_count(n, MIN_MARKER_BYTES, len(view) - pos, "MarkerArray")
     for _ in range(n):
         pos += -pos % 4 + 8  # header.stamp
-        pos += 4 + u32(view, pos)[0]  # header.frame_id (4-aligned after the stamp)
+        frame_at = pos + 4
+        pos = frame_at + u32(view, pos)[0]  # header.frame_id (4-aligned after the stamp)
         pos += -pos % 4
         pos += 4 + u32(view, pos)[0]  # ns
         pos += -pos % 4
@@ -323,6 +332,11 @@ def read_markers(data: bytes) -> MarkerFields:
         ids.append(int(marker_id))
         spans.append((start, count))
         texts.append(bytes(view[text_at : text_at + max(size - 1, 0)]).decode())
+        if kinds:
+            types.append(_type)
+            actions.append(action)
+            frame_end = max(frame_at, frame_at + u32(view, frame_at - 4)[0] - 1)
+            frames.append(bytes(view[frame_at:frame_end]).decode())
     if pos > len(view):
         raise CdrError(f"MarkerArray truncated: {pos} bytes walked, {len(view)} present")
     raw = np.frombuffer(view, dtype=np.uint8)
@@ -337,6 +351,9 @@ def read_markers(data: bytes) -> MarkerFields:
             for at, c in spans
         ],
         texts=texts,
+        types=types,
+        actions=actions,
+        frames=frames,
     )
 
 

@@ -30,9 +30,8 @@ from typing import Any
 
 from ads_rca.contract import topics
 from ads_rca.contract.convert import from_time
-from ads_rca.contract.errors import NoStamp
 from ads_rca.contract.stack_inputs import (
-    carla_markers_to_actors,
+    decode_carla_markers,
     path_to_plan,
     pose_stamped_pose,
 )
@@ -72,7 +71,7 @@ STACK_LAYOUTS: dict[str, dict[str, Layout]] = {
         )
     },
     "actors": {
-        "carla_markers": Layout("carla_markers", "visualization_msgs/msg/MarkerArray", raw=False)
+        "carla_markers": Layout("carla_markers", "visualization_msgs/msg/MarkerArray", raw=True)
     },
 }
 
@@ -117,7 +116,7 @@ class Decoder:
             CONTRACT: self._contract,
             "pose_stamped": self._pose_stamped,
             "path": path_to_plan,
-            "carla_markers": lambda msg, _frame_ms: carla_markers_to_actors(msg),
+            "carla_markers": lambda data, _frame_ms: decode_carla_markers(data),
         }
         self._record = records[self.layout.name]
         #: PoseStamped: the pose released before, for the derived speed.
@@ -126,10 +125,6 @@ class Decoder:
     def stamp_ms(self, payload: Any) -> int:
         if self.layout.raw:
             return topics.stamp_ms(self._key, payload)
-        if self.layout.name == "carla_markers":
-            if not payload.markers:
-                raise NoStamp("a MarkerArray without markers carries no stamp")
-            return from_time(payload.markers[0].header.stamp)
         return from_time(payload.header.stamp)
 
     def record(self, payload: Any, timesteps_per_frame: int) -> Record:

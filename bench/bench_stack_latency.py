@@ -17,7 +17,9 @@ Reported, over every crash:
   It holds the look-ahead the rules wait for by design (``prediction_window`` frames:
   0.5 s at 20 Hz), so what lies above 0.5 s is the monitors' backlog;
 - where the time goes: the oracles' own time per frame (``compute_s`` of its four
-  results, re-judgements included) p50 / p99, against the 50 ms frame period;
+  results, re-judgements included) p50 / p99, and the ``monitors`` process's whole CPU
+  (user + system, start-up, DDS and publishing included) over the crash's frames, against
+  the 50 ms frame period: above it, a core's share cannot keep up;
 - the whole bench's wall and CPU time (this process and every node process).
 
 Usage: ``python bench/bench_stack_latency.py [--crashes 8] [--actors 50] [--rate 1.0]
@@ -36,7 +38,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from timing import Clock
+from timing import Clock, process_cpu_s
 
 from ads_rca.ros.env import pick_domain_id, ros_environment
 from ads_rca.ros.graph import AGGREGATOR, GROUP, MONITOR
@@ -65,9 +67,10 @@ def burn() -> None:
 
 def one_crash(
     env: dict[str, str], tmp: Path, case: tuple[str, str], args: argparse.Namespace
-) -> tuple[dict[str, Any], list[dict[str, Any]]] | None:
-    """The verdict document and every result of one crash beside the stack (None: no
-    crash could be synthesised)."""
+) -> tuple[dict[str, Any], list[dict[str, Any]], float] | None:
+    """The verdict document, every result and the monitors process's CPU seconds a frame
+    (start-up included) of one crash beside the stack (None: no crash could be
+    synthesised)."""
     scenario, fault = case
     log = None
     for seed in range(3):  # a crowded scene is refused for some seeds
@@ -94,7 +97,9 @@ def one_crash(
     }
     python = sys.executable
     with Launcher(env) as launcher:
-        launcher.start("monitors", [python, "-m", MONITOR, GROUP, *ros_args(shared, CARLA)])
+        monitors = launcher.start(
+            "monitors", [python, "-m", MONITOR, GROUP, *ros_args(shared, CARLA)]
+        )
         launcher.start("aggregator", [python, "-m", AGGREGATOR, *ros_args(aggregator, CARLA)])
         stack = launcher.start(
             "stack",
@@ -117,12 +122,13 @@ def one_crash(
         deadline = time.monotonic() + 60
         while not verdict.exists() and time.monotonic() < deadline:
             time.sleep(0.05)
+        monitors_cpu = process_cpu_s(monitors.process.pid)
         launcher.stop_all()
     if not verdict.exists():
         print(f"{scenario} {fault}: no verdict")
         return None
     results = [json.loads(line) for line in metrics.read_text().splitlines() if line.strip()]
-    return json.loads(verdict.read_text()), results
+    return json.loads(verdict.read_text()), results, monitors_cpu / len(log.frames)
 
 
 def percentiles(values: list[float], *qs: float) -> list[float]:
@@ -143,6 +149,7 @@ def main(argv: list[str] | None = None) -> int:
     latency: list[float] = []
     lag: list[float] = []
     compute: dict[tuple[str, int], float] = {}  # (crash, frame) -> oracle seconds, 4 modules
+    monitors_cpu: list[float] = []  # the monitors process's CPU a frame, per crash
     judged = 0
     try:
         with tempfile.TemporaryDirectory(prefix="stack_latency_") as scratch, Clock() as clock:
@@ -150,8 +157,9 @@ def main(argv: list[str] | None = None) -> int:
                 got = one_crash(env, Path(scratch), case, args)
                 if got is None:
                     continue
-                document, results = got
+                document, results, cpu_per_frame = got
                 judged += 1
+                monitors_cpu.append(cpu_per_frame)
                 latency.append(document["verdict_latency_s"])
                 # A result judged again at the collision (revision > 0) waited for it by
                 # design: the lag is the first judgement's.
@@ -175,6 +183,11 @@ def main(argv: list[str] | None = None) -> int:
     print("  (it holds the look-ahead the rules wait for: prediction_window frames, 0.5 s)")
     c50, c99 = percentiles([1000 * c for c in compute.values()], 50, 99)
     print(f"oracle time a frame (ms, 4 modules, every judgement) p50 {c50:.1f}  p99 {c99:.1f}")
+    m50, m_top = percentiles([1000 * c for c in monitors_cpu], 50, 100)
+    print(
+        f"monitors process CPU a frame (ms, start-up and DDS included; per crash) "
+        f"p50 {m50:.1f}  max {m_top:.1f}  (the frame period: 50 ms)"
+    )
     timing = clock.timing
     print(f"whole bench: {timing.wall_s:.1f} s wall, {timing.cpu_s:.1f} s CPU")
     return 0

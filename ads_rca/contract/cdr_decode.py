@@ -282,8 +282,9 @@ def read_markers(data: bytes, kinds: bool = False) -> MarkerFields:
     check_count(n, MIN_MARKER_BYTES, len(view) - pos, "MarkerArray")
     for _ in range(n):
         pos += -pos % 4 + 8  # header.stamp
+        (frame_size,) = u32(view, pos)  # header.frame_id (4-aligned after the stamp)
         frame_at = pos + 4
-        pos = frame_at + u32(view, pos)[0]  # header.frame_id (4-aligned after the stamp)
+        pos = frame_at + frame_size
         pos += -pos % 4
         pos += 4 + u32(view, pos)[0]  # ns
         pos += -pos % 4
@@ -335,8 +336,7 @@ def read_markers(data: bytes, kinds: bool = False) -> MarkerFields:
         if kinds:
             types.append(_type)
             actions.append(action)
-            frame_end = max(frame_at, frame_at + u32(view, frame_at - 4)[0] - 1)
-            frames.append(bytes(view[frame_at:frame_end]).decode())
+            frames.append(bytes(view[frame_at : frame_at + max(frame_size - 1, 0)]).decode())
     if pos > len(view):
         raise CdrError(f"MarkerArray truncated: {pos} bytes walked, {len(view)} present")
     raw = np.frombuffer(view, dtype=np.uint8)

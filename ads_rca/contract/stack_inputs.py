@@ -75,15 +75,19 @@ def _xyz(v: Point | Quaternion) -> tuple[float, float, float]:
 def _pose_arrays(poses: Sequence[Pose], what: str) -> tuple[FloatArray, FloatArray]:
     """(N, 3) CARLA positions and (N, 3) CARLA roll, pitch, yaw (degrees) of REP-103 poses;
     MalformedMessage for a non-finite value or a zero quaternion."""
-    raw = np.array(
+    return _pose_rows(_pose_table(poses), what)
+
+
+def _pose_table(poses: Sequence[Pose]) -> FloatArray:
+    """Poses as (N, 7) rows: position x, y, z, orientation x, y, z, w."""
+    return np.array(
         [(*_xyz(p.position), *_xyz(p.orientation), p.orientation.w) for p in poses],
         dtype=np.float64,
     ).reshape(-1, 7)
-    return _pose_rows(raw, what)
 
 
 def _pose_rows(raw: FloatArray, what: str) -> tuple[FloatArray, FloatArray]:
-    """:func:`_pose_arrays` of poses as (N, 7) rows: position x, y, z, orientation x, y, z, w."""
+    """:func:`_pose_arrays` of poses as :func:`_pose_table`'s rows."""
     bad = ~np.isfinite(raw).all(axis=1)
     if bad.any():
         raise MalformedMessage(f"{what}: pose {int(np.argmax(bad))} is not finite")
@@ -249,14 +253,10 @@ def carla_markers_to_actors(msg: MarkerArray, world_frame: str = WORLD_FRAME) ->
     from visualization_msgs.msg import Marker
 
     cubes = [m for m in msg.markers if m.type == Marker.CUBE and m.action == Marker.ADD]
-    poses = [m.pose for m in cubes]
     return _cubes_to_actors(
         [m.id for m in cubes],
         [m.header.frame_id for m in cubes],
-        np.array(
-            [(*_xyz(p.position), *_xyz(p.orientation), p.orientation.w) for p in poses],
-            dtype=np.float64,
-        ).reshape(-1, 7),
+        _pose_table([m.pose for m in cubes]),
         np.array([(m.scale.x, m.scale.y, m.scale.z) for m in cubes], dtype=np.float64),
         world_frame,
     )

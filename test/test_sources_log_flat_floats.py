@@ -15,13 +15,16 @@ import pytest
 from ads_rca.model import Boxes, Plan, Predictions
 from ads_rca.problems import ProblemLog
 from ads_rca.sources.log.records import (
+    POSE_FIELDS,
     FieldReader,
     _track,
     boxes_walked,
     finite_floats,
     parse_boxes,
     parse_plan,
+    parse_pose,
     parse_predictions,
+    pose_walked,
 )
 
 VALUES: list[Any] = [
@@ -40,6 +43,12 @@ VALUES: list[Any] = [
     None,
     "1",
     "",
+    "12.5",
+    " 7 ",
+    "nan",
+    "-inf",
+    "1e400",
+    "0x10",
     [],
     [1.0],
     {},
@@ -103,6 +112,19 @@ def same_boxes(document: list[Any]) -> None:
     assert list(problems) == want_problems
 
 
+def same_pose(document: Any) -> None:
+    problems, walk_problems = ProblemLog(), ProblemLog()
+    got = parse_pose(document, "pose.json", problems, 1)
+    want = pose_walked(document, FieldReader("pose.json", walk_problems, 1))
+    assert repr(got) == repr(want)  # NaN fields compare equal as text
+    assert list(problems) == list(walk_problems)
+
+
+def pose() -> dict[str, Any]:
+    """A pose as the seed format writes it: every value as text."""
+    return {name: str(12.5 + i) for i, name in enumerate(POSE_FIELDS)}
+
+
 def boxes(n: int = 3) -> list[Any]:
     return [
         {"id": 7 + i, "bounding_box": [[i * 1.5, -i / 3], [i * 1.5 + 2.0, 1.25]], "score": 0.9}
@@ -142,6 +164,21 @@ def test_one_hostile_value_gives_what_the_walk_gives(value: Any) -> None:
     corners = boxes()
     corners[0]["bounding_box"] = value  # no pair of points
     same_boxes(corners)
+    for name in POSE_FIELDS:
+        document = pose()
+        document[name] = value
+        same_pose(document)
+        del document[name]  # a field missing, another hostile
+        same_pose(document)
+    same_pose(value)  # a pose file that is no object
+
+
+def test_a_clean_pose_is_read_without_the_walk() -> None:
+    document = pose()
+    document["speed"] = 3  # numbers as JSON numbers too
+    got = parse_pose(document, "pose.json", ProblemLog(), 1)
+    assert got is not None and got.x == 12.5 and got.speed == 3.0
+    same_pose(document)
 
 
 def test_empty_files_give_empty_records() -> None:

@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from ads_rca.foundation.geometry import BLOCK_PAIRS, overlap_blocks
+from ads_rca.foundation.geometry import BLOCK_PAIRS, axis_aligned_ious, overlap_blocks
 from ads_rca.model import Boxes, Plan, Predictions, RunLog, Track
 from ads_rca.oracles.base import Metric, Module, OracleResult, RunContext
 from ads_rca.oracles.cache import LRU
@@ -175,15 +175,28 @@ def _layout(key_tuples: tuple[tuple[str, ...], ...]) -> _Layout:
     return found
 
 
-@dataclass(frozen=True, eq=False)
 class _Flat:
-    """One predictions record laid end to end: ids and tracks in file order, all keys."""
+    """One predictions record laid end to end: ids and tracks in file order, all keys.
 
-    ids: tuple[str, ...]
-    tracks: tuple[Track, ...]
-    layout: _Layout
-    x: FloatArray  # (K,) offsets x
-    y: FloatArray  # (K,) offsets y
+    A plain class with slots, not a dataclass: two are made a frame (the predictions on
+    truth and the raw ones), and a frozen dataclass's ``__init__`` costs three times as
+    much."""
+
+    __slots__ = ("ids", "layout", "tracks", "x", "y")
+
+    def __init__(
+        self,
+        ids: tuple[str, ...],
+        tracks: tuple[Track, ...],
+        layout: _Layout,
+        x: FloatArray,
+        y: FloatArray,
+    ) -> None:
+        self.ids = ids
+        self.tracks = tracks
+        self.layout = layout
+        self.x = x  # (K,) offsets x
+        self.y = y  # (K,) offsets y
 
 
 #: The last few flattened records: prediction and planning share the frame's record of
@@ -199,8 +212,8 @@ def _flatten(preds: Predictions) -> _Flat:
     tracks = tuple(preds.values())
     layout = _layout(tuple(t.keys for t in tracks))
     if layout.keys:
-        offsets = np.concatenate([t.offsets for t in tracks])
-        x, y = np.ascontiguousarray(offsets[:, 0]), np.ascontiguousarray(offsets[:, 1])
+        # x and y as the two rows of one copy (each contiguous): one copy, not two
+        x, y = np.concatenate([t.offsets for t in tracks])[:, :2].T.copy()
     else:
         x = y = np.zeros(0, dtype=np.float64)
     flat = _Flat(tuple(preds), tracks, layout, x, y)
@@ -420,8 +433,57 @@ def _match_scores(a: FloatArray, b: FloatArray) -> FloatArray:
     return iou
 
 
+#: Frames whose match scores are computed in one batch: the one judged and those after it.
+SCORE_BATCH = 64
+#: Frames with more detection x gt pairs than this are scored alone, by :func:`greedy_match`.
+BATCH_PAIRS = 1024
+#: The batches' scores by timestamp, each with the two box records it was computed from,
+#: which it keeps alive (so their identity is never another record's).
+_SCORES: LRU[int, tuple[Boxes, Boxes, FloatArray]] = LRU(2 * SCORE_BATCH)
+
+
+def frame_scores(log: RunLog, ts: int, det: Boxes, gt: Boxes) -> FloatArray | None:
+    """The frame's match scores, as :func:`greedy_match` takes them, or None where the
+    frame is too large (or empty) to batch.
+
+    Why: a frame's hundred pairs cost fifteen numpy calls; scored with the frames that
+    follow (which are judged next), they cost a fraction of that. The scores are
+    :func:`~ads_rca.foundation.geometry.axis_aligned_ious`' IoUs, NaN coordinates scored
+    0: every IoU above 0 is :func:`_match_scores`' to the bit (the same operations in the
+    same order), and where that one is NaN or 0 these are 0, so no NaN comes first in a
+    row and the matches are the same (test_oracles_reference_batched_scores.py). A batch
+    stops at the first frame missing, too large or already scored; a frame takes scores only
+    for the very records they were computed from (a live window's late or replaced frame,
+    or another log's frame at the same time, is scored afresh).
+    """
+    if not 0 < len(det) * len(gt) <= BATCH_PAIRS:
+        return None
+    hit = _SCORES.lookup(ts)
+    if hit is not None and hit[0] is det and hit[1] is gt:
+        return hit[2]
+    batch = [(ts, det, gt)]
+    frame_ms = log.frame_ms
+    for u in range(ts + frame_ms, ts + SCORE_BATCH * frame_ms, frame_ms) if frame_ms > 0 else ():
+        d, g = log.bboxes.get(u), log.bboxes_gt.get(u)
+        if d is None or g is None or not 0 < len(d) * len(g) <= BATCH_PAIRS:
+            break
+        hit = _SCORES.lookup(u)
+        if hit is not None and hit[0] is d and hit[1] is g:
+            break
+        batch.append((u, d, g))
+    ious = axis_aligned_ious(
+        [d.corners for _, d, _ in batch], [g.corners for _, _, g in batch], nan_score=0.0
+    )
+    for (u, d, g), iou in zip(batch, ious, strict=True):
+        _SCORES.put(u, (d, g, iou))
+    return ious[0]
+
+
 def greedy_match(
-    det: FloatArray, gt: FloatArray, max_pairs: int = BLOCK_PAIRS
+    det: FloatArray,
+    gt: FloatArray,
+    max_pairs: int = BLOCK_PAIRS,
+    scores: FloatArray | None = None,
 ) -> tuple[list[int], list[int], FloatArray]:
     """The reference's greedy matching: detection rows, gt rows and raw IoUs of the matches.
 
@@ -432,14 +494,17 @@ def greedy_match(
     Used gt boxes score 0 in later blocks, which leaves every other row's first maximum where
     it was. Vectorised: when every detection's best gt in a block is distinct, that IS the
     greedy answer; otherwise rows are resolved in order, recomputing only those whose best
-    was taken.
+    was taken. ``scores``: the frame's :func:`_match_scores` where already computed
+    (:func:`frame_scores`; read, never written).
     """
     n, m = len(det), len(gt)
     if n == 0 or m == 0:
         return [], [], np.zeros(0)
     used = np.zeros(m, dtype=np.bool_)
     if n * m <= max_pairs:  # the common case: one block, nothing to prune
-        rows, chosen, top = _greedy_block(_match_scores(det, gt), used)
+        if scores is None:
+            scores = _match_scores(det, gt)
+        rows, chosen, top = _greedy_block(scores, used)
         return rows.tolist(), chosen.tolist(), top
     out_rows: list[int] = []
     cols: list[int] = []
@@ -527,12 +592,15 @@ def perception(ctx: RunContext, ts: int) -> OracleResult:
                 issue = "a box without an id or without two points"
                 thresholds = ctx.params.values(REPORTED["perception"])
                 return _skip(ctx, "perception", ts, file, "bounding_box", issue, thresholds)
-    return judge_perception(det, gt, ts, thr)
+    return judge_perception(det, gt, ts, thr, frame_scores(log, ts, det, gt))
 
 
-def judge_perception(det: Boxes, gt: Boxes, ts: int, thr: float) -> OracleResult:
-    """The reference perception oracle on two box records (no input checks)."""
-    rows, cols, raw = greedy_match(det.corners, gt.corners)
+def judge_perception(
+    det: Boxes, gt: Boxes, ts: int, thr: float, scores: FloatArray | None = None
+) -> OracleResult:
+    """The reference perception oracle on two box records (no input checks); ``scores``:
+    their match scores where already computed (:func:`frame_scores`)."""
+    rows, cols, raw = greedy_match(det.corners, gt.corners, scores=scores)
     rounded = round4(raw)
     n = len(rows)
     # np.mean's arithmetic (pairwise sum, then one division); no match at all: NaN.
@@ -790,6 +858,11 @@ def _judge_plan(
     log, params = ctx.log, ctx.params
     pairs = _plan_pairs(raw.layout, plan)
     bad_row = pairs.bad_row
+    if not links.actor_ids:  # no pair is judged: only a non-integer plan key stops
+        if bad_row >= 0:
+            file, issue = log.file_of("waypoint", ts), "plan key is not an integer"
+            return _skip(ctx, "planning", ts, file, plan.keys[bad_row], issue, thresholds)
+        return OracleResult("planning", ts, False, {"links": {}}, thresholds)
     # Linked, i != 0, before any non-integer key, ts + i * frame_ms <= total_frames * frame_ms.
     step = pairs.step
     judged = links.linked[pairs.track]

@@ -273,11 +273,23 @@ def test_tables_of_frames_sharing_one_ids_tuple_are_the_per_frame_ones(
     crash_log: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """The workers' packer shares one ids tuple among the frames listing the same actors,
-    and the reference tables and first extents are built once per tuple. Read here (a
-    tuple a frame), with every equal tuple shared, and in workers, they must be equal.
-    Actors leave and come back, no extent is known for the first five frames and extents
-    change from frame to frame, so the frame an extent comes from shows."""
+    and the reference tables and first extents are built once per group of equal tuples.
+    Read here (a tuple a frame), with every equal tuple shared, and in workers, they must
+    be the tables built a frame at a time. Actors leave and come back, no extent is known
+    for the first five frames and extents change from frame to frame, so the frame an
+    extent comes from shows."""
+    from ads_rca.oracles.reference import oracles
     from ads_rca.oracles.reference.oracles import _build_tables
+
+    def frame_by_frame() -> oracles._Tables:
+        """The tables of ``alone`` with each frame a group of its own."""
+        with monkeypatch.context() as patch:
+            patch.setattr(
+                oracles,
+                "_frames_by_ids",
+                lambda log, times: [(log.actors[t].ids, [u]) for u, t in enumerate(times)],
+            )
+            return _build_tables(alone)
 
     root = Path(shutil.copytree(crash_log, tmp_path / "log"))
     files = sorted((root / "actors").iterdir(), key=lambda f: int(f.stem.rpartition("-")[2]))
@@ -299,11 +311,12 @@ def test_tables_of_frames_sharing_one_ids_tuple_are_the_per_frame_ones(
             record, ids=tuples.setdefault(record.ids, record.ids)
         )
     assert 2 <= len(tuples) < len(regrouped.actors) / 10
-    for log in (shared, regrouped):
+    expected = frame_by_frame()
+    for log in (alone, shared, regrouped):
         assert list(alone.actor_extents) == list(log.actor_extents)
         for a, b in zip(alone.actor_extents.values(), log.actor_extents.values(), strict=True):
             assert np.array_equal(a, b)
-        expected, built = _build_tables(alone), _build_tables(log)
+        built = _build_tables(log)
         for field in dataclasses.fields(expected):
             a, b = getattr(expected, field.name), getattr(built, field.name)
             if isinstance(a, np.ndarray):

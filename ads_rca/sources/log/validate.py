@@ -151,12 +151,12 @@ def _unknown_ids(log: RunLog) -> None:
         unknown: Counter[str] = Counter()
         first_seen: dict[str, int] = {}
         # The unknown ids of each (ids, actors' ids) pair: most frames repeat a pair.
-        known_pairs: dict[tuple[tuple[str, ...], int], list[str]] = {}
+        known_pairs: dict[tuple[tuple[str, ...], tuple[str, ...]], list[str]] = {}
         for ts, ids in records.items():
             actors = log.actors.get(ts)
             if actors is None:
                 continue
-            pair = (ids, id(actors.ids))
+            pair = (ids, actors.ids)
             missing = known_pairs.get(pair)
             if missing is None:
                 # In file order (not a set's hash order): the problems' order is output.

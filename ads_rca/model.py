@@ -537,10 +537,12 @@ class RunLog:
         """
         extents: dict[str, FloatArray] = {}
         known = self.first_extents
-        complete: set[int] = set()  # ids tuples (by identity) whose every id has one
+        # ids tuples whose every id has one (by value: a log read in one process has a
+        # tuple a frame, equal from frame to frame)
+        complete: set[tuple[str, ...]] = set()
         for ts in sorted(self.actors):
             frame = self.actors[ts]
-            if id(frame.ids) in complete:
+            if frame.ids in complete:
                 continue
             for row, actor_id in enumerate(frame.ids):
                 if actor_id in extents:
@@ -550,7 +552,7 @@ class RunLog:
                 elif not np.isnan(frame.extent[row]).any():
                     extents[actor_id] = frame.extent[row]
             if all(actor_id in extents for actor_id in frame.ids):
-                complete.add(id(frame.ids))  # later frames listing them add nothing
+                complete.add(frame.ids)  # later frames listing them add nothing
         return extents
 
     def file_of(self, folder: str, timestamp_ms: int) -> str:

@@ -117,12 +117,13 @@ def _runs(items: Sequence[int], order: Sequence[int]) -> list[tuple[int, int, in
 
 def _first_extents(log: RunLog) -> None:
     seen: set[str] = set()
-    all_seen: set[int] = set()  # ids tuples (by identity: the reader shares them) all seen
+    # ids tuples all seen (by value: a log read in one process has a tuple a frame)
+    all_seen: set[tuple[str, ...]] = set()
     for ts in sorted(log.actors):
         frame = log.actors[ts]
-        if id(frame.ids) in all_seen:
+        if frame.ids in all_seen:
             continue
-        all_seen.add(id(frame.ids))  # every id is seen once this frame is done
+        all_seen.add(frame.ids)  # every id is seen once this frame is done
         for row, actor_id in enumerate(frame.ids):
             if actor_id in seen:
                 continue

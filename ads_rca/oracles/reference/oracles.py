@@ -646,6 +646,8 @@ def prediction(ctx: RunContext, ts: int) -> OracleResult:
     if on_truth is None:
         file = log.file_of("predictions_with_perception", ts)
         return _skip(ctx, "prediction", ts, file, "", "file missing", thresholds)
+    if not on_truth:  # no track, no step: nothing judged, nothing read
+        return OracleResult("prediction", ts, False, {"n_steps": 0}, thresholds)
     flat = _flatten(on_truth)
     layout = flat.layout
     tables = _tables(log)

@@ -17,6 +17,7 @@ import pytest
 from oraclefixtures import LogBuilder, context, make_boxes
 
 from ads_rca.model import Boxes, RunLog
+from ads_rca.oracles.cache import LRU
 from ads_rca.oracles.reference import oracles
 from ads_rca.oracles.reference.oracles import (
     _match_scores,
@@ -62,7 +63,7 @@ def test_batched_scores_give_each_frame_its_own_matches(monkeypatch: pytest.Monk
             builder.boxes(ts, det, gt)
         log = builder.build()
         # no earlier log's scores (each log here is new, its frames at the same times)
-        monkeypatch.setattr(oracles, "_SCORES", oracles.LRU(2 * oracles.SCORE_BATCH))
+        monkeypatch.setattr(oracles, "_SCORES", LRU(2 * oracles.SCORE_BATCH))
         with np.errstate(all="ignore"):  # as the judging is: infinities make NaN
             same_matches_every_frame(log)
 

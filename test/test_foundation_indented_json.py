@@ -5,6 +5,7 @@ from __future__ import annotations
 import io
 import json
 import math
+import random
 import sys
 from typing import Any
 
@@ -178,3 +179,16 @@ def test_a_list_rendered_part_by_part_is_the_whole_documents_text(
     assert list(parts) == list(whole) and parts["$nonfinite"] == whole["$nonfinite"]
     assert list(parts["$nonfinite"]) == list(whole["$nonfinite"])  # the same order
     assert dumps_indented(parts) == json_module(whole)
+
+
+def test_small_floats_of_every_magnitude_are_spelled_as_python_spells_them() -> None:
+    """orjson writes 1e-5 <= |x| < 1e-4 in decimals and smaller ones with a one-digit
+    exponent; Python writes both as d.ddde-0N. Thousands of each, at the end of lines
+    with and without a comma, in lists and objects, beside strings that end the same way."""
+    rng = random.Random(20261208)
+    values = [rng.choice((1, -1)) * rng.random() * 10 ** rng.uniform(-12, -3) for _ in range(20000)]
+    values += [float(f"{v:.{rng.randint(1, 3)}g}") for v in values[:2000]]  # short digits
+    document = {"list": values, "map": {str(i): v for i, v in enumerate(values[:3000])}}
+    # strings spelled as orjson spells the numbers: never respelled
+    document["text"] = [f"{v:.3e}".replace("e-0", "e-") for v in values[:500]]
+    assert dumps_indented(document) == json_module(document)

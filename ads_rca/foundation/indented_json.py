@@ -43,7 +43,13 @@ _NEWLINE, _SPACE = 0x0A, 0x20
 #: (their alternation is scanned a byte at a time: four times as long on a verdict). They
 #: never overlap (neither holds the other's first byte), so their matches together are
 #: those of the alternation.
-_SMALL_FLOATS = (re.compile(rb"0\.0000"), re.compile(rb"e-[1-9](?![0-9])"))
+_SMALL_FLOATS = (re.compile(rb"0\.0000"), re.compile(rb"e-[1-4](?![0-9])"))
+#: A one-digit negative exponent of 5 or more ending a token that ends its line: below
+#: 1e-4 Python writes the same digits with a two-digit exponent (``e-06``), so a zero is
+#: put in, in C. A match ends its line, so it is no string's (whose quote would end the
+#: line) and no key's: its token is a number (no other bare token holds "e-"). Led by a
+#: literal, as the patterns above.
+_EXPONENT_FROM_5 = re.compile(rb"e-([5-9])(?=\n|,\n|\Z)")
 _NUMBER_BYTES = frozenset(b"0123456789.-+eE")
 #: Every character past ``~``: the negated class compiles in 0.05 ms, its range twin
 #: (``[\x7f-\U0010ffff]``) in 3 ms at every start-up.
@@ -173,10 +179,14 @@ def _respell_small_floats(block: bytes) -> bytes:
 
     A candidate counts only as a whole number token that ends its line (before an optional
     comma) and follows a space or a line start: a string's closing quote would come before
-    the end of its line, so such a token is never inside a string.
+    the end of its line, so such a token is never inside a string. The most frequent kind,
+    an exponent of -5 or below written with one digit, gets its zero in one C pass
+    (:data:`_EXPONENT_FROM_5`): five in six candidates of a corrected verdict, whose
+    respelling took a third of its writing.
     """
     if b"0.0000" not in block and b"e-" not in block:
         return block
+    block = _EXPONENT_FROM_5.sub(rb"e-0\1", block)
     pieces: list[bytes] = []
     done = 0
     for span in sorted(m.span() for p in _SMALL_FLOATS for m in p.finditer(block)):

@@ -11,7 +11,8 @@ from ads_rca.foundation.geometry import axis_aligned_iou, axis_aligned_ious
 from ads_rca.model import Boxes, RunLog, RunMetadata
 from ads_rca.oracles.base import RunContext
 from ads_rca.oracles.corrected.context import CorrectedContext, corrected_context
-from ads_rca.oracles.corrected.perception import BATCH_PAIRS, FRAME_IOUS, frame_iou
+from ads_rca.oracles.corrected.perception import FRAME_IOUS, frame_iou
+from ads_rca.oracles.frame_iou import BATCH_PAIRS
 from ads_rca.params import make_params
 
 TPF = 50

@@ -1,7 +1,7 @@
 """The reference perception oracle's match scores, computed for a batch of frames at once,
 give every frame the matches its own scores give, on hostile boxes too.
 
-Why: ``frame_scores`` replaces each frame's fifteen numpy calls by a share of one batch
+Why: ``frame_match_scores`` replaces each frame's fifteen numpy calls by a share of one batch
 (axis_aligned_ious, then what is not above 0 set to 0); a difference in one float, or in
 which frames a batch reuses, would change a reference-mode verdict that users compare with
 the reference tool's.
@@ -18,10 +18,11 @@ from oraclefixtures import LogBuilder, context, make_boxes
 
 from ads_rca.model import Boxes, RunLog
 from ads_rca.oracles.cache import LRU
+from ads_rca.oracles.frame_iou import IOU_BATCH
 from ads_rca.oracles.reference import oracles
 from ads_rca.oracles.reference.oracles import (
     _match_scores,
-    frame_scores,
+    frame_match_scores,
     greedy_match,
     judge_perception,
     perception,
@@ -63,7 +64,7 @@ def test_batched_scores_give_each_frame_its_own_matches(monkeypatch: pytest.Monk
             builder.boxes(ts, det, gt)
         log = builder.build()
         # no earlier log's scores (each log here is new, its frames at the same times)
-        monkeypatch.setattr(oracles, "_SCORES", LRU(2 * oracles.SCORE_BATCH))
+        monkeypatch.setattr(oracles, "_SCORES", LRU(2 * IOU_BATCH))
         with np.errstate(all="ignore"):  # as the judging is: infinities make NaN
             same_matches_every_frame(log)
 
@@ -72,7 +73,7 @@ def same_matches_every_frame(log: RunLog) -> None:
     for ts in log.frames:
         det, gt = log.bboxes[ts], log.bboxes_gt[ts]
         own = _match_scores(det.corners, gt.corners)
-        batched = frame_scores(log, ts, det, gt)
+        batched = frame_match_scores(log, ts, det, gt)
         assert batched is not None
         # the same positive scores to the bit; everything else 0 (never matched), no NaN
         assert not np.isnan(batched).any()
@@ -98,7 +99,7 @@ def test_a_frame_read_again_is_scored_afresh() -> None:
     assert perception(ctx, 150).metrics["ious"] == [0.5]
     # and a batch is never taken for another record at the same time (another log)
     other: Boxes = make_boxes([("g", (5, 0, 15, 10))])
-    assert frame_scores(log, 200, log.bboxes[200], other) is not None
+    assert frame_match_scores(log, 200, log.bboxes[200], other) is not None
     hit = oracles._SCORES.lookup(200)
     assert hit is not None and hit[1] is other
 
@@ -106,6 +107,6 @@ def test_a_frame_read_again_is_scored_afresh() -> None:
 def test_large_frames_are_scored_alone() -> None:
     many = [(f"d{i}", (i, 0, i + 1, 1)) for i in range(40)]
     log = LogBuilder().frame(100).boxes(100, many, many).build()
-    assert frame_scores(log, 100, log.bboxes[100], log.bboxes_gt[100]) is None
+    assert frame_match_scores(log, 100, log.bboxes[100], log.bboxes_gt[100]) is None
     result = perception(context(log), 100)
     assert result.metrics["n_matched"] == 40 and result.metrics["mean_iou"] == 1.0

@@ -18,12 +18,7 @@ import math
 
 import numpy as np
 
-from ads_rca.foundation.geometry import (
-    FloatArray,
-    axis_aligned_iou,
-    axis_aligned_ious,
-    overlap_blocks,
-)
+from ads_rca.foundation.geometry import FloatArray, axis_aligned_iou, overlap_blocks
 from ads_rca.model import Boxes
 from ads_rca.oracles.base import Metric, OracleResult, RunContext
 from ads_rca.oracles.corrected.assignment import best_matching
@@ -39,56 +34,18 @@ from ads_rca.oracles.corrected.context import CacheName, CorrectedContext, corre
 from ads_rca.oracles.corrected.floors import perception_floor
 from ads_rca.oracles.corrected.match3d import uses_3d
 from ads_rca.oracles.corrected.perception3d import perception3d
+from ads_rca.oracles.frame_iou import FrameIoU, batched_iou
 
 #: Frames with at most this many detection x gt pairs are matched on the whole IoU matrix.
 DENSE_PAIRS = 1 << 18
-#: Frames whose IoU matrices are computed in one batch: the one judged and those after it.
-IOU_BATCH = 64
-#: Frames with more detection x gt pairs than this are scored alone, by :func:`match_boxes`.
-BATCH_PAIRS = 1024
-
-
-#: A frame's detections and gt boxes, and their IoU matrix (NaN coordinates score 0).
-FrameIoU = tuple[Boxes, Boxes, FloatArray]
-
 FRAME_IOUS: CacheName[FrameIoU] = CacheName("frame_ious")
 
 
 def frame_iou(judging: CorrectedContext, ts: int, det: Boxes, gt: Boxes) -> FloatArray | None:
-    """The IoU matrix of ``det`` x ``gt`` at ts (NaN coordinates score 0), or None where the
-    frame is too large (or empty) to batch.
-
-    Why: a frame's hundred pairs cost a dozen numpy calls; computed with the frames that
-    follow (diagnose and a live monitor judge them next) they cost a fraction of that. A
-    batch stops at the first frame missing, too large or already cached, so frames judged
-    backwards batch nothing; a cached matrix is used only for the very box objects it was
-    computed from, so a live window's late or replaced frames are scored afresh.
-    """
-    if not 0 < len(det) * len(gt) <= BATCH_PAIRS:
-        return None
-    cache = judging.cache(FRAME_IOUS)
-    hit = cache.lookup(ts)
-    if hit is not None and hit[0] is det and hit[1] is gt:
-        return hit[2]
-    batch = [(ts, det, gt)]
-    detections, truths = judging.log.bboxes, judging.log.bboxes_gt
-    for u in (
-        range(ts + judging.frame_ms, ts + IOU_BATCH * judging.frame_ms, judging.frame_ms)
-        if judging.frame_ms > 0
-        else ()
-    ):
-        d, g = detections.get(u), truths.get(u)
-        if d is None or g is None or not 0 < len(d) * len(g) <= BATCH_PAIRS:
-            break
-        if cache.lookup(u) is not None:
-            break
-        batch.append((u, d, g))
-    ious = axis_aligned_ious(
-        [d.corners for _, d, _ in batch], [g.corners for _, _, g in batch], nan_score=0.0
-    )
-    for (u, d, g), iou in zip(batch, ious, strict=True):
-        cache.put(u, (d, g, iou))
-    return ious[0]
+    """The IoU matrix of ``det`` x ``gt`` at ts (NaN coordinates score 0), batched with the
+    frames after it (:func:`~ads_rca.oracles.frame_iou.batched_iou`), or None where the frame
+    is too large (more than ``BATCH_PAIRS`` pairs: :func:`match_boxes` scores it) or empty."""
+    return batched_iou(judging.log, judging.cache(FRAME_IOUS), ts, det, gt)
 
 
 def match_boxes(

@@ -31,10 +31,11 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from ads_rca.foundation.geometry import BLOCK_PAIRS, axis_aligned_ious, overlap_blocks
+from ads_rca.foundation.geometry import BLOCK_PAIRS, overlap_blocks
 from ads_rca.model import Boxes, Plan, Predictions, RunLog, Track
 from ads_rca.oracles.base import Metric, Module, OracleResult, RunContext
 from ads_rca.oracles.cache import LRU
+from ads_rca.oracles.frame_iou import IOU_BATCH, FrameIoU, batched_iou
 from ads_rca.problems import DROPPED_RECORD
 
 FloatArray = npt.NDArray[np.float64]
@@ -441,50 +442,23 @@ def _match_scores(a: FloatArray, b: FloatArray) -> FloatArray:
     return iou
 
 
-#: Frames whose match scores are computed in one batch: the one judged and those after it.
-SCORE_BATCH = 64
-#: Frames with more detection x gt pairs than this are scored alone, by :func:`greedy_match`.
-BATCH_PAIRS = 1024
-#: The batches' scores by timestamp, each with the two box records it was computed from,
-#: which it keeps alive (so their identity is never another record's).
-_SCORES: LRU[int, tuple[Boxes, Boxes, FloatArray]] = LRU(2 * SCORE_BATCH)
+#: Each frame's match scores (a batch of frames at once), with the box records they were
+#: computed from.
+_SCORES: LRU[int, FrameIoU] = LRU(2 * IOU_BATCH)
 
 
-def frame_scores(log: RunLog, ts: int, det: Boxes, gt: Boxes) -> FloatArray | None:
+def frame_match_scores(log: RunLog, ts: int, det: Boxes, gt: Boxes) -> FloatArray | None:
     """The frame's match scores, as :func:`greedy_match` takes them, or None where the
     frame is too large (or empty) to batch.
 
-    Why: a frame's hundred pairs cost fifteen numpy calls; scored with the frames that
-    follow (which are judged next), they cost a fraction of that. The scores are
-    :func:`~ads_rca.foundation.geometry.axis_aligned_ious`' IoUs, NaN coordinates scored
-    0: every IoU above 0 is :func:`_match_scores`' to the bit (the same operations in the
-    same order), and where that one is NaN or 0 these are 0, so no NaN comes first in a
-    row and the matches are the same (test_oracles_reference_batched_scores.py). A batch
-    stops at the first frame missing, too large or already scored; a frame takes scores only
-    for the very records they were computed from (a live window's late or replaced frame,
-    or another log's frame at the same time, is scored afresh).
+    Why: a frame's hundred pairs cost fifteen numpy calls in :func:`_match_scores`; scored
+    with the frames that follow (:func:`~ads_rca.oracles.frame_iou.batched_iou`), they cost
+    a fraction of that. Those are the IoUs with NaN coordinates scored 0: every IoU above 0
+    is :func:`_match_scores`' to the bit (the same operations in the same order), and where
+    that one is NaN or 0 these are 0, so no NaN comes first in a row and the matches are
+    the same (test_oracles_reference_batched_scores.py).
     """
-    if not 0 < len(det) * len(gt) <= BATCH_PAIRS:
-        return None
-    hit = _SCORES.lookup(ts)
-    if hit is not None and hit[0] is det and hit[1] is gt:
-        return hit[2]
-    batch = [(ts, det, gt)]
-    frame_ms = log.frame_ms
-    for u in range(ts + frame_ms, ts + SCORE_BATCH * frame_ms, frame_ms) if frame_ms > 0 else ():
-        d, g = log.bboxes.get(u), log.bboxes_gt.get(u)
-        if d is None or g is None or not 0 < len(d) * len(g) <= BATCH_PAIRS:
-            break
-        hit = _SCORES.lookup(u)
-        if hit is not None and hit[0] is d and hit[1] is g:
-            break
-        batch.append((u, d, g))
-    ious = axis_aligned_ious(
-        [d.corners for _, d, _ in batch], [g.corners for _, _, g in batch], nan_score=0.0
-    )
-    for (u, d, g), iou in zip(batch, ious, strict=True):
-        _SCORES.put(u, (d, g, iou))
-    return ious[0]
+    return batched_iou(log, _SCORES, ts, det, gt)
 
 
 def greedy_match(
@@ -503,7 +477,7 @@ def greedy_match(
     it was. Vectorised: when every detection's best gt in a block is distinct, that IS the
     greedy answer; otherwise rows are resolved in order, recomputing only those whose best
     was taken. ``scores``: the frame's :func:`_match_scores` where already computed
-    (:func:`frame_scores`; read, never written).
+    (:func:`frame_match_scores`; read, never written).
     """
     n, m = len(det), len(gt)
     if n == 0 or m == 0:
@@ -600,14 +574,14 @@ def perception(ctx: RunContext, ts: int) -> OracleResult:
                 issue = "a box without an id or without two points"
                 thresholds = ctx.params.values(REPORTED["perception"])
                 return _skip(ctx, "perception", ts, file, "bounding_box", issue, thresholds)
-    return judge_perception(det, gt, ts, thr, frame_scores(log, ts, det, gt))
+    return judge_perception(det, gt, ts, thr, frame_match_scores(log, ts, det, gt))
 
 
 def judge_perception(
     det: Boxes, gt: Boxes, ts: int, thr: float, scores: FloatArray | None = None
 ) -> OracleResult:
     """The reference perception oracle on two box records (no input checks); ``scores``:
-    their match scores where already computed (:func:`frame_scores`)."""
+    their match scores where already computed (:func:`frame_match_scores`)."""
     rows, cols, raw = greedy_match(det.corners, gt.corners, scores=scores)
     rounded = round4(raw)
     n = len(rows)

@@ -84,6 +84,12 @@ BENCHES: tuple[Bench, ...] = (
         ("--sizes", "132x11", "500x11", "--repeat", "2", "--dir", SCRATCH),
     ),
     Bench(
+        "bench_cpu_stages.py",
+        "where one core's time goes in a one-worker `diagnose`, stage by stage (both modes)",
+        ("--size", "2000x11", "--repeat", "3", "--dir", SCRATCH),
+        ("--size", "300x11", "--repeat", "1", "--dir", SCRATCH),
+    ),
+    Bench(
         "bench_player.py",
         "the player's conversion speed and its DDS throughput at rate 0 to one subscriber",
         ("--frames", "2000", "--object-dds-frames", "500"),
@@ -325,8 +331,11 @@ DESIGN: tuple[str, ...] = (
     "no cycles). *Judging* is a quarter to a third (the corrected rules cost about 1.5 times the",
     "reference ones): four oracles a frame on arrays of a few dozen numbers, so the cost is per",
     "call, not per number, and what several rules or frames share (the partner's view, c_gt",
-    "measured in batches ahead, the noise floors' sliding windows) is computed once and cached",
-    "by timestamp. *Start-up* is 0.1 s, the whole of a small run's cost: the interpreter, numpy",
+    "measured in batches ahead, both modes' box IoUs scored 64 frames at a time, the noise",
+    "floors' sliding windows) is computed once and cached by timestamp; per-run tables group",
+    "the frames that list the same actors. *Start-up* is 0.1 s, the whole of a small run's",
+    "cost: the interpreter (run twice in a venv with ROS wheels: their bootstrap re-executes",
+    "it to set the library path), numpy",
     "(half of it) and the command's own modules only, with one BLAS thread (`import ads_rca`",
     "sets `OPENBLAS_NUM_THREADS=1` unless the environment gives a number: OpenBLAS's pool of",
     "threads, started when numpy loads, never speeds up arrays of a few dozen numbers, and its",
@@ -337,6 +346,9 @@ DESIGN: tuple[str, ...] = (
     "strict JSON and `indented_json` writes it. More workers fork the reading and judging of a",
     "long log: they save wall time and add CPU (forks, records packed back), so the figure per",
     "core is the one-worker one ([bench_cpu_per_core.py](#bench_cpu_per_core)).",
+    "[bench_cpu_stages.py](#bench_cpu_stages) prints this split for both modes: each stage's",
+    "wall and CPU time, reading split into file reads, JSON decoding and record building,",
+    "judging into the four oracles.",
 )
 
 

@@ -101,6 +101,8 @@ def main() -> None:
         "--dir", type=Path, default=Path(tempfile.gettempdir()) / "ads_rca_bench_batch"
     )
     args = parser.parse_args()
+    # absolute: a paths file's relative lines are read from the file's own folder
+    args.dir = args.dir.resolve()
     runs_dir = args.dir / f"runs_{args.frames}f"
     with Clock() as made:
         paths = make_runs(args.runs, args.frames, runs_dir, args.distinct or args.runs)

@@ -351,27 +351,17 @@ def _build_tables(log: RunLog) -> _Tables:
 def _frames_by_ids(log: RunLog, times: list[int]) -> list[tuple[tuple[str, ...], list[int]]]:
     """The frames (positions in ``times``) of each ids tuple, in order of first use, so
     that the tables take one array operation a group instead of one a frame (a run lists
-    the same actors in the same order frame after frame).
-
-    Frames are grouped by the tuple's identity first (the reader's workers share one tuple
-    among a chunk's frames listing the same actors), then those groups by equality (a log
-    read in one process has a tuple a frame): one hash a distinct tuple, not one a frame.
-    """
-    by_identity: dict[int, tuple[tuple[str, ...], list[int]]] = {}
+    the same actors in the same order frame after frame). Tuples are grouped by value:
+    the reader's workers share one tuple among a chunk's frames, a log read in one
+    process has a tuple a frame."""
+    groups: dict[tuple[str, ...], tuple[tuple[str, ...], list[int]]] = {}
     for u, t in enumerate(times):
         ids = log.actors[t].ids
-        group = by_identity.get(id(ids))
-        if group is None:
-            by_identity[id(ids)] = (ids, [u])
-        else:
-            group[1].append(u)
-    groups: dict[tuple[str, ...], tuple[tuple[str, ...], list[int]]] = {}
-    for ids, rows in by_identity.values():
         group = groups.get(ids)
         if group is None:
-            groups[ids] = (ids, rows)
+            groups[ids] = (ids, [u])
         else:
-            group[1].extend(rows)
+            group[1].append(u)
     return list(groups.values())
 
 

@@ -86,6 +86,22 @@ def test_a_frame_replaced_since_its_batch_is_scored_afresh() -> None:
     assert iou is not None and iou.tolist() == [[1.0]]
 
 
+def test_a_batch_scores_again_the_frames_cached_for_other_records() -> None:
+    """After frame 0's batch, frames 5 and 6 are replaced (each detection becomes its gt box:
+    IoU 1): frame 5's batch scores frame 6's new boxes with it (its cached matrix is another
+    record's) and stops at frame 7, cached for its very records."""
+    log, judging = context(10)
+    cache = judging.cache(FRAME_IOUS)
+    frame_iou(judging, 0, log.bboxes[0], log.bboxes_gt[0])
+    seven = cache.lookup(7 * TPF)
+    for k in (5, 6):
+        log.bboxes[k * TPF] = boxes([[k + 1, 0, k + 3, 2]])
+    frame_iou(judging, 5 * TPF, log.bboxes[5 * TPF], log.bboxes_gt[5 * TPF])
+    six = cache.lookup(6 * TPF)
+    assert six is not None and six[0] is log.bboxes[6 * TPF] and six[2].tolist() == [[1.0]]
+    assert cache.lookup(7 * TPF) is seven
+
+
 def test_frames_judged_backwards_and_large_frames_are_scored_alone() -> None:
     """A batch stops at a frame already cached (frame 9, then 8 alone) and at a frame with
     more pairs than BATCH_PAIRS (frame 2: frames 0 and 1 only); that frame is not batched."""

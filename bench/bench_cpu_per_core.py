@@ -28,17 +28,14 @@ from __future__ import annotations
 
 import argparse
 import os
-import shutil
 import statistics
 import sys
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from bench_memory import write_frames_log
+from bench_memory import write_seed_format_log
 from timing import Timing, load_average, run_child
-
-from ads_rca.model import OPTIONAL_FOLDERS
 
 #: The reference tool's CPU time (user + system, s) on a 1,957-frame, 11-actor log, as
 #: issue #42 ("speed per core", item 1) measured it: "the corrected diagnosis costs 2.95 s
@@ -125,9 +122,7 @@ def main() -> None:
         runs = runs_on(EXAMPLE, f"example ({frames_of_example} frames)", 0, 0, scratch)
         for frames, actors in sizes:
             log = scratch / f"cruise_{frames}x{actors}"
-            write_frames_log(log, frames, actors - 1)
-            for folder in OPTIONAL_FOLDERS:  # as bench_vs_reference.py: the seed format
-                shutil.rmtree(log / folder, ignore_errors=True)
+            write_seed_format_log(log, frames, actors)
             runs += runs_on(log, f"cruise {frames}x{actors}", frames, actors, scratch)
         for round_ in range(args.repeat + 1):  # round 0 warms the file and bytecode caches
             for run in runs:

@@ -45,6 +45,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from timing import timed
+
 #: The stages of a plain run, in order.
 STAGES = ("start-up", "imports", "reading", "judging", "verdict document", "writing", "summary")
 #: The pieces of a split run (module names are added as the oracles are wrapped).
@@ -69,9 +71,8 @@ class Stages:
         found[1] += cpu
 
     def timing(self, name: str, work: Callable[[], Any]) -> Any:
-        wall, cpu = time.perf_counter(), time.process_time()
-        result = work()
-        self.add(name, time.perf_counter() - wall, time.process_time() - cpu)
+        result, took = timed(work)
+        self.add(name, took.wall_s, took.cpu_s)
         return result
 
     def wrapped(self, name: str, function: Callable[..., Any]) -> Callable[..., Any]:
@@ -201,22 +202,15 @@ def main() -> None:
         child(log, semantics, float(launched), args.split, args.out)
         return
     from bench_cpu_per_core import parse_size
-    from bench_memory import write_frames_log
+    from bench_memory import write_seed_format_log
     from timing import load_average
-
-    from ads_rca.model import OPTIONAL_FOLDERS
 
     frames, actors = parse_size(args.size)
     Path(args.dir).mkdir(parents=True, exist_ok=True)
     before = load_average()
     with tempfile.TemporaryDirectory(dir=Path(args.dir).resolve()) as tmp:
         log = Path(tmp) / f"cruise_{frames}x{actors}"
-        write_frames_log(log, frames, actors - 1)
-        for folder in OPTIONAL_FOLDERS:  # as bench_cpu_per_core.py: the seed format
-            for path in (log / folder).glob("*"):
-                path.unlink()
-            if (log / folder).exists():
-                (log / folder).rmdir()
+        write_seed_format_log(log, frames, actors)
         out = Path(tmp) / "verdict.json"
         print(
             f"one `ads-rca diagnose --workers 1 --json` in a fresh process per run, cruise "

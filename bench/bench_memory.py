@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 from timing import Timing, run_child
 
-from ads_rca.model import Boxes, RunLog
+from ads_rca.model import OPTIONAL_FOLDERS, Boxes, RunLog
 from ads_rca.sources.log.writer import write_run_log
 from ads_rca.synth import synthesise
 
@@ -59,6 +59,15 @@ def write_boxes_log(folder: Path, boxes: int) -> None:
 def write_frames_log(folder: Path, frames: int, actors: int) -> None:
     """A cruise log of ``frames`` frames whose last frame is declared the collision."""
     write_run_log(cruise_crashing_at_the_end(frames, actors), folder)
+
+
+def write_seed_format_log(folder: Path, frames: int, actors: int) -> None:
+    """:func:`write_frames_log` of ``actors`` actors, the ego among them, in the seed format
+    the reference tool reads: none of our optional folders (``detections_3d/``...), which
+    the benches against the reference tool's figures leave out."""
+    write_frames_log(folder, frames, actors - 1)
+    for optional in OPTIONAL_FOLDERS:
+        shutil.rmtree(folder / optional, ignore_errors=True)
 
 
 def size_on_disk(folder: Path) -> int:

@@ -28,17 +28,14 @@ from __future__ import annotations
 
 import argparse
 import os
-import shutil
 import statistics
 import sys
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from bench_memory import size_on_disk, write_frames_log
+from bench_memory import size_on_disk, write_seed_format_log
 from timing import Timing, run_child
-
-from ads_rca.model import OPTIONAL_FOLDERS
 
 DEFAULT_SIZES = ("1957x11", "10000x50")
 #: Both tools run as installed ones do: with their modules' bytecode cached (written by the
@@ -104,9 +101,7 @@ def one_size(frames: int, actors: int, args: argparse.Namespace) -> list[str]:
     # Absolute: the commands run in the scratch folder.
     with tempfile.TemporaryDirectory(dir=Path(args.dir).resolve()) as tmp:
         log = Path(tmp) / f"cruise_{frames}x{actors}"
-        write_frames_log(log, frames, actors - 1)
-        for folder in OPTIONAL_FOLDERS:  # the seed format has none (the reference reads none)
-            shutil.rmtree(log / folder, ignore_errors=True)
+        write_seed_format_log(log, frames, actors)
         files = sum(1 for _ in log.rglob("*.json"))
         megabytes = size_on_disk(log) / 1e6
         scratch = Path(tmp) / "scratch"
